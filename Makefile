@@ -1,0 +1,64 @@
+# Entry points of the hardware-in-the-loop CAN test rig. `make` alone lists them.
+# `make run` and `make test` install what is missing on first use (tools/deps) and are quick
+# the second time.
+
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+.SUFFIXES:
+
+PY      := .venv/bin/python
+BUILD   := build
+BENCH_BUILD := build/bench
+OUT     ?= out
+JOBS    ?= $(shell nproc)
+CMAKE_FLAGS ?=
+
+# Configure once (the cache remembers), rebuild incrementally; the protocol generator runs
+# inside the build with proper dependencies.
+define configure_and_build
+	@test -f $(1)/CMakeCache.txt || { echo "build: configuring $(1)"; \
+	  cmake -S . -B $(1) -G Ninja -DHIL_PYTHON=$(CURDIR)/$(PY) $(2) $(CMAKE_FLAGS) >/dev/null; }
+	@echo "build: compiling $(1) (incremental)"
+	@cmake --build $(1) -j $(JOBS) | { grep -v -E '^\[[0-9]+/[0-9]+\] ' || true; }; exit $${PIPESTATUS[0]}
+endef
+
+.PHONY: help
+help: ## list the targets (default)
+	@echo "Hardware-in-the-loop test rig over CAN. Targets:"
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/^([a-z-]+):.*## (.*)/  make \1\t\2/' | expand -t 20
+	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), CMAKE_FLAGS=..."
+
+.PHONY: deps
+deps: ## install missing Debian packages (root) and the pinned Python venv
+	@tools/deps
+
+.PHONY: build
+build: deps ## build the firmware, its tests and the protocol files (build/)
+	$(call configure_and_build,$(BUILD),-DCMAKE_BUILD_TYPE=RelWithDebInfo -DHIL_SANITIZE=ON -DHIL_TESTS=ON)
+	@echo "build: firmware build/bin/joint-firmware, protocol files build/protocol/board.{eds,dbc}"
+
+.PHONY: test
+test: build ## run everything: C++ tests, Python tests, bus-level scenarios
+	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests
+
+.PHONY: run
+run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary, trace
+	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/with-vcan -- $(PY) tools/run-demo.py --out $(CURDIR)/$(OUT)/demo
+
+.PHONY: bench
+bench: deps ## benchmarks, each a ratio measured side by side in one run
+	$(call configure_and_build,$(BENCH_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_BENCH=ON)
+	@echo "bench: running the firmware core benchmarks"
+	@$(BENCH_BUILD)/bin/core-bench
+
+.PHONY: vcan
+vcan: ## create vcan0 natively (needs root and a kernel with vcan)
+	@if ip link show vcan0 >/dev/null 2>&1; then echo "vcan: vcan0 already exists"; \
+	elif modprobe vcan 2>/dev/null; then \
+	  ip link add dev vcan0 type vcan && ip link set up vcan0 && echo "vcan: vcan0 created and up"; \
+	else echo "vcan: this kernel has no vcan module (or you are not root): make test and make run use the micro-VM instead (tools/with-vcan)" >&2; exit 1; fi
+
+.PHONY: clean
+clean: ## remove build/ and out/ (keeps .venv)
+	@echo "clean: removing $(BUILD)/ and $(OUT)/"
+	@rm -rf $(BUILD) $(OUT)

@@ -1,0 +1,5 @@
+import sys
+
+from boardproto.cli import main
+
+sys.exit(main())

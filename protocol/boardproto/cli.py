@@ -1,0 +1,69 @@
+"""Command line: `python -m boardproto generate --table board.toml --out-dir build/protocol`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from boardproto.cpp_header import generate_header
+from boardproto.dbc import generate_dbc
+from boardproto.eds import generate_eds
+from boardproto.loader import TableError, load_table
+from boardproto.outputs import write_if_changed
+from boardproto.table import BoardTable
+from boardproto.vectors import generate_field_vectors
+
+EXIT_BAD_INPUT = 2
+
+# Output path (relative to --out-dir) -> generator.
+OUTPUTS: dict[str, Callable[[BoardTable], str]] = {
+    "include/board/fields.hpp": generate_header,
+    "board.eds": generate_eds,
+    "board.dbc": generate_dbc,
+    "field_vectors.csv": generate_field_vectors,
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m boardproto",
+        description="Generate the board's C++ header, CANopen EDS, DBC and field vectors "
+        "from the field table (protocol/board.toml).",
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    generate = commands.add_parser(
+        "generate",
+        help="validate the table and write the generated files",
+        description="Validate the table and write, under OUT_DIR: "
+        + ", ".join(OUTPUTS)
+        + ". Files whose content is unchanged are not touched. On a bad table, "
+        "prints one error line and exits with status 2.",
+    )
+    generate.add_argument(
+        "--table", type=Path, required=True, help="the field table, e.g. protocol/board.toml"
+    )
+    generate.add_argument("--out-dir", type=Path, required=True, help="output directory, e.g. build/protocol")
+    generate.add_argument("--quiet", action="store_true", help="do not list the files that were rewritten")
+    return parser
+
+
+def generate(table_path: Path, out_dir: Path) -> list[Path]:
+    """Generate every output; returns the files that were (re)written."""
+    table = load_table(table_path)
+    texts = {out_dir / relative: make(table) for relative, make in OUTPUTS.items()}
+    return [path for path, text in texts.items() if write_if_changed(path, text)]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    arguments = _parser().parse_args(argv)
+    try:
+        written = generate(arguments.table, arguments.out_dir)
+    except TableError as error:
+        print(f"boardproto: error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if not arguments.quiet:
+        for path in written:
+            print(f"boardproto: wrote {path}")
+    return 0

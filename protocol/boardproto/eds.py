@@ -1,0 +1,322 @@
+"""Build the node's CANopen object dictionary and write it as an EDS with canopen.
+
+The EDS text is produced only by `canopen.objectdictionary.export_od`. Two things
+canopen 2.4.1 cannot express through its API are handled here, each minimally:
+
+* Node-id relative COB-IDs: the exporter writes `ODVariable.default_raw` verbatim when
+  it is set (that is how an imported "$NODEID+0x180" survives a round trip), so PDO
+  COB-IDs get `default_raw = "$NODEID+0x..."`. `canopen.RemoteNode(node_id, eds)` then
+  resolves them for whatever node id it is given.
+* [FileInfo] dates: `export_od` offers no way to pass file information, stamps
+  ModificationDate/ModificationTime with the current wall clock (the time even with
+  the month in place of the minutes), and would make every build rewrite the EDS.
+  The file information is carried in the attribute the importer uses for it, and
+  the two modification lines are replaced afterwards with the table's source date.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+from datetime import UTC, datetime
+from pathlib import Path
+
+from canopen.objectdictionary import (
+    ObjectDictionary,
+    ODArray,
+    ODRecord,
+    ODVariable,
+    export_od,
+)
+
+from boardproto.cpp_header import GENERATED_BANNER
+from boardproto.table import PDO_NOT_VALID, BoardTable, DataType, Field, HilIo, Pdo
+
+# StorageLocation values (a CANopenNode convention; CiA 306 leaves the key free):
+# stored fields survive a reset once 0x1010 sub 1 was written, the rest do not.
+STORAGE_PERSISTENT = "PERSIST"
+STORAGE_VOLATILE = "RAM"
+
+# 0x1010 / 0x1011 sub 1 read value: bit 0 = the device saves/restores on command.
+SAVES_ON_COMMAND = 0x0000_0001
+SYNC_COB_ID = 0x80
+PDO_COMMUNICATION_SUBINDICES = 5  # sub 1 COB-ID, 2 type, 3 inhibit, (4 reserved), 5 event timer
+SUPPORTED_BITRATES = frozenset({125_000, 250_000, 500_000, 1_000_000})
+
+
+def _variable(
+    name: str,
+    index: int,
+    subindex: int,
+    data_type: DataType,
+    access: str,
+    default: float | str | None,
+    *,
+    pdo_mappable: bool = False,
+) -> ODVariable:
+    variable = ODVariable(name, index, subindex)
+    variable.data_type = int(data_type)
+    variable.access_type = access
+    variable.default = default
+    variable.pdo_mappable = pdo_mappable
+    return variable
+
+
+def _array(
+    name: str, index: int, count_name: str, count: int, count_access: str, members: list[ODVariable]
+) -> ODArray:
+    array = ODArray(name, index)
+    array.add_member(_variable(count_name, index, 0, DataType.UNSIGNED8, count_access, count))
+    for member in members:
+        array.add_member(member)
+    return array
+
+
+def _field_variable(field: Field) -> ODVariable:
+    variable = _variable(
+        field.name,
+        field.index,
+        0,
+        DataType.REAL32,
+        field.access.value,
+        field.default,
+        pdo_mappable=True,
+    )
+    variable.min = field.min
+    variable.max = field.max
+    variable.unit = field.unit
+    variable.description = field.description
+    variable.storage_location = STORAGE_PERSISTENT if field.stored else STORAGE_VOLATILE
+    return variable
+
+
+def _io_variable(io_object: HilIo) -> ODVariable:
+    # Raw registers start at 0, or at the nearest end of their range if 0 is outside it.
+    default = min(max(0, io_object.min), io_object.max)
+    variable = _variable(
+        io_object.name,
+        io_object.index,
+        0,
+        io_object.data_type,
+        io_object.access.value,
+        default,
+        pdo_mappable=True,
+    )
+    variable.min = io_object.min
+    variable.max = io_object.max
+    variable.unit = io_object.unit
+    variable.description = io_object.description
+    variable.storage_location = STORAGE_VOLATILE
+    return variable
+
+
+def _pdo_records(pdo: Pdo, default_node_id: int) -> tuple[ODRecord, ODRecord]:
+    communication = ODRecord(f"{pdo.name} communication parameter", pdo.communication_index)
+    index = pdo.communication_index
+    communication.add_member(
+        _variable(
+            "Highest sub-index supported",
+            index,
+            0,
+            DataType.UNSIGNED8,
+            "ro",
+            PDO_COMMUNICATION_SUBINDICES,
+        )
+    )
+    cob_id = _variable(
+        f"COB-ID used by {pdo.direction.value.upper()}",
+        index,
+        1,
+        DataType.UNSIGNED32,
+        "rw",
+        pdo.cob_id_value(default_node_id),
+    )
+    # Written verbatim by the exporter; resolved per node id by import_od / RemoteNode.
+    flag = PDO_NOT_VALID if not pdo.enabled else 0
+    cob_id.default_raw = f"$NODEID+0x{pdo.cob_id_base | flag:X}"
+    cob_id.relative = True
+    communication.add_member(cob_id)
+    communication.add_member(
+        _variable("Transmission type", index, 2, DataType.UNSIGNED8, "rw", pdo.transmission_type)
+    )
+    communication.add_member(
+        _variable("Inhibit time", index, 3, DataType.UNSIGNED16, "rw", pdo.inhibit_time_100us)
+    )
+    communication.add_member(
+        _variable("Event timer", index, 5, DataType.UNSIGNED16, "rw", pdo.event_timer_ms)
+    )
+
+    mapping = ODRecord(f"{pdo.name} mapping parameter", pdo.mapping_index)
+    index = pdo.mapping_index
+    mapping.add_member(
+        _variable("Number of mapped objects", index, 0, DataType.UNSIGNED8, "rw", len(pdo.entries))
+    )
+    values = [entry.mapping_value for entry in pdo.entries]
+    values += [0] * (8 - len(values))
+    for subindex, value in enumerate(values, start=1):
+        mapping.add_member(
+            _variable(f"Mapped object {subindex}", index, subindex, DataType.UNSIGNED32, "rw", value)
+        )
+    return communication, mapping
+
+
+def _add_communication_objects(od: ObjectDictionary, table: BoardTable) -> None:
+    node = table.node
+    od.add_object(_variable("Device type", 0x1000, 0, DataType.UNSIGNED32, "ro", node.device_type))
+    od.add_object(_variable("Error register", 0x1001, 0, DataType.UNSIGNED8, "ro", 0, pdo_mappable=True))
+    od.add_object(
+        _array(
+            "Pre-defined error field",
+            0x1003,
+            "Number of errors",
+            0,
+            "rw",
+            [
+                _variable(f"Standard error field {n}", 0x1003, n, DataType.UNSIGNED32, "ro", 0)
+                for n in range(1, node.error_history_length + 1)
+            ],
+        )
+    )
+    od.add_object(_variable("COB-ID SYNC", 0x1005, 0, DataType.UNSIGNED32, "rw", SYNC_COB_ID))
+    od.add_object(
+        _variable(
+            "Manufacturer device name",
+            0x1008,
+            0,
+            DataType.VISIBLE_STRING,
+            "const",
+            node.device_name,
+        )
+    )
+    od.add_object(
+        _variable(
+            "Manufacturer hardware version",
+            0x1009,
+            0,
+            DataType.VISIBLE_STRING,
+            "const",
+            node.hardware_version,
+        )
+    )
+    od.add_object(
+        _variable(
+            "Manufacturer software version",
+            0x100A,
+            0,
+            DataType.VISIBLE_STRING,
+            "const",
+            node.software_version,
+        )
+    )
+    od.add_object(
+        _array(
+            "Store parameters",
+            0x1010,
+            "Highest sub-index supported",
+            1,
+            "ro",
+            [_variable("Save all parameters", 0x1010, 1, DataType.UNSIGNED32, "rw", SAVES_ON_COMMAND)],
+        )
+    )
+    od.add_object(
+        _array(
+            "Restore default parameters",
+            0x1011,
+            "Highest sub-index supported",
+            1,
+            "ro",
+            [
+                _variable(
+                    "Restore all default parameters",
+                    0x1011,
+                    1,
+                    DataType.UNSIGNED32,
+                    "rw",
+                    SAVES_ON_COMMAND,
+                )
+            ],
+        )
+    )
+    od.add_object(
+        _variable("Producer heartbeat time", 0x1017, 0, DataType.UNSIGNED16, "rw", node.heartbeat_ms)
+    )
+    identity = ODRecord("Identity object", 0x1018)
+    for subindex, name, value in (
+        (0, "Highest sub-index supported", 4),
+        (1, "Vendor-ID", node.vendor_id),
+        (2, "Product code", node.product_code),
+        (3, "Revision number", node.revision),
+        (4, "Serial number", 0),
+    ):
+        data_type = DataType.UNSIGNED8 if subindex == 0 else DataType.UNSIGNED32
+        identity.add_member(_variable(name, 0x1018, subindex, data_type, "ro", value))
+    od.add_object(identity)
+
+    for pdo in table.pdos:
+        for record in _pdo_records(pdo, node.default_node_id):
+            od.add_object(record)
+
+
+def build_object_dictionary(table: BoardTable) -> ObjectDictionary:
+    """The node's whole object dictionary, as the firmware implements it."""
+    od = ObjectDictionary()
+    info = od.device_information
+    info.vendor_name = "hil-rig"
+    info.vendor_number = table.node.vendor_id
+    info.product_name = table.node.device_name
+    info.product_number = table.node.product_code
+    info.revision_number = table.node.revision
+    info.order_code = ""
+    info.allowed_baudrates = set(SUPPORTED_BITRATES)
+    info.simple_boot_up_master = False
+    info.simple_boot_up_slave = True
+    info.granularity = 8  # objects are mapped in whole bytes or more
+    info.dynamic_channels_supported = False
+    info.group_messaging = False
+    info.nr_of_RXPDO = len(table.rpdos)
+    info.nr_of_TXPDO = len(table.tpdos)
+    info.LSS_supported = False
+    od.comments = GENERATED_BANNER.removeprefix("// ")
+
+    _add_communication_objects(od, table)
+    for field in table.fields:
+        od.add_object(_field_variable(field))
+    for io_object in (*table.hil_inputs, *table.hil_outputs):
+        od.add_object(_io_variable(io_object))
+    return od
+
+
+def source_date(table: BoardTable) -> datetime:
+    """SOURCE_DATE_EPOCH when set (reproducible builds), else board.toml's mtime."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    if epoch is not None and epoch.isdigit():
+        return datetime.fromtimestamp(int(epoch), tz=UTC)
+    return datetime.fromtimestamp(Path(table.source).stat().st_mtime, tz=UTC)
+
+
+def generate_eds(table: BoardTable) -> str:
+    """The EDS text, written by canopen's exporter."""
+    od = build_object_dictionary(table)
+    stamp = source_date(table)
+    eds_date, eds_time = stamp.strftime("%m-%d-%Y"), stamp.strftime("%I:%M%p")
+    file_info = {
+        "FileName": "board.eds",
+        "FileVersion": 1,
+        "FileRevision": 0,
+        "EdsVersion": "4.0",
+        "Description": f"{table.node.device_name}: board fields and HIL I/O",
+        "CreationDate": eds_date,
+        "CreationTime": eds_time,
+        "CreatedBy": "protocol/boardproto",
+        "ModifiedBy": "protocol/boardproto",
+    }
+    # The attribute import_eds() fills from [FileInfo] and export_eds() reads back.
+    # setattr spells the name literally: a dunder-prefixed attribute is easy to break by
+    # moving this line into a class, where Python would mangle it.
+    setattr(od, "__edsFileInfo", file_info)
+    buffer = io.StringIO()
+    export_od(od, buffer, doc_type="eds")
+    text = buffer.getvalue()
+    text = re.sub(r"(?m)^ModificationDate=.*$", f"ModificationDate={eds_date}", text, count=1)
+    return re.sub(r"(?m)^ModificationTime=.*$", f"ModificationTime={eds_time}", text, count=1)

@@ -1,0 +1,564 @@
+"""Load board.toml and validate it into a `BoardTable`.
+
+Every problem raises `TableError` with a message of the form
+"<file>: <what> '<name>': <problem>", so one line on stderr says where to look.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+from boardproto.table import (
+    HIL_IO_TYPES,
+    Access,
+    BoardTable,
+    Field,
+    HilIo,
+    IoDirection,
+    Kind,
+    NodeIdentity,
+    ObjectEntry,
+    Pdo,
+    PdoDirection,
+    PdoEntry,
+    unknown_name_message,
+)
+
+_Choice = TypeVar("_Choice", Kind, Access)
+
+
+class TableError(ValueError):
+    """board.toml is malformed or inconsistent; the message names file, entry and problem."""
+
+
+MANUFACTURER_RANGE = range(0x2000, 0x6000)
+MAX_PDO_BITS = 64  # classic CAN: 8 data bytes
+MAX_PDO_ENTRIES = 8
+MAX_PDO_SLOTS = 512  # CiA 301: 0x1400..0x15FF, 0x1800..0x19FF
+MAX_NODE_ID = 127
+FLOAT32_MAX = 3.4028234663852886e38
+
+_SNAKE_CASE = re.compile(r"[a-z][a-z0-9]*(?:_[a-z0-9]+)*")
+# Printable ASCII without space, comma or quotes: units go into C++ strings, CSV and DBC.
+_UNIT = re.compile(r"[!#-&(-+\--~]+")
+# C++ keywords that are valid snake_case: as enumerator names they would not compile.
+_CPP_KEYWORDS = frozenset(
+    {
+        "alignas",
+        "alignof",
+        "and",
+        "and_eq",
+        "asm",
+        "auto",
+        "bitand",
+        "bitor",
+        "bool",
+        "break",
+        "case",
+        "catch",
+        "char",
+        "char8_t",
+        "char16_t",
+        "char32_t",
+        "class",
+        "compl",
+        "concept",
+        "const",
+        "consteval",
+        "constexpr",
+        "constinit",
+        "const_cast",
+        "continue",
+        "co_await",
+        "co_return",
+        "co_yield",
+        "decltype",
+        "default",
+        "delete",
+        "do",
+        "double",
+        "dynamic_cast",
+        "else",
+        "enum",
+        "explicit",
+        "export",
+        "extern",
+        "false",
+        "float",
+        "for",
+        "friend",
+        "goto",
+        "if",
+        "inline",
+        "int",
+        "long",
+        "mutable",
+        "namespace",
+        "new",
+        "noexcept",
+        "not",
+        "not_eq",
+        "nullptr",
+        "operator",
+        "or",
+        "or_eq",
+        "private",
+        "protected",
+        "public",
+        "register",
+        "reinterpret_cast",
+        "requires",
+        "return",
+        "short",
+        "signed",
+        "sizeof",
+        "static",
+        "static_assert",
+        "static_cast",
+        "struct",
+        "switch",
+        "template",
+        "this",
+        "thread_local",
+        "throw",
+        "true",
+        "try",
+        "typedef",
+        "typeid",
+        "typename",
+        "union",
+        "unsigned",
+        "using",
+        "virtual",
+        "void",
+        "volatile",
+        "wchar_t",
+        "while",
+        "xor",
+        "xor_eq",
+    }
+)
+# Transmission types CiA 301 defines for both directions (241..251 are reserved,
+# 252/253 are RTR-only TPDO types the firmware does not implement).
+_TRANSMISSION_TYPES = frozenset((*range(0, 241), 254, 255))
+
+_TOP_LEVEL_KEYS = frozenset({"node", "field", "hil_input", "hil_output", "pdo", "rpdo", "tpdo"})
+_NODE_KEYS = frozenset(
+    {
+        "device_type",
+        "vendor_id",
+        "product_code",
+        "revision",
+        "device_name",
+        "hardware_version",
+        "software_version",
+        "default_node_id",
+        "heartbeat_ms",
+        "error_history_length",
+    }
+)
+_FIELD_KEYS = frozenset(
+    {"name", "index", "unit", "kind", "access", "min", "max", "default", "stored", "description"}
+)
+_HIL_IO_KEYS = frozenset({"name", "index", "type", "min", "max", "unit", "description"})
+_PDO_SLOT_KEYS = frozenset({"rpdo_slots", "tpdo_slots"})
+_PDO_REQUIRED_KEYS = frozenset({"number", "transmission_type", "map"})
+_PDO_OPTIONAL_KEYS = frozenset({"enabled", "inhibit_time_100us", "event_timer_ms", "cob_id_base"})
+
+
+class _Entry:
+    """One table of board.toml being read, with error messages that say which one."""
+
+    def __init__(self, source: Path, what: str, data: Any) -> None:
+        self.source = source
+        self.what = what
+        if not isinstance(data, Mapping):
+            raise self.error(f"expected a table, got {type(data).__name__}")
+        self.data: Mapping[str, Any] = data
+
+    def error(self, problem: str) -> TableError:
+        return TableError(f"{self.source}: {self.what}: {problem}")
+
+    def check_keys(self, required: frozenset[str], optional: frozenset[str] = frozenset()) -> None:
+        allowed = required | optional
+        for key in self.data:
+            if key not in allowed:
+                raise self.error(
+                    unknown_name_message("key", key, sorted(allowed)).replace("no key named", "unknown key")
+                )
+        missing = sorted(required - self.data.keys())
+        if missing:
+            raise self.error(f"missing key{'s' if len(missing) > 1 else ''} {', '.join(missing)}")
+
+    def integer(self, key: str, low: int, high: int, default: int | None = None) -> int:
+        value = self.data.get(key, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(f"{key} must be an integer, got {value!r}")
+        if not low <= value <= high:
+            raise self.error(f"{key} {_hex_or_int(value)} outside {_hex_or_int(low)}..{_hex_or_int(high)}")
+        return value
+
+    def real(self, key: str) -> float:
+        value = self.data[key]
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.error(f"{key} must be a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value) or abs(value) > FLOAT32_MAX:
+            raise self.error(f"{key} {value!r} is not a finite 32-bit float")
+        return value
+
+    def boolean(self, key: str, default: bool | None = None) -> bool:
+        value = self.data.get(key, default)
+        if not isinstance(value, bool):
+            raise self.error(f"{key} must be true or false, got {value!r}")
+        return value
+
+    def text(self, key: str, *, allow_empty: bool = False) -> str:
+        value = self.data[key]
+        if not isinstance(value, str):
+            raise self.error(f"{key} must be a string, got {value!r}")
+        if not allow_empty and not value:
+            raise self.error(f"{key} must not be empty")
+        if not all(" " <= ch <= "~" for ch in value):
+            raise self.error(f"{key} must be one line of printable ASCII, got {value!r}")
+        return value
+
+    def unit(self) -> str:
+        value = self.text("unit")
+        if not _UNIT.fullmatch(value):
+            raise self.error(f"unit {value!r} must not contain spaces, commas or quotes")
+        return value
+
+    def choice(self, key: str, enum_type: type[_Choice]) -> _Choice:
+        value = self.text(key)
+        try:
+            return enum_type(value)
+        except ValueError:
+            allowed = ", ".join(member.value for member in enum_type)
+            raise self.error(f"unknown {key} {value!r} (one of: {allowed})") from None
+
+
+def _hex_or_int(value: int) -> str:
+    return f"0x{value:X}" if value >= 0x100 else str(value)
+
+
+def _check_name(entry: _Entry) -> str:
+    name = entry.text("name")
+    if not _SNAKE_CASE.fullmatch(name):
+        raise entry.error(f"name {name!r} is not snake_case (lower-case words joined by _)")
+    if name in _CPP_KEYWORDS:
+        raise entry.error(f"name {name!r} is a C++ keyword")
+    return name
+
+
+def _entry_label(kind: str, position: int, data: Any) -> str:
+    name = data.get("name") if isinstance(data, Mapping) else None
+    return f"{kind} {name!r}" if isinstance(name, str) else f"{kind} #{position + 1}"
+
+
+def _array_of_tables(source: Path, document: Mapping[str, Any], key: str) -> list[Any]:
+    value = document.get(key, [])
+    if not isinstance(value, list):
+        raise TableError(f"{source}: {key} must be an array of tables ([[{key}]])")
+    return value
+
+
+def _load_node(source: Path, data: Any) -> NodeIdentity:
+    entry = _Entry(source, "node", data)
+    entry.check_keys(_NODE_KEYS)
+    u32 = 0xFFFF_FFFF
+    return NodeIdentity(
+        device_type=entry.integer("device_type", 0, u32),
+        vendor_id=entry.integer("vendor_id", 0, u32),
+        product_code=entry.integer("product_code", 0, u32),
+        revision=entry.integer("revision", 0, u32),
+        device_name=entry.text("device_name"),
+        hardware_version=entry.text("hardware_version"),
+        software_version=entry.text("software_version"),
+        default_node_id=entry.integer("default_node_id", 1, MAX_NODE_ID),
+        heartbeat_ms=entry.integer("heartbeat_ms", 0, 0xFFFF),
+        # 0x1003 sub 0 is an UNSIGNED8 count; 254 is the largest useful sub-index.
+        error_history_length=entry.integer("error_history_length", 1, 254),
+    )
+
+
+def _load_field(source: Path, position: int, data: Any) -> Field:
+    entry = _Entry(source, _entry_label("field", position, data), data)
+    entry.check_keys(_FIELD_KEYS)
+    name = _check_name(entry)
+    index = entry.integer("index", 0, 0xFFFF)
+    kind = entry.choice("kind", Kind)
+    access = entry.choice("access", Access)
+    low, high, default = entry.real("min"), entry.real("max"), entry.real("default")
+    stored = entry.boolean("stored")
+    if low > high:
+        raise entry.error(f"min {low!r} is greater than max {high!r}")
+    if not low <= default <= high:
+        raise entry.error(f"default {default!r} outside [{low!r}, {high!r}]")
+    # Bus-written fields are owned by the CANopen node; a second writer would be a
+    # start-up error in the firmware, so refuse the table instead.
+    expected_access = Access.READ_WRITE if kind.bus_writable else Access.READ_ONLY
+    if access is not expected_access:
+        raise entry.error(
+            f"a {kind.value} field must have access {expected_access.value!r}, got {access.value!r}"
+        )
+    if stored and access is not Access.READ_WRITE:
+        raise entry.error("only rw fields can be stored (a ro field is recomputed by firmware)")
+    return Field(
+        name=name,
+        index=index,
+        unit=entry.unit(),
+        kind=kind,
+        access=access,
+        min=low,
+        max=high,
+        default=default,
+        stored=stored,
+        description=entry.text("description"),
+    )
+
+
+def _load_hil_io(source: Path, direction: IoDirection, position: int, data: Any) -> HilIo:
+    entry = _Entry(source, _entry_label(f"hil_{direction.value}", position, data), data)
+    entry.check_keys(_HIL_IO_KEYS)
+    name = _check_name(entry)
+    index = entry.integer("index", 0, 0xFFFF)
+    type_name = entry.text("type")
+    types = {t.toml_name: t for t in HIL_IO_TYPES}
+    if type_name not in types:
+        raise entry.error(f"unknown type {type_name!r} (one of: {', '.join(types)})")
+    data_type = types[type_name]
+    type_low, type_high = data_type.integer_range
+    low = entry.integer("min", type_low, type_high)
+    high = entry.integer("max", type_low, type_high)
+    if low > high:
+        raise entry.error(f"min {low} is greater than max {high}")
+    return HilIo(
+        name=name,
+        index=index,
+        data_type=data_type,
+        min=low,
+        max=high,
+        unit=entry.unit(),
+        description=entry.text("description"),
+        direction=direction,
+    )
+
+
+def _check_unique(source: Path, entries: list[ObjectEntry]) -> None:
+    by_name: dict[str, ObjectEntry] = {}
+    by_index: dict[int, ObjectEntry] = {}
+    for entry in entries:
+        what = "field" if isinstance(entry, Field) else f"hil_{entry.direction.value}"
+        if entry.name in by_name:
+            raise TableError(f"{source}: {what} {entry.name!r}: duplicate name")
+        if entry.index in by_index:
+            raise TableError(
+                f"{source}: {what} {entry.name!r}: index 0x{entry.index:04X} "
+                f"already used by {by_index[entry.index].name!r}"
+            )
+        if entry.index not in MANUFACTURER_RANGE:
+            raise TableError(
+                f"{source}: {what} {entry.name!r}: index 0x{entry.index:04X} "
+                "outside the manufacturer range 0x2000..0x5FFF"
+            )
+        by_name[entry.name] = entry
+        by_index[entry.index] = entry
+
+
+def default_cob_id_base(direction: PdoDirection, number: int) -> int | None:
+    """CiA 301 pre-defined connection set for PDO 1..4, and the same + 0x40 for 5..8
+    (a common extension; there is no standard default beyond PDO 4)."""
+    if not 1 <= number <= 8:
+        return None
+    block, step = divmod(number - 1, 4)
+    return direction.predefined_cob_id_base + 0x100 * step + 0x40 * block
+
+
+def _load_pdos(
+    source: Path,
+    document: Mapping[str, Any],
+    direction: PdoDirection,
+    slot_count: int,
+    entries_by_name: Mapping[str, ObjectEntry],
+) -> tuple[Pdo, ...]:
+    label = direction.value.upper()
+    configured: dict[int, Pdo] = {}
+    for position, data in enumerate(_array_of_tables(source, document, direction.value)):
+        number_hint = data.get("number") if isinstance(data, Mapping) else None
+        what = (
+            f"{label}{number_hint}"
+            if isinstance(number_hint, int)
+            else (f"{direction.value} #{position + 1}")
+        )
+        entry = _Entry(source, what, data)
+        entry.check_keys(_PDO_REQUIRED_KEYS, _PDO_OPTIONAL_KEYS)
+        if slot_count == 0:
+            raise entry.error(f"the node has no {label} slots ([pdo] {direction.value}_slots = 0)")
+        number = entry.integer("number", 1, slot_count)
+        if number in configured:
+            raise entry.error(f"{label}{number} is configured twice")
+        pdo = _load_pdo(entry, direction, number, entries_by_name)
+        configured[number] = pdo
+
+    slots = []
+    for number in range(1, slot_count + 1):
+        if number in configured:
+            slots.append(configured[number])
+            continue
+        base = default_cob_id_base(direction, number)
+        slots.append(
+            Pdo(
+                direction=direction,
+                number=number,
+                cob_id_base=base or 0,
+                enabled=False,
+                transmission_type=255,
+                inhibit_time_100us=0,
+                event_timer_ms=0,
+                entries=(),
+            )
+        )
+    _check_cob_id_collisions(source, slots)
+    return tuple(slots)
+
+
+def _load_pdo(
+    entry: _Entry, direction: PdoDirection, number: int, entries_by_name: Mapping[str, ObjectEntry]
+) -> Pdo:
+    transmission_type = entry.integer("transmission_type", 0, 255)
+    if transmission_type not in _TRANSMISSION_TYPES:
+        raise entry.error(
+            f"transmission_type {transmission_type} is not supported "
+            "(0..240 synchronous, 254/255 event driven)"
+        )
+    enabled = entry.boolean("enabled", default=True)
+    default_base = default_cob_id_base(direction, number)
+    if "cob_id_base" not in entry.data and default_base is None:
+        raise entry.error(f"{direction.value.upper()}{number} has no default COB-ID: set cob_id_base")
+    # The largest COB-ID (base + node id 127) must still be an 11-bit identifier.
+    cob_id_base = entry.integer("cob_id_base", 1, 0x7FF - MAX_NODE_ID, default=default_base)
+
+    names = entry.data["map"]
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise entry.error("map must be a list of object names")
+    if len(names) > MAX_PDO_ENTRIES:
+        raise entry.error(f"maps {len(names)} objects, at most {MAX_PDO_ENTRIES} fit")
+    mapped: list[PdoEntry] = []
+    for name in names:
+        if name not in entries_by_name:
+            raise entry.error(
+                "maps an unknown object: "
+                + unknown_name_message("board field or HIL I/O object", name, entries_by_name)
+            )
+        if any(m.name == name for m in mapped):
+            raise entry.error(f"maps {name!r} twice")
+        target = entries_by_name[name]
+        if direction is PdoDirection.RPDO and target.access is not Access.READ_WRITE:
+            raise entry.error(
+                f"maps {name!r}, which is read-only over the bus; an RPDO can only write rw objects"
+            )
+        mapped.append(PdoEntry(name=name, index=target.index, subindex=target.subindex, bits=target.bits))
+    total_bits = sum(m.bits for m in mapped)
+    if total_bits > MAX_PDO_BITS:
+        raise entry.error(
+            f"mapping is {total_bits} bits long, a PDO holds at most {MAX_PDO_BITS} bits (8 bytes)"
+        )
+    return Pdo(
+        direction=direction,
+        number=number,
+        cob_id_base=cob_id_base,
+        enabled=enabled,
+        transmission_type=transmission_type,
+        inhibit_time_100us=entry.integer("inhibit_time_100us", 0, 0xFFFF, default=0),
+        event_timer_ms=entry.integer("event_timer_ms", 0, 0xFFFF, default=0),
+        entries=tuple(mapped),
+    )
+
+
+def _check_cob_id_collisions(source: Path, slots: list[Pdo]) -> None:
+    seen: dict[int, Pdo] = {}
+    for pdo in slots:
+        if not pdo.enabled:
+            continue
+        if pdo.cob_id_base in seen:
+            raise TableError(
+                f"{source}: {pdo.name}: COB-ID base 0x{pdo.cob_id_base:X} "
+                f"already used by {seen[pdo.cob_id_base].name}"
+            )
+        seen[pdo.cob_id_base] = pdo
+
+
+def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
+    """Validate an already parsed TOML document; `source` only names it in errors."""
+    for key in document:
+        if key not in _TOP_LEVEL_KEYS:
+            raise TableError(
+                f"{source}: "
+                + unknown_name_message("top-level table", key, sorted(_TOP_LEVEL_KEYS)).replace(
+                    "no top-level table named", "unknown top-level table"
+                )
+            )
+    if "node" not in document:
+        raise TableError(f"{source}: missing [node] table")
+
+    node = _load_node(source, document["node"])
+    fields = [_load_field(source, i, d) for i, d in enumerate(_array_of_tables(source, document, "field"))]
+    if not fields:
+        raise TableError(f"{source}: defines no [[field]]")
+    inputs = [
+        _load_hil_io(source, IoDirection.INPUT, i, d)
+        for i, d in enumerate(_array_of_tables(source, document, "hil_input"))
+    ]
+    outputs = [
+        _load_hil_io(source, IoDirection.OUTPUT, i, d)
+        for i, d in enumerate(_array_of_tables(source, document, "hil_output"))
+    ]
+    all_entries: list[ObjectEntry] = [*fields, *inputs, *outputs]
+    _check_unique(source, all_entries)
+    entries_by_name = {e.name: e for e in all_entries}
+
+    pdo_section = _Entry(source, "pdo", document.get("pdo", {}))
+    pdo_section.check_keys(_PDO_SLOT_KEYS)
+    rpdos = _load_pdos(
+        source,
+        document,
+        PdoDirection.RPDO,
+        pdo_section.integer("rpdo_slots", 0, MAX_PDO_SLOTS),
+        entries_by_name,
+    )
+    tpdos = _load_pdos(
+        source,
+        document,
+        PdoDirection.TPDO,
+        pdo_section.integer("tpdo_slots", 0, MAX_PDO_SLOTS),
+        entries_by_name,
+    )
+
+    return BoardTable(
+        source=source,
+        node=node,
+        fields=tuple(fields),
+        hil_inputs=tuple(inputs),
+        hil_outputs=tuple(outputs),
+        rpdos=rpdos,
+        tpdos=tpdos,
+    )
+
+
+def load_table(path: str | Path) -> BoardTable:
+    """Read and validate board.toml. Raises TableError (a ValueError) on any problem."""
+    source = Path(path)
+    try:
+        with source.open("rb") as file:
+            document = tomllib.load(file)
+    except OSError as error:
+        raise TableError(f"{source}: cannot read: {error.strerror}") from error
+    except tomllib.TOMLDecodeError as error:
+        raise TableError(f"{source}: not valid TOML: {error}") from error
+    return parse_table(source, document)

@@ -1,0 +1,357 @@
+"""The parsed board table: frozen dataclasses the generators and the rig read.
+
+Nothing here parses TOML; `boardproto.loader.load_table` builds these objects and
+guarantees their invariants (unique names and indices, ranges, PDO sizes).
+"""
+
+from __future__ import annotations
+
+import difflib
+import enum
+from collections.abc import Iterable
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import TypeVar
+
+_T = TypeVar("_T")
+
+FIELD_BITS = 32  # every board field is a REAL32
+
+
+class Kind(enum.StrEnum):
+    """Component kind that writes a field; values are the spelling in board.toml."""
+
+    SENSOR = "sensor"
+    VIRTUAL_SENSOR = "virtual_sensor"
+    MODULE = "module"
+    ACTUATOR = "actuator"
+    COMMAND = "command"
+    PARAMETER = "parameter"
+
+    @property
+    def cpp_name(self) -> str:
+        return "".join(part.capitalize() for part in self.value.split("_"))
+
+    @property
+    def bus_writable(self) -> bool:
+        """Commands and parameters are owned by the CANopen node; the rest by firmware."""
+        return self in (Kind.COMMAND, Kind.PARAMETER)
+
+
+class Access(enum.StrEnum):
+    """Access over the bus; values are the spelling in board.toml and in the EDS."""
+
+    READ_ONLY = "ro"
+    READ_WRITE = "rw"
+
+    @property
+    def cpp_name(self) -> str:
+        return "ReadOnly" if self is Access.READ_ONLY else "ReadWrite"
+
+
+class DataType(enum.IntEnum):
+    """CiA 301 data types the board uses; values ARE the CiA 301 data type codes."""
+
+    BOOLEAN = 0x0001
+    INTEGER8 = 0x0002
+    INTEGER16 = 0x0003
+    INTEGER32 = 0x0004
+    UNSIGNED8 = 0x0005
+    UNSIGNED16 = 0x0006
+    UNSIGNED32 = 0x0007
+    REAL32 = 0x0008
+    VISIBLE_STRING = 0x0009
+
+    @property
+    def toml_name(self) -> str:
+        return self.name.lower()
+
+    @property
+    def cpp_name(self) -> str:
+        return "".join(part.capitalize() for part in self.name.split("_"))
+
+    @property
+    def bits(self) -> int:
+        return _BITS[self]
+
+    @property
+    def is_signed(self) -> bool:
+        return self in (DataType.INTEGER8, DataType.INTEGER16, DataType.INTEGER32)
+
+    @property
+    def integer_range(self) -> tuple[int, int]:
+        """Smallest and largest value of an integer type (BOOLEAN is 0..1)."""
+        if self is DataType.BOOLEAN:
+            return 0, 1
+        if self.is_signed:
+            return -(1 << (self.bits - 1)), (1 << (self.bits - 1)) - 1
+        return 0, (1 << self.bits) - 1
+
+
+_BITS = {
+    DataType.BOOLEAN: 1,
+    DataType.INTEGER8: 8,
+    DataType.INTEGER16: 16,
+    DataType.INTEGER32: 32,
+    DataType.UNSIGNED8: 8,
+    DataType.UNSIGNED16: 16,
+    DataType.UNSIGNED32: 32,
+    DataType.REAL32: 32,
+    DataType.VISIBLE_STRING: 0,
+}
+
+# Integer types a HIL I/O object may have (what real hardware registers give).
+HIL_IO_TYPES = (
+    DataType.BOOLEAN,
+    DataType.INTEGER8,
+    DataType.INTEGER16,
+    DataType.INTEGER32,
+    DataType.UNSIGNED8,
+    DataType.UNSIGNED16,
+    DataType.UNSIGNED32,
+)
+
+
+@dataclass(frozen=True)
+class Field:
+    """A board field: a REAL32 object at (index, 0) in the manufacturer range."""
+
+    name: str
+    index: int
+    unit: str
+    kind: Kind
+    access: Access
+    min: float
+    max: float
+    default: float
+    stored: bool
+    description: str
+
+    subindex = 0
+    data_type = DataType.REAL32
+
+    @property
+    def bits(self) -> int:
+        return FIELD_BITS
+
+
+class IoDirection(enum.StrEnum):
+    INPUT = "input"  # raw sensor value the rig injects (RPDO), bus-writable
+    OUTPUT = "output"  # raw actuator value the firmware sends (TPDO), read-only
+
+
+@dataclass(frozen=True)
+class HilIo:
+    """A hardware-in-the-loop I/O object: a raw driver register, not a board field."""
+
+    name: str
+    index: int
+    data_type: DataType
+    min: int
+    max: int
+    unit: str
+    description: str
+    direction: IoDirection
+
+    subindex = 0
+
+    @property
+    def bits(self) -> int:
+        return self.data_type.bits
+
+    @property
+    def access(self) -> Access:
+        return Access.READ_WRITE if self.direction is IoDirection.INPUT else Access.READ_ONLY
+
+
+ObjectEntry = Field | HilIo
+
+
+@dataclass(frozen=True)
+class NodeIdentity:
+    device_type: int
+    vendor_id: int
+    product_code: int
+    revision: int
+    device_name: str
+    hardware_version: str
+    software_version: str
+    default_node_id: int
+    heartbeat_ms: int
+    error_history_length: int
+
+
+class PdoDirection(enum.StrEnum):
+    RPDO = "rpdo"  # received by the node
+    TPDO = "tpdo"  # transmitted by the node
+
+    @property
+    def communication_index(self) -> int:
+        """Index of PDO 1's communication parameter record (0x1400 / 0x1800)."""
+        return 0x1400 if self is PdoDirection.RPDO else 0x1800
+
+    @property
+    def mapping_index(self) -> int:
+        """Index of PDO 1's mapping parameter record (0x1600 / 0x1A00)."""
+        return 0x1600 if self is PdoDirection.RPDO else 0x1A00
+
+    @property
+    def predefined_cob_id_base(self) -> int:
+        """CiA 301 pre-defined connection set base of PDO 1 (0x200 / 0x180)."""
+        return 0x200 if self is PdoDirection.RPDO else 0x180
+
+
+@dataclass(frozen=True)
+class PdoEntry:
+    """One mapped object of a PDO: (index, subindex, bits) plus the object's name."""
+
+    name: str
+    index: int
+    subindex: int
+    bits: int
+
+    @property
+    def mapping_value(self) -> int:
+        """The UNSIGNED32 written to a mapping sub-index (CiA 301: index, sub, length)."""
+        return (self.index << 16) | (self.subindex << 8) | self.bits
+
+
+PDO_NOT_VALID = 0x8000_0000  # COB-ID bit 31: PDO disabled
+
+
+@dataclass(frozen=True)
+class Pdo:
+    """The default configuration of one PDO slot."""
+
+    direction: PdoDirection
+    number: int  # 1-based
+    cob_id_base: int  # COB-ID = cob_id_base + node id
+    enabled: bool
+    transmission_type: int
+    inhibit_time_100us: int
+    event_timer_ms: int
+    entries: tuple[PdoEntry, ...]
+
+    @property
+    def name(self) -> str:
+        return f"{self.direction.value.upper()}{self.number}"
+
+    @property
+    def communication_index(self) -> int:
+        return self.direction.communication_index + self.number - 1
+
+    @property
+    def mapping_index(self) -> int:
+        return self.direction.mapping_index + self.number - 1
+
+    @property
+    def bits(self) -> int:
+        return sum(entry.bits for entry in self.entries)
+
+    @property
+    def length_bytes(self) -> int:
+        return (self.bits + 7) // 8
+
+    def cob_id(self, node_id: int) -> int:
+        """The 11-bit CAN identifier for node_id (without the 'not valid' bit)."""
+        return self.cob_id_base + node_id
+
+    def cob_id_value(self, node_id: int) -> int:
+        """The UNSIGNED32 of communication sub-index 1, with bit 31 set when disabled."""
+        return self.cob_id(node_id) | (0 if self.enabled else PDO_NOT_VALID)
+
+
+class UnknownNameError(KeyError):
+    """A name that the table does not define; the message lists close matches."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0])
+
+
+def _lookup(what: str, items: dict[str, _T], name: str) -> _T:
+    try:
+        return items[name]
+    except KeyError:
+        raise UnknownNameError(unknown_name_message(what, name, items)) from None
+
+
+def unknown_name_message(what: str, name: str, known: Iterable[str]) -> str:
+    """'no field named 'x'; did you mean 'y'?' with up to three close matches."""
+    matches = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
+    hint = f"; did you mean {' or '.join(repr(m) for m in matches)}?" if matches else ""
+    return f"no {what} named {name!r}{hint}"
+
+
+@dataclass(frozen=True)
+class BoardTable:
+    """Everything board.toml defines, validated. Look objects up by name with
+    `field("motor_velocity")`, `hil_input(...)`, `hil_output(...)`, `entry(...)`;
+    a typo raises UnknownNameError (a KeyError) listing the close matches."""
+
+    source: Path
+    node: NodeIdentity
+    fields: tuple[Field, ...]
+    hil_inputs: tuple[HilIo, ...]
+    hil_outputs: tuple[HilIo, ...]
+    rpdos: tuple[Pdo, ...]  # every RPDO slot, number 1..n in order
+    tpdos: tuple[Pdo, ...]  # every TPDO slot, number 1..n in order
+
+    @cached_property
+    def _fields_by_name(self) -> dict[str, Field]:
+        return {f.name: f for f in self.fields}
+
+    @cached_property
+    def _entries_by_name(self) -> dict[str, ObjectEntry]:
+        return {e.name: e for e in self.entries}
+
+    @cached_property
+    def _entries_by_index(self) -> dict[int, ObjectEntry]:
+        return {e.index: e for e in self.entries}
+
+    @property
+    def entries(self) -> tuple[ObjectEntry, ...]:
+        """Board fields, then HIL inputs, then HIL outputs."""
+        return (*self.fields, *self.hil_inputs, *self.hil_outputs)
+
+    @property
+    def field_names(self) -> tuple[str, ...]:
+        return tuple(f.name for f in self.fields)
+
+    @property
+    def pdos(self) -> tuple[Pdo, ...]:
+        return (*self.rpdos, *self.tpdos)
+
+    def field(self, name: str) -> Field:
+        return _lookup("board field", self._fields_by_name, name)
+
+    def hil_input(self, name: str) -> HilIo:
+        return _lookup("HIL input", {io.name: io for io in self.hil_inputs}, name)
+
+    def hil_output(self, name: str) -> HilIo:
+        return _lookup("HIL output", {io.name: io for io in self.hil_outputs}, name)
+
+    def entry(self, name: str) -> ObjectEntry:
+        """A board field or HIL I/O object by name."""
+        return _lookup("board field or HIL I/O object", self._entries_by_name, name)
+
+    def entry_at(self, index: int) -> ObjectEntry:
+        try:
+            return self._entries_by_index[index]
+        except KeyError:
+            raise UnknownNameError(f"no board object at index 0x{index:04X}") from None
+
+    def fields_of_kind(self, kind: Kind) -> tuple[Field, ...]:
+        return tuple(f for f in self.fields if f.kind is kind)
+
+    def rpdo(self, number: int) -> Pdo:
+        return self._pdo(self.rpdos, "RPDO", number)
+
+    def tpdo(self, number: int) -> Pdo:
+        return self._pdo(self.tpdos, "TPDO", number)
+
+    @staticmethod
+    def _pdo(slots: tuple[Pdo, ...], label: str, number: int) -> Pdo:
+        if not 1 <= number <= len(slots):
+            raise UnknownNameError(f"no {label}{number}: the node has {label}1..{len(slots)}")
+        return slots[number - 1]

@@ -1,0 +1,150 @@
+"""The EDS round-trips through canopen: import_od and RemoteNode see exactly the table."""
+
+from __future__ import annotations
+
+import configparser
+from pathlib import Path
+
+import canopen
+import pytest
+from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes, import_od
+
+from boardproto import BoardTable, Pdo
+from boardproto.eds import generate_eds
+
+
+@pytest.fixture(scope="module")
+def eds_path(generated_dir: Path) -> Path:
+    return generated_dir / "board.eds"
+
+
+@pytest.fixture(scope="module")
+def od(eds_path: Path, table: BoardTable) -> canopen.ObjectDictionary:
+    return import_od(str(eds_path), node_id=table.node.default_node_id)
+
+
+@pytest.fixture(scope="module")
+def eds_sections(eds_path: Path) -> configparser.RawConfigParser:
+    parser = configparser.RawConfigParser()
+    parser.optionxform = str  # type: ignore[assignment,method-assign]
+    parser.read(eds_path)
+    return parser
+
+
+def _variable(od: canopen.ObjectDictionary, index: int, subindex: int = 0) -> ODVariable:
+    entry = od[index]
+    variable = entry if subindex == 0 and isinstance(entry, ODVariable) else entry[subindex]
+    assert isinstance(variable, ODVariable)
+    return variable
+
+
+def test_every_field_round_trips(
+    od: canopen.ObjectDictionary, table: BoardTable, eds_sections: configparser.RawConfigParser
+) -> None:
+    for field in table.fields:
+        variable = od[field.name]
+        assert isinstance(variable, ODVariable), field.name
+        assert (variable.index, variable.subindex) == (field.index, 0), field.name
+        assert variable.data_type == datatypes.REAL32, field.name
+        assert variable.access_type == field.access.value, field.name
+        assert variable.default == field.default, field.name
+        assert variable.unit == field.unit, field.name
+        assert variable.description == field.description, field.name
+        assert variable.pdo_mappable, field.name
+        assert variable.storage_location == ("PERSIST" if field.stored else "RAM"), field.name
+        # canopen 2.4.1 parses LowLimit/HighLimit as integers only, so REAL32 limits are
+        # checked in the EDS text itself.
+        section = eds_sections[f"{field.index:04X}"]
+        assert float(section["LowLimit"]) == field.min, field.name
+        assert float(section["HighLimit"]) == field.max, field.name
+
+
+def test_every_hil_io_object_round_trips(od: canopen.ObjectDictionary, table: BoardTable) -> None:
+    for io_object in (*table.hil_inputs, *table.hil_outputs):
+        variable = od[io_object.name]
+        assert isinstance(variable, ODVariable)
+        assert variable.index == io_object.index
+        assert variable.data_type == io_object.data_type.value
+        assert variable.access_type == io_object.access.value
+        assert (variable.min, variable.max) == (io_object.min, io_object.max), io_object.name
+        assert variable.unit == io_object.unit
+        assert variable.pdo_mappable
+
+
+def test_communication_objects(od: canopen.ObjectDictionary, table: BoardTable) -> None:
+    node = table.node
+    assert _variable(od, 0x1000).default == node.device_type
+    assert _variable(od, 0x1001).data_type == datatypes.UNSIGNED8
+    errors = od[0x1003]
+    assert isinstance(errors, ODArray)
+    assert sorted(errors.subindices) == list(range(node.error_history_length + 1))
+    assert _variable(od, 0x1003, 0).access_type == "rw"  # write 0 clears the history
+    assert _variable(od, 0x1005).default == 0x80
+    assert _variable(od, 0x1008).default == "hil-joint-firmware"
+    assert _variable(od, 0x1008).data_type == datatypes.VISIBLE_STRING
+    assert _variable(od, 0x1009).default == node.hardware_version
+    assert _variable(od, 0x100A).default == node.software_version
+    for index in (0x1010, 0x1011):
+        assert isinstance(od[index], ODArray)
+        assert _variable(od, index, 0).default == 1
+        assert _variable(od, index, 1).access_type == "rw"
+    assert _variable(od, 0x1017).default == node.heartbeat_ms == 100
+    identity = od[0x1018]
+    assert isinstance(identity, ODRecord)
+    assert [identity[s].default for s in (1, 2, 3)] == [
+        node.vendor_id,
+        node.product_code,
+        node.revision,
+    ]
+
+
+def _pdo_layout(pdo_map: canopen.pdo.PdoMap) -> tuple[int, bool, int, list[tuple[int, int]]]:
+    return (
+        pdo_map.cob_id,
+        pdo_map.enabled,
+        pdo_map.trans_type,
+        [(variable.index, variable.length) for variable in pdo_map.map],
+    )
+
+
+def _expected_layout(pdo: Pdo, node_id: int) -> tuple[int, bool, int, list[tuple[int, int]]]:
+    return (
+        pdo.cob_id(node_id),
+        pdo.enabled,
+        pdo.transmission_type,
+        [(entry.index, entry.bits) for entry in pdo.entries],
+    )
+
+
+@pytest.mark.parametrize("node_id", [0x10, 0x05, 0x3F])
+def test_remote_node_sees_default_pdos_for_any_node_id(
+    eds_path: Path, table: BoardTable, node_id: int
+) -> None:
+    network = canopen.Network()  # never connected: PDO read subscribes, sends nothing
+    node = canopen.RemoteNode(node_id, str(eds_path))
+    network.add_node(node)
+    node.rpdo.read(from_od=True)
+    node.tpdo.read(from_od=True)
+    assert len(node.rpdo.map) == len(table.rpdos)
+    assert len(node.tpdo.map) == len(table.tpdos)
+    for pdo in table.rpdos:
+        assert _pdo_layout(node.rpdo.map[pdo.number]) == _expected_layout(pdo, node_id), pdo.name
+    for pdo in table.tpdos:
+        assert _pdo_layout(node.tpdo.map[pdo.number]) == _expected_layout(pdo, node_id), pdo.name
+    assert node.tpdo.map[1].cob_id == 0x180 + node_id
+    assert node.rpdo.map[1].cob_id == 0x200 + node_id
+
+
+def test_cob_ids_are_node_relative_in_the_file(eds_sections: configparser.RawConfigParser) -> None:
+    assert eds_sections["1800sub1"]["DefaultValue"] == "$NODEID+0x180"
+    assert eds_sections["1403sub1"]["DefaultValue"] == "$NODEID+0x80000500"  # RPDO4 disabled
+
+
+def test_eds_is_deterministic(table: BoardTable, eds_path: Path) -> None:
+    assert generate_eds(table) == generate_eds(table) == eds_path.read_text()
+
+
+def test_eds_opens_with_the_generated_banner(eds_sections: configparser.RawConfigParser) -> None:
+    assert eds_sections["Comments"]["Line1"].startswith("Generated from protocol/board.toml")
+    assert eds_sections["DeviceInfo"]["NrOfRXPDO"] == "4"
+    assert eds_sections["DeviceInfo"]["NrOfTXPDO"] == "8"

@@ -1,0 +1,210 @@
+"""One test per validation rule: a small bad table must be refused with a message
+that names the file, the entry and the problem."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from boardproto import TableError, load_table
+
+TableWriter = Callable[[str], Path]  # TOML text -> path
+TableEditor = Callable[[str, str], Path]  # (old, new) -> path of the edited minimal table
+
+FIELD_ENTRY_END = 'description = "Motor angle"\n'
+
+
+def refused(path: Path, *fragments: str) -> str:
+    """Load path, expect TableError naming the file and every fragment; return the message."""
+    with pytest.raises(TableError) as caught:
+        load_table(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}: "), message
+    for fragment in fragments:
+        assert fragment in message, f"expected {fragment!r} in {message!r}"
+    assert "\n" not in message
+    return message
+
+
+def test_minimal_table_is_valid(minimal_table: str, write_table: TableWriter) -> None:
+    table = load_table(write_table(minimal_table))
+    assert [f.name for f in table.fields] == ["motor_position", "velocity_kp"]
+    assert table.rpdo(1).bits == 48
+
+
+def test_refuses_duplicate_name(edit_table: TableEditor) -> None:
+    refused(
+        edit_table('name = "velocity_kp"', 'name = "motor_position"'),
+        "field 'motor_position'",
+        "duplicate name",
+    )
+
+
+def test_refuses_name_shared_by_field_and_hil_io(edit_table: TableEditor) -> None:
+    refused(
+        edit_table('name = "motor_duty"', 'name = "velocity_kp"'),
+        "hil_output 'velocity_kp'",
+        "duplicate name",
+    )
+
+
+def test_refuses_duplicate_index(edit_table: TableEditor) -> None:
+    refused(
+        edit_table("index = 0x2500", "index = 0x2000"),
+        "field 'velocity_kp'",
+        "index 0x2000 already used by 'motor_position'",
+    )
+
+
+def test_refuses_default_outside_range(edit_table: TableEditor) -> None:
+    refused(
+        edit_table("default = 0.05", "default = 1.5"),
+        "field 'velocity_kp'",
+        "default 1.5 outside [0.0, 1.0]",
+    )
+
+
+def test_refuses_min_greater_than_max(edit_table: TableEditor) -> None:
+    refused(
+        edit_table("min = -10.0\nmax = 10.0", "min = 20.0\nmax = 10.0"),
+        "field 'motor_position'",
+        "min 20.0 is greater than max 10.0",
+    )
+
+
+def test_refuses_limit_that_is_not_a_float32(edit_table: TableEditor) -> None:
+    refused(
+        edit_table("max = 10.0", "max = 1e39"),
+        "field 'motor_position'",
+        "max 1e+39 is not a finite 32-bit float",
+    )
+
+
+def test_refuses_pdo_longer_than_64_bits(edit_table: TableEditor) -> None:
+    refused(
+        edit_table(
+            'map = ["motor_duty", "motor_position"]',
+            'map = ["motor_duty", "motor_position", "velocity_kp"]',
+        ),
+        "TPDO1",
+        "80 bits long",
+        "at most 64 bits",
+    )
+
+
+def test_refuses_pdo_mapping_unknown_object(edit_table: TableEditor) -> None:
+    refused(
+        edit_table('map = ["motor_duty", "motor_position"]', 'map = ["motor_duty", "motor_postion"]'),
+        "TPDO1",
+        "unknown object",
+        "'motor_postion'",
+        "did you mean 'motor_position'",
+    )
+
+
+def test_refuses_rpdo_mapping_read_only_object(edit_table: TableEditor) -> None:
+    refused(
+        edit_table('map = ["motor_encoder_counts", "velocity_kp"]', 'map = ["motor_position"]'),
+        "RPDO1",
+        "'motor_position'",
+        "read-only",
+    )
+
+
+def test_refuses_pdo_number_beyond_slots(minimal_table: str, write_table: TableWriter) -> None:
+    text = minimal_table + "\n[[tpdo]]\nnumber = 3\ntransmission_type = 1\nmap = []\n"
+    refused(write_table(text), "TPDO3", "number 3 outside 1..2")
+
+
+def test_refuses_unknown_kind(edit_table: TableEditor) -> None:
+    refused(
+        edit_table('kind = "sensor"', 'kind = "sensr"'),
+        "field 'motor_position'",
+        "unknown kind 'sensr'",
+        "sensor",
+    )
+
+
+def test_refuses_unknown_access(edit_table: TableEditor) -> None:
+    refused(
+        edit_table('access = "ro"', 'access = "wo"'),
+        "field 'motor_position'",
+        "unknown access 'wo'",
+    )
+
+
+def test_refuses_access_that_contradicts_kind(edit_table: TableEditor) -> None:
+    refused(
+        edit_table('access = "ro"', 'access = "rw"'),
+        "field 'motor_position'",
+        "a sensor field must have access 'ro'",
+    )
+
+
+def test_refuses_unknown_hil_type(edit_table: TableEditor) -> None:
+    refused(
+        edit_table('type = "unsigned16"', 'type = "uint16"'),
+        "hil_input 'motor_encoder_counts'",
+        "unknown type 'uint16'",
+    )
+
+
+def test_refuses_hil_range_outside_its_type(edit_table: TableEditor) -> None:
+    refused(
+        edit_table("max = 65535", "max = 65536"),
+        "hil_input 'motor_encoder_counts'",
+        "max 0x10000 outside",
+    )
+
+
+def test_refuses_index_outside_manufacturer_range(edit_table: TableEditor) -> None:
+    refused(
+        edit_table("index = 0x2500", "index = 0x1F00"),
+        "field 'velocity_kp'",
+        "0x1F00",
+        "outside the manufacturer range 0x2000..0x5FFF",
+    )
+
+
+@pytest.mark.parametrize(
+    "bad_name", ["MotorPosition", "motor-position", "motor__position", "_motor", "2motor"]
+)
+def test_refuses_name_that_is_not_snake_case(edit_table: TableEditor, bad_name: str) -> None:
+    refused(
+        edit_table('name = "motor_position"', f'name = "{bad_name}"'),
+        f"name {bad_name!r} is not snake_case",
+    )
+
+
+def test_refuses_cpp_keyword_as_name(edit_table: TableEditor) -> None:
+    refused(edit_table('name = "motor_position"', 'name = "default"'), "field 'default'", "C++ keyword")
+
+
+def test_refuses_unknown_key_with_suggestion(edit_table: TableEditor) -> None:
+    refused(
+        edit_table(FIELD_ENTRY_END, FIELD_ENTRY_END + "defualt = 1.0\n"),
+        "field 'motor_position'",
+        "unknown key 'defualt'",
+        "did you mean 'default'",
+    )
+
+
+def test_refuses_missing_key(edit_table: TableEditor) -> None:
+    refused(edit_table("stored = false\n", ""), "field 'motor_position'", "missing key stored")
+
+
+def test_refuses_unknown_top_level_table(minimal_table: str, write_table: TableWriter) -> None:
+    text = minimal_table.replace("[[field]]", "[[fields]]", 1)
+    refused(write_table(text), "unknown top-level table 'fields'", "did you mean 'field'")
+
+
+def test_refuses_invalid_toml(edit_table: TableEditor) -> None:
+    refused(edit_table("stored = true", "stored = "), "not valid TOML")
+
+
+def test_refuses_missing_file(tmp_path: Path) -> None:
+    message = refused(tmp_path / "absent.toml", "cannot read")
+    assert re.search(r"No such file", message)

@@ -1,0 +1,1 @@
+"""The rig of the hardware-in-the-loop CAN test rig: physics of the demo joint and its tools."""

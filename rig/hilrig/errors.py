@@ -1,0 +1,58 @@
+"""The rig's exceptions: one shallow tree rooted in ``RigError``, with built-in parents where
+they fit, so callers can catch ``TimeoutError`` or ``ValueError`` without knowing the rig."""
+
+from __future__ import annotations
+
+
+class RigError(Exception):
+    """Base of every error the rig raises on purpose."""
+
+
+class BusUnavailableError(RigError, OSError):
+    """The CAN bus (or a private namespace bus) cannot be opened or created."""
+
+
+class FieldNameError(RigError, KeyError):
+    """A field name that the protocol table does not define (the message lists close matches)."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class LockstepError(RigError, TimeoutError):
+    """A lockstep cycle did not complete: a PDO of that cycle is missing or late."""
+
+
+class FirmwareError(RigError, RuntimeError):
+    """The firmware process failed to start, crashed, or stopped answering."""
+
+
+class SdoAbortError(RigError, RuntimeError):
+    """The node answered an SDO request with an abort code (explained in words).
+
+    ``abort_code`` is the CiA 301 code on the wire, so a test can compare against it.
+    """
+
+    def __init__(self, message: str, abort_code: int) -> None:
+        super().__init__(message)
+        self.abort_code = abort_code
+
+
+class NodeSilentError(RigError, TimeoutError):
+    """The node sent no boot-up, heartbeat or SDO answer within the start-up bound."""
+
+
+class SdoTimeoutError(RigError, TimeoutError):
+    """The node did not answer an SDO request in time (no abort code either)."""
+
+
+class PdoMappingError(RigError, ValueError):
+    """The node's PDO configuration lacks something the rig relies on (the message says what)."""
+
+
+class NoValueError(RigError, LookupError):
+    """A known name that has no value yet: nothing received, or not carried by any PDO."""
+
+
+class ScenarioTimeoutError(RigError, TimeoutError):
+    """A condition a scenario waited for did not hold within its simulation-time bound."""

@@ -1,0 +1,69 @@
+"""Physics of the demo joint: plant, parameters and sensor models (no bus in here).
+
+Typical use, one control cycle of the lockstep driver::
+
+    params = JointParams.fast_thermal()
+    plant = JointPlant(params)
+    sensors = SensorModel(params, seed=1)
+    raw = sensors.read(plant.state)                  # -> RPDO1
+    plant.step(1e-3, duty_from_motor_duty(motor_duty))  # motor_duty <- TPDO1
+"""
+
+from hilrig.physics.params import FAST_THERMAL_TIME_CONSTANT_S, JointParams
+from hilrig.physics.plant import (
+    MOTOR_DUTY_FULL_SCALE,
+    SUBSTEP_FRACTION,
+    JointPlant,
+    JointState,
+    duty_from_motor_duty,
+)
+from hilrig.physics.sensors import (
+    CURRENT_COUNTS_PER_A,
+    ENCODER_MODULUS,
+    THERMISTOR_ADC_MAX,
+    EncoderUnwrapper,
+    RawSensors,
+    SensorModel,
+    counts_to_current_a,
+    counts_to_rad,
+    current_counts,
+    encoder_counts,
+    ntc_resistance,
+    ntc_temperature_c,
+    read_sensors,
+    round_half_away,
+    thermistor_adc,
+    thermistor_adc_exact,
+    thermistor_adc_to_resistance,
+    thermistor_adc_to_temperature_c,
+    wrapped_count_delta,
+)
+
+__all__ = [
+    "CURRENT_COUNTS_PER_A",
+    "ENCODER_MODULUS",
+    "FAST_THERMAL_TIME_CONSTANT_S",
+    "MOTOR_DUTY_FULL_SCALE",
+    "SUBSTEP_FRACTION",
+    "THERMISTOR_ADC_MAX",
+    "EncoderUnwrapper",
+    "JointParams",
+    "JointPlant",
+    "JointState",
+    "RawSensors",
+    "SensorModel",
+    "counts_to_current_a",
+    "counts_to_rad",
+    "current_counts",
+    "duty_from_motor_duty",
+    "encoder_counts",
+    "ntc_resistance",
+    "ntc_temperature_c",
+    "read_sensors",
+    "round_half_away",
+    "thermistor_adc",
+    "thermistor_adc_exact",
+    "thermistor_adc_to_resistance",
+    "thermistor_adc_to_temperature_c",
+    "wrapped_count_delta",
+]
