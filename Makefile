@@ -16,7 +16,7 @@ CMAKE_FLAGS ?=
 # Configure once (the cache remembers), rebuild incrementally; the protocol generator runs
 # inside the build with proper dependencies.
 define configure_and_build
-	@test -f $(1)/CMakeCache.txt || { echo "build: configuring $(1)"; \
+	@test -f $(1)/build.ninja || { echo "build: configuring $(1)"; \
 	  cmake -S . -B $(1) -G Ninja -DHIL_PYTHON=$(CURDIR)/$(PY) $(2) $(CMAKE_FLAGS) >/dev/null; }
 	@echo "build: compiling $(1) (incremental)"
 	@cmake --build $(1) -j $(JOBS) | { grep -v -E '^\[[0-9]+/[0-9]+\] ' || true; }; exit $${PIPESTATUS[0]}
@@ -49,7 +49,14 @@ run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary
 bench: deps ## benchmarks, each a ratio measured side by side in one run
 	$(call configure_and_build,$(BENCH_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_BENCH=ON)
 	@echo "bench: running the firmware core benchmarks"
-	@$(BENCH_BUILD)/bin/core-bench
+	@$(BENCH_BUILD)/bin/fw_board_bench
+
+# Fuzzing (its own clang tree, build/fuzz): FUZZ_SECONDS per target, all targets side by side.
+FUZZ_SECONDS ?= 600
+
+.PHONY: fuzz
+fuzz: deps ## libFuzzer/atheris fuzzers, FUZZ_SECONDS=600 each; corpus in build/fuzz/corpus
+	@FUZZ_SECONDS=$(FUZZ_SECONDS) firmware/canopen/fuzz/run-fuzzers
 
 .PHONY: vcan
 vcan: ## create vcan0 natively (needs root and a kernel with vcan)

@@ -1,12 +1,44 @@
-"""Fixtures for the hardware-in-the-loop scenarios: a private bus per test."""
+"""Fixtures for the hardware-in-the-loop scenarios: a private bus per test, the real firmware
+process on it, and a CANopen master (the `canopen` library) built from the generated EDS."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import os
+import re
+import threading
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
 
+import can
+import canopen
 import pytest
 
+from hilrig.expect import Expect
+from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.netns import PrivateBus, private_buses_supported
+from hilrig.physics import JointParams
+from hilrig.rig import Rig
+from hilrig.table import RigTable
+
+REPO = Path(__file__).resolve().parent.parent
+EDS = REPO / "build" / "protocol" / "board.eds"
+NODE_ID = 0x10
+# A hang guard for start-up inside the software-emulated VM (ASan build), not a timing check.
+BOOT_TIMEOUT_S = 60.0
+
+
+def output_root() -> Path:
+    return Path(os.environ.get("HIL_OUT_DIR", REPO / "out"))
+
+
+@pytest.fixture
+def scenario_dir(request: pytest.FixtureRequest) -> Path:
+    """out/scenarios/<test name>/: the firmware log, bus log and trace of this test."""
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", request.node.name)
+    path = output_root() / "scenarios" / name
+    path.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 @pytest.fixture
@@ -20,3 +52,187 @@ def private_bus() -> Iterator[PrivateBus]:
         )
     with PrivateBus() as bus:
         yield bus
+
+
+@dataclass
+class NodeUnderTest:
+    """The running firmware and a CANopen master talking to it on a private bus."""
+
+    bus: can.BusABC
+    network: canopen.Network
+    node: canopen.RemoteNode
+    firmware: Firmware
+    bus_log: Path
+
+    def wait_for(self, cob_id: int, timeout_s: float = 30.0) -> can.Message:
+        """The next frame with this COB-ID (bounded wait: a hang guard, not a timing check)."""
+        got: list[can.Message] = []
+        arrived = threading.Event()
+
+        def on_frame(can_id: int, data: bytearray, timestamp: float) -> None:
+            if not arrived.is_set():
+                got.append(can.Message(arbitration_id=can_id, data=bytes(data), timestamp=timestamp))
+                arrived.set()
+
+        self.network.subscribe(cob_id, on_frame)
+        try:
+            if not arrived.wait(timeout_s):
+                self.firmware.check()
+                raise AssertionError(f"expected a frame with COB-ID {cob_id:#05x}, got none in {timeout_s} s")
+            return got[0]
+        finally:
+            self.network.unsubscribe(cob_id, on_frame)
+
+
+def start_node(private_bus: PrivateBus, scenario_dir: Path, params_file: Path | None = None) -> NodeUnderTest:
+    if not DEFAULT_EXECUTABLE.exists() or not EDS.exists():
+        pytest.fail(f"{DEFAULT_EXECUTABLE} or {EDS} missing: run `make build` first", pytrace=False)
+    bus = private_bus.open(receive_own_messages=True)
+    bus_log = scenario_dir / "bus.log"
+    logger = can.Logger(str(bus_log))
+    network = canopen.Network(bus)
+    network.listeners.append(logger)
+    network.connect()
+    node = network.add_node(canopen.RemoteNode(NODE_ID, str(EDS)))
+    booted = threading.Event()
+    network.subscribe(0x700 + NODE_ID, lambda can_id, data, ts: booted.set() if data[:1] == b"\x00" else None)
+    firmware = Firmware(
+        private_bus, node_id=NODE_ID, log_path=scenario_dir / "firmware.log", params_file=params_file
+    )
+    firmware.start()
+    if not booted.wait(BOOT_TIMEOUT_S):
+        firmware.check()
+        raise AssertionError(
+            f"no boot-up message from node {NODE_ID:#x} within {BOOT_TIMEOUT_S} s; "
+            f"firmware log: {firmware.log_path}"
+        )
+    return NodeUnderTest(bus=bus, network=network, node=node, firmware=firmware, bus_log=bus_log)
+
+
+def stop_node(under_test: NodeUnderTest) -> int | None:
+    code = under_test.firmware.stop()
+    under_test.network.disconnect()
+    for listener in under_test.network.listeners:
+        if isinstance(listener, can.Listener):
+            listener.stop()
+    under_test.bus.shutdown()
+    return code
+
+
+@pytest.fixture
+def node_under_test(private_bus: PrivateBus, scenario_dir: Path) -> Iterator[NodeUnderTest]:
+    """The firmware in lockstep mode on a private bus, booted (pre-operational), with a
+    canopen master; on teardown the firmware must stop cleanly on SIGTERM."""
+    under_test = start_node(private_bus, scenario_dir)
+    try:
+        yield under_test
+    finally:
+        code = stop_node(under_test)
+    assert code == 0, (
+        f"firmware did not exit cleanly on SIGTERM ({code}); log: {under_test.firmware.log_path}"
+    )
+
+
+class BusRecorder:
+    """A candump log of everything on a private bus, from a socket of its own (so it sees the
+    rig's frames and the firmware's alike) through python-can's own logger."""
+
+    def __init__(self, private_bus: PrivateBus, path: Path) -> None:
+        self.path = path
+        self._bus = private_bus.open()
+        self._logger = can.Logger(str(path))
+        self._notifier = can.Notifier(self._bus, [self._logger], timeout=0.05)
+
+    def close(self) -> None:
+        self._notifier.stop()
+        self._logger.stop()
+        self._bus.shutdown()
+
+
+@dataclass
+class Scenario:
+    """What a scenario test gets: the rig, expectations on its histories, and its evidence."""
+
+    rig: Rig
+    expect: Expect
+    firmware: Firmware
+    trace: Path | None
+    bus_log: Path
+
+
+def _evidence(scenario_dir: Path, traced: bool) -> str:
+    parts = [f"trace: {scenario_dir / 'trace.rrd'}"] if traced else []
+    parts.append(f"bus log: {scenario_dir / 'bus.log'}")
+    return ", ".join(parts)
+
+
+@pytest.fixture
+def make_scenario(private_bus: PrivateBus, scenario_dir: Path, request: pytest.FixtureRequest) -> Iterator:
+    """Factory: `make_scenario(params=..., seed=...)` starts the firmware in lockstep on this
+    test's private bus, a candump recorder, a Rerun trace and a `Rig`, all torn down after the
+    test (firmware stopped with SIGTERM, files closed whole)."""
+    opened: list[Callable[[], object]] = []
+
+    def make(
+        params: JointParams | None = None, seed: int = 1, trace: bool = True, params_file: Path | None = None
+    ) -> Scenario:
+        recorder = BusRecorder(private_bus, scenario_dir / "bus.log")
+        opened.append(recorder.close)
+        firmware = Firmware(
+            private_bus, node_id=NODE_ID, log_path=scenario_dir / "firmware.log", params_file=params_file
+        )
+        firmware.start()
+        opened.append(firmware.stop)
+        table = RigTable.load()
+        tracer = None
+        if trace:
+            from hilrig.trace import Tracer  # rerun is slow to import: only when tracing
+
+            tracer = Tracer.for_scenario(scenario_dir, table)
+            opened.append(tracer.close)
+        bus = private_bus.open()
+        opened.append(bus.shutdown)
+        rig = Rig(
+            bus,
+            table=table,
+            params=params,
+            seed=seed,
+            liveness=firmware.check,
+            tracer=tracer,
+            boot_timeout_s=BOOT_TIMEOUT_S,
+            eds=EDS,
+        )
+        opened.append(rig.close)
+        rig.start()
+        request.node.hil_evidence = _evidence(scenario_dir, trace)
+        return Scenario(
+            rig=rig,
+            expect=Expect(rig, evidence=request.node.hil_evidence),
+            firmware=firmware,
+            trace=scenario_dir / "trace.rrd" if trace else None,
+            bus_log=scenario_dir / "bus.log",
+        )
+
+    yield make
+    for close in reversed(opened):
+        close()
+
+
+_failed_evidence: list[str] = []
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator:
+    outcome = yield
+    report = outcome.get_result()
+    evidence = getattr(item, "hil_evidence", None)
+    if report.failed and evidence:
+        report.sections.append(("scenario evidence", evidence))
+        _failed_evidence.append(f"FAILED {item.nodeid}: {evidence}")
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    if _failed_evidence:
+        terminalreporter.section("failed scenarios: where to look")
+        for line in _failed_evidence:
+            terminalreporter.line(line)

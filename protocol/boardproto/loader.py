@@ -559,6 +559,8 @@ def load_table(path: str | Path) -> BoardTable:
             document = tomllib.load(file)
     except OSError as error:
         raise TableError(f"{source}: cannot read: {error.strerror}") from error
+    except UnicodeDecodeError as error:  # TOML is UTF-8; tomllib lets the decode error through
+        raise TableError(f"{source}: not UTF-8 text: byte {error.start}: {error.reason}") from error
     except tomllib.TOMLDecodeError as error:
         raise TableError(f"{source}: not valid TOML: {error}") from error
     return parse_table(source, document)

@@ -78,7 +78,7 @@ using namespace board;
 static_assert(kFieldCount == {field_count});
 static_assert(info(FieldId::motor_velocity).index == 0x2100);
 static_assert(info(FieldId::motor_velocity).unit == "rad/s");
-static_assert(info(FieldId::velocity_kp).default_value == 0.05f);
+static_assert(info(FieldId::velocity_kp).default_value == 0.1f);
 static_assert(info(FieldId::velocity_kp).kind == Kind::Parameter);
 static_assert(info(FieldId::velocity_kp).stored);
 static_assert(info(FieldId::joint_torque).access == Access::ReadOnly);

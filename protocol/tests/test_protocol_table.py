@@ -54,6 +54,8 @@ CONTRACT_FIELDS = {
         "encoder_stale_cycles",
         "ntc_r25_ohm",
         "ntc_beta_k",
+        "motor_torque_constant",
+        "thermistor_stale_cycles",
     ],
 }
 
@@ -73,7 +75,7 @@ def test_only_commands_and_parameters_are_bus_writable(table: BoardTable) -> Non
 @pytest.mark.parametrize(
     ("name", "default", "unit"),
     [
-        ("velocity_kp", 0.05, "1/(rad/s)"),
+        ("velocity_kp", 0.1, "1/(rad/s)"),
         ("gear_ratio", 50.0, "1"),
         ("spring_constant_nominal", 50.0, "N*m/rad"),
         ("thermal_warning_c", 80.0, "degC"),

@@ -208,3 +208,10 @@ def test_refuses_invalid_toml(edit_table: TableEditor) -> None:
 def test_refuses_missing_file(tmp_path: Path) -> None:
     message = refused(tmp_path / "absent.toml", "cannot read")
     assert re.search(r"No such file", message)
+
+
+def test_refuses_bytes_that_are_not_utf8(minimal_table: str, tmp_path: Path) -> None:
+    # Found by protocol/fuzz/fuzz_table.py: tomllib let UnicodeDecodeError through.
+    path = tmp_path / "board.toml"
+    path.write_bytes(minimal_table.encode().replace(b"Motor angle", b"Motor \x98ngle"))
+    refused(path, "not UTF-8 text", "byte ")

@@ -56,3 +56,7 @@ class NoValueError(RigError, LookupError):
 
 class ScenarioTimeoutError(RigError, TimeoutError):
     """A condition a scenario waited for did not hold within its simulation-time bound."""
+
+
+class FieldAccessError(RigError, ValueError):
+    """A field the rig cannot set that way (e.g. a raw sensor input the physics computes)."""

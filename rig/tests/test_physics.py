@@ -368,3 +368,16 @@ def test_params_refuse_unphysical_values_and_presets_shrink_only_the_heat_capaci
         f.name for f in dataclasses.fields(JointParams) if getattr(slow, f.name) != getattr(fast, f.name)
     ]
     assert changed == ["winding_thermal_capacity_j_per_k"]
+
+
+def test_a_hotter_ambient_heats_the_idle_winding_with_the_thermal_time_constant() -> None:
+    params = JointParams().with_thermal_time_constant(1.0)
+    plant = JointPlant(params)
+    plant.set_ambient_temperature(50.0)
+    for _ in range(1000):  # one time constant at 1 ms, no current
+        plant.step(1e-3, 0.0)
+    expected = 50.0 - 25.0 * math.exp(-1.0)
+    assert plant.state.winding_temperature_c == pytest.approx(expected, abs=0.05)
+    assert plant.ambient_temperature_c == 50.0
+    with pytest.raises(ValueError):
+        plant.set_ambient_temperature(float("nan"))

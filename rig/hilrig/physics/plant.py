@@ -150,6 +150,17 @@ class JointPlant:
     def motor_held(self) -> bool:
         return self._motor_held
 
+    @property
+    def ambient_temperature_c(self) -> float:
+        return self._ambient
+
+    def set_ambient_temperature(self, temperature_c: float) -> None:
+        """Change the air around the winding from now on (a disturbance a scenario applies:
+        a hot enclosure heats the winding whatever the motor does)."""
+        if not math.isfinite(temperature_c):
+            raise ValueError(f"ambient temperature: expected a finite value, got {temperature_c}")
+        self._ambient = temperature_c
+
     def set_motor_held(self, held: bool) -> None:
         """Block (True) or release (False) the rotor; blocking stops it at once."""
         self._motor_held = held

@@ -1,0 +1,5 @@
+"""Rerun blueprints (layouts) for the rig's traces, one per use; see joint.py."""
+
+from dashboards.joint import BLUEPRINTS, blueprint
+
+__all__ = ["BLUEPRINTS", "blueprint"]

@@ -1,0 +1,64 @@
+// What the engine needs from the rest of the firmware. The platform implements these and
+// wires them to the message board, the HIL driver registers and persistent storage in main().
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "board/fields.hpp"
+
+namespace co {
+
+enum class WriteResult : std::uint8_t {
+  Accepted,  // the board took the value
+  Refused,   // the board refused it (e.g. the node does not own the field); value unchanged
+};
+
+// Board access on behalf of the bus. The engine range-checks against board::kFields before
+// calling write(), so implementations only decide ownership.
+class FieldAccess {
+ public:
+  virtual ~FieldAccess() = default;
+  virtual float read(board::FieldId id) = 0;
+  virtual WriteResult write(board::FieldId id, float value) = 0;
+
+ protected:
+  FieldAccess() = default;
+  FieldAccess(const FieldAccess&) = default;
+  FieldAccess& operator=(const FieldAccess&) = default;
+};
+
+// Raw hardware-in-the-loop I/O. Inputs land in the driver's intermediate registers (never the
+// board: Sensors drain them in update()); outputs are what the Actuators last commanded.
+// Values are already range-checked against board::kHilInputs.
+class HilIo {
+ public:
+  virtual ~HilIo() = default;
+  virtual void write_input(board::HilInputId id, std::int32_t raw) = 0;
+  virtual std::int32_t read_output(board::HilOutputId id) = 0;
+
+ protected:
+  HilIo() = default;
+  HilIo(const HilIo&) = default;
+  HilIo& operator=(const HilIo&) = default;
+};
+
+// Persistent bytes for "store parameters" (0x1010). The engine frames the image with a magic,
+// version and CRC, so implementations just keep bytes.
+class ParameterStorage {
+ public:
+  virtual ~ParameterStorage() = default;
+  // Replaces the stored image. true: durable (old image replaced); false: old image kept.
+  virtual bool save(std::span<const std::byte> image) = 0;
+  // Copies the stored image into `buffer`. Returns its size; 0 when nothing is stored, it
+  // cannot be read, or it is larger than `buffer`.
+  virtual std::size_t load(std::span<std::byte> buffer) = 0;
+
+ protected:
+  ParameterStorage() = default;
+  ParameterStorage(const ParameterStorage&) = default;
+  ParameterStorage& operator=(const ParameterStorage&) = default;
+};
+
+}  // namespace co

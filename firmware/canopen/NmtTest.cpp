@@ -1,0 +1,184 @@
+// NMT slave state machine (CiA 301, 7.3.2): boot-up, transitions, what each state serves.
+#include "NodeTestSupport.hpp"
+
+namespace co::test {
+namespace {
+
+using board::FieldId;
+
+class NmtTest : public NodeTest {};
+
+TEST(NmtStartTest, StartSendsBootUpAndEntersPreOperational) {
+  MemoryPort port;
+  FakeBoard fields;
+  FakeHil hil;
+  MemoryStorage storage;
+  Node node(0x22, port, fields, hil, storage);
+  EXPECT_EQ(node.state(), NmtState::Initialising);
+  EXPECT_EQ(port.sent_count(), 0u) << "nothing is sent before start()";
+  node.start(0);
+  CanFrame frame;
+  ASSERT_TRUE(port.pop_sent(frame));
+  EXPECT_EQ(frame, make_frame(0x722, {0x00}));
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+}
+
+TEST(NmtStartTest, FramesBeforeStartAreIgnored) {
+  MemoryPort port;
+  FakeBoard fields;
+  FakeHil hil;
+  MemoryStorage storage;
+  Node node(0x22, port, fields, hil, storage);
+  node.process(make_frame(0x622, {0x40, 0x00, 0x10, 0, 0, 0, 0, 0}), 0);
+  node.process(make_frame(0x000, {0x01, 0x22}), 0);
+  EXPECT_EQ(port.sent_count(), 0u);
+  EXPECT_EQ(node.state(), NmtState::Initialising);
+  EXPECT_EQ(node.counters().frames_ignored, 2u);
+}
+
+TEST_F(NmtTest, StartStopAndPreOperationalFollowTheCommands) {
+  nmt(NmtCommand::Start);
+  EXPECT_EQ(node.state(), NmtState::Operational);
+  nmt(NmtCommand::Stop);
+  EXPECT_EQ(node.state(), NmtState::Stopped);
+  nmt(NmtCommand::Start);
+  EXPECT_EQ(node.state(), NmtState::Operational);
+  nmt(NmtCommand::EnterPreOperational);
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  nmt(NmtCommand::Stop);
+  EXPECT_EQ(node.state(), NmtState::Stopped);
+  nmt(NmtCommand::EnterPreOperational);
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  EXPECT_TRUE(all_sent().empty()) << "state changes alone send nothing";
+  EXPECT_EQ(node.counters().nmt_commands, 6u);
+}
+
+TEST_F(NmtTest, BroadcastCommandApplies) {
+  nmt(NmtCommand::Start, 0);
+  EXPECT_EQ(node.state(), NmtState::Operational);
+}
+
+TEST_F(NmtTest, CommandForAnotherNodeIsIgnored) {
+  nmt(NmtCommand::Start, kNodeId + 1);
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  nmt(NmtCommand::ResetNode, kNodeId + 1);
+  EXPECT_TRUE(all_sent().empty());
+}
+
+TEST_F(NmtTest, MalformedNmtFramesAreCountedAndIgnored) {
+  receive(0x000, {0x01});                 // too short
+  receive(0x000, {0x07, kNodeId});        // unknown command
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  EXPECT_EQ(node.counters().frames_malformed, 2u);
+}
+
+TEST_F(NmtTest, StoppedNodeDoesNotServeSdo) {
+  nmt(NmtCommand::Stop);
+  receive(kSdoRx, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
+  EXPECT_TRUE(all_sent().empty());
+  nmt(NmtCommand::EnterPreOperational);
+  EXPECT_EQ(upload(0x1000, 0), board::kNode.device_type);
+}
+
+TEST_F(NmtTest, StopDropsATransferInProgress) {
+  sdo({0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0});  // segmented upload of 0x1008 begins
+  nmt(NmtCommand::Stop);
+  nmt(NmtCommand::EnterPreOperational);
+  EXPECT_EQ(sdo({0x60, 0, 0, 0, 0, 0, 0, 0}),
+            abort_data(0x1008, 0, SdoAbort::CommandSpecifierInvalid));
+}
+
+TEST_F(NmtTest, SdoIsServedInPreOperationalAndOperational) {
+  EXPECT_EQ(upload(0x1000, 0), board::kNode.device_type);
+  nmt(NmtCommand::Start);
+  EXPECT_EQ(upload(0x1000, 0), board::kNode.device_type);
+}
+
+TEST_F(NmtTest, SyncIsReportedInPreOperationalAndOperationalButNotStopped) {
+  EXPECT_TRUE(receive(0x080, {}).sync);
+  nmt(NmtCommand::Start);
+  const ProcessResult with_counter = receive(0x080, {7});
+  EXPECT_TRUE(with_counter.sync);
+  EXPECT_TRUE(with_counter.sync_has_counter);
+  EXPECT_EQ(with_counter.sync_counter, 7);
+  nmt(NmtCommand::Stop);
+  EXPECT_FALSE(receive(0x080, {}).sync);
+  EXPECT_EQ(node.counters().syncs_received, 2u);
+}
+
+TEST_F(NmtTest, SyncLongerThanOneByteIsMalformed) {
+  EXPECT_FALSE(receive(0x080, {1, 2}).sync);
+  EXPECT_EQ(node.counters().frames_malformed, 1u);
+}
+
+TEST_F(NmtTest, NoPdosUnlessOperational) {
+  // Pre-operational: SYNC sends no TPDO, RPDOs are not applied.
+  ASSERT_GT(board::kTpdoCount, 0u);
+  sync();
+  EXPECT_TRUE(all_sent().empty());
+  const auto rpdo1 = board::kDefaultRpdos[0];
+  ASSERT_TRUE(rpdo1.enabled);
+  receive(make_frame(rpdo1.cob_id_base + kNodeId, {1, 2, 3, 4, 5, 6, 7, 8}));
+  EXPECT_EQ(hil.input_writes, 0u);
+  for (std::uint32_t w : fields.writes) EXPECT_EQ(w, 0u);
+  // Operational: the default synchronous TPDOs go out.
+  nmt(NmtCommand::Start);
+  sync();
+  EXPECT_FALSE(all_sent().empty());
+  // Stopped: nothing again.
+  nmt(NmtCommand::Stop);
+  receive(0x080, {});
+  node.transmit_synchronous_pdos(now_us);
+  EXPECT_TRUE(all_sent().empty());
+}
+
+TEST_F(NmtTest, ResetCommunicationSendsBootUpAndRestoresCommunicationParameters) {
+  ASSERT_EQ(download(0x1005, 0, 0x81, 4), SdoAbort::None);
+  nmt(NmtCommand::Start);
+  nmt(NmtCommand::ResetCommunication);
+  EXPECT_EQ(next_sent(), make_frame(0x700 + kNodeId, {0x00}));
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  EXPECT_EQ(upload(0x1005, 0), 0x80u);
+  EXPECT_EQ(upload(0x1017, 0), board::kNode.heartbeat_ms);
+}
+
+TEST_F(NmtTest, ResetCommunicationLeavesBoardFieldsAlone) {
+  const FieldId id = FieldId::velocity_setpoint;
+  ASSERT_EQ(download_float(index_of(id), 1.25f), SdoAbort::None);
+  nmt(NmtCommand::ResetCommunication);
+  EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(id)], 1.25f);
+}
+
+TEST_F(NmtTest, ResetNodeRestoresBusOwnedFieldsAndReportsIt) {
+  const FieldId id = FieldId::velocity_setpoint;
+  ASSERT_EQ(download_float(index_of(id), 1.25f), SdoAbort::None);
+  nmt(NmtCommand::Start);
+  const ProcessResult result = receive(0x000, {0x81, kNodeId});
+  EXPECT_TRUE(result.application_reset);
+  EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(id)], board::info(id).default_value);
+  EXPECT_EQ(next_sent(), make_frame(0x700 + kNodeId, {0x00}));
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+}
+
+TEST_F(NmtTest, ResetNodeReappliesStoredParameters) {
+  const FieldId id = FieldId::velocity_kp;
+  ASSERT_TRUE(board::info(id).stored);
+  const float stored = board::info(id).max;
+  ASSERT_NE(stored, board::info(id).default_value);
+  ASSERT_EQ(download_float(index_of(id), stored), SdoAbort::None);
+  ASSERT_EQ(download(0x1010, 1, Node::kStoreSignature, 4), SdoAbort::None);
+  nmt(NmtCommand::ResetNode);
+  EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(id)], stored);
+  EXPECT_EQ(node.parameter_load(), ParameterLoad::Loaded);
+}
+
+TEST_F(NmtTest, ExtendedAndRemoteFramesAreIgnored) {
+  receive(make_frame(kSdoRx | CanFrame::kExtendedFlag, {0x40, 0x00, 0x10, 0, 0, 0, 0, 0}));
+  receive(make_frame(0x000 | CanFrame::kRemoteFlag, {0x01, kNodeId}));
+  EXPECT_TRUE(all_sent().empty());
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  EXPECT_EQ(node.counters().frames_ignored, 2u);
+}
+
+}  // namespace
+}  // namespace co::test

@@ -1,0 +1,253 @@
+// The CANopen (CiA 301) slave engine: NMT slave, heartbeat producer, SYNC consumer, SDO server,
+// RPDOs/TPDOs with run-time mapping, EMCY producer, store/restore of parameters.
+//
+// Hardware-agnostic and single-threaded: the caller feeds received frames to process(), calls
+// poll() often (timers), and after each SYNC runs one control cycle and calls
+// transmit_synchronous_pdos(). Time enters only as `now_us` (a free-running microsecond clock
+// that may wrap), so tests drive it. All state is fixed-size; no heap, exceptions or RTTI.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string_view>
+
+#include "CanPort.hpp"
+#include "Emcy.hpp"
+#include "Interfaces.hpp"
+#include "ParameterImage.hpp"
+#include "SdoAbort.hpp"
+#include "SdoServer.hpp"
+#include "board/fields.hpp"
+
+namespace co {
+
+// Values are the heartbeat state bytes (CiA 301, 7.2.8.3.2.2).
+enum class NmtState : std::uint8_t {
+  Initialising = 0x00,  // before start(); also the boot-up message's byte
+  Stopped = 0x04,
+  Operational = 0x05,
+  PreOperational = 0x7F,
+};
+
+// NMT command specifiers (CiA 301, 7.2.8.3.1).
+enum class NmtCommand : std::uint8_t {
+  Start = 0x01,
+  Stop = 0x02,
+  EnterPreOperational = 0x80,
+  ResetNode = 0x81,
+  ResetCommunication = 0x82,
+};
+
+// What process() saw that the caller must act on.
+struct ProcessResult {
+  bool sync = false;              // a SYNC arrived: run one control cycle, then call
+                                  // transmit_synchronous_pdos()
+  bool sync_has_counter = false;  // the SYNC carried a counter byte
+  std::uint8_t sync_counter = 0;  // that byte (1..240), 0 without one
+  bool application_reset = false; // NMT reset node: bus-owned fields are back at their
+                                  // power-on values; reset component state if needed
+};
+
+enum class ParameterLoad : std::uint8_t {
+  NotAttempted,   // start() not called yet
+  Loaded,         // a valid image was applied
+  NothingStored,  // storage empty: defaults stay
+  Rejected,       // image corrupt (magic/version/size/CRC): defaults stay
+};
+
+// Diagnostics; all counts since construction (wrap at 2^32).
+struct NodeCounters {
+  std::uint32_t frames_received = 0;      // every frame given to process()
+  std::uint32_t frames_ignored = 0;       // not for this node, or not served in this state
+  std::uint32_t frames_malformed = 0;     // wrong length for NMT/SYNC/SDO, unknown NMT command
+  std::uint32_t nmt_commands = 0;         // NMT commands addressed to this node (or broadcast)
+  std::uint32_t syncs_received = 0;
+  std::uint32_t sdo_requests = 0;
+  std::uint32_t sdo_aborts_sent = 0;
+  std::uint32_t rpdos_received = 0;       // applied or buffered until the next SYNC
+  std::uint32_t rpdo_length_errors = 0;   // shorter than the mapping: dropped, EMCY 0x8210
+  std::uint32_t rpdo_values_rejected = 0; // mapped value out of range or refused by the board
+  std::uint32_t tpdos_sent = 0;
+  std::uint32_t heartbeats_sent = 0;
+  std::uint32_t emcy_sent = 0;            // includes error reset messages
+  std::uint32_t send_failures = 0;        // port refused a frame (queue full / error): dropped
+  std::uint32_t field_writes_refused = 0; // FieldAccess::write refused (SDO, RPDO, defaults)
+  std::uint32_t default_pdo_errors = 0;   // default PDO mappings the OD could not resolve
+};
+
+class Node final {
+ public:
+  static constexpr std::size_t kErrorHistoryDepth = board::kErrorHistoryLength;  // 0x1003 subs
+  static constexpr std::size_t kMaxActiveErrors = 8;
+  static constexpr std::size_t kMaxMappedObjects = 8;
+  static constexpr std::uint32_t kStoreSignature = 0x6576'6173;    // "save", LE
+  static constexpr std::uint32_t kRestoreSignature = 0x6461'6F6C;  // "load", LE
+
+  // `node_id` 1..127. All references must outlive the node; it owns none of them. Nothing is
+  // sent or written before start().
+  Node(std::uint8_t node_id, CanPort& port, FieldAccess& fields, HilIo& hil,
+       ParameterStorage& storage, std::uint32_t serial_number = 0);
+  Node(const Node&) = delete;
+  Node& operator=(const Node&) = delete;
+
+  // Initialising -> applies stored parameters -> boot-up message -> pre-operational.
+  void start(std::uint32_t now_us);
+
+  // One received frame. Never blocks; answers (SDO, ...) are sent from inside.
+  ProcessResult process(const CanFrame& frame, std::uint32_t now_us);
+
+  // Timers: heartbeat, SDO server timeout, event-driven TPDOs (event timer, change of value
+  // limited by the inhibit time), RPDO deadlines (EMCY 0x8250). Call at least once per
+  // millisecond for exact timing.
+  void poll(std::uint32_t now_us);
+
+  // Sends the synchronous TPDOs due at the last SYNC (type n: every n-th SYNC; type 0: when
+  // the mapped values changed). Call once per SYNC, after the control cycle.
+  void transmit_synchronous_pdos(std::uint32_t now_us);
+
+  // EMCY producer. An error stays active until cleared; reporting an active error again (same
+  // code and manufacturer bytes) sends nothing and returns false. Otherwise: error register
+  // updated, 0x1003 history pushed, frame sent (pre-operational/operational only), true.
+  bool report_emcy(const EmcyReport& report);
+  bool report_emcy(std::uint16_t error_code, std::uint8_t error_register_bits,
+                   const std::array<std::uint8_t, 5>& manufacturer);
+  // Clears one active error (code and manufacturer bytes) or all with `error_code`, and sends
+  // an error reset (code 0x0000, the remaining error register). false: nothing was active.
+  bool clear_emcy(const EmcyReport& report);
+  bool clear_emcy(std::uint16_t error_code);
+  bool clear_all_emcy();
+
+  // Local equivalents of writing 0x1010 / 0x1011 sub 1. false: storage or the board refused.
+  bool store_parameters();
+  bool restore_default_parameters();
+
+  NmtState state() const { return state_; }
+  std::uint8_t node_id() const { return node_id_; }
+  std::uint8_t error_register() const { return error_register_; }
+  ParameterLoad parameter_load() const { return parameter_load_; }
+  const NodeCounters& counters() const { return counters_; }
+  std::uint16_t heartbeat_period_ms() const { return heartbeat_ms_; }
+
+ private:
+  enum class Target : std::uint8_t { Communication, Field, HilInput, HilOutput };
+  // One (index, sub-index) of the object dictionary as the SDO server and PDOs see it.
+  struct Entry {
+    board::DataType type = board::DataType::Unsigned32;
+    std::uint8_t size = 0;  // bytes
+    bool readable = true;
+    bool writable = false;
+    Target target = Target::Communication;
+    std::uint8_t id = 0;  // FieldId / HilInputId / HilOutputId as a number
+  };
+  struct MappedObject {
+    Target target = Target::Field;
+    std::uint8_t id = 0;
+    std::uint8_t size = 0;  // bytes
+    board::DataType type = board::DataType::Real32;
+  };
+  struct Pdo {
+    // Communication parameter (0x1400+n / 0x1800+n).
+    std::uint32_t cob_id = 0x8000'0000u;  // bit 31 set: not valid
+    std::uint8_t transmission_type = 255;
+    std::uint16_t inhibit_time_100us = 0;  // TPDO only
+    std::uint16_t event_timer_ms = 0;      // TPDO only
+    // Mapping parameter (0x1600+n / 0x1A00+n).
+    std::uint8_t mapping_count = 0;
+    std::array<std::uint32_t, kMaxMappedObjects> mapping{};
+    std::array<MappedObject, kMaxMappedObjects> mapped{};  // resolved mapping[0..count)
+    std::uint8_t payload_bytes = 0;
+    // Run-time state.
+    std::uint8_t syncs_since_sent = 0;
+    bool due_at_sync = false;
+    bool sent_once = false;
+    std::uint32_t last_sent_us = 0;
+    std::array<std::uint8_t, 8> last_payload{};
+    bool buffered = false;  // synchronous RPDO waiting for the next SYNC
+    bool received_once = false;  // RPDO deadline monitoring
+    bool deadline_missed = false;
+    std::uint32_t last_received_us = 0;
+    std::array<std::uint8_t, 8> buffer{};
+
+    bool valid() const { return (cob_id & 0x8000'0000u) == 0; }
+    std::uint32_t can_id() const { return cob_id & 0x7FFu; }
+  };
+  struct ActiveError {
+    EmcyReport report;
+    bool active = false;
+  };
+
+  // The SDO server's view of the object dictionary (ObjectDictionary.cpp).
+  static ObjectAccess object_access(Node& node);
+  // Object dictionary access by (index, sub-index) (ObjectDictionary.cpp).
+  SdoAbort check_writable(std::uint16_t index, std::uint8_t sub, std::size_t& size);
+  SdoAbort read(std::uint16_t index, std::uint8_t sub, std::span<std::uint8_t> out,
+                std::size_t& length);
+  SdoAbort write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                 std::uint32_t now_us);
+
+  // Object dictionary (ObjectDictionary.cpp).
+  SdoAbort find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) const;
+  std::string_view string_value(std::uint16_t index) const;
+  std::uint32_t read_communication(std::uint16_t index, std::uint8_t sub) const;
+  SdoAbort write_communication(std::uint16_t index, std::uint8_t sub, std::uint32_t value,
+                               std::uint32_t now_us);
+  SdoAbort write_field(board::FieldId id, float value);
+  SdoAbort write_hil_input(board::HilInputId id, std::uint32_t raw);
+  std::int32_t hil_input_value(board::HilInputId id) const;
+
+  // PDOs (Pdo.cpp).
+  SdoAbort write_pdo_communication(Pdo& pdo, std::uint8_t sub, std::uint32_t value);
+  SdoAbort write_pdo_mapping(Pdo& pdo, bool is_rpdo, std::uint8_t sub, std::uint32_t value);
+  SdoAbort resolve_mapping(std::uint32_t entry, bool is_rpdo, MappedObject& mapped) const;
+  void load_default_pdos();
+  void reset_pdo_runtime();
+  void receive_rpdo(std::size_t number, const CanFrame& frame, std::uint32_t now_us);
+  void poll_rpdo_deadlines(std::uint32_t now_us);
+  void apply_rpdo(const Pdo& pdo, std::span<const std::uint8_t> data);
+  std::uint8_t build_tpdo(const Pdo& pdo, std::array<std::uint8_t, 8>& data);
+  void send_tpdo(Pdo& pdo, const std::array<std::uint8_t, 8>& data, std::uint8_t len,
+                 std::uint32_t now_us);
+  void poll_event_tpdos(std::uint32_t now_us);
+
+  // NMT, storage, EMCY (Node.cpp).
+  void handle_nmt(const CanFrame& frame, std::uint32_t now_us, ProcessResult& result);
+  void handle_sync(const CanFrame& frame, ProcessResult& result);
+  void handle_sdo(const CanFrame& frame, std::uint32_t now_us);
+  void enter(NmtState state);
+  void reset_communication(std::uint32_t now_us);
+  void apply_power_on_values();
+  ParameterLoad load_stored_parameters();
+  void send_emcy(std::uint16_t code, const std::array<std::uint8_t, 5>& manufacturer);
+  void update_error_register();
+  bool may_send_emcy() const;
+  bool send(std::uint32_t id, std::span<const std::uint8_t> data);
+
+  std::uint8_t node_id_;
+  CanPort& port_;
+  FieldAccess& fields_;
+  HilIo& hil_;
+  ParameterStorage& storage_;
+  std::uint32_t serial_number_;
+  SdoServer sdo_;
+
+  NmtState state_ = NmtState::Initialising;
+  std::uint32_t sync_cob_id_ = 0x80;
+  std::uint16_t heartbeat_ms_ = 0;
+  std::uint32_t last_heartbeat_us_ = 0;
+  std::array<Pdo, board::kRpdoCount> rpdos_{};
+  std::array<Pdo, board::kTpdoCount> tpdos_{};
+  std::array<std::int32_t, board::kHilInputCount> hil_inputs_{};  // last values written
+
+  std::uint8_t error_register_ = 0;
+  std::array<ActiveError, kMaxActiveErrors> active_errors_{};
+  std::array<std::uint32_t, kErrorHistoryDepth> error_history_{};  // [0] = newest
+  std::uint8_t error_history_count_ = 0;
+
+  ParameterLoad parameter_load_ = ParameterLoad::NotAttempted;
+  std::array<std::byte, parameter_image::kCapacity> image_{};
+  NodeCounters counters_;
+};
+
+}  // namespace co

@@ -1,0 +1,107 @@
+// Internal: little-endian coding and lookups over the generated tables in board/fields.hpp.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <span>
+
+#include "board/fields.hpp"
+
+namespace co::tables {
+
+// Communication profile indices (CiA 301, 7.5).
+inline constexpr std::uint16_t kRpdoCommunicationBase = 0x1400;
+inline constexpr std::uint16_t kRpdoMappingBase = 0x1600;
+inline constexpr std::uint16_t kTpdoCommunicationBase = 0x1800;
+inline constexpr std::uint16_t kTpdoMappingBase = 0x1A00;
+
+// CAN identifiers CiA 301 (7.3.5) reserves for NMT, SYNC/EMCY, SDO and error control: no
+// configurable COB-ID (PDOs, SYNC 0x1005) may use them.
+constexpr bool is_restricted_can_id(std::uint32_t id) {
+  return id <= 0x7F || (id >= 0x101 && id <= 0x180) || (id >= 0x581 && id <= 0x5FF) ||
+         (id >= 0x601 && id <= 0x67F) || (id >= 0x6E0 && id <= 0x6FF) || id >= 0x701;
+}
+
+constexpr std::uint8_t size_of(board::DataType type) {
+  switch (type) {
+    case board::DataType::Boolean:
+    case board::DataType::Integer8:
+    case board::DataType::Unsigned8: return 1;
+    case board::DataType::Integer16:
+    case board::DataType::Unsigned16: return 2;
+    case board::DataType::Integer32:
+    case board::DataType::Unsigned32:
+    case board::DataType::Real32: return 4;
+    case board::DataType::VisibleString: return 0;
+  }
+  return 0;
+}
+
+constexpr bool is_signed(board::DataType type) {
+  return type == board::DataType::Integer8 || type == board::DataType::Integer16 ||
+         type == board::DataType::Integer32;
+}
+
+// Little endian, `bytes.size()` (1..4) bytes.
+inline std::uint32_t get_le(std::span<const std::uint8_t> bytes) {
+  std::uint32_t v = 0;
+  for (std::size_t i = 0; i < bytes.size() && i < 4; ++i) v |= std::uint32_t{bytes[i]} << (8 * i);
+  return v;
+}
+inline void put_le(std::span<std::uint8_t> bytes, std::uint32_t v) {
+  for (std::size_t i = 0; i < bytes.size() && i < 4; ++i) {
+    bytes[i] = static_cast<std::uint8_t>(v >> (8 * i));
+  }
+}
+
+// The integer an object of `type` holds when its bytes read `raw`.
+constexpr std::int64_t integer_value(board::DataType type, std::uint32_t raw) {
+  switch (type) {
+    case board::DataType::Integer8: return static_cast<std::int8_t>(raw & 0xFF);
+    case board::DataType::Integer16: return static_cast<std::int16_t>(raw & 0xFFFF);
+    case board::DataType::Integer32: return static_cast<std::int32_t>(raw);
+    case board::DataType::Boolean:
+    case board::DataType::Unsigned8: return raw & 0xFF;
+    case board::DataType::Unsigned16: return raw & 0xFFFF;
+    default: return raw;
+  }
+}
+
+constexpr std::optional<board::FieldId> field_at(std::uint16_t index) {
+  for (std::size_t i = 0; i < board::kFieldCount; ++i) {
+    if (board::kFields[i].index == index) return static_cast<board::FieldId>(i);
+  }
+  return std::nullopt;
+}
+
+constexpr std::optional<board::HilInputId> hil_input_at(std::uint16_t index) {
+  for (std::size_t i = 0; i < board::kHilInputs.size(); ++i) {
+    if (board::kHilInputs[i].index == index) return static_cast<board::HilInputId>(i);
+  }
+  return std::nullopt;
+}
+
+constexpr std::optional<board::HilOutputId> hil_output_at(std::uint16_t index) {
+  for (std::size_t i = 0; i < board::kHilOutputs.size(); ++i) {
+    if (board::kHilOutputs[i].index == index) return static_cast<board::HilOutputId>(i);
+  }
+  return std::nullopt;
+}
+
+// HilIo carries int32: every declared input range must fit.
+constexpr bool hil_inputs_fit_int32() {
+  for (const board::IoInfo& io : board::kHilInputs) {
+    if (io.min < std::numeric_limits<std::int32_t>::min() ||
+        io.max > std::numeric_limits<std::int32_t>::max() || size_of(io.type) == 0) {
+      return false;
+    }
+  }
+  for (const board::IoInfo& io : board::kHilOutputs) {
+    if (size_of(io.type) == 0) return false;
+  }
+  return true;
+}
+
+}  // namespace co::tables

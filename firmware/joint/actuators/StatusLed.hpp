@@ -1,0 +1,21 @@
+// The status LED: led_pattern_command -> LedOutput. A value outside 0..3
+// (cannot come from LedPatternSelector) shows as the fault pattern.
+#pragma once
+
+#include "core/MessageBoardUser.hpp"
+#include "joint/drivers/LedOutput.hpp"
+
+namespace joint {
+
+class StatusLed final : public core::Actuator {
+ public:
+  // `output` must outlive the actuator.
+  StatusLed(core::MessageBoard& board, LedOutput& output);
+
+  void update() override;
+
+ private:
+  LedOutput& output_;
+};
+
+}  // namespace joint

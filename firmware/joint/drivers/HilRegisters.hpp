@@ -1,0 +1,100 @@
+// The demo joint's drivers on the hardware-in-the-loop rig: raw values arrive
+// in CAN frames and leave in CAN frames, so every driver is an intermediate
+// register. The platform's receive path calls the write_* side (never the
+// board, per the seed's interrupt policy); its transmit path reads the *_raw()
+// side after each cycle. The components see only the driver interfaces,
+// through drivers().
+//
+// Threading: one producer (receive path) and one consumer (control cycle) per
+// input register, lock-free; outputs are single atomics. No heap.
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+
+#include "core/LatestValueRegister.hpp"
+#include "core/SampleBuffer.hpp"
+#include "joint/drivers/JointDrivers.hpp"
+
+namespace joint {
+
+class HilRegisters {
+ public:
+  // Thermistor conversions buffered between two cycles; more are dropped and counted.
+  static constexpr std::size_t kThermistorSampleCapacity = 16;
+
+  HilRegisters() = default;
+  // drivers() hands out references into this object: it never moves.
+  HilRegisters(const HilRegisters&) = delete;
+  HilRegisters& operator=(const HilRegisters&) = delete;
+
+  // --- receive path: raw inputs as the hardware gives them ---------------
+  void write_motor_encoder(std::uint16_t counts) { motor_encoder_.register_.write(counts); }
+  void write_output_encoder(std::uint16_t counts) { output_encoder_.register_.write(counts); }
+  // false: the buffer held kThermistorSampleCapacity undrained samples, this one was dropped.
+  bool write_thermistor_adc(std::uint16_t adc_counts) { return thermistor_.buffer_.push(adc_counts); }
+  void write_motor_current(std::int16_t milliamps) { motor_current_.register_.write(milliamps); }
+
+  // --- transmit path: what the actuators last commanded -------------------
+  // -10000..10000 (0.01 % of bus voltage); 0 before the first cycle.
+  std::int16_t motor_duty_raw() const { return motor_duty_.value_.load(std::memory_order_acquire); }
+  // 0 off, 1 on, 2 slow blink, 3 fast blink; 0 before the first cycle.
+  std::uint8_t led_pattern_raw() const { return status_led_.value_.load(std::memory_order_acquire); }
+
+  // Thermistor samples dropped because the control cycle did not drain them in time.
+  std::uint32_t thermistor_overflows() const { return thermistor_.buffer_.overflow_count(); }
+
+  // The driver interfaces the components use, all backed by this object.
+  JointDrivers drivers() {
+    return JointDrivers{motor_encoder_, output_encoder_, thermistor_, motor_current_, motor_duty_, status_led_};
+  }
+
+ private:
+  class Counter final : public CounterInput {
+   public:
+    CounterSample read() override {
+      const auto reading = register_.read();
+      return CounterSample{reading.value, reading.fresh};
+    }
+    core::LatestValueRegister<std::uint16_t> register_;
+  };
+
+  class ThermistorAdc final : public AdcSampleInput {
+   public:
+    std::size_t drain(std::span<std::uint16_t> out) override { return buffer_.drain_into(out); }
+    core::SampleBuffer<std::uint16_t, kThermistorSampleCapacity> buffer_;
+  };
+
+  class Current final : public CurrentInput {
+   public:
+    CurrentSample read() override {
+      const auto reading = register_.read();
+      return CurrentSample{reading.value, reading.fresh};
+    }
+    core::LatestValueRegister<std::int16_t> register_;
+  };
+
+  class Duty final : public DutyOutput {
+   public:
+    void write(std::int16_t duty_raw) override { value_.store(duty_raw, std::memory_order_release); }
+    std::atomic<std::int16_t> value_{0};
+  };
+
+  class Led final : public LedOutput {
+   public:
+    void write(LedPattern pattern) override {
+      value_.store(static_cast<std::uint8_t>(pattern), std::memory_order_release);
+    }
+    std::atomic<std::uint8_t> value_{0};
+  };
+
+  Counter motor_encoder_;
+  Counter output_encoder_;
+  ThermistorAdc thermistor_;
+  Current motor_current_;
+  Duty motor_duty_;
+  Led status_led_;
+};
+
+}  // namespace joint

@@ -1,0 +1,50 @@
+#include "joint/drivers/HilRegisters.hpp"
+
+#include <gtest/gtest.h>
+
+#include <array>
+
+namespace joint {
+namespace {
+
+TEST(HilRegisters, HandsTheNewestCounterValueOnceAsFresh) {
+  HilRegisters registers;
+  CounterInput& encoder = registers.drivers().motor_encoder;
+  EXPECT_FALSE(encoder.read().fresh);
+  registers.write_motor_encoder(10);
+  registers.write_motor_encoder(20);
+  const CounterSample sample = encoder.read();
+  EXPECT_EQ(sample.counts, 20);
+  EXPECT_TRUE(sample.fresh);
+  EXPECT_FALSE(encoder.read().fresh);
+  // The two encoders are separate registers.
+  EXPECT_FALSE(registers.drivers().output_encoder.read().fresh);
+}
+
+TEST(HilRegisters, BuffersThermistorSamplesAndCountsOverflows) {
+  HilRegisters registers;
+  for (std::size_t i = 0; i < HilRegisters::kThermistorSampleCapacity; ++i) {
+    ASSERT_TRUE(registers.write_thermistor_adc(static_cast<std::uint16_t>(1000 + i)));
+  }
+  EXPECT_FALSE(registers.write_thermistor_adc(9));
+  EXPECT_EQ(registers.thermistor_overflows(), 1U);
+  std::array<std::uint16_t, 32> out{};
+  EXPECT_EQ(registers.drivers().thermistor_adc.drain(out), HilRegisters::kThermistorSampleCapacity);
+  EXPECT_EQ(out[0], 1000);
+  EXPECT_EQ(registers.drivers().thermistor_adc.drain(out), 0U);
+}
+
+TEST(HilRegisters, PassesCurrentAndOutputsThrough) {
+  HilRegisters registers;
+  registers.write_motor_current(-1234);
+  const CurrentSample current = registers.drivers().motor_current.read();
+  EXPECT_EQ(current.milliamps, -1234);
+  EXPECT_TRUE(current.fresh);
+  registers.drivers().motor_duty.write(-10000);
+  registers.drivers().status_led.write(LedPattern::FastBlink);
+  EXPECT_EQ(registers.motor_duty_raw(), -10000);
+  EXPECT_EQ(registers.led_pattern_raw(), 3);
+}
+
+}  // namespace
+}  // namespace joint

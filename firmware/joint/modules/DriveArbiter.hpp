@@ -1,0 +1,32 @@
+// The command interface: picks the duty the motor applies from control_mode
+// (1 and 3: the velocity loop, 2: the torque loop, 0 or anything else: none),
+// forces 0 in the safe state, and limits it to max_duty * thermal_derate (the
+// derate bounds the drive rather than scaling it, so a hot winding caps the
+// current instead of weakening every command). Writes motor_duty_command.
+#pragma once
+
+#include "core/MessageBoardUser.hpp"
+#include "joint/ControlMode.hpp"
+
+namespace joint {
+
+struct DriveInputs {
+  ControlMode mode;
+  bool safe_state;
+  float velocity_controller_output;
+  float torque_controller_output;
+  float max_duty;
+  float thermal_derate;
+};
+
+// The duty to command, -max_duty*derate .. max_duty*derate.
+float arbitrate_duty(const DriveInputs& inputs);
+
+class DriveArbiter final : public core::Module {
+ public:
+  explicit DriveArbiter(core::MessageBoard& board);
+
+  void update() override;
+};
+
+}  // namespace joint

@@ -1,0 +1,45 @@
+#include "joint/modules/DriveArbiter.hpp"
+
+#include <gtest/gtest.h>
+
+namespace joint {
+namespace {
+
+DriveInputs inputs(ControlMode mode) {
+  return {.mode = mode,
+          .safe_state = false,
+          .velocity_controller_output = 0.3F,
+          .torque_controller_output = -0.4F,
+          .max_duty = 0.95F,
+          .thermal_derate = 1.0F};
+}
+
+TEST(DriveArbiter, PassesTheLoopOfTheActiveMode) {
+  EXPECT_FLOAT_EQ(arbitrate_duty(inputs(ControlMode::Velocity)), 0.3F);
+  EXPECT_FLOAT_EQ(arbitrate_duty(inputs(ControlMode::Position)), 0.3F);
+  EXPECT_FLOAT_EQ(arbitrate_duty(inputs(ControlMode::Torque)), -0.4F);
+  EXPECT_FLOAT_EQ(arbitrate_duty(inputs(ControlMode::Disabled)), 0.0F);
+}
+
+TEST(DriveArbiter, CommandsZeroInTheSafeState) {
+  DriveInputs in = inputs(ControlMode::Velocity);
+  in.safe_state = true;
+  EXPECT_FLOAT_EQ(arbitrate_duty(in), 0.0F);
+}
+
+TEST(DriveArbiter, LimitsToMaxDutyTimesThermalDerate) {
+  DriveInputs in = inputs(ControlMode::Velocity);
+  in.velocity_controller_output = 1.0F;
+  EXPECT_FLOAT_EQ(arbitrate_duty(in), 0.95F);
+  in.thermal_derate = 0.5F;
+  EXPECT_FLOAT_EQ(arbitrate_duty(in), 0.475F);
+}
+
+TEST(DriveArbiter, TreatsAnUnknownModeAsDisabled) {
+  EXPECT_EQ(control_mode_from_field(1.5F), ControlMode::Disabled);
+  EXPECT_EQ(control_mode_from_field(7.0F), ControlMode::Disabled);
+  EXPECT_EQ(control_mode_from_field(2.0F), ControlMode::Torque);
+}
+
+}  // namespace
+}  // namespace joint

@@ -1,0 +1,50 @@
+// Collects the joint's faults into fault_flags (bits: FaultBits.hpp), latches
+// them, and holds safe_state = 1 while any is latched.
+//
+// Causes, evaluated every cycle:
+//   MotorEncoderStale / OutputEncoderStale: motor_position / output_position
+//     not written for encoder_stale_cycles cycles (the encoder sensors write
+//     only on a fresh sample);
+//   ThermistorStale: thermistor_resistance not written for
+//     thermistor_stale_cycles cycles (the sensor also drops shorted/open readings);
+//   OverTemperature: thermal_derate == 0, the thermal protection's
+//     over-temperature state (with its hysteresis);
+//   CommandWatchdog: watchdog_tripped == 1;
+//   OwnershipViolation: the board's count of refused writes rose since the
+//     previous cycle (a one-cycle event: it stays latched until cleared).
+// A sensor field never written counts as silent since the manager's first
+// cycle, which gives the sensors encoder_stale_cycles to start up.
+//
+// Clearing: a write of fault_clear = 1 (each new write counts, whether or not
+// the value changed) clears the latch; causes still present latch again in
+// the same cycle.
+#pragma once
+
+#include <cstdint>
+
+#include "core/MessageBoardUser.hpp"
+#include "joint/modules/FaultLatch.hpp"
+
+namespace joint {
+
+class FaultManager final : public core::Module {
+ public:
+  explicit FaultManager(core::MessageBoard& board);
+
+  void update() override;
+
+ private:
+  std::uint32_t active_causes();
+  bool clear_requested();
+  // Cycles run without a write, counting the current one; see the header comment.
+  std::uint32_t silent_cycles(board::FieldId sensor_field) const;
+
+  FaultLatch latch_;
+  std::uint32_t first_cycle_ = 0;
+  bool started_ = false;
+  std::uint32_t previous_refused_writes_ = 0;  // 0: a refusal before the first cycle latches too
+  std::uint32_t seen_clear_stamp_ = 0;
+  bool seen_clear_ = false;
+};
+
+}  // namespace joint

@@ -1,0 +1,55 @@
+#include "joint/modules/SpringConstantRls.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+namespace joint {
+namespace {
+
+TEST(SpringConstantRls, ConvergesToAKnownStiffnessWithinFivePercent) {
+  // True k = 80 N*m/rad, start from the nominal 50; a torque offset of 0.3 N*m and
+  // noise of 0.05 N*m as from current-sensor offset and quantisation.
+  constexpr double kTrueK = 80.0;
+  SpringConstantRls rls;
+  rls.reset(50.0);
+  std::mt19937 generator{12345};
+  std::normal_distribution<double> noise{0.0, 0.05};
+  for (int n = 0; n < 5000; ++n) {
+    const double deflection_rad = 0.05 * std::sin(2.0 * std::numbers::pi * 0.5 * n * 0.001);
+    rls.update(deflection_rad, kTrueK * deflection_rad + 0.3 + noise(generator));
+  }
+  EXPECT_NEAR(rls.spring_constant(), kTrueK, 0.05 * kTrueK);
+  EXPECT_NEAR(rls.offset_nm(), 0.3, 0.05);
+  EXPECT_GT(rls.confidence(), 0.8);
+}
+
+TEST(SpringConstantRls, HasNoConfidenceWithoutExcitation) {
+  // Constant deflection: k and the offset cannot be told apart.
+  SpringConstantRls rls;
+  rls.reset(50.0);
+  std::mt19937 generator{7};
+  std::normal_distribution<double> noise{0.0, 0.05};
+  for (int n = 0; n < 5000; ++n) {
+    rls.update(0.02, 80.0 * 0.02 + noise(generator));
+  }
+  EXPECT_LT(rls.confidence(), 0.05);
+}
+
+TEST(SpringConstantRls, LosesConfidenceWhenTheDataDoNotFitALine) {
+  // Torque unrelated to deflection (pure noise as large as the signal would be).
+  SpringConstantRls rls;
+  rls.reset(50.0);
+  std::mt19937 generator{3};
+  std::normal_distribution<double> noise{0.0, 2.0};
+  for (int n = 0; n < 5000; ++n) {
+    const double deflection_rad = 0.05 * std::sin(2.0 * std::numbers::pi * 0.5 * n * 0.001);
+    rls.update(deflection_rad, noise(generator));
+  }
+  EXPECT_LT(rls.confidence(), 0.2);
+}
+
+}  // namespace
+}  // namespace joint

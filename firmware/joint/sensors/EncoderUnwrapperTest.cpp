@@ -1,0 +1,51 @@
+#include "joint/sensors/EncoderUnwrapper.hpp"
+
+#include <gtest/gtest.h>
+
+#include <numbers>
+
+namespace joint {
+namespace {
+
+TEST(EncoderUnwrapper, CountsForwardAcrossTheWrap) {
+  EncoderUnwrapper unwrapper;
+  unwrapper.update(30000);
+  unwrapper.update(60000);
+  ASSERT_EQ(unwrapper.update(65530), 65530);
+  EXPECT_EQ(unwrapper.update(5), 65530 + 11);
+}
+
+TEST(EncoderUnwrapper, CountsBackwardAcrossTheWrap) {
+  EncoderUnwrapper unwrapper;
+  unwrapper.update(5);
+  EXPECT_EQ(unwrapper.update(65530), 5 - 11);
+  EXPECT_EQ(unwrapper.update(35530), 5 - 11 - 30000);
+}
+
+TEST(EncoderUnwrapper, TakesTheFirstReadingAsASignedStepFromZero) {
+  EncoderUnwrapper unwrapper;
+  EXPECT_EQ(unwrapper.update(65535), -1);
+}
+
+TEST(EncoderUnwrapper, KeepsCountingOverManyWrapsInBothDirections) {
+  EncoderUnwrapper unwrapper;
+  std::uint16_t raw = 0;
+  for (int i = 0; i < 1000; ++i) {  // +300 000 counts: more than four wraps
+    raw = static_cast<std::uint16_t>(raw + 300);
+    unwrapper.update(raw);
+  }
+  EXPECT_EQ(unwrapper.counts(), 300000);
+  for (int i = 0; i < 2000; ++i) {  // -600 000 counts
+    raw = static_cast<std::uint16_t>(raw - 300);
+    unwrapper.update(raw);
+  }
+  EXPECT_EQ(unwrapper.counts(), -300000);
+}
+
+TEST(EncoderUnwrapper, ConvertsCountsToRadians) {
+  EXPECT_FLOAT_EQ(counts_to_rad(4096, 4096.0F), 2.0F * std::numbers::pi_v<float>);
+  EXPECT_FLOAT_EQ(counts_to_rad(-1024, 4096.0F), -0.5F * std::numbers::pi_v<float>);
+}
+
+}  // namespace
+}  // namespace joint

@@ -1,0 +1,102 @@
+#include "SocketCanPort.hpp"
+
+#include <linux/can.h>
+#include <linux/can/error.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+namespace linuxhw {
+
+SocketCanPort::~SocketCanPort() {
+  if (fd_ >= 0) {
+    ::close(fd_);
+  }
+}
+
+bool SocketCanPort::open(const std::string& interface, std::string& error) {
+  if (interface.empty() || interface.size() >= IFNAMSIZ) {
+    error = "invalid CAN interface name '" + interface + "'";
+    return false;
+  }
+  fd_ = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
+  if (fd_ < 0) {
+    error = std::string("cannot open a SocketCAN socket: ") + std::strerror(errno) +
+            (errno == EAFNOSUPPORT ? " (this kernel has no CAN support: run through tools/with-vcan)" : "");
+    return false;
+  }
+  ifreq request{};
+  std::copy(interface.begin(), interface.end(), request.ifr_name);
+  if (::ioctl(fd_, SIOCGIFINDEX, &request) < 0) {
+    error = errno == ENODEV
+                ? "no such CAN interface " + interface + ": create it with `make vcan` (root), or run through tools/with-vcan"
+                : "cannot look up CAN interface " + interface + ": " + std::strerror(errno);
+    return false;
+  }
+  // Error frames are counted, not acted on: a HIL rig wants to see bus trouble in the stats.
+  const can_err_mask_t error_mask = CAN_ERR_MASK;
+  ::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &error_mask, sizeof(error_mask));
+  sockaddr_can address{};
+  address.can_family = AF_CAN;
+  address.can_ifindex = request.ifr_ifindex;
+  if (::bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof(address)) < 0) {
+    error = "cannot bind to CAN interface " + interface + ": " + std::strerror(errno);
+    return false;
+  }
+  return true;
+}
+
+co::SendResult SocketCanPort::send(const co::CanFrame& frame) {
+  can_frame raw{};
+  raw.can_id = frame.id;
+  raw.len = std::min<std::uint8_t>(frame.len, CAN_MAX_DLEN);
+  std::copy_n(frame.data.begin(), raw.len, raw.data);
+  const ssize_t written = ::write(fd_, &raw, sizeof(raw));
+  if (written == static_cast<ssize_t>(sizeof(raw))) {
+    return co::SendResult::Sent;
+  }
+  if (written < 0 && (errno == ENOBUFS || errno == EAGAIN)) {
+    ++counters_.send_queue_full;
+    return co::SendResult::QueueFull;
+  }
+  ++counters_.send_errors;
+  return co::SendResult::PortError;
+}
+
+co::ReceiveResult SocketCanPort::receive(co::CanFrame& frame) {
+  for (;;) {
+    can_frame raw{};
+    const ssize_t got = ::read(fd_, &raw, sizeof(raw));
+    if (got < 0) {
+      if (errno == EAGAIN || errno == EWOULDBLOCK) {
+        return co::ReceiveResult::Empty;
+      }
+      if (errno == EINTR) {
+        continue;
+      }
+      ++counters_.receive_errors;
+      return co::ReceiveResult::PortError;
+    }
+    if (got != static_cast<ssize_t>(sizeof(raw))) {
+      ++counters_.short_frames;
+      continue;
+    }
+    if ((raw.can_id & CAN_ERR_FLAG) != 0) {
+      ++counters_.error_frames;
+      continue;
+    }
+    frame.id = raw.can_id;
+    frame.len = std::min<std::uint8_t>(raw.len, CAN_MAX_DLEN);
+    frame.data = {};
+    std::copy_n(raw.data, frame.len, frame.data.begin());
+    return co::ReceiveResult::Received;
+  }
+}
+
+}  // namespace linuxhw

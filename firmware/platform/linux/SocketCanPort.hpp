@@ -1,0 +1,41 @@
+// co::CanPort over a raw Linux SocketCAN socket (vcan0, can0, any SocketCAN interface).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "canopen/CanPort.hpp"
+
+namespace linuxhw {
+
+struct SocketCanCounters {
+  std::uint32_t error_frames = 0;     // controller error frames reported by the driver
+  std::uint32_t receive_errors = 0;   // recv() failures other than "nothing pending"
+  std::uint32_t short_frames = 0;     // reads that were not a whole classic CAN frame
+  std::uint32_t send_queue_full = 0;  // ENOBUFS/EAGAIN: the frame was dropped
+  std::uint32_t send_errors = 0;      // other send failures
+};
+
+class SocketCanPort final : public co::CanPort {
+ public:
+  SocketCanPort() = default;
+  SocketCanPort(const SocketCanPort&) = delete;
+  SocketCanPort& operator=(const SocketCanPort&) = delete;
+  ~SocketCanPort() override;
+
+  // Opens a non-blocking raw socket bound to `interface`. On failure returns false and
+  // `error` says what to do about it (e.g. how to create a missing vcan interface).
+  bool open(const std::string& interface, std::string& error);
+
+  co::SendResult send(const co::CanFrame& frame) override;
+  co::ReceiveResult receive(co::CanFrame& frame) override;
+
+  int fd() const { return fd_; }
+  const SocketCanCounters& counters() const { return counters_; }
+
+ private:
+  int fd_ = -1;
+  SocketCanCounters counters_;
+};
+
+}  // namespace linuxhw

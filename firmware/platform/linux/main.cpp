@@ -1,0 +1,343 @@
+// joint-firmware: the demo joint's firmware for a Linux target on SocketCAN.
+//
+// Wires the pieces together (the board itself stays a plain table): the message board, the
+// scheduler with the demo joint's components, the CANopen node (owner of the bus-writable
+// fields), the hardware-in-the-loop registers, and one event-loop thread that feeds CAN frames
+// to the node and runs control cycles, either one per received SYNC (lockstep) or on its own
+// absolute-deadline timer (free-running).
+#include <poll.h>
+#include <signal.h>
+#include <sys/signalfd.h>
+#include <sys/timerfd.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <array>
+#include <cerrno>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "FileParameterStorage.hpp"
+#include "SocketCanPort.hpp"
+#include "board/fields.hpp"
+#include "canopen/Node.hpp"
+#include "core/MessageBoard.hpp"
+#include "core/MessageBoardUser.hpp"
+#include "core/Scheduler.hpp"
+#include "joint/DemoJoint.hpp"
+#include "joint/FaultBits.hpp"
+#include "joint/drivers/HilRegisters.hpp"
+
+namespace {
+
+enum class Mode { Lockstep, Free };
+
+struct Options {
+  std::string can_interface = "vcan0";
+  int node_id = board::kNode.default_node_id;
+  Mode mode = Mode::Lockstep;
+  std::uint32_t period_us = 1000;
+  std::string params_file;
+  bool print_schedule = false;
+};
+
+// Exit codes: 0 clean stop, 1 start-up failure (bus, schedule), 2 bad command line.
+constexpr int kExitStartupFailure = 1;
+constexpr int kExitUsage = 2;
+
+std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
+  CLI::App app{
+      "Firmware of the demo series-elastic joint, a CANopen (CiA 301) node on SocketCAN.\n"
+      "In lockstep mode every SYNC from the bus runs exactly one control cycle and the\n"
+      "synchronous TPDOs answer it (the rig drives simulation time). In free mode the\n"
+      "firmware keeps its own period with an absolute-deadline timer, as on a real board.",
+      "joint-firmware"};
+  app.add_option("--can", options.can_interface, "SocketCAN interface")->capture_default_str();
+  app.add_option("--node-id", options.node_id, "CANopen node id (1..127)")
+      ->check(CLI::Range(1, 127))
+      ->capture_default_str();
+  std::string mode = "lockstep";
+  app.add_option("--mode", mode, "lockstep: one cycle per SYNC; free: own timer")
+      ->check(CLI::IsMember({"lockstep", "free"}))
+      ->capture_default_str();
+  app.add_option("--period-us", options.period_us,
+                 "control cycle period in microseconds (the cycle time the components use)")
+      ->check(CLI::Range(100u, 1'000'000u))
+      ->capture_default_str();
+  app.add_option("--params", options.params_file,
+                 "file for stored parameters (0x1010 store / 0x1011 restore); loaded at start-up");
+  app.add_flag("--print-schedule", options.print_schedule,
+               "print the control cycle's update order with each component's reads and writes, and exit");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp&) {
+    std::fputs(app.help().c_str(), stdout);
+    return 0;
+  } catch (const CLI::ParseError& error) {
+    std::fprintf(stderr, "joint-firmware: %s (see joint-firmware --help)\n", error.what());
+    return kExitUsage;
+  }
+  options.mode = mode == "free" ? Mode::Free : Mode::Lockstep;
+  return std::nullopt;
+}
+
+std::uint32_t now_us() {
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return static_cast<std::uint32_t>(static_cast<std::uint64_t>(now.tv_sec) * 1'000'000u +
+                                    static_cast<std::uint64_t>(now.tv_nsec) / 1000u);
+}
+
+// The CANopen node on the board: owner of every bus-writable field (commands, parameters).
+class BusWriter final : public core::ExternalWriter {
+ public:
+  explicit BusWriter(core::MessageBoard& board)
+      : ExternalWriter(board, "canopen_node", {.writes = core::kBusWritableFields}) {}
+
+  core::SetResult write(board::FieldId id, float value) { return boardSet(id, value); }
+};
+
+// The node's view of the board: reads anything, writes only what the node owns.
+class BoardFieldAccess final : public co::FieldAccess {
+ public:
+  BoardFieldAccess(core::MessageBoard& board, BusWriter& writer) : board_{board}, writer_{writer} {}
+  float read(board::FieldId id) override { return board_.get(id); }
+  co::WriteResult write(board::FieldId id, float value) override {
+    return writer_.write(id, value) == core::SetResult::Ok ? co::WriteResult::Accepted
+                                                                 : co::WriteResult::Refused;
+  }
+
+ private:
+  core::MessageBoard& board_;
+  BusWriter& writer_;
+};
+
+// Raw hardware-in-the-loop I/O between the node's PDOs and the joint's driver registers. The
+// receive path writes registers only; the sensors drain them in their update().
+class HilIoOnRegisters final : public co::HilIo {
+ public:
+  explicit HilIoOnRegisters(joint::HilRegisters& registers) : registers_{registers} {}
+  void write_input(board::HilInputId id, std::int32_t raw) override {
+    switch (id) {
+      case board::HilInputId::motor_encoder_counts:
+        registers_.write_motor_encoder(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::output_encoder_counts:
+        registers_.write_output_encoder(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::thermistor_adc:
+        registers_.write_thermistor_adc(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::motor_current_adc:
+        registers_.write_motor_current(static_cast<std::int16_t>(raw));
+        break;
+      case board::HilInputId::kCount:
+        break;
+    }
+  }
+  std::int32_t read_output(board::HilOutputId id) override {
+    switch (id) {
+      case board::HilOutputId::motor_duty: return registers_.motor_duty_raw();
+      case board::HilOutputId::led_pattern: return registers_.led_pattern_raw();
+      case board::HilOutputId::kCount: break;
+    }
+    return 0;
+  }
+
+ private:
+  joint::HilRegisters& registers_;
+};
+
+// Without --params nothing is stored; 0x1010 answers "cannot store" through the node.
+class NoParameterStorage final : public co::ParameterStorage {
+ public:
+  bool save(std::span<const std::byte>) override { return false; }
+  std::size_t load(std::span<std::byte>) override { return 0; }
+};
+
+// The board's refused writes become EMCY frames naming the field (manufacturer-specific code
+// 0xFF00, the field's object index in the manufacturer bytes).
+void report_ownership_violation(void* context, const core::WriteViolation& violation) {
+  static_cast<co::Node*>(context)->report_emcy(co::emcy::ownership_violation(violation.field));
+}
+
+// What each latched fault bit of the joint's fault manager is reported as on the bus. The
+// ownership bit has no entry: the board's fault hook already reported it, naming the field.
+std::optional<co::EmcyReport> emcy_for(joint::FaultBit bit) {
+  using board::FieldId;
+  switch (bit) {
+    case joint::FaultBit::MotorEncoderStale: return co::emcy::stale_sensor(FieldId::motor_position);
+    case joint::FaultBit::OutputEncoderStale: return co::emcy::stale_sensor(FieldId::output_position);
+    case joint::FaultBit::ThermistorStale: return co::emcy::stale_sensor(FieldId::thermistor_resistance);
+    case joint::FaultBit::OverTemperature: return co::emcy::over_temperature(FieldId::winding_temperature);
+    case joint::FaultBit::CommandWatchdog:
+      // 0x8100 communication, generic: the setpoint stream (RPDO) went silent.
+      return co::EmcyReport{0x8100, co::error_register::kCommunication,
+                            co::emcy::about_index(board::info(FieldId::velocity_setpoint).index)};
+    case joint::FaultBit::OwnershipViolation: return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+// Newly latched fault bits become EMCY frames and cleared ones error resets, so a CANopen
+// master sees faults without polling fault_flags.
+class FaultEmcyBridge {
+ public:
+  explicit FaultEmcyBridge(co::Node& node) : node_{node} {}
+  void after_cycle(const core::MessageBoard& board) {
+    const auto flags = static_cast<std::uint32_t>(board.get(board::FieldId::fault_flags));
+    for (const joint::FaultBit bit : joint::kFaultBits) {
+      const std::uint32_t mask = joint::fault_mask(bit);
+      const bool raised = (flags & mask) != 0 && (reported_ & mask) == 0;
+      const bool cleared = (flags & mask) == 0 && (reported_ & mask) != 0;
+      if (bit == joint::FaultBit::OwnershipViolation) {
+        if (cleared) node_.clear_emcy(co::emcy_code::kOwnershipViolation);
+        continue;
+      }
+      if (const std::optional<co::EmcyReport> report = emcy_for(bit)) {
+        if (raised) node_.report_emcy(*report);
+        if (cleared) node_.clear_emcy(*report);
+      }
+    }
+    reported_ = flags;
+  }
+
+ private:
+  co::Node& node_;
+  std::uint32_t reported_ = 0;
+};
+
+void print_to_stdout(void*, std::string_view text) { std::fwrite(text.data(), 1, text.size(), stdout); }
+
+int run(const Options& options) {
+  core::MessageBoard board;
+  core::Scheduler scheduler{board};
+  BusWriter bus_writer{board};
+  joint::HilRegisters registers;
+  const float period_s = static_cast<float>(options.period_us) * 1e-6f;
+  joint::DemoJoint demo_joint{board, registers.drivers(), period_s};
+  if (!scheduler.add(bus_writer) || !demo_joint.add_to(scheduler)) {
+    std::fprintf(stderr, "joint-firmware: start-up error: components added after the scheduler started\n");
+    return kExitStartupFailure;
+  }
+  if (const core::StartupStatus status = scheduler.start(); !status.ok()) {
+    std::fprintf(stderr, "joint-firmware: start-up error: %s\n", status.message().c_str());
+    return kExitStartupFailure;
+  }
+  if (options.print_schedule) {
+    scheduler.print_schedule(print_to_stdout, nullptr);
+    return 0;
+  }
+
+  linuxhw::SocketCanPort port;
+  if (std::string error; !port.open(options.can_interface, error)) {
+    std::fprintf(stderr, "joint-firmware: %s\n", error.c_str());
+    return kExitStartupFailure;
+  }
+  BoardFieldAccess field_access{board, bus_writer};
+  HilIoOnRegisters hil_io{registers};
+  std::unique_ptr<co::ParameterStorage> storage;
+  if (options.params_file.empty()) {
+    storage = std::make_unique<NoParameterStorage>();
+  } else {
+    storage = std::make_unique<linuxhw::FileParameterStorage>(options.params_file);
+  }
+  co::Node node{static_cast<std::uint8_t>(options.node_id), port, field_access, hil_io, *storage};
+  board.set_fault_hook({report_ownership_violation, &node});
+  FaultEmcyBridge fault_emcy{node};
+
+  // SIGINT/SIGTERM arrive as readable data on a file descriptor: the loop finishes the frame
+  // or cycle at hand and exits cleanly, with nothing half-written.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  sigprocmask(SIG_BLOCK, &stop_signals, nullptr);
+  const int signal_fd = signalfd(-1, &stop_signals, SFD_NONBLOCK | SFD_CLOEXEC);
+
+  int timer_fd = -1;
+  if (options.mode == Mode::Free) {
+    timer_fd = timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
+    itimerspec spec{};
+    clock_gettime(CLOCK_MONOTONIC, &spec.it_value);
+    spec.it_interval.tv_nsec = static_cast<long>(options.period_us) * 1000;
+    if (options.period_us >= 1'000'000u) {
+      spec.it_interval.tv_sec = options.period_us / 1'000'000u;
+      spec.it_interval.tv_nsec = static_cast<long>(options.period_us % 1'000'000u) * 1000;
+    }
+    // Absolute deadlines: a late cycle does not shift the ones after it.
+    timerfd_settime(timer_fd, TFD_TIMER_ABSTIME, &spec, nullptr);
+  }
+
+  node.start(now_us());
+  std::fprintf(stderr, "joint-firmware: node %d on %s, %s mode, period %u us, parameters %s (%s)\n",
+               options.node_id, options.can_interface.c_str(),
+               options.mode == Mode::Lockstep ? "lockstep" : "free-running", options.period_us,
+               options.params_file.empty() ? "not stored" : options.params_file.c_str(),
+               node.parameter_load() == co::ParameterLoad::Loaded        ? "loaded"
+               : node.parameter_load() == co::ParameterLoad::Rejected    ? "REJECTED: corrupt, defaults used"
+                                                                         : "defaults");
+
+  std::uint32_t cycle = 0;
+  std::uint64_t overruns = 0;
+  auto run_cycle = [&] {
+    scheduler.run_cycle(++cycle);
+    fault_emcy.after_cycle(board);
+  };
+
+  bool running = true;
+  while (running) {
+    std::array<pollfd, 3> fds{{{port.fd(), POLLIN, 0}, {signal_fd, POLLIN, 0}, {timer_fd, POLLIN, 0}}};
+    const nfds_t count = timer_fd >= 0 ? 3 : 2;
+    // 1 ms bounds the heartbeat and SDO-timeout jitter while idle.
+    const int ready = ::poll(fds.data(), count, 1);
+    if (ready < 0 && errno != EINTR) {
+      std::fprintf(stderr, "joint-firmware: poll failed: %s\n", std::strerror(errno));
+      return kExitStartupFailure;
+    }
+    if ((fds[1].revents & POLLIN) != 0) {
+      running = false;
+    }
+    if (timer_fd >= 0 && (fds[2].revents & POLLIN) != 0) {
+      std::uint64_t expirations = 0;
+      if (::read(timer_fd, &expirations, sizeof(expirations)) == sizeof(expirations) && expirations > 0) {
+        overruns += expirations - 1;  // deadlines missed while the last cycle ran
+        run_cycle();
+      }
+    }
+    co::CanFrame frame;
+    while (port.receive(frame) == co::ReceiveResult::Received) {
+      const co::ProcessResult result = node.process(frame, now_us());
+      if (result.sync) {
+        if (options.mode == Mode::Lockstep) run_cycle();
+        node.transmit_synchronous_pdos(now_us());
+      }
+    }
+    node.poll(now_us());
+  }
+
+  const co::NodeCounters& counters = node.counters();
+  std::fprintf(stderr,
+               "joint-firmware: stopped after %u cycles; overruns %llu; frames received %u, malformed %u, "
+               "SDO aborts %u, RPDO length errors %u, TPDOs sent %u, EMCY %u, send failures %u, "
+               "bus error frames %u\n",
+               cycle, static_cast<unsigned long long>(overruns), counters.frames_received,
+               counters.frames_malformed, counters.sdo_aborts_sent, counters.rpdo_length_errors,
+               counters.tpdos_sent, counters.emcy_sent, counters.send_failures, port.counters().error_frames);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options options;
+  if (const std::optional<int> exit_code = parse_command_line(argc, argv, options)) {
+    return *exit_code;
+  }
+  return run(options);
+}

@@ -1,0 +1,353 @@
+"""`hilrig record FILE` and `hilrig replay FILE`: bus traffic to and from log files.
+
+The format follows the extension, as python-can's `can.Logger`/`can.LogReader` choose it:
+`.log` (candump -L), `.blf` (Vector), `.asc`, `.csv`, `.trc`. `record` writes into a hidden
+temporary file beside FILE and renames it to FILE only after the logger was stopped (flushed
+and closed; a BLF file gets its header and object count only then), so FILE is always a whole
+log: after Ctrl-C, SIGTERM, `--duration` or `--count` alike. A hard kill (SIGKILL) leaves FILE
+untouched and the partial file behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from hilrig.cli.common import (
+    DEFAULT_DBC,
+    Command,
+    SyncProducer,
+    UsageError,
+    add_bus_options,
+    add_table_option,
+    describe_bus,
+    existing_file,
+    format_unit,
+    format_value,
+    load_table,
+    node_id,
+    open_bus,
+    positive_float,
+    positive_int,
+    progress,
+)
+
+if TYPE_CHECKING:
+    import can
+    import cantools.database
+
+LOG_FORMATS = (".log", ".blf", ".asc", ".csv", ".trc")
+PROGRESS_EVERY_S = 1.0
+
+
+def log_path(text: str) -> Path:
+    path = Path(text)
+    if path.suffix.lower() not in LOG_FORMATS:
+        raise argparse.ArgumentTypeError(
+            f"{text}: expected a file ending in {', '.join(LOG_FORMATS)} (the format follows the "
+            "extension: .log is candump, .blf is Vector)"
+        )
+    return path
+
+
+def partial_path(path: Path) -> Path:
+    """Hidden temporary name beside `path`, with the same extension (it picks the format)."""
+    return path.with_name(f".{path.stem}.partial{path.suffix}")
+
+
+class _CountingSink:
+    """python-can listener: passes frames to `sink` and counts them; after `limit` frames it
+    drops the rest and signals `done`, so `--count N` writes exactly N frames."""
+
+    def __init__(self, sink: can.Listener, limit: int | None) -> None:
+        self.sink = sink
+        self.count = 0
+        self.limit = limit
+        self.done = threading.Event()
+        self._lock = threading.Lock()
+
+    def __call__(self, message: can.Message) -> None:
+        with self._lock:
+            if self.done.is_set():
+                return
+            self.sink.on_message_received(message)
+            self.count += 1
+            if self.limit is not None and self.count >= self.limit:
+                self.done.set()
+
+
+@contextmanager
+def whole_file_logger(path: Path) -> Iterator[can.Listener]:
+    """A python-can `can.Logger` (format by extension) writing to a hidden partial file that
+    is renamed to `path` once the logger is stopped (flushed and closed), so `path` is always
+    a whole log, also after Ctrl-C or SIGTERM. (The sim's bus log uses it too.)"""
+    import can
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = partial_path(path)
+    logger = can.Logger(str(partial))
+    try:
+        yield logger
+    finally:
+        logger.stop()  # flush and close: the file is complete from here on
+        os.replace(partial, path)
+
+
+@contextmanager
+def master_traffic(bus: can.BusABC, args: argparse.Namespace) -> Iterator[None]:
+    """Optionally act as the master of a board with no master: NMT start, SYNC producer."""
+    if not (args.nmt_start or args.sync_period_ms):
+        yield
+        return
+    import canopen
+
+    network = canopen.Network(bus)  # not connected: only sends, the recorder's notifier reads
+    if args.nmt_start:
+        target = args.node_id if args.node_id is not None else load_table(args).board.node.default_node_id
+        master = canopen.nmt.NmtMaster(target)
+        master.network = network
+        master.send_command(0x01)
+    if args.sync_period_ms:
+        with SyncProducer(network.sync.transmit, args.sync_period_ms / 1e3):
+            yield
+    else:
+        yield
+
+
+def configure_record(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("file", type=log_path, metavar="FILE", help=f"log file: {', '.join(LOG_FORMATS)}")
+    parser.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+    parser.add_argument("--count", type=positive_int, metavar="N", help="stop after N frames")
+    parser.add_argument(
+        "--nmt-start",
+        action="store_true",
+        help="send NMT start to --node-id first (a board with no master sends no PDOs)",
+    )
+    parser.add_argument(
+        "--sync-period-ms",
+        type=positive_float,
+        metavar="P",
+        help="send SYNC every P ms while recording (lockstep firmware sends TPDOs only on SYNC)",
+    )
+    parser.add_argument(
+        "-n",
+        "--node-id",
+        type=node_id,
+        default=None,
+        help="node for --nmt-start (default: from the table, 0x10)",
+    )
+    add_table_option(parser)
+    add_bus_options(parser)
+
+
+def run_record(args: argparse.Namespace) -> int:
+    import can
+
+    path: Path = args.file
+    started = time.monotonic()
+    deadline = started + args.duration if args.duration else None
+    interactive = sys.stderr.isatty()
+    if args.nmt_start or args.sync_period_ms:
+        import canopen  # noqa: F401  (seconds in the VM: import before frames are counted)
+    with open_bus(args, receive_own_messages=True) as bus, whole_file_logger(path) as logger:
+        counter = _CountingSink(logger, args.count)
+        notifier = can.Notifier(bus, [counter])
+        try:
+            limit = " (Ctrl-C to stop)" if not (args.count or args.duration) else ""
+            progress(f"record: {describe_bus(args)} -> {path}{limit}")
+            with master_traffic(bus, args):
+                while not counter.done.is_set():
+                    wait = PROGRESS_EVERY_S
+                    if deadline is not None:
+                        wait = min(wait, deadline - time.monotonic())
+                        if wait <= 0:
+                            break
+                    counter.done.wait(wait)
+                    line = f"record: {counter.count} frames, {time.monotonic() - started:.1f} s"
+                    print(
+                        f"\r{line}" if interactive else line,
+                        end="" if interactive else "\n",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+        finally:
+            notifier.stop()
+            if interactive:
+                print(file=sys.stderr)
+    progress(f"record: {counter.count} frames written to {path}")
+    return 0
+
+
+# --- replay ----------------------------------------------------------------------------
+def configure_replay(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "file",
+        type=existing_file("log", "record one with `hilrig record FILE`"),
+        metavar="FILE",
+        help=f"log file: {', '.join(LOG_FORMATS)}",
+    )
+    parser.add_argument(
+        "--decode",
+        action="store_true",
+        help="print each frame with its fields decoded by the DBC instead of sending",
+    )
+    parser.add_argument(
+        "--dbc",
+        type=existing_file("DBC", "build it with `make build` or pass --dbc"),
+        default=DEFAULT_DBC,
+        help="--decode: the DBC (default: build/protocol/board.dbc)",
+    )
+    parser.add_argument(
+        "--field",
+        action="append",
+        metavar="NAME",
+        help="--decode: only frames carrying this field, only it shown (repeatable)",
+    )
+    parser.add_argument(
+        "-n",
+        "--node-id",
+        type=node_id,
+        default=None,
+        help="--decode: node id the log's PDOs belong to (default: the table's, 0x10)",
+    )
+    parser.add_argument(
+        "--no-timing", action="store_true", help="send as fast as possible instead of at the recorded pace"
+    )
+    add_table_option(parser)
+    add_bus_options(parser)
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    if args.decode:
+        return _decode(args)
+    import can
+
+    sent = 0
+    started = time.monotonic()
+    next_report = started + PROGRESS_EVERY_S
+    with open_bus(args) as bus:
+        progress(f"replay: {args.file} -> {describe_bus(args)}")
+        reader = can.LogReader(str(args.file))
+        try:
+            for message in can.MessageSync(reader, timestamps=not args.no_timing, gap=0.0):
+                bus.send(message, timeout=1.0)
+                sent += 1
+                if time.monotonic() >= next_report:
+                    progress(f"replay: {sent} frames, {time.monotonic() - started:.1f} s")
+                    next_report += PROGRESS_EVERY_S
+        finally:
+            reader.stop()
+    progress(f"replay: {sent} frames sent")
+    return 0
+
+
+def describe_frame(cob_id: int, data: bytes, node: int) -> str:
+    """CiA 301 services that are not in the DBC, in words."""
+    from hilrig.cli.scan import state_name
+
+    function, sender = cob_id & 0x780, cob_id & 0x7F
+    if cob_id == 0x000 and len(data) >= 2:
+        return f"NMT command 0x{data[0]:02X} to {'all' if data[1] == 0 else f'node 0x{data[1]:02X}'}"
+    if cob_id == 0x080:
+        return f"SYNC {data[0]}" if data else "SYNC"
+    if function == 0x080:
+        return f"EMCY node 0x{sender:02X} code 0x{int.from_bytes(data[:2], 'little'):04X}"
+    if function == 0x700 and len(data) == 1:
+        return f"heartbeat node 0x{sender:02X} {state_name(data[0] & 0x7F)}"
+    if function == 0x580:
+        return f"SDO answer from node 0x{sender:02X}"
+    if function == 0x600:
+        return f"SDO request to node 0x{sender:02X}"
+    return ""
+
+
+def _decode(args: argparse.Namespace) -> int:
+    import can
+    import cantools
+
+    table = load_table(args)
+    if args.field:
+        from hilrig.cli.common import check_names
+
+        check_names(table, args.field)
+    database: cantools.database.can.Database = cantools.database.load_file(str(args.dbc))
+    node = args.node_id if args.node_id is not None else table.board.node.default_node_id
+    offset = node - table.board.node.default_node_id  # the DBC holds the default node's COB-IDs
+    units = {e.name: format_unit(e.unit) for e in table.board.entries}
+    wanted = set(args.field or ())
+    first: float | None = None
+    frames = 0
+    out = sys.stdout
+    reader = can.LogReader(str(args.file))
+    try:
+        for message in reader:
+            frames += 1
+            first = message.timestamp if first is None else first
+            data = bytes(message.data)
+            text = ""
+            try:
+                dbc_message = database.get_message_by_frame_id(message.arbitration_id - offset)
+            except KeyError:
+                dbc_message = None
+            if dbc_message is not None and not message.is_extended_id:
+                try:
+                    values = dbc_message.decode(data, decode_choices=False)
+                except Exception as error:  # a frame that does not fit its DBC message
+                    text = f"{dbc_message.name} (undecodable: {error})"
+                else:
+                    shown = {k: v for k, v in values.items() if not wanted or k in wanted}
+                    if wanted and not shown:
+                        continue
+                    text = f"{dbc_message.name}  " + "  ".join(
+                        f"{k}={format_value(v)}{' ' + units.get(k, '') if units.get(k) else ''}"
+                        for k, v in shown.items()
+                    )
+            elif wanted:
+                continue
+            else:
+                text = describe_frame(message.arbitration_id, data, node)
+            out.write(
+                f"{message.timestamp - first:12.6f}  0x{message.arbitration_id:03X}  "
+                f"{text or data.hex(' ')}\n"
+            )
+    except BrokenPipeError:  # `| head` closed the pipe: that is fine
+        sys.stderr.close()
+        return 0
+    finally:
+        reader.stop()
+    if frames == 0:
+        raise UsageError(f"{args.file} holds no frames")
+    return 0
+
+
+COMMANDS = (
+    Command(
+        name="record",
+        help="record bus traffic to a .log (candump) or .blf file; Ctrl-C leaves a whole file",
+        description=__doc__.split("\n", 1)[1].strip() + "\n\n"
+        "  hilrig record out/bus.log                         # until Ctrl-C\n"
+        "  hilrig record bus.blf --duration 10 --channel can0\n"
+        "  hilrig record bus.log --nmt-start --sync-period-ms 10 --count 500  # no master",
+        configure=configure_record,
+        run=run_record,
+    ),
+    Command(
+        name="replay",
+        help="send a recorded log into the bus, or --decode it with the DBC",
+        description="Send the frames of a log into the bus at their recorded pace (python-can's\n"
+        "LogReader + MessageSync), or with --decode print every frame with its fields\n"
+        "decoded by the DBC (no bus needed).\n\n"
+        "  hilrig replay out/demo/bus.log --decode | less\n"
+        "  hilrig replay out/demo/bus.log --decode --field motor_velocity\n"
+        "  hilrig replay bus.log --channel vcan1",
+        configure=configure_replay,
+        run=run_replay,
+    ),
+)

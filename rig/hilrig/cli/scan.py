@@ -1,0 +1,213 @@
+"""`hilrig scan`: which CANopen nodes are on the bus.
+
+Two ways to be found, run together: a node's boot-up or heartbeat (COB-ID 0x700 + id) heard
+while listening, and an answer to an SDO upload of 0x1018 sub 1 (vendor id), sent to node ids
+1..127 at once at the start. Each node found is then asked for 0x1008 (device name) and 0x1018
+(product code, revision) with a short timeout; a node that lacks one shows '-'.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from hilrig.cli.common import (
+    MAX_NODE_ID,
+    Command,
+    add_bus_options,
+    describe_bus,
+    open_bus,
+    positive_float,
+    print_table,
+    progress,
+)
+from hilrig.errors import NodeSilentError
+
+if TYPE_CHECKING:
+    import can
+
+HEARTBEAT_BASE = 0x700
+SDO_REQUEST_BASE = 0x600
+SDO_RESPONSE_BASE = 0x580
+IDENTITY_INDEX = 0x1018
+DEVICE_NAME_INDEX = 0x1008
+SDO_UPLOAD_REQUEST = 0x40  # CiA 301 ccs=2 initiate upload
+SDO_ABORT = 0x80
+SEND_RETRY_S = 0.002
+
+
+@dataclass
+class FoundNode:
+    node_id: int
+    state: int | None = None  # heartbeat state byte
+    answered_sdo: bool = False
+    vendor_id: int | None = None
+    product_code: int | None = None
+    revision: int | None = None
+    device_name: str | None = None
+
+
+def state_name(state: int | None) -> str:
+    from hilrig.node import NmtState
+
+    if state is None:
+        return "(no heartbeat)"
+    try:
+        return NmtState(state).name.lower().replace("initialising", "boot-up")
+    except ValueError:
+        return f"0x{state:02X}?"
+
+
+def probe_frame(node_id: int) -> can.Message:
+    import can
+
+    data = bytes([SDO_UPLOAD_REQUEST, IDENTITY_INDEX & 0xFF, IDENTITY_INDEX >> 8, 1, 0, 0, 0, 0])
+    return can.Message(arbitration_id=SDO_REQUEST_BASE + node_id, data=data, is_extended_id=False)
+
+
+def _send(bus: can.BusABC, message: can.Message, deadline: float) -> None:
+    """Send, retrying while the adapter's transmit queue is full (127 frames at once)."""
+    import can
+
+    while True:
+        try:
+            bus.send(message, timeout=max(0.0, deadline - time.monotonic()))
+            return
+        except can.CanOperationError:
+            if time.monotonic() >= deadline:
+                raise
+            threading.Event().wait(SEND_RETRY_S)
+
+
+def listen(bus: can.BusABC, listen_s: float, ids: range, *, probe: bool) -> dict[int, FoundNode]:
+    """Send the SDO probes (if `probe`), then collect heartbeats and answers for `listen_s`."""
+    found: dict[int, FoundNode] = {}
+    deadline = time.monotonic() + listen_s
+    for node_id in ids if probe else ():
+        _send(bus, probe_frame(node_id), deadline)
+    while (remaining := deadline - time.monotonic()) > 0:
+        message = bus.recv(remaining)
+        if message is None or message.is_extended_id or message.is_remote_frame:
+            continue
+        cob_id = message.arbitration_id
+        node_id = cob_id & 0x7F
+        if node_id not in ids:
+            continue
+        if cob_id - node_id == HEARTBEAT_BASE and len(message.data) == 1:
+            found.setdefault(node_id, FoundNode(node_id)).state = message.data[0] & 0x7F
+        elif cob_id - node_id == SDO_RESPONSE_BASE and len(message.data) == 8:
+            data = bytes(message.data)
+            if int.from_bytes(data[1:3], "little") != IDENTITY_INDEX or data[3] != 1:
+                continue
+            node = found.setdefault(node_id, FoundNode(node_id))
+            node.answered_sdo = True
+            if data[0] & 0xE3 == 0x43:  # expedited upload answer with size
+                node.vendor_id = int.from_bytes(data[4:8], "little")
+    return found
+
+
+def identify(bus: can.BusABC, node: FoundNode, timeout_s: float) -> None:
+    """Read device name, product code and revision (each may be missing)."""
+    import canopen
+    from canopen.sdo import SdoAbortedError, SdoCommunicationError
+
+    network = canopen.Network(bus)
+    remote = canopen.RemoteNode(node.node_id, canopen.ObjectDictionary())
+    remote.sdo.RESPONSE_TIMEOUT = timeout_s
+    network.add_node(remote)
+    network.connect()
+    try:
+
+        def upload(index: int, subindex: int) -> bytes | None:
+            try:
+                return remote.sdo.upload(index, subindex)
+            except (SdoAbortedError, SdoCommunicationError):
+                return None
+
+        if node.vendor_id is None and (raw := upload(IDENTITY_INDEX, 1)) is not None:
+            node.vendor_id = int.from_bytes(raw[:4], "little")
+        if (raw := upload(IDENTITY_INDEX, 2)) is not None:
+            node.product_code = int.from_bytes(raw[:4], "little")
+        if (raw := upload(IDENTITY_INDEX, 3)) is not None:
+            node.revision = int.from_bytes(raw[:4], "little")
+        if (raw := upload(DEVICE_NAME_INDEX, 0)) is not None:
+            node.device_name = raw.decode("latin-1").rstrip("\x00")
+    finally:
+        if network.notifier is not None:
+            network.notifier.stop(1.0)
+            network.notifier = None
+
+
+def _hex(value: int | None) -> str:
+    return "-" if value is None else f"0x{value:08X}"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--listen",
+        type=positive_float,
+        default=1.0,
+        metavar="S",
+        help="seconds to listen for heartbeats and probe answers (default: 1)",
+    )
+    parser.add_argument(
+        "--sdo-timeout",
+        type=positive_float,
+        default=0.5,
+        metavar="S",
+        help="seconds to wait for each identity read of a node found (default: 0.5)",
+    )
+    parser.add_argument(
+        "--no-probe",
+        action="store_true",
+        help="only listen (send nothing): for a bus where probing is not welcome",
+    )
+    add_bus_options(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    ids = range(1, MAX_NODE_ID + 1)
+    with open_bus(args) as bus:
+        what = "listening" if args.no_probe else f"probing node ids 1..{MAX_NODE_ID} and listening"
+        progress(f"scan: {what} for {args.listen:g} s on {describe_bus(args)}")
+        found = listen(bus, args.listen, ids, probe=not args.no_probe)
+        for number, node in enumerate(sorted(found.values(), key=lambda n: n.node_id), start=1):
+            progress(f"scan: reading the identity of node 0x{node.node_id:02X} ({number}/{len(found)})")
+            identify(bus, node, args.sdo_timeout)
+    if not found:
+        raise NodeSilentError(
+            f"no CANopen node answered on {describe_bus(args)} within {args.listen:g} s; "
+            "is the board powered, the bus terminated and the bit rate right? "
+            "(--listen S listens longer)"
+        )
+    rows = [
+        [
+            f"0x{n.node_id:02X}",
+            state_name(n.state),
+            n.device_name or "-",
+            _hex(n.vendor_id),
+            _hex(n.product_code),
+            _hex(n.revision),
+        ]
+        for n in sorted(found.values(), key=lambda n: n.node_id)
+    ]
+    print_table(rows, ["node", "state", "device name", "vendor", "product", "revision"])
+    print(f"{len(found)} node{'s' if len(found) != 1 else ''} on {describe_bus(args)}", file=sys.stderr)
+    return 0
+
+
+COMMANDS = (
+    Command(
+        name="scan",
+        help="find the CANopen nodes on a bus: id, state, device name, vendor/product/revision",
+        description=__doc__.split("\n", 1)[1].strip() + "\n\n"
+        "  hilrig scan\n"
+        "  hilrig scan --interface kvaser --channel 0 --bitrate 500000 --listen 3",
+        configure=configure,
+        run=run,
+    ),
+)

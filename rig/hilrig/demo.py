@@ -1,0 +1,314 @@
+"""The demo joint, end to end: the firmware in lockstep on a private bus, the rig's physics,
+a velocity then a torque profile (or a scenario file), and a summary.
+
+`make run` and `hilrig sim` both call `run_demo`. Needs root and a kernel with vcan (natively,
+or inside the micro-VM of `tools/with-vcan`)::
+
+    summary = run_demo(DemoOptions(out_dir=Path("out/demo")))
+    print(format_summary(summary))
+
+A scenario file defines `def scenario(rig): ...` and drives the `Rig` itself (rig.set,
+rig.run, rig.at...); the summary is computed from what it ran.
+"""
+
+from __future__ import annotations
+
+import runpy
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hilrig.cli.record import whole_file_logger
+from hilrig.errors import BusUnavailableError, RigError
+from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
+from hilrig.netns import PrivateBus, private_buses_supported
+from hilrig.node import EmcyRecord
+from hilrig.physics import JointParams
+from hilrig.rig import DEFAULT_EDS_PATH, Rig
+from hilrig.table import RigTable
+
+if TYPE_CHECKING:
+    import can
+
+Scenario = Callable[[Rig], object]
+Progress = Callable[[str], None]
+
+VELOCITY_MODE = 1
+TORQUE_MODE = 2
+SETTLE_S = 0.2
+"""Tracking errors skip this long after each setpoint or mode change (the step response)."""
+BOOT_TIMEOUT_S = 60.0
+"""Hang guard for the firmware's boot-up (ASan build in the software-emulated VM)."""
+
+
+class ScenarioFileError(RigError, ValueError):
+    """A --scenario file that cannot be used (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """Hold `value` on `setpoint` for `seconds` of simulation time."""
+
+    setpoint: str
+    value: float
+    seconds: float
+
+
+VELOCITY_PROFILE = (
+    Step("velocity_setpoint", 3.0, 0.6),
+    Step("velocity_setpoint", -2.0, 0.6),
+    Step("velocity_setpoint", 0.0, 0.3),
+)
+"""Gearbox-side velocity [rad/s]: up, reverse, stop."""
+TORQUE_PROFILE = (
+    Step("torque_setpoint", 0.1, 0.6),
+    Step("torque_setpoint", -0.1, 0.6),
+    Step("torque_setpoint", 0.0, 0.3),
+)
+"""Spring torque [N*m]: small enough that the free load stays within the motor's speed."""
+
+
+@dataclass(frozen=True)
+class DemoOptions:
+    out_dir: Path
+    scenario_file: Path | None = None
+    node_id: int = 0x10
+    period_us: int = 1000
+    seed: int = 1
+    params: JointParams = field(default_factory=JointParams.fast_thermal)
+    executable: Path = DEFAULT_EXECUTABLE
+    eds: Path = DEFAULT_EDS_PATH
+
+
+@dataclass(frozen=True)
+class DemoSummary:
+    cycles: int
+    simulated_s: float
+    wall_s: float
+    velocity_rms_error_rad_s: float | None
+    torque_rms_error_nm: float | None
+    spring_constant_estimate: float
+    spring_constant_confidence: float
+    spring_constant_true: float
+    peak_temperature_reported_c: float | None
+    peak_temperature_true_c: float
+    fault_flags: int
+    safe_state: bool
+    emcy: tuple[EmcyRecord, ...]
+    bus_log: Path
+    firmware_log: Path
+    frames_logged: int
+
+
+def load_scenario(path: Path) -> Scenario:
+    """`scenario(rig)` from a Python file."""
+    try:
+        namespace = runpy.run_path(str(path))
+    except OSError as error:
+        raise ScenarioFileError(f"cannot read scenario {path}: {error.strerror}") from error
+    scenario = namespace.get("scenario")
+    if not callable(scenario):
+        raise ScenarioFileError(f"{path} defines no function `scenario(rig)`")
+    return scenario
+
+
+def run_profile(rig: Rig, mode: int, steps: tuple[Step, ...], progress: Progress, what: str) -> None:
+    rig.set("control_mode", mode)
+    for step in steps:
+        rig.set(step.setpoint, step.value)
+        progress(f"sim: t = {rig.t:.2f} s  {what}: {step.setpoint} = {step.value:g} for {step.seconds:g} s")
+        rig.run(seconds=step.seconds)
+
+
+def default_scenario(progress: Progress) -> Scenario:
+    def scenario(rig: Rig) -> None:
+        run_profile(rig, VELOCITY_MODE, VELOCITY_PROFILE, progress, "velocity profile")
+        run_profile(rig, TORQUE_MODE, TORQUE_PROFILE, progress, "torque profile")
+        rig.set("control_mode", 0)
+        rig.run(cycles=1)
+
+    return scenario
+
+
+class _FrameCounter:
+    def __init__(self) -> None:
+        self.count = 0
+
+    def __call__(self, message: can.Message) -> None:
+        self.count += 1
+
+
+def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
+    """Firmware + rig in lockstep on a private bus; the bus log goes to out_dir/bus.log."""
+    if not private_buses_supported():
+        raise BusUnavailableError(
+            "the simulation needs root and a kernel with vcan for its private bus: "
+            "run `make run`, or `tools/with-vcan -- .venv/bin/hilrig sim`"
+        )
+    scenario = (
+        load_scenario(options.scenario_file)
+        if options.scenario_file is not None
+        else default_scenario(progress)
+    )
+    table = RigTable.load()
+    out = options.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.monotonic()
+    counter = _FrameCounter()
+    with (
+        PrivateBus() as private_bus,
+        private_bus.open(receive_own_messages=True) as bus,
+        whole_file_logger(out / "bus.log") as logger,
+    ):
+        firmware = Firmware(
+            private_bus,
+            node_id=options.node_id,
+            log_path=out / "firmware.log",
+            period_us=options.period_us,
+            executable=options.executable,
+        )
+        rig = Rig(
+            bus,
+            node_id=options.node_id,
+            eds=options.eds,
+            params=options.params,
+            seed=options.seed,
+            period_us=options.period_us,
+            table=table,
+            liveness=firmware.check,
+            boot_timeout_s=BOOT_TIMEOUT_S,
+        )
+        try:
+            notifier = rig.node.network.notifier
+            assert notifier is not None  # BoardNode connected the network
+            notifier.add_listener(logger)  # one reader per bus: the rig's notifier feeds the log
+            notifier.add_listener(counter)
+            progress(
+                f"sim: starting {options.executable.name} (node 0x{options.node_id:02X}, lockstep, "
+                f"{options.period_us} us) on private bus {private_bus.name}"
+            )
+            with firmware:
+                rig.start()
+                progress("sim: node operational, running the scenario")
+                scenario(rig)
+                summary = summarize(rig, table, options, started, out, counter.count)
+        finally:
+            rig.close()
+    return summary
+
+
+def _step_values(times: np.ndarray, change_t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Value of a sparsely sent signal (sent at change_t) at each of `times` (NaN before)."""
+    index = np.searchsorted(change_t, times, side="right") - 1
+    result = np.full(times.shape, np.nan)
+    valid = index >= 0
+    result[valid] = values[index[valid]]
+    return result
+
+
+def _rms_tracking(rig: Rig, mode: int, setpoint: str, measured: str, scale: float) -> float | None:
+    """RMS of setpoint - measured*scale over the cycles in `mode`, settled after each change."""
+    t_sp, sp = rig.sent(setpoint)
+    t_meas, meas = rig.history(measured)
+    t_mode, modes = rig.sent("control_mode")
+    if not len(t_sp) or not len(t_meas) or not len(t_mode):
+        return None
+    meas_at = np.interp(t_sp, t_meas, meas.astype(float) * scale, left=np.nan, right=np.nan)
+    mode_at = _step_values(t_sp, t_mode, modes.astype(float))
+    changes = np.concatenate([t_sp[1:][np.diff(sp) != 0], t_mode])
+    last_change = _step_values(t_sp, np.sort(changes), np.sort(changes))
+    settled = np.isnan(last_change) | (t_sp - np.nan_to_num(last_change) >= SETTLE_S)
+    mask = (mode_at == mode) & settled & ~np.isnan(meas_at)
+    if not mask.any():
+        return None
+    return float(np.sqrt(np.mean((sp[mask] - meas_at[mask]) ** 2)))
+
+
+def _peak(rig: Rig, name: str) -> float | None:
+    _, values = rig.history(name)
+    return float(np.max(values)) if len(values) else None
+
+
+def summarize(
+    rig: Rig, table: RigTable, options: DemoOptions, started: float, out: Path, frames: int
+) -> DemoSummary:
+    gear_ratio = float(rig.read("gear_ratio"))
+    _, temperature_true = rig.truth("winding_temperature")
+    _, flags = rig.history("fault_flags")
+    _, safe = rig.history("safe_state")
+    return DemoSummary(
+        cycles=rig.cycle,
+        simulated_s=rig.t,
+        wall_s=time.monotonic() - started,
+        velocity_rms_error_rad_s=_rms_tracking(
+            rig, VELOCITY_MODE, "velocity_setpoint", "motor_velocity", 1.0 / gear_ratio
+        ),
+        torque_rms_error_nm=_rms_tracking(rig, TORQUE_MODE, "torque_setpoint", "joint_torque", 1.0),
+        spring_constant_estimate=float(rig.read("spring_constant_estimate")),
+        spring_constant_confidence=float(rig.read("spring_constant_confidence")),
+        spring_constant_true=options.params.spring_stiffness_nm_per_rad,
+        peak_temperature_reported_c=_peak(rig, "winding_temperature"),
+        peak_temperature_true_c=float(np.max(temperature_true)) if len(temperature_true) else float("nan"),
+        fault_flags=int(np.bitwise_or.reduce(flags.astype(np.int64))) if len(flags) else 0,
+        safe_state=bool(len(safe) and np.max(safe) > 0),
+        emcy=tuple(rig.emcy),
+        bus_log=out / "bus.log",
+        firmware_log=out / "firmware.log",
+        frames_logged=frames,
+    )
+
+
+def _fmt(value: float | None, unit: str, digits: str = ".3g") -> str:
+    return "-" if value is None else f"{value:{digits}} {unit}"
+
+
+def format_summary(summary: DemoSummary) -> str:
+    """The summary table people read after `make run`."""
+    faults = "none"
+    if summary.emcy or summary.fault_flags or summary.safe_state:
+        parts = [f"fault_flags 0x{summary.fault_flags:X}"] if summary.fault_flags else []
+        if summary.safe_state:
+            parts.append("safe state entered")
+        parts += [str(record) for record in summary.emcy[:5]]
+        if len(summary.emcy) > 5:
+            parts.append(f"... {len(summary.emcy) - 5} more EMCY")
+        faults = "; ".join(parts)
+    rows = [
+        (
+            "simulated",
+            f"{summary.cycles} cycles = {summary.simulated_s:.3f} s in {summary.wall_s:.1f} s wall",
+        ),
+        (
+            "velocity tracking error",
+            _fmt(summary.velocity_rms_error_rad_s, "rad/s RMS")
+            + f" (setpoint vs motor_velocity / gear_ratio, {SETTLE_S:g} s after each step)",
+        ),
+        (
+            "torque tracking error",
+            _fmt(summary.torque_rms_error_nm, "N*m RMS")
+            + f" (setpoint vs joint_torque, {SETTLE_S:g} s after each step)",
+        ),
+        (
+            "spring constant",
+            f"{summary.spring_constant_estimate:.4g} N*m/rad estimated "
+            f"(confidence {summary.spring_constant_confidence:.2f}), "
+            f"{summary.spring_constant_true:.4g} true",
+        ),
+        (
+            "peak winding temperature",
+            _fmt(summary.peak_temperature_reported_c, "degC", ".4g")
+            + f" reported, {summary.peak_temperature_true_c:.4g} degC true",
+        ),
+        ("faults", faults),
+        (
+            "bus log",
+            f"{summary.bus_log} ({summary.frames_logged} frames; `hilrig replay {summary.bus_log} --decode`)",
+        ),
+        ("firmware log", str(summary.firmware_log)),
+    ]
+    width = max(len(name) for name, _ in rows)
+    return "\n".join(f"{name.ljust(width)}  {value}" for name, value in rows)

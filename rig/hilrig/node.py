@@ -1,0 +1,399 @@
+"""A thin layer over `canopen` for one board node: SDO by field name, NMT, heartbeat, EMCY, PDOs.
+
+The bus is the caller's (a python-can `BusABC`); this module never opens one. PDO frames are
+packed and decoded by canopen's own PDO maps, built from the generated EDS (or read back from
+the node over SDO), never by hand::
+
+    node = BoardNode(bus, node_id=0x10, eds="build/protocol/board.eds", table=RigTable.load())
+    node.read_pdo_configuration(from_node=True)
+    node.write("velocity_kp", 0.2)        # SdoAbortError("write velocity_kp: 0x06090031 ...")
+    node.nmt(NmtCommand.START)
+"""
+
+from __future__ import annotations
+
+import enum
+import struct
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
+
+import can
+import canopen
+from canopen.emcy import EmcyError
+from canopen.pdo import PdoMap, PdoVariable
+from canopen.sdo import SdoAbortedError, SdoCommunicationError
+
+from hilrig.errors import NodeSilentError, SdoAbortError, SdoTimeoutError
+from hilrig.table import ObjectEntry, RigTable
+
+_T = TypeVar("_T")
+
+SYNC_COB_ID = 0x80
+SYNC_COUNTER_MAX = 240
+"""SYNC counters run 1..240 and wrap (CiA 301 counter overflow value 240)."""
+LAST_SYNCHRONOUS_TYPE = 240
+RECEIVE_POLL_S = 0.05
+"""How often canopen's receive thread wakes up without traffic (bounds the time close() takes)."""
+
+
+class NmtState(enum.IntEnum):
+    """NMT states; the values are the heartbeat state bytes (CiA 301)."""
+
+    INITIALISING = 0x00  # the boot-up message carries this
+    STOPPED = 0x04
+    OPERATIONAL = 0x05
+    PRE_OPERATIONAL = 0x7F
+
+
+class NmtCommand(enum.IntEnum):
+    """NMT command specifiers (first byte of the frame on COB-ID 0)."""
+
+    START = 0x01
+    STOP = 0x02
+    ENTER_PRE_OPERATIONAL = 0x80
+    RESET_NODE = 0x81
+    RESET_COMMUNICATION = 0x82
+
+    @property
+    def resulting_state(self) -> NmtState:
+        """The state the node is in after this command (resets end in pre-operational)."""
+        return {
+            NmtCommand.START: NmtState.OPERATIONAL,
+            NmtCommand.STOP: NmtState.STOPPED,
+        }.get(self, NmtState.PRE_OPERATIONAL)
+
+
+class SdoAbortCode(enum.IntEnum):
+    """SDO abort codes the board may send; the values ARE the CiA 301 codes on the wire."""
+
+    TOGGLE_BIT_NOT_ALTERNATED = 0x0503_0000
+    PROTOCOL_TIMED_OUT = 0x0504_0000
+    COMMAND_SPECIFIER_INVALID = 0x0504_0001
+    UNSUPPORTED_ACCESS = 0x0601_0000
+    WRITE_ONLY = 0x0601_0001
+    READ_ONLY = 0x0601_0002
+    OBJECT_DOES_NOT_EXIST = 0x0602_0000
+    OBJECT_CANNOT_BE_MAPPED = 0x0604_0041
+    PDO_LENGTH_EXCEEDED = 0x0604_0042
+    LENGTH_MISMATCH = 0x0607_0010
+    LENGTH_TOO_HIGH = 0x0607_0012
+    LENGTH_TOO_LOW = 0x0607_0013
+    SUB_INDEX_DOES_NOT_EXIST = 0x0609_0011
+    VALUE_RANGE_EXCEEDED = 0x0609_0030
+    VALUE_TOO_HIGH = 0x0609_0031
+    VALUE_TOO_LOW = 0x0609_0032
+    RESOURCE_NOT_AVAILABLE = 0x060A_0023
+    GENERAL_ERROR = 0x0800_0000
+    DATA_CANNOT_BE_STORED = 0x0800_0020
+    LOCAL_CONTROL = 0x0800_0021
+    DEVICE_STATE = 0x0800_0022
+
+
+_ABORT_WORDS: dict[SdoAbortCode, str] = {
+    SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED: "toggle bit not alternated",
+    SdoAbortCode.PROTOCOL_TIMED_OUT: "SDO protocol timed out",
+    SdoAbortCode.COMMAND_SPECIFIER_INVALID: "command not supported (block transfer?)",
+    SdoAbortCode.UNSUPPORTED_ACCESS: "unsupported access",
+    SdoAbortCode.WRITE_ONLY: "object is write-only",
+    SdoAbortCode.READ_ONLY: "object is read-only over the bus",
+    SdoAbortCode.OBJECT_DOES_NOT_EXIST: "no such object in the node's dictionary",
+    SdoAbortCode.OBJECT_CANNOT_BE_MAPPED: "object cannot be mapped to a PDO",
+    SdoAbortCode.PDO_LENGTH_EXCEEDED: "mapping exceeds the 64 bits of a PDO",
+    SdoAbortCode.LENGTH_MISMATCH: "data length does not match the object's type",
+    SdoAbortCode.LENGTH_TOO_HIGH: "data longer than the object's type",
+    SdoAbortCode.LENGTH_TOO_LOW: "data shorter than the object's type",
+    SdoAbortCode.SUB_INDEX_DOES_NOT_EXIST: "no such sub-index",
+    SdoAbortCode.VALUE_RANGE_EXCEEDED: "value out of range",
+    SdoAbortCode.VALUE_TOO_HIGH: "value too high",
+    SdoAbortCode.VALUE_TOO_LOW: "value too low",
+    SdoAbortCode.RESOURCE_NOT_AVAILABLE: "resource not available",
+    SdoAbortCode.GENERAL_ERROR: "general error",
+    SdoAbortCode.DATA_CANNOT_BE_STORED: "refused by the application (or storage failed)",
+    SdoAbortCode.LOCAL_CONTROL: "refused: under local control",
+    SdoAbortCode.DEVICE_STATE: "not possible in the node's present state (e.g. PDO change while operational)",
+}
+
+
+def explain_abort(code: int, entry: ObjectEntry | None = None) -> str:
+    """'0x06090031 value too high (max 10.0)': the code, its meaning and the table's limit."""
+    try:
+        words = _ABORT_WORDS[SdoAbortCode(code)]
+    except ValueError:
+        words = "unknown abort code"
+    text = f"0x{code:08X} {words}"
+    if entry is not None:
+        if code == SdoAbortCode.VALUE_TOO_HIGH:
+            text += f" (max {entry.max})"
+        elif code == SdoAbortCode.VALUE_TOO_LOW:
+            text += f" (min {entry.min})"
+        elif code == SdoAbortCode.VALUE_RANGE_EXCEEDED:
+            text += f" (range {entry.min}..{entry.max})"
+    return text
+
+
+class PdoDirection(enum.StrEnum):
+    RPDO = "RPDO"
+    TPDO = "TPDO"
+
+
+@dataclass(frozen=True)
+class PdoLayout:
+    """One PDO as configured in the node: what it carries and when it is sent."""
+
+    direction: PdoDirection
+    number: int  # 1-based
+    cob_id: int
+    enabled: bool
+    transmission_type: int
+    names: tuple[str, ...]  # mapped objects in frame order
+
+    @property
+    def label(self) -> str:
+        """'TPDO3 (0x390)'."""
+        return f"{self.direction.value}{self.number} (0x{self.cob_id:03X})"
+
+    @property
+    def is_synchronous(self) -> bool:
+        return self.transmission_type <= LAST_SYNCHRONOUS_TYPE
+
+    def due_at_sync(self, sync_number: int) -> bool:
+        """True when a cyclic synchronous TPDO (type n = 1..240) is sent at this SYNC.
+
+        sync_number counts SYNCs since the node entered operational (1 = first): the node
+        counts SYNCs per PDO from that moment and sends at every n-th. Type 0 (acyclic, only
+        on change) and event-driven types are never *due*.
+        """
+        n = self.transmission_type
+        return self.enabled and 1 <= n <= LAST_SYNCHRONOUS_TYPE and sync_number % n == 0
+
+
+@dataclass(frozen=True)
+class EmcyRecord:
+    """An EMCY the node sent, stamped with the lockstep cycle and simulation time it arrived in."""
+
+    code: int
+    register: int
+    data: bytes
+    cycle: int
+    time_s: float
+
+    @property
+    def description(self) -> str:
+        return EmcyError(self.code, self.register, self.data, 0.0).get_desc()
+
+    @property
+    def object_index(self) -> int:
+        """Index of the object the error is about (the board puts it in the first two bytes)."""
+        return int.from_bytes(self.data[:2], "little")
+
+    def __str__(self) -> str:
+        return (
+            f"EMCY 0x{self.code:04X} ({self.description}) register 0x{self.register:02X} "
+            f"about 0x{self.object_index:04X} at t = {self.time_s:.6g} s (cycle {self.cycle})"
+        )
+
+
+TpdoCallback = Callable[[PdoLayout, dict[str, float | int]], None]
+"""Called from the receive thread with the TPDO and its decoded values by name."""
+
+
+class BoardNode:
+    """One board on the caller's bus, driven through canopen's RemoteNode.
+
+    Owns a canopen Network (and its receive thread) on `bus`, but not the bus: `close()` stops
+    the thread and leaves the bus open for its owner to shut down.
+    """
+
+    def __init__(
+        self,
+        bus: can.BusABC,
+        node_id: int,
+        eds: str | Path,
+        table: RigTable,
+        *,
+        sdo_timeout_s: float = 1.0,
+    ) -> None:
+        self.node_id = node_id
+        self.table = table
+        self.network = canopen.Network(bus)
+        self.remote = canopen.RemoteNode(node_id, str(eds))
+        self.remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
+        self.network.add_node(self.remote)
+        self.rpdos: dict[int, PdoLayout] = {}
+        self.tpdos: dict[int, PdoLayout] = {}
+        self._rpdo_vars: dict[int, dict[str, PdoVariable]] = {}
+        self._tpdo_callbacks: list[TpdoCallback] = []
+        self._wired_tpdos: set[int] = set()
+        self._heard = threading.Event()
+        self._booted = threading.Event()
+        self._last_heartbeat: NmtState | None = None
+        self.remote.nmt.add_heartbeat_callback(self._on_heartbeat)
+        # The receive thread polls the bus this often; close() waits up to one poll.
+        self.network.NOTIFIER_CYCLE = RECEIVE_POLL_S
+        self.network.connect()  # the bus is given: this only starts canopen's receive thread
+
+    def close(self) -> None:
+        """Stop the receive thread; the bus stays open (it is the caller's)."""
+        if self.network.notifier is not None:
+            self.network.notifier.stop(self.network.NOTIFIER_SHUTDOWN_TIMEOUT)
+            self.network.notifier = None
+
+    # --- NMT and heartbeat --------------------------------------------------------------
+    def _on_heartbeat(self, state: int) -> None:
+        try:
+            self._last_heartbeat = NmtState(state)
+        except ValueError:
+            self._last_heartbeat = None
+        self._heard.set()
+        if state == NmtState.INITIALISING:
+            self._booted.set()
+
+    @property
+    def last_heartbeat(self) -> NmtState | None:
+        """State in the latest boot-up or heartbeat frame (None before any)."""
+        return self._last_heartbeat
+
+    def wait_until_alive(self, timeout_s: float) -> None:
+        """Return once the node has sent a boot-up or heartbeat, or answers an SDO read.
+
+        The boot-up may have gone out before this network listened, and a heartbeat may be
+        slow, so after the bound an SDO read of the vendor id is the last chance.
+        """
+        if self._heard.wait(timeout_s):
+            return
+        try:
+            self.remote.sdo.upload(0x1018, 1)
+        except (SdoCommunicationError, SdoAbortedError) as error:
+            raise NodeSilentError(
+                f"node 0x{self.node_id:02X}: no boot-up or heartbeat within {timeout_s} s and no "
+                f"SDO answer ({error}); is the firmware running on this bus with this node id?"
+            ) from error
+
+    def nmt(self, command: NmtCommand, *, boot_timeout_s: float = 2.0) -> None:
+        """Send an NMT command; after a reset, return once the node's boot-up arrived."""
+        resetting = command in (NmtCommand.RESET_NODE, NmtCommand.RESET_COMMUNICATION)
+        self._booted.clear()
+        self.remote.nmt.send_command(int(command))
+        if resetting and not self._booted.wait(boot_timeout_s):
+            raise NodeSilentError(
+                f"node 0x{self.node_id:02X}: no boot-up within {boot_timeout_s} s after NMT {command.name}"
+            )
+
+    def check_identity(self) -> None:
+        """Read 0x1018 vendor id and product code and compare them with board.toml."""
+        expected = self.table.board.node
+        for subindex, name, value in (
+            (1, "vendor id", expected.vendor_id),
+            (2, "product code", expected.product_code),
+        ):
+            actual = int.from_bytes(self._upload(0x1018, subindex, f"read 0x1018 sub {subindex}"), "little")
+            if actual != value:
+                raise NodeSilentError(
+                    f"node 0x{self.node_id:02X}: {name} 0x{actual:08X}, expected 0x{value:08X} "
+                    f"from {self.table.board.source}: another device answers on this node id"
+                )
+
+    # --- EMCY ---------------------------------------------------------------------------
+    def on_emcy(self, callback: Callable[[EmcyError], None]) -> None:
+        """Called from the receive thread with canopen's EmcyError for every EMCY frame."""
+        self.remote.emcy.add_callback(callback)
+
+    # --- SDO by field name --------------------------------------------------------------
+    def read(self, name: str) -> float | int:
+        """Upload a board field or HIL I/O object by name."""
+        entry = self.table.entry(name)
+        data = self._upload(entry.index, entry.subindex, f"read {name}", entry)
+        return self.remote.object_dictionary[entry.index].decode_raw(data)
+
+    def write(self, name: str, value: float) -> None:
+        """Download a value to a board field or HIL I/O object by name (no range check here:
+        the node judges, and its refusal comes back as SdoAbortError in words)."""
+        entry = self.table.entry(name)
+        od = self.remote.object_dictionary[entry.index]
+        try:
+            data = od.encode_raw(value)
+        except struct.error as error:
+            raise ValueError(f"write {name}: {value!r} does not fit its type on the bus") from error
+        self._call_sdo(
+            f"write {name}", entry, lambda: self.remote.sdo.download(entry.index, entry.subindex, data)
+        )
+
+    def _upload(self, index: int, subindex: int, what: str, entry: ObjectEntry | None = None) -> bytes:
+        return self._call_sdo(what, entry, lambda: self.remote.sdo.upload(index, subindex))
+
+    def _call_sdo(self, what: str, entry: ObjectEntry | None, transfer: Callable[[], _T]) -> _T:
+        try:
+            return transfer()
+        except SdoAbortedError as error:
+            raise SdoAbortError(f"{what}: {explain_abort(error.code, entry)}", error.code) from error
+        except SdoCommunicationError as error:
+            raise SdoTimeoutError(f"{what}: node 0x{self.node_id:02X} did not answer ({error})") from error
+
+    # --- PDOs ---------------------------------------------------------------------------
+    def read_pdo_configuration(self, *, from_node: bool) -> None:
+        """Load every PDO's COB-ID, type and mapping into canopen's maps.
+
+        from_node=True reads them over SDO (what the node really does, e.g. after a remap);
+        False takes the EDS defaults without bus traffic.
+        """
+        for pdo in (self.remote.rpdo, self.remote.tpdo):
+            try:
+                pdo.read(from_od=not from_node)
+            except SdoAbortedError as error:
+                raise SdoAbortError(
+                    f"read PDO configuration: {explain_abort(error.code)}", error.code
+                ) from error
+            except SdoCommunicationError as error:
+                raise SdoTimeoutError(f"read PDO configuration: no answer ({error})") from error
+        self.rpdos = {n: _layout(PdoDirection.RPDO, n, m) for n, m in self.remote.rpdo.map.items()}
+        self.tpdos = {n: _layout(PdoDirection.TPDO, n, m) for n, m in self.remote.tpdo.map.items()}
+        self._rpdo_vars = {n: {var.name: var for var in m.map} for n, m in self.remote.rpdo.map.items()}
+        for number, pdo_map in self.remote.tpdo.map.items():
+            if number not in self._wired_tpdos:  # read() may run again; wire each map once
+                pdo_map.add_callback(self._on_tpdo)
+                self._wired_tpdos.add(number)
+
+    def on_tpdo(self, callback: TpdoCallback) -> None:
+        self._tpdo_callbacks.append(callback)
+
+    def _on_tpdo(self, pdo_map: PdoMap) -> None:
+        # Runs in the receive thread right after canopen stored the frame in pdo_map.data;
+        # decode now, before the next frame overwrites it.
+        number = next(n for n, m in self.remote.tpdo.map.items() if m is pdo_map)
+        values = {var.name: var.raw for var in pdo_map.map}
+        layout = self.tpdos[number]
+        for callback in self._tpdo_callbacks:
+            callback(layout, values)
+
+    def transmit_rpdo(self, number: int, values: Mapping[str, float | int]) -> None:
+        """Pack `values` (by object name) into RPDO `number` with canopen's map and send it.
+        Objects of the mapping not named keep the value they were last given."""
+        variables = self._rpdo_vars[number]
+        for name, value in values.items():
+            try:
+                variables[name].raw = value
+            except KeyError:
+                raise KeyError(
+                    f"{self.rpdos[number].label} does not map {name!r}; it maps "
+                    f"{', '.join(self.rpdos[number].names)}"
+                ) from None
+        self.remote.rpdo.map[number].transmit()
+
+    def send_sync(self, counter: int) -> None:
+        if not 1 <= counter <= SYNC_COUNTER_MAX:
+            raise ValueError(f"SYNC counter: expected 1..{SYNC_COUNTER_MAX}, got {counter}")
+        self.network.sync.transmit(counter)
+
+
+def _layout(direction: PdoDirection, number: int, pdo_map: PdoMap) -> PdoLayout:
+    return PdoLayout(
+        direction=direction,
+        number=number,
+        cob_id=(pdo_map.cob_id or 0) & 0x7FF,
+        enabled=pdo_map.enabled,
+        transmission_type=pdo_map.trans_type if pdo_map.trans_type is not None else 255,
+        names=tuple(var.name for var in pdo_map.map),
+    )

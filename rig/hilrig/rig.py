@@ -1,0 +1,322 @@
+"""The scenario API: a lockstep rig around one board node, written to read like the test.
+
+    with Rig(bus, params=JointParams.fast_thermal(), seed=1) as rig:
+        rig.set("control_mode", 1)              # SDO, or the RPDO that carries it
+        rig.set("velocity_setpoint", 10.0)      # goes out in the setpoint stream
+        rig.at(0.5, lambda rig: rig.set("velocity_setpoint", 0.0))
+        rig.run(seconds=1.0)
+        t, v = rig.history("output_velocity")   # what the firmware reported, per cycle
+        t, truth = rig.truth("load_velocity")   # what the physics did
+
+Simulation time is exact (`rig.t == rig.cycle * period`); every timeout a scenario writes
+is in simulation time. The bus is the caller's; the rig never opens one.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from types import TracebackType
+from typing import TYPE_CHECKING, Self
+
+import can
+import numpy as np
+from canopen.emcy import EmcyError
+
+from hilrig.errors import FieldAccessError, NoValueError, ScenarioTimeoutError, SdoAbortError
+from hilrig.lockstep import LockstepDriver, cycles_for, resolve_truth_name
+from hilrig.node import BoardNode, EmcyRecord, NmtCommand, NmtState
+from hilrig.physics import JointParams, JointPlant, JointState, RawSensors, SensorModel
+from hilrig.table import RigTable
+
+if TYPE_CHECKING:  # hilrig.trace imports rerun (slow) only when a Tracer is made
+    from hilrig.trace import Tracer
+
+DEFAULT_EDS_PATH = Path(__file__).resolve().parents[2] / "build" / "protocol" / "board.eds"
+"""The EDS generated from protocol/board.toml in this checkout's build tree."""
+
+Event = Callable[["Rig"], object]
+
+
+class Rig:
+    """Lockstep rig: the plant, the sensor models and one board node on the caller's bus.
+
+    Construction connects to the bus (starts canopen's receive thread) but sends nothing;
+    `start()` (or entering the `with` block) brings the node up: waits for its boot-up or
+    heartbeat, checks its identity, reads and verifies its PDO mapping, puts it operational.
+
+    bus: python-can bus the caller owns and shuts down. node_id: default from board.toml.
+    eds: the generated EDS. params/seed: plant parameters and sensor noise seed.
+    period_us: control period (the firmware's --period-us). liveness: called while waiting
+    for TPDOs, raises when the node's process died (e.g. `Firmware.check`). Timeouts in
+    seconds of wall clock are hang guards only. tracer: a `hilrig.trace.Tracer` that gets every
+    cycle, NMT change, EMCY and SDO abort (the caller closes it).
+    """
+
+    def __init__(
+        self,
+        bus: can.BusABC,
+        *,
+        node_id: int | None = None,
+        eds: str | Path = DEFAULT_EDS_PATH,
+        params: JointParams | None = None,
+        seed: int = 0,
+        period_us: int = 1000,
+        table: RigTable | None = None,
+        liveness: Callable[[], None] | None = None,
+        boot_timeout_s: float = 2.0,
+        tpdo_timeout_s: float = 5.0,
+        sdo_timeout_s: float = 1.0,
+        tracer: Tracer | None = None,
+    ) -> None:
+        self.table = table if table is not None else RigTable.load()
+        self.params = params if params is not None else JointParams()
+        self.boot_timeout_s = boot_timeout_s
+        node_id = node_id if node_id is not None else self.table.board.node.default_node_id
+        self.node = BoardNode(bus, node_id, eds, self.table, sdo_timeout_s=sdo_timeout_s)
+        self.plant = JointPlant(self.params)
+        self.driver = LockstepDriver(
+            self.node,
+            self.plant,
+            SensorModel(self.params, seed),
+            period_us=period_us,
+            tpdo_timeout_s=tpdo_timeout_s,
+            liveness=liveness,
+        )
+        self._emcy: list[EmcyRecord] = []
+        self._emcy_lock = threading.Lock()
+        self._events: list[tuple[int, int, Event]] = []
+        self._event_order = itertools.count()
+        self.node.on_emcy(self._on_emcy)
+        # --- tracing (hilrig.trace) ---
+        self.tracer = tracer
+        if tracer is not None:
+            tracer.log_plant_params(self.params)
+            self.node.remote.nmt.add_heartbeat_callback(self._on_heartbeat_state)
+        self._heartbeat_state: NmtState | None = None
+
+    # --- Life cycle ---------------------------------------------------------------------
+    def start(self) -> None:
+        """Bring the node up (bounded waits) and put it operational."""
+        self.node.wait_until_alive(self.boot_timeout_s)
+        self.node.check_identity()
+        self.node.read_pdo_configuration(from_node=True)
+        self.driver.configure()
+        self.nmt(NmtCommand.START)
+
+    def close(self) -> None:
+        self.node.close()
+
+    def __enter__(self) -> Self:
+        try:
+            self.start()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, traceback: TracebackType | None
+    ) -> None:
+        self.close()
+
+    # --- Time ---------------------------------------------------------------------------
+    @property
+    def cycle(self) -> int:
+        """Cycles completed (the index of the next cycle)."""
+        return self.driver.cycle
+
+    @property
+    def t(self) -> float:
+        """Simulation time [s] = cycle * period, exact."""
+        return self.driver.t
+
+    @property
+    def period_s(self) -> float:
+        return self.driver.period_s
+
+    def run(self, *, seconds: float | None = None, cycles: int | None = None) -> None:
+        """Run lockstep cycles for `seconds` of simulation time or a number of `cycles`."""
+        if (seconds is None) == (cycles is None):
+            raise TypeError("run() takes exactly one of seconds= or cycles=")
+        count = cycles if cycles is not None else cycles_for(seconds or 0.0, self.driver.period_us)
+        if count < 0:
+            raise ValueError(f"cycles: expected >= 0, got {count}")
+        for _ in range(count):
+            self._fire_events()
+            self._step()
+        self._fire_events()  # an event at exactly the end time has happened when run() returns
+
+    def run_until(
+        self, condition: Callable[[Rig], bool], *, within_s: float, what: str = "condition"
+    ) -> float:
+        """Run until `condition(rig)` holds (checked after each cycle); return rig.t then.
+
+        Raises ScenarioTimeoutError when it does not hold within `within_s` of simulation time.
+        """
+        for _ in range(cycles_for(within_s, self.driver.period_us)):
+            self._fire_events()
+            self._step()
+            if condition(self):
+                return self.t
+        raise ScenarioTimeoutError(
+            f"expected {what} within {within_s:g} s, not met at t = {self.t:.6g} s (cycle {self.cycle})"
+        )
+
+    def _step(self) -> None:
+        """One lockstep cycle; its complete values go to the tracer, if there is one."""
+        truth = self.plant.state  # the state this cycle's sensor frame is sampled from
+        result = self.driver.step()
+        if self.tracer is not None:  # --- tracing (hilrig.trace) ---
+            self.tracer.log_cycle(result.cycle, result.time_s, result.received, result.sent, truth)
+
+    def at(self, seconds: float, callback: Event) -> None:
+        """Call `callback(rig)` when simulation time reaches `seconds` (before that cycle)."""
+        cycle = cycles_for(seconds, self.driver.period_us)
+        if cycle < self.cycle:
+            raise ValueError(f"at({seconds}): already past, t = {self.t:.6g} s")
+        heapq.heappush(self._events, (cycle, next(self._event_order), callback))
+
+    def _fire_events(self) -> None:
+        while self._events and self._events[0][0] <= self.cycle:
+            _, _, callback = heapq.heappop(self._events)
+            callback(self)
+
+    # --- Fields -------------------------------------------------------------------------
+    def check_names(self, *names: str) -> None:
+        """Fail at once (FieldNameError with close matches) if a name is not in board.toml."""
+        self.table.check(names)
+
+    def set(self, name: str, value: float) -> None:
+        """Command a bus-writable field: by the RPDO that carries it (sent from the next
+        cycle on; the setpoint stream every cycle), otherwise by SDO now. The node judges the
+        value; a refused SDO write raises SdoAbortError with the reason in words."""
+        self.table.entry(name)
+        if self.table.is_hil_input(name):
+            raise FieldAccessError(
+                f"{name} is a raw sensor input the physics computes every cycle; inject faults "
+                "with rig.override_sensors(...)"
+            )
+        if self.driver.rpdo_of(name) is not None:
+            self.driver.set_rpdo_value(name, value)
+        else:
+            with self._traced_sdo():
+                self.node.write(name, value)
+            if self.tracer is not None:  # --- tracing (hilrig.trace) ---
+                self.tracer.log_sdo_write(name, value, cycle=self.cycle, t=self.t)
+
+    def field(self, name: str) -> float | int:
+        """Latest value of `name`: from the last TPDO that carried it, else read by SDO."""
+        self.table.entry(name)
+        if name in self.driver.tpdo_names():
+            return self.driver.latest(name)
+        return self.read(name)
+
+    def read(self, name: str) -> float | int:
+        """The node's present value of `name`, read by SDO."""
+        with self._traced_sdo():
+            return self.node.read(name)
+
+    @contextmanager
+    def _traced_sdo(self) -> Iterator[None]:
+        """--- tracing (hilrig.trace) --- an SDO abort goes to the trace, then on to the caller."""
+        try:
+            yield
+        except SdoAbortError as error:
+            if self.tracer is not None:
+                self.tracer.log_sdo_abort(str(error), error.abort_code, cycle=self.cycle, t=self.t)
+            raise
+
+    def history(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of `name` for every cycle it was received in a TPDO (or, for what the
+        rig sends, every cycle it was sent in an RPDO)."""
+        self.table.entry(name)
+        history = self.driver.history
+        if history.has_received(name):
+            return history.received(name)
+        if history.has_sent(name):
+            return history.sent(name)
+        if name in self.driver.tpdo_names() or self.driver.rpdo_of(name) is not None:
+            return np.empty(0), np.empty(0)
+        raise NoValueError(
+            f"{name} is in no enabled PDO, so it has no history: map it, or read "
+            "its present value with rig.field()"
+        )
+
+    def sent(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of `name` as the rig sent it in RPDOs."""
+        self.table.entry(name)
+        if not self.driver.history.has_sent(name):
+            return np.empty(0), np.empty(0)
+        return self.driver.history.sent(name)
+
+    def truth(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of a ground-truth quantity of the plant, e.g. "load_velocity" (or its
+        full name "load_velocity_rad_s"), one row per cycle at the cycle's start."""
+        resolve_truth_name(name)
+        return self.driver.history.truth(name)
+
+    @property
+    def state(self) -> JointState:
+        """The plant's present state (at rig.t)."""
+        return self.plant.state
+
+    # --- Faults and bus control ---------------------------------------------------------
+    def override_sensors(self, override: Callable[[RawSensors], RawSensors] | None) -> None:
+        """Replace each cycle's raw sensor values before they are sent (None: physics only)."""
+        self.driver.sensor_override = override
+
+    def pause_rpdo(self, number: int) -> None:
+        """Stop sending RPDO `number` (e.g. 2: silence the setpoint stream for the watchdog)."""
+        self.driver.paused_rpdos.add(number)
+
+    def resume_rpdo(self, number: int) -> None:
+        self.driver.paused_rpdos.discard(number)
+
+    def nmt(self, command: NmtCommand) -> None:
+        """Send an NMT command; after a reset, wait (bounded) for the boot-up."""
+        self.node.nmt(command, boot_timeout_s=self.boot_timeout_s)
+        self.driver.node_entered(command.resulting_state)
+        if self.tracer is not None:  # --- tracing (hilrig.trace) ---
+            self.tracer.log_nmt(
+                command.resulting_state, self.t, cycle=self.cycle, source=f"command {command.name}"
+            )
+
+    @property
+    def nmt_state(self) -> NmtState | None:
+        """State from the node's latest heartbeat (None before any)."""
+        return self.node.last_heartbeat
+
+    # --- EMCY ---------------------------------------------------------------------------
+    def _on_emcy(self, error: EmcyError) -> None:
+        record = EmcyRecord(
+            code=error.code,
+            register=error.register,
+            data=bytes(error.data),
+            cycle=self.driver.cycle,
+            time_s=self.driver.t,
+        )
+        with self._emcy_lock:
+            self._emcy.append(record)
+        if self.tracer is not None:  # --- tracing (hilrig.trace) ---
+            self.tracer.log_emcy(record)
+
+    def _on_heartbeat_state(self, state: int) -> None:
+        """--- tracing (hilrig.trace) --- heartbeat/boot-up state changes, from the receive thread."""
+        try:
+            nmt_state = NmtState(state)
+        except ValueError:
+            return
+        if nmt_state is not self._heartbeat_state and self.tracer is not None:
+            self._heartbeat_state = nmt_state
+            self.tracer.log_nmt(nmt_state, self.t, cycle=self.cycle, source="heartbeat")
+
+    @property
+    def emcy(self) -> list[EmcyRecord]:
+        """EMCYs received so far, oldest first, with the cycle and time they arrived in."""
+        with self._emcy_lock:
+            return list(self._emcy)

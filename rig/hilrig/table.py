@@ -1,0 +1,81 @@
+"""The rig's view of the board table: names checked against protocol/board.toml, nothing copied.
+
+Everything comes from `boardproto.load_table`, so a field added to board.toml is known to the
+rig at once. A name the table does not define raises `FieldNameError` with the close matches::
+
+    table = RigTable.load()
+    table.entry("motor_velocty")   # FieldNameError: no board field or HIL I/O object named
+                                   # 'motor_velocty'; did you mean 'motor_velocity'?
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+from pathlib import Path
+
+from boardproto import BoardTable, Field, HilIo, Kind, load_table
+from hilrig.errors import FieldNameError
+
+DEFAULT_TABLE_PATH = Path(__file__).resolve().parents[2] / "protocol" / "board.toml"
+"""protocol/board.toml of the checkout this package lives in."""
+
+ObjectEntry = Field | HilIo
+
+
+def unknown_name(what: str, name: str, known: Iterable[str]) -> FieldNameError:
+    """FieldNameError "no <what> named 'x'; did you mean 'y'?" with up to three close matches."""
+    matches = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
+    hint = f"; did you mean {' or '.join(repr(m) for m in matches)}?" if matches else ""
+    return FieldNameError(f"no {what} named {name!r}{hint}")
+
+
+class RigTable:
+    """Name look-ups over a `BoardTable`; every miss raises FieldNameError with suggestions."""
+
+    def __init__(self, board: BoardTable) -> None:
+        self.board = board
+        self._entries: dict[str, ObjectEntry] = {entry.name: entry for entry in board.entries}
+        self._by_index: dict[int, ObjectEntry] = {entry.index: entry for entry in board.entries}
+
+    @classmethod
+    def load(cls, path: str | Path = DEFAULT_TABLE_PATH) -> RigTable:
+        return cls(load_table(path))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Board fields, then HIL inputs, then HIL outputs."""
+        return tuple(self._entries)
+
+    def entry(self, name: str) -> ObjectEntry:
+        """A board field or HIL I/O object by name."""
+        try:
+            return self._entries[name]
+        except KeyError:
+            raise unknown_name("board field or HIL I/O object", name, self._entries) from None
+
+    def field(self, name: str) -> Field:
+        entry = self.entry(name)
+        if not isinstance(entry, Field):
+            raise FieldNameError(f"{name!r} is a HIL I/O object, not a board field")
+        return entry
+
+    def entry_at(self, index: int) -> ObjectEntry | None:
+        return self._by_index.get(index)
+
+    def check(self, names: Iterable[str]) -> None:
+        """Raise FieldNameError for the first unknown name (scenarios call this at start)."""
+        for name in names:
+            self.entry(name)
+
+    def is_hil_input(self, name: str) -> bool:
+        return any(io.name == name for io in self.board.hil_inputs)
+
+    def is_bus_writable(self, name: str) -> bool:
+        entry = self.entry(name)
+        return (isinstance(entry, Field) and entry.kind.bus_writable) or (
+            isinstance(entry, HilIo) and self.is_hil_input(name)
+        )
+
+    def fields_of_kind(self, kind: Kind) -> tuple[Field, ...]:
+        return self.board.fields_of_kind(kind)

@@ -1,0 +1,583 @@
+"""Tracing to Rerun: every field the rig receives or sends, every cycle, next to the physics' truth.
+
+    tracer = Tracer(TraceSink.rrd(scenario_dir / "trace.rrd"), table, blueprint="overview")
+    with Rig(bus, params=params, tracer=tracer) as rig:
+        rig.run(seconds=1.0)
+    tracer.close()                                   # flushes; the .rrd is complete after this
+    open_trace(scenario_dir / "trace.rrd", blueprint="tuning")   # native viewer, or web=True
+
+Entity paths mirror the data (dashboards/ builds its views on exactly these):
+
+    /fields/<kind>s/<name>   board fields by kind: sensors, virtual_sensors, modules, actuators,
+                             commands, parameters; received in TPDOs, or sent by the rig (RPDO
+                             commands every cycle they go out, SDO writes when made)
+    /hil/inputs/<name>       raw sensor values the rig sent (RPDO1), /hil/outputs/<name> raw
+                             actuator values the node sent (motor_duty, led_pattern)
+    /truth/<quantity>        the plant's ground truth (JointState attributes, unit in the name),
+                             plus spring_stiffness_nm_per_rad from the plant parameters
+    /events/nmt, /events/emcy, /events/sdo    text log entries with a level
+
+Every scalar entity carries a static `SeriesLines` name with its unit ("motor_velocity [rad/s]").
+Timelines: `cycle` (sequence) and `sim_time` (duration, exact cycle * period) in lockstep; in
+real-time mode (`clock="wall"`) `wall_time` (timestamp) replaces `sim_time`.
+
+Off the hot path: `log_cycle` only appends the cycle's dicts to a list (no Rerun call). Every
+`batch_cycles` cycles the list is handed to a background thread that pivots it into columns and
+sends one `send_columns` chunk per entity. Nothing is ever dropped and the lockstep loop never
+waits for Rerun (see `rig/bench_trace.py` for the measurement). `import rerun` is slow in the
+emulated VM, so it happens only when a Tracer is made.
+"""
+
+from __future__ import annotations
+
+import enum
+import importlib.util
+import queue
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal, Self
+
+import numpy as np
+
+from boardproto import Field, IoDirection, Kind
+from hilrig.node import EmcyRecord, NmtState
+from hilrig.physics import JointParams, JointState
+from hilrig.table import RigTable, unknown_name
+
+if TYPE_CHECKING:
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+APPLICATION_ID = "hilrig"
+"""Rerun application id of every trace; blueprints are saved for this id."""
+CYCLE_TIMELINE = "cycle"
+SIM_TIME_TIMELINE = "sim_time"
+WALL_TIME_TIMELINE = "wall_time"
+DEFAULT_BATCH_CYCLES = 500
+"""Cycles collected before one batch is pivoted and sent (0.5 s of simulation at 1 kHz)."""
+
+Value = float | int
+Clock = Literal["simulation", "wall"]
+
+# --- Entity paths (dashboards/ uses these, so views and data cannot drift apart) ------------
+FIELDS_ROOT = "/fields"
+HIL_INPUTS_ROOT = "/hil/inputs"
+HIL_OUTPUTS_ROOT = "/hil/outputs"
+TRUTH_ROOT = "/truth"
+EVENTS_ROOT = "/events"
+NMT_PATH = f"{EVENTS_ROOT}/nmt"
+EMCY_PATH = f"{EVENTS_ROOT}/emcy"
+SDO_PATH = f"{EVENTS_ROOT}/sdo"
+TRUE_SPRING_STIFFNESS = "spring_stiffness_nm_per_rad"
+"""Extra truth series: the plant's spring constant, to plot next to spring_constant_estimate."""
+
+_TRUTH_UNITS = (
+    ("_rad_s", "rad/s"),
+    ("_rad", "rad"),
+    ("_nm_per_rad", "N*m/rad"),
+    ("_nm", "N*m"),
+    ("_a", "A"),
+    ("_c", "degC"),
+    ("_ohm", "ohm"),
+)
+TRUTH_QUANTITIES: tuple[str, ...] = (
+    *(f.name for f in fields(JointState) if f.name != "time_s"),
+    TRUE_SPRING_STIFFNESS,
+)
+
+
+def kind_path(kind: Kind) -> str:
+    """'/fields/virtual_sensors' for Kind.VIRTUAL_SENSOR."""
+    return f"{FIELDS_ROOT}/{kind.value}s"
+
+
+def field_path(field: Field) -> str:
+    """'/fields/sensors/motor_position'."""
+    return f"{kind_path(field.kind)}/{field.name}"
+
+
+def truth_path(quantity: str) -> str:
+    """'/truth/load_velocity_rad_s'; the name is checked against the JointState attributes."""
+    if quantity not in TRUTH_QUANTITIES:
+        raise unknown_name("ground-truth quantity", quantity, TRUTH_QUANTITIES)
+    return f"{TRUTH_ROOT}/{quantity}"
+
+
+def truth_unit(quantity: str) -> str:
+    for suffix, unit in _TRUTH_UNITS:
+        if quantity.endswith(suffix):
+            return unit
+    return "1"
+
+
+class Severity(enum.StrEnum):
+    """Text log levels, spelled as Rerun's TextLogLevel."""
+
+    INFO = "INFO"
+    WARN = "WARN"
+    ERROR = "ERROR"
+
+
+# --- Sinks ----------------------------------------------------------------------------------
+class SinkKind(enum.StrEnum):
+    RRD = "rrd"
+    SPAWN = "spawn"
+    CONNECT = "connect"
+    WEB = "web"
+
+
+DEFAULT_GRPC_PORT = 9876
+DEFAULT_WEB_PORT = 9090
+
+
+@dataclass(frozen=True)
+class TraceSink:
+    """Where a trace goes. Several can be combined: `Tracer([TraceSink.rrd(p), TraceSink.spawn()])`.
+
+    On the command line: `TraceSink.parse("rrd:out/trace.rrd")`, "spawn", "connect",
+    "connect:rerun+http://host:9876/proxy", "web", "web:9090".
+    """
+
+    kind: SinkKind
+    path: Path | None = None
+    url: str | None = None
+    port: int | None = None
+
+    @classmethod
+    def rrd(cls, path: str | Path) -> TraceSink:
+        """A `.rrd` file (parent folders are created)."""
+        return cls(SinkKind.RRD, path=Path(path))
+
+    @classmethod
+    def spawn(cls, port: int = DEFAULT_GRPC_PORT) -> TraceSink:
+        """Spawn a native viewer listening on `port` (or reuse one already there) and stream to it."""
+        return cls(SinkKind.SPAWN, port=port)
+
+    @classmethod
+    def connect(cls, url: str = f"rerun+http://127.0.0.1:{DEFAULT_GRPC_PORT}/proxy") -> TraceSink:
+        """Stream to a running viewer or `rerun --serve-grpc` (e.g. the compose `viewer` service)."""
+        return cls(SinkKind.CONNECT, url=url)
+
+    @classmethod
+    def serve_web(cls, port: int = DEFAULT_WEB_PORT, grpc_port: int = DEFAULT_GRPC_PORT) -> TraceSink:
+        """Serve the web viewer on http://localhost:`port` (no display needed); the data is kept in
+        an in-process gRPC server on `grpc_port` for as long as this process lives."""
+        return cls(SinkKind.WEB, port=port, url=f"{grpc_port}")
+
+    @classmethod
+    def parse(cls, spec: str) -> TraceSink:
+        """'rrd:PATH' | 'spawn[:PORT]' | 'connect[:URL]' | 'web[:PORT]'."""
+        kind, _, arg = spec.partition(":")
+        try:
+            sink_kind = SinkKind(kind)
+        except ValueError:
+            raise unknown_name("trace sink", kind, [k.value for k in SinkKind]) from None
+        if sink_kind is SinkKind.RRD:
+            if not arg:
+                raise ValueError("trace sink 'rrd' needs a path: rrd:out/trace.rrd")
+            return cls.rrd(arg)
+        if sink_kind is SinkKind.SPAWN:
+            return cls.spawn(int(arg)) if arg else cls.spawn()
+        if sink_kind is SinkKind.CONNECT:
+            return cls.connect(arg) if arg else cls.connect()
+        return cls.serve_web(int(arg)) if arg else cls.serve_web()
+
+
+# --- The tracer -----------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class _CycleRow:
+    cycle: int
+    t: float
+    received: Mapping[str, Value]
+    sent: Mapping[str, Value]
+    truth: JointState
+
+
+class Tracer:
+    """Logs the rig's cycles, NMT changes, EMCYs and SDO aborts to Rerun.
+
+    sink: one `TraceSink` or several. table: names -> kinds and units (RigTable.load()).
+    blueprint: name in `dashboards.BLUEPRINTS` sent with the trace (None: the viewer's own).
+    batch_cycles: cycles per batch. background: pivot and send batches in a thread (True) or
+    inline on the caller's thread at each batch boundary (False). clock: "simulation" (lockstep:
+    `sim_time` timeline) or "wall" (real-time mode: `t` is Unix time, `wall_time` timeline).
+
+    `log_cycle` is called from the lockstep loop; the event methods may be called from any
+    thread (EMCY and heartbeats arrive in canopen's receive thread). Call `close()` at the end:
+    it sends what is pending and flushes the sinks. Usable as a context manager.
+    """
+
+    def __init__(
+        self,
+        sink: TraceSink | Sequence[TraceSink],
+        table: RigTable,
+        *,
+        blueprint: str | None = "overview",
+        batch_cycles: int = DEFAULT_BATCH_CYCLES,
+        background: bool = True,
+        clock: Clock = "simulation",
+        recording_name: str | None = None,
+    ) -> None:
+        import rerun as rr  # slow (about 12 s in the emulated VM): only when tracing
+
+        if batch_cycles < 1:
+            raise ValueError(f"batch_cycles: expected >= 1, got {batch_cycles}")
+        self._rr = rr
+        self.table = table
+        self.sinks: tuple[TraceSink, ...] = (sink,) if isinstance(sink, TraceSink) else tuple(sink)
+        if not self.sinks:
+            raise ValueError("Tracer needs at least one sink")
+        self.batch_cycles = batch_cycles
+        self.clock: Clock = clock
+        self.time_timeline = SIM_TIME_TIMELINE if clock == "simulation" else WALL_TIME_TIMELINE
+        self.web_url: str | None = None
+        """http://localhost:PORT of the served web viewer, when a web sink is used."""
+        self.cycles_logged = 0
+        self._params: JointParams | None = None
+        self._paths = self._entity_paths(table)
+        self._named: set[str] = set()  # entities whose static SeriesLines name was sent
+        self._pending: list[_CycleRow] = []
+        self._lock = threading.Lock()  # guards _pending and _params against the event threads
+        self._closed = False
+        self._error: BaseException | None = None
+
+        self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
+        self._attach_sinks()
+        if blueprint is not None:
+            self.recording.send_blueprint(load_blueprint(blueprint), make_active=True, make_default=True)
+
+        self._queue: queue.SimpleQueue[list[_CycleRow] | None] | None = None
+        self._worker: threading.Thread | None = None
+        if background:
+            self._queue = queue.SimpleQueue()
+            self._worker = threading.Thread(target=self._work, name="hilrig-trace", daemon=True)
+            self._worker.start()
+
+    @classmethod
+    def for_scenario(cls, out_dir: str | Path, table: RigTable, **kwargs: Any) -> Tracer:
+        """A tracer writing `<out_dir>/trace.rrd`, beside the scenario's bus.log."""
+        return cls(
+            TraceSink.rrd(Path(out_dir) / "trace.rrd"), table, recording_name=Path(out_dir).name, **kwargs
+        )
+
+    # --- Sinks ------------------------------------------------------------------------------
+    def _attach_sinks(self) -> None:
+        rr = self._rr
+        native: list[Any] = []
+        for sink in self.sinks:
+            if sink.kind is SinkKind.RRD:
+                assert sink.path is not None
+                sink.path.parent.mkdir(parents=True, exist_ok=True)
+                native.append(rr.FileSink(str(sink.path)))
+            elif sink.kind is SinkKind.SPAWN:
+                port = sink.port or DEFAULT_GRPC_PORT
+                rr.spawn(port=port, connect=False)
+                native.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{port}/proxy"))
+            elif sink.kind is SinkKind.CONNECT:
+                native.append(rr.GrpcSink(sink.url))
+            else:
+                server = rr.GrpcServerSink(port=int(sink.url or DEFAULT_GRPC_PORT))
+                native.append(server)
+                port = sink.port or DEFAULT_WEB_PORT
+                rr.serve_web_viewer(web_port=port, open_browser=False, connect_to=server.uri)
+                self.web_url = f"http://localhost:{port}"
+        self.recording.set_sinks(*native)
+
+    # --- What the Rig calls -----------------------------------------------------------------
+    def log_plant_params(self, params: JointParams) -> None:
+        """The plant's parameters: the true spring constant is logged every cycle from now on."""
+        with self._lock:
+            self._params = params
+
+    def log_cycle(
+        self,
+        cycle: int,
+        t: float,
+        received: Mapping[str, Value],
+        sent: Mapping[str, Value],
+        truth: JointState,
+    ) -> None:
+        """One completed lockstep cycle: TPDO values, RPDO values, the plant state at its start.
+
+        Cheap: one append; every `batch_cycles` cycles the batch goes to the sender.
+        """
+        self._check_open()
+        with self._lock:
+            self._pending.append(_CycleRow(cycle, t, dict(received), dict(sent), truth))
+            full = len(self._pending) >= self.batch_cycles
+        self.cycles_logged += 1
+        if full:
+            self._hand_over()
+
+    def log_sdo_write(self, name: str, value: Value, *, cycle: int, t: float) -> None:
+        """A value the rig wrote by SDO (a parameter, or a command no RPDO carries)."""
+        self._check_open()
+        path = self._paths[name]
+        self._send_scalars(path, [cycle], [t], np.array([float(value)]))
+
+    def log_nmt(
+        self, state: NmtState, t: float, *, cycle: int | None = None, source: str = "command"
+    ) -> None:
+        """An NMT state change (by a command the rig sent, or seen in a heartbeat/boot-up)."""
+        level = Severity.WARN if state in (NmtState.STOPPED, NmtState.INITIALISING) else Severity.INFO
+        where = "boot-up" if state is NmtState.INITIALISING else state.name
+        self.log_text(NMT_PATH, f"NMT {where} ({source}) at t = {t:.6g} s", level, t=t, cycle=cycle)
+
+    def log_emcy(self, record: EmcyRecord) -> None:
+        """An EMCY; code 0x0000 (error reset) is INFO, anything else ERROR."""
+        level = Severity.INFO if record.code == 0 else Severity.ERROR
+        self.log_text(EMCY_PATH, str(record), level, t=record.time_s, cycle=record.cycle)
+
+    def log_sdo_abort(self, what: str, code: int, *, cycle: int, t: float) -> None:
+        """An SDO transfer the node refused (`what` is the rig's message, with the code in words)."""
+        self.log_text(
+            SDO_PATH,
+            f"SDO abort 0x{code:08X}: {what} at t = {t:.6g} s (cycle {cycle})",
+            Severity.WARN,
+            t=t,
+            cycle=cycle,
+        )
+
+    def log_text(self, path: str, text: str, level: Severity, *, t: float, cycle: int | None) -> None:
+        """A text log entry at `path` (rare events: sent at once, not batched)."""
+        self._check_open()
+        rr = self._rr
+        indexes = [self._time_column([t])]
+        if cycle is not None:
+            indexes.insert(0, rr.TimeColumn(CYCLE_TIMELINE, sequence=[cycle]))
+        self.recording.send_columns(
+            path, indexes=indexes, columns=rr.TextLog.columns(text=[text], level=[level.value])
+        )
+
+    def close(self) -> None:
+        """Send what is pending, stop the sender thread and flush every sink. Idempotent.
+
+        A served web viewer keeps serving the data until this process exits.
+        """
+        if self._closed:
+            return
+        self._hand_over()
+        self._closed = True
+        if self._worker is not None and self._queue is not None:
+            self._queue.put(None)
+            self._worker.join()
+        self.recording.flush()
+        if not any(s.kind is SinkKind.WEB for s in self.sinks):
+            self.recording.disconnect()
+        if self._error is not None:
+            raise RuntimeError(f"tracing failed in the sender thread: {self._error}") from self._error
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- Batching ---------------------------------------------------------------------------
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("Tracer is closed")
+
+    def _hand_over(self) -> None:
+        with self._lock:
+            batch, self._pending = self._pending, []
+        if not batch:
+            return
+        if self._queue is not None:
+            self._queue.put(batch)
+        else:
+            self._send_batch(batch)
+
+    def _work(self) -> None:
+        assert self._queue is not None
+        while (batch := self._queue.get()) is not None:
+            if self._error is not None:
+                continue
+            try:
+                self._send_batch(batch)
+            except BaseException as error:  # reported by close(); the lockstep loop never waits
+                self._error = error
+
+    def _send_batch(self, batch: list[_CycleRow]) -> None:
+        """Pivot rows into one column per entity and send each with `send_columns`."""
+        series: dict[str, tuple[list[int], list[float], list[float]]] = {}
+        for row in batch:
+            for values in (row.received, row.sent):
+                for name, value in values.items():
+                    cycles, times, column = series.setdefault(self._paths[name], ([], [], []))
+                    cycles.append(row.cycle)
+                    times.append(row.t)
+                    column.append(value)
+        for path, (cycles, times, column) in series.items():
+            self._send_scalars(path, cycles, times, np.asarray(column, dtype=np.float64))
+
+        cycles = [row.cycle for row in batch]
+        times = [row.t for row in batch]
+        for quantity in TRUTH_QUANTITIES[:-1]:
+            self._send_scalars(
+                truth_path(quantity),
+                cycles,
+                times,
+                np.fromiter(
+                    (getattr(row.truth, quantity) for row in batch), dtype=np.float64, count=len(batch)
+                ),
+            )
+        with self._lock:
+            params = self._params
+        if params is not None:
+            self._send_scalars(
+                truth_path(TRUE_SPRING_STIFFNESS),
+                cycles,
+                times,
+                np.full(len(batch), params.spring_stiffness_nm_per_rad),
+            )
+
+    def _send_scalars(
+        self, path: str, cycles: Sequence[int], times: Sequence[float], values: np.ndarray
+    ) -> None:
+        rr = self._rr
+        if path not in self._named:
+            self._named.add(path)
+            self.recording.log(path, rr.SeriesLines(names=self._series_name(path)), static=True)
+        self.recording.send_columns(
+            path,
+            indexes=[
+                rr.TimeColumn(CYCLE_TIMELINE, sequence=np.asarray(cycles, dtype=np.int64)),
+                self._time_column(times),
+            ],
+            columns=rr.Scalars.columns(scalars=values),
+        )
+
+    def _time_column(self, times: Sequence[float]) -> rr.TimeColumn:
+        if self.clock == "simulation":
+            return self._rr.TimeColumn(SIM_TIME_TIMELINE, duration=np.asarray(times, dtype=np.float64))
+        return self._rr.TimeColumn(WALL_TIME_TIMELINE, timestamp=np.asarray(times, dtype=np.float64))
+
+    # --- Names ------------------------------------------------------------------------------
+    @staticmethod
+    def _entity_paths(table: RigTable) -> dict[str, str]:
+        paths: dict[str, str] = {}
+        for entry in table.board.entries:
+            if isinstance(entry, Field):
+                paths[entry.name] = field_path(entry)
+            elif entry.direction is IoDirection.INPUT:
+                paths[entry.name] = f"{HIL_INPUTS_ROOT}/{entry.name}"
+            else:
+                paths[entry.name] = f"{HIL_OUTPUTS_ROOT}/{entry.name}"
+        return paths
+
+    def path_of(self, name: str) -> str:
+        """Entity path of a board field or HIL I/O object (FieldNameError with close matches)."""
+        self.table.entry(name)
+        return self._paths[name]
+
+    def _series_name(self, path: str) -> str:
+        name = path.rsplit("/", 1)[-1]
+        if path.startswith(TRUTH_ROOT):
+            return f"true {name} [{truth_unit(name)}]"
+        return f"{name} [{self.table.entry(name).unit}]"
+
+
+def entity_paths(table: RigTable) -> dict[str, str]:
+    """Entity path of every board field and HIL I/O object, by name (no Rerun import)."""
+    return Tracer._entity_paths(table)
+
+
+# --- Blueprints and opening saved traces ----------------------------------------------------
+def _dashboards() -> Any:
+    """The repository's dashboards/ package (importable from the checkout even when the cwd is
+    elsewhere: it is not part of the installed hilrig package)."""
+    try:
+        import dashboards  # type: ignore[import-not-found]
+
+        return dashboards
+    except ImportError:
+        pass
+    root = Path(__file__).resolve().parents[2] / "dashboards"
+    spec = importlib.util.spec_from_file_location(
+        "dashboards", root / "__init__.py", submodule_search_locations=[str(root)]
+    )
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no dashboards package at {root}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["dashboards"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def load_blueprint(name: str) -> rrb.Blueprint:
+    """The dashboards/ blueprint called `name` (FieldNameError with close matches otherwise)."""
+    return _dashboards().blueprint(name)
+
+
+def blueprint_names() -> tuple[str, ...]:
+    return tuple(_dashboards().BLUEPRINTS)
+
+
+def save_blueprint(name: str, path: str | Path) -> Path:
+    """Write the blueprint `name` as a `.rbl` file for the hilrig application id."""
+    path = Path(path)
+    load_blueprint(name).save(APPLICATION_ID, path)
+    return path
+
+
+def open_trace(
+    path: str | Path,
+    blueprint: str = "overview",
+    *,
+    web: bool = False,
+    web_port: int = DEFAULT_WEB_PORT,
+    launch: bool = True,
+) -> subprocess.Popen[bytes] | list[str]:
+    """Open a saved trace in a native viewer (spawned), or serve it to the web viewer on
+    http://localhost:`web_port` (web=True), with the named blueprint active.
+
+    Returns the viewer process (the caller owns it); launch=False returns the command instead.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"no trace at {path}")
+    rbl = Path(tempfile.mkdtemp(prefix="hilrig-blueprint-")) / f"{blueprint}.rbl"
+    save_blueprint(blueprint, rbl)
+    command = [sys.executable, "-m", "rerun"]
+    if web:
+        command += ["--web-viewer", "--web-viewer-port", str(web_port)]
+    command += [str(path), str(rbl)]
+    if not launch:
+        return command
+    return subprocess.Popen(command)
+
+
+def wall_clock() -> float:
+    """The `t` to pass in real-time mode (clock="wall"): Unix time in seconds."""
+    return time.time()
+
+
+__all__ = [
+    "APPLICATION_ID",
+    "CYCLE_TIMELINE",
+    "EMCY_PATH",
+    "NMT_PATH",
+    "SDO_PATH",
+    "SIM_TIME_TIMELINE",
+    "TRUTH_QUANTITIES",
+    "WALL_TIME_TIMELINE",
+    "Severity",
+    "SinkKind",
+    "TraceSink",
+    "Tracer",
+    "blueprint_names",
+    "entity_paths",
+    "field_path",
+    "kind_path",
+    "load_blueprint",
+    "open_trace",
+    "save_blueprint",
+    "truth_path",
+]

@@ -1,0 +1,348 @@
+"""The `hilrig` command line without a real bus: argument handling and its messages, `fields`,
+and every bus command against the in-process FakeJointNode on python-can's virtual bus."""
+
+from __future__ import annotations
+
+import itertools
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+
+from hilrig.cli import COMMAND_MODULES, commands, main
+from hilrig.cli.record import whole_file_logger
+from hilrig.demo import ScenarioFileError, load_scenario
+from hilrig.fake_node import FakeJointNode
+from hilrig.table import RigTable
+
+DEFAULT_KP = RigTable.load().field("velocity_kp").default  # from board.toml, not a copy
+
+HILRIG = [sys.executable, "-m", "hilrig.cli"]
+_channels = itertools.count()
+
+
+@pytest.fixture
+def channel() -> str:
+    """A virtual bus channel of this test alone."""
+    return f"cli-test-{next(_channels)}"
+
+
+@pytest.fixture
+def fake(channel: str) -> Iterator[FakeJointNode]:
+    """The fake joint node, booted (pre-operational), on `channel` of the virtual bus."""
+    bus = can.Bus(interface="virtual", channel=channel)
+    node = FakeJointNode(bus, table=RigTable.load())
+    node.boot()
+    try:
+        yield node
+    finally:
+        node.close()
+        bus.shutdown()
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def on_bus(channel: str) -> list[str]:
+    return ["--interface", "virtual", "--channel", channel, "--sdo-timeout", "2"]
+
+
+# --- the command line ------------------------------------------------------------------
+@pytest.mark.parametrize("command", [c.name for c in commands()])
+def test_every_command_has_help(capsys: pytest.CaptureFixture[str], command: str) -> None:
+    code, out, _ = run(capsys, command, "--help")
+    assert code == 0
+    assert out.startswith(f"usage: hilrig {command}")
+    description = out.split("\noptions:")[0]
+    assert re.search(rf"^  .*hilrig {command}\b", description, re.MULTILINE), "expected examples"
+
+
+def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "--help")
+    assert code == 0
+    for name in ("fields", "get", "set", "watch", "scan", "record", "replay", "sim"):
+        assert f"    {name} " in out
+    assert len(COMMAND_MODULES) == len(set(COMMAND_MODULES))
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["set", "velocity_kp"], "expected NAME=VALUE, got 'velocity_kp' (e.g. velocity_kp=0.2)"),
+        (["set", "velocity_kp=fast"], "velocity_kp: expected a number, got 'fast'"),
+        (["set", "velocity_kp=nan"], "expected a finite number"),
+        (["set", "motor_encoder_counts=1.5"], "expected a whole number"),
+        (
+            ["get", "velocity_kpp"],
+            "no board field or HIL I/O object named 'velocity_kpp'; did you mean 'velocity_kp'",
+        ),
+        (["set", "velocty_kp=1"], "did you mean 'velocity_kp'"),
+        (["watch", "motor_velocty"], "did you mean 'motor_velocity'"),
+        (
+            ["get", "velocity_kp", "--node-id", "200"],
+            "expected a node id 1..127 (decimal or 0x hex, e.g. 0x10), got 200",
+        ),
+        (["get", "velocity_kp", "-n", "sixteen"], "expected a node id 1..127"),
+        (
+            ["get", "velocity_kp", "--interface", "socketcn"],
+            "unknown python-can interface 'socketcn'; did you mean socketcan",
+        ),
+        (["scan", "--interface", "pcann"], "did you mean pcan"),
+        (["scan", "--listen", "0"], "expected a finite number > 0"),
+        (["record", "bus.txt"], "expected a file ending in .log, .blf"),
+        (["replay", "no-such.log", "--decode"], "log no-such.log does not exist; record one"),
+        (["watch", "--once", "--count", "3"], "not allowed with argument"),
+        (["get", "velocity_kp", "--eds", "nowhere.eds"], "EDS nowhere.eds does not exist; build it"),
+        (["fields", "--kind", "sensors"], "invalid choice: 'sensors'"),
+        (["fields", "no_such_thing"], "no field contains 'no_such_thing'"),
+        (["sim", "--scenario", "nowhere.py"], "scenario nowhere.py does not exist"),
+        (["frobnicate"], "invalid choice: 'frobnicate'"),
+        ([], "the following arguments are required: COMMAND"),
+    ],
+)
+def test_a_bad_command_line_is_one_line_and_exit_code_2(
+    capsys: pytest.CaptureFixture[str], argv: list[str], expected: str
+) -> None:
+    code, out, err = run(capsys, *argv)
+    assert code == 2
+    assert out == ""
+    assert expected in err
+    assert err.count("\n") == 1, f"expected one line, got {err!r}"
+    assert err.startswith("hilrig")
+
+
+def test_fields_lists_index_unit_kind_access_range_default(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "fields")
+    assert code == 0
+    lines = out.splitlines()
+    assert lines[0].split() == ["name", "index", "unit", "kind", "access", "range", "default"]
+    table = RigTable.load()
+    assert len(lines) == 1 + len(table.names)
+    kp = table.field("velocity_kp")
+    row = next(line.split() for line in lines if line.startswith("velocity_kp "))
+    assert row == ["velocity_kp", f"0x{kp.index:04X}", kp.unit, "parameter", "rw", "0..10", f"{kp.default:g}"]
+    duty = next(line.split() for line in lines if line.startswith("motor_duty "))
+    assert duty[3:6] == ["hil_output", "ro", "-10000..10000"]
+
+
+def test_fields_filters_by_kind_and_substring(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "fields", "velocity", "--kind", "virtual_sensor", "--kind", "command")
+    assert code == 0
+    names = [line.split()[0] for line in out.splitlines()[1:]]
+    assert names == ["motor_velocity", "output_velocity", "velocity_setpoint"]
+
+
+def test_console_script_exit_codes_without_traceback(tmp_path: Path) -> None:
+    usage = subprocess.run([*HILRIG, "set", "velocity_kp"], capture_output=True, text=True, check=False)
+    assert usage.returncode == 2
+    assert usage.stderr.strip() == (
+        "hilrig set: error: expected NAME=VALUE, got 'velocity_kp' (e.g. velocity_kp=0.2)"
+    )
+    silent = subprocess.run(
+        [*HILRIG, "get", "velocity_kp", "-i", "virtual", "-c", "nobody-here", "--sdo-timeout", "0.2"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert silent.returncode == 1
+    assert silent.stdout == ""
+    assert "Traceback" not in silent.stderr
+    assert silent.stderr.count("\n") == 1, silent.stderr
+    assert "read velocity_kp: node 0x10 did not answer" in silent.stderr
+    assert "`hilrig scan` lists the nodes that answer" in silent.stderr
+    fields = subprocess.run([*HILRIG, "fields", "winding"], capture_output=True, text=True, check=False)
+    assert fields.returncode == 0
+    assert "winding_temperature" in fields.stdout
+
+
+def test_a_missing_bus_interface_is_one_line_exit_code_1(capsys: pytest.CaptureFixture[str]) -> None:
+    # The udp_multicast interface cannot bind to a channel that is no address.
+    code, out, err = run(capsys, "get", "velocity_kp", "-i", "udp_multicast", "-c", "not-an-address")
+    assert code == 1
+    assert out == ""
+    assert err.startswith("hilrig get: error: cannot open udp_multicast channel not-an-address: ")
+    assert err.count("\n") == 1
+
+
+# --- against the fake node on the virtual bus -------------------------------------------
+def test_get_prints_values_with_units(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    code, out, err = run(capsys, "get", "velocity_kp", "winding_temperature", *on_bus(channel))
+    assert (code, err) == (0, "")
+    assert [line.split() for line in out.splitlines()] == [
+        ["velocity_kp", "=", f"{DEFAULT_KP:g}", "1/(rad/s)"],
+        ["winding_temperature", "=", "25", "degC"],
+    ]
+
+
+def test_set_writes_reads_back_and_explains_a_refusal(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    code, out, err = run(
+        capsys, "set", "velocity_kp=0.25", "velocity_ki=1000", "torque_kp=1", *on_bus(channel)
+    )
+    assert code == 1
+    assert out.split() == ["velocity_kp", "=", "0.25", "1/(rad/s)"]
+    assert err == (
+        "hilrig set: error: node 0x10 refused write velocity_ki: 0x06090031 value too high "
+        "(max 100.0); not attempted: torque_kp\n"
+    )
+    code, out, _ = run(capsys, "get", "velocity_kp", "torque_kp", *on_bus(channel))
+    assert code == 0
+    assert [line.split()[2] for line in out.splitlines()] == [
+        "0.25",
+        f"{RigTable.load().field('torque_kp').default:g}",
+    ]
+
+
+def test_get_of_a_read_only_write_is_refused_in_words(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    code, _, err = run(capsys, "set", "velocity_kp=-1", *on_bus(channel))
+    assert code == 1
+    assert "0x06090032 value too low (min 0.0)" in err
+
+
+def test_scan_finds_the_node_with_its_identity(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    code, out, err = run(capsys, "scan", "-i", "virtual", "-c", channel, "--listen", "0.5")
+    assert code == 0, err
+    header, row = out.splitlines()
+    assert header.split() == ["node", "state", "device", "name", "vendor", "product", "revision"]
+    node = RigTable.load().board.node
+    assert row.split() == [
+        "0x10",
+        "pre_operational",
+        node.device_name,
+        f"0x{node.vendor_id:08X}",
+        f"0x{node.product_code:08X}",
+        f"0x{node.revision:08X}",
+    ]
+    assert "1 node on virtual channel" in err
+
+
+def test_scan_of_an_empty_bus_says_so(capsys: pytest.CaptureFixture[str], channel: str) -> None:
+    code, out, err = run(capsys, "scan", "-i", "virtual", "-c", channel, "--listen", "0.2")
+    assert (code, out) == (1, "")
+    assert "no CANopen node answered on virtual channel" in err.splitlines()[-1]
+
+
+def test_watch_once_starts_the_node_produces_sync_and_shows_values(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    code, out, err = run(
+        capsys,
+        "watch",
+        "--once",
+        "--nmt-start",
+        "--sync-period-ms",
+        "5",
+        "motor_duty",
+        "motor_velocity",
+        "velocity_kp",
+        *on_bus(channel),
+    )
+    assert (code, err) == (0, "")
+    title, header, *rows = out.splitlines()
+    assert title.startswith("node 0x10 ") and f"on virtual {channel}, SYNC every 5 ms" in title
+    assert header.split() == ["name", "value", "unit", "via", "updates"]
+    assert [row.split()[:3] for row in rows] == [
+        ["motor_duty", "0", "0.01%"],
+        ["motor_velocity", "0", "rad/s"],
+        ["velocity_kp", f"{DEFAULT_KP:g}", "1/(rad/s)"],
+    ]
+    assert "TPDO1 (0x190)" in rows[0] and rows[2].split()[3] == "SDO"
+    assert "\x1b[" not in out, "no ANSI codes when not on a terminal"
+    assert fake.syncs, "expected SYNCs from --sync-period-ms"
+
+
+def test_watch_once_without_sync_says_what_is_missing(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    code, _, err = run(capsys, "watch", "--once", "--timeout", "0.3", "motor_duty", *on_bus(channel))
+    assert code == 1
+    assert err.strip().endswith(
+        "no TPDO with motor_duty within 0.3 s; is the node operational "
+        "(--nmt-start) and is anything sending SYNC (--sync-period-ms 10)?"
+    )
+
+
+def test_record_then_replay_decode(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str, tmp_path: Path
+) -> None:
+    log = tmp_path / "bus.log"
+    code, _, err = run(
+        capsys,
+        "record",
+        str(log),
+        "--nmt-start",
+        "--sync-period-ms",
+        "5",
+        "--count",
+        "40",
+        "-i",
+        "virtual",
+        "-c",
+        channel,
+    )
+    assert code == 0, err
+    assert f"record: 40 frames written to {log}" in err
+    assert not list(tmp_path.glob(".*partial*")), "the partial file is renamed, not left behind"
+    assert sum(1 for _ in can.LogReader(str(log))) == 40
+    code, out, err = run(capsys, "replay", str(log), "--decode")
+    assert (code, err) == (0, "")
+    lines = out.splitlines()
+    assert len(lines) == 40
+    assert any("0x000  NMT command 0x01 to node 0x10" in line for line in lines)
+    assert any("0x080  SYNC 1" in line for line in lines)
+    assert any("0x190  TPDO1  motor_duty=0 0.01%  led_pattern=1" in line for line in lines)
+    code, out, _ = run(capsys, "replay", str(log), "--decode", "--field", "motor_velocity")
+    assert code == 0
+    assert out and all(
+        "TPDO2  motor_velocity=0 rad/s" in line and "output_velocity" not in line for line in out.splitlines()
+    )
+
+
+def test_replay_sends_the_log_into_the_bus(
+    capsys: pytest.CaptureFixture[str], channel: str, tmp_path: Path
+) -> None:
+    log = tmp_path / "in.log"
+    with whole_file_logger(log) as logger:
+        for n in range(5):
+            logger(
+                can.Message(timestamp=1.0 + n * 1e-3, arbitration_id=0x80, data=[n + 1], is_extended_id=False)
+            )
+    with can.Bus(interface="virtual", channel=channel) as listener:
+        code, _, err = run(capsys, "replay", str(log), "-i", "virtual", "-c", channel)
+        assert code == 0
+        assert "replay: 5 frames sent" in err
+        received = [listener.recv(1.0) for _ in range(5)]
+    assert [bytes(m.data) for m in received if m is not None] == [bytes([n + 1]) for n in range(5)]
+
+
+def test_an_interrupted_recording_is_still_a_whole_file(tmp_path: Path) -> None:
+    log = tmp_path / "cut.blf"
+    with pytest.raises(KeyboardInterrupt), whole_file_logger(log) as logger:
+        for n in range(3):
+            logger(can.Message(timestamp=float(n), arbitration_id=0x123, data=[n], is_extended_id=False))
+        raise KeyboardInterrupt
+    assert [m.data[0] for m in can.LogReader(str(log))] == [0, 1, 2]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.blf"]
+
+
+def test_a_scenario_file_must_define_scenario(tmp_path: Path) -> None:
+    script = tmp_path / "empty.py"
+    script.write_text("def run(rig):\n    pass\n")
+    with pytest.raises(ScenarioFileError, match="defines no function `scenario"):
+        load_scenario(script)
+    script.write_text("def scenario(rig):\n    rig.run(seconds=0.1)\n")
+    assert load_scenario(script).__name__ == "scenario"

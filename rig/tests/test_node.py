@@ -1,0 +1,98 @@
+"""Name checks against board.toml and the SDO abort wording, without a bus."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from hilrig.errors import FieldNameError
+from hilrig.node import NmtCommand, NmtState, PdoDirection, PdoLayout, SdoAbortCode, explain_abort
+from hilrig.table import RigTable
+
+FIRMWARE_ABORTS = Path(__file__).resolve().parents[2] / "firmware" / "canopen" / "SdoAbort.hpp"
+
+
+@pytest.fixture(scope="module")
+def table() -> RigTable:
+    return RigTable.load()
+
+
+@pytest.mark.parametrize(
+    ("code", "name", "expected"),
+    [
+        (0x06090031, "velocity_kp", "0x06090031 value too high (max 10.0)"),
+        (0x06090032, "velocity_kp", "0x06090032 value too low (min 0.0)"),
+        (0x06090030, "velocity_kp", "0x06090030 value out of range (range 0.0..10.0)"),
+        (0x06010002, "motor_velocity", "0x06010002 object is read-only over the bus"),
+        (0x06020000, None, "0x06020000 no such object in the node's dictionary"),
+        (
+            0x08000022,
+            None,
+            "0x08000022 not possible in the node's present state (e.g. PDO change while operational)",
+        ),
+        (0x12345678, None, "0x12345678 unknown abort code"),
+    ],
+)
+def test_abort_codes_are_explained_in_words(
+    table: RigTable, code: int, name: str | None, expected: str
+) -> None:
+    assert explain_abort(code, table.entry(name) if name else None) == expected
+
+
+def test_every_abort_code_the_firmware_sends_has_words() -> None:
+    codes = {
+        int(high + low, 16)
+        for high, low in re.findall(r"= 0x([0-9A-Fa-f]{4})'([0-9A-Fa-f]{4})", FIRMWARE_ABORTS.read_text())
+    }
+    codes.discard(0)  # SdoAbort::None is success, not an abort
+    assert codes, f"no abort codes found in {FIRMWARE_ABORTS}"
+    missing = sorted(f"0x{c:08X}" for c in codes - {int(c) for c in SdoAbortCode})
+    assert not missing
+    assert all("unknown" not in explain_abort(code) for code in SdoAbortCode)
+
+
+def test_unknown_field_lists_close_matches(table: RigTable) -> None:
+    with pytest.raises(FieldNameError) as info:
+        table.entry("velocity_setpont")
+    assert str(info.value) == (
+        "no board field or HIL I/O object named 'velocity_setpont'; "
+        "did you mean 'velocity_setpoint' or 'velocity_kp' or 'velocity_ki'?"
+    )
+
+
+def test_name_without_close_match_says_so_plainly(table: RigTable) -> None:
+    with pytest.raises(FieldNameError, match=r"^no board field or HIL I/O object named 'xyz'$"):
+        table.check(["motor_duty", "xyz"])
+
+
+def test_table_is_the_generated_one_not_a_copy(table: RigTable) -> None:
+    assert table.board.source.name == "board.toml"
+    assert table.entry("motor_velocity").index == 0x2100
+    assert table.is_hil_input("thermistor_adc")
+    assert not table.is_hil_input("motor_duty")
+    assert table.is_bus_writable("velocity_kp") and not table.is_bus_writable("motor_velocity")
+
+
+@pytest.mark.parametrize(
+    ("transmission_type", "due_syncs"),
+    [
+        (1, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]),
+        (10, [10]),
+        (4, [4, 8, 12]),
+        (0, []),  # acyclic: only when changed, never due
+        (255, []),  # event driven
+    ],
+)
+def test_tpdo_due_at_every_nth_sync_since_operational(transmission_type: int, due_syncs: list[int]) -> None:
+    pdo = PdoLayout(PdoDirection.TPDO, 2, 0x290, True, transmission_type, ("a", "b"))
+    assert [n for n in range(1, 13) if pdo.due_at_sync(n)] == due_syncs
+    assert pdo.label == "TPDO2 (0x290)"
+
+
+def test_nmt_commands_end_in_the_states_cia301_defines() -> None:
+    assert NmtCommand.START.resulting_state is NmtState.OPERATIONAL
+    assert NmtCommand.STOP.resulting_state is NmtState.STOPPED
+    assert NmtCommand.RESET_NODE.resulting_state is NmtState.PRE_OPERATIONAL
+    assert NmtState.PRE_OPERATIONAL == 0x7F

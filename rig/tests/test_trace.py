@@ -1,0 +1,264 @@
+"""Tracing to Rerun: a Rig against the in-process fake node writes a .rrd, which is read back with
+Rerun's own reader (`rerun.chunk.RrdReader`) and compared with the rig's own per-cycle history."""
+
+from __future__ import annotations
+
+import itertools
+import subprocess
+import sys
+from collections import defaultdict
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from datetime import timedelta
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from hilrig.errors import FieldNameError, SdoAbortError
+from hilrig.fake_node import FakeJointNode
+from hilrig.node import NmtCommand
+from hilrig.physics import JointParams
+from hilrig.rig import Rig
+from hilrig.table import RigTable
+from hilrig.trace import (
+    EMCY_PATH,
+    NMT_PATH,
+    SDO_PATH,
+    TRUE_SPRING_STIFFNESS,
+    TRUTH_QUANTITIES,
+    SinkKind,
+    Tracer,
+    TraceSink,
+    blueprint_names,
+    entity_paths,
+    open_trace,
+    truth_path,
+)
+
+PARAMS = JointParams.fast_thermal()
+CYCLES = 47  # not a multiple of the batch: the last, partial batch must be written by close()
+BATCH = 10
+_channels = itertools.count()
+
+
+@dataclass
+class Trace:
+    """What a .rrd holds, per entity: cycle, sim_time and the values (or texts and levels)."""
+
+    cycles: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
+    times: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+    scalars: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+    texts: dict[str, list[tuple[str, str]]] = field(default_factory=lambda: defaultdict(list))
+    series_names: dict[str, str] = field(default_factory=dict)
+    blueprints: int = 0
+
+    @classmethod
+    def read(cls, path: Path) -> Trace:
+        import rerun as rr
+
+        reader = rr.chunk.RrdReader(path)
+        trace = cls(blueprints=len(reader.blueprints()))
+        for chunk in reader.stream():
+            columns = chunk.to_record_batch().to_pydict()
+            path_ = chunk.entity_path
+            if chunk.is_static:
+                if "SeriesLines:names" in columns:
+                    trace.series_names[path_] = columns["SeriesLines:names"][0][0]
+                continue
+            trace.cycles[path_] += columns.get("cycle", [])
+            trace.times[path_] += [d / timedelta(seconds=1) for d in columns.get("sim_time", [])]
+            for values in columns.get("Scalars:scalars", []):
+                trace.scalars[path_].append(values[0])
+            if "TextLog:text" in columns:
+                trace.texts[path_] += [
+                    (text[0], level[0])
+                    for text, level in zip(columns["TextLog:text"], columns["TextLog:level"], strict=True)
+                ]
+        for path_ in trace.scalars:  # chunks of one entity may come in any order: sort by cycle
+            order = np.argsort(trace.cycles[path_], kind="stable")
+            trace.cycles[path_] = [trace.cycles[path_][i] for i in order]
+            trace.times[path_] = [trace.times[path_][i] for i in order]
+            trace.scalars[path_] = [trace.scalars[path_][i] for i in order]
+        return trace
+
+
+@pytest.fixture(scope="module")
+def table() -> RigTable:
+    return RigTable.load()
+
+
+@dataclass
+class Run:
+    rig: Rig
+    fake: FakeJointNode
+    tracer: Tracer
+    path: Path
+
+
+@pytest.fixture(params=[True, False], ids=["background", "inline"])
+def traced(request: pytest.FixtureRequest, table: RigTable, tmp_path: Path) -> Iterator[Run]:
+    channel = f"hilrig-trace-{next(_channels)}"
+    rig_bus, fake_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
+    fake = FakeJointNode(fake_bus, table=table)
+    path = tmp_path / "scenario" / "trace.rrd"
+    tracer = Tracer(
+        TraceSink.rrd(path), table, batch_cycles=BATCH, background=request.param, blueprint="faults"
+    )
+    rig = Rig(rig_bus, table=table, params=PARAMS, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
+    fake.boot()
+    try:
+        yield Run(rig, fake, tracer, path)
+    finally:
+        rig.close()
+        fake.close()
+        tracer.close()
+        rig_bus.shutdown()
+        fake_bus.shutdown()
+
+
+def _scenario(run: Run) -> None:
+    """Start, run with a setpoint step, one SDO write, one refused SDO write, one EMCY, stop/start."""
+    rig = run.rig
+    rig.start()
+    rig.set("velocity_setpoint", 5.0)
+    rig.at(0.020, lambda r: r.set("velocity_setpoint", -2.0))
+    rig.run(cycles=12)
+    rig.set("velocity_kp", 0.25)
+    with pytest.raises(SdoAbortError):
+        rig.set("velocity_kp", 99.0)
+    run.fake.send_emcy(0x4210, 0x08, bytes([0x04, 0x21, 0, 0, 0]))
+    rig.run(cycles=CYCLES - 12)
+    run.tracer.close()
+
+
+def test_every_field_has_one_sample_per_cycle_it_was_exchanged_in(traced: Run, table: RigTable) -> None:
+    _scenario(traced)
+    trace = Trace.read(traced.path)
+    paths = entity_paths(table)
+    history = traced.rig.driver.history
+    exchanged = [name for name in table.names if history.has_received(name) or history.has_sent(name)]
+    assert {"motor_duty", "winding_temperature", "velocity_setpoint", "thermistor_adc"} <= set(exchanged)
+    for name in exchanged:
+        t, values = traced.rig.history(name)
+        path = paths[name]
+        assert trace.scalars[path] == pytest.approx(values.astype(float).tolist()), name
+        assert trace.times[path] == pytest.approx(t.tolist()), name
+        assert trace.cycles[path] == [round(x * 1000) for x in t], name
+        assert trace.series_names[path] == f"{name} [{table.entry(name).unit}]"
+    # One received every cycle, one only every 10th SYNC (TPDO8), one sent every cycle.
+    assert len(trace.scalars[paths["motor_duty"]]) == CYCLES
+    assert len(trace.scalars[paths["winding_temperature"]]) == CYCLES // 10
+    assert trace.scalars[paths["velocity_setpoint"]] == [5.0] * 20 + [-2.0] * (CYCLES - 20)
+    # The SDO write is in the trace at the time it was made; the refused one is not.
+    assert trace.scalars[paths["velocity_kp"]] == [0.25]
+    assert trace.cycles[paths["velocity_kp"]] == [12]
+
+
+def test_ground_truth_is_logged_every_cycle_next_to_the_fields(traced: Run) -> None:
+    _scenario(traced)
+    trace = Trace.read(traced.path)
+    for quantity in TRUTH_QUANTITIES:
+        assert trace.cycles[truth_path(quantity)] == list(range(CYCLES)), quantity
+    _, true_velocity = traced.rig.truth("load_velocity")
+    assert trace.scalars[truth_path("load_velocity_rad_s")] == pytest.approx(true_velocity.tolist())
+    assert set(trace.scalars[truth_path(TRUE_SPRING_STIFFNESS)]) == {PARAMS.spring_stiffness_nm_per_rad}
+    assert trace.series_names[truth_path("load_velocity_rad_s")] == "true load_velocity_rad_s [rad/s]"
+
+
+def test_faults_and_nmt_changes_are_text_log_entries_with_severity(traced: Run) -> None:
+    _scenario(traced)
+    trace = Trace.read(traced.path)
+    (emcy,) = trace.texts[EMCY_PATH]
+    assert emcy[1] == "ERROR"
+    assert emcy[0].startswith("EMCY 0x4210") and "about 0x2104" in emcy[0]
+    (abort,) = trace.texts[SDO_PATH]
+    assert abort[1] == "WARN"
+    assert "0x06090031" in abort[0] and "velocity_kp" in abort[0] and "cycle 12" in abort[0]
+    nmt = trace.texts[NMT_PATH]
+    assert ("NMT OPERATIONAL (command START) at t = 0 s", "INFO") in nmt
+
+
+def test_nmt_stop_is_a_warning_at_its_cycle(traced: Run) -> None:
+    traced.rig.start()
+    traced.rig.run(cycles=3)
+    traced.rig.nmt(NmtCommand.STOP)
+    traced.tracer.close()
+    trace = Trace.read(traced.path)
+    stops = [(text, level) for text, level in trace.texts[NMT_PATH] if "STOPPED (command" in text]
+    assert stops == [("NMT STOPPED (command STOP) at t = 0.003 s", "WARN")]
+    index = [text for text, _ in trace.texts[NMT_PATH]].index(stops[0][0])
+    assert trace.cycles[NMT_PATH][index] == 3
+
+
+def test_the_trace_carries_the_chosen_blueprint(traced: Run) -> None:
+    traced.rig.start()
+    traced.rig.run(cycles=2)
+    traced.tracer.close()
+    assert Trace.read(traced.path).blueprints == 1
+
+
+def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
+    from dashboards import BLUEPRINTS, blueprint
+
+    logged = {*entity_paths(table).values(), *(truth_path(q) for q in TRUTH_QUANTITIES)}
+    assert set(blueprint_names()) == {"overview", "tuning", "thermal", "faults"} == set(BLUEPRINTS)
+    for name in BLUEPRINTS:
+        views = list(_views(blueprint(name, table).root_container))
+        assert views, name
+        for view in views:
+            contents = view.contents if isinstance(view.contents, list) else [view.contents]
+            for path in contents:
+                if "$origin" not in path:
+                    assert path in logged, f"{name}: {view.name} shows {path}, which is never logged"
+            assert any(p.startswith(str(view.origin)) for p in logged) or view.origin == "/events", name
+
+
+def test_a_blueprint_name_typo_lists_close_matches() -> None:
+    from dashboards import blueprint
+
+    with pytest.raises(FieldNameError, match="did you mean 'thermal'"):
+        blueprint("thermals")
+
+
+def test_sinks_parse_from_the_command_line(tmp_path: Path) -> None:
+    assert TraceSink.parse(f"rrd:{tmp_path}/t.rrd") == TraceSink.rrd(tmp_path / "t.rrd")
+    assert TraceSink.parse("spawn") == TraceSink.spawn()
+    assert TraceSink.parse("connect:rerun+http://host:1234/proxy").url == "rerun+http://host:1234/proxy"
+    web = TraceSink.parse("web:8080")
+    assert (web.kind, web.port) == (SinkKind.WEB, 8080)
+    with pytest.raises(FieldNameError, match="did you mean 'spawn'"):
+        TraceSink.parse("spwan")
+    with pytest.raises(ValueError, match="needs a path"):
+        TraceSink.parse("rrd")
+
+
+def test_open_trace_opens_the_file_with_the_named_blueprint(tmp_path: Path, table: RigTable) -> None:
+    with Tracer(TraceSink.rrd(tmp_path / "t.rrd"), table, blueprint=None):
+        pass
+    command = open_trace(tmp_path / "t.rrd", blueprint="thermal", web=True, web_port=9191, launch=False)
+    assert isinstance(command, list)
+    assert command[:3] == [sys.executable, "-m", "rerun"]
+    assert command[3:6] == ["--web-viewer", "--web-viewer-port", "9191"]
+    assert command[6] == str(tmp_path / "t.rrd")
+    import rerun as rr
+
+    (store,) = rr.chunk.RrdReader(command[7]).blueprints()
+    assert store.application_id == "hilrig"
+    with pytest.raises(FileNotFoundError):
+        open_trace(tmp_path / "missing.rrd", launch=False)
+
+
+def test_the_rig_does_not_import_rerun_without_a_tracer() -> None:
+    code = "import sys, hilrig.rig, hilrig.trace; assert 'rerun' not in sys.modules, 'rerun imported'"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert result.returncode == 0, result.stderr
+
+
+def _views(container: object) -> Iterator[object]:
+    for part in getattr(container, "contents", []):
+        if hasattr(part, "class_identifier"):
+            yield part
+        else:
+            yield from _views(part)

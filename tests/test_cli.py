@@ -1,0 +1,127 @@
+"""The `hilrig` console script against the real firmware on a private bus: each command run as
+a subprocess inside the bus's namespace, as a person at a bench would run it. Python starts
+slowly in the micro-VM, so each call checks as much as it can."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import pytest
+from conftest import NODE_ID, REPO, NodeUnderTest
+
+from boardproto import load_table
+from hilrig.netns import PrivateBus
+
+pytestmark = pytest.mark.bus
+
+HILRIG = str(REPO / ".venv" / "bin" / "hilrig")
+TABLE = load_table(REPO / "protocol" / "board.toml")
+# Hang guards for the software-emulated VM, not timing checks.
+CALL_TIMEOUT_S = 300
+SDO_TIMEOUT = ["--sdo-timeout", "5"]
+
+
+def hilrig(private_bus: PrivateBus, *argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        private_bus.command([HILRIG, *argv]),
+        capture_output=True,
+        text=True,
+        timeout=CALL_TIMEOUT_S,
+        check=False,
+    )
+
+
+def test_scan_get_and_set_against_the_firmware(
+    private_bus: PrivateBus, node_under_test: NodeUnderTest
+) -> None:
+    scan = hilrig(private_bus, "scan", "--listen", "3", "--sdo-timeout", "5")
+    assert scan.returncode == 0, scan.stderr
+    node = TABLE.node
+    rows = [line.split() for line in scan.stdout.splitlines()[1:]]
+    assert rows == [
+        [
+            f"0x{NODE_ID:02X}",
+            "pre_operational",
+            node.device_name,
+            f"0x{node.vendor_id:08X}",
+            f"0x{node.product_code:08X}",
+            f"0x{node.revision:08X}",
+        ]
+    ]
+
+    sdo = node_under_test.node.sdo
+    kp, ki = TABLE.field("velocity_kp"), TABLE.field("velocity_ki")
+    sdo[kp.index].raw = 0.125  # the master sets, `get` reads
+    got = hilrig(private_bus, "get", "velocity_kp", "winding_temperature", *SDO_TIMEOUT)
+    assert got.returncode == 0, got.stderr
+    assert [line.split()[:3] for line in got.stdout.splitlines()] == [
+        ["velocity_kp", "=", "0.125"],
+        ["winding_temperature", "=", "25"],
+    ]
+    assert got.stdout.splitlines()[1].split()[3] == "degC"
+
+    # `set` writes, the master reads; the second value is refused and explained in words.
+    done = hilrig(
+        private_bus, "set", "velocity_ki=2.5", f"velocity_kp={kp.max * 2:g}", "torque_kp=0.5", *SDO_TIMEOUT
+    )
+    assert done.returncode == 1
+    assert done.stdout.split()[:3] == ["velocity_ki", "=", "2.5"]
+    assert sdo[ki.index].raw == pytest.approx(2.5)
+    assert sdo[kp.index].raw == pytest.approx(0.125), "a refused write changes nothing"
+    assert done.stderr == (
+        f"hilrig set: error: node 0x{NODE_ID:02X} refused write velocity_kp: "
+        f"0x06090031 value too high (max {kp.max}); not attempted: torque_kp\n"
+    )
+
+
+def test_watch_record_and_replay_decode(
+    private_bus: PrivateBus, node_under_test: NodeUnderTest, scenario_dir: Path
+) -> None:
+    log = scenario_dir / "cli-record.log"
+    # No master in this test: the CLI starts the node and produces SYNC itself (bring-up mode).
+    recorded = hilrig(
+        private_bus, "record", str(log), "--nmt-start", "--sync-period-ms", "10", "--count", "60"
+    )
+    assert recorded.returncode == 0, recorded.stderr
+    assert f"record: 60 frames written to {log}" in recorded.stderr
+    assert not list(scenario_dir.glob(".*partial*"))
+
+    watched = hilrig(
+        private_bus,
+        "watch",
+        "--once",
+        "--sync-period-ms",
+        "10",
+        "--timeout",
+        "60",
+        "motor_duty",
+        "led_pattern",
+        "winding_temperature",
+        "velocity_ki",
+        *SDO_TIMEOUT,
+    )
+    assert watched.returncode == 0, watched.stderr
+    title, _header, *rows = watched.stdout.splitlines()
+    assert title.startswith(f"node 0x{NODE_ID:02X} ")
+    by_name = {row.split()[0]: row.split() for row in rows}
+    assert set(by_name) == {"motor_duty", "led_pattern", "winding_temperature", "velocity_ki"}
+    assert by_name["motor_duty"][3:5] == ["TPDO1", f"(0x{0x180 + NODE_ID:03X})"]
+    assert by_name["velocity_ki"][1:4] == [f"{TABLE.field('velocity_ki').default:g}", "1/rad", "SDO"]
+    assert by_name["winding_temperature"][2:4] == ["degC", "TPDO8"]
+    float(by_name["winding_temperature"][1])  # a number, not "-"
+
+    decoded = subprocess.run(
+        [HILRIG, "replay", str(log), "--decode"],
+        capture_output=True,
+        text=True,
+        timeout=CALL_TIMEOUT_S,
+        check=False,
+    )
+    assert decoded.returncode == 0, decoded.stderr
+    lines = decoded.stdout.splitlines()
+    assert len(lines) == 60
+    assert any(f"NMT command 0x01 to node 0x{NODE_ID:02X}" in line for line in lines)
+    assert any("0x080  SYNC 1" in line for line in lines)
+    assert any("TPDO1  motor_duty=" in line and "led_pattern=" in line for line in lines)
+    assert any("TPDO2  motor_velocity=" in line and "rad/s" in line for line in lines)

@@ -1,0 +1,222 @@
+"""The firmware as a CANopen (CiA 301) node, driven over a real vcan bus by the `canopen`
+library with the generated EDS: SDO on every field, abort codes, PDO remapping, NMT, heartbeat,
+EMCY, store/restore. What any CANopen master must be able to rely on."""
+
+from __future__ import annotations
+
+import itertools
+import statistics
+import struct
+from collections.abc import Callable
+from pathlib import Path
+
+import can
+import canopen
+import pytest
+from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
+from conftest import NODE_ID, REPO, NodeUnderTest, start_node, stop_node
+
+from boardproto import load_table
+from hilrig.netns import PrivateBus
+
+pytestmark = pytest.mark.bus
+
+TABLE = load_table(REPO / "protocol" / "board.toml")
+SDO_RX = 0x600 + NODE_ID
+SDO_TX = 0x580 + NODE_ID
+
+
+def expect_abort(code: int, action: Callable[[], object]) -> None:
+    with pytest.raises(SdoAbortedError) as raised:
+        action()
+    assert raised.value.code == code, f"expected abort {code:#010x}, got {raised.value.code:#010x}"
+
+
+def raw_sdo(under_test: NodeUnderTest, request: bytes) -> bytes:
+    """Send one raw SDO request frame and return the server's answer (exact frames, so the
+    tests can make requests a well-behaved client never would)."""
+    under_test.bus.send(
+        can.Message(arbitration_id=SDO_RX, data=request.ljust(8, b"\x00"), is_extended_id=False)
+    )
+    return bytes(under_test.wait_for(SDO_TX).data)
+
+
+def abort_code(answer: bytes) -> int:
+    assert answer[0] == 0x80, f"expected an SDO abort (0x80), got {answer.hex()}"
+    return struct.unpack_from("<I", answer, 4)[0]
+
+
+def test_every_field_reads_its_default_and_every_writable_field_takes_a_value(
+    node_under_test: NodeUnderTest,
+) -> None:
+    sdo = node_under_test.node.sdo
+    for field in TABLE.fields:
+        value = sdo[field.index].raw
+        assert isinstance(value, float), f"{field.name}: expected a REAL32, got {value!r}"
+        if field.access == "rw":
+            assert value == pytest.approx(field.default), (
+                f"{field.name}: expected default {field.default}, got {value}"
+            )
+    for field in TABLE.fields:
+        if field.access != "rw" or field.name == "fault_clear":
+            continue
+        target = field.min + 0.25 * (field.max - field.min)
+        sdo[field.index].raw = target
+        assert sdo[field.index].raw == pytest.approx(target, rel=1e-6), field.name
+
+
+def test_device_name_is_a_segmented_upload(node_under_test: NodeUnderTest) -> None:
+    assert node_under_test.node.sdo[0x1008].raw == "hil-joint-firmware"
+    identity = node_under_test.node.sdo[0x1018]
+    assert identity[1].raw == 0x48494C00
+
+
+def test_bad_requests_get_the_cia301_abort_codes(node_under_test: NodeUnderTest) -> None:
+    sdo = node_under_test.node.sdo
+    velocity_kp = TABLE.field("velocity_kp")
+    expect_abort(0x06020000, lambda: sdo.upload(0x2FFF, 0))  # object does not exist
+    expect_abort(0x06090011, lambda: sdo.upload(velocity_kp.index, 7))  # sub-index does not exist
+    expect_abort(
+        0x06010002, lambda: sdo.download(TABLE.field("motor_velocity").index, 0, struct.pack("<f", 1.0))
+    )
+    expect_abort(0x06010002, lambda: sdo.download(0x1008, 0, b"renamed"))  # read-only string
+    expect_abort(
+        0x06090031, lambda: sdo.download(velocity_kp.index, 0, struct.pack("<f", velocity_kp.max * 2))
+    )
+    expect_abort(
+        0x06090032, lambda: sdo.download(velocity_kp.index, 0, struct.pack("<f", velocity_kp.min - 1))
+    )
+    # Two bytes into a REAL32: the length does not match.
+    assert abort_code(
+        raw_sdo(node_under_test, bytes([0x2B, velocity_kp.index & 0xFF, velocity_kp.index >> 8, 0, 1, 2]))
+    ) in (0x06070010, 0x06070013)
+    # Client command specifier 7 does not exist.
+    assert abort_code(raw_sdo(node_under_test, bytes([0xE0, 0x08, 0x10, 0]))) == 0x05040001
+    # Segmented upload of the device name, then a segment request with the wrong toggle bit.
+    assert raw_sdo(node_under_test, bytes([0x40, 0x08, 0x10, 0]))[0] & 0xE0 == 0x40
+    assert abort_code(raw_sdo(node_under_test, bytes([0x70]))) == 0x05030000
+
+
+def test_segmented_download_that_stalls_is_aborted_by_the_server(node_under_test: NodeUnderTest) -> None:
+    # Initiate a segmented download of 4 bytes to velocity_kp, then go silent: the server
+    # must give up with "SDO protocol timed out" (it waits about a second; bounded).
+    index = TABLE.field("velocity_kp").index
+    answer = raw_sdo(node_under_test, bytes([0x21, index & 0xFF, index >> 8, 0, 4, 0, 0, 0]))
+    assert answer[0] == 0x60, f"expected an initiate-download response, got {answer.hex()}"
+    assert abort_code(bytes(node_under_test.wait_for(SDO_TX, timeout_s=30).data)) == 0x05040000
+
+
+def test_tpdo_remapped_in_pre_operational_is_sent_on_sync(node_under_test: NodeUnderTest) -> None:
+    node = node_under_test.node
+    node.tpdo.read()
+    tpdo = node.tpdo[8]
+    tpdo.clear()
+    tpdo.add_variable(TABLE.field("spring_constant_estimate").index)
+    tpdo.add_variable(TABLE.field("velocity_kp").index)
+    tpdo.trans_type = 1
+    tpdo.enabled = True
+    tpdo.save()  # canopen runs the CiA 301 procedure: disable, clear count, entries, count, enable
+    node.nmt.state = "OPERATIONAL"
+    node_under_test.network.sync.transmit()
+    tpdo.wait_for_reception(timeout=30)
+    assert tpdo[f"{TABLE.field('velocity_kp').name}"].raw == pytest.approx(TABLE.field("velocity_kp").default)
+    # Changing a mapping while operational is refused: "data cannot be stored because of the
+    # present device state".
+    expect_abort(0x08000022, lambda: node.sdo.download(0x1A07, 0, b"\x00"))
+
+
+def test_mapping_errors_are_answered(node_under_test: NodeUnderTest) -> None:
+    sdo = node_under_test.node.sdo
+    sdo.download(0x1800, 1, struct.pack("<I", 0x80000000 | (0x180 + NODE_ID)))  # disable TPDO1
+    sdo.download(0x1A00, 0, b"\x00")
+    # 0x1008 (a string) cannot be mapped into a PDO.
+    expect_abort(0x06040041, lambda: sdo.download(0x1A00, 1, struct.pack("<I", 0x10080008)))
+    # Three REAL32s are 96 bits: more than a classic CAN frame holds.
+    for sub, name in enumerate(("motor_velocity", "output_velocity", "joint_torque"), start=1):
+        sdo.download(0x1A00, sub, struct.pack("<I", TABLE.field(name).index << 16 | 0x20))
+    expect_abort(0x06040042, lambda: sdo.download(0x1A00, 0, b"\x03"))
+
+
+def test_nmt_states_walk_and_reset_gives_boot_up_and_defaults(node_under_test: NodeUnderTest) -> None:
+    node = node_under_test.node
+    node.sdo.RESPONSE_TIMEOUT = 1.0
+    node.sdo.MAX_RETRIES = 1  # one attempt (0 would retry forever in canopen 2.4.1)
+    node.nmt.state = "OPERATIONAL"
+    assert node.nmt.wait_for_heartbeat(timeout=30) == "OPERATIONAL"
+    node.sdo["velocity_setpoint"].raw = 3.0
+    node.nmt.state = "STOPPED"
+    assert node.nmt.wait_for_heartbeat(timeout=30) == "STOPPED"
+    with pytest.raises(SdoCommunicationError):  # SDO is not served in stopped
+        _ = node.sdo[0x1017].raw
+    node.nmt.state = "PRE-OPERATIONAL"
+    assert node.nmt.wait_for_heartbeat(timeout=30) == "PRE-OPERATIONAL"
+    assert node.sdo["velocity_setpoint"].raw == pytest.approx(3.0)
+    node.nmt.state = "RESET"
+    boot_up = node_under_test.wait_for(0x700 + NODE_ID)
+    assert bytes(boot_up.data) == b"\x00"
+    assert node.sdo["velocity_setpoint"].raw == pytest.approx(TABLE.field("velocity_setpoint").default)
+
+
+def test_heartbeat_follows_the_configured_period(node_under_test: NodeUnderTest) -> None:
+    # Heartbeats are wall-clock by nature: the bounds are deliberately wide (the VM is slow and
+    # shared); what is checked is that 0x1017 changes the period, not the jitter.
+    node = node_under_test.node
+    node.sdo[0x1017].raw = 40
+    stamps = [node_under_test.wait_for(0x700 + NODE_ID).timestamp for _ in range(12)]
+    fast = statistics.median(b - a for a, b in itertools.pairwise(stamps))
+    node.sdo[0x1017].raw = 200
+    node_under_test.wait_for(0x700 + NODE_ID)
+    stamps = [node_under_test.wait_for(0x700 + NODE_ID).timestamp for _ in range(6)]
+    slow = statistics.median(b - a for a, b in itertools.pairwise(stamps))
+    assert 0.02 < fast < 0.08, f"expected heartbeats about 40 ms apart, got {fast * 1e3:.1f} ms"
+    assert slow > 2 * fast, (
+        f"expected 200 ms heartbeats to be much slower than 40 ms ones: {slow=:.3f} {fast=:.3f}"
+    )
+
+
+def test_stale_encoder_is_reported_by_emcy_naming_the_field(node_under_test: NodeUnderTest) -> None:
+    node = node_under_test.node
+    node.nmt.state = "OPERATIONAL"
+    stale_limit = int(TABLE.field("encoder_stale_cycles").default)
+    # SYNCs without any sensor frame: the encoders go silent.
+    for _ in range(stale_limit + 5):
+        node_under_test.network.sync.transmit()
+    emcy = node.emcy.wait(0x5000, timeout=30)
+    assert emcy is not None, "expected EMCY 0x5000 (stale sensor)"
+    assert struct.unpack_from("<H", emcy.data, 0)[0] in {
+        TABLE.field("motor_position").index,
+        TABLE.field("output_position").index,
+    }
+    assert node.sdo[0x1001].raw != 0  # error register
+    assert node.sdo[0x1003][0].raw >= 1  # pre-defined error field holds it
+
+
+def test_parameters_stored_survive_a_restart(private_bus: PrivateBus, scenario_dir: Path) -> None:
+    params = scenario_dir / "params.bin"
+    first = start_node(private_bus, scenario_dir, params_file=params)
+    try:
+        first.node.sdo["velocity_kp"].raw = 0.125
+        first.node.sdo[0x1010][1].raw = 0x65766173  # "save"
+    finally:
+        assert stop_node(first) == 0
+    second = start_node(private_bus, scenario_dir, params_file=params)
+    try:
+        assert second.node.sdo["velocity_kp"].raw == pytest.approx(0.125)
+        second.node.sdo[0x1011][1].raw = 0x64616F6C  # "load": restore defaults
+        second.node.nmt.state = "RESET"
+        second.wait_for(0x700 + NODE_ID)
+        assert second.node.sdo["velocity_kp"].raw == pytest.approx(TABLE.field("velocity_kp").default)
+    finally:
+        assert stop_node(second) == 0
+
+
+def test_eds_describes_the_firmware(node_under_test: NodeUnderTest) -> None:
+    # Every object the EDS lists answers an SDO upload (or is write-only by its access type).
+    od: canopen.ObjectDictionary = node_under_test.node.object_dictionary
+    sdo = node_under_test.node.sdo
+    for index in od:
+        obj = od[index]
+        variables = [obj] if isinstance(obj, canopen.objectdictionary.ODVariable) else list(obj.values())
+        for var in variables:
+            if "r" in var.access_type:
+                sdo.upload(var.index, var.subindex)
