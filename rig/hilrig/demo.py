@@ -13,6 +13,7 @@ rig.run, rig.at...); the summary is computed from what it ran.
 
 from __future__ import annotations
 
+import dataclasses
 import runpy
 import time
 from collections.abc import Callable
@@ -65,11 +66,20 @@ VELOCITY_PROFILE = (
 )
 """Gearbox-side velocity [rad/s]: up, reverse, stop."""
 TORQUE_PROFILE = (
-    Step("torque_setpoint", 0.1, 0.6),
-    Step("torque_setpoint", -0.1, 0.6),
+    Step("torque_setpoint", 0.5, 0.4),
+    Step("torque_setpoint", 2.5, 0.4),
+    Step("torque_setpoint", 1.0, 0.4),
+    Step("torque_setpoint", 3.0, 0.4),
     Step("torque_setpoint", 0.0, 0.3),
 )
-"""Spring torque [N*m]: small enough that the free load stays within the motor's speed."""
+"""Spring torque [N*m] against the demo's viscous load: steps the spring-constant estimator can
+learn from (quasi-static motion at several deflections)."""
+
+
+def demo_params() -> JointParams:
+    """The demo joint: a load with strong viscous friction (constant torque gives a steady speed,
+    so torque steps are quasi-static) and a winding that heats in seconds, not minutes."""
+    return dataclasses.replace(JointParams.fast_thermal(), load_viscous_friction_nm_s_per_rad=1.0)
 
 
 @dataclass(frozen=True)
@@ -79,7 +89,8 @@ class DemoOptions:
     node_id: int = 0x10
     period_us: int = 1000
     seed: int = 1
-    params: JointParams = field(default_factory=JointParams.fast_thermal)
+    params: JointParams = field(default_factory=demo_params)
+    trace: bool = True
     executable: Path = DEFAULT_EXECUTABLE
     eds: Path = DEFAULT_EDS_PATH
 
@@ -102,6 +113,7 @@ class DemoSummary:
     bus_log: Path
     firmware_log: Path
     frames_logged: int
+    trace: Path | None = None
 
 
 def load_scenario(path: Path) -> Scenario:
@@ -171,8 +183,15 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
             period_us=options.period_us,
             executable=options.executable,
         )
+        tracer = None
+        if options.trace:
+            from hilrig.trace import Tracer  # rerun is slow to import: only when tracing
+
+            progress("sim: tracing to Rerun (importing rerun-sdk takes a while in the VM)")
+            tracer = Tracer.for_scenario(out, table)
         rig = Rig(
             bus,
+            tracer=tracer,
             node_id=options.node_id,
             eds=options.eds,
             params=options.params,
@@ -198,6 +217,10 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
                 summary = summarize(rig, table, options, started, out, counter.count)
         finally:
             rig.close()
+            if tracer is not None:
+                tracer.close()
+    if tracer is not None:
+        summary = dataclasses.replace(summary, trace=out / "trace.rrd")
     return summary
 
 
@@ -310,5 +333,10 @@ def format_summary(summary: DemoSummary) -> str:
         ),
         ("firmware log", str(summary.firmware_log)),
     ]
+    if summary.trace is not None:
+        rows += [
+            ("trace (Rerun)", str(summary.trace)),
+            ("open it with", f".venv/bin/python -m dashboards overview {summary.trace}   (--web: browser)"),
+        ]
     width = max(len(name) for name, _ in rows)
     return "\n".join(f"{name.ljust(width)}  {value}" for name, value in rows)
