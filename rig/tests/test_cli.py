@@ -346,3 +346,12 @@ def test_a_scenario_file_must_define_scenario(tmp_path: Path) -> None:
         load_scenario(script)
     script.write_text("def scenario(rig):\n    rig.run(seconds=0.1)\n")
     assert load_scenario(script).__name__ == "scenario"
+
+
+def test_bus_load_is_a_command_and_warns_above_70_percent(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "125k", "--bitrate", "1M")
+    assert code == 0
+    rows = {row.split()[0] for row in out.splitlines() if row[:1].isdigit() and "bit/s" in row}
+    assert rows == {"125", "1"}
+    # 125 kbit/s at 100 Hz is about 91 % nominal: over the line; 1 Mbit/s is about 11 %: fine.
+    assert "WARNING: 125 kbit/s" in out and "WARNING: 1 Mbit/s" not in out

@@ -31,7 +31,7 @@ from typing import NoReturn
 from hilrig.cli.common import Command, UsageError, one_line
 from hilrig.errors import RigError
 
-COMMAND_MODULES: tuple[str, ...] = ("fields", "sdo", "watch", "scan", "record", "sim")
+COMMAND_MODULES: tuple[str, ...] = ("fields", "sdo", "watch", "scan", "record", "sim", "busload")
 """Modules of `hilrig.cli` whose COMMANDS are registered, in the order `--help` lists them."""
 
 EXIT_OK = 0
