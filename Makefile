@@ -48,8 +48,10 @@ run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary
 .PHONY: bench
 bench: deps ## benchmarks, each a ratio measured side by side in one run
 	$(call configure_and_build,$(BENCH_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_BENCH=ON)
-	@echo "bench: running the firmware core benchmarks"
-	@$(BENCH_BUILD)/bin/fw_board_bench
+	@$(PY) tools/bench.py native --out $(BENCH_BUILD)
+	@HIL_BUS_PATH_FILE=$(CURDIR)/$(BENCH_BUILD)/bus-path.txt \
+	  tools/with-vcan -- $(CURDIR)/$(PY) tools/bench.py bus --out $(CURDIR)/$(BENCH_BUILD)
+	@$(PY) tools/bench.py report --out $(BENCH_BUILD)
 
 # Fuzzing (its own clang tree, build/fuzz): FUZZ_SECONDS per target, all targets side by side.
 FUZZ_SECONDS ?= 600

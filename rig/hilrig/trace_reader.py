@@ -1,0 +1,57 @@
+"""Read a trace the rig wrote (`.rrd`) back with Rerun's own reader (`rerun.chunk.RrdReader`):
+per entity, the cycle and simulation-time stamps, the scalar values, the text log entries with
+their levels, and the series names. For tests and for people post-processing a recording:
+
+    trace = Trace.read(Path("out/scenarios/<test>/trace.rrd"))
+    trace.scalars["/fields/virtual_sensors/motor_velocity"]   # one value per logged cycle
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+from datetime import timedelta
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class Trace:
+    """What a .rrd holds, per entity: cycle, sim_time and the values (or texts and levels)."""
+
+    cycles: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
+    times: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+    scalars: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+    texts: dict[str, list[tuple[str, str]]] = field(default_factory=lambda: defaultdict(list))
+    series_names: dict[str, str] = field(default_factory=dict)
+    blueprints: int = 0
+
+    @classmethod
+    def read(cls, path: Path) -> Trace:
+        import rerun as rr
+
+        reader = rr.chunk.RrdReader(path)
+        trace = cls(blueprints=len(reader.blueprints()))
+        for chunk in reader.stream():
+            columns = chunk.to_record_batch().to_pydict()
+            path_ = chunk.entity_path
+            if chunk.is_static:
+                if "SeriesLines:names" in columns:
+                    trace.series_names[path_] = columns["SeriesLines:names"][0][0]
+                continue
+            trace.cycles[path_] += columns.get("cycle", [])
+            trace.times[path_] += [d / timedelta(seconds=1) for d in columns.get("sim_time", [])]
+            for values in columns.get("Scalars:scalars", []):
+                trace.scalars[path_].append(values[0])
+            if "TextLog:text" in columns:
+                trace.texts[path_] += [
+                    (text[0], level[0])
+                    for text, level in zip(columns["TextLog:text"], columns["TextLog:level"], strict=True)
+                ]
+        for path_ in trace.scalars:  # chunks of one entity may come in any order: sort by cycle
+            order = np.argsort(trace.cycles[path_], kind="stable")
+            trace.cycles[path_] = [trace.cycles[path_][i] for i in order]
+            trace.times[path_] = [trace.times[path_][i] for i in order]
+            trace.scalars[path_] = [trace.scalars[path_][i] for i in order]
+        return trace
