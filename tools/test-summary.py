@@ -17,7 +17,7 @@ from pathlib import Path
 STAGES = (
     ("cpp.xml", "C++ unit tests"),
     ("python-unit.xml", "Python unit tests"),
-    ("scenarios.xml", "bus-level scenarios"),
+    ("scenarios*.xml", "bus-level scenarios"),
 )
 
 
@@ -51,12 +51,18 @@ def main(argv: list[str]) -> int:
     ok = True
     total_passed = total_failed = total_skipped = 0
     for file_name, title in STAGES:
-        path = results / file_name
-        if not path.exists():
-            print(f"{title:22} did not run (no {path})")
+        paths = sorted(results.glob(file_name))
+        if not paths:
+            print(f"{title:22} did not run (no {results / file_name})")
             ok = False
             continue
-        stage = read_junit(path)
+        stage = StageResult()
+        for path in paths:  # a stage may write several files (parallel and serial passes)
+            part = read_junit(path)
+            stage.passed += part.passed
+            stage.failed += part.failed
+            stage.skipped += part.skipped
+            stage.failures += part.failures
         ran = stage.passed + stage.failed
         line = f"{title:22} {ran:4d} ran: {stage.passed} passed, {stage.failed} failed"
         if stage.skipped:

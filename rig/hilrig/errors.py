@@ -23,6 +23,10 @@ class LockstepError(RigError, TimeoutError):
     """A lockstep cycle did not complete: a PDO of that cycle is missing or late."""
 
 
+class RealTimeError(RigError, TimeoutError):
+    """In real-time mode the node's TPDOs stopped arriving (the message says since when)."""
+
+
 class FirmwareError(RigError, RuntimeError):
     """The firmware process failed to start, crashed, or stopped answering."""
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import signal
 import subprocess
 from collections import deque
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, Protocol, Self
@@ -32,9 +33,17 @@ class Launcher(Protocol):
 
 
 def firmware_argv(
-    executable: Path, channel: str, node_id: int, period_us: int, params_file: Path | None = None
+    executable: Path,
+    channel: str,
+    node_id: int,
+    period_us: int,
+    params_file: Path | None = None,
+    extra_args: Sequence[str] = (),
+    *,
+    mode: str = "lockstep",
 ) -> list[str]:
-    """The firmware's command line in lockstep mode (options exactly as the firmware defines)."""
+    """The firmware's command line in `mode` ("lockstep" or "free"; options exactly as the firmware defines),
+    then `extra_args` as given (e.g. a fault-injection option of `joint-firmware --help`)."""
     argv = [
         str(executable),
         "--can",
@@ -42,18 +51,28 @@ def firmware_argv(
         "--node-id",
         str(node_id),
         "--mode",
-        "lockstep",
+        _check_mode(mode),
         "--period-us",
         str(period_us),
     ]
     if params_file is not None:
         argv += ["--params", str(params_file)]
-    return argv
+    return [*argv, *extra_args]
+
+
+FIRMWARE_MODES = ("lockstep", "free")
+"""The firmware's --mode values: one cycle per SYNC, or its own absolute-deadline timer."""
+
+
+def _check_mode(mode: str) -> str:
+    if mode not in FIRMWARE_MODES:
+        raise ValueError(f"firmware mode: expected one of {', '.join(FIRMWARE_MODES)}, got {mode!r}")
+    return mode
 
 
 class Firmware:
     """One firmware process. stdout and stderr go to `log_path`; stop() is SIGTERM, then
-    SIGKILL after `term_timeout_s`."""
+    SIGKILL after `term_timeout_s`. `extra_args` go last on its command line."""
 
     def __init__(
         self,
@@ -63,11 +82,16 @@ class Firmware:
         log_path: Path,
         period_us: int = 1000,
         params_file: Path | None = None,
+        extra_args: Sequence[str] = (),
         executable: Path = DEFAULT_EXECUTABLE,
         term_timeout_s: float = 5.0,
+        mode: str = "lockstep",
     ) -> None:
         self.launcher = launcher
-        self.argv = firmware_argv(executable, launcher.channel, node_id, period_us, params_file)
+        self.mode = mode
+        self.argv = firmware_argv(
+            executable, launcher.channel, node_id, period_us, params_file, extra_args, mode=mode
+        )
         self.executable = executable
         self.log_path = log_path
         self.term_timeout_s = term_timeout_s

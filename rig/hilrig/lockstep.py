@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hilrig.errors import LockstepError, NoValueError, PdoMappingError
+from hilrig.errors import FirmwareError, LockstepError, NoValueError, PdoMappingError
 from hilrig.node import SYNC_COUNTER_MAX, BoardNode, NmtState, PdoLayout
 from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel, duty_from_motor_duty
 from hilrig.table import unknown_name
@@ -199,7 +199,7 @@ class CycleResult:
     cycle: int
     time_s: float
     sync_counter: int
-    raw: RawSensors
+    raw: RawSensors | None  # None when no sensor frame was sampled (real time, physics off)
     received: dict[str, Value]
     duty: float
     sent: dict[str, Value] = field(default_factory=dict)  # RPDO values of this cycle (for hilrig.trace)
@@ -212,6 +212,9 @@ class LockstepDriver:
     driver relies on. `node_entered(state)` must follow every NMT command the rig sends, since
     the node counts SYNCs for its TPDOs from the moment it became operational.
     """
+
+    needs_sync_actuator = True
+    """Whether configure() requires the actuator TPDO to be synchronous type 1."""
 
     def __init__(
         self,
@@ -249,11 +252,20 @@ class LockstepDriver:
         self._cyclic_tpdos: list[PdoLayout] = []
         self._latest: dict[str, Value] = {}
         self._lock = threading.Lock()  # guards _latest against readers in other threads
-        node.on_tpdo(self._inbox.deliver)
+        node.on_tpdo(self._on_tpdo)
 
     @property
     def period_s(self) -> float:
         return self.period_us / 1e6
+
+    @property
+    def needs_plant_io(self) -> bool:
+        """Whether configure() requires the sensor RPDO(s) and the actuator TPDO."""
+        return True
+
+    def _on_tpdo(self, pdo: PdoLayout, values: dict[str, Value]) -> None:
+        """canopen's receive thread hands over each TPDO here."""
+        self._inbox.deliver(pdo, values)
 
     @property
     def t(self) -> float:
@@ -269,7 +281,7 @@ class LockstepDriver:
         enabled_rpdos = [p for p in self.node.rpdos.values() if p.enabled and p.names]
         self._sensor_rpdos = [p for p in enabled_rpdos if any(table.is_hil_input(n) for n in p.names)]
         mapped_inputs = {n for p in self._sensor_rpdos for n in p.names}
-        for io in table.board.hil_inputs:
+        for io in table.board.hil_inputs if self.needs_plant_io else ():
             if io.name not in mapped_inputs:
                 problems.append(f"HIL input {io.name} is in no enabled RPDO")
         for pdo in self._sensor_rpdos:
@@ -293,8 +305,9 @@ class LockstepDriver:
                 self._field_rpdo[name] = pdo.number
         actuator = [p for p in self.node.tpdos.values() if p.enabled and ACTUATOR_OUTPUT in p.names]
         if not actuator:
-            problems.append(f"HIL output {ACTUATOR_OUTPUT} is in no enabled TPDO")
-        elif actuator[0].transmission_type != 1:
+            if self.needs_plant_io:
+                problems.append(f"HIL output {ACTUATOR_OUTPUT} is in no enabled TPDO")
+        elif self.needs_sync_actuator and actuator[0].transmission_type != 1:
             problems.append(
                 f"{actuator[0].label} carries {ACTUATOR_OUTPUT} with transmission type "
                 f"{actuator[0].transmission_type}; lockstep needs 1 (every SYNC)"
@@ -360,26 +373,15 @@ class LockstepDriver:
             raise self._error(n, t, "; ".join(problems) + " (between SYNCs)")
         self._inbox.open(due, sync_number)
 
-        sent: dict[str, Value] = {}
-        raw_values = raw.as_dict()
-        for pdo in self._sensor_rpdos:
-            if pdo.number in self.paused_rpdos:
-                continue
-            values = {name: raw_values[name] for name in pdo.names}
-            self.node.transmit_rpdo(pdo.number, values)
-            sent.update(values)
-        for number, values in self._rpdo_values.items():
-            streamed = any(p.number == number for p in self._stream_rpdos)
-            if number in self.paused_rpdos or not (streamed or number in self._dirty_rpdos):
-                continue
-            self.node.transmit_rpdo(number, values)
-            sent.update(values)
-            self._dirty_rpdos.discard(number)
+        sent = self._transmit_rpdos(raw)
         self.node.send_sync(counter)
         if self._operational:
             self._syncs_since_operational += 1
 
-        missing = self._inbox.wait(self.tpdo_timeout_s, self.liveness)
+        try:
+            missing = self._inbox.wait(self.tpdo_timeout_s, self.liveness)
+        except FirmwareError as error:  # the node's process died while this cycle waited
+            raise FirmwareError(f"cycle {n} (t = {t:.6g} s): {error}") from error
         got, problems = self._inbox.take()
         if problems:
             raise self._error(n, t, "; ".join(problems))
@@ -408,6 +410,26 @@ class LockstepDriver:
         return CycleResult(
             cycle=n, time_s=t, sync_counter=counter, raw=raw, received=received, duty=duty, sent=sent
         )
+
+    def _transmit_rpdos(self, raw: RawSensors | None) -> dict[str, Value]:
+        """Send one cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint
+        stream, any RPDO a scenario changed); return the values sent, by name."""
+        sent: dict[str, Value] = {}
+        raw_values = raw.as_dict() if raw is not None else None
+        for pdo in self._sensor_rpdos if raw_values is not None else ():
+            if pdo.number in self.paused_rpdos:
+                continue
+            values = {name: raw_values[name] for name in pdo.names}
+            self.node.transmit_rpdo(pdo.number, values)
+            sent.update(values)
+        for number, values in self._rpdo_values.items():
+            streamed = any(p.number == number for p in self._stream_rpdos)
+            if number in self.paused_rpdos or not (streamed or number in self._dirty_rpdos):
+                continue
+            self.node.transmit_rpdo(number, values)
+            sent.update(values)
+            self._dirty_rpdos.discard(number)
+        return sent
 
     @staticmethod
     def _error(cycle: int, t: float, what: str) -> LockstepError:

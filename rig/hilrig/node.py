@@ -15,6 +15,7 @@ from __future__ import annotations
 import enum
 import struct
 import threading
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -230,6 +231,7 @@ class BoardNode:
         self._heard = threading.Event()
         self._booted = threading.Event()
         self._last_heartbeat: NmtState | None = None
+        self._last_heartbeat_at: float | None = None  # time.monotonic() of the latest one
         self.remote.nmt.add_heartbeat_callback(self._on_heartbeat)
         # The receive thread polls the bus this often; close() waits up to one poll.
         self.network.NOTIFIER_CYCLE = RECEIVE_POLL_S
@@ -243,6 +245,7 @@ class BoardNode:
 
     # --- NMT and heartbeat --------------------------------------------------------------
     def _on_heartbeat(self, state: int) -> None:
+        self._last_heartbeat_at = time.monotonic()
         try:
             self._last_heartbeat = NmtState(state)
         except ValueError:
@@ -255,6 +258,14 @@ class BoardNode:
     def last_heartbeat(self) -> NmtState | None:
         """State in the latest boot-up or heartbeat frame (None before any)."""
         return self._last_heartbeat
+
+    def heartbeat_age_s(self) -> float | None:
+        """Wall-clock seconds since the latest boot-up or heartbeat (None before any): a
+        heartbeat consumer calls the node lost once this exceeds its consumer time (CiA 301
+        1016h), typically a few producer periods. Heartbeats are wall-clock by nature."""
+        if self._last_heartbeat_at is None:
+            return None
+        return time.monotonic() - self._last_heartbeat_at
 
     def wait_until_alive(self, timeout_s: float) -> None:
         """Return once the node has sent a boot-up or heartbeat, or answers an SDO read.

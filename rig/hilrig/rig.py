@@ -10,10 +10,17 @@
 
 Simulation time is exact (`rig.t == rig.cycle * period`); every timeout a scenario writes
 is in simulation time. The bus is the caller's; the rig never opens one.
+
+The same scenario runs in real time, against the firmware in `--mode free` or a real board:
+`Rig(bus, mode="realtime", period_us=10_000)` keeps its own wall-clock period
+(`hilrig.realtime`), and `rig.t`, `run(seconds=...)`, `at()` and the histories are then in
+wall seconds since the first tick. `physics=False` (bring-up of a real board): no plant, no
+sensor frames; the rig only commands and observes.
 """
 
 from __future__ import annotations
 
+import enum
 import heapq
 import itertools
 import threading
@@ -31,6 +38,7 @@ from hilrig.errors import FieldAccessError, NoValueError, ScenarioTimeoutError, 
 from hilrig.lockstep import LockstepDriver, cycles_for, resolve_truth_name
 from hilrig.node import BoardNode, EmcyRecord, NmtCommand, NmtState
 from hilrig.physics import JointParams, JointPlant, JointState, RawSensors, SensorModel
+from hilrig.realtime import RealTimeDriver
 from hilrig.table import RigTable
 
 if TYPE_CHECKING:  # hilrig.trace imports rerun (slow) only when a Tracer is made
@@ -40,6 +48,15 @@ DEFAULT_EDS_PATH = Path(__file__).resolve().parents[2] / "build" / "protocol" / 
 """The EDS generated from protocol/board.toml in this checkout's build tree."""
 
 Event = Callable[["Rig"], object]
+
+
+class TimingMode(enum.StrEnum):
+    """How the rig keeps time (DESIGN.md, "Two timing modes")."""
+
+    LOCKSTEP = "lockstep"
+    """The rig produces SYNC and each SYNC is one firmware cycle: exact simulation time."""
+    REALTIME = "realtime"
+    """The rig keeps its own wall-clock period next to a free-running node."""
 
 
 class Rig:
@@ -55,6 +72,9 @@ class Rig:
     for TPDOs, raises when the node's process died (e.g. `Firmware.check`). Timeouts in
     seconds of wall clock are hang guards only. tracer: a `hilrig.trace.Tracer` that gets every
     cycle, NMT change, EMCY and SDO abort (the caller closes it).
+    mode: "lockstep" or "realtime" (`TimingMode`); in real time `period_us` is the rig's own
+    tick, which need not equal the node's period. physics: False only in real time (observe
+    and command a real board; `truth()` and `state` then have nothing to show).
     """
 
     def __init__(
@@ -72,24 +92,44 @@ class Rig:
         tpdo_timeout_s: float = 5.0,
         sdo_timeout_s: float = 1.0,
         tracer: Tracer | None = None,
+        mode: TimingMode | str = TimingMode.LOCKSTEP,
+        physics: bool = True,
     ) -> None:
+        self.mode = TimingMode(mode)  # a typo raises ValueError here, not mid-scenario
+        self.physics = physics
+        if not physics and self.mode is TimingMode.LOCKSTEP:
+            raise ValueError(
+                "physics=False needs mode='realtime': in lockstep the node waits for the physics"
+            )
         self.table = table if table is not None else RigTable.load()
         self.params = params if params is not None else JointParams()
         self.boot_timeout_s = boot_timeout_s
         node_id = node_id if node_id is not None else self.table.board.node.default_node_id
         self.node = BoardNode(bus, node_id, eds, self.table, sdo_timeout_s=sdo_timeout_s)
         self.plant = JointPlant(self.params)
-        self.driver = LockstepDriver(
-            self.node,
-            self.plant,
-            SensorModel(self.params, seed),
-            period_us=period_us,
-            tpdo_timeout_s=tpdo_timeout_s,
-            liveness=liveness,
-        )
+        self.driver: LockstepDriver
+        if self.mode is TimingMode.REALTIME:
+            self.driver = RealTimeDriver(
+                self.node,
+                self.plant,
+                SensorModel(self.params, seed),
+                period_us=period_us,
+                physics=physics,
+                tpdo_timeout_s=tpdo_timeout_s,
+                liveness=liveness,
+            )
+        else:
+            self.driver = LockstepDriver(
+                self.node,
+                self.plant,
+                SensorModel(self.params, seed),
+                period_us=period_us,
+                tpdo_timeout_s=tpdo_timeout_s,
+                liveness=liveness,
+            )
         self._emcy: list[EmcyRecord] = []
         self._emcy_lock = threading.Lock()
-        self._events: list[tuple[int, int, Event]] = []
+        self._events: list[tuple[float, int, Event]] = []
         self._event_order = itertools.count()
         self.node.on_emcy(self._on_emcy)
         # --- tracing (hilrig.trace) ---
@@ -132,17 +172,30 @@ class Rig:
 
     @property
     def t(self) -> float:
-        """Simulation time [s] = cycle * period, exact."""
+        """Lockstep: simulation time [s] = cycle * period, exact. Real time: wall seconds
+        from the first tick to the last one."""
         return self.driver.t
+
+    @property
+    def realtime(self) -> bool:
+        return self.mode is TimingMode.REALTIME
 
     @property
     def period_s(self) -> float:
         return self.driver.period_s
 
     def run(self, *, seconds: float | None = None, cycles: int | None = None) -> None:
-        """Run lockstep cycles for `seconds` of simulation time or a number of `cycles`."""
+        """Run for `seconds` (simulation time in lockstep, wall time in real time) or a number
+        of `cycles` (real time: ticks)."""
         if (seconds is None) == (cycles is None):
             raise TypeError("run() takes exactly one of seconds= or cycles=")
+        if self.realtime and seconds is not None:
+            end = self._wall_now() + _check_seconds(seconds)
+            while not self._reached(end):
+                self._fire_events()
+                self._step()
+            self._fire_events()
+            return
         count = cycles if cycles is not None else cycles_for(seconds or 0.0, self.driver.period_us)
         if count < 0:
             raise ValueError(f"cycles: expected >= 0, got {count}")
@@ -156,9 +209,17 @@ class Rig:
     ) -> float:
         """Run until `condition(rig)` holds (checked after each cycle); return rig.t then.
 
-        Raises ScenarioTimeoutError when it does not hold within `within_s` of simulation time.
+        Raises ScenarioTimeoutError when it does not hold within `within_s` of simulation time
+        (wall time in real time).
         """
-        for _ in range(cycles_for(within_s, self.driver.period_us)):
+        if self.realtime:
+            end = self._wall_now() + _check_seconds(within_s)
+            while not self._reached(end):
+                self._fire_events()
+                self._step()
+                if condition(self):
+                    return self.t
+        for _ in range(0 if self.realtime else cycles_for(within_s, self.driver.period_us)):
             self._fire_events()
             self._step()
             if condition(self):
@@ -168,21 +229,36 @@ class Rig:
         )
 
     def _step(self) -> None:
-        """One lockstep cycle; its complete values go to the tracer, if there is one."""
-        truth = self.plant.state  # the state this cycle's sensor frame is sampled from
+        """One cycle (tick); its complete values go to the tracer, if there is one."""
+        truth = self.plant.state  # lockstep: the state this cycle's sensor frame is sampled from
         result = self.driver.step()
         if self.tracer is not None:  # --- tracing (hilrig.trace) ---
+            if self.realtime:  # the plant was stepped to the tick first, then sampled
+                truth = self.plant.state if self.physics else None
             self.tracer.log_cycle(result.cycle, result.time_s, result.received, result.sent, truth)
 
+    def _wall_now(self) -> float:
+        """Real time: the clock now, on rig.t's timeline (time outside run() counts too)."""
+        assert isinstance(self.driver, RealTimeDriver)
+        return self.driver.now()
+
+    def _reached(self, end_s: float) -> bool:
+        """Real time: has the last tick reached `end_s` (or a first tick yet to come)?"""
+        return self.cycle > 0 and self.t >= end_s - 1e-9
+
     def at(self, seconds: float, callback: Event) -> None:
-        """Call `callback(rig)` when simulation time reaches `seconds` (before that cycle)."""
-        cycle = cycles_for(seconds, self.driver.period_us)
-        if cycle < self.cycle:
+        """Call `callback(rig)` when `rig.t` reaches `seconds` (before that cycle or tick)."""
+        key: float = seconds if self.realtime else cycles_for(seconds, self.driver.period_us)
+        if key < self._now_key():
             raise ValueError(f"at({seconds}): already past, t = {self.t:.6g} s")
-        heapq.heappush(self._events, (cycle, next(self._event_order), callback))
+        heapq.heappush(self._events, (key, next(self._event_order), callback))
+
+    def _now_key(self) -> float:
+        """Where events are on their key: the cycle (lockstep, exact) or rig.t (real time)."""
+        return self.t + 1e-9 if self.realtime else self.cycle
 
     def _fire_events(self) -> None:
-        while self._events and self._events[0][0] <= self.cycle:
+        while self._events and self._events[0][0] <= self._now_key():
             _, _, callback = heapq.heappop(self._events)
             callback(self)
 
@@ -258,6 +334,8 @@ class Rig:
         """(t, values) of a ground-truth quantity of the plant, e.g. "load_velocity" (or its
         full name "load_velocity_rad_s"), one row per cycle at the cycle's start."""
         resolve_truth_name(name)
+        if not self.physics:
+            raise NoValueError(f"{name}: the rig runs without physics, so there is no ground truth")
         return self.driver.history.truth(name)
 
     @property
@@ -316,7 +394,22 @@ class Rig:
             self.tracer.log_nmt(nmt_state, self.t, cycle=self.cycle, source="heartbeat")
 
     @property
+    def overruns(self) -> int:
+        """Real time: whole ticks the rig missed (0 in lockstep, where time waits for it)."""
+        return self.driver.overruns if isinstance(self.driver, RealTimeDriver) else 0
+
+    @property
+    def physics_lost_s(self) -> float:
+        """Real time: wall seconds the plant skipped because the rig fell behind (0 in lockstep)."""
+        return self.driver.physics_lost_s if isinstance(self.driver, RealTimeDriver) else 0.0
+
+    @property
     def emcy(self) -> list[EmcyRecord]:
         """EMCYs received so far, oldest first, with the cycle and time they arrived in."""
         with self._emcy_lock:
             return list(self._emcy)
+
+
+def _check_seconds(seconds: float) -> float:
+    cycles_for(seconds, 1)  # the same finite, non-negative check
+    return seconds

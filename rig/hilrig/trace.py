@@ -196,7 +196,7 @@ class _CycleRow:
     t: float
     received: Mapping[str, Value]
     sent: Mapping[str, Value]
-    truth: JointState
+    truth: JointState | None  # None: real time without physics
 
 
 class Tracer:
@@ -301,9 +301,10 @@ class Tracer:
         t: float,
         received: Mapping[str, Value],
         sent: Mapping[str, Value],
-        truth: JointState,
+        truth: JointState | None,
     ) -> None:
-        """One completed lockstep cycle: TPDO values, RPDO values, the plant state at its start.
+        """One completed lockstep cycle: TPDO values, RPDO values, the plant state at its start
+        (real time: the tick's values and the plant at the tick; None without physics).
 
         Cheap: one append; every `batch_cycles` cycles the batch goes to the sender.
         """
@@ -417,6 +418,9 @@ class Tracer:
         for path, (cycles, times, column) in series.items():
             self._send_scalars(path, cycles, times, np.asarray(column, dtype=np.float64))
 
+        batch = [row for row in batch if row.truth is not None]
+        if not batch:
+            return
         cycles = [row.cycle for row in batch]
         times = [row.t for row in batch]
         for quantity in TRUTH_QUANTITIES[:-1]:

@@ -44,6 +44,7 @@ struct Options {
   std::uint32_t period_us = 1000;
   std::string params_file;
   bool print_schedule = false;
+  std::uint32_t rogue_write_cycle = 0;  // test-only fault injection; 0 = off
 };
 
 // Exit codes: 0 clean stop, 1 start-up failure (bus, schedule), 2 bad command line.
@@ -73,6 +74,13 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
                  "file for stored parameters (0x1010 store / 0x1011 restore); loaded at start-up");
   app.add_flag("--print-schedule", options.print_schedule,
                "print the control cycle's update order with each component's reads and writes, and exit");
+  app.add_option("--inject-rogue-write-at-cycle", options.rogue_write_cycle,
+                 "FAULT INJECTION for hardware-in-the-loop tests, never for a real joint: at control\n"
+                 "cycle N (1 = the first) an extra module that owns no field writes motor_duty_command.\n"
+                 "The board must refuse it: value kept, refusal counted, EMCY 0xFF00 naming 0x2202,\n"
+                 "fault_flags bit 5 (ownership violation) latched, safe state. 0 = off")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp&) {
@@ -212,6 +220,25 @@ class FaultEmcyBridge {
   std::uint32_t reported_ = 0;
 };
 
+// Fault injection for HIL tests (--inject-rogue-write-at-cycle): a module that declares no
+// writes, so it owns nothing, and at one cycle writes a field another component owns. It exists
+// so a scenario can watch the board's single-writer rule hold on the real bus.
+class RogueWriter final : public core::Module {
+ public:
+  static constexpr board::FieldId kTarget = board::FieldId::motor_duty_command;
+  static constexpr float kRogueValue = 0.875F;  // a duty the joint's owner never commands at rest
+
+  RogueWriter(core::MessageBoard& board, std::uint32_t at_cycle)
+      : Module(board, "rogue_writer", {}), at_cycle_{at_cycle} {}
+
+  void update() override {
+    if (board().cycle() == at_cycle_) boardSet(kTarget, kRogueValue);
+  }
+
+ private:
+  std::uint32_t at_cycle_;
+};
+
 void print_to_stdout(void*, std::string_view text) { std::fwrite(text.data(), 1, text.size(), stdout); }
 
 int run(const Options& options) {
@@ -221,7 +248,10 @@ int run(const Options& options) {
   joint::HilRegisters registers;
   const float period_s = static_cast<float>(options.period_us) * 1e-6f;
   joint::DemoJoint demo_joint{board, registers.drivers(), period_s};
-  if (!scheduler.add(bus_writer) || !demo_joint.add_to(scheduler)) {
+  std::optional<RogueWriter> rogue_writer;
+  if (options.rogue_write_cycle != 0) rogue_writer.emplace(board, options.rogue_write_cycle);
+  if (!scheduler.add(bus_writer) || !demo_joint.add_to(scheduler) ||
+      (rogue_writer && !scheduler.add(*rogue_writer))) {
     std::fprintf(stderr, "joint-firmware: start-up error: components added after the scheduler started\n");
     return kExitStartupFailure;
   }
@@ -275,6 +305,10 @@ int run(const Options& options) {
   }
 
   node.start(now_us());
+  if (rogue_writer) {
+    std::fprintf(stderr, "joint-firmware: FAULT INJECTION: rogue write of motor_duty_command at cycle %u\n",
+                 options.rogue_write_cycle);
+  }
   std::fprintf(stderr, "joint-firmware: node %d on %s, %s mode, period %u us, parameters %s (%s)\n",
                options.node_id, options.can_interface.c_str(),
                options.mode == Mode::Lockstep ? "lockstep" : "free-running", options.period_us,
@@ -323,12 +357,13 @@ int run(const Options& options) {
 
   const co::NodeCounters& counters = node.counters();
   std::fprintf(stderr,
-               "joint-firmware: stopped after %u cycles; overruns %llu; frames received %u, malformed %u, "
-               "SDO aborts %u, RPDO length errors %u, TPDOs sent %u, EMCY %u, send failures %u, "
-               "bus error frames %u\n",
+               "joint-firmware: stopped after %u cycles; overruns %llu; frames received %u, ignored %u, "
+               "malformed %u, SDO aborts %u, RPDO length errors %u, TPDOs sent %u, EMCY %u, send failures %u, "
+               "bus error frames %u, board refused writes %u\n",
                cycle, static_cast<unsigned long long>(overruns), counters.frames_received,
-               counters.frames_malformed, counters.sdo_aborts_sent, counters.rpdo_length_errors,
-               counters.tpdos_sent, counters.emcy_sent, counters.send_failures, port.counters().error_frames);
+               counters.frames_ignored, counters.frames_malformed, counters.sdo_aborts_sent,
+               counters.rpdo_length_errors, counters.tpdos_sent, counters.emcy_sent, counters.send_failures,
+               port.counters().error_frames, board.total_refused_writes());
   return 0;
 }
 

@@ -9,7 +9,10 @@ COMMANDS = (
     Command(
         name="bus-load",
         help=BUS_LOAD_HELP,
-        description=BUS_LOAD_DESCRIPTION,
+        description=BUS_LOAD_DESCRIPTION
+        + "\n\n  hilrig bus-load                                # the default mapping, 1 kHz, all bit rates"
+        "\n  hilrig bus-load --rate-hz 200 --bitrate 500k   # will it fit a 500 kbit/s bus at 200 Hz?"
+        "\n  hilrig bus-load --table my_board.toml          # another board's table",
         configure=configure_bus_load_parser,
         run=run_bus_load,
     ),
