@@ -92,8 +92,12 @@ class NodeUnderTest:
     firmware: Firmware
     bus_log: Path
 
-    def wait_for(self, cob_id: int, timeout_s: float = 30.0) -> can.Message:
-        """The next frame with this COB-ID (bounded wait: a hang guard, not a timing check)."""
+    def wait_for(
+        self, cob_id: int, timeout_s: float = 30.0, after_subscribing: Callable[[], object] | None = None
+    ) -> can.Message:
+        """The next frame with this COB-ID (bounded wait: a hang guard, not a timing check).
+        `after_subscribing` sends the request that frame answers: only once we listen, so an
+        answer faster than this thread cannot be missed."""
         got: list[can.Message] = []
         arrived = threading.Event()
 
@@ -104,6 +108,8 @@ class NodeUnderTest:
 
         self.network.subscribe(cob_id, on_frame)
         try:
+            if after_subscribing is not None:
+                after_subscribing()
             if not arrived.wait(timeout_s):
                 self.firmware.check()
                 raise AssertionError(f"expected a frame with COB-ID {cob_id:#05x}, got none in {timeout_s} s")

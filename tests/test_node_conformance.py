@@ -35,10 +35,8 @@ def expect_abort(code: int, action: Callable[[], object]) -> None:
 def raw_sdo(under_test: NodeUnderTest, request: bytes) -> bytes:
     """Send one raw SDO request frame and return the server's answer (exact frames, so the
     tests can make requests a well-behaved client never would)."""
-    under_test.bus.send(
-        can.Message(arbitration_id=SDO_RX, data=request.ljust(8, b"\x00"), is_extended_id=False)
-    )
-    return bytes(under_test.wait_for(SDO_TX).data)
+    frame = can.Message(arbitration_id=SDO_RX, data=request.ljust(8, b"\x00"), is_extended_id=False)
+    return bytes(under_test.wait_for(SDO_TX, after_subscribing=lambda: under_test.bus.send(frame)).data)
 
 
 def abort_code(answer: bytes) -> int:
