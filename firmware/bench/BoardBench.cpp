@@ -21,23 +21,6 @@
 namespace bench {
 namespace {
 
-// A joint-like component on the core board.
-template <typename Math>
-class CoreAdapter final : public core::MessageBoardUser {
- public:
-  CoreAdapter(core::MessageBoard& board, ComponentKind kind, std::string_view name, const Declarations& declarations,
-              Math math)
-      : MessageBoardUser(board, kind, name, declarations), math_{std::move(math)} {}
-  void update() override { math_.step(*this); }
-
-  float get(F id) const { return boardGet(id); }
-  void set(F id, float value) { boardSet(id, value); }
-  bool is_stale(F id, std::uint32_t max_age_cycles) const { return boardIsStale(id, max_age_cycles); }
-
- private:
-  Math math_;
-};
-
 // The CANopen node's part: owns the bus-writable fields, streams the setpoint.
 class NodeStandIn final : public core::ExternalWriter {
  public:

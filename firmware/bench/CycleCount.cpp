@@ -29,6 +29,7 @@
 
 namespace {
 
+using bench::CoreAdapter;
 using bench::F;
 
 // The CANopen node's part: owns the bus-writable fields (as in main.cpp).
@@ -37,21 +38,6 @@ class BusWriter final : public core::ExternalWriter {
   explicit BusWriter(core::MessageBoard& board)
       : ExternalWriter(board, "canopen_node", {.writes = core::kBusWritableFields}) {}
   void write(F id, float value) { boardSet(id, value); }
-};
-
-template <typename Math>
-class CoreAdapter final : public core::MessageBoardUser {
- public:
-  CoreAdapter(core::MessageBoard& board, core::ComponentKind kind, std::string_view name,
-              const core::Declarations& declarations, Math math)
-      : MessageBoardUser(board, kind, name, declarations), math_{std::move(math)} {}
-  void update() override { math_.step(*this); }
-  float get(F id) const { return boardGet(id); }
-  void set(F id, float value) { boardSet(id, value); }
-  bool is_stale(F id, std::uint32_t max_age_cycles) const { return boardIsStale(id, max_age_cycles); }
-
- private:
-  Math math_;
 };
 
 void write_bus_defaults(const auto& write) {

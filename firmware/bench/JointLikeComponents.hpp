@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <numbers>
 #include <string_view>
+#include <utility>
 
 #include "board/fields.hpp"
 #include "core/LatestValueRegister.hpp"
@@ -320,5 +321,23 @@ inline void feed_hardware(Hardware& hardware, std::uint32_t cycle) {
     hardware.motor_current_ma.push(static_cast<std::int16_t>(500 + i));
   }
 }
+
+// A joint-like component on the core board: its math runs in update() through get/set/is_stale.
+// (Used by the Google Benchmark suite and by the callgrind cycle counter.)
+template <typename Math>
+class CoreAdapter final : public core::MessageBoardUser {
+ public:
+  CoreAdapter(core::MessageBoard& board, ComponentKind kind, std::string_view name, const Declarations& declarations,
+              Math math)
+      : MessageBoardUser(board, kind, name, declarations), math_{std::move(math)} {}
+  void update() override { math_.step(*this); }
+
+  float get(F id) const { return boardGet(id); }
+  void set(F id, float value) { boardSet(id, value); }
+  bool is_stale(F id, std::uint32_t max_age_cycles) const { return boardIsStale(id, max_age_cycles); }
+
+ private:
+  Math math_;
+};
 
 }  // namespace bench
