@@ -84,6 +84,11 @@ bool FileParameterStorage::save(std::span<const std::byte> image) {
 }
 
 std::size_t FileParameterStorage::load(std::span<std::byte> buffer) {
+  // A temporary file here is what a save() killed before its rename left behind: never a
+  // completed store, so never the image to load, and the next save() truncates it anyway.
+  // Removed at load (start-up) so a crash leaves nothing beside the parameter file. ENOENT is
+  // the normal case; any other failure only leaves the stray file, no reason to refuse the load.
+  (void)::unlink(temp_path_.c_str());
   Fd file(::open(path_.c_str(), O_RDONLY | O_CLOEXEC));
   if (file.get() < 0) {
     if (errno == ENOENT) {

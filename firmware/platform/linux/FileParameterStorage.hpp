@@ -23,7 +23,8 @@ class FileParameterStorage final : public co::ParameterStorage {
   // but its rename may not survive a power cut.
   bool save(std::span<const std::byte> image) override;
   // Size of the file copied into `buffer`; 0 when it does not exist, cannot be read, or does
-  // not fit `buffer` (see last_error()).
+  // not fit `buffer` (see last_error()). Also removes the temporary file a save() killed before
+  // its rename leaves behind (it never holds a completed store).
   std::size_t load(std::span<std::byte> buffer) override;
 
   const std::string& path() const { return path_; }

@@ -67,13 +67,34 @@ TEST_F(FileParameterStorageTest, CrashBeforeRenameLeavesTheOldFile) {
   ASSERT_TRUE(storage.save(bytes_of("old")));
   // What a kill between write and rename leaves behind: a half-written temporary file.
   std::ofstream(path.string() + ".tmp", std::ios::binary) << "ne";
-  std::array<std::byte, 32> buffer{};
-  EXPECT_EQ(storage.load(buffer), 3u);
   EXPECT_EQ(read_file(path), "old");
-  // The next save simply replaces the leftover.
+  // The next save simply replaces the leftover, even without a load() in between.
   ASSERT_TRUE(storage.save(bytes_of("new")));
   EXPECT_EQ(read_file(path), "new");
   EXPECT_FALSE(fs::exists(path.string() + ".tmp"));
+}
+
+TEST_F(FileParameterStorageTest, LoadRemovesTheTemporaryFileAKilledSaveLeft) {
+  FileParameterStorage storage(path.string());
+  ASSERT_TRUE(storage.save(bytes_of("old")));
+  // A kill between creating the temporary file and renaming it: empty, half or whole image.
+  for (const std::string_view leftover : {"", "ne", "new"}) {
+    std::ofstream(path.string() + ".tmp", std::ios::binary) << leftover;
+    std::array<std::byte, 32> buffer{};
+    EXPECT_EQ(storage.load(buffer), 3u) << "leftover '" << leftover << "'";
+    EXPECT_TRUE(storage.last_error().empty()) << storage.last_error();
+    EXPECT_EQ(read_file(path), "old");
+    EXPECT_FALSE(fs::exists(path.string() + ".tmp")) << "leftover '" << leftover << "'";
+  }
+}
+
+TEST_F(FileParameterStorageTest, LeftoverOfAKilledFirstSaveLoadsNothingAndIsRemoved) {
+  std::ofstream(path.string() + ".tmp", std::ios::binary) << "ne";
+  FileParameterStorage storage(path.string());
+  std::array<std::byte, 32> buffer{};
+  EXPECT_EQ(storage.load(buffer), 0u);
+  EXPECT_TRUE(storage.last_error().empty()) << storage.last_error();
+  EXPECT_TRUE(fs::is_empty(dir));
 }
 
 TEST_F(FileParameterStorageTest, FileLargerThanTheBufferLoadsNothing) {
