@@ -30,9 +30,12 @@ emulated VM, so it happens only when a Tracer is made.
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import importlib.util
+import os
 import queue
+import socket
 import subprocess
 import sys
 import tempfile
@@ -42,6 +45,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, Self
+from urllib.parse import quote
 
 import numpy as np
 
@@ -134,6 +138,8 @@ class SinkKind(enum.StrEnum):
 
 DEFAULT_GRPC_PORT = 9876
 DEFAULT_WEB_PORT = 9090
+VIEWER_BIND_ADDRESS = "127.0.0.1"
+"""Where `open_trace(..., web=True)` serves: this machine only (forward the ports to share it)."""
 
 
 @dataclass(frozen=True)
@@ -531,18 +537,60 @@ def save_blueprint(name: str, path: str | Path) -> Path:
     return path
 
 
+class ViewerProcess(subprocess.Popen[bytes]):
+    """A viewer started by `open_trace`, in a process group of its own.
+
+    `python -m rerun` is only a wrapper that runs the real binary and does not pass signals on,
+    so `terminate()`, `kill()` and `send_signal()` signal the whole group: otherwise the binary
+    would be left serving after its wrapper is gone. `url`: what to open in a browser (web=True).
+    """
+
+    url: str | None = None
+
+    def send_signal(self, sig: int) -> None:
+        self.poll()
+        if self.returncode is None:  # once reaped, the group id may belong to someone else
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.pid, sig)
+
+
+def web_viewer_url(web_port: int = DEFAULT_WEB_PORT, grpc_port: int = DEFAULT_GRPC_PORT) -> str:
+    """The page to open for a trace served by `open_trace(..., web=True)`: the web viewer, told
+    where the gRPC server with the data is (the browser connects to both ports)."""
+    data = quote(f"rerun+http://127.0.0.1:{grpc_port}/proxy", safe="")
+    return f"http://127.0.0.1:{web_port}/?url={data}"
+
+
+def _check_port_free(port: int, what: str) -> None:
+    # Rerun 0.41 does not fail on a port in use: it spins without serving anything. SO_REUSEADDR:
+    # only a listener counts, not the TIME_WAIT connections of a viewer that just ended.
+    with socket.socket() as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((VIEWER_BIND_ADDRESS, port))
+        except OSError as error:
+            raise OSError(f"{what} port {port} is in use ({error.strerror}): choose another one") from None
+
+
 def open_trace(
     path: str | Path,
     blueprint: str = "overview",
     *,
     web: bool = False,
     web_port: int = DEFAULT_WEB_PORT,
+    grpc_port: int = DEFAULT_GRPC_PORT,
     launch: bool = True,
-) -> subprocess.Popen[bytes] | list[str]:
-    """Open a saved trace in a native viewer (spawned), or serve it to the web viewer on
-    http://localhost:`web_port` (web=True), with the named blueprint active.
+) -> ViewerProcess | list[str]:
+    """Open a saved trace in a native viewer (spawned), or serve it to the web viewer (web=True),
+    with the named blueprint active.
 
-    Returns the viewer process (the caller owns it); launch=False returns the command instead.
+    web=True serves the viewer page on 127.0.0.1:`web_port` and the recording from a gRPC
+    server on 127.0.0.1:`grpc_port`; the page to open is printed and in `process.url`
+    (`web_viewer_url`). No display is needed; from another machine, forward both ports
+    (`ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 host`).
+
+    Returns the viewer process (the caller owns it: `terminate()` ends the whole viewer);
+    launch=False returns the command instead.
     """
     path = Path(path)
     if not path.exists():
@@ -553,9 +601,19 @@ def open_trace(
     if web:
         command += ["--web-viewer", "--web-viewer-port", str(web_port)]
     command += [str(path), str(rbl)]
+    if web:
+        # Without --port the data would go to 9876 whatever else listens there (spawn, compose).
+        command += ["--port", str(grpc_port), "--bind", VIEWER_BIND_ADDRESS]
     if not launch:
         return command
-    return subprocess.Popen(command)
+    if web:
+        _check_port_free(web_port, "web viewer")
+        _check_port_free(grpc_port, "gRPC")
+    process = ViewerProcess(command, process_group=0)
+    if web:
+        process.url = web_viewer_url(web_port, grpc_port)
+        print(f"web viewer: open {process.url}", flush=True)
+    return process
 
 
 def wall_clock() -> float:
@@ -576,6 +634,7 @@ __all__ = [
     "SinkKind",
     "TraceSink",
     "Tracer",
+    "ViewerProcess",
     "blueprint_names",
     "entity_paths",
     "field_path",
@@ -584,4 +643,5 @@ __all__ = [
     "open_trace",
     "save_blueprint",
     "truth_path",
+    "web_viewer_url",
 ]
