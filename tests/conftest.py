@@ -14,6 +14,7 @@ import can
 import canopen
 import pytest
 
+from hilrig.buslog import BusRecorder, whole_file_logger
 from hilrig.expect import Expect
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.netns import PrivateBus, private_buses_supported
@@ -91,6 +92,7 @@ class NodeUnderTest:
     node: canopen.RemoteNode
     firmware: Firmware
     bus_log: Path
+    recorder: BusRecorder
 
     def wait_for(
         self, cob_id: int, timeout_s: float = 30.0, after_subscribing: Callable[[], object] | None = None
@@ -121,11 +123,10 @@ class NodeUnderTest:
 def start_node(private_bus: PrivateBus, scenario_dir: Path, params_file: Path | None = None) -> NodeUnderTest:
     if not DEFAULT_EXECUTABLE.exists() or not EDS.exists():
         pytest.fail(f"{DEFAULT_EXECUTABLE} or {EDS} missing: run `make build` first", pytrace=False)
-    bus = private_bus.open(receive_own_messages=True)
     bus_log = scenario_dir / "bus.log"
-    logger = can.Logger(str(bus_log))
+    recorder = BusRecorder(private_bus.open(), bus_log)
+    bus = private_bus.open(receive_own_messages=True)
     network = canopen.Network(bus)
-    network.listeners.append(logger)
     network.connect()
     node = network.add_node(canopen.RemoteNode(NODE_ID, str(EDS)))
     booted = threading.Event()
@@ -140,16 +141,16 @@ def start_node(private_bus: PrivateBus, scenario_dir: Path, params_file: Path | 
             f"no boot-up message from node {NODE_ID:#x} within {BOOT_TIMEOUT_S} s; "
             f"firmware log: {firmware.log_path}"
         )
-    return NodeUnderTest(bus=bus, network=network, node=node, firmware=firmware, bus_log=bus_log)
+    return NodeUnderTest(
+        bus=bus, network=network, node=node, firmware=firmware, bus_log=bus_log, recorder=recorder
+    )
 
 
 def stop_node(under_test: NodeUnderTest) -> int | None:
     code = under_test.firmware.stop()
     under_test.network.disconnect()
-    for listener in under_test.network.listeners:
-        if isinstance(listener, can.Listener):
-            listener.stop()
     under_test.bus.shutdown()
+    under_test.recorder.close()
     return code
 
 
@@ -165,22 +166,6 @@ def node_under_test(private_bus: PrivateBus, scenario_dir: Path) -> Iterator[Nod
     assert code == 0, (
         f"firmware did not exit cleanly on SIGTERM ({code}); log: {under_test.firmware.log_path}"
     )
-
-
-class BusRecorder:
-    """A candump log of everything on a private bus, from a socket of its own (so it sees the
-    rig's frames and the firmware's alike) through python-can's own logger."""
-
-    def __init__(self, private_bus: PrivateBus, path: Path) -> None:
-        self.path = path
-        self._bus = private_bus.open()
-        self._logger = can.Logger(str(path))
-        self._notifier = can.Notifier(self._bus, [self._logger], timeout=0.05)
-
-    def close(self) -> None:
-        self._notifier.stop()
-        self._logger.stop()
-        self._bus.shutdown()
 
 
 @dataclass
@@ -240,7 +225,7 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
             return _real_board_scenario(request, run_dir, opened, mode, physics, params, seed, trace)
         private_bus: PrivateBus = request.getfixturevalue("private_bus")
         realtime = mode == "realtime"
-        recorder = BusRecorder(private_bus, run_dir / "bus.log")
+        recorder = BusRecorder(private_bus.open(), run_dir / "bus.log")
         opened.append(recorder.close)
         firmware = Firmware(
             private_bus,
@@ -337,8 +322,9 @@ def _real_board_scenario(
         physics=physics and config.getoption("hil_physics"),
         period_us=REALTIME_RIG_PERIOD_US,
     )
-    logger = can.Logger(str(run_dir / "bus.log"))
-    opened.append(logger.stop)
+    logging = whole_file_logger(run_dir / "bus.log")  # the rig's receive thread feeds it
+    logger = logging.__enter__()
+    opened.append(lambda: logging.__exit__(None, None, None))
     opened.append(rig.close)
     assert rig.node.network.notifier is not None
     rig.node.network.notifier.add_listener(logger)

@@ -7,12 +7,15 @@ from __future__ import annotations
 import struct
 import threading
 import time
+from pathlib import Path
 
 import can
 import pytest
-from conftest import NODE_ID, stop_summary
+from conftest import NODE_ID, REPO, start_node, stop_node, stop_summary
 
+from boardproto import load_table
 from hilrig.netns import PrivateBus
+from hilrig.node import NmtState
 from hilrig.physics import JointParams
 
 pytestmark = pytest.mark.bus
@@ -20,6 +23,7 @@ pytestmark = pytest.mark.bus
 VELOCITY_MODE = 1.0
 GEAR_RATIO = JointParams().gear_ratio
 EMCY_PDO_LENGTH = 0x8210
+TABLE = load_table(REPO / "protocol" / "board.toml")
 
 FLOOD_COB_ID = 0x001
 """Highest priority on a real bus (it wins every arbitration, the worst case for the node's
@@ -142,3 +146,121 @@ def test_malformed_frames_are_counted_and_ignored(make_scenario, private_bus: Pr
     assert counters["SDO aborts"] == 0, counters  # a malformed request gets no answer at all
     assert counters["ignored"] >= 1, counters  # 0x7E0
     print(f"\nmalformed frames: {counters}")
+
+
+NMT_STOP, NMT_PRE_OPERATIONAL, NMT_RESET_NODE, NMT_RESET_COMMUNICATION = 0x02, 0x80, 0x81, 0x82
+SDO_CLIENT_TIMEOUT_S = 30.0  # hang guard for the software-emulated VM, not a timing check
+ABORT_TOGGLE_BIT = 0x05030000
+ABORT_COMMAND_SPECIFIER = 0x05040001
+
+
+class SdoProbe:
+    """A second SDO client on its own socket, sending raw requests out of order and reading
+    the node's raw answers (the rig's canopen client never sees a conversation it did not start
+    as its own: it drops unexpected answers before its next request)."""
+
+    def __init__(self, private_bus: PrivateBus) -> None:
+        self.bus = private_bus.open()
+        self.bus.set_filters([{"can_id": 0x580 + NODE_ID, "can_mask": 0x7FF}])
+
+    def ask(self, *request: int) -> bytes:
+        self.bus.send(
+            can.Message(
+                arbitration_id=0x600 + NODE_ID, data=bytes(request).ljust(8, b"\0"), is_extended_id=False
+            )
+        )
+        answer = self.bus.recv(SDO_CLIENT_TIMEOUT_S)
+        assert answer is not None, f"no SDO answer to {bytes(request).hex(' ')}"
+        return bytes(answer.data)
+
+    def close(self) -> None:
+        self.bus.shutdown()
+
+
+def abort_code(answer: bytes) -> int | None:
+    return struct.unpack_from("<I", answer, 4)[0] if answer[0] == 0x80 else None
+
+
+def test_nmt_for_other_nodes_and_sdo_out_of_order_cost_no_cycle(
+    make_scenario, private_bus: PrivateBus
+) -> None:
+    s = make_scenario(trace=False)
+    s.rig.set("control_mode", VELOCITY_MODE)
+    s.rig.set("velocity_setpoint", 2.0)
+    s.rig.run(seconds=0.1)
+
+    # NMT stop, pre-operational and both resets, addressed to other nodes: none is for this one.
+    # A node that obeyed would stop its TPDOs (the lockstep rig raises at once) or boot again.
+    for other in (0x01, NODE_ID - 1, NODE_ID + 1, 0x7F):
+        for command in (NMT_STOP, NMT_PRE_OPERATIONAL, NMT_RESET_NODE, NMT_RESET_COMMUNICATION):
+            s.rig.send_frame(0x000, bytes([command, other]))
+        s.rig.run(cycles=5)
+    s.rig.run(seconds=0.1)
+    assert s.rig.nmt_state is NmtState.OPERATIONAL, f"expected OPERATIONAL, got {s.rig.nmt_state}"
+
+    # SDO out of order, from another client, between two cycles (CiA 301 7.2.4.3).
+    probe = SdoProbe(private_bus)
+    try:
+        segment_without_transfer = probe.ask(0x60)  # upload segment, no upload in progress
+        initiate = probe.ask(0x40, 0x08, 0x10, 0x00)  # upload 0x1008 device name: segmented
+        wrong_toggle = probe.ask(0x70)  # first segment with toggle 1 (must be 0)
+        after_abort = probe.ask(0x60)  # the aborted transfer is over: no segment to give
+    finally:
+        probe.close()
+    assert abort_code(segment_without_transfer) == ABORT_COMMAND_SPECIFIER, segment_without_transfer.hex(" ")
+    assert initiate[0] & 0xE3 == 0x41, f"expected a segmented upload with its size, got {initiate.hex(' ')}"
+    assert abort_code(wrong_toggle) == ABORT_TOGGLE_BIT, wrong_toggle.hex(" ")
+    assert abort_code(after_abort) == ABORT_COMMAND_SPECIFIER, after_abort.hex(" ")
+    assert s.rig.read("velocity_setpoint") == pytest.approx(2.0), "the rig's own SDO client still works"
+
+    resumed_at = s.rig.t
+    s.rig.run(seconds=0.2)
+    s.expect.never("fault_flags", lambda v: v != 0, "a fault")
+    s.expect.stays_within(
+        "motor_velocity", 0.9 * 2.0 * GEAR_RATIO, 1.1 * 2.0 * GEAR_RATIO, after_s=resumed_at
+    )
+    cycles = s.rig.cycle
+    s.close()
+    counters = stop_summary(s.firmware)
+    assert counters["cycles"] == cycles, f"expected {cycles} cycles, one per SYNC, got {counters}"
+    assert counters["SDO aborts"] == 3, counters
+    print(f"\nNMT to 4 other nodes x 4 commands ignored; SDO aborts {counters['SDO aborts']}; {counters}")
+
+
+SYNC_BURSTS, SYNCS_PER_BURST = 100, 20
+
+
+@pytest.mark.slow
+def test_sync_flood_runs_exactly_one_cycle_per_sync(private_bus: PrivateBus, scenario_dir: Path) -> None:
+    """SYNCs back to back, as fast as this sender goes, in bursts of 20 (a burst's TPDOs must fit
+    the receiving sockets' queues, so the test's own listeners lose nothing); after each burst an
+    SDO round trip is the barrier (the node handles frames in order). Every SYNC must run exactly
+    one control cycle and send its TPDOs: nothing lost, nothing merged."""
+    under_test = start_node(private_bus, scenario_dir)
+    try:
+        node = under_test.node
+        node.sdo.RESPONSE_TIMEOUT = SDO_CLIENT_TIMEOUT_S
+        node.sdo.MAX_RETRIES = 1  # canopen 2.4.1: 0 would retry forever
+        node.nmt.state = "OPERATIONAL"
+        # One socket sends everything, so the node receives it in this order.
+        network = under_test.network
+        started = time.monotonic()
+        for _ in range(SYNC_BURSTS):
+            for _ in range(SYNCS_PER_BURST):
+                network.send_message(0x080, b"")
+            node.sdo.upload(0x1001, 0)  # error register: answered after the burst was handled
+        elapsed = time.monotonic() - started
+    finally:
+        code = stop_node(under_test)
+    assert code == 0
+    counters = stop_summary(under_test.firmware)
+    syncs = SYNC_BURSTS * SYNCS_PER_BURST
+    tpdos = [p for p in TABLE.tpdos if p.enabled]
+    expected_tpdos = sum(syncs // p.transmission_type for p in tpdos)
+    assert counters["cycles"] == syncs, f"expected {syncs} cycles, got {counters}"
+    assert counters["TPDOs sent"] == expected_tpdos, f"expected {expected_tpdos} TPDOs, got {counters}"
+    assert counters["send failures"] == 0, counters
+    print(
+        f"\nSYNC flood: {syncs} SYNCs in {elapsed:.2f} s wall ({syncs / elapsed:.0f}/s, bursts of "
+        f"{SYNCS_PER_BURST}); cycles {counters['cycles']}, TPDOs {counters['TPDOs sent']}"
+    )

@@ -3,6 +3,7 @@ private buses do not see each other's frames. Proves the path before any firmwar
 
 from __future__ import annotations
 
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -10,7 +11,7 @@ from pathlib import Path
 import can
 import pytest
 
-from hilrig.netns import PrivateBus
+from hilrig.netns import RECEIVE_QUEUE_BYTES, PrivateBus
 
 pytestmark = pytest.mark.bus
 
@@ -59,3 +60,10 @@ def test_ip_netns_exec_runs_inside_the_namespace(private_bus: PrivateBus) -> Non
         private_bus.command(["ip", "-o", "link", "show"]), capture_output=True, text=True, check=True
     ).stdout
     assert "vcan0" in out
+
+
+def test_the_rigs_sockets_get_a_deep_receive_queue(private_bus: PrivateBus) -> None:
+    """A Python reader descheduled on a loaded machine must not lose frames to a full queue."""
+    with private_bus.open() as bus:
+        granted = bus.socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+    assert granted >= RECEIVE_QUEUE_BYTES, f"receive queue {granted} bytes, expected >= {RECEIVE_QUEUE_BYTES}"

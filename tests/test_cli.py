@@ -7,6 +7,7 @@ from __future__ import annotations
 import subprocess
 from pathlib import Path
 
+import can
 import pytest
 from conftest import NODE_ID, REPO, NodeUnderTest
 
@@ -85,7 +86,7 @@ def test_watch_record_and_replay_decode(
     )
     assert recorded.returncode == 0, recorded.stderr
     assert f"record: 60 frames written to {log}" in recorded.stderr
-    assert not list(scenario_dir.glob(".*partial*"))
+    assert not list(scenario_dir.glob(".cli-record.partial*"))
 
     watched = hilrig(
         private_bus,
@@ -125,3 +126,66 @@ def test_watch_record_and_replay_decode(
     assert any("0x080  SYNC 1" in line for line in lines)
     assert any("TPDO1  motor_duty=" in line and "led_pattern=" in line for line in lines)
     assert any("TPDO2  motor_velocity=" in line and "rad/s" in line for line in lines)
+
+
+SHORT_SCENARIO = """
+def scenario(rig):
+    rig.set("control_mode", 1)
+    rig.set("velocity_setpoint", 2.0)
+    rig.run(seconds=0.3)
+"""
+
+
+def test_sim_injects_faults_from_the_command_line(scenario_dir: Path) -> None:
+    scenario = scenario_dir / "short.py"
+    scenario.write_text(SHORT_SCENARIO)
+    out = scenario_dir / "sim"
+    faults = ["freeze:thermistor_adc@0.02+0.05", "malformed:length@0.1", "restart@0.15"]
+    done = subprocess.run(
+        [HILRIG, "sim", "--scenario", str(scenario), "--out", str(out), *(f"--fault={f}" for f in faults)],
+        capture_output=True,
+        text=True,
+        timeout=CALL_TIMEOUT_S,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    events = [line for line in done.stderr.splitlines() if " fault " in line]
+    assert events == [
+        "sim: t = 0.020 s  fault freeze:thermistor_adc@0.02+0.05: thermistor_adc frozen at its present value",
+        "sim: t = 0.070 s  fault freeze:thermistor_adc@0.02+0.05: ended",
+        "sim: t = 0.100 s  fault malformed:length@0.1: RPDO1 (0x210) sent with 7 bytes, not 8",
+        "sim: t = 0.150 s  fault restart@0.15: firmware killed with SIGKILL, restarting",
+        "sim: t = 0.150 s  fault restart@0.15: firmware booted again and is operational",
+    ]
+    summary = (out / "summary.txt").read_text()
+    injected = [line.split(None, 2)[2] for line in summary.splitlines() if line.startswith("fault injected")]
+    assert injected == [
+        "t = 0.020 s  freeze:thermistor_adc@0.02+0.05: thermistor_adc frozen at its present value"
+    ]
+    assert "t = 0.150 s  restart@0.15: firmware booted again and is operational" in summary
+    assert "300 cycles = 0.300 s" in summary
+    firmware_log = (out / "firmware.log").read_text()
+    assert "killed with SIGKILL and started again" in firmware_log
+    assert (out / "trace.rrd").stat().st_size > 0
+
+
+def test_sim_reports_a_killed_firmware_with_the_evidence(scenario_dir: Path) -> None:
+    scenario = scenario_dir / "short.py"
+    scenario.write_text(SHORT_SCENARIO)
+    out = scenario_dir / "sim"
+    done = subprocess.run(
+        [HILRIG, "sim", "--scenario", str(scenario), "--out", str(out), "--fault", "kill@0.1"],
+        capture_output=True,
+        text=True,
+        timeout=CALL_TIMEOUT_S,
+        check=False,
+    )
+    assert done.returncode == 1, done.stderr
+    error = done.stderr.splitlines()[-1]
+    assert error.startswith("hilrig sim: error: cycle 100 (t = 0.1 s): joint-firmware"), error
+    assert "killed by SIGKILL" in error
+    for name in ("trace.rrd", "bus.log", "firmware.log"):
+        assert f"{out / name}" in error
+        assert (out / name).stat().st_size > 0
+    syncs = [m for m in can.LogReader(str(out / "bus.log")) if m.arbitration_id == 0x80]
+    assert len(syncs) == 101, "cycles 0..99 answered, cycle 100's SYNC found the firmware dead"

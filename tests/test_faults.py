@@ -4,9 +4,7 @@ on its own private bus, in lockstep, seeded; times are simulation time."""
 
 from __future__ import annotations
 
-import os
 import re
-import signal
 
 import can
 import pytest
@@ -15,6 +13,7 @@ from conftest import NODE_ID, REPO, stop_summary
 
 from boardproto import load_table
 from hilrig.errors import FirmwareError
+from hilrig.faults import FaultInjector, FaultPlan
 from hilrig.node import NmtCommand, NmtState
 from hilrig.physics import JointParams
 
@@ -193,11 +192,10 @@ def test_killed_firmware_is_named_at_its_cycle_and_its_heartbeat_is_missed(make_
     s.rig.run(seconds=0.05)
     assert s.rig.node.heartbeat_age_s() is not None, "expected heartbeats before the kill"
 
-    def kill(rig) -> None:
-        os.kill(s.firmware.process.pid, signal.SIGKILL)
-        s.firmware.process.wait(timeout=30)  # gone before this cycle's SYNC goes out
-
-    s.rig.at(KILL_CYCLE * s.rig.period_s, kill)
+    # The kill happens before cycle KILL_CYCLE's SYNC goes out (Firmware.kill waits for the exit).
+    FaultInjector(
+        s.rig, FaultPlan.parse([f"kill@{KILL_CYCLE * s.rig.period_s:g}"]), firmware=s.firmware
+    ).install()
     with pytest.raises(FirmwareError) as raised:
         s.rig.run(seconds=0.3)
     message = str(raised.value)

@@ -23,8 +23,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hilrig.cli.record import whole_file_logger
-from hilrig.errors import BusUnavailableError, RigError
+from hilrig.buslog import whole_file_logger
+from hilrig.errors import BusUnavailableError, FirmwareError, LockstepError, RigError
+from hilrig.faults import FaultEvent, FaultInjector, FaultPlan
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.netns import PrivateBus, private_buses_supported
 from hilrig.node import EmcyRecord
@@ -48,6 +49,11 @@ BOOT_TIMEOUT_S = 60.0
 
 class ScenarioFileError(RigError, ValueError):
     """A --scenario file that cannot be used (the message says why)."""
+
+
+class RunAbortedError(RigError):
+    """The firmware died or stopped answering mid-run; the message names the cycle and where
+    the evidence is (trace, bus log, firmware log), all of it written whole."""
 
 
 @dataclass(frozen=True)
@@ -93,6 +99,7 @@ class DemoOptions:
     trace: bool = True
     executable: Path = DEFAULT_EXECUTABLE
     eds: Path = DEFAULT_EDS_PATH
+    faults: FaultPlan = field(default_factory=FaultPlan)
 
 
 @dataclass(frozen=True)
@@ -114,6 +121,7 @@ class DemoSummary:
     firmware_log: Path
     frames_logged: int
     trace: Path | None = None
+    faults: tuple[FaultEvent, ...] = ()
 
 
 def load_scenario(path: Path) -> Scenario:
@@ -210,11 +218,30 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
                 f"sim: starting {options.executable.name} (node 0x{options.node_id:02X}, lockstep, "
                 f"{options.period_us} us) on private bus {private_bus.name}"
             )
+            injector: FaultInjector | None = None
             with firmware:
                 rig.start()
+                if options.faults:
+                    injector = FaultInjector(
+                        rig,
+                        options.faults,
+                        firmware=firmware,
+                        boot_timeout_s=BOOT_TIMEOUT_S,
+                        on_event=lambda e: progress(f"sim: t = {e.time_s:.3f} s  fault {e.text}"),
+                    )
+                    injector.install()
                 progress("sim: node operational, running the scenario")
-                scenario(rig)
+                try:
+                    scenario(rig)
+                except (FirmwareError, LockstepError) as error:
+                    evidence = [f"bus log: {out / 'bus.log'}", f"firmware log: {out / 'firmware.log'}"]
+                    if tracer is not None:
+                        evidence.insert(0, f"trace: {out / 'trace.rrd'}")
+                    first_line = str(error).splitlines()[0].rstrip(";: ")
+                    raise RunAbortedError(f"{first_line}; {', '.join(evidence)}") from error
                 summary = summarize(rig, table, options, started, out, counter.count)
+                if injector is not None:
+                    summary = dataclasses.replace(summary, faults=tuple(injector.log))
         finally:
             rig.close()
             if tracer is not None:
@@ -327,6 +354,10 @@ def format_summary(summary: DemoSummary) -> str:
             + f" reported, {summary.peak_temperature_true_c:.4g} degC true",
         ),
         ("faults", faults),
+        *(
+            ("fault injected" if i == 0 else "", f"t = {e.time_s:.3f} s  {e.text}")
+            for i, e in enumerate(summary.faults)
+        ),
         (
             "bus log",
             f"{summary.bus_log} ({summary.frames_logged} frames; `hilrig replay {summary.bus_log} --decode`)",

@@ -98,7 +98,7 @@ class Firmware:
         self.process: subprocess.Popen[Any] | None = None
         self._log: IO[bytes] | None = None
 
-    def start(self) -> None:
+    def start(self, *, append_log: bool = False) -> None:
         if self.process is not None:
             raise FirmwareError(f"{self.executable.name} already started (pid {self.process.pid})")
         if not self.executable.exists():
@@ -106,7 +106,7 @@ class Firmware:
                 f"{self.executable} does not exist: build the firmware first (cmake --build build)"
             )
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
-        self._log = self.log_path.open("wb")
+        self._log = self.log_path.open("ab" if append_log else "wb")
         try:
             self.process = self.launcher.popen(
                 self.argv, stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT
@@ -137,6 +137,24 @@ class Firmware:
                 return "".join(deque(log, maxlen=lines)).rstrip("\n") or "(log is empty)"
         except OSError as error:
             return f"(cannot read log: {error.strerror})"
+
+    def kill(self) -> None:
+        """SIGKILL now, as a crash or a pulled plug would end it; `check()` then reports it."""
+        if self.process is not None and self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+
+    def restart(self) -> None:
+        """SIGKILL the process and start the same command again; the log is appended to,
+        with a line that marks the restart."""
+        self.kill()
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+        self.process = None
+        with self.log_path.open("ab") as log:
+            log.write(b"---- hilrig: firmware killed with SIGKILL and started again ----\n")
+        self.start(append_log=True)
 
     def stop(self) -> int | None:
         """SIGTERM, wait up to term_timeout_s, then SIGKILL. Returns the exit code

@@ -331,6 +331,11 @@ class LockstepDriver:
         self._rpdo_values[number][name] = value
         self._dirty_rpdos.add(number)
 
+    def resend_rpdos(self) -> None:
+        """Send every commanded RPDO again with the next cycle, as a master does after its
+        node rebooted (the node starts from defaults)."""
+        self._dirty_rpdos.update(self._rpdo_values)
+
     def rpdo_value(self, name: str) -> Value:
         return self._rpdo_values[self._field_rpdo[name]][name]
 

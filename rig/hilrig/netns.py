@@ -17,6 +17,7 @@ import ctypes
 import itertools
 import os
 import shutil
+import socket
 import subprocess
 from collections.abc import Iterator, Sequence
 from typing import Any, Self
@@ -105,9 +106,11 @@ class PrivateBus:
                 _libc_setns(home.fileno())
 
     def open(self, **kwargs: Any) -> can.BusABC:
-        """A python-can SocketCAN bus on this namespace's vcan0."""
+        """A python-can SocketCAN bus on this namespace's vcan0, with a deep receive queue."""
         with self.entered():
-            return can.Bus(interface="socketcan", channel=self.channel, **kwargs)
+            bus = can.Bus(interface="socketcan", channel=self.channel, **kwargs)
+        deepen_receive_queue(bus)
+        return bus
 
     def command(self, argv: Sequence[str]) -> list[str]:
         """``argv`` prefixed so that it runs inside the namespace."""
@@ -115,3 +118,26 @@ class PrivateBus:
 
     def popen(self, argv: Sequence[str], **kwargs: Any) -> subprocess.Popen[Any]:
         return subprocess.Popen(self.command(argv), **kwargs)
+
+
+RECEIVE_QUEUE_BYTES = 16 * 1024 * 1024
+"""Receive queue of the sockets the rig opens on a private bus: some 20 000 frames (a queued CAN
+frame costs about 800 bytes of kernel memory). The default (net.core.rmem_default, about 200 kB:
+some 250 frames) overflows in half a second when a Python reader is descheduled on a loaded
+machine, and the kernel then drops frames without a word: lost TPDOs, holes in bus logs."""
+
+
+def deepen_receive_queue(bus: can.BusABC, size: int = RECEIVE_QUEUE_BYTES) -> int:
+    """Raise a SocketCAN bus's receive queue to `size` (SO_RCVBUFFORCE as root, else as far as
+    net.core.rmem_max allows); returns what the kernel granted (0: not a SocketCAN bus)."""
+    sock = getattr(bus, "socket", None)
+    if not isinstance(sock, socket.socket):
+        return 0
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, size)
+    except OSError:  # not root: the ceiling is net.core.rmem_max
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size)
+    return sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+
+
+SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)

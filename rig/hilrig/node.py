@@ -393,6 +393,24 @@ class BoardNode:
                 ) from None
         self.remote.rpdo.map[number].transmit()
 
+    def rpdo_length(self, number: int) -> int:
+        """Bytes in RPDO `number`'s frame, from its mapping."""
+        return (self.remote.rpdo.map[number].length + 7) // 8
+
+    def send_frame(self, cob_id: int, data: bytes) -> None:
+        """Any raw frame on the node's bus (fault injection: floods, malformed frames)."""
+        self.network.send_message(cob_id, data)
+
+    def await_boot_up(self, start: Callable[[], object], timeout_s: float) -> None:
+        """Call `start()` (e.g. start the firmware process) and return once the node's
+        boot-up message arrived; NodeSilentError after `timeout_s`."""
+        self._booted.clear()
+        start()
+        if not self._booted.wait(timeout_s):
+            raise NodeSilentError(
+                f"node 0x{self.node_id:02X}: no boot-up within {timeout_s} s after a restart"
+            )
+
     def send_sync(self, counter: int) -> None:
         if not 1 <= counter <= SYNC_COUNTER_MAX:
             raise ValueError(f"SYNC counter: expected 1..{SYNC_COUNTER_MAX}, got {counter}")

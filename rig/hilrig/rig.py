@@ -131,6 +131,7 @@ class Rig:
         self._emcy_lock = threading.Lock()
         self._events: list[tuple[float, int, Event]] = []
         self._event_order = itertools.count()
+        self._cycle_hooks: list[Event] = []
         self.node.on_emcy(self._on_emcy)
         # --- tracing (hilrig.trace) ---
         self.tracer = tracer
@@ -143,10 +144,26 @@ class Rig:
     def start(self) -> None:
         """Bring the node up (bounded waits) and put it operational."""
         self.node.wait_until_alive(self.boot_timeout_s)
+        self._configure_and_start()
+
+    def _configure_and_start(self) -> None:
         self.node.check_identity()
         self.node.read_pdo_configuration(from_node=True)
         self.driver.configure()
         self.nmt(NmtCommand.START)
+
+    def restart_node(self, restart: Callable[[], object], *, boot_timeout_s: float | None = None) -> None:
+        """Restart the node with `restart()` (e.g. `Firmware.restart`: kill and start the
+        process), wait for its boot-up, read its PDO mapping again and put it operational.
+        What was stored survives; what was only written by SDO is back to its default."""
+        self.driver.node_entered(NmtState.INITIALISING)
+        self.node.await_boot_up(
+            restart, boot_timeout_s if boot_timeout_s is not None else self.boot_timeout_s
+        )
+        if self.tracer is not None:  # --- tracing (hilrig.trace) ---
+            self.tracer.log_nmt(NmtState.INITIALISING, self.t, cycle=self.cycle, source="restart")
+        self._configure_and_start()
+        self.driver.resend_rpdos()
 
     def close(self) -> None:
         self.node.close()
@@ -228,8 +245,14 @@ class Rig:
             f"expected {what} within {within_s:g} s, not met at t = {self.t:.6g} s (cycle {self.cycle})"
         )
 
+    def before_each_cycle(self, callback: Event) -> None:
+        """Call `callback(rig)` before every later cycle (tick), after that cycle's events."""
+        self._cycle_hooks.append(callback)
+
     def _step(self) -> None:
         """One cycle (tick); its complete values go to the tracer, if there is one."""
+        for hook in self._cycle_hooks:
+            hook(self)
         truth = self.plant.state  # lockstep: the state this cycle's sensor frame is sampled from
         result = self.driver.step()
         if self.tracer is not None:  # --- tracing (hilrig.trace) ---
@@ -354,6 +377,10 @@ class Rig:
 
     def resume_rpdo(self, number: int) -> None:
         self.driver.paused_rpdos.discard(number)
+
+    def send_frame(self, cob_id: int, data: bytes) -> None:
+        """Send any raw frame on the rig's bus now (floods, malformed frames, rogue masters)."""
+        self.node.send_frame(cob_id, data)
 
     def nmt(self, command: NmtCommand) -> None:
         """Send an NMT command; after a reset, wait (bounded) for the boot-up."""

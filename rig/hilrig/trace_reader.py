@@ -12,6 +12,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from datetime import timedelta
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -34,7 +35,7 @@ class Trace:
         reader = rr.chunk.RrdReader(path)
         trace = cls(blueprints=len(reader.blueprints()))
         for chunk in reader.stream():
-            columns = chunk.to_record_batch().to_pydict()
+            columns = _columns(chunk.to_record_batch())
             path_ = chunk.entity_path
             if chunk.is_static:
                 if "SeriesLines:names" in columns:
@@ -42,6 +43,7 @@ class Trace:
                 continue
             trace.cycles[path_] += columns.get("cycle", [])
             trace.times[path_] += [d / timedelta(seconds=1) for d in columns.get("sim_time", [])]
+            trace.times[path_] += [ns / 1e9 for ns in columns.get("wall_time", [])]  # Unix seconds
             for values in columns.get("Scalars:scalars", []):
                 trace.scalars[path_].append(values[0])
             if "TextLog:text" in columns:
@@ -55,3 +57,14 @@ class Trace:
             trace.times[path_] = [trace.times[path_][i] for i in order]
             trace.scalars[path_] = [trace.scalars[path_][i] for i in order]
         return trace
+
+
+def _columns(batch: Any) -> dict[str, list[Any]]:
+    """A record batch as lists; timestamps (the wall_time timeline, nanoseconds) as integers,
+    since Python's datetime cannot hold nanoseconds."""
+    import pyarrow as pa
+
+    return {
+        name: (column.cast(pa.int64()) if pa.types.is_timestamp(column.type) else column).to_pylist()
+        for name, column in zip(batch.schema.names, batch.columns, strict=True)
+    }

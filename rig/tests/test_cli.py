@@ -13,8 +13,8 @@ from pathlib import Path
 import can
 import pytest
 
+from hilrig.buslog import whole_file_logger
 from hilrig.cli import COMMAND_MODULES, commands, main
-from hilrig.cli.record import whole_file_logger
 from hilrig.demo import ScenarioFileError, load_scenario
 from hilrig.fake_node import FakeJointNode
 from hilrig.table import RigTable
@@ -103,6 +103,12 @@ def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFix
         (["fields", "--kind", "sensors"], "invalid choice: 'sensors'"),
         (["fields", "no_such_thing"], "no field contains 'no_such_thing'"),
         (["sim", "--scenario", "nowhere.py"], "scenario nowhere.py does not exist"),
+        (
+            ["sim", "--fault", "freeze:thermistor@1"],
+            "unknown sensor 'thermistor'; sensors: motor_encoder_counts",
+        ),
+        (["replay", "--trace", "x.txt", "x.log"], "x.txt: expected a file ending in .rrd"),
+        (["sim", "--fault", "kill@1+1"], "kill happens once, at its start; drop the +DURATION"),
         (["frobnicate"], "invalid choice: 'frobnicate'"),
         ([], "the following arguments are required: COMMAND"),
     ],
@@ -312,6 +318,41 @@ def test_record_then_replay_decode(
     )
 
 
+def test_record_then_replay_into_a_trace(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str, tmp_path: Path
+) -> None:
+    from hilrig.trace import Tracer
+    from hilrig.trace_reader import Trace
+
+    log, rrd = tmp_path / "bench.log", tmp_path / "bench.rrd"
+    argv = ["--nmt-start", "--sync-period-ms", "5", "--count", "60", "-i", "virtual", "-c", channel]
+    code, _, err = run(capsys, "record", str(log), *argv)
+    assert code == 0, err
+    code, out, err = run(capsys, "replay", str(log), "--trace", str(rrd))
+    assert code == 0, err
+    assert (
+        out == f".venv/bin/python -m dashboards overview {rrd}   # add --web on a machine without a display\n"
+    )
+    assert not list(tmp_path.glob(".*partial*"))
+    # Which cycles (SYNC index) the log has a TPDO1 for: exactly those carry motor_duty.
+    expected: list[int] = []
+    syncs = -1
+    for message in can.LogReader(str(log)):
+        if message.arbitration_id == 0x80:
+            syncs += 1
+        elif message.arbitration_id == 0x190 and syncs >= 0 and expected[-1:] != [syncs]:
+            expected.append(syncs)
+    assert len(expected) >= 5
+    paths = Tracer._entity_paths(RigTable.load())
+    trace = Trace.read(rrd)
+    assert trace.cycles[paths["motor_duty"]] == expected
+    assert trace.scalars[paths["led_pattern"]] == [1.0] * len(expected)  # the fake's law: LED on
+    heartbeats = {bytes(m.data) for m in can.LogReader(str(log)) if m.arbitration_id == 0x710}
+    nmt = [text for text, _ in trace.texts["/events/nmt"]]
+    assert len(nmt) == len(heartbeats), (nmt, heartbeats)  # one entry per state change seen
+    assert f"{syncs + 1} cycles" in err
+
+
 def test_replay_sends_the_log_into_the_bus(
     capsys: pytest.CaptureFixture[str], channel: str, tmp_path: Path
 ) -> None:
@@ -327,6 +368,37 @@ def test_replay_sends_the_log_into_the_bus(
         assert "replay: 5 frames sent" in err
         received = [listener.recv(1.0) for _ in range(5)]
     assert [bytes(m.data) for m in received if m is not None] == [bytes([n + 1]) for n in range(5)]
+
+
+def test_replay_as_master_leaves_out_what_the_node_sent(
+    capsys: pytest.CaptureFixture[str], channel: str, tmp_path: Path
+) -> None:
+    log = tmp_path / "run.log"
+    frames = [
+        (0x000, b"\x01\x10"),  # NMT start node 0x10: the master's
+        (0x710, b"\x05"),  # heartbeat of node 0x10: the node's own
+        (0x210, bytes(8)),  # RPDO1 to node 0x10: the master's
+        (0x080, b"\x01"),  # SYNC: the master's
+        (0x190, bytes(4)),  # TPDO1 of node 0x10: the node's own
+        (0x590, bytes(8)),  # SDO answer of node 0x10: the node's own
+        (0x090, bytes(8)),  # EMCY of node 0x10: the node's own
+        (0x610, bytes(8)),  # SDO request to node 0x10: the master's
+        (0x001, bytes(8)),  # an injected flood frame: not the node's
+        (0x191, bytes(4)),  # TPDO1 of another node (0x11): not node 0x10's
+    ]
+    with whole_file_logger(log) as logger:
+        for n, (cob_id, data) in enumerate(frames):
+            logger(
+                can.Message(timestamp=1.0 + n * 1e-3, arbitration_id=cob_id, data=data, is_extended_id=False)
+            )
+    with can.Bus(interface="virtual", channel=channel) as listener:
+        code, _, err = run(
+            capsys, "replay", str(log), "--as-master", "--no-timing", "-i", "virtual", "-c", channel
+        )
+        assert code == 0, err
+        assert "without node 0x10's own frames" in err and "replay: 6 frames sent" in err
+        received = [listener.recv(1.0) for _ in range(6)]
+    assert [m.arbitration_id for m in received if m is not None] == [0x000, 0x210, 0x080, 0x610, 0x001, 0x191]
 
 
 def test_an_interrupted_recording_is_still_a_whole_file(tmp_path: Path) -> None:

@@ -249,6 +249,9 @@ def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[can.BusABC]
         raise BusUnavailableError(
             f"cannot open {describe_bus(args)}: {one_line(error)}{_bus_hint(args, error)}"
         ) from error
+    from hilrig.netns import deepen_receive_queue
+
+    deepen_receive_queue(bus)  # a recorder or watcher descheduled for a moment loses nothing
     try:
         yield bus
     finally:

@@ -11,7 +11,6 @@ untouched and the partial file behind.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import threading
 import time
@@ -20,6 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hilrig.buslog import LOG_FORMATS, master_side, partial_path, whole_file_logger
 from hilrig.cli.common import (
     DEFAULT_DBC,
     Command,
@@ -43,7 +43,6 @@ if TYPE_CHECKING:
     import can
     import cantools.database
 
-LOG_FORMATS = (".log", ".blf", ".asc", ".csv", ".trc")
 PROGRESS_EVERY_S = 1.0
 
 
@@ -55,11 +54,6 @@ def log_path(text: str) -> Path:
             "extension: .log is candump, .blf is Vector)"
         )
     return path
-
-
-def partial_path(path: Path) -> Path:
-    """Hidden temporary name beside `path`, with the same extension (it picks the format)."""
-    return path.with_name(f".{path.stem}.partial{path.suffix}")
 
 
 class _CountingSink:
@@ -81,23 +75,6 @@ class _CountingSink:
             self.count += 1
             if self.limit is not None and self.count >= self.limit:
                 self.done.set()
-
-
-@contextmanager
-def whole_file_logger(path: Path) -> Iterator[can.Listener]:
-    """A python-can `can.Logger` (format by extension) writing to a hidden partial file that
-    is renamed to `path` once the logger is stopped (flushed and closed), so `path` is always
-    a whole log, also after Ctrl-C or SIGTERM. (The sim's bus log uses it too.)"""
-    import can
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = partial_path(path)
-    logger = can.Logger(str(partial))
-    try:
-        yield logger
-    finally:
-        logger.stop()  # flush and close: the file is complete from here on
-        os.replace(partial, path)
 
 
 @contextmanager
@@ -202,7 +179,7 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
         "--dbc",
         type=existing_file("DBC", "build it with `make build` or pass --dbc"),
         default=DEFAULT_DBC,
-        help="--decode: the DBC (default: build/protocol/board.dbc)",
+        help="--decode and --trace: the DBC (default: build/protocol/board.dbc)",
     )
     parser.add_argument(
         "--field",
@@ -215,28 +192,62 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
         "--node-id",
         type=node_id,
         default=None,
-        help="--decode: node id the log's PDOs belong to (default: the table's, 0x10)",
+        help="node id the log's PDOs belong to, for --decode and --as-master (default: the table's, 0x10)",
+    )
+    parser.add_argument(
+        "--trace",
+        type=rrd_path,
+        metavar="OUT.rrd",
+        help="instead of sending: every PDO field decoded with the DBC into a Rerun trace, cycle by "
+        "cycle (grouped by SYNC), with EMCY, SDO aborts and NMT changes; open it with "
+        "`python -m dashboards overview OUT.rrd`",
     )
     parser.add_argument(
         "--no-timing", action="store_true", help="send as fast as possible instead of at the recorded pace"
+    )
+    parser.add_argument(
+        "--as-master",
+        action="store_true",
+        help="leave out what the node (--node-id) sent: its TPDOs, SDO answers, heartbeat, EMCY; the "
+        "log's master side (NMT, SYNC, RPDOs, SDO requests, injected frames) then drives a fresh node "
+        "through the same run",
     )
     add_table_option(parser)
     add_bus_options(parser)
 
 
+def rrd_path(text: str) -> Path:
+    path = Path(text)
+    if path.suffix != ".rrd":
+        raise argparse.ArgumentTypeError(f"{text}: expected a file ending in .rrd (a Rerun recording)")
+    return path
+
+
 def run_replay(args: argparse.Namespace) -> int:
+    if args.decode and args.trace:
+        raise UsageError("--decode prints, --trace writes a Rerun trace: choose one")
     if args.decode:
         return _decode(args)
+    if args.trace:
+        return _trace(args)
     import can
 
     sent = 0
     started = time.monotonic()
     next_report = started + PROGRESS_EVERY_S
+    frames: Iterator[can.Message]
     with open_bus(args) as bus:
-        progress(f"replay: {args.file} -> {describe_bus(args)}")
         reader = can.LogReader(str(args.file))
+        frames = can.MessageSync(reader, timestamps=not args.no_timing, gap=0.0)
+        if args.as_master:
+            table = load_table(args)
+            node = args.node_id if args.node_id is not None else table.board.node.default_node_id
+            frames = master_side(frames, table, node)
+            progress(f"replay: {args.file} -> {describe_bus(args)}, without node 0x{node:02X}'s own frames")
+        else:
+            progress(f"replay: {args.file} -> {describe_bus(args)}")
         try:
-            for message in can.MessageSync(reader, timestamps=not args.no_timing, gap=0.0):
+            for message in frames:
                 bus.send(message, timeout=1.0)
                 sent += 1
                 if time.monotonic() >= next_report:
@@ -245,6 +256,41 @@ def run_replay(args: argparse.Namespace) -> int:
         finally:
             reader.stop()
     progress(f"replay: {sent} frames sent")
+    return 0
+
+
+def _trace(args: argparse.Namespace) -> int:
+    import can
+    import cantools
+
+    from hilrig.log_trace import trace_log
+    from hilrig.trace import Tracer, TraceSink
+
+    table = load_table(args)
+    database = cantools.database.load_file(str(args.dbc))
+    node = args.node_id if args.node_id is not None else table.board.node.default_node_id
+    progress(f"replay: {args.file} -> {args.trace} (importing rerun-sdk)")
+    partial = partial_path(args.trace)
+    tracer = Tracer(TraceSink.rrd(partial), table, clock="wall", recording_name=args.file.stem)
+    reader = can.LogReader(str(args.file))
+    try:
+        stats = trace_log(
+            reader, database, table, node, tracer, progress=lambda n: progress(f"replay: {n} frames traced")
+        )
+    finally:
+        reader.stop()
+        tracer.close()
+    if stats.frames == 0:
+        partial.unlink(missing_ok=True)
+        raise UsageError(f"{args.file} holds no frames")
+    partial.replace(args.trace)  # whole, or not there at all
+    progress(
+        f"replay: {stats.frames} frames, {stats.cycles} cycles, {stats.decoded} PDOs decoded "
+        f"({stats.undecodable} did not fit their DBC message), {stats.events} events -> {args.trace}"
+    )
+    print(
+        f".venv/bin/python -m dashboards overview {args.trace}   # add --web on a machine without a display"
+    )
     return 0
 
 
@@ -346,7 +392,9 @@ COMMANDS = (
         "decoded by the DBC (no bus needed).\n\n"
         "  hilrig replay out/demo/bus.log --decode | less\n"
         "  hilrig replay out/demo/bus.log --decode --field motor_velocity\n"
-        "  hilrig replay bus.log --channel vcan1",
+        "  hilrig replay bus.log --channel vcan1\n"
+        "  hilrig replay bench.log --trace bench.rrd     # a Rerun trace of a recorded board\n"
+        "  hilrig replay run1.log --as-master             # drive a fresh firmware through run 1",
         configure=configure_replay,
         run=run_replay,
     ),

@@ -6,6 +6,14 @@ import argparse
 from pathlib import Path
 
 from hilrig.cli.common import DEFAULT_EDS, Command, UsageError, existing_file, node_id, positive_int, progress
+from hilrig.faults import FAULT_SYNTAX_HELP, FaultPlan, FaultSpec, FaultSpecError
+
+
+def fault_spec(text: str) -> FaultSpec:
+    try:
+        return FaultSpec.parse(text)
+    except FaultSpecError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -38,6 +46,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="the joint-firmware executable (default: build/bin/joint-firmware)",
     )
     parser.add_argument(
+        "--fault",
+        action="append",
+        type=fault_spec,
+        default=[],
+        metavar="SPEC",
+        help="inject a fault (repeatable): " + FAULT_SYNTAX_HELP + "; e.g. drop:thermistor_adc@0.5+0.2",
+    )
+    parser.add_argument(
         "--eds",
         type=existing_file("EDS", "build it with `make build` or pass --eds FILE"),
         default=DEFAULT_EDS,
@@ -60,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         executable=executable,
         eds=args.eds,
+        faults=FaultPlan(tuple(args.fault)),
     )
     summary = run_demo(options, progress=progress)
     text = format_summary(summary)
@@ -80,7 +97,12 @@ COMMANDS = (
         "Needs root and a kernel with vcan: natively (`sudo .venv/bin/hilrig sim`),\n"
         "or through the micro-VM: `tools/with-vcan -- .venv/bin/hilrig sim`.\n"
         "`make run` runs this.\n\n"
+        "Faults (--fault, repeatable) happen at their simulation times: sensor frames\n"
+        "dropped or late, sensor values frozen, offset or out of range, malformed frames,\n"
+        "a flood, the firmware killed or restarted. A killed firmware ends the run with\n"
+        "the cycle it was noticed in and the paths of the trace and logs (exit code 1).\n\n"
         "  tools/with-vcan -- .venv/bin/hilrig sim --out out/demo\n"
+        "  ... sim --fault delay:motor_encoder_counts=20@0.3+0.4 --fault restart@1.5\n"
         "  sudo .venv/bin/hilrig sim --scenario my_scenario.py   # def scenario(rig): ...",
         configure=configure,
         run=run,

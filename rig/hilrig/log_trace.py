@@ -1,0 +1,128 @@
+"""A recorded bus log into the tracer: `hilrig replay FILE --trace OUT.rrd`.
+
+A log from `hilrig record` (a real board on can0, or any scenario's bus.log) becomes the same
+kind of Rerun trace a live run makes: every PDO field decoded with the generated DBC, grouped by
+SYNC into cycles (the RPDOs before SYNC n and the TPDOs after it are cycle n, as the lockstep
+rig and a SYNC-driven board see them), on the `cycle` timeline and the wall-clock timeline of
+the recording; EMCY, SDO aborts and NMT state changes from heartbeats as text log entries.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from hilrig.node import EmcyRecord, NmtState, explain_abort
+from hilrig.table import RigTable
+
+if TYPE_CHECKING:
+    import can
+    import cantools.database
+
+    from hilrig.trace import Tracer
+
+Value = float | int
+
+
+@dataclass
+class LogTraceStats:
+    frames: int = 0
+    cycles: int = 0
+    decoded: int = 0
+    """PDO frames decoded with the DBC."""
+    undecodable: int = 0
+    """Frames on a PDO's COB-ID that did not fit its DBC message (wrong length)."""
+    events: int = 0
+    """EMCY, SDO aborts and NMT changes logged as text."""
+
+
+def trace_log(
+    messages: Iterable[can.Message],
+    database: cantools.database.can.Database,
+    table: RigTable,
+    node_id: int,
+    tracer: Tracer,
+    progress: Callable[[int], None] | None = None,
+) -> LogTraceStats:
+    """Send the frames of a log into `tracer` (made with clock="wall": `t` is the log's own
+    timestamps); returns what was done. The caller closes the tracer."""
+    from hilrig.trace import EMCY_PATH, Severity
+
+    stats = LogTraceStats()
+    offset = node_id - table.board.node.default_node_id  # the DBC holds the default node's COB-IDs
+    tpdo_ids = {pdo.cob_id(node_id) for pdo in table.board.tpdos}
+    emcy_id, sdo_answer_id, heartbeat_id = 0x080 + node_id, 0x580 + node_id, 0x700 + node_id
+    cycle = -1  # index of the open cycle (the last SYNC seen); -1 before the first SYNC
+    cycle_t = 0.0
+    sent: dict[str, Value] = {}  # RPDO values since the last SYNC: they belong to the next cycle
+    open_sent: dict[str, Value] = {}
+    received: dict[str, Value] = {}
+    first_t: float | None = None
+    heartbeat_state: NmtState | None = None
+
+    def close_cycle() -> None:
+        if cycle >= 0:
+            tracer.log_cycle(cycle, cycle_t, received, open_sent, None)
+            stats.cycles += 1
+
+    for message in messages:
+        stats.frames += 1
+        if progress is not None and stats.frames % 10_000 == 0:
+            progress(stats.frames)
+        if message.is_extended_id or message.is_error_frame or message.is_remote_frame:
+            continue
+        t = message.timestamp
+        first_t = t if first_t is None else first_t
+        cob_id, data = message.arbitration_id, bytes(message.data)
+        at_cycle = max(cycle, 0)
+        if cob_id == 0x080:  # SYNC: the open cycle is complete, the next one starts
+            close_cycle()
+            cycle, cycle_t = cycle + 1, t
+            open_sent, sent, received = sent, {}, {}
+            continue
+        if cob_id == emcy_id and len(data) == 8:
+            code, register = struct.unpack_from("<HB", data)
+            record = EmcyRecord(code, register, data[3:], at_cycle, t - first_t)
+            level = Severity.INFO if code == 0 else Severity.ERROR
+            tracer.log_text(EMCY_PATH, f"{record} (s into the log)", level, t=t, cycle=at_cycle)
+            stats.events += 1
+            continue
+        if cob_id == sdo_answer_id and len(data) == 8 and data[0] == 0x80:
+            index, subindex, code = struct.unpack_from("<HBI", data, 1)
+            entry = table.entry_at(index)
+            what = f"{entry.name if entry else f'0x{index:04X}'} sub {subindex}: {explain_abort(code, entry)}"
+            tracer.log_sdo_abort(what, code, cycle=at_cycle, t=t)
+            stats.events += 1
+            continue
+        if cob_id == heartbeat_id and len(data) == 1:
+            try:
+                state = NmtState(data[0] & 0x7F)
+            except ValueError:
+                continue
+            if state is not heartbeat_state:
+                heartbeat_state = state
+                tracer.log_nmt(state, t, cycle=at_cycle, source="heartbeat in the log")
+                stats.events += 1
+            continue
+        try:
+            dbc_message = database.get_message_by_frame_id(cob_id - offset)
+        except KeyError:
+            continue
+        try:
+            values = dbc_message.decode(data, decode_choices=False, scaling=True)
+        except Exception:  # a frame that does not fit its message (wrong length): not a value
+            stats.undecodable += 1
+            continue
+        stats.decoded += 1
+        fields = {name: value for name, value in values.items() if isinstance(value, int | float)}
+        if cob_id in tpdo_ids:
+            received.update(fields)
+        else:
+            sent.update(fields)
+    close_cycle()
+    return stats
+
+
+__all__ = ["LogTraceStats", "trace_log"]
