@@ -104,10 +104,7 @@ def test_velocity_hold_lockstep(make_scenario) -> None:
 
 # --- Real time -----------------------------------------------------------------------------------
 @pytest.mark.slow
-# Not in `make test`: inside the software-emulated VM the real-time rig's physics ticks come too
-# late for the free-running firmware (its stale-sensor faults stay latched; seen twice in CI-like
-# runs, passed once alone). Run it where real time is real: a host with vcan, or a real board.
-@pytest.mark.realtime_physics
+@pytest.mark.realtime
 def test_velocity_hold_realtime(make_scenario) -> None:
     s = make_scenario(mode="realtime")
     # The loop's gains, tuned for the latency of this world as one tunes them for a real board:

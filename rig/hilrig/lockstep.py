@@ -162,7 +162,8 @@ class _TpdoInbox:
                     f"operational (transmission type {pdo.transmission_type})"
                 )
             self._got[pdo.number] = values
-            self._condition.notify_all()
+            if self._complete():  # wake the waiting loop once per cycle, not once per frame
+                self._condition.notify_all()
 
     def _complete(self) -> bool:
         return bool(self._problems) or self._due.keys() <= self._got.keys()
