@@ -149,9 +149,11 @@ def test_nmt_states_walk_and_reset_gives_boot_up_and_defaults(node_under_test: N
     node.nmt.state = "PRE-OPERATIONAL"
     assert node.nmt.wait_for_heartbeat(timeout=30) == "PRE-OPERATIONAL"
     assert node.sdo["velocity_setpoint"].raw == pytest.approx(3.0)
-    node.nmt.state = "RESET"
-    boot_up = node_under_test.wait_for(0x700 + NODE_ID)
-    assert bytes(boot_up.data) == b"\x00"
+    # The boot-up (state byte 0x00) must come; wait_for fails if only heartbeats do. Listen
+    # first: on a loaded machine the boot-up can beat a late subscription.
+    node_under_test.wait_for(
+        0x700 + NODE_ID, after_subscribing=lambda: setattr(node.nmt, "state", "RESET"), data=b"\x00"
+    )
     assert node.sdo["velocity_setpoint"].raw == pytest.approx(TABLE.field("velocity_setpoint").default)
 
 
@@ -201,8 +203,11 @@ def test_parameters_stored_survive_a_restart(private_bus: PrivateBus, scenario_d
     try:
         assert second.node.sdo["velocity_kp"].raw == pytest.approx(0.125)
         second.node.sdo[0x1011][1].raw = 0x64616F6C  # "load": restore defaults
-        second.node.nmt.state = "RESET"
-        second.wait_for(0x700 + NODE_ID)
+        second.wait_for(
+            0x700 + NODE_ID,
+            after_subscribing=lambda: setattr(second.node.nmt, "state", "RESET"),
+            data=b"\x00",
+        )
         assert second.node.sdo["velocity_kp"].raw == pytest.approx(TABLE.field("velocity_kp").default)
     finally:
         assert stop_node(second) == 0

@@ -197,8 +197,6 @@ class EmcyRecord:
         )
 
 
-_UNSET = object()
-
 TpdoCallback = Callable[[PdoLayout, dict[str, float | int]], None]
 """Called from the receive thread with the TPDO and its decoded values by name."""
 
@@ -228,7 +226,6 @@ class BoardNode:
         self.rpdos: dict[int, PdoLayout] = {}
         self.tpdos: dict[int, PdoLayout] = {}
         self._rpdo_vars: dict[int, dict[str, PdoVariable]] = {}
-        self._rpdo_packed: dict[int, dict[str, float | int]] = {}  # values last packed per RPDO
         self._tpdo_callbacks: list[TpdoCallback] = []
         self._wired_tpdos: set[int] = set()
         self._heard = threading.Event()
@@ -365,7 +362,6 @@ class BoardNode:
         self.rpdos = {n: _layout(PdoDirection.RPDO, n, m) for n, m in self.remote.rpdo.map.items()}
         self.tpdos = {n: _layout(PdoDirection.TPDO, n, m) for n, m in self.remote.tpdo.map.items()}
         self._rpdo_vars = {n: {var.name: var for var in m.map} for n, m in self.remote.rpdo.map.items()}
-        self._rpdo_packed = {}  # the maps may be new objects now: nothing is packed in them yet
         for number, pdo_map in self.remote.tpdo.map.items():
             if number not in self._wired_tpdos:  # read() may run again; wire each map once
                 pdo_map.add_callback(self._on_tpdo)
@@ -386,11 +382,11 @@ class BoardNode:
     def transmit_rpdo(self, number: int, values: Mapping[str, float | int]) -> None:
         """Pack `values` (by object name) into RPDO `number` with canopen's map and send it.
         Objects of the mapping not named keep the value they were last given."""
+        # Every value is packed again each time, even an unchanged one: canopen's map also takes
+        # in frames other senders put on this COB-ID (a short one shrinks its data buffer), and
+        # packing every variable restores the whole frame.
         variables = self._rpdo_vars[number]
-        packed = self._rpdo_packed.setdefault(number, {})
         for name, value in values.items():
-            if packed.get(name, _UNSET) == value:
-                continue  # already in the map's data: the setpoint stream repeats most cycles
             try:
                 variables[name].raw = value
             except KeyError:
@@ -398,7 +394,6 @@ class BoardNode:
                     f"{self.rpdos[number].label} does not map {name!r}; it maps "
                     f"{', '.join(self.rpdos[number].names)}"
                 ) from None
-            packed[name] = value
         self.remote.rpdo.map[number].transmit()
 
     def rpdo_length(self, number: int) -> int:
