@@ -53,6 +53,16 @@ bench: deps ## benchmarks, each a ratio measured side by side in one run
 	  tools/with-vcan -- $(CURDIR)/$(PY) tools/bench.py bus --out $(CURDIR)/$(BENCH_BUILD)
 	@$(PY) tools/bench.py report --out $(BENCH_BUILD)
 
+# Soak (issue 11): SOAK_CYCLES lockstep cycles against the real firmware on a real bus, a seeded
+# fault now and then; fails if a cycle is lost or the firmware's memory grows. SOAK_ARGS are passed
+# on (python -m hilrig.soak --help). Report: build/soak/report.json. Ctrl-C stops cleanly.
+SOAK_CYCLES ?= 1000000
+SOAK_ARGS ?=
+
+.PHONY: soak
+soak: build ## SOAK_CYCLES lockstep cycles, seeded faults; no cycle lost, memory flat (build/soak)
+	@tools/soak --cycles $(SOAK_CYCLES) --out $(CURDIR)/$(BUILD)/soak $(SOAK_ARGS)
+
 # Fuzzing (its own clang tree, build/fuzz): FUZZ_SECONDS per target, all targets side by side.
 FUZZ_SECONDS ?= 600
 

@@ -32,7 +32,9 @@ process, but it does only what a soak needs:
   EMCYs sent = received, no malformed frames, SDO aborts, send failures or refused writes.
 * Memory: VmRSS (and the exact page-table Rss of smaps_rollup) and the open fd count of the
   firmware process every `sample_every` cycles; after warm-up the RSS may grow by at most
-  `DEFAULT_RSS_BOUND_KIB`, and the fd count not at all (`memory_verdict`).
+  `DEFAULT_RSS_BOUND_KIB`, and the fd count not at all (`memory_verdict`). Transparent huge
+  pages are turned off for the firmware process (`disable_transparent_huge_pages`): khugepaged
+  would otherwise inflate its RSS by megabytes on its own timer (`--keep-thp` to see it).
 
 Inside the emulated VM the driver and the firmware are pinned to one CPU: lockstep is strictly
 serial, and a wake-up that stays on one virtual CPU avoids an emulated inter-processor
@@ -48,6 +50,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import ctypes
 import datetime
 import enum
 import itertools
@@ -504,6 +507,8 @@ class ProcessSample:
     """Rss of /proc/PID/smaps_rollup: a page-table walk, exact (VmRSS may lag a few pages)."""
     fds: int
     cpu_s: float
+    anon_huge_kib: int | None = None
+    """AnonHugePages of smaps_rollup: what khugepaged collapsed (0 with THP disabled)."""
 
 
 def sample_process(pid: int, cycle: int, elapsed_s: float) -> ProcessSample:
@@ -514,12 +519,12 @@ def sample_process(pid: int, cycle: int, elapsed_s: float) -> ProcessSample:
             name, _, rest = line.partition(":")
             if name in ("VmRSS", "RssAnon"):
                 status[name] = int(rest.split()[0])
-    exact = None
+    rollup: dict[str, int] = {}
     with contextlib.suppress(OSError), open(f"/proc/{pid}/smaps_rollup") as lines:
         for line in lines:
-            if line.startswith("Rss:"):
-                exact = int(line.split()[1])
-                break
+            name, _, rest = line.partition(":")
+            if name in ("Rss", "AnonHugePages"):
+                rollup[name] = int(rest.split()[0])
     with open(f"/proc/{pid}/stat") as stat:
         fields = stat.read().rsplit(")", 1)[1].split()
     cpu_s = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
@@ -528,9 +533,10 @@ def sample_process(pid: int, cycle: int, elapsed_s: float) -> ProcessSample:
         elapsed_s=round(elapsed_s, 3),
         vm_rss_kib=status["VmRSS"],
         rss_anon_kib=status["RssAnon"],
-        rss_exact_kib=exact,
+        rss_exact_kib=rollup.get("Rss"),
         fds=len(os.listdir(f"/proc/{pid}/fd")),
         cpu_s=cpu_s,
+        anon_huge_kib=rollup.get("AnonHugePages"),
     )
 
 
@@ -857,7 +863,7 @@ class SoakDriver:
                 tally.tpdos_received += 1
                 if bit & got or not bit & due or length != lengths[cob_id]:
                     self._tpdo_problem(cob_id, length, bit & got, bit & due)
-                got |= bit
+                got |= bit & due
                 if cob_id == status_cob:
                     self._last_status = data[8:16]
                     if self._last_status != expected_status:
@@ -1262,6 +1268,28 @@ def _pin(pid: int, cpu: int) -> None:
     os.sched_setaffinity(pid, {cpu})
 
 
+_PR_SET_THP_DISABLE = 41
+
+
+def disable_transparent_huge_pages() -> str:
+    """PR_SET_THP_DISABLE for this process and (inherited across fork and exec) the firmware it
+    starts; returns what the report says about THP.
+
+    With THP "always" (Debian's kernels, the micro-VM's), khugepaged collapses the firmware's
+    sparse anonymous mappings (ASan's shadow and heap) into 2 MiB pages on its own timer: VmRSS
+    jumps by megabytes a few seconds into the run (measured: +8 MiB at 8 s, AnonHugePages 0 ->
+    10 MiB, then flat) although the firmware touched no new page. That is the kernel's memory
+    policy, not the firmware's use (a real board has no THP), and it would make a flat process
+    look like it grew whenever a collapse lands after warm-up."""
+    system = "unknown"
+    with contextlib.suppress(OSError):
+        system = Path("/sys/kernel/mm/transparent_hugepage/enabled").read_text().strip()
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.prctl(_PR_SET_THP_DISABLE, 1, 0, 0, 0) != 0:
+        return f"system setting {system}; PR_SET_THP_DISABLE failed ({os.strerror(ctypes.get_errno())})"
+    return f"disabled for the firmware (PR_SET_THP_DISABLE); system setting {system}"
+
+
 def build_report(
     *,
     args: argparse.Namespace,
@@ -1274,6 +1302,7 @@ def build_report(
     started_wall: float,
     duration_s: float,
     driver_cpu_s: float,
+    cycling_s: float | None = None,
 ) -> dict[str, Any]:
     """The soak report (JSON-ready). `status` is the run's outcome before the verdicts."""
     samples = driver.samples if driver is not None else []
@@ -1332,8 +1361,12 @@ def build_report(
             **asdict(verdict),
             "samples": len(samples),
             "sample_every": args.sample_every,
-            "series": [[s.cycle, s.vm_rss_kib, s.rss_exact_kib, s.fds] for s in thin(samples, SERIES_POINTS)],
-            "series_columns": ["cycle", "VmRSS KiB", "exact Rss KiB", "fds"],
+            "series": [
+                [s.cycle, s.vm_rss_kib, s.rss_exact_kib, s.anon_huge_kib, s.fds]
+                for s in thin(samples, SERIES_POINTS)
+            ],
+            "series_columns": ["cycle", "VmRSS KiB", "exact Rss KiB", "AnonHugePages KiB", "fds"],
+            "transparent_huge_pages": args.thp,
         },
         "firmware": {
             **firmware,
@@ -1347,14 +1380,19 @@ def build_report(
             "cpu_ms_per_cycle": round(1e3 * driver_cpu_s / cycles, 4) if cycles else None,
             "pinned_cpu": args.cpu if args.pin else None,
             "heartbeats": tally.heartbeats,
+            "heartbeat_states": {
+                f"0x{state:02X}": n
+                for state, n in sorted((driver.heartbeat_states if driver else {}).items())
+            },
             "emcy": [
-                [c, f"0x{code:04X}", f"0x{about:04X}"]
+                f"cycle {c}: 0x{code:04X} about 0x{about:04X}"
                 for c, code, about in (driver.emcy_log if driver else [])
-            ][:200],
+            ][:300],
         },
         "velocity": _velocity_summary(driver, velocity),
         "duration_s": round(duration_s, 1),
-        "rate_cycles_per_s": round(cycles / duration_s, 1) if duration_s > 0 else None,
+        "cycling_s": round(cycling_s, 1) if cycling_s is not None else None,
+        "rate_cycles_per_s": round(cycles / cycling_s, 1) if cycling_s else None,
         "started_at": datetime.datetime.fromtimestamp(started_wall, datetime.UTC).isoformat(
             timespec="seconds"
         ),
@@ -1414,6 +1452,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--no-pin", dest="pin", action="store_false", help="do not pin driver and firmware to one CPU"
     )
     parser.add_argument("--cpu", type=int, help="the CPU to pin to (default: the last one allowed)")
+    parser.add_argument(
+        "--keep-thp",
+        action="store_true",
+        help="leave transparent huge pages on for the firmware (khugepaged then makes its RSS jump)",
+    )
     args = parser.parse_args(argv)
     if args.cycles <= 0:
         parser.error(f"--cycles: expected > 0, got {args.cycles}")
@@ -1427,6 +1470,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     plan = plan_faults(args.cycles, args.fault_interval, args.seed, layout)
     stop = StopRequest(args.stop_file)
     stop.install()
+    args.thp = "left as the system has it" if args.keep_thp else disable_transparent_huge_pages()
 
     started_wall = time.time()
     started = time.monotonic()
@@ -1451,6 +1495,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             bus=bus_info,
             started_wall=started_wall,
             duration_s=time.monotonic() - started,
+            cycling_s=driver.clock() - driver.started_at
+            if driver and driver.started_at is not None
+            else None,
             driver_cpu_s=(now.user + now.system) - (cpu_start.user + cpu_start.system),
         )
 
@@ -1502,6 +1549,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
             driver.start()
             firmware_info["pid"] = _firmware_pid(fw.process)
+            firmware_info["startup_s"] = round(time.monotonic() - started, 1)
+            pinned = f", driver and firmware pinned to CPU {args.cpu}" if args.pin else ""
+            print(
+                f"soak: node 0x{args.node_id:02X} up {firmware_info['startup_s']} s after the start "
+                f"(firmware pid {pid}{pinned}); cycling",
+                flush=True,
+            )
             driver.probe = lambda cycle, elapsed: sample_process(pid, cycle, elapsed)
             driver.run(args.cycles)
             driver.finish()

@@ -1,0 +1,499 @@
+"""The soak driver without a bus: frames packed from the EDS (checked against the DBC with
+cantools, independently of the struct layouts that packed them), the seeded fault plan, the
+memory verdict, the firmware's stop line, and the driver's checks against an in-process fake
+firmware that answers synchronously (and can be told to misbehave)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import struct
+from collections import Counter, deque
+from pathlib import Path
+
+import cantools
+import pytest
+
+from hilrig.rig import DEFAULT_EDS_PATH
+from hilrig.soak import (
+    EMCY_ERROR_RESET,
+    EMCY_PDO_LENGTH,
+    EMCY_STALE_SENSOR,
+    RPDO_COMMUNICATION_BASE,
+    STALE_ENCODER_FLAGS,
+    FaultKind,
+    FaultPlan,
+    PlannedFault,
+    ProcessSample,
+    RunStatus,
+    SensorPattern,
+    SoakDriver,
+    SoakLayout,
+    Tally,
+    build_report,
+    can_frame,
+    compare_counters,
+    load_layout,
+    memory_verdict,
+    min_fault_interval,
+    parse_frame,
+    parse_stop_line,
+    plan_faults,
+    thin,
+    write_json_atomic,
+)
+
+NODE_ID = 0x10
+DBC_PATH = DEFAULT_EDS_PATH.with_name("board.dbc")
+STOP_LINE = (
+    "joint-firmware: stopped after 3000 cycles; overruns 0; frames received 9001, ignored 2, "
+    "malformed 0, SDO aborts 0, RPDO length errors 1, TPDOs sent 21300, EMCY 4, send failures 0, "
+    "bus error frames 0, board refused writes 0"
+)
+
+
+@pytest.fixture(scope="module")
+def layout() -> SoakLayout:
+    return load_layout(DEFAULT_EDS_PATH, NODE_ID)
+
+
+@pytest.fixture(scope="module")
+def dbc() -> cantools.database.can.Database:
+    return cantools.database.load_file(str(DBC_PATH))
+
+
+# --- Frames against the EDS and the DBC ----------------------------------------------------
+def test_layout_is_the_eds_default_mapping(layout: SoakLayout) -> None:
+    assert layout.sensor.label == "RPDO1 (0x210)"
+    assert layout.sensor.codec.format == "<HHHh"
+    assert layout.setpoint.names == ("velocity_setpoint", "torque_setpoint")
+    assert [p.cob_id for p in layout.tpdos] == [0x190, 0x290, 0x390, 0x490, 0x1D0, 0x2D0, 0x3D0, 0x4D0]
+    assert layout.status.label == "TPDO6 (0x2D0)"
+    assert layout.due_period == 10
+    assert [p.number for p in layout.due_at(9)] == [1, 2, 3, 4, 5, 6, 7]
+    assert [p.number for p in layout.due_at(10)] == [1, 2, 3, 4, 5, 6, 7, 8]
+    assert layout.tpdos[0].length == 3  # I16 motor_duty + U8 led_pattern
+    assert set(layout.receive_ids) == {*(p.cob_id for p in layout.tpdos), 0x90, 0x590, 0x710}
+    assert layout.encoder_stale_cycles == 20
+
+
+def test_unknown_cob_ids_avoid_everything_the_node_uses(layout: SoakLayout) -> None:
+    unknown = set(layout.unknown_cob_ids())
+    node_ids = {0x000, 0x080, 0x090, 0x100, 0x590, 0x610, 0x710, 0x210, 0x310, 0x410, 0x510}
+    assert not unknown & (node_ids | {p.cob_id for p in layout.tpdos})
+    assert 0x123 in unknown
+
+
+def test_sensor_frame_decodes_with_the_dbc_to_the_pattern(layout: SoakLayout, dbc) -> None:
+    pattern = SensorPattern(layout, period_us=1000)
+    for cycle in (1, 2, 2621, 2622, 1_000_000):  # 2622 * 25 wraps the 16-bit motor counter
+        cob_id, data = parse_frame(pattern.frame(cycle))
+        decoded = dbc.decode_message(cob_id, data)
+        motor, output, adc, current = pattern.values(cycle)
+        assert decoded == {
+            "motor_encoder_counts": motor,
+            "output_encoder_counts": output,
+            "thermistor_adc": adc,
+            "motor_current_adc": current,
+        }
+        assert motor == cycle * 25 % 65536
+        assert output == cycle * 2 % 65536  # 25 counts * 16384 / (4096 * gear 50) = 2 per cycle
+    assert pattern.thermistor_adc == 2048  # 10 kOhm NTC at 25 degC against the 10 kOhm pull-up
+    assert pattern.motor_velocity_rad_s == pytest.approx(25 / 4096 * 2 * math.pi * 1000)
+
+
+def test_status_and_sdo_bytes_decode_with_the_dbc(layout: SoakLayout, dbc) -> None:
+    decoded = dbc.decode_message(layout.status.cob_id, layout.status_bytes(STALE_ENCODER_FLAGS))
+    assert decoded == {"safe_state": 1.0, "fault_flags": 3.0}
+    assert dbc.decode_message(layout.status.cob_id, layout.status_bytes(0)) == {
+        "safe_state": 0.0,
+        "fault_flags": 0.0,
+    }
+    reads = {o.label: o for o in layout.sdo_reads}
+    assert struct.unpack("<f", reads["encoder_stale_cycles"].expected) == (20.0,)
+    assert struct.unpack("<H", reads["heartbeat time"].expected) == (100,)
+    index, subindex, data = layout.fault_clear
+    assert (index, subindex, struct.unpack("<f", data)) == (0x2404, 0, (1.0,))
+
+
+def test_can_frame_round_trip_and_limits() -> None:
+    assert parse_frame(can_frame(0x123, b"\x01\x02")) == (0x123, b"\x01\x02")
+    assert len(can_frame(0x7FF, bytes(8))) == 16
+    with pytest.raises(ValueError, match="11-bit"):
+        can_frame(0x800, b"")
+    with pytest.raises(ValueError, match="8 bytes"):
+        can_frame(0x100, bytes(9))
+
+
+# --- Fault plan ---------------------------------------------------------------------------
+def test_fault_plan_is_determined_by_its_seed(layout: SoakLayout) -> None:
+    first = plan_faults(1_000_000, 10_000, 11, layout)
+    assert first == plan_faults(1_000_000, 10_000, 11, layout)
+    assert first != plan_faults(1_000_000, 10_000, 12, layout)
+    assert len(first.faults) == 99
+    assert set(first.counts()) == {k.value for k in FaultKind}
+
+
+def test_fault_plan_spacing_first_round_and_warmup(layout: SoakLayout) -> None:
+    interval = 1000
+    plan = plan_faults(100_000, interval, 3, layout)
+    kinds = [f.kind for f in plan.faults]
+    assert sorted(kinds[: len(FaultKind)]) == sorted(FaultKind)  # every kind once, first
+    for n, fault in enumerate(plan.faults, start=1):
+        assert abs(fault.cycle - n * interval) <= interval // 4
+    assert plan.faults[-1].cycle + interval // 4 <= 100_000
+    assert plan.warmup_cycle == plan.faults[len(FaultKind) - 1].cycle + interval // 2
+    for fault in plan.faults:
+        if fault.kind is FaultKind.MALFORMED_RPDO:
+            assert 0 <= fault.arg < layout.sensor.length
+        elif fault.kind is FaultKind.UNKNOWN_COB_ID:
+            assert fault.arg in layout.unknown_cob_ids()
+        elif fault.kind in (FaultKind.STALE_SENSOR, FaultKind.NMT_STOP_START):
+            assert 1 <= fault.arg <= 5
+
+
+def test_fault_plan_refuses_overlapping_episodes_and_handles_short_runs(layout: SoakLayout) -> None:
+    with pytest.raises(ValueError, match="fault interval"):
+        plan_faults(10_000, min_fault_interval(layout) - 1, 1, layout)
+    short = plan_faults(2500, 1000, 1, layout)
+    assert len(short.faults) == 2
+    assert short.warmup_cycle == 1250  # the first round does not fit: half the run
+
+
+# --- Memory -------------------------------------------------------------------------------
+def _samples(
+    rss: list[int], fds: list[int] | None = None, exact: list[int] | None = None
+) -> list[ProcessSample]:
+    fds = fds or [5] * len(rss)
+    exact = exact or rss
+    return [
+        ProcessSample(i * 1000, float(i), r, r // 2, e, f, 0.1 * i)
+        for i, (r, f, e) in enumerate(zip(rss, fds, exact, strict=True))
+    ]
+
+
+def test_memory_flat_after_warmup_passes_even_if_warmup_grew() -> None:
+    verdict = memory_verdict(_samples([9000, 12000, 12288, 12288, 12300]), warmup_cycle=1500, bound_kib=64)
+    assert verdict.ok is True
+    assert (verdict.baseline_cycle, verdict.rss_warmup_kib, verdict.rss_end_kib) == (2000, 12288, 12300)
+    assert verdict.growth_kib == 12 and verdict.rss_start_kib == 9000
+
+
+def test_memory_growth_beyond_the_bound_fails() -> None:
+    verdict = memory_verdict(_samples([12000, 12000, 12040, 12080]), warmup_cycle=0, bound_kib=64)
+    assert verdict.ok is False
+    assert "VmRSS grew 80 KiB after warm-up, bound 64 KiB" in verdict.reason
+
+
+def test_memory_exact_rss_growth_fails_even_when_vmrss_lags() -> None:
+    verdict = memory_verdict(
+        _samples([12000, 12000, 12000], exact=[12000, 12100, 12200]), warmup_cycle=0, bound_kib=64
+    )
+    assert verdict.ok is False and "exact Rss grew 200 KiB" in verdict.reason
+
+
+def test_memory_fd_change_fails() -> None:
+    verdict = memory_verdict(_samples([12000] * 4, fds=[5, 5, 6, 5]), warmup_cycle=0, bound_kib=64)
+    assert verdict.ok is False
+    assert "open fds went from 5 to 6 at cycle 2000" in verdict.reason
+
+
+def test_memory_without_two_samples_after_warmup_is_inconclusive() -> None:
+    verdict = memory_verdict(_samples([12000, 12000, 12000]), warmup_cycle=2000, bound_kib=64)
+    assert verdict.ok is None and "inconclusive" in verdict.reason
+    assert memory_verdict([], warmup_cycle=0, bound_kib=64).ok is None
+
+
+def test_thin_keeps_first_and_last() -> None:
+    assert thin(list(range(10)), 20) == list(range(10))
+    thinned = thin(list(range(1001)), 5)
+    assert thinned == [0, 250, 500, 750, 1000]
+
+
+# --- The firmware's stop line -------------------------------------------------------------
+def test_stop_line_parses_and_compares() -> None:
+    line, counters = parse_stop_line("joint-firmware: node 16 ...\n" + STOP_LINE + "\n")
+    assert line == STOP_LINE
+    assert counters["cycles"] == 3000 and counters["frames received"] == 9001
+    assert counters["RPDO length errors"] == 1 and counters["board refused writes"] == 0
+    tally = Tally(
+        syncs_operational=3000, frames_sent=9001, ignored_expected=2, length_errors=1,
+        tpdos_received=21300, emcy_received=4,
+    )  # fmt: skip
+    assert compare_counters(tally.expected_counters(), counters) == []
+    tally.frames_sent += 1
+    assert compare_counters(tally.expected_counters(), counters) == [
+        "firmware: frames received 9001, expected 9002"
+    ]
+    assert parse_stop_line("crashed") is None
+    assert compare_counters({"EMCY": 0}, {}) == ["firmware stop line has no 'EMCY' counter"]
+
+
+# --- The driver against a fake firmware ---------------------------------------------------
+class FakeFirmware:
+    """Answers like joint-firmware in lockstep mode, synchronously, frame by frame: NMT, one
+    cycle per SYNC with the TPDOs due, RPDO length errors, encoder staleness latched in
+    fault_flags and cleared by fault_clear, expedited SDO, and the stop line's counters.
+
+    Misbehaviour on request: `drop` leaves one TPDO out at a cycle, `extra` sends one that is
+    not due, `answer_while_stopped`
+    answers SYNCs in NMT stopped, `stale_limit` latches at another count than the EDS says."""
+
+    def __init__(
+        self,
+        layout: SoakLayout,
+        *,
+        drop: tuple[int, int] | None = None,
+        extra: tuple[int, int] | None = None,
+        answer_while_stopped: bool = False,
+        stale_limit: int | None = None,
+    ) -> None:
+        self.layout = layout
+        self.drop = drop  # (cycle, TPDO number)
+        self.extra = extra  # (cycle, TPDO number): sent although not due
+        self.answer_while_stopped = answer_while_stopped
+        self.stale_limit = stale_limit if stale_limit is not None else layout.encoder_stale_cycles
+        self.out: deque[bytes] = deque([can_frame(layout.heartbeat_cob_id, b"\x00")])
+        self.state = "pre-operational"
+        self.cycle = 0
+        self.sync_number = 0
+        self.counters: Counter[str] = Counter()
+        self.sensor_pending = False
+        self.last_sensor_cycle = 0
+        self.flags = 0
+        self.clear_requested = False
+        self.length_error = False
+        self.objects = {(o.index, o.subindex): o.expected for o in layout.sdo_reads}
+
+    # The FrameLink the driver talks to.
+    def send(self, frame: bytes) -> int:
+        self.counters["frames received"] += 1
+        self._process(*parse_frame(frame))
+        return len(frame)
+
+    def recv(self, size: int) -> bytes:
+        if not self.out:
+            raise TimeoutError("nothing more from the fake")
+        return self.out.popleft()
+
+    def stop_line(self) -> str:
+        c = self.counters
+        return (
+            f"joint-firmware: stopped after {self.cycle} cycles; overruns 0; frames received "
+            f"{c['frames received']}, ignored {c['ignored']}, malformed 0, SDO aborts 0, RPDO length errors "
+            f"{c['RPDO length errors']}, TPDOs sent {c['TPDOs sent']}, EMCY {c['EMCY']}, send failures 0, "
+            "bus error frames 0, board refused writes 0"
+        )
+
+    def _emit(self, cob_id: int, data: bytes) -> None:
+        self.out.append(can_frame(cob_id, data))
+
+    def _emcy(self, code: int, about: int) -> None:
+        self.counters["EMCY"] += 1
+        self._emit(self.layout.emcy_cob_id, struct.pack("<HBH3x", code, 1 if code else 0, about))
+
+    def _process(self, cob_id: int, data: bytes) -> None:
+        layout = self.layout
+        if cob_id == 0:
+            if data[1] == layout.node_id:
+                self.state = {1: "operational", 2: "stopped"}[data[0]]
+                self.sync_number = 0
+            return
+        if self.state == "stopped" and not (cob_id == 0x80 and self.answer_while_stopped):
+            self.counters["ignored"] += 1
+            return
+        if cob_id == 0x80:
+            self._sync()
+        elif cob_id == layout.sensor.cob_id:
+            if len(data) < layout.sensor.length:
+                self.counters["RPDO length errors"] += 1
+                if not self.length_error:
+                    self._emcy(EMCY_PDO_LENGTH, RPDO_COMMUNICATION_BASE + layout.sensor.number - 1)
+                self.length_error = True
+                return
+            if self.length_error:
+                self._emcy(EMCY_ERROR_RESET, 0)
+                self.length_error = False
+            self.sensor_pending = True
+        elif cob_id == layout.setpoint.cob_id:
+            pass
+        elif cob_id == layout.sdo_request_cob_id:
+            self._sdo(data)
+        else:
+            self.counters["ignored"] += 1
+
+    def _sync(self) -> None:
+        self.cycle += 1
+        if self.sensor_pending:
+            self.last_sensor_cycle = self.cycle
+            self.sensor_pending = False
+        causes = STALE_ENCODER_FLAGS if self.cycle - self.last_sensor_cycle >= self.stale_limit else 0
+        if self.clear_requested:
+            for _ in range(bin(self.flags & ~causes).count("1")):
+                self._emcy(EMCY_ERROR_RESET, 0)
+            self.flags &= causes
+            self.clear_requested = False
+        for bit, about in enumerate(self.layout.stale_about):
+            if causes & ~self.flags & (1 << bit):
+                self._emcy(EMCY_STALE_SENSOR, about)
+        self.flags |= causes
+        self.sync_number += 1
+        due = self.layout.due_at(self.sync_number)
+        if self.extra is not None and self.extra[0] == self.cycle:
+            due = (*due, next(p for p in self.layout.tpdos if p.number == self.extra[1]))
+        for pdo in due:
+            if self.drop == (self.cycle, pdo.number):
+                continue
+            payload = self.layout.status_bytes(self.flags) if pdo is self.layout.status else bytes(pdo.length)
+            self.counters["TPDOs sent"] += 1
+            self._emit(pdo.cob_id, payload)
+
+    def _sdo(self, data: bytes) -> None:
+        command, index, subindex = struct.unpack_from("<BHB", data)
+        if command == 0x40:
+            value = self.objects[(index, subindex)]
+            answer = struct.pack("<BHB", 0x43 | ((4 - len(value)) << 2), index, subindex) + value.ljust(
+                4, b"\0"
+            )
+        else:
+            size = 4 - ((command >> 2) & 3)
+            self.objects[(index, subindex)] = data[4 : 4 + size]
+            if (index, subindex) == self.layout.fault_clear[:2]:
+                self.clear_requested = True
+            answer = struct.pack("<BHB4x", 0x60, index, subindex)
+        self._emit(self.layout.sdo_response_cob_id, answer)
+
+
+def _flat_probe(cycle: int, elapsed: float) -> ProcessSample:
+    return ProcessSample(cycle, elapsed, 20_000, 8_000, 20_000, 5, cycle * 1e-4)
+
+
+def _run(
+    layout: SoakLayout, fake: FakeFirmware, plan: FaultPlan, cycles: int, **kwargs
+) -> tuple[SoakDriver, dict[str, int]]:
+    driver = SoakDriver(fake, layout, plan, probe=_flat_probe, sample_every=100, **kwargs)
+    driver.start()
+    driver.run(cycles)
+    driver.finish()
+    _, counters = parse_stop_line(fake.stop_line())
+    return driver, counters
+
+
+def test_clean_run_against_the_fake_passes_every_check(layout: SoakLayout) -> None:
+    plan = plan_faults(3000, 200, 5, layout)
+    fake = FakeFirmware(layout)
+    driver, counters = _run(layout, fake, plan, 3000)
+    assert driver.problems == [] and driver.lost == []
+    assert driver.cycle == 3000 == fake.cycle
+    assert compare_counters(driver.tally.expected_counters(), counters) == []
+    assert sum(driver.faults_done.values()) == len(plan.faults) == 14
+    assert set(driver.faults_done) == {k.value for k in FaultKind}
+    assert driver.tally.syncs_stopped > 0 and driver.tally.length_errors > 0
+    assert [s.cycle for s in driver.samples][:3] == [0, 100, 200] and driver.samples[-1].cycle == 3000
+    codes = Counter(code for _, code, _ in driver.emcy_log)
+    stale, malformed = driver.faults_done["stale_sensor"], driver.faults_done["malformed_rpdo"]
+    assert codes == {
+        EMCY_STALE_SENSOR: 2 * stale,
+        EMCY_PDO_LENGTH: malformed,
+        EMCY_ERROR_RESET: 2 * stale + malformed,
+    }
+
+
+def test_a_missing_tpdo_is_a_lost_cycle_and_the_run_goes_on(layout: SoakLayout) -> None:
+    fake = FakeFirmware(layout, drop=(57, 3))
+    driver, counters = _run(layout, fake, FaultPlan((), 0, 0, 1000), 200)
+    assert [(c.cycle, c.missing) for c in driver.lost] == [(57, ("TPDO3 (0x390)",))]
+    assert driver.cycle == 200 and compare_counters(driver.tally.expected_counters(), counters) == []
+    assert "cycle 57: lost: TPDO3 (0x390) did not arrive" in driver.problems[0]
+
+
+def test_a_tpdo_that_is_not_due_is_a_problem_not_a_lost_cycle(layout: SoakLayout) -> None:
+    driver, counters = _run(layout, FakeFirmware(layout, extra=(33, 8)), FaultPlan((), 0, 0, 1000), 100)
+    assert driver.lost == []
+    # It trails cycle 33's due frames, so it is read while waiting for cycle 34's.
+    assert driver.problems == ["cycle 34: TPDO8 (0x4D0) arrived but is not due at SYNC 34 since operational"]
+    assert compare_counters(driver.tally.expected_counters(), counters) == []
+
+
+def test_tpdos_answered_while_stopped_are_caught(layout: SoakLayout) -> None:
+    plan = FaultPlan((PlannedFault(50, FaultKind.NMT_STOP_START, 2),), 0, 0, 1000)
+    driver, _ = _run(layout, FakeFirmware(layout, answer_while_stopped=True), plan, 100)
+    assert any("arrived between SYNCs" in p for p in driver.problems), driver.problems
+
+
+def test_a_latch_at_the_wrong_cycle_is_caught(layout: SoakLayout) -> None:
+    plan = FaultPlan((PlannedFault(50, FaultKind.STALE_SENSOR, 2),), 0, 0, 1000)
+    driver, _ = _run(layout, FakeFirmware(layout, stale_limit=layout.encoder_stale_cycles + 1), plan, 100)
+    assert (
+        driver.problems
+        and "TPDO6 (0x2D0): expected {'safe_state': 1.0, 'fault_flags': 3.0}" in (driver.problems[0])
+    )
+
+
+def test_a_wrong_sdo_answer_is_caught(layout: SoakLayout) -> None:
+    fake = FakeFirmware(layout)
+    vendor = layout.sdo_reads[0]
+    fake.objects[(vendor.index, vendor.subindex)] = b"\x01\x02\x03\x04"
+    plan = FaultPlan((PlannedFault(20, FaultKind.SDO_UPLOAD, 0),), 0, 0, 1000)
+    driver = SoakDriver(fake, layout, plan)
+    driver.start()
+    driver.run(30)
+    assert driver.problems == ["cycle 19: SDO upload vendor id 0x1018:1: expected 004c4948, got 01020304"]
+
+
+def test_stop_request_ends_the_run_early(layout: SoakLayout) -> None:
+    fake = FakeFirmware(layout)
+    driver = SoakDriver(fake, layout, FaultPlan((), 0, 0, 1000), stop_requested=lambda: True)
+    driver.start()
+    driver.run(10_000)
+    assert driver.stopped_by_request and driver.cycle == 256
+
+
+def _args(**overrides) -> argparse.Namespace:
+    values = {
+        "cycles": 300,
+        "sample_every": 100,
+        "rss_bound_kib": 64,
+        "pin": False,
+        "cpu": 0,
+        "period_us": 1000,
+        "thp": "left as the system has it",
+    }
+    return argparse.Namespace(**(values | overrides))
+
+
+def test_report_verdicts(layout: SoakLayout, tmp_path: Path) -> None:
+    fake = FakeFirmware(layout, drop=(99, 1))
+    plan = FaultPlan((), 0, 0, 1000)
+    driver, counters = _run(layout, fake, plan, 300)
+    firmware = {"stop_line": fake.stop_line(), "counters": counters}
+    common = {
+        "plan": plan,
+        "error": None,
+        "bus": {},
+        "started_wall": 0.0,
+        "duration_s": 5.0,
+        "cycling_s": 3.0,
+        "driver_cpu_s": 1.0,
+    }
+    report = build_report(args=_args(), driver=driver, status=RunStatus.PASSED, firmware=firmware, **common)
+    assert report["status"] == "failed" and report["lost_cycles"] == 1
+    assert report["failures"] == ["1 lost cycle(s)", "1 check(s) failed"]
+    assert report["memory"]["ok"] is True and report["memory"]["rss_end_kib"] == 20_000
+    assert report["rate_cycles_per_s"] == 100.0
+
+    clean, counters = _run(layout, FakeFirmware(layout), plan, 300)
+    firmware = {"stop_line": "...", "counters": counters}
+    report = build_report(
+        args=_args(), driver=clean, status=RunStatus.INTERRUPTED, firmware=firmware, **common
+    )
+    assert report["status"] == "interrupted" and report["failures"] == []
+    counters["cycles"] += 1
+    report = build_report(args=_args(), driver=clean, status=RunStatus.PASSED, firmware=firmware, **common)
+    assert report["failures"] == ["firmware counters disagree: firmware: cycles 301, expected 300"]
+
+    path = tmp_path / "soak" / "report.json"
+    write_json_atomic(path, report)
+    assert json.loads(path.read_text())["cycles"] == 300
+    assert [p.name for p in path.parent.iterdir()] == ["report.json"]
