@@ -82,6 +82,20 @@ def write_json_atomically(path: Path, data: Any) -> None:
         raise
 
 
+def _sdo_turnarounds(spy: Any) -> dict[int, list[float]]:
+    """Per node id: seconds from each SDO request to the node's next answer, both stamped by
+    the kernel on receipt (the spy socket saw both)."""
+    pending: dict[int, float] = {}
+    turnaround: dict[int, list[float]] = {FIRMWARE_NODE_ID: [], LOCAL_NODE_ID: []}
+    while (message := spy.recv(timeout=0.5)) is not None:
+        node = message.arbitration_id & 0x7F
+        if message.arbitration_id & 0x780 == 0x600:
+            pending[node] = message.timestamp
+        elif node in pending and node in turnaround:
+            turnaround[node].append(message.timestamp - pending.pop(node))
+    return turnaround
+
+
 def percentile(values: Sequence[float], q: float) -> float:
     ordered = sorted(values)
     if not ordered:
@@ -328,7 +342,16 @@ class BusBench:
             ready = server.stdout.readline() if server.stdout else ""
             if ready.strip() != "ready":
                 raise RuntimeError(f"LocalNode server did not start (said {ready!r})")
-            with self.bus.open() as can_bus, self.firmware("sdo") as fw:
+            with self.bus.open() as can_bus, self.bus.open() as spy, self.firmware("sdo") as fw:
+                # A listener of its own: kernel receive timestamps of every request and answer
+                # give each server's turnaround without the Python client's share.
+                spy.set_filters(
+                    [
+                        {"can_id": base + n, "can_mask": 0x7FF}
+                        for base in (0x580, 0x600)
+                        for n in (FIRMWARE_NODE_ID, LOCAL_NODE_ID)
+                    ]
+                )
                 network = canopen.Network(can_bus)
                 network.connect()
                 try:
@@ -353,6 +376,7 @@ class BusBench:
                                 times[name].append(elapsed)
                 finally:
                     network.disconnect()
+                turnaround = _sdo_turnarounds(spy)
         finally:
             if server.stdin:
                 server.stdin.close()
@@ -369,7 +393,13 @@ class BusBench:
                 "n": len(values),
             }
             for name, values in times.items()
-        } | {"object": f"{SDO_OBJECT} 0x{entry.index:04X} sub {entry.subindex}"}
+        } | {
+            "object": f"{SDO_OBJECT} 0x{entry.index:04X} sub {entry.subindex}",
+            "turnaround_median_us": {
+                name: statistics.median(turnaround[node_id]) * 1e6 if turnaround[node_id] else None
+                for name, node_id in (("firmware", FIRMWARE_NODE_ID), ("local_node", LOCAL_NODE_ID))
+            },
+        }
 
     @staticmethod
     def _wait_sdo(node: Any, index: int, subindex: int, check: Callable[[], None] | None) -> None:
@@ -609,6 +639,14 @@ def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> 
         ratio >= 3.0,
         **sdo,
     )
+    served = sdo.get("turnaround_median_us") or {}
+    if served.get("firmware") and served.get("local_node"):
+        row(
+            "SDO server turnaround median (kernel timestamps)",
+            f"{served['firmware']:.0f} us",
+            f"{served['local_node']:.0f} us",
+            _ratio(served["local_node"], served["firmware"]),
+        )
     ns = native["board_bench_ns"]
     for what, ours, base, base_name in (
         ("board get (vs raw array)", "BM_Get_MessageBoard", "BM_Get_RawArray", "raw"),
