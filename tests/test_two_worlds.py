@@ -110,7 +110,11 @@ def test_velocity_hold_lockstep(make_scenario) -> None:
 
 # --- Real time -----------------------------------------------------------------------------------
 @pytest.mark.slow
-@pytest.mark.realtime
+# Not in `make test`: inside the software-emulated VM the rig cannot keep its 20 ms tick when the
+# machine is shared (median tick 60 ms with a second VM running), and the loop's tracking then
+# depends on the load: 1.97, 2.10, 2.12 rad/s in quiet runs, 2.83 with a second VM (CI-like run).
+# Run it where real time is real: a host with vcan (`-m realtime_physics`), or a real board.
+@pytest.mark.realtime_physics
 def test_velocity_hold_realtime(make_scenario) -> None:
     s = make_scenario(mode="realtime")
     # The loop's gains, tuned for the latency of this world as one tunes them for a real board:
