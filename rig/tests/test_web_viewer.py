@@ -203,10 +203,14 @@ def wait_until_listening(port: int, process: ViewerProcess) -> None:
             socket.create_connection(("127.0.0.1", port), timeout=1).close()
             return
         except OSError:
-            returncode = process.poll()
+            # Between attempts, wait on the viewer process itself: a viewer that dies ends the
+            # wait at once instead of after a blind pause.
+            try:
+                returncode: int | None = process.wait(timeout=0.1)
+            except subprocess.TimeoutExpired:
+                returncode = None
             assert returncode is None, f"the viewer exited with {returncode} before serving port {port}"
             assert time.monotonic() < deadline, f"Expected the viewer on port {port} within {WAIT_S:.0f} s"
-            time.sleep(0.1)
 
 
 @pytest.fixture
