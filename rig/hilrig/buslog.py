@@ -21,6 +21,7 @@ from hilrig.table import RigTable
 
 if TYPE_CHECKING:
     import can
+    import cantools.database
 
 LOG_FORMATS = (".log", ".blf", ".asc", ".csv", ".trc")
 
@@ -83,4 +84,28 @@ def master_side(messages: Iterator[can.Message], table: RigTable, node_id: int) 
             yield message
 
 
-__all__ = ["LOG_FORMATS", "BusRecorder", "master_side", "node_cob_ids", "partial_path", "whole_file_logger"]
+class NodeDbc:
+    """The generated DBC read for node `node_id`: the DBC holds the default node's COB-IDs,
+    a board at another node id sends the same messages shifted by the difference."""
+
+    def __init__(self, database: cantools.database.can.Database, table: RigTable, node_id: int) -> None:
+        self.database = database
+        self._offset = node_id - table.board.node.default_node_id
+
+    def message(self, cob_id: int) -> cantools.database.can.Message | None:
+        """The DBC message a frame on `cob_id` carries, or None (not a PDO of this node)."""
+        try:
+            return self.database.get_message_by_frame_id(cob_id - self._offset)
+        except KeyError:
+            return None
+
+
+__all__ = [
+    "LOG_FORMATS",
+    "BusRecorder",
+    "NodeDbc",
+    "master_side",
+    "node_cob_ids",
+    "partial_path",
+    "whole_file_logger",
+]

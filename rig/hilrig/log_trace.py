@@ -19,8 +19,8 @@ from hilrig.table import RigTable
 
 if TYPE_CHECKING:
     import can
-    import cantools.database
 
+    from hilrig.buslog import NodeDbc
     from hilrig.trace import Tracer
 
 Value = float | int
@@ -40,7 +40,7 @@ class LogTraceStats:
 
 def trace_log(
     messages: Iterable[can.Message],
-    database: cantools.database.can.Database,
+    dbc: NodeDbc,
     table: RigTable,
     node_id: int,
     tracer: Tracer,
@@ -51,7 +51,6 @@ def trace_log(
     from hilrig.trace import EMCY_PATH, Severity
 
     stats = LogTraceStats()
-    offset = node_id - table.board.node.default_node_id  # the DBC holds the default node's COB-IDs
     tpdo_ids = {pdo.cob_id(node_id) for pdo in table.board.tpdos}
     emcy_id, sdo_answer_id, heartbeat_id = 0x080 + node_id, 0x580 + node_id, 0x700 + node_id
     cycle = -1  # index of the open cycle (the last SYNC seen); -1 before the first SYNC
@@ -106,9 +105,8 @@ def trace_log(
                 tracer.log_nmt(state, t, cycle=at_cycle, source="heartbeat in the log")
                 stats.events += 1
             continue
-        try:
-            dbc_message = database.get_message_by_frame_id(cob_id - offset)
-        except KeyError:
+        dbc_message = dbc.message(cob_id)
+        if dbc_message is None:
             continue
         try:
             values = dbc_message.decode(data, decode_choices=False, scaling=True)

@@ -140,6 +140,17 @@ class PdoDirection(enum.StrEnum):
     TPDO = "TPDO"
 
 
+def due_at_sync(transmission_type: int, sync_number: int) -> bool:
+    """True when a cyclic synchronous TPDO (type n = 1..240) is sent at this SYNC.
+
+    sync_number counts SYNCs since the node entered operational (1 = first): the node counts
+    SYNCs per PDO from that moment and sends at every n-th. Type 0 (acyclic, only on change)
+    and event-driven types are never *due*.
+    """
+    n = transmission_type
+    return 1 <= n <= LAST_SYNCHRONOUS_TYPE and sync_number % n == 0
+
+
 @dataclass(frozen=True)
 class PdoLayout:
     """One PDO as configured in the node: what it carries and when it is sent."""
@@ -161,14 +172,8 @@ class PdoLayout:
         return self.transmission_type <= LAST_SYNCHRONOUS_TYPE
 
     def due_at_sync(self, sync_number: int) -> bool:
-        """True when a cyclic synchronous TPDO (type n = 1..240) is sent at this SYNC.
-
-        sync_number counts SYNCs since the node entered operational (1 = first): the node
-        counts SYNCs per PDO from that moment and sends at every n-th. Type 0 (acyclic, only
-        on change) and event-driven types are never *due*.
-        """
-        n = self.transmission_type
-        return self.enabled and 1 <= n <= LAST_SYNCHRONOUS_TYPE and sync_number % n == 0
+        """True when this TPDO is enabled and due at this SYNC (`due_at_sync`)."""
+        return self.enabled and due_at_sync(self.transmission_type, sync_number)
 
 
 @dataclass(frozen=True)

@@ -80,7 +80,7 @@ from hilrig.errors import PdoMappingError, RigError
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.lockstep import SETPOINT_STREAM
 from hilrig.netns import PrivateBus, private_buses_supported
-from hilrig.node import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtCommand
+from hilrig.node import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtCommand, due_at_sync
 from hilrig.physics import JointParams, thermistor_adc
 from hilrig.table import RigTable
 
@@ -276,7 +276,7 @@ class SoakLayout:
 
     def due_at(self, sync_number: int) -> tuple[PdoSpec, ...]:
         """TPDOs due at the sync_number-th SYNC since the node entered operational (1 = first)."""
-        return tuple(p for p in self.tpdos if sync_number % p.transmission_type == 0)
+        return tuple(p for p in self.tpdos if due_at_sync(p.transmission_type, sync_number))
 
     def status_bytes(self, fault_flags: int) -> bytes:
         """The status TPDO's payload for a latched fault mask (safe_state follows it)."""

@@ -19,7 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hilrig.buslog import LOG_FORMATS, master_side, partial_path, whole_file_logger
+from hilrig.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, whole_file_logger
 from hilrig.cli.common import (
     DEFAULT_DBC,
     Command,
@@ -275,7 +275,12 @@ def _trace(args: argparse.Namespace) -> int:
     reader = can.LogReader(str(args.file))
     try:
         stats = trace_log(
-            reader, database, table, node, tracer, progress=lambda n: progress(f"replay: {n} frames traced")
+            reader,
+            NodeDbc(database, table, node),
+            table,
+            node,
+            tracer,
+            progress=lambda n: progress(f"replay: {n} frames traced"),
         )
     finally:
         reader.stop()
@@ -325,7 +330,7 @@ def _decode(args: argparse.Namespace) -> int:
         check_names(table, args.field)
     database: cantools.database.can.Database = cantools.database.load_file(str(args.dbc))
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
-    offset = node - table.board.node.default_node_id  # the DBC holds the default node's COB-IDs
+    dbc = NodeDbc(database, table, node)
     units = {e.name: format_unit(e.unit) for e in table.board.entries}
     wanted = set(args.field or ())
     first: float | None = None
@@ -338,10 +343,7 @@ def _decode(args: argparse.Namespace) -> int:
             first = message.timestamp if first is None else first
             data = bytes(message.data)
             text = ""
-            try:
-                dbc_message = database.get_message_by_frame_id(message.arbitration_id - offset)
-            except KeyError:
-                dbc_message = None
+            dbc_message = dbc.message(message.arbitration_id)
             if dbc_message is not None and not message.is_extended_id:
                 try:
                     values = dbc_message.decode(data, decode_choices=False)
