@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass, field
-from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +41,7 @@ class Trace:
                     trace.series_names[path_] = columns["SeriesLines:names"][0][0]
                 continue
             trace.cycles[path_] += columns.get("cycle", [])
-            trace.times[path_] += [d / timedelta(seconds=1) for d in columns.get("sim_time", [])]
+            trace.times[path_] += [ns / 1e9 for ns in columns.get("sim_time", [])]
             trace.times[path_] += [ns / 1e9 for ns in columns.get("wall_time", [])]  # Unix seconds
             for values in columns.get("Scalars:scalars", []):
                 trace.scalars[path_].append(values[0])
@@ -60,11 +59,19 @@ class Trace:
 
 
 def _columns(batch: Any) -> dict[str, list[Any]]:
-    """A record batch as lists; timestamps (the wall_time timeline, nanoseconds) as integers,
-    since Python's datetime cannot hold nanoseconds."""
+    """A record batch as lists; timestamps (the wall_time timeline) and durations (sim_time)
+    as integer nanoseconds, since Python's datetime and timedelta cannot hold nanoseconds (a
+    real-time run stamps its ticks to the nanosecond)."""
     import pyarrow as pa
 
+    def nanoseconds(column: Any) -> Any:
+        if pa.types.is_timestamp(column.type):
+            return column.cast(pa.timestamp("ns")).cast(pa.int64())
+        if pa.types.is_duration(column.type):
+            return column.cast(pa.duration("ns")).cast(pa.int64())
+        return column
+
     return {
-        name: (column.cast(pa.int64()) if pa.types.is_timestamp(column.type) else column).to_pylist()
+        name: nanoseconds(column).to_pylist()
         for name, column in zip(batch.schema.names, batch.columns, strict=True)
     }

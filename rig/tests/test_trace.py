@@ -219,3 +219,18 @@ def _views(container: object) -> Iterator[object]:
             yield part
         else:
             yield from _views(part)
+
+
+def test_real_time_stamps_read_back_to_the_nanosecond(tmp_path: Path, table: RigTable) -> None:
+    # A real-time tick lands at any nanosecond (21.595240 ms here), which Python's timedelta
+    # cannot hold: the reader must still give it back.
+    path = tmp_path / "realtime.rrd"
+    tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=1, background=False)
+    ticks = [0.0, 0.021595240, 0.083000017]
+    for cycle, t in enumerate(ticks):
+        tracer.log_cycle(cycle, t, {"motor_duty_command": 0.1 * cycle}, {}, None)
+    tracer.close()
+    trace = Trace.read(path)
+    [duty_path] = [p for p in trace.scalars if p.endswith("/motor_duty_command")]
+    assert trace.times[duty_path] == pytest.approx(ticks, abs=1e-9)
+    assert trace.scalars[duty_path] == pytest.approx([0.0, 0.1, 0.2])
