@@ -8,6 +8,7 @@ simulation time and cycle, and the paths of the scenario's trace and bus log:
     expect.settles_within("output_velocity", target=5.0, tolerance=0.02, by_s=1.5)
     expect.overshoot_below("output_velocity", target=5.0, limit=0.25, after_s=0.5)
     expect.stays_within("motor_duty_command", -0.95, 0.95)
+    expect.average_rate_within("output_position", target=2.0, tolerance=0.15, after_s=2.0)
     t = expect.eventually("safe_state", lambda v: v == 1, "safe_state == 1")
     expect.never("fault_flags", lambda v: v != 0, "a fault")
 """
@@ -95,6 +96,30 @@ class Expect:
             raise self._fail(
                 f"{name}: expected within [{low:g}, {high:g}], got {v[i]:.4g} at {self._at(t[i])}"
             )
+
+    def average_rate_within(
+        self, name: str, *, target: float, tolerance: float, after_s: float = 0.0
+    ) -> float:
+        """The average rate of change of `name` after `after_s` (the least-squares slope against
+        time, per second) is within `tolerance` (a fraction of |target|) of `target`. Returns it.
+
+        Made for real time: a position's slope over a long window is immune to the jitter of
+        when each sample was taken and received, which a velocity estimate carries."""
+        t, v = self._series(name, after_s)
+        if t.size < 2 or t[-1] - t[0] <= 0.0:
+            raise self._fail(
+                f"{name}: expected samples spread over time after t = {after_s:.3f} s to take a rate "
+                f"from, got {t.size} at {self._at(t[0])}"
+            )
+        rate = float(np.polyfit(t, v, 1)[0])
+        band = abs(target) * tolerance
+        if not abs(rate - target) <= band:
+            raise self._fail(
+                f"{name}: expected to change at {target:g}/s on average within {tolerance:.1%} (±{band:g}), "
+                f"got {rate:.4g}/s (least-squares slope of {t.size} samples from t = {t[0]:.3f} s to "
+                f"{self._at(t[-1])})"
+            )
+        return rate
 
     def eventually(
         self,
