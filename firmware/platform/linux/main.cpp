@@ -26,6 +26,7 @@
 #include "SocketCanPort.hpp"
 #include "board/fields.hpp"
 #include "canopen/Node.hpp"
+#include "core/CycleCounter.hpp"
 #include "core/MessageBoard.hpp"
 #include "core/MessageBoardUser.hpp"
 #include "core/Scheduler.hpp"
@@ -317,10 +318,9 @@ int run(const Options& options) {
                : node.parameter_load() == co::ParameterLoad::Rejected    ? "REJECTED: corrupt, defaults used"
                                                                          : "defaults");
 
-  std::uint32_t cycle = 0;
-  std::uint64_t overruns = 0;
-  auto run_cycle = [&] {
-    scheduler.run_cycle(++cycle);
+  core::CycleCounter cycles;
+  auto run_cycle = [&](std::uint64_t periods) {
+    scheduler.run_cycle(cycles.advance(periods));
     fault_emcy.after_cycle(board);
   };
 
@@ -340,15 +340,14 @@ int run(const Options& options) {
     if (timer_fd >= 0 && (fds[2].revents & POLLIN) != 0) {
       std::uint64_t expirations = 0;
       if (::read(timer_fd, &expirations, sizeof(expirations)) == sizeof(expirations) && expirations > 0) {
-        overruns += expirations - 1;  // deadlines missed while the last cycle ran
-        run_cycle();
+        run_cycle(expirations);  // deadlines missed while the last cycle ran still count as time
       }
     }
     co::CanFrame frame;
     while (port.receive(frame) == co::ReceiveResult::Received) {
       const co::ProcessResult result = node.process(frame, now_us());
       if (result.sync) {
-        if (options.mode == Mode::Lockstep) run_cycle();
+        if (options.mode == Mode::Lockstep) run_cycle(1);
         node.transmit_synchronous_pdos(now_us());
       }
     }
@@ -357,10 +356,11 @@ int run(const Options& options) {
 
   const co::NodeCounters& counters = node.counters();
   std::fprintf(stderr,
-               "joint-firmware: stopped after %u cycles; overruns %llu; frames received %u, ignored %u, "
+               "joint-firmware: stopped after %llu cycles; overruns %llu; frames received %u, ignored %u, "
                "malformed %u, SDO aborts %u, RPDO length errors %u, TPDOs sent %u, EMCY %u, send failures %u, "
                "bus error frames %u, board refused writes %u\n",
-               cycle, static_cast<unsigned long long>(overruns), counters.frames_received,
+               static_cast<unsigned long long>(cycles.run()), static_cast<unsigned long long>(cycles.skipped()),
+               counters.frames_received,
                counters.frames_ignored, counters.frames_malformed, counters.sdo_aborts_sent,
                counters.rpdo_length_errors, counters.tpdos_sent, counters.emcy_sent, counters.send_failures,
                port.counters().error_frames, board.total_refused_writes());
