@@ -9,6 +9,7 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import can
 import canopen
@@ -27,12 +28,17 @@ EDS = REPO / "build" / "protocol" / "board.eds"
 NODE_ID = 0x10
 # A hang guard for start-up inside the software-emulated VM (ASan build), not a timing check.
 BOOT_TIMEOUT_S = 60.0
+# Also a hang guard: the firmware on a private bus always answers, but a machine shared with a
+# second emulated VM has left it unscheduled for over 2 s (1 s and one retry: SdoTimeoutError).
+SCENARIO_SDO_TIMEOUT_S = 5.0
 # Real-time scenarios (make_scenario(mode="realtime")): the firmware runs free at 100 Hz and the
-# rig ticks at 50 Hz. Neither keeps 1 kHz inside the software-emulated VM under the parallel
-# scenarios (measured there: the ASan firmware missed over half of its 5 ms deadlines, and the
-# plant's physics alone costs about as much as wall time); a real board keeps its own period.
+# rig ticks at 20 Hz. Neither keeps 1 kHz inside the software-emulated VM (measured there: the
+# ASan firmware missed over half of its 5 ms deadlines). The rig's period is what leaves its
+# receive thread time to keep up: at 50 Hz its ticks ran back to back (a tick costs 20 to 80 ms
+# in the VM), the TPDOs it took in fell up to 0.5 s behind the bus (bus log against the rig's
+# history), and the plant got the firmware's duty that late. A real board keeps its own period.
 REALTIME_FIRMWARE_PERIOD_US = 10_000
-REALTIME_RIG_PERIOD_US = 20_000
+REALTIME_RIG_PERIOD_US = 50_000
 FIRMWARE_MODE = {"lockstep": "lockstep", "realtime": "free"}
 
 
@@ -245,38 +251,19 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
         )
         firmware.start()
         opened.append(firmware.stop)
-        table = RigTable.load()
-        tracer = None
-        if trace:
-            from hilrig.trace import Tracer  # rerun is slow to import: only when tracing
-
-            tracer = Tracer.for_scenario(run_dir, table)
-            opened.append(tracer.close)
-        bus = private_bus.open()
-        opened.append(bus.shutdown)
-        rig = Rig(
-            bus,
-            table=table,
+        return _start_scenario(
+            request,
+            run_dir,
+            opened,
+            private_bus.open(),
+            firmware=firmware,
+            trace=trace,
+            sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
             params=params,
             seed=seed,
-            liveness=firmware.check,
-            tracer=tracer,
-            boot_timeout_s=BOOT_TIMEOUT_S,
-            eds=EDS,
             mode=mode,
             physics=physics,
             period_us=REALTIME_RIG_PERIOD_US if realtime else 1000,
-        )
-        opened.append(rig.close)
-        rig.start()
-        request.node.hil_evidence = _evidence(run_dir, trace)
-        return Scenario(
-            rig=rig,
-            expect=Expect(rig, evidence=request.node.hil_evidence),
-            firmware=firmware,
-            trace=run_dir / "trace.rrd" if trace else None,
-            bus_log=run_dir / "bus.log",
-            close=lambda: _close_all(opened),
         )
 
     yield make
@@ -307,6 +294,45 @@ def _real_board_scenario(
         bus = can.Bus(interface=interface, channel=channel, **({"bitrate": bitrate} if bitrate else {}))
     except (can.CanError, OSError, ValueError, ImportError) as error:
         pytest.fail(f"cannot open {interface} channel {channel}: {error}", pytrace=False)
+    node_id = config.getoption("hil_node_id")
+
+    def log_what_the_rig_receives(rig: Rig) -> None:
+        logging = whole_file_logger(run_dir / "bus.log")
+        logger = logging.__enter__()
+        opened.insert(opened.index(rig.close), lambda: logging.__exit__(None, None, None))
+        assert rig.node.network.notifier is not None
+        rig.node.network.notifier.add_listener(logger)  # the rig's receive thread feeds it
+
+    return _start_scenario(
+        request,
+        run_dir,
+        opened,
+        bus,
+        firmware=None,
+        trace=trace,
+        before_start=log_what_the_rig_receives,
+        node_id=node_id if node_id is not None else NODE_ID,
+        params=params,
+        seed=seed,
+        mode=mode,
+        physics=physics and config.getoption("hil_physics"),
+        period_us=REALTIME_RIG_PERIOD_US,
+    )
+
+
+def _start_scenario(
+    request: pytest.FixtureRequest,
+    run_dir: Path,
+    opened: list[Callable[[], object]],
+    bus: can.BusABC,
+    *,
+    firmware: Firmware | None,
+    trace: bool,
+    before_start: Callable[[Rig], None] | None = None,
+    **rig_args: Any,
+) -> Scenario:
+    """The rig on `bus` (closed with the scenario), with a Rerun trace if `trace`, started;
+    `before_start` sees the rig before it talks to the node."""
     opened.append(bus.shutdown)
     table = RigTable.load()
     tracer = None
@@ -315,32 +341,24 @@ def _real_board_scenario(
 
         tracer = Tracer.for_scenario(run_dir, table)
         opened.append(tracer.close)
-    node_id = config.getoption("hil_node_id")
     rig = Rig(
         bus,
         table=table,
-        node_id=node_id if node_id is not None else NODE_ID,
-        params=params,
-        seed=seed,
+        liveness=firmware.check if firmware is not None else None,
         tracer=tracer,
         boot_timeout_s=BOOT_TIMEOUT_S,
         eds=EDS,
-        mode=mode,
-        physics=physics and config.getoption("hil_physics"),
-        period_us=REALTIME_RIG_PERIOD_US,
+        **rig_args,
     )
-    logging = whole_file_logger(run_dir / "bus.log")  # the rig's receive thread feeds it
-    logger = logging.__enter__()
-    opened.append(lambda: logging.__exit__(None, None, None))
     opened.append(rig.close)
-    assert rig.node.network.notifier is not None
-    rig.node.network.notifier.add_listener(logger)
+    if before_start is not None:
+        before_start(rig)
     rig.start()
     request.node.hil_evidence = _evidence(run_dir, trace)
     return Scenario(
         rig=rig,
         expect=Expect(rig, evidence=request.node.hil_evidence),
-        firmware=None,
+        firmware=firmware,
         trace=run_dir / "trace.rrd" if trace else None,
         bus_log=run_dir / "bus.log",
         close=lambda: _close_all(opened),

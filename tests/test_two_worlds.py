@@ -3,15 +3,16 @@
 - lockstep: the firmware in `--mode lockstep`, one cycle per SYNC, exact simulation time (and
   the tight assertions only exact time allows);
 - real time: the firmware in `--mode free` with its own 100 Hz timer and the rig ticking at
-  50 Hz in wall-clock time, the physics stepped by the measured time between ticks, exactly as
+  20 Hz in wall-clock time, the physics stepped by the measured time between ticks, exactly as
   the rig would stand beside a real board (in the software-emulated VM, Python cannot keep
   1 kHz: hence the longer periods, conftest.REALTIME_*_PERIOD_US);
 - a real board: the same real-time tests with `--hil-interface socketcan --hil-channel can0`
   (README, "Pointing a scenario at a real board"); the rig then opens that interface and starts
   no firmware.
 
-The real-time assertions are what wall-clock time on a loaded machine allows: loose bands at
-the end, limits never crossed, no settling times.
+The real-time assertions are what wall-clock time on a loaded machine allows: averages over
+long windows taken from positions (a slope, immune to when each sample was taken), limits never
+crossed, no settling times and no single samples held to a band.
 """
 
 from __future__ import annotations
@@ -29,9 +30,10 @@ pytestmark = pytest.mark.bus
 VELOCITY_MODE = 1.0
 SETPOINT_RAD_S = 2.0
 GEAR_RATIO = JointParams().gear_ratio
-HOLD_S = 1.5
+HOLD_S = 4.0
+AVERAGE_OVER_S = 2.0
 DUTY_LIMIT = 0.95
-REALTIME_KP, REALTIME_KI = 0.05, 0.5
+REALTIME_KP, REALTIME_KI = 0.02, 0.2
 
 
 # --- The scenarios, written once ----------------------------------------------------------------
@@ -60,25 +62,22 @@ def arm(rig: Rig) -> None:
 
 
 def velocity_hold(rig: Rig, expect: Expect) -> float:
-    """Velocity mode, 2 rad/s at the joint, for 1.5 s: over the last 0.5 s the gearbox-side
-    speed (the regulated one) is within 15 % of the target on average, and the duty command
-    stays inside its limits all along. Single samples are not held to the band: in real time
-    each position arrives with the jitter of two unsynchronised clocks, and the firmware's
-    velocity estimate carries it. Returns the mean joint speed over the last 0.5 s [rad/s]."""
+    """Velocity mode, 2 rad/s at the joint, for 4 s: over the last 2 s the joint turns at
+    2 rad/s within 15 % on average (the slope of its position), and the duty command stays
+    inside its limits all along. The average is taken from the position, not from the velocity
+    samples: in real time each position reaches the firmware with the jitter of two
+    unsynchronised clocks, its velocity estimate carries that jitter (seen in the VM: single
+    estimates from -0.6 to 7 rad/s while the joint turned at 2), and a mean of a dozen of those
+    samples was off by up to 41 %; the position's slope over 2 s is not. Returns that slope."""
     arm(rig)
     rig.set("control_mode", VELOCITY_MODE)
     rig.set("velocity_setpoint", SETPOINT_RAD_S)
     start = rig.t
     rig.run(seconds=HOLD_S)
     expect.stays_within("motor_duty_command", -DUTY_LIMIT, DUTY_LIMIT, after_s=start)
-    t, motor = rig.history("motor_velocity")
-    late = motor[t >= rig.t - 0.5]
-    mean = float(np.mean(late) / GEAR_RATIO) if late.size else float("nan")
-    assert abs(mean - SETPOINT_RAD_S) <= 0.15 * SETPOINT_RAD_S, (
-        f"expected the joint speed over the last 0.5 s within 15 % of {SETPOINT_RAD_S} rad/s on "
-        f"average, got {mean:.3f} rad/s ({late.size} samples) at t = {rig.t:.3f} s; {expect.evidence}"
+    return expect.average_rate_within(
+        "output_position", target=SETPOINT_RAD_S, tolerance=0.15, after_s=rig.t - AVERAGE_OVER_S
     )
-    return mean
 
 
 def observe_and_command(rig: Rig, expect: Expect) -> int:
@@ -99,27 +98,29 @@ def observe_and_command(rig: Rig, expect: Expect) -> int:
 def test_velocity_hold_lockstep(make_scenario) -> None:
     s = make_scenario()
     mean = velocity_hold(s.rig, s.expect)
-    # Exact time allows more: the tight band of test_joint, and the exact cycle count.
+    # Exact time allows more: the average within 1 %, the tight band of test_joint on every
+    # sample, and the exact cycle count.
+    s.expect.average_rate_within(
+        "output_position", target=SETPOINT_RAD_S, tolerance=0.01, after_s=s.rig.t - AVERAGE_OVER_S
+    )
     start = s.rig.t - HOLD_S
     s.expect.settles_within(
         "motor_velocity", target=SETPOINT_RAD_S * GEAR_RATIO, tolerance=0.02, by_s=start + 0.5, after_s=start
     )
     assert s.rig.cycle == round((0.3 + HOLD_S) / s.rig.period_s)
-    print(f"\nlockstep: {s.rig.cycle} cycles, joint speed over the last 0.5 s {mean:.3f} rad/s")
+    print(
+        f"\nlockstep: {s.rig.cycle} cycles, joint speed over the last {AVERAGE_OVER_S:g} s {mean:.4f} rad/s"
+    )
 
 
 # --- Real time -----------------------------------------------------------------------------------
 @pytest.mark.slow
-# Not in `make test`: inside the software-emulated VM the rig cannot keep its 20 ms tick when the
-# machine is shared (median tick 60 ms with a second VM running), and the loop's tracking then
-# depends on the load: 1.97, 2.10, 2.12 rad/s in quiet runs, 2.83 with a second VM (CI-like run).
-# Run it where real time is real: a host with vcan (`-m realtime_physics`), or a real board.
-@pytest.mark.realtime_physics
+@pytest.mark.realtime
 def test_velocity_hold_realtime(make_scenario) -> None:
     s = make_scenario(mode="realtime")
     # The loop's gains, tuned for the latency of this world as one tunes them for a real board:
-    # the rig's 20 ms tick, the firmware's 10 ms cycle and their jitter put some 40 ms of
-    # transport delay in the loop, where the 1 kHz gains (kp 0.1, ki 2.0) oscillate.
+    # the rig's 50 ms tick (the plant holds each duty that long), the firmware's 10 ms cycle and
+    # their jitter, where the 1 kHz gains (kp 0.1, ki 2.0) oscillate.
     s.rig.set("velocity_kp", REALTIME_KP)
     s.rig.set("velocity_ki", REALTIME_KI)
     mean = velocity_hold(s.rig, s.expect)
@@ -129,7 +130,7 @@ def test_velocity_hold_realtime(make_scenario) -> None:
         f"\nreal time: {s.rig.cycle} ticks in {s.rig.t:.3f} s (period {s.rig.period_s * 1e3:g} ms), "
         f"tick interval median {np.median(dt) * 1e3:.2f} ms, max {np.max(dt) * 1e3:.1f} ms, "
         f"{s.rig.overruns} ticks missed, plant behind by {s.rig.physics_lost_s:.3f} s; "
-        f"joint speed over the last 0.5 s {mean:.3f} rad/s"
+        f"joint speed over the last {AVERAGE_OVER_S:g} s {mean:.3f} rad/s"
     )
 
 
