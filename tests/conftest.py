@@ -17,7 +17,7 @@ import pytest
 
 from hilrig.buslog import BusRecorder, whole_file_logger
 from hilrig.expect import Expect
-from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
+from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
 from hilrig.netns import PrivateBus, private_buses_supported
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
@@ -385,17 +385,9 @@ def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
             terminalreporter.line(line)
 
 
-_STOP_SUMMARY = re.compile(r"joint-firmware: stopped after (\d+) cycles; (.*)$", re.MULTILINE)
-
-
 def stop_summary(firmware: Firmware) -> dict[str, int]:
     """The counters of the firmware's stop line (printed on SIGTERM), by name:
     {"cycles": 812, "overruns": 0, "frames received": 4100, "ignored": 3, "malformed": 0, ...}."""
-    text = firmware.log_path.read_text(errors="replace")
-    match = _STOP_SUMMARY.search(text)
-    assert match is not None, f"no stop summary in {firmware.log_path}:\n{firmware.log_tail()}"
-    counters = {"cycles": int(match.group(1))}
-    for part in re.split(r"[;,] ", match.group(2)):
-        name, _, value = part.strip().rpartition(" ")
-        counters[name] = int(value)
-    return counters
+    parsed = parse_stop_line(firmware.log_path.read_text(errors="replace"))
+    assert parsed is not None, f"no stop summary in {firmware.log_path}:\n{firmware.log_tail()}"
+    return parsed[1]

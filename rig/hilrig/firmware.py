@@ -10,6 +10,8 @@ the rig calls it while it waits for TPDOs, so a crash reads as a crash, not as a
 
 from __future__ import annotations
 
+import contextlib
+import re
 import signal
 import subprocess
 from collections import deque
@@ -22,6 +24,22 @@ from hilrig.errors import FirmwareError
 
 DEFAULT_EXECUTABLE = Path(__file__).resolve().parents[2] / "build" / "bin" / "joint-firmware"
 LOG_TAIL_LINES = 20
+_STOP_LINE = re.compile(r"joint-firmware: stopped after (\d+) cycles; (.*)$", re.MULTILINE)
+
+
+def parse_stop_line(text: str) -> tuple[str, dict[str, int]] | None:
+    """The firmware's stop line (printed when it stops cleanly) in a log's `text`, and its
+    counters by name ({"cycles": 812, "overruns": 0, "frames received": 4100, ...}); None
+    when the log has none (the firmware was killed or crashed)."""
+    match = _STOP_LINE.search(text)
+    if match is None:
+        return None
+    counters = {"cycles": int(match.group(1))}
+    for part in re.split(r"[;,] ", match.group(2)):
+        name, _, value = part.strip().rpartition(" ")
+        with contextlib.suppress(ValueError):
+            counters[name] = int(value)
+    return match.group(0), counters
 
 
 class Launcher(Protocol):

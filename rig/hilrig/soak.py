@@ -59,7 +59,6 @@ import math
 import operator
 import os
 import random
-import re
 import signal
 import socket
 import struct
@@ -77,7 +76,7 @@ import canopen
 from canopen.pdo import PdoMap
 
 from hilrig.errors import PdoMappingError, RigError
-from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
+from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
 from hilrig.lockstep import SETPOINT_STREAM
 from hilrig.netns import PrivateBus, private_buses_supported
 from hilrig.node import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtCommand, due_at_sync
@@ -140,8 +139,6 @@ FRAME_HEADER = struct.Struct("=IB3x")
 EMCY_PAYLOAD = struct.Struct("<HBH")
 """EMCY: error code, error register, then the board's 'about' object index."""
 SDO_HEADER = struct.Struct("<BHB")
-
-_STOP_LINE = re.compile(r"joint-firmware: stopped after (\d+) cycles; (.*)$", re.MULTILINE)
 
 
 class SoakError(RigError, RuntimeError):
@@ -616,20 +613,6 @@ def thin(items: Sequence[Any], points: int) -> list[Any]:
         return list(items)
     step = (len(items) - 1) / (points - 1)
     return [items[round(i * step)] for i in range(points)]
-
-
-# --- The firmware's own count -------------------------------------------------------------
-def parse_stop_line(text: str) -> tuple[str, dict[str, int]] | None:
-    """The firmware's stop line and its counters by name ({"cycles": 812, "frames received": ...})."""
-    match = _STOP_LINE.search(text)
-    if match is None:
-        return None
-    counters = {"cycles": int(match.group(1))}
-    for part in re.split(r"[;,] ", match.group(2)):
-        name, _, value = part.strip().rpartition(" ")
-        with contextlib.suppress(ValueError):
-            counters[name] = int(value)
-    return match.group(0), counters
 
 
 @dataclass
