@@ -338,13 +338,7 @@ class FaultInjector:
     def _record(self, text: str) -> None:
         event = FaultEvent(time_s=self.rig.t, cycle=self.rig.cycle, text=text)
         self.log.append(event)
-        tracer = self.rig.tracer
-        if tracer is not None:
-            from hilrig.trace import Severity
-
-            tracer.log_text(
-                FAULT_EVENTS_PATH, f"fault injected: {text}", Severity.WARN, t=event.time_s, cycle=event.cycle
-            )
+        self.rig.log_event(FAULT_EVENTS_PATH, f"fault injected: {text}")
         if self.on_event is not None:
             self.on_event(event)
 
@@ -427,7 +421,7 @@ class FaultInjector:
             enabled = [p for p in rig.node.rpdos.values() if p.enabled and p.names]
             sensors = [p for p in enabled if any(rig.table.is_hil_input(n) for n in p.names)]
             pdo = (sensors or enabled)[0]
-            length = rig.node.rpdo_length(pdo.number)
+            length = pdo.length
             rig.send_frame(pdo.cob_id, bytes(max(0, length - 1)))
             self._record(f"{spec}: {pdo.label} sent with {length - 1} bytes, not {length}")
         else:

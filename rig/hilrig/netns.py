@@ -13,11 +13,9 @@ micro-VM of ``tools/with-vcan``.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import itertools
 import os
 import shutil
-import socket
 import subprocess
 from collections.abc import Iterator, Sequence
 from typing import Any, Self
@@ -25,16 +23,10 @@ from typing import Any, Self
 import can
 
 from hilrig.errors import BusUnavailableError
+from hilrig.transport import RECEIVE_QUEUE_BYTES, setns_network, socketcan_socket
+from hilrig.transport import deepen_receive_queue as deepen_socket_queue
 
-_CLONE_NEWNET = 0x40000000
 _names = itertools.count()
-
-
-def _libc_setns(fd: int) -> None:
-    libc = ctypes.CDLL(None, use_errno=True)
-    if libc.setns(fd, _CLONE_NEWNET) != 0:
-        err = ctypes.get_errno()
-        raise OSError(err, f"setns failed: {os.strerror(err)}")
 
 
 def private_buses_supported() -> bool:
@@ -99,11 +91,11 @@ class PrivateBus:
             open("/proc/thread-self/ns/net", "rb") as home,
             open(f"/var/run/netns/{self.name}", "rb") as target,
         ):
-            _libc_setns(target.fileno())
+            setns_network(target.fileno())
             try:
                 yield
             finally:
-                _libc_setns(home.fileno())
+                setns_network(home.fileno())
 
     def open(self, **kwargs: Any) -> can.BusABC:
         """A python-can SocketCAN bus on this namespace's vcan0, with a deep receive queue."""
@@ -120,24 +112,8 @@ class PrivateBus:
         return subprocess.Popen(self.command(argv), **kwargs)
 
 
-RECEIVE_QUEUE_BYTES = 16 * 1024 * 1024
-"""Receive queue of the sockets the rig opens on a private bus: some 20 000 frames (a queued CAN
-frame costs about 800 bytes of kernel memory). The default (net.core.rmem_default, about 200 kB:
-some 250 frames) overflows in half a second when a Python reader is descheduled on a loaded
-machine, and the kernel then drops frames without a word: lost TPDOs, holes in bus logs."""
-
-
 def deepen_receive_queue(bus: can.BusABC, size: int = RECEIVE_QUEUE_BYTES) -> int:
-    """Raise a SocketCAN bus's receive queue to `size` (SO_RCVBUFFORCE as root, else as far as
-    net.core.rmem_max allows); returns what the kernel granted (0: not a SocketCAN bus)."""
-    sock = getattr(bus, "socket", None)
-    if not isinstance(sock, socket.socket):
-        return 0
-    try:
-        sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, size)
-    except OSError:  # not root: the ceiling is net.core.rmem_max
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size)
-    return sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
-
-
-SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
+    """Raise a SocketCAN bus's receive queue to `size` (`hilrig.transport`); returns what the
+    kernel granted (0: not a SocketCAN bus)."""
+    sock = socketcan_socket(bus)
+    return deepen_socket_queue(sock, size) if sock is not None else 0

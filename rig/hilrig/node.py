@@ -16,7 +16,7 @@ import enum
 import struct
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
@@ -24,18 +24,28 @@ from typing import TypeVar
 import can
 import canopen
 from canopen.emcy import EmcyError
-from canopen.pdo import PdoMap, PdoVariable
+from canopen.pdo import PdoMap
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
+from hilrig.cia301 import (
+    SYNC_COUNTER_MAX,
+    heartbeat_cob_id,
+    sdo_response_cob_id,
+)
 from hilrig.errors import NodeSilentError, SdoAbortError, SdoTimeoutError
 from hilrig.table import ObjectEntry, RigTable
+from hilrig.transport import (
+    FrameLink,
+    PdoDirection,
+    PdoLayout,
+    can_frame,
+    compile_pdos,
+    open_link,
+    socketcan_socket,
+)
 
 _T = TypeVar("_T")
 
-SYNC_COB_ID = 0x80
-SYNC_COUNTER_MAX = 240
-"""SYNC counters run 1..240 and wrap (CiA 301 counter overflow value 240)."""
-LAST_SYNCHRONOUS_TYPE = 240
 RECEIVE_POLL_S = 0.05
 """How often canopen's receive thread wakes up without traffic (bounds the time close() takes)."""
 
@@ -135,47 +145,6 @@ def explain_abort(code: int, entry: ObjectEntry | None = None) -> str:
     return text
 
 
-class PdoDirection(enum.StrEnum):
-    RPDO = "RPDO"
-    TPDO = "TPDO"
-
-
-def due_at_sync(transmission_type: int, sync_number: int) -> bool:
-    """True when a cyclic synchronous TPDO (type n = 1..240) is sent at this SYNC.
-
-    sync_number counts SYNCs since the node entered operational (1 = first): the node counts
-    SYNCs per PDO from that moment and sends at every n-th. Type 0 (acyclic, only on change)
-    and event-driven types are never *due*.
-    """
-    n = transmission_type
-    return 1 <= n <= LAST_SYNCHRONOUS_TYPE and sync_number % n == 0
-
-
-@dataclass(frozen=True)
-class PdoLayout:
-    """One PDO as configured in the node: what it carries and when it is sent."""
-
-    direction: PdoDirection
-    number: int  # 1-based
-    cob_id: int
-    enabled: bool
-    transmission_type: int
-    names: tuple[str, ...]  # mapped objects in frame order
-
-    @property
-    def label(self) -> str:
-        """'TPDO3 (0x390)'."""
-        return f"{self.direction.value}{self.number} (0x{self.cob_id:03X})"
-
-    @property
-    def is_synchronous(self) -> bool:
-        return self.transmission_type <= LAST_SYNCHRONOUS_TYPE
-
-    def due_at_sync(self, sync_number: int) -> bool:
-        """True when this TPDO is enabled and due at this SYNC (`due_at_sync`)."""
-        return self.enabled and due_at_sync(self.transmission_type, sync_number)
-
-
 @dataclass(frozen=True)
 class EmcyRecord:
     """An EMCY the node sent, stamped with the lockstep cycle and simulation time it arrived in."""
@@ -230,7 +199,9 @@ class BoardNode:
         self.network.add_node(self.remote)
         self.rpdos: dict[int, PdoLayout] = {}
         self.tpdos: dict[int, PdoLayout] = {}
-        self._rpdo_vars: dict[int, dict[str, PdoVariable]] = {}
+        self.link: FrameLink | None = None
+        """The fast frame link of the per-cycle PDO exchange (`open_link`), None before."""
+        self._emcy_callbacks: list[Callable[[EmcyError], None]] = []
         self._tpdo_callbacks: list[TpdoCallback] = []
         self._wired_tpdos: set[int] = set()
         self._heard = threading.Event()
@@ -243,7 +214,11 @@ class BoardNode:
         self.network.connect()  # the bus is given: this only starts canopen's receive thread
 
     def close(self) -> None:
-        """Stop the receive thread; the bus stays open (it is the caller's)."""
+        """Stop the receive thread and close the frame link; the bus stays open (it is the
+        caller's)."""
+        if self.link is not None:
+            self.link.close()
+            self.link = None
         if self.network.notifier is not None:
             self.network.notifier.stop(self.network.NOTIFIER_SHUTDOWN_TIMEOUT)
             self.network.notifier = None
@@ -314,8 +289,17 @@ class BoardNode:
 
     # --- EMCY ---------------------------------------------------------------------------
     def on_emcy(self, callback: Callable[[EmcyError], None]) -> None:
-        """Called from the receive thread with canopen's EmcyError for every EMCY frame."""
-        self.remote.emcy.add_callback(callback)
+        """Called with canopen's EmcyError for every EMCY frame the node sends: from the driver's
+        thread once the frame link is open (`open_link`), from canopen's receive thread before."""
+        self._emcy_callbacks.append(callback)
+        self.remote.emcy.add_callback(lambda error: None if self.link is not None else callback(error))
+
+    def emcy_received(self, data: bytes) -> None:
+        """An EMCY frame that arrived on the frame link: decoded and handed to the callbacks."""
+        code, register = int.from_bytes(data[:2], "little"), data[2] if len(data) > 2 else 0
+        error = EmcyError(code, register, bytes(data[3:8]), time.time())
+        for callback in self._emcy_callbacks:
+            callback(error)
 
     # --- SDO by field name --------------------------------------------------------------
     def read(self, name: str) -> float | int:
@@ -364,9 +348,8 @@ class BoardNode:
                 ) from error
             except SdoCommunicationError as error:
                 raise SdoTimeoutError(f"read PDO configuration: no answer ({error})") from error
-        self.rpdos = {n: _layout(PdoDirection.RPDO, n, m) for n, m in self.remote.rpdo.map.items()}
-        self.tpdos = {n: _layout(PdoDirection.TPDO, n, m) for n, m in self.remote.tpdo.map.items()}
-        self._rpdo_vars = {n: {var.name: var for var in m.map} for n, m in self.remote.rpdo.map.items()}
+        self.rpdos = compile_pdos(PdoDirection.RPDO, self.remote.rpdo.map)
+        self.tpdos = compile_pdos(PdoDirection.TPDO, self.remote.tpdo.map)
         for number, pdo_map in self.remote.tpdo.map.items():
             if number not in self._wired_tpdos:  # read() may run again; wire each map once
                 pdo_map.add_callback(self._on_tpdo)
@@ -378,36 +361,43 @@ class BoardNode:
     def _on_tpdo(self, pdo_map: PdoMap) -> None:
         # Runs in the receive thread right after canopen stored the frame in pdo_map.data;
         # decode now, before the next frame overwrites it.
+        if not self._tpdo_callbacks:
+            return
         number = next(n for n, m in self.remote.tpdo.map.items() if m is pdo_map)
         values = {var.name: var.raw for var in pdo_map.map}
         layout = self.tpdos[number]
         for callback in self._tpdo_callbacks:
             callback(layout, values)
 
-    def transmit_rpdo(self, number: int, values: Mapping[str, float | int]) -> None:
-        """Pack `values` (by object name) into RPDO `number` with canopen's map and send it.
-        Objects of the mapping not named keep the value they were last given."""
-        # Every value is packed again each time, even an unchanged one: canopen's map also takes
-        # in frames other senders put on this COB-ID (a short one shrinks its data buffer), and
-        # packing every variable restores the whole frame.
-        variables = self._rpdo_vars[number]
-        for name, value in values.items():
-            try:
-                variables[name].raw = value
-            except KeyError:
-                raise KeyError(
-                    f"{self.rpdos[number].label} does not map {name!r}; it maps "
-                    f"{', '.join(self.rpdos[number].names)}"
-                ) from None
-        self.remote.rpdo.map[number].transmit()
+    def open_link(self, receive_ids: list[int]) -> FrameLink:
+        """The frame link for the per-cycle exchange, receiving `receive_ids` (the TPDOs and
+        EMCY); a later call (after a remap or a restart) replaces it.
 
-    def rpdo_length(self, number: int) -> int:
-        """Bytes in RPDO `number`'s frame, from its mapping."""
-        return (self.remote.rpdo.map[number].length + 7) // 8
+        On SocketCAN it is a raw socket beside the bus, and canopen's bus is narrowed (kernel
+        filters) to the SDO answers and heartbeats of this node: canopen's receive thread then
+        no longer turns every TPDO into python-can objects. Other interfaces: frames over the
+        bus itself, taken from canopen's receive thread.
+        """
+        bus = self.network.bus
+        assert bus is not None
+        if self.link is not None:
+            self.link.close()
+        self.link = open_link(bus, self.network.notifier, receive_ids)
+        if socketcan_socket(bus) is not None:
+            bus.set_filters(
+                [
+                    {"can_id": cob_id, "can_mask": 0x7FF, "extended": False}
+                    for cob_id in (sdo_response_cob_id(self.node_id), heartbeat_cob_id(self.node_id))
+                ]
+            )
+        return self.link
 
     def send_frame(self, cob_id: int, data: bytes) -> None:
         """Any raw frame on the node's bus (fault injection: floods, malformed frames)."""
-        self.network.send_message(cob_id, data)
+        if self.link is not None:
+            self.link.send(can_frame(cob_id, data))
+        else:
+            self.network.send_message(cob_id, data)
 
     def await_boot_up(self, start: Callable[[], object], timeout_s: float) -> None:
         """Call `start()` (e.g. start the firmware process) and return once the node's
@@ -423,14 +413,3 @@ class BoardNode:
         if not 1 <= counter <= SYNC_COUNTER_MAX:
             raise ValueError(f"SYNC counter: expected 1..{SYNC_COUNTER_MAX}, got {counter}")
         self.network.sync.transmit(counter)
-
-
-def _layout(direction: PdoDirection, number: int, pdo_map: PdoMap) -> PdoLayout:
-    return PdoLayout(
-        direction=direction,
-        number=number,
-        cob_id=(pdo_map.cob_id or 0) & 0x7FF,
-        enabled=pdo_map.enabled,
-        transmission_type=pdo_map.trans_type if pdo_map.trans_type is not None else 255,
-        names=tuple(var.name for var in pdo_map.map),
-    )

@@ -29,10 +29,19 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
+from hilrig.driver import (
+    CycleResult,
+    Driver,
+    History,
+    PdoRow,
+    Value,
+    sync_counter,
+    sync_frame,
+)
 from hilrig.errors import RealTimeError
-from hilrig.lockstep import ACTUATOR_OUTPUT, CycleResult, History, LockstepDriver, Value, sync_counter
-from hilrig.node import BoardNode, NmtState, PdoLayout
+from hilrig.node import BoardNode, NmtState
 from hilrig.physics import JointPlant, SensorModel, duty_from_motor_duty
+from hilrig.transport import PdoLayout
 
 
 class WallHistory(History):
@@ -53,35 +62,17 @@ class WallHistory(History):
         return np.asarray(self._tick_times, dtype=float)[np.fromiter(cycles, dtype=np.int64)]
 
 
-class _LatestInbox:
-    """The TPDO values received since the last take, the latest of each; receive thread fills it."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._got: dict[int, dict[str, Value]] = {}
-
-    def deliver(self, pdo: PdoLayout, values: dict[str, Value]) -> None:
-        with self._lock:
-            self._got.setdefault(pdo.number, {}).update(values)
-
-    def take(self) -> dict[str, Value]:
-        with self._lock:
-            got, self._got = self._got, {}
-        received: dict[str, Value] = {}
-        for number in sorted(got):
-            received.update(got[number])
-        return received
-
-
-class RealTimeDriver(LockstepDriver):
+class RealTimeDriver(Driver):
     """Runs real-time ticks between a `BoardNode` and the joint plant (or no plant).
 
-    Same interface as `LockstepDriver` (configure, step, history, latest, RPDO values), so
-    `Rig` drives either. `clock` returns seconds (monotonic); `wait(seconds)` blocks about
-    that long: both default to the wall clock, tests pass a clock they own. physics=False:
-    no sensor RPDO, no plant step, and the mapping need not carry the HIL inputs/output.
-    tpdo_timeout_s: while the node is operational, a hang guard on its TPDOs going silent.
-    max_step_periods: the longest plant step, in periods (see the module doc).
+    A sibling of `LockstepDriver` behind the same interface (configure, step, history, latest,
+    RPDO values), so `Rig` drives either. `clock` returns seconds (monotonic); `wait(seconds)`
+    blocks about that long: both default to the wall clock, tests pass a clock they own.
+    physics=False: no sensor RPDO, no plant step, and the mapping need not carry the HIL
+    inputs/output. tpdo_timeout_s: while the node is operational, a hang guard on its TPDOs
+    going silent. max_step_periods: the longest plant step, in periods (see the module doc).
+    What the node sent waits in the link's kernel queue until the tick takes it, so a busy rig
+    loses nothing and needs no receive thread.
     """
 
     needs_sync_actuator = False  # any TPDO carrying motor_duty will do, synchronous or not
@@ -101,7 +92,6 @@ class RealTimeDriver(LockstepDriver):
         wait: Callable[[float], object] | None = None,
     ) -> None:
         self.physics = physics
-        self._latest_inbox = _LatestInbox()
         super().__init__(
             node, plant, sensors, period_us=period_us, tpdo_timeout_s=tpdo_timeout_s, liveness=liveness
         )
@@ -132,14 +122,34 @@ class RealTimeDriver(LockstepDriver):
         """The clock now [s since the first tick]; 0 before it."""
         return 0.0 if self._t0 is None else self.clock() - self._t0
 
-    def _on_tpdo(self, pdo: PdoLayout, values: dict[str, Value]) -> None:
-        self._latest_inbox.deliver(pdo, values)
-
     def node_entered(self, state: NmtState) -> None:
         super().node_entered(state)
         self._last_rx = self.clock()  # the silence guard counts from here
 
     # --- One tick -----------------------------------------------------------------------
+    def _take_latest(self) -> tuple[PdoRow, ...]:
+        """Every TPDO that arrived since the last tick, the latest of each (EMCYs dispatched)."""
+        latest: dict[PdoLayout, tuple[Value, ...]] = {}
+        pending, self._pending = self._pending, []
+        recv = self.link.recv
+        by_cob = self._tpdo_by_cob
+        frames = iter(pending)
+        while True:
+            frame = next(frames, None)
+            if frame is None:
+                frame = recv(0.0)
+                if frame is None:
+                    break
+            cob_id, data = frame
+            pdo = by_cob.get(cob_id)
+            if pdo is None:
+                self._other_frame(cob_id, data)
+                continue
+            values = self._decode(pdo, data)
+            if values is not None:
+                latest[pdo] = values
+        return tuple(sorted(latest.items(), key=lambda row: row[0].number))
+
     def step(self) -> CycleResult:
         n = self.cycle
         now = self._wait_for_tick()
@@ -149,20 +159,21 @@ class RealTimeDriver(LockstepDriver):
         elapsed = now - self._t0
         dt = elapsed - self._elapsed
 
-        received = self._latest_inbox.take()
+        received = self._take_latest()
         if received:
             self._last_rx = now
-            with self._lock:
-                self._latest.update(received)
         elif self._operational and now - self._last_rx > self.tpdo_timeout_s:
             raise RealTimeError(
                 f"tick {n} (t = {elapsed:.6g} s): no TPDO from node 0x{self.node.node_id:02X} for "
                 f"{now - self._last_rx:.3g} s"
             )
+        actuator = self._actuator
         if not self._operational:
             self._duty = 0.0  # the bridge is off, as a motor driver whose commands stopped
-        elif ACTUATOR_OUTPUT in received:
-            self._duty = duty_from_motor_duty(int(received[ACTUATOR_OUTPUT]))
+        elif actuator is not None:
+            for pdo, values in received:
+                if pdo is actuator[0]:
+                    self._duty = duty_from_motor_duty(int(values[actuator[1]]))
 
         raw = None
         if self.physics:
@@ -176,23 +187,25 @@ class RealTimeDriver(LockstepDriver):
         state = self.plant.state
         sent = self._transmit_rpdos(raw)
         counter = sync_counter(n)
-        self.node.send_sync(counter)
+        self.link.send(sync_frame(counter))
+        if self._operational:
+            self._syncs_since_operational += 1
 
         self._elapsed = elapsed
         self.history.record_tick(elapsed)
         if self.physics:
             self.history.record_truth(state)
-        self.history.record_sent(n, sent)
-        self.history.record_received(n, received)
+        self.history.record_rows(n, received, sent)
         self.cycle = n + 1
         return CycleResult(
             cycle=n,
             time_s=elapsed,
             sync_counter=counter,
             raw=raw,
-            received=received,
+            received_rows=received,
             duty=self._duty,
-            sent=sent,
+            sent_rows=sent,
+            truth=state if self.physics else None,
         )
 
     def _wait_for_tick(self) -> float:

@@ -34,9 +34,11 @@ import can
 import numpy as np
 from canopen.emcy import EmcyError
 
+from hilrig.driver import Driver, resolve_truth_name
 from hilrig.errors import FieldAccessError, NoValueError, ScenarioTimeoutError, SdoAbortError
-from hilrig.lockstep import LockstepDriver, cycles_for, resolve_truth_name
+from hilrig.lockstep import LockstepDriver, cycles_for
 from hilrig.node import BoardNode, EmcyRecord, NmtCommand, NmtState
+from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointPlant, JointState, RawSensors, SensorModel
 from hilrig.realtime import RealTimeDriver
 from hilrig.table import RigTable
@@ -71,7 +73,8 @@ class Rig:
     period_us: control period (the firmware's --period-us). liveness: called while waiting
     for TPDOs, raises when the node's process died (e.g. `Firmware.check`). Timeouts in
     seconds of wall clock are hang guards only. tracer: a `hilrig.trace.Tracer` that gets every
-    cycle, NMT change, EMCY and SDO abort (the caller closes it).
+    cycle, NMT change, EMCY and SDO abort (the caller closes it); it is an observer like any
+    other (`add_observer`).
     mode: "lockstep" or "realtime" (`TimingMode`); in real time `period_us` is the rig's own
     tick, which need not equal the node's period. physics: False only in real time (observe
     and command a real board; `truth()` and `state` then have nothing to show).
@@ -107,7 +110,7 @@ class Rig:
         node_id = node_id if node_id is not None else self.table.board.node.default_node_id
         self.node = BoardNode(bus, node_id, eds, self.table, sdo_timeout_s=sdo_timeout_s)
         self.plant = JointPlant(self.params)
-        self.driver: LockstepDriver
+        self.driver: Driver
         if self.mode is TimingMode.REALTIME:
             self.driver = RealTimeDriver(
                 self.node,
@@ -133,12 +136,22 @@ class Rig:
         self._event_order = itertools.count()
         self._cycle_hooks: list[Event] = []
         self.node.on_emcy(self._on_emcy)
-        # --- tracing (hilrig.trace) ---
+        self.observers: list[RigObserver] = []
+        self._heartbeat_state: NmtState | None = None
+        self.node.remote.nmt.add_heartbeat_callback(self._on_heartbeat_state)
         self.tracer = tracer
         if tracer is not None:
-            tracer.log_plant_params(self.params)
-            self.node.remote.nmt.add_heartbeat_callback(self._on_heartbeat_state)
-        self._heartbeat_state: NmtState | None = None
+            self.add_observer(tracer)
+
+    def add_observer(self, observer: RigObserver) -> None:
+        """Let `observer` watch every later cycle and event (`hilrig.observers`)."""
+        observer.on_params(self.params)
+        self.observers.append(observer)
+
+    def log_event(self, path: str, text: str, *, warning: bool = True) -> None:
+        """A line on the observers' timeline (e.g. an injected fault under /events/faults)."""
+        for observer in self.observers:
+            observer.on_event(path, text, warning=warning, cycle=self.cycle, t=self.t)
 
     # --- Life cycle ---------------------------------------------------------------------
     def start(self) -> None:
@@ -160,8 +173,8 @@ class Rig:
         self.node.await_boot_up(
             restart, boot_timeout_s if boot_timeout_s is not None else self.boot_timeout_s
         )
-        if self.tracer is not None:  # --- tracing (hilrig.trace) ---
-            self.tracer.log_nmt(NmtState.INITIALISING, self.t, cycle=self.cycle, source="restart")
+        for observer in self.observers:
+            observer.on_nmt(NmtState.INITIALISING, self.t, cycle=self.cycle, source="restart")
         self._configure_and_start()
         self.driver.resend_rpdos()
 
@@ -250,15 +263,12 @@ class Rig:
         self._cycle_hooks.append(callback)
 
     def _step(self) -> None:
-        """One cycle (tick); its complete values go to the tracer, if there is one."""
+        """One cycle (tick); the observers get its result."""
         for hook in self._cycle_hooks:
             hook(self)
-        truth = self.plant.state  # lockstep: the state this cycle's sensor frame is sampled from
         result = self.driver.step()
-        if self.tracer is not None:  # --- tracing (hilrig.trace) ---
-            if self.realtime:  # the plant was stepped to the tick first, then sampled
-                truth = self.plant.state if self.physics else None
-            self.tracer.log_cycle(result.cycle, result.time_s, result.received, result.sent, truth)
+        for observer in self.observers:
+            observer.on_cycle(result)
 
     def _wall_now(self) -> float:
         """Real time: the clock now, on rig.t's timeline (time outside run() counts too)."""
@@ -305,8 +315,8 @@ class Rig:
         else:
             with self._traced_sdo():
                 self.node.write(name, value)
-            if self.tracer is not None:  # --- tracing (hilrig.trace) ---
-                self.tracer.log_sdo_write(name, value, cycle=self.cycle, t=self.t)
+            for observer in self.observers:
+                observer.on_sdo_write(name, value, cycle=self.cycle, t=self.t)
 
     def field(self, name: str) -> float | int:
         """Latest value of `name`: from the last TPDO that carried it, else read by SDO."""
@@ -322,12 +332,12 @@ class Rig:
 
     @contextmanager
     def _traced_sdo(self) -> Iterator[None]:
-        """--- tracing (hilrig.trace) --- an SDO abort goes to the trace, then on to the caller."""
+        """An SDO abort goes to the observers, then on to the caller."""
         try:
             yield
         except SdoAbortError as error:
-            if self.tracer is not None:
-                self.tracer.log_sdo_abort(str(error), error.abort_code, cycle=self.cycle, t=self.t)
+            for observer in self.observers:
+                observer.on_sdo_abort(str(error), error.abort_code, cycle=self.cycle, t=self.t)
             raise
 
     def history(self, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -380,14 +390,14 @@ class Rig:
 
     def send_frame(self, cob_id: int, data: bytes) -> None:
         """Send any raw frame on the rig's bus now (floods, malformed frames, rogue masters)."""
-        self.node.send_frame(cob_id, data)
+        self.driver.send_frame(cob_id, data)
 
     def nmt(self, command: NmtCommand) -> None:
         """Send an NMT command; after a reset, wait (bounded) for the boot-up."""
         self.node.nmt(command, boot_timeout_s=self.boot_timeout_s)
         self.driver.node_entered(command.resulting_state)
-        if self.tracer is not None:  # --- tracing (hilrig.trace) ---
-            self.tracer.log_nmt(
+        for observer in self.observers:
+            observer.on_nmt(
                 command.resulting_state, self.t, cycle=self.cycle, source=f"command {command.name}"
             )
 
@@ -407,18 +417,19 @@ class Rig:
         )
         with self._emcy_lock:
             self._emcy.append(record)
-        if self.tracer is not None:  # --- tracing (hilrig.trace) ---
-            self.tracer.log_emcy(record)
+        for observer in self.observers:
+            observer.on_emcy(record)
 
     def _on_heartbeat_state(self, state: int) -> None:
-        """--- tracing (hilrig.trace) --- heartbeat/boot-up state changes, from the receive thread."""
+        """Heartbeat/boot-up state changes to the observers, from canopen's receive thread."""
         try:
             nmt_state = NmtState(state)
         except ValueError:
             return
-        if nmt_state is not self._heartbeat_state and self.tracer is not None:
+        if nmt_state is not self._heartbeat_state:
             self._heartbeat_state = nmt_state
-            self.tracer.log_nmt(nmt_state, self.t, cycle=self.cycle, source="heartbeat")
+            for observer in self.observers:
+                observer.on_nmt(nmt_state, self.t, cycle=self.cycle, source="heartbeat")
 
     @property
     def overruns(self) -> int:
@@ -433,6 +444,7 @@ class Rig:
     @property
     def emcy(self) -> list[EmcyRecord]:
         """EMCYs received so far, oldest first, with the cycle and time they arrived in."""
+        self.driver.poll()  # what arrived since the last cycle
         with self._emcy_lock:
             return list(self._emcy)
 

@@ -75,11 +75,12 @@ from typing import Any, Protocol
 import canopen
 from canopen.pdo import PdoMap
 
+from hilrig.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, due_at_sync
 from hilrig.errors import PdoMappingError, RigError
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
 from hilrig.lockstep import SETPOINT_STREAM
 from hilrig.netns import PrivateBus, private_buses_supported
-from hilrig.node import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtCommand, due_at_sync
+from hilrig.node import NmtCommand
 from hilrig.physics import JointParams, thermistor_adc
 from hilrig.table import RigTable
 

@@ -41,7 +41,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, Self
@@ -50,7 +50,9 @@ from urllib.parse import quote
 import numpy as np
 
 from boardproto import Field, IoDirection, Kind
+from hilrig.driver import CycleResult
 from hilrig.node import EmcyRecord, NmtState
+from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointState
 from hilrig.table import RigTable, unknown_name
 
@@ -199,13 +201,19 @@ class TraceSink:
 @dataclass(frozen=True, slots=True)
 class _CycleRow:
     cycle: int
-    t: float
-    received: Mapping[str, Value]
-    sent: Mapping[str, Value]
+    time_s: float
+    groups: tuple[tuple[Sequence[str], Sequence[Value]], ...]
+    """(names, values) pairs: one per PDO, or one per dict given to `log_cycle`."""
     truth: JointState | None  # None: real time without physics
 
 
-class Tracer:
+def _groups(row: _CycleRow | CycleResult) -> Iterable[tuple[Sequence[str], Sequence[Value]]]:
+    if isinstance(row, _CycleRow):
+        return row.groups
+    return [(pdo.names, values) for pdo, values in (*row.received_rows, *row.sent_rows)]
+
+
+class Tracer(RigObserver):
     """Logs the rig's cycles, NMT changes, EMCYs and SDO aborts to Rerun.
 
     sink: one `TraceSink` or several. table: names -> kinds and units (RigTable.load()).
@@ -214,7 +222,9 @@ class Tracer:
     inline on the caller's thread at each batch boundary (False). clock: "simulation" (lockstep:
     `sim_time` timeline) or "wall" (real-time mode: `t` is Unix time, `wall_time` timeline).
 
-    `log_cycle` is called from the lockstep loop; the event methods may be called from any
+    As a `RigObserver` it gets every cycle result (kept as it is until its batch is sent, so a
+    traced cycle costs one list append) and event. `log_cycle` takes one cycle's values as
+    dicts instead (logs replayed into a trace). The event methods may be called from any
     thread (EMCY and heartbeats arrive in canopen's receive thread). Call `close()` at the end:
     it sends what is pending and flushes the sinks. Usable as a context manager.
     """
@@ -248,7 +258,7 @@ class Tracer:
         self._params: JointParams | None = None
         self._paths = self._entity_paths(table)
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
-        self._pending: list[_CycleRow] = []
+        self._pending: list[_CycleRow | CycleResult] = []
         self._lock = threading.Lock()  # guards _pending and _params against the event threads
         self._closed = False
         self._error: BaseException | None = None
@@ -258,7 +268,7 @@ class Tracer:
         if blueprint is not None:
             self.recording.send_blueprint(load_blueprint(blueprint), make_active=True, make_default=True)
 
-        self._queue: queue.SimpleQueue[list[_CycleRow] | None] | None = None
+        self._queue: queue.SimpleQueue[list[_CycleRow | CycleResult] | None] | None = None
         self._worker: threading.Thread | None = None
         if background:
             self._queue = queue.SimpleQueue()
@@ -314,13 +324,44 @@ class Tracer:
 
         Cheap: one append; every `batch_cycles` cycles the batch goes to the sender.
         """
+        row = _CycleRow(
+            cycle,
+            t,
+            ((tuple(received), tuple(received.values())), (tuple(sent), tuple(sent.values()))),
+            truth,
+        )
+        self._append(row)
+
+    def _append(self, row: _CycleRow | CycleResult) -> None:
         self._check_open()
         with self._lock:
-            self._pending.append(_CycleRow(cycle, t, dict(received), dict(sent), truth))
+            self._pending.append(row)
             full = len(self._pending) >= self.batch_cycles
         self.cycles_logged += 1
         if full:
             self._hand_over()
+
+    # --- As an observer of a Rig --------------------------------------------------------
+    def on_params(self, params: JointParams) -> None:
+        self.log_plant_params(params)
+
+    def on_cycle(self, result: CycleResult) -> None:
+        self._append(result)
+
+    def on_nmt(self, state: NmtState, t: float, *, cycle: int | None, source: str) -> None:
+        self.log_nmt(state, t, cycle=cycle, source=source)
+
+    def on_emcy(self, record: EmcyRecord) -> None:
+        self.log_emcy(record)
+
+    def on_sdo_write(self, name: str, value: float, *, cycle: int, t: float) -> None:
+        self.log_sdo_write(name, value, cycle=cycle, t=t)
+
+    def on_sdo_abort(self, what: str, code: int, *, cycle: int, t: float) -> None:
+        self.log_sdo_abort(what, code, cycle=cycle, t=t)
+
+    def on_event(self, path: str, text: str, *, warning: bool, cycle: int, t: float) -> None:
+        self.log_text(path, text, Severity.WARN if warning else Severity.INFO, t=t, cycle=cycle)
 
     def log_sdo_write(self, name: str, value: Value, *, cycle: int, t: float) -> None:
         """A value the rig wrote by SDO (a parameter, or a command no RPDO carries)."""
@@ -411,15 +452,17 @@ class Tracer:
             except BaseException as error:  # reported by close(); the lockstep loop never waits
                 self._error = error
 
-    def _send_batch(self, batch: list[_CycleRow]) -> None:
+    def _send_batch(self, batch: list[_CycleRow | CycleResult]) -> None:
         """Pivot rows into one column per entity and send each with `send_columns`."""
         series: dict[str, tuple[list[int], list[float], list[float]]] = {}
+        paths = self._paths
         for row in batch:
-            for values in (row.received, row.sent):
-                for name, value in values.items():
-                    cycles, times, column = series.setdefault(self._paths[name], ([], [], []))
-                    cycles.append(row.cycle)
-                    times.append(row.t)
+            cycle, t = row.cycle, row.time_s
+            for names, values in _groups(row):
+                for name, value in zip(names, values, strict=True):
+                    cycles, times, column = series.setdefault(paths[name], ([], [], []))
+                    cycles.append(cycle)
+                    times.append(t)
                     column.append(value)
         for path, (cycles, times, column) in series.items():
             self._send_scalars(path, cycles, times, np.asarray(column, dtype=np.float64))
@@ -428,7 +471,7 @@ class Tracer:
         if not batch:
             return
         cycles = [row.cycle for row in batch]
-        times = [row.t for row in batch]
+        times = [row.time_s for row in batch]
         for quantity in TRUTH_QUANTITIES[:-1]:
             self._send_scalars(
                 truth_path(quantity),

@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 
 from hilrig.errors import FieldNameError
-from hilrig.node import NmtCommand, NmtState, PdoDirection, PdoLayout, SdoAbortCode, explain_abort
+from hilrig.node import NmtCommand, NmtState, SdoAbortCode, explain_abort
 from hilrig.table import RigTable
+from hilrig.transport import PdoDirection, PdoLayout
 
 FIRMWARE_ABORTS = Path(__file__).resolve().parents[2] / "firmware" / "canopen" / "SdoAbort.hpp"
 

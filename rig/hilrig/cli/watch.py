@@ -35,7 +35,8 @@ from hilrig.errors import NodeSilentError, RigError, SdoTimeoutError
 from hilrig.table import ObjectEntry
 
 if TYPE_CHECKING:
-    from hilrig.node import BoardNode, PdoLayout
+    from hilrig.node import BoardNode
+    from hilrig.transport import PdoLayout
 
 CLEAR_LINE = "\x1b[2K"
 

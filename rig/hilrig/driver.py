@@ -1,0 +1,482 @@
+"""What the lockstep and the real-time driver share: the node's PDO roles, the RPDO values the rig
+commands, the per-cycle `History`, and the frame link the PDOs travel on (`hilrig.transport`).
+
+A driver's small interface (what `Rig` uses): `configure()` after the node's PDO configuration was
+read, `step()` -> `CycleResult`, `cycle`, `t`, `period_us`, `history`, `node_entered(state)`,
+`poll()` (dispatch what arrived between cycles), `set_rpdo_value`, `latest`. The lockstep driver
+(`hilrig.lockstep`) waits for every TPDO due at its SYNC; the real-time one (`hilrig.realtime`)
+keeps a wall-clock period and takes what has arrived.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hilrig.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, emcy_cob_id
+from hilrig.errors import NoValueError, PdoMappingError
+from hilrig.node import BoardNode, NmtState
+from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
+from hilrig.table import unknown_name
+from hilrig.transport import FrameLink, PdoLayout, can_frame
+
+Value = float | int
+PdoRow = tuple[PdoLayout, tuple[Value, ...]]
+"""One PDO of one cycle: its layout and the values it carried, in mapping order."""
+
+ACTUATOR_OUTPUT = "motor_duty"
+"""The HIL output that drives the plant; in lockstep its TPDO must be synchronous type 1."""
+SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
+"""Fields of the RPDO sent every cycle, like a real master's setpoint stream."""
+LIVENESS_SLICE_S = 0.25
+"""While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
+
+TRUTH_NAMES: tuple[str, ...] = tuple(name for name in JointState.__dataclass_fields__ if name != "time_s")
+"""Ground-truth quantities, named as the JointState attributes (unit in the name)."""
+_UNIT_SUFFIXES = ("_rad_s", "_rad", "_nm", "_a", "_c", "_ohm")
+TRUTH_ALIASES: dict[str, str] = {
+    name[: -len(suffix)]: name for name in TRUTH_NAMES for suffix in _UNIT_SUFFIXES if name.endswith(suffix)
+}
+"""Short names without the unit suffix ("load_velocity" -> "load_velocity_rad_s")."""
+
+_SYNC_FRAMES = tuple(can_frame(SYNC_COB_ID, bytes([counter])) for counter in range(1, SYNC_COUNTER_MAX + 1))
+"""The SYNC frame of each counter value 1..240 (index counter - 1)."""
+
+
+def sync_counter(cycle: int) -> int:
+    """The SYNC counter of cycle index `cycle` (0-based): 1..240, wrapping."""
+    return cycle % SYNC_COUNTER_MAX + 1
+
+
+def sync_frame(counter: int) -> bytes:
+    if not 1 <= counter <= SYNC_COUNTER_MAX:
+        raise ValueError(f"SYNC counter: expected 1..{SYNC_COUNTER_MAX}, got {counter}")
+    return _SYNC_FRAMES[counter - 1]
+
+
+def resolve_truth_name(name: str) -> str:
+    if name in TRUTH_NAMES:
+        return name
+    if name in TRUTH_ALIASES:
+        return TRUTH_ALIASES[name]
+    raise unknown_name("ground-truth quantity", name, (*TRUTH_NAMES, *TRUTH_ALIASES))
+
+
+# --- History --------------------------------------------------------------------------------
+class _PdoRows:
+    """Every cycle one PDO was exchanged in, with the values it carried. Cheap to append."""
+
+    __slots__ = ("cycles", "values")
+
+    def __init__(self) -> None:
+        self.cycles: list[int] = []
+        self.values: list[tuple[Value, ...]] = []
+
+
+class _Direction:
+    """Rows by PDO layout, and where each name is found (a layout and a position)."""
+
+    def __init__(self) -> None:
+        self.rows: dict[PdoLayout, _PdoRows] = {}
+        self.where: dict[str, list[tuple[_PdoRows, int]]] = {}
+
+    def rows_of(self, pdo: PdoLayout) -> _PdoRows:
+        rows = self.rows.get(pdo)
+        if rows is None:
+            rows = self.rows[pdo] = _PdoRows()
+            for position, name in enumerate(pdo.names):
+                self.where.setdefault(name, []).append((rows, position))
+        return rows
+
+    def series(self, name: str) -> tuple[list[int], list[Value]]:
+        """Cycles and values of `name`, in cycle order, from every PDO that carried it."""
+        places = [(rows, i) for rows, i in self.where.get(name, ()) if rows.cycles]
+        if len(places) == 1:
+            rows, i = places[0]
+            return rows.cycles, [v[i] for v in rows.values]
+        pairs = sorted(
+            ((c, v[i]) for rows, i in places for c, v in zip(rows.cycles, rows.values, strict=True)),
+            key=operator.itemgetter(0),
+        )
+        return [c for c, _ in pairs], [v for _, v in pairs]
+
+    def has(self, name: str) -> bool:
+        return any(rows.cycles for rows, _ in self.where.get(name, ()))
+
+    def latest(self, name: str) -> tuple[int, Value] | None:
+        best: tuple[int, Value] | None = None
+        for rows, i in self.where.get(name, ()):
+            if rows.cycles and (best is None or rows.cycles[-1] >= best[0]):
+                best = (rows.cycles[-1], rows.values[-1][i])
+        return best
+
+
+class History:
+    """Per-cycle record of what the node sent, what the rig sent, and the plant's truth.
+
+    Stored as rows per PDO (one append per PDO and cycle); a field's series is assembled when
+    asked for. Times are cycle * period exactly: the start of the cycle whose SYNC the values
+    belong to. Truth rows hold the plant state at that time (the one the cycle's sensor frame
+    was sampled from).
+    """
+
+    def __init__(self, period_us: int) -> None:
+        self.period_us = period_us
+        self._received = _Direction()
+        self._sent = _Direction()
+        self._truth: list[JointState] = []
+
+    def time_of(self, cycle: int) -> float:
+        return cycle * self.period_us / 1e6
+
+    def _times(self, cycles: Iterable[int]) -> np.ndarray:
+        return np.fromiter(cycles, dtype=np.int64) * self.period_us / 1e6
+
+    @property
+    def cycles(self) -> int:
+        return len(self._truth)
+
+    def record_truth(self, state: JointState) -> None:
+        self._truth.append(state)
+
+    def record_rows(self, cycle: int, received: Iterable[PdoRow], sent: Iterable[PdoRow]) -> None:
+        for pdo, values in received:
+            rows = self._received.rows_of(pdo)
+            rows.cycles.append(cycle)
+            rows.values.append(values)
+        for pdo, values in sent:
+            rows = self._sent.rows_of(pdo)
+            rows.cycles.append(cycle)
+            rows.values.append(values)
+
+    def has_received(self, name: str) -> bool:
+        return self._received.has(name)
+
+    def has_sent(self, name: str) -> bool:
+        return self._sent.has(name)
+
+    def received(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of every cycle a TPDO carried `name`."""
+        cycles, values = self._received.series(name)
+        return self._times(cycles), np.asarray(values)
+
+    def sent(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of every cycle the rig sent `name` in an RPDO."""
+        cycles, values = self._sent.series(name)
+        return self._times(cycles), np.asarray(values)
+
+    def latest_received(self, name: str) -> Value:
+        latest = self._received.latest(name)
+        if latest is None:
+            raise KeyError(name)
+        return latest[1]
+
+    def truth(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of a ground-truth quantity (JointState attribute or its short alias)."""
+        attribute = resolve_truth_name(name)
+        values = np.fromiter(
+            (getattr(s, attribute) for s in self._truth), dtype=float, count=len(self._truth)
+        )
+        return self._times(range(len(self._truth))), values
+
+
+# --- One cycle's result ---------------------------------------------------------------------
+@dataclass(frozen=True)
+class CycleResult:
+    """What one cycle (lockstep) or tick (real time) exchanged."""
+
+    cycle: int
+    time_s: float
+    sync_counter: int
+    raw: RawSensors | None  # None when no sensor frame was sampled (real time, physics off)
+    received_rows: tuple[PdoRow, ...]
+    duty: float
+    sent_rows: tuple[PdoRow, ...] = ()
+    truth: JointState | None = None
+    """The plant state the cycle's sensor frame was sampled from (None without physics)."""
+    _dicts: dict[str, dict[str, Value]] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def received(self) -> dict[str, Value]:
+        """TPDO values by name (built on first use)."""
+        if "received" not in self._dicts:
+            self._dicts["received"] = _merge(self.received_rows)
+        return self._dicts["received"]
+
+    @property
+    def sent(self) -> dict[str, Value]:
+        """RPDO values by name (built on first use)."""
+        if "sent" not in self._dicts:
+            self._dicts["sent"] = _merge(self.sent_rows)
+        return self._dicts["sent"]
+
+
+def _merge(rows: Iterable[PdoRow]) -> dict[str, Value]:
+    merged: dict[str, Value] = {}
+    for pdo, values in sorted(rows, key=lambda row: row[0].number):
+        merged.update(zip(pdo.names, values, strict=True))
+    return merged
+
+
+# --- The shared driver ----------------------------------------------------------------------
+class Driver:
+    """The node's PDO roles and the rig's RPDO values, over the node's frame link.
+
+    `configure()` (after the node's PDO configuration was read) checks the mapping the driver
+    relies on and compiles the per-cycle work: which RPDOs carry the sensors and the setpoint
+    stream, where the actuator output is, which TPDOs are due at which SYNC.
+    `node_entered(state)` must follow every NMT command the rig sends, since the node counts
+    SYNCs for its TPDOs from the moment it became operational.
+    """
+
+    needs_sync_actuator = True
+    """Whether configure() requires the actuator TPDO to be synchronous type 1."""
+
+    def __init__(
+        self,
+        node: BoardNode,
+        plant: JointPlant,
+        sensors: SensorModel,
+        *,
+        period_us: int,
+        tpdo_timeout_s: float = 5.0,
+        liveness: Callable[[], None] | None = None,
+    ) -> None:
+        if period_us <= 0:
+            raise ValueError(f"period_us: expected > 0, got {period_us}")
+        self.node = node
+        self.plant = plant
+        self.sensors = sensors
+        self.period_us = period_us
+        self.tpdo_timeout_s = tpdo_timeout_s
+        self.liveness = liveness
+        self.history = History(period_us)
+        self.cycle = 0
+        """Cycles completed; also the index of the next cycle."""
+        self.sensor_override: Callable[[RawSensors], RawSensors] | None = None
+        """Fault injection hook: gets each cycle's raw sensors, returns what is sent."""
+        self.paused_rpdos: set[int] = set()
+        """RPDO numbers not sent at all (e.g. a silent setpoint stream for the watchdog)."""
+        self.malformed_frames = 0
+        """Frames on a TPDO's COB-ID whose length is not the mapping's (counted, dropped)."""
+        self._link: FrameLink | None = None
+        self._operational = False
+        self._syncs_since_operational = 0
+        self._rpdo_values: dict[int, list[Value]] = {}
+        self._rpdo_frames: dict[int, bytes] = {}  # packed once per change, sent every cycle
+        self._sensor_rpdos: list[tuple[PdoLayout, Callable[[RawSensors], tuple[Value, ...]]]] = []
+        self._stream_rpdos: set[int] = set()
+        self._dirty_rpdos: set[int] = set()
+        self._field_rpdo: dict[str, tuple[int, int]] = {}  # name -> (RPDO number, position)
+        self._rpdo_layouts: dict[int, PdoLayout] = {}
+        self._tpdo_by_cob: dict[int, PdoLayout] = {}
+        self._emcy_cob_id = emcy_cob_id(node.node_id)
+        self._actuator: tuple[PdoLayout, int] | None = None
+        self._due_table: list[frozenset[PdoLayout]] = [frozenset()]
+        self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
+        self._tpdo_names: frozenset[str] = frozenset()
+
+    @property
+    def period_s(self) -> float:
+        return self.period_us / 1e6
+
+    @property
+    def needs_plant_io(self) -> bool:
+        """Whether configure() requires the sensor RPDO(s) and the actuator TPDO."""
+        return True
+
+    @property
+    def t(self) -> float:
+        """Simulation time: cycles completed * period, exact."""
+        return self.history.time_of(self.cycle)
+
+    @property
+    def link(self) -> FrameLink:
+        if self._link is None:
+            raise RuntimeError("the driver is not configured yet (Rig.start() configures it)")
+        return self._link
+
+    # --- Configuration ------------------------------------------------------------------
+    def configure(self) -> None:
+        """Work out which PDOs carry what, from the node's mapping; PdoMappingError if the
+        sensor inputs, the setpoint stream or the actuator output is not where it must be."""
+        table = self.node.table
+        problems: list[str] = []
+        enabled_rpdos = [p for p in self.node.rpdos.values() if p.enabled and p.names]
+        sensor_rpdos = [p for p in enabled_rpdos if any(table.is_hil_input(n) for n in p.names)]
+        mapped_inputs = {n for p in sensor_rpdos for n in p.names}
+        for io in table.board.hil_inputs if self.needs_plant_io else ():
+            if io.name not in mapped_inputs:
+                problems.append(f"HIL input {io.name} is in no enabled RPDO")
+        for pdo in sensor_rpdos:
+            extra = [n for n in pdo.names if not table.is_hil_input(n)]
+            if extra:
+                problems.append(f"{pdo.label} mixes sensor inputs with {', '.join(extra)}")
+        stream = [p for p in enabled_rpdos if set(SETPOINT_STREAM) & set(p.names)]
+        for name in SETPOINT_STREAM:
+            if not any(name in p.names for p in stream):
+                problems.append(f"setpoint {name} is in no enabled RPDO")
+        actuator = [p for p in self.node.tpdos.values() if p.enabled and ACTUATOR_OUTPUT in p.names]
+        if not actuator:
+            if self.needs_plant_io:
+                problems.append(f"HIL output {ACTUATOR_OUTPUT} is in no enabled TPDO")
+        elif self.needs_sync_actuator and actuator[0].transmission_type != 1:
+            problems.append(
+                f"{actuator[0].label} carries {ACTUATOR_OUTPUT} with transmission type "
+                f"{actuator[0].transmission_type}; lockstep needs 1 (every SYNC)"
+            )
+        if problems:
+            raise PdoMappingError(f"node 0x{self.node.node_id:02X} PDO mapping: " + "; ".join(problems))
+
+        self._sensor_rpdos = [(p, _getter(p.names)) for p in sensor_rpdos]
+        self._stream_rpdos = {p.number for p in stream}
+        # Keep what a scenario already set (re-configuring after a reset must not undo it);
+        # otherwise start from the table's defaults, which the firmware starts from too.
+        previous = {
+            name: self._rpdo_values[number][position] for name, (number, position) in self._field_rpdo.items()
+        }
+        self._rpdo_values, self._rpdo_frames, self._field_rpdo, self._rpdo_layouts = {}, {}, {}, {}
+        for pdo in enabled_rpdos:
+            if pdo in sensor_rpdos:
+                continue
+            self._rpdo_layouts[pdo.number] = pdo
+            self._rpdo_values[pdo.number] = [previous.get(n, table.field(n).default) for n in pdo.names]
+            for position, name in enumerate(pdo.names):
+                self._field_rpdo[name] = (pdo.number, position)
+        enabled_tpdos = [p for p in self.node.tpdos.values() if p.enabled and p.names]
+        self._tpdo_by_cob = {p.cob_id: p for p in enabled_tpdos}
+        self._tpdo_names = frozenset(n for p in enabled_tpdos for n in p.names)
+        self._actuator = (actuator[0], actuator[0].names.index(ACTUATOR_OUTPUT)) if actuator else None
+        cyclic = [p for p in enabled_tpdos if p.is_cyclic]
+        period = math.lcm(*(p.transmission_type for p in cyclic)) if cyclic else 1
+        self._due_table = [
+            frozenset(p for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
+        ]
+        self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
+        self._pending.clear()
+
+    def rpdo_of(self, name: str) -> int | None:
+        """Number of the (non-sensor) RPDO that carries `name`, None if no RPDO does."""
+        where = self._field_rpdo.get(name)
+        return where[0] if where is not None else None
+
+    def tpdo_names(self) -> frozenset[str]:
+        return self._tpdo_names
+
+    def set_rpdo_value(self, name: str, value: Value) -> None:
+        """Put `value` into the RPDO that carries `name`; it goes out with the next cycle."""
+        number, position = self._field_rpdo[name]
+        self._rpdo_values[number][position] = value
+        self._rpdo_frames.pop(number, None)
+        self._dirty_rpdos.add(number)
+
+    def resend_rpdos(self) -> None:
+        """Send every commanded RPDO again with the next cycle, as a master does after its
+        node rebooted (the node starts from defaults)."""
+        self._dirty_rpdos.update(self._rpdo_values)
+
+    def rpdo_value(self, name: str) -> Value:
+        number, position = self._field_rpdo[name]
+        return self._rpdo_values[number][position]
+
+    def node_entered(self, state: NmtState) -> None:
+        """Tell the driver the node's NMT state changed (the rig sent the command)."""
+        self._operational = state is NmtState.OPERATIONAL
+        self._syncs_since_operational = 0
+
+    @property
+    def operational(self) -> bool:
+        return self._operational
+
+    # --- Values -------------------------------------------------------------------------
+    def latest(self, name: str) -> Value:
+        """Latest value the node sent for `name` in a TPDO."""
+        try:
+            return self.history.latest_received(name)
+        except KeyError:
+            if name in self._tpdo_names:
+                raise NoValueError(
+                    f"no TPDO with {name} received yet (t = {self.t:.6g} s, cycle {self.cycle})"
+                ) from None
+            raise NoValueError(f"{name} is in no enabled TPDO") from None
+
+    # --- Frames -------------------------------------------------------------------------
+    def send_frame(self, cob_id: int, data: bytes) -> None:
+        """Any raw frame on the node's bus now (fault injection: floods, malformed frames)."""
+        self.link.send(can_frame(cob_id, data))
+
+    def poll(self) -> None:
+        """Take in what arrived since the last cycle without waiting: EMCYs are dispatched now
+        (to `BoardNode.on_emcy`), TPDOs are kept for the next cycle."""
+        if self._link is None:
+            return
+        recv = self._link.recv
+        while (frame := recv(0.0)) is not None:
+            if frame[0] in self._tpdo_by_cob:
+                self._pending.append(frame)
+            else:
+                self._other_frame(*frame)
+
+    def _other_frame(self, cob_id: int, data: bytes) -> None:
+        if cob_id == self._emcy_cob_id:
+            self.node.emcy_received(data)
+
+    def _transmit_rpdos(self, raw: RawSensors | None) -> tuple[PdoRow, ...]:
+        """Send one cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint
+        stream, any RPDO a scenario changed); return what was sent."""
+        send = self.link.send
+        sent: list[PdoRow] = []
+        paused = self.paused_rpdos
+        if raw is not None:
+            for pdo, values_of in self._sensor_rpdos:
+                if pdo.number in paused:
+                    continue
+                values = values_of(raw)
+                send(pdo.frame(values))
+                sent.append((pdo, values))
+        dirty = self._dirty_rpdos
+        for number, values in self._rpdo_values.items():
+            if number in paused or not (number in self._stream_rpdos or number in dirty):
+                continue
+            frame = self._rpdo_frames.get(number)
+            pdo = self._rpdo_layouts[number]
+            if frame is None:
+                frame = self._rpdo_frames[number] = pdo.frame(values)
+            send(frame)
+            sent.append((pdo, tuple(values)))
+            dirty.discard(number)
+        return tuple(sent)
+
+    def _decode(self, pdo: PdoLayout, data: bytes) -> tuple[Value, ...] | None:
+        """The TPDO's values, or None (counted) when the frame's length is not the mapping's."""
+        if len(data) != pdo.length:
+            self.malformed_frames += 1
+            return None
+        return pdo.unpack(data)
+
+
+def _getter(names: tuple[str, ...]) -> Callable[[RawSensors], tuple[Value, ...]]:
+    """Values of `names` from a RawSensors, always as a tuple."""
+    get = operator.attrgetter(*names)
+    if len(names) == 1:
+        return lambda raw: (get(raw),)
+    return get  # type: ignore[return-value]
+
+
+__all__ = [
+    "ACTUATOR_OUTPUT",
+    "SETPOINT_STREAM",
+    "TRUTH_ALIASES",
+    "TRUTH_NAMES",
+    "CycleResult",
+    "Driver",
+    "History",
+    "PdoRow",
+    "resolve_truth_name",
+    "sync_counter",
+    "sync_frame",
+]
