@@ -9,18 +9,18 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import can
 import canopen
 import pytest
 
-from hilrig.buslog import BusRecorder, whole_file_logger
+from hilrig.buslog import BusRecorder
 from hilrig.expect import Expect
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
 from hilrig.netns import PrivateBus, private_buses_supported
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
+from hilrig.session import BoardInterface, HilSession, SessionConfig, open_session
 from hilrig.table import RigTable
 
 REPO = Path(__file__).resolve().parent.parent
@@ -39,7 +39,7 @@ SCENARIO_SDO_TIMEOUT_S = 5.0
 # history), and the plant got the firmware's duty that late. A real board keeps its own period.
 REALTIME_FIRMWARE_PERIOD_US = 10_000
 REALTIME_RIG_PERIOD_US = 50_000
-FIRMWARE_MODE = {"lockstep": "lockstep", "realtime": "free"}
+TABLE = RigTable.load()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -197,28 +197,18 @@ class Scenario:
     close: Callable[[], None] = field(default=lambda: None, repr=False)
 
 
-def _close_all(opened: list[Callable[[], object]]) -> None:
-    while opened:
-        opened.pop()()
-
-
-def _evidence(scenario_dir: Path, traced: bool) -> str:
-    parts = [f"trace: {scenario_dir / 'trace.rrd'}"] if traced else []
-    parts.append(f"bus log: {scenario_dir / 'bus.log'}")
-    return ", ".join(parts)
-
-
 @pytest.fixture
 def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterator:
-    """Factory: `make_scenario(params=..., seed=...)` starts the firmware in lockstep on this
-    test's private bus, a candump recorder, a Rerun trace and a `Rig`, all torn down after the
-    test (firmware stopped with SIGTERM, files closed whole). `mode="realtime"`: the firmware
-    runs `--mode free` and the rig in real time (REALTIME_*_PERIOD_US); with --hil-interface
-    the rig opens that interface instead, talks to the real board on it (`physics` as the
-    scenario says), and lockstep scenarios are skipped. `extra_args` go to the firmware's
-    command line; `subdir` keeps one run's evidence apart when a test makes several runs one
-    after the other (close the previous one first: one node id per bus)."""
-    scenarios: list[list[Callable[[], object]]] = []
+    """Factory: `make_scenario(params=..., seed=...)` opens a HIL session (`hilrig.session`):
+    the firmware in lockstep on this test's private bus, a candump recorder, a Rerun trace and
+    a `Rig`, all torn down after the test (firmware stopped with SIGTERM, files closed whole).
+    `mode="realtime"`: the firmware runs `--mode free` and the rig in real time
+    (REALTIME_*_PERIOD_US); with --hil-interface the rig opens that interface instead, talks to
+    the real board on it (`physics` as the scenario says), and lockstep scenarios are skipped.
+    `extra_args` go to the firmware's command line; `subdir` keeps one run's evidence apart when
+    a test makes several runs one after the other (close the previous one first: one node id per
+    bus)."""
+    sessions: list[HilSession] = []
 
     def make(
         params: JointParams | None = None,
@@ -230,139 +220,66 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
         mode: str = "lockstep",
         physics: bool = True,
     ) -> Scenario:
-        opened: list[Callable[[], object]] = []
-        scenarios.append(opened)
         run_dir = scenario_dir / subdir if subdir else scenario_dir
-        run_dir.mkdir(parents=True, exist_ok=True)
-        if request.config.getoption("hil_interface"):
-            return _real_board_scenario(request, run_dir, opened, mode, physics, params, seed, trace)
-        private_bus: PrivateBus = request.getfixturevalue("private_bus")
         realtime = mode == "realtime"
-        recorder = BusRecorder(private_bus.open(), run_dir / "bus.log")
-        opened.append(recorder.close)
-        firmware = Firmware(
-            private_bus,
-            node_id=NODE_ID,
-            log_path=run_dir / "firmware.log",
-            params_file=params_file,
-            extra_args=extra_args,
-            mode=FIRMWARE_MODE[mode],
-            period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else 1000,
-        )
-        firmware.start()
-        opened.append(firmware.stop)
-        return _start_scenario(
-            request,
-            run_dir,
-            opened,
-            private_bus.open(),
-            firmware=firmware,
-            trace=trace,
-            sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+        config = request.config
+        board = None
+        node_id = NODE_ID
+        if config.getoption("hil_interface"):
+            if not realtime:
+                pytest.skip("a lockstep scenario needs the firmware on a private bus (--hil-interface given)")
+            bitrate = config.getoption("hil_bitrate")
+            board = BoardInterface(
+                config.getoption("hil_interface"), config.getoption("hil_channel"), bitrate
+            )
+            physics = physics and config.getoption("hil_physics")
+            node_id = config.getoption("hil_node_id") or NODE_ID
+        elif not private_buses_supported():
+            pytest.fail(
+                "bus-level scenarios need root and a kernel with vcan: run them with `make test` "
+                "or `tools/with-vcan -- .venv/bin/pytest tests`",
+                pytrace=False,
+            )
+        session_config = SessionConfig(
+            out_dir=run_dir,
             params=params,
             seed=seed,
+            node_id=node_id,
             mode=mode,
-            physics=physics,
             period_us=REALTIME_RIG_PERIOD_US if realtime else 1000,
+            firmware_period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else 1000,
+            physics=physics,
+            trace=trace,
+            board=board,
+            eds=EDS,
+            params_file=params_file,
+            extra_args=tuple(extra_args),
+            boot_timeout_s=BOOT_TIMEOUT_S,
+            sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+        )
+        if board is None and (not DEFAULT_EXECUTABLE.exists() or not EDS.exists()):
+            pytest.fail(f"{DEFAULT_EXECUTABLE} or {EDS} missing: run `make build` first", pytrace=False)
+        session = open_session(session_config, table=TABLE)
+        sessions.append(session)
+        request.node.hil_evidence = _evidence(run_dir, trace)
+        return Scenario(
+            rig=session.rig,
+            expect=Expect(session.rig, evidence=request.node.hil_evidence),
+            firmware=session.firmware,
+            trace=session.trace_path,
+            bus_log=session.bus_log,
+            close=session.close,
         )
 
     yield make
-    for opened in reversed(scenarios):
-        _close_all(opened)
+    for session in reversed(sessions):
+        session.close()
 
 
-def _real_board_scenario(
-    request: pytest.FixtureRequest,
-    run_dir: Path,
-    opened: list[Callable[[], object]],
-    mode: str,
-    physics: bool,
-    params: JointParams | None,
-    seed: int,
-    trace: bool,
-) -> Scenario:
-    """The scenario against a board on --hil-interface/--hil-channel, in real time, with the
-    physics only if the scenario wants it and --hil-physics says the board takes its sensors
-    from the bus. The bus log holds what the rig receives (one handle on the interface: PCAN
-    and friends allow no more)."""
-    if mode != "realtime":
-        pytest.skip("a lockstep scenario needs the firmware on a private bus (--hil-interface given)")
-    config = request.config
-    interface, channel = config.getoption("hil_interface"), config.getoption("hil_channel")
-    bitrate = config.getoption("hil_bitrate")
-    try:
-        bus = can.Bus(interface=interface, channel=channel, **({"bitrate": bitrate} if bitrate else {}))
-    except (can.CanError, OSError, ValueError, ImportError) as error:
-        pytest.fail(f"cannot open {interface} channel {channel}: {error}", pytrace=False)
-    node_id = config.getoption("hil_node_id")
-
-    def log_what_the_rig_receives(rig: Rig) -> None:
-        logging = whole_file_logger(run_dir / "bus.log")
-        logger = logging.__enter__()
-        opened.insert(opened.index(rig.close), lambda: logging.__exit__(None, None, None))
-        assert rig.node.network.notifier is not None
-        rig.node.network.notifier.add_listener(logger)  # the rig's receive thread feeds it
-
-    return _start_scenario(
-        request,
-        run_dir,
-        opened,
-        bus,
-        firmware=None,
-        trace=trace,
-        before_start=log_what_the_rig_receives,
-        node_id=node_id if node_id is not None else NODE_ID,
-        params=params,
-        seed=seed,
-        mode=mode,
-        physics=physics and config.getoption("hil_physics"),
-        period_us=REALTIME_RIG_PERIOD_US,
-    )
-
-
-def _start_scenario(
-    request: pytest.FixtureRequest,
-    run_dir: Path,
-    opened: list[Callable[[], object]],
-    bus: can.BusABC,
-    *,
-    firmware: Firmware | None,
-    trace: bool,
-    before_start: Callable[[Rig], None] | None = None,
-    **rig_args: Any,
-) -> Scenario:
-    """The rig on `bus` (closed with the scenario), with a Rerun trace if `trace`, started;
-    `before_start` sees the rig before it talks to the node."""
-    opened.append(bus.shutdown)
-    table = RigTable.load()
-    tracer = None
-    if trace:
-        from hilrig.trace import Tracer  # rerun is slow to import: only when tracing
-
-        tracer = Tracer.for_scenario(run_dir, table)
-        opened.append(tracer.close)
-    rig = Rig(
-        bus,
-        table=table,
-        liveness=firmware.check if firmware is not None else None,
-        tracer=tracer,
-        boot_timeout_s=BOOT_TIMEOUT_S,
-        eds=EDS,
-        **rig_args,
-    )
-    opened.append(rig.close)
-    if before_start is not None:
-        before_start(rig)
-    rig.start()
-    request.node.hil_evidence = _evidence(run_dir, trace)
-    return Scenario(
-        rig=rig,
-        expect=Expect(rig, evidence=request.node.hil_evidence),
-        firmware=firmware,
-        trace=run_dir / "trace.rrd" if trace else None,
-        bus_log=run_dir / "bus.log",
-        close=lambda: _close_all(opened),
-    )
+def _evidence(scenario_dir: Path, traced: bool) -> str:
+    parts = [f"trace: {scenario_dir / 'trace.rrd'}"] if traced else []
+    parts.append(f"bus log: {scenario_dir / 'bus.log'}")
+    return ", ".join(parts)
 
 
 _failed_evidence: list[str] = []

@@ -7,12 +7,13 @@
 
 What is measured, and against what:
 
-* Lockstep speed. (a) Full `Rig` lockstep cycles (physics, canopen PDO maps, checks, history)
-  against the real firmware; (b) the floor for a Python rig: a bare python-can loop sending the
-  same RPDO frames + SYNC to the same firmware build and waiting for the same number of TPDO
-  frames (no canopen, no physics, kernel receive filters). Ratio (a)/(b), goal >= 0.5. Each
-  measurement gets a fresh firmware process; rounds alternate rig and floor, best of each.
-  Simulated-time speed-up at 1 kHz = rig cycles per second / 1000.
+* Lockstep speed, all on the same engine and firmware build, each measurement with a fresh
+  firmware process, rounds alternating, best of each: (a) the full `Rig` (physics, history,
+  checks) in a HIL session (`hilrig.session`), untraced; (b) the same with a Rerun trace to a
+  file; (c) the floor: the same RPDO frames + SYNC out and the same number of TPDO frames back
+  over one raw socket with kernel filters (`hilrig.transport`), no physics, no checks, no trace;
+  (d) for comparison, that exchange through python-can's Bus. Goals: (a)/(c) >= 0.5, (b)/(a)
+  >= 0.8. Simulated-time speed-up at 1 kHz = cycles per second / 1000.
 * SDO latency: expedited upload (a REAL32 board parameter) from `canopen.RemoteNode` to the
   firmware, next to the same upload served by a `canopen.LocalNode` (same EDS, another node id)
   running in its own Python process on the same private bus. Requests alternate. Goal: the
@@ -36,12 +37,12 @@ import contextlib
 import datetime
 import itertools
 import json
+import math
 import os
 import platform
 import re
 import shutil
 import statistics
-import struct
 import subprocess
 import sys
 import tempfile
@@ -221,16 +222,27 @@ class BusBench:
         with fw:
             yield fw
 
-    # --- lockstep: the rig and the floor -------------------------------------------------------
-    def rig_rate(self, cycles: int, warmup: int, budget_s: float) -> tuple[float, int]:
-        """(cycles per second, cycles measured): `cycles`, or fewer when `budget_s` runs out."""
-        from hilrig.rig import Rig
+    # --- lockstep: the rig (untraced, traced) and the floors -----------------------------------
+    def rig_rate(self, cycles: int, warmup: int, budget_s: float, *, traced: bool) -> tuple[float, int]:
+        """(cycles per second, cycles measured) of the full `Rig` (physics, history, checks) in a
+        HIL session (`hilrig.session`, no bus log), with or without a Rerun trace (written to a
+        file; its close(), which sends what is pending, is inside the measurement)."""
+        from hilrig.session import SessionConfig, open_session
 
-        with (
-            self.bus.open() as can_bus,
-            self.firmware("rig") as fw,
-            Rig(can_bus, eds=self.eds, table=self.table, liveness=fw.check) as rig,
-        ):
+        self._runs += 1
+        what = "rig-traced" if traced else "rig"
+        config = SessionConfig(
+            out_dir=self.logs / f"{self._runs:02d}-{what}",
+            trace=traced,
+            record=False,
+            executable=self.firmware_exe,
+            eds=self.eds,
+            node_id=FIRMWARE_NODE_ID,
+            period_us=PERIOD_US,
+        )
+        session = open_session(config, table=self.table)
+        try:
+            rig = session.rig
             rig.set("velocity_setpoint", 5.0)
             rig.run(cycles=warmup)
             start = time.perf_counter()
@@ -239,56 +251,107 @@ class BusBench:
                 chunk = min(50, cycles - done)
                 rig.run(cycles=chunk)
                 done += chunk
+            if session.tracer is not None:
+                session.tracer.close()  # the trace is complete: its cost is part of the run
             elapsed = time.perf_counter() - start
+        finally:
+            session.close()
         return done / elapsed, done
 
-    def _floor_frames(self) -> tuple[list[tuple[int, list[tuple[int, bool]]]], list[tuple[int, int]]]:
-        """RPDOs the rig sends every cycle (COB-ID, entries as (bytes, is REAL32)) and the
-        synchronous TPDOs the node answers with (COB-ID, every k-th SYNC)."""
-        from hilrig.lockstep import SETPOINT_STREAM
+    def _floor_layout(self) -> tuple[list[Any], list[Any]]:
+        """The RPDOs the rig sends every cycle (sensors, setpoint stream) and the enabled cyclic
+        TPDOs, compiled from the EDS exactly as the rig compiles them (`hilrig.transport`)."""
+        import canopen
 
-        fields = {f.name for f in self.proto.fields}
-        rpdos = []
-        for pdo in self.proto.rpdos:
-            names = [e.name for e in pdo.entries]
-            sensor = bool(names) and all(self.table.is_hil_input(n) for n in names)
-            if pdo.enabled and names and (sensor or set(SETPOINT_STREAM) & set(names)):
-                layout = [(e.bits // 8, e.name in fields) for e in pdo.entries]
-                rpdos.append((pdo.cob_id(FIRMWARE_NODE_ID), layout))
+        from hilrig.driver import SETPOINT_STREAM
+        from hilrig.transport import PdoDirection, compile_pdos
+
+        network = canopen.Network()  # never connected: the PDO maps only need a home
+        node = canopen.RemoteNode(FIRMWARE_NODE_ID, str(self.eds))
+        network.add_node(node)
+        node.rpdo.read(from_od=True)
+        node.tpdo.read(from_od=True)
+        rpdos = [
+            p
+            for p in compile_pdos(PdoDirection.RPDO, node.rpdo.map).values()
+            if p.enabled
+            and p.names
+            and (all(self.table.is_hil_input(n) for n in p.names) or set(SETPOINT_STREAM) & set(p.names))
+        ]
         tpdos = [
-            (pdo.cob_id(FIRMWARE_NODE_ID), pdo.transmission_type)
-            for pdo in self.proto.tpdos
-            if pdo.enabled and pdo.entries and 1 <= pdo.transmission_type <= 240
+            p for p in compile_pdos(PdoDirection.TPDO, node.tpdo.map).values() if p.is_cyclic and p.names
         ]
         return rpdos, tpdos
 
+    def _await_boot_up(self, next_cob_id: Callable[[], int | None], fw: Any) -> None:
+        deadline = time.monotonic() + 30
+        while next_cob_id() != 0x700 + FIRMWARE_NODE_ID:
+            fw.check()
+            if time.monotonic() > deadline:
+                raise RuntimeError("floor: no boot-up from the firmware within 30 s")
+
     def floor_rate(self, cycles: int, warmup: int, budget_s: float) -> tuple[float, int]:
-        """Bare python-can: the same RPDOs + SYNC out, the same number of TPDOs back."""
+        """The floor: the same RPDO frames + SYNC out and the same TPDO frames back, over one raw
+        socket with kernel filters (`hilrig.transport`), no physics, no checks, no trace."""
+        from hilrig.cia301 import SYNC_COB_ID
+        from hilrig.transport import RawCanLink, can_frame, open_raw_socket
+
+        rpdos, tpdos = self._floor_layout()
+        out_frames = [p.frame([0] * len(p.names)) for p in rpdos]
+        syncs = [can_frame(SYNC_COB_ID, bytes([n % 240 + 1])) for n in range(240)]
+        receive = [p.cob_id for p in tpdos] + [0x700 + FIRMWARE_NODE_ID]
+        with self.bus.entered():
+            sock = open_raw_socket(self.bus.channel, receive)
+        link = RawCanLink(sock)
+        try:
+            with self.firmware("floor") as fw:
+
+                def next_cob_id() -> int | None:
+                    frame = link.recv(0.25)
+                    return frame[0] if frame is not None else None
+
+                self._await_boot_up(next_cob_id, fw)
+                link.send(can_frame(0, bytes([0x01, FIRMWARE_NODE_ID])))
+                period = math.lcm(*(p.transmission_type for p in tpdos))
+                expected = [sum(1 for p in tpdos if p.due_at_sync(n + 1)) for n in range(period)]
+                send, recv = link.send, link.recv
+                start = 0.0
+                done = 0
+                for n in range(warmup + cycles):
+                    if n == warmup:
+                        start = time.perf_counter()
+                    elif n > warmup and n % 50 == 0 and time.perf_counter() - start > budget_s:
+                        break
+                    for frame in out_frames:
+                        send(frame)
+                    send(syncs[n % 240])
+                    for _ in range(expected[n % period]):
+                        if recv(5.0) is None:
+                            fw.check()
+                            raise RuntimeError(f"floor: cycle {n}: a TPDO did not come within 5 s")
+                    if n >= warmup:
+                        done += 1
+                elapsed = time.perf_counter() - start
+        finally:
+            link.close()
+        return done / elapsed, done
+
+    def python_can_rate(self, cycles: int, warmup: int, budget_s: float) -> tuple[float, int]:
+        """For comparison: the same exchange through python-can's Bus (Message objects)."""
         import can
 
-        rpdos, tpdos = self._floor_frames()
-        tpdo_ids = {cob for cob, _ in tpdos}
+        rpdos, tpdos = self._floor_layout()
+        tpdo_ids = {p.cob_id for p in tpdos}
         bootup = 0x700 + FIRMWARE_NODE_ID
         filters = [{"can_id": cob, "can_mask": 0x7FF} for cob in (*tpdo_ids, bootup)]
+        payloads = [(p.cob_id, p.pack([0] * len(p.names))) for p in rpdos]
+        with self.bus.open(can_filters=filters) as can_bus, self.firmware("python-can") as fw:
 
-        def payload(layout: list[tuple[int, bool]], n: int) -> bytes:
-            data = b""
-            for size, real in layout:
-                if real:
-                    data += struct.pack("<f", 5.0)
-                else:
-                    data += ((n * 7) & ((1 << (8 * size)) - 1)).to_bytes(size, "little")
-            return data
-
-        with self.bus.open(can_filters=filters) as can_bus, self.firmware("floor") as fw:
-            deadline = time.monotonic() + 10
-            while True:  # boot-up (the bus was open before the firmware started)
+            def next_cob_id() -> int | None:
                 msg = can_bus.recv(0.25)
-                if msg is not None and msg.arbitration_id == bootup:
-                    break
-                fw.check()
-                if time.monotonic() > deadline:
-                    raise RuntimeError("floor: no boot-up from the firmware within 10 s")
+                return msg.arbitration_id if msg is not None else None
+
+            self._await_boot_up(next_cob_id, fw)
             can_bus.send(can.Message(arbitration_id=0, data=[0x01, FIRMWARE_NODE_ID], is_extended_id=False))
             start = 0.0
             done = 0
@@ -297,21 +360,13 @@ class BusBench:
                     start = time.perf_counter()
                 elif n > warmup and n % 50 == 0 and time.perf_counter() - start > budget_s:
                     break
-                for cob, layout in rpdos:
-                    can_bus.send(
-                        can.Message(arbitration_id=cob, data=payload(layout, n), is_extended_id=False)
-                    )
+                for cob, data in payloads:
+                    can_bus.send(can.Message(arbitration_id=cob, data=data, is_extended_id=False))
                 can_bus.send(can.Message(arbitration_id=0x80, data=[n % 240 + 1], is_extended_id=False))
-                sync_number = n + 1
-                expected = sum(1 for _, k in tpdos if sync_number % k == 0)
-                got = 0
-                while got < expected:
-                    msg = can_bus.recv(5.0)
-                    if msg is None:
+                for _ in range(sum(1 for p in tpdos if p.due_at_sync(n + 1))):
+                    if can_bus.recv(5.0) is None:
                         fw.check()
-                        raise RuntimeError(f"floor: cycle {n}: {got} of {expected} TPDOs within 5 s")
-                    if msg.arbitration_id in tpdo_ids:
-                        got += 1
+                        raise RuntimeError(f"python-can floor: cycle {n}: a TPDO did not come within 5 s")
                 if n >= warmup:
                     done += 1
             elapsed = time.perf_counter() - start
@@ -514,31 +569,36 @@ def bus_main(args: argparse.Namespace) -> int:
     with PrivateBus() as private_bus:
         bench = BusBench(private_bus, out)
         say(
-            f"lockstep: {args.rounds} rounds of {args.cycles} cycles, "
-            "rig and bare python-can floor alternating"
+            f"lockstep: {args.rounds} rounds of {args.cycles} cycles: Rig untraced, Rig traced, "
+            "raw-socket floor, python-can floor, alternating"
         )
-        rig_rates, floor_rates, measured = [], [], []
+        kinds = ("rig", "rig_traced", "floor", "python_can")
+        rates: dict[str, list[float]] = {kind: [] for kind in kinds}
+        measured: list[dict[str, int]] = []
         for round_ in range(1, args.rounds + 1):
-            rig, rig_cycles = bench.rig_rate(args.cycles, args.warmup, args.budget_s)
-            floor, floor_cycles = bench.floor_rate(args.cycles, args.warmup, args.budget_s)
-            rig_rates.append(rig)
-            floor_rates.append(floor)
-            measured.append({"rig": rig_cycles, "floor": floor_cycles})
+            got = {
+                "rig": bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=False),
+                "rig_traced": bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=True),
+                "floor": bench.floor_rate(args.cycles, args.warmup, args.budget_s),
+                "python_can": bench.python_can_rate(args.cycles, args.warmup, args.budget_s),
+            }
+            for kind in kinds:
+                rates[kind].append(got[kind][0])
+            measured.append({kind: got[kind][1] for kind in kinds})
             say(
-                f"  round {round_}: rig {rig:.0f} cycles/s ({rig_cycles} cycles), "
-                f"floor {floor:.0f} cycles/s ({floor_cycles} cycles)"
+                f"  round {round_}: "
+                + ", ".join(f"{kind} {got[kind][0]:.0f}/s ({got[kind][1]} cycles)" for kind in kinds)
             )
-        rpdos, tpdos = bench._floor_frames()
+        rpdos, tpdos = bench._floor_layout()
         result["lockstep"] = {
             "cycles": args.cycles,
             "rounds": args.rounds,
             "measured_cycles": measured,
             "budget_s": args.budget_s,
-            "rig_cycles_per_s": rig_rates,
-            "floor_cycles_per_s": floor_rates,
+            **{f"{kind}_cycles_per_s": rates[kind] for kind in kinds},
             "frames_per_cycle": {
                 "out": len(rpdos) + 1,
-                "in": sum(1 / k for _, k in tpdos),
+                "in": sum(1 / p.transmission_type for p in tpdos),
             },
         }
         say(f"SDO: {args.sdo} expedited uploads each from the firmware and a canopen.LocalNode, alternating")
@@ -613,20 +673,41 @@ def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> 
         )
 
     lockstep = bus["lockstep"]
-    rig, floor = max(lockstep["rig_cycles_per_s"]), max(lockstep["floor_cycles_per_s"])
-    ratio = _ratio(rig, floor)
+    best = {
+        kind: max(lockstep[f"{kind}_cycles_per_s"]) for kind in ("rig", "rig_traced", "floor", "python_can")
+    }
+    ratio = _ratio(best["rig"], best["floor"])
     row(
-        "lockstep cycles/s (Rig vs bare python-can)",
-        f"{rig:.0f}/s",
-        f"{floor:.0f}/s",
+        "lockstep cycles/s: Rig untraced vs raw-socket floor",
+        f"{best['rig']:.0f}/s",
+        f"{best['floor']:.0f}/s",
         ratio,
         ">= 0.5",
         ratio >= 0.5,
-        rig=rig,
-        floor=floor,
         **lockstep,
     )
-    row("simulated time vs real time at 1 kHz", f"{rig / 1000:.2f}x", "1.00x (real time)", rig / 1000)
+    ratio = _ratio(best["rig_traced"], best["rig"])
+    row(
+        "lockstep cycles/s: Rig traced vs untraced",
+        f"{best['rig_traced']:.0f}/s",
+        f"{best['rig']:.0f}/s",
+        ratio,
+        ">= 0.8",
+        ratio >= 0.8,
+    )
+    row(
+        "lockstep cycles/s: python-can floor vs raw-socket floor",
+        f"{best['python_can']:.0f}/s",
+        f"{best['floor']:.0f}/s",
+        _ratio(best["python_can"], best["floor"]),
+    )
+    for kind, label in (("rig", "Rig untraced"), ("rig_traced", "Rig traced")):
+        row(
+            f"simulated time vs real time at 1 kHz ({label})",
+            f"{best[kind] / 1000:.2f}x",
+            "1.00x (real time)",
+            best[kind] / 1000,
+        )
     sdo = bus["sdo"]
     ours_us, local_us = sdo["firmware"]["median_us"], sdo["local_node"]["median_us"]
     ratio = _ratio(local_us, ours_us)
@@ -738,7 +819,7 @@ def format_report(report: dict[str, Any]) -> str:
     free = next(r for r in report["rows"] if r["measure"].startswith("free-running"))["data"]
     lines += [
         "",
-        "ratios: lockstep = rig/floor and SDO = LocalNode/firmware latency (higher is better);",
+        "ratios: lockstep = ours/baseline rate and SDO = LocalNode/firmware latency (higher is better);",
         "        board and instructions = ours/baseline (lower is better); free-running = p99 error/period.",
         f"free-running: {free['method']};",
         f"        {free['cycles']} periods, mean {free['mean_period_us']:.1f} us, "

@@ -6,16 +6,25 @@ every scenario's bus.log): a `can.Logger` (format by extension: .log candump, .b
 the logger was stopped (flushed and closed; a BLF file gets its header and object count only
 then). So the named file is always a whole log, also after Ctrl-C or SIGTERM; a hard kill
 (SIGKILL) leaves it untouched and the partial file behind.
+
+`RecorderProcess` runs that logger in a process of its own (`python -m hilrig.buslog`): every
+frame becomes a python-can Message there, and in the rig's own process those would compete with
+the lockstep loop for the interpreter lock.
 """
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
-from collections.abc import Iterator
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 from hilrig.table import RigTable
 
@@ -65,6 +74,102 @@ class BusRecorder:
         self._stack.close()
 
 
+class _Launcher(Protocol):
+    channel: str
+
+    def popen(self, argv: list[str], **kwargs: Any) -> subprocess.Popen[Any]: ...
+
+
+class RecorderProcess:
+    """Everything on `launcher`'s bus into a whole log at `path`, recorded by a process of its
+    own (`python -m hilrig.buslog`) started inside the bus's namespace; ready once the
+    constructor returns. `close()` stops it (SIGTERM: the log is renamed whole) and returns the
+    number of frames it wrote."""
+
+    READY_TIMEOUT_S = 120.0
+    """Hang guard for the start (importing python-can takes seconds in the emulated VM)."""
+
+    def __init__(self, launcher: _Launcher, path: Path) -> None:
+        self.path = path
+        self.frames: int | None = None
+        path.parent.mkdir(parents=True, exist_ok=True)
+        argv = [sys.executable, "-m", "hilrig.buslog", "--channel", launcher.channel, "--out", str(path)]
+        self.process = launcher.popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
+        assert self.process.stdout is not None
+        ready: list[str] = []
+        reader = threading.Thread(target=lambda: ready.append(self.process.stdout.readline()), daemon=True)
+        reader.start()
+        reader.join(self.READY_TIMEOUT_S)
+        if not ready or ready[0].strip() != "ready":
+            self.process.kill()
+            self.process.wait()
+            raise RuntimeError(
+                f"bus recorder for {path} did not start (exit {self.process.returncode}, said {ready[:1]!r})"
+            )
+
+    def close(self) -> int | None:
+        """Stop the recorder; the frames it wrote (None if it did not say)."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+        out, _ = self.process.communicate(timeout=60)
+        for line in out.splitlines():
+            if line.startswith("frames "):
+                self.frames = int(line.split()[1])
+        return self.frames
+
+
+def record_main(argv: Sequence[str] | None = None) -> int:
+    """The recorder process: every frame of a SocketCAN channel into python-can's logger until
+    SIGTERM/SIGINT. Frames are read from a raw socket with kernel timestamps (`hilrig.transport`):
+    python-can's own receive path would double the per-frame cost, and inside the emulated VM the
+    recorder must keep up with the lockstep rig."""
+    import can
+
+    from hilrig.transport import RawCanLink, open_raw_socket
+
+    parser = argparse.ArgumentParser(prog="python -m hilrig.buslog", description=RecorderProcess.__doc__)
+    parser.add_argument("--channel", required=True, help="SocketCAN interface, e.g. vcan0")
+    parser.add_argument("--out", type=Path, required=True, help="the log (format by extension)")
+    args = parser.parse_args(argv)
+    stop = threading.Event()
+    for number in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(number, lambda *_: stop.set())
+    link = RawCanLink(open_raw_socket(args.channel, None))
+    link.enable_timestamps()
+    message = can.Message
+    channel = args.channel
+    frames = 0
+    with contextlib.closing(link), whole_file_logger(args.out) as logger:
+        print("ready", flush=True)
+        while True:
+            got = link.recv_stamped(0.05)
+            if got is None:
+                if stop.is_set():  # stopped and nothing queued any more
+                    break
+                continue
+            can_id, data, stamp = got
+            logger(
+                message(
+                    timestamp=stamp,
+                    arbitration_id=can_id & (_EFF_MASK if can_id & _EFF_FLAG else _SFF_MASK),
+                    is_extended_id=bool(can_id & _EFF_FLAG),
+                    is_remote_frame=bool(can_id & _RTR_FLAG),
+                    is_error_frame=bool(can_id & _ERR_FLAG),
+                    dlc=len(data),
+                    data=data,
+                    channel=channel,
+                    check=False,
+                )
+            )
+            frames += 1
+    print(f"frames {frames}", flush=True)
+    return 0
+
+
+_EFF_FLAG, _RTR_FLAG, _ERR_FLAG = 0x8000_0000, 0x4000_0000, 0x2000_0000
+_SFF_MASK, _EFF_MASK = 0x7FF, 0x1FFF_FFFF
+
+
 def node_cob_ids(table: RigTable, node_id: int) -> frozenset[int]:
     """COB-IDs node `node_id` itself sends on (CiA 301 predefined connection set and the
     table's TPDOs): EMCY, TPDOs, SDO answers, heartbeat and boot-up."""
@@ -104,8 +209,13 @@ __all__ = [
     "LOG_FORMATS",
     "BusRecorder",
     "NodeDbc",
+    "RecorderProcess",
     "master_side",
     "node_cob_ids",
     "partial_path",
     "whole_file_logger",
 ]
+
+
+if __name__ == "__main__":
+    sys.exit(record_main())

@@ -23,18 +23,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hilrig.buslog import whole_file_logger
 from hilrig.errors import BusUnavailableError, FirmwareError, LockstepError, RigError
 from hilrig.faults import FaultEvent, FaultInjector, FaultPlan
-from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
-from hilrig.netns import PrivateBus, private_buses_supported
+from hilrig.firmware import DEFAULT_EXECUTABLE
+from hilrig.netns import private_buses_supported
 from hilrig.node import EmcyRecord
 from hilrig.physics import JointParams
 from hilrig.rig import DEFAULT_EDS_PATH, Rig
+from hilrig.session import SessionConfig, hil_session
 from hilrig.table import RigTable
 
 if TYPE_CHECKING:
-    import can
+    pass
 
 Scenario = Callable[[Rig], object]
 Progress = Callable[[str], None]
@@ -154,16 +154,9 @@ def default_scenario(progress: Progress) -> Scenario:
     return scenario
 
 
-class _FrameCounter:
-    def __init__(self) -> None:
-        self.count = 0
-
-    def __call__(self, message: can.Message) -> None:
-        self.count += 1
-
-
 def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
-    """Firmware + rig in lockstep on a private bus; the bus log goes to out_dir/bus.log."""
+    """Firmware + rig in lockstep on a private bus (`hilrig.session`); the bus log goes to
+    out_dir/bus.log."""
     if not private_buses_supported():
         raise BusUnavailableError(
             "the simulation needs root and a kernel with vcan for its private bus: "
@@ -176,77 +169,52 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
     )
     table = RigTable.load()
     out = options.out_dir
-    out.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
-    counter = _FrameCounter()
-    with (
-        PrivateBus() as private_bus,
-        private_bus.open(receive_own_messages=True) as bus,
-        whole_file_logger(out / "bus.log") as logger,
-    ):
-        firmware = Firmware(
-            private_bus,
-            node_id=options.node_id,
-            log_path=out / "firmware.log",
-            period_us=options.period_us,
-            executable=options.executable,
-        )
-        tracer = None
-        if options.trace:
-            from hilrig.trace import Tracer  # rerun is slow to import: only when tracing
-
-            progress("sim: tracing to Rerun (importing rerun-sdk takes a while in the VM)")
-            tracer = Tracer.for_scenario(out, table)
-        rig = Rig(
-            bus,
-            tracer=tracer,
-            node_id=options.node_id,
-            eds=options.eds,
-            params=options.params,
-            seed=options.seed,
-            period_us=options.period_us,
-            table=table,
-            liveness=firmware.check,
-            boot_timeout_s=BOOT_TIMEOUT_S,
-        )
-        try:
-            notifier = rig.node.network.notifier
-            assert notifier is not None  # BoardNode connected the network
-            notifier.add_listener(logger)  # one reader per bus: the rig's notifier feeds the log
-            notifier.add_listener(counter)
-            progress(
-                f"sim: starting {options.executable.name} (node 0x{options.node_id:02X}, lockstep, "
-                f"{options.period_us} us) on private bus {private_bus.name}"
+    if options.trace:
+        progress("sim: tracing to Rerun (importing rerun-sdk takes a while in the VM)")
+    progress(
+        f"sim: starting {options.executable.name} (node 0x{options.node_id:02X}, lockstep, "
+        f"{options.period_us} us) on a private bus"
+    )
+    config = SessionConfig(
+        out_dir=out,
+        params=options.params,
+        seed=options.seed,
+        node_id=options.node_id,
+        period_us=options.period_us,
+        trace=options.trace,
+        executable=options.executable,
+        eds=options.eds,
+        boot_timeout_s=BOOT_TIMEOUT_S,
+        sdo_timeout_s=1.0,
+    )
+    with hil_session(config, table=table) as session:
+        rig = session.rig
+        assert session.firmware is not None
+        injector: FaultInjector | None = None
+        if options.faults:
+            injector = FaultInjector(
+                rig,
+                options.faults,
+                firmware=session.firmware,
+                boot_timeout_s=BOOT_TIMEOUT_S,
+                on_event=lambda e: progress(f"sim: t = {e.time_s:.3f} s  fault {e.text}"),
             )
-            injector: FaultInjector | None = None
-            with firmware:
-                rig.start()
-                if options.faults:
-                    injector = FaultInjector(
-                        rig,
-                        options.faults,
-                        firmware=firmware,
-                        boot_timeout_s=BOOT_TIMEOUT_S,
-                        on_event=lambda e: progress(f"sim: t = {e.time_s:.3f} s  fault {e.text}"),
-                    )
-                    injector.install()
-                progress("sim: node operational, running the scenario")
-                try:
-                    scenario(rig)
-                except (FirmwareError, LockstepError) as error:
-                    evidence = [f"bus log: {out / 'bus.log'}", f"firmware log: {out / 'firmware.log'}"]
-                    if tracer is not None:
-                        evidence.insert(0, f"trace: {out / 'trace.rrd'}")
-                    first_line = str(error).splitlines()[0].rstrip(";: ")
-                    raise RunAbortedError(f"{first_line}; {', '.join(evidence)}") from error
-                summary = summarize(rig, table, options, started, out, counter.count)
-                if injector is not None:
-                    summary = dataclasses.replace(summary, faults=tuple(injector.log))
-        finally:
-            rig.close()
-            if tracer is not None:
-                tracer.close()
-    if tracer is not None:
+            injector.install()
+        progress("sim: node operational, running the scenario")
+        try:
+            scenario(rig)
+        except (FirmwareError, LockstepError) as error:
+            first_line = str(error).splitlines()[0].rstrip(";: ")
+            raise RunAbortedError(f"{first_line}; {session.evidence()}") from error
+        summary = summarize(rig, table, options, started, out, 0)
+        if injector is not None:
+            summary = dataclasses.replace(summary, faults=tuple(injector.log))
+        recorder = session.recorder
+    summary = dataclasses.replace(
+        summary, frames_logged=recorder.frames if recorder is not None and recorder.frames is not None else 0
+    )
+    if options.trace:
         summary = dataclasses.replace(summary, trace=out / "trace.rrd")
     return summary
 

@@ -230,8 +230,33 @@ class RawCanLink:
         cob_id, length = CAN_HEADER.unpack_from(frame)
         return cob_id, frame[8 : 8 + length]
 
+    def enable_timestamps(self) -> None:
+        """Have the kernel stamp every received frame (`recv_stamped`)."""
+        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_TIMESTAMP, 1)
+
+    def recv_stamped(self, timeout_s: float) -> tuple[int, bytes, float] | None:
+        """(raw can_id with its EFF/RTR/ERR flags, data, kernel receive time [s since the epoch])
+        of the next frame, or None after `timeout_s`; needs `enable_timestamps()` first."""
+        if timeout_s != self._timeout:
+            self._set_timeout(timeout_s)
+        try:
+            frame, ancillary, _flags, _address = self.socket.recvmsg(CAN_FRAME_SIZE, _TIMESTAMP_SPACE)
+        except (BlockingIOError, TimeoutError):
+            return None
+        stamp = 0.0
+        for level, kind, payload in ancillary:
+            if level == socket.SOL_SOCKET and kind == socket.SO_TIMESTAMP:
+                seconds, micros = _TIMEVAL.unpack_from(payload)
+                stamp = seconds + micros / 1e6
+        can_id, length = CAN_HEADER.unpack_from(frame)
+        return can_id, frame[8 : 8 + length], stamp
+
     def close(self) -> None:
         self.socket.close()
+
+
+_TIMEVAL = struct.Struct("@ll")
+_TIMESTAMP_SPACE = socket.CMSG_SPACE(_TIMEVAL.size)
 
 
 class BusLink:
@@ -345,23 +370,24 @@ def _namespace_of(sock: socket.socket | None) -> Iterable[None]:
 
 def open_raw_socket(
     channel: str,
-    receive_ids: Iterable[int],
+    receive_ids: Iterable[int] | None,
     *,
     beside: socket.socket | None = None,
     timeout_s: float | None = None,
 ) -> socket.socket:
     """A raw SocketCAN socket on `channel` that receives only standard data frames with
-    `receive_ids` (kernel filters), with a deep receive queue; created in the network namespace
-    of `beside` (another socket on the same bus, e.g. a private bus's). recv raises TimeoutError
-    after `timeout_s` (None: blocking)."""
-    ids = sorted(set(receive_ids))
+    `receive_ids` (kernel filters; None: every frame), with a deep receive queue; created in the
+    network namespace of `beside` (another socket on the same bus, e.g. a private bus's). recv
+    raises TimeoutError after `timeout_s` (None: blocking)."""
+    ids = sorted(set(receive_ids)) if receive_ids is not None else None
     with _namespace_of(beside):
         sock = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
         try:
-            mask = socket.CAN_SFF_MASK | socket.CAN_EFF_FLAG | socket.CAN_RTR_FLAG
-            filters = b"".join(struct.pack("=II", cob_id, mask) for cob_id in ids)
-            # No id at all: an empty filter list means "receive nothing" to the kernel.
-            sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FILTER, filters)
+            if ids is not None:
+                mask = socket.CAN_SFF_MASK | socket.CAN_EFF_FLAG | socket.CAN_RTR_FLAG
+                filters = b"".join(struct.pack("=II", cob_id, mask) for cob_id in ids)
+                # No id at all: an empty filter list means "receive nothing" to the kernel.
+                sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FILTER, filters)
             deepen_receive_queue(sock)
             sock.settimeout(timeout_s)
             sock.bind((channel,))
