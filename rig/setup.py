@@ -5,6 +5,7 @@ The plant's arithmetic must stay bit-identical to the reference trajectories
 A missing compiler or CPython header fails here, by name, instead of deep in gcc's output.
 """
 
+import os
 import shutil
 import sysconfig
 from pathlib import Path
@@ -21,7 +22,7 @@ class BuildExtensionWithChecks(build_ext):
                 f"hilrig: cannot build hilrig.physics._plant: {header} is missing "
                 "(the CPython headers; on Debian: apt-get install python3-dev)"
             )
-        compiler = (sysconfig.get_config_var("CC") or "cc").split()[0]
+        compiler = (os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0]
         if shutil.which(compiler) is None:
             raise SystemExit(
                 f"hilrig: cannot build hilrig.physics._plant: C compiler {compiler!r} not found "
