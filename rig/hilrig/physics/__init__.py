@@ -9,6 +9,13 @@ Typical use, one control cycle of the lockstep driver::
     plant.step(1e-3, duty_from_motor_duty(motor_duty))  # motor_duty <- TPDO1
 """
 
+try:
+    from hilrig.physics import _plant  # noqa: F401  (the C physics, compiled by the install)
+except ImportError as error:
+    raise ImportError(
+        "hilrig.physics._plant, the joint's physics in C, is not built: run tools/deps "
+        "(or: .venv/bin/python -m pip install --no-build-isolation --no-deps -e rig)"
+    ) from error
 from hilrig.physics.params import FAST_THERMAL_TIME_CONSTANT_S, JointParams
 from hilrig.physics.plant import (
     MOTOR_DUTY_FULL_SCALE,

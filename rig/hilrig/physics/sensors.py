@@ -8,6 +8,10 @@ GND, the current sensor is I16 with 1 count = 1 mA.
 
 Rounding is half away from zero, like C's lround, so that the firmware's C++
 conversions and these agree bit for bit on exact inputs.
+
+The per-cycle path (`read_sensors`, `SensorModel.read`) runs the same conversions in C
+(hilrig.physics._plant, for the rig's emulated CPU); the functions here are the readable
+reference, and the tests hold both to identical readings.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hilrig.physics import _plant
 from hilrig.physics.params import JointParams
 from hilrig.physics.plant import JointState
 
@@ -189,36 +194,69 @@ class RawSensors:
         return dataclasses.asdict(self)
 
 
+def _sensor_coefficients(params: JointParams) -> tuple[float, ...]:
+    """The constants _plant.c's raw_sensors reads, in the order of its S_* enum (all floats)."""
+    p = params
+    coefficients = tuple(
+        float(value)
+        for value in (
+            p.motor_encoder_counts_per_rev,
+            p.output_encoder_counts_per_rev,
+            p.ntc_r25_ohm,
+            p.ntc_beta_k,
+            p.thermistor_pullup_ohm,
+            p.thermistor_adc_noise_counts,
+            p.current_sensor_noise_a,
+        )
+    )
+    assert len(coefficients) == _plant.SENSOR_COEFFICIENT_COUNT
+    return coefficients
+
+
 def read_sensors(state: JointState, params: JointParams, rng: np.random.Generator) -> RawSensors:
     """Raw sensor values for `state`, with seeded Gaussian noise on the two ADCs.
 
     Encoders carry no noise: their error is quantization. Exactly two normal
     variates are drawn per call whatever the noise levels, so the random stream (and
     with it every later reading) does not depend on which noise is switched on.
+    Same as: encoder_counts of both angles, thermistor_adc of the NTC plus noise (clamped
+    to 0..4095), current_counts of the current plus noise.
     """
     thermistor_noise, current_noise = rng.standard_normal(2)
-    ntc_ohm = ntc_resistance(state.winding_temperature_c, params.ntc_r25_ohm, params.ntc_beta_k)
-    adc = thermistor_adc_exact(ntc_ohm, params.thermistor_pullup_ohm)
-    adc += params.thermistor_adc_noise_counts * float(thermistor_noise)
-    current = state.current_a + params.current_sensor_noise_a * float(current_noise)
-    return RawSensors(
-        motor_encoder_counts=encoder_counts(state.motor_angle_rad, params.motor_encoder_counts_per_rev),
-        output_encoder_counts=encoder_counts(state.load_angle_rad, params.output_encoder_counts_per_rev),
-        thermistor_adc=min(THERMISTOR_ADC_MAX, max(0, round_half_away(adc))),
-        motor_current_adc=current_counts(current),
+    return _plant.raw_sensors(
+        RawSensors, _sensor_coefficients(params), state, float(thermistor_noise), float(current_noise)
     )
+
+
+NOISE_BLOCK_READS = 512
+"""Reads whose noise a SensorModel with its own generator draws in one numpy call."""
 
 
 class SensorModel:
     """The joint's sensors with their own seeded noise stream.
 
     seed: an int (same seed, same noise, run after run) or a numpy Generator to share.
+    With an int seed the normals are drawn NOISE_BLOCK_READS reads at a time (a numpy call
+    costs more than the reading itself); Generator.standard_normal yields the same sequence
+    in blocks as two at a time, so every reading equals `read_sensors` with that generator.
+    A shared Generator is drawn from two normals per read, never ahead of the other users.
     """
 
     def __init__(self, params: JointParams, seed: int | np.random.Generator) -> None:
         self._params = params
+        self._coefficients = _sensor_coefficients(params)
+        self._shared_rng = isinstance(seed, np.random.Generator)
         self._rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        self._noise: list[float] = []
+        self._next_noise = 0
 
     def read(self, state: JointState) -> RawSensors:
         """Raw values for `state`; each call draws fresh noise."""
-        return read_sensors(state, self._params, self._rng)
+        if self._shared_rng:
+            return read_sensors(state, self._params, self._rng)
+        i = self._next_noise
+        if i == len(self._noise):
+            self._noise = self._rng.standard_normal(2 * NOISE_BLOCK_READS).tolist()
+            i = 0
+        self._next_noise = i + 2
+        return _plant.raw_sensors(RawSensors, self._coefficients, state, self._noise[i], self._noise[i + 1])
