@@ -55,7 +55,7 @@ bench: deps ## benchmarks, each a ratio measured side by side in one run
 
 # Soak (issue 11): SOAK_CYCLES lockstep cycles against the real firmware on a real bus, a seeded
 # fault now and then; fails if a cycle is lost or the firmware's memory grows. SOAK_ARGS are passed
-# on (python -m hilrig.soak --help). Report: build/soak/report.json. Ctrl-C stops cleanly.
+# on (hilrig soak --help). Report: build/soak/report.json. Ctrl-C stops cleanly.
 SOAK_CYCLES ?= 1000000
 SOAK_ARGS ?=
 

@@ -34,6 +34,7 @@ NODE_ID_MASK = 0x7F
 STANDARD_ID_MASK = 0x7FF
 SYNC_COB_ID = int(FunctionCode.SYNC_EMCY)
 NMT_COB_ID = int(FunctionCode.NMT)
+TIME_COB_ID = int(FunctionCode.TIME)
 SYNC_COUNTER_MAX = 240
 """SYNC counters run 1..240 and wrap (CiA 301 counter overflow value 240)."""
 LAST_SYNCHRONOUS_TYPE = 240
@@ -87,6 +88,7 @@ __all__ = [
     "STANDARD_ID_MASK",
     "SYNC_COB_ID",
     "SYNC_COUNTER_MAX",
+    "TIME_COB_ID",
     "FunctionCode",
     "cob_id",
     "due_at_sync",

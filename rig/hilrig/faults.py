@@ -14,6 +14,8 @@ time in lockstep, wall seconds in real time; without +DURATION a lasting fault l
                                           flood:0x7F0=2000 for another ID), paced per cycle
     kill@2                                SIGKILL the firmware (the rig then reports it)
     restart@2                             SIGKILL, start it again, wait for boot-up, operational
+    nmt-stop@1+0.005                      NMT stop (the node must ignore SYNCs), start again after
+    sdo-read:gear_ratio@1                 an SDO upload between two cycles (a second master's)
 
     plan = FaultPlan.parse(["drop:motor_encoder_counts@0.5+0.2", "kill@2"])
     FaultInjector(rig, plan, firmware=firmware).install()
@@ -64,11 +66,13 @@ class FaultKind(enum.StrEnum):
     FLOOD = "flood"
     KILL = "kill"
     RESTART = "restart"
+    NMT_STOP = "nmt-stop"
+    SDO_READ = "sdo-read"
 
 
 SENSOR_VALUE_KINDS = (FaultKind.DELAY, FaultKind.FREEZE, FaultKind.OFFSET, FaultKind.RAW)
 """Faults that change a sensor's value in the frame the rig sends."""
-ONE_SHOT_KINDS = (FaultKind.MALFORMED, FaultKind.KILL, FaultKind.RESTART)
+ONE_SHOT_KINDS = (FaultKind.MALFORMED, FaultKind.KILL, FaultKind.RESTART, FaultKind.SDO_READ)
 """Faults that happen once, at START (a +DURATION makes no sense for them)."""
 MALFORMED_TARGETS = ("length", "cob-id")
 
@@ -76,7 +80,8 @@ FAULT_SYNTAX_HELP = (
     "KIND[:TARGET][=VALUE]@START[+DURATION], times in seconds. Kinds: "
     "drop:SENSOR|rpdoN (frames not sent), delay:SENSOR=CYCLES, freeze:SENSOR, "
     "offset:SENSOR=COUNTS, raw:SENSOR=COUNTS (out-of-range allowed), "
-    "malformed:length|cob-id (one frame), flood[:COB_ID]=FRAMES_PER_S, kill, restart"
+    "malformed:length|cob-id (one frame), flood[:COB_ID]=FRAMES_PER_S, kill, restart, "
+    "nmt-stop (+DURATION: start again after), sdo-read:FIELD (one SDO upload)"
 )
 
 _SPEC = re.compile(
@@ -173,8 +178,10 @@ class FaultSpec:
                 _cob_id(where, self.target)
         if kind is FaultKind.MALFORMED and self.target not in MALFORMED_TARGETS:
             raise FaultSpecError(f"{where}: say which: malformed:length or malformed:cob-id")
-        if kind in (FaultKind.KILL, FaultKind.RESTART) and self.target is not None:
+        if kind in (FaultKind.KILL, FaultKind.RESTART, FaultKind.NMT_STOP) and self.target is not None:
             raise FaultSpecError(f"{where}: {kind} takes no :TARGET")
+        if kind is FaultKind.SDO_READ and self.target is None:
+            raise FaultSpecError(f"{where}: name the object to read, e.g. sdo-read:gear_ratio")
 
     @property
     def flood_cob_id(self) -> int:
@@ -320,6 +327,12 @@ class FaultInjector:
             raise FaultSpecError(f"{where}: without physics the rig sends no sensor frames")
         if spec.kind is FaultKind.DROP:
             self._rpdo_number(spec)  # raises if nothing carries it
+        if spec.kind is FaultKind.SDO_READ:
+            assert spec.target is not None
+            try:
+                rig.check_names(spec.target)
+            except KeyError as error:
+                raise FaultSpecError(f"{where}: {error}") from None
 
     def _rpdo_number(self, spec: FaultSpec) -> int:
         assert spec.target is not None
@@ -366,6 +379,15 @@ class FaultInjector:
             self._record(f"{spec}: firmware killed with SIGKILL, restarting")
             self.rig.restart_node(self.firmware.restart, boot_timeout_s=self.boot_timeout_s)
             self._record(f"{spec}: firmware booted again and is operational")
+        elif kind is FaultKind.NMT_STOP:
+            from hilrig.node import NmtCommand
+
+            self.rig.nmt(NmtCommand.STOP)
+            self._record(f"{spec}: NMT stop sent (SYNCs go unanswered)")
+        elif kind is FaultKind.SDO_READ:
+            assert spec.target is not None
+            value = self.rig.read(spec.target)
+            self._record(f"{spec}: {spec.target} read by SDO: {value}")
 
     def _end(self, spec: FaultSpec) -> None:
         if spec.kind is FaultKind.DROP:
@@ -382,6 +404,10 @@ class FaultInjector:
             self._active = [active for active in self._active if active.spec is not spec]
         elif spec.kind is FaultKind.FLOOD:
             self._floods.pop(spec, None)
+        elif spec.kind is FaultKind.NMT_STOP:
+            from hilrig.node import NmtCommand
+
+            self.rig.nmt(NmtCommand.START)
         self._record(f"{spec}: ended")
 
     def _covers(self, spec: FaultSpec) -> bool:

@@ -26,6 +26,7 @@ from hilrig.buslog import RecorderProcess, whole_file_logger
 from hilrig.errors import BusUnavailableError
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.netns import PrivateBus, private_buses_supported
+from hilrig.node import BoardNode
 from hilrig.physics import JointParams
 from hilrig.rig import DEFAULT_EDS_PATH, Rig, TimingMode
 from hilrig.table import RigTable
@@ -89,6 +90,12 @@ class SessionConfig:
     tpdo_timeout_s: float = 5.0
     start: bool = True
     """Bring the node up (Rig.start) before handing the session over."""
+    rig: bool = True
+    """False: no Rig, only the node (`HilSession.node`: canopen for SDO/NMT and the frame link)
+    for a driver of its own (the soak)."""
+    host_channel: str | None = None
+    """Run the firmware on this interface of the host as it is, instead of a private vcan0."""
+    firmware_term_timeout_s: float = 5.0
 
 
 @dataclass
@@ -96,7 +103,8 @@ class HilSession:
     """What a running session holds; `close()` ends it early (the context manager does it too)."""
 
     config: SessionConfig
-    rig: Rig
+    rig: Rig | None  # None: SessionConfig(rig=False)
+    node: BoardNode
     firmware: Firmware | None
     tracer: Tracer | None
     private_bus: PrivateBus | None
@@ -156,18 +164,20 @@ def open_session(
         private_bus: PrivateBus | None = None
         recorder: RecorderProcess | None = None
         firmware: Firmware | None = None
-        if config.board is None:
+        if config.board is None and config.host_channel is None:
             if not private_buses_supported():
                 raise BusUnavailableError(
                     "a HIL session needs root and a kernel with vcan for its private bus: run "
                     "through tools/with-vcan (make run, make test) or on a host with vcan"
                 )
             private_bus = stack.enter_context(PrivateBus())
+        if config.board is None:
+            launcher = private_bus if private_bus is not None else _HostChannel(config.host_channel or "")
             if config.record:
-                recorder = RecorderProcess(private_bus, out / "bus.log")
+                recorder = RecorderProcess(launcher, out / "bus.log")
                 stack.callback(recorder.close)
             firmware = Firmware(
-                private_bus,
+                launcher,
                 node_id=node_id,
                 log_path=out / "firmware.log",
                 params_file=config.params_file,
@@ -176,6 +186,7 @@ def open_session(
                 mode=FIRMWARE_MODE[mode],
                 period_us=config.firmware_period_us
                 or (config.period_us if mode is TimingMode.LOCKSTEP else 10_000),
+                term_timeout_s=config.firmware_term_timeout_s,
             )
             firmware.start()
             stack.callback(firmware.stop)
@@ -187,13 +198,18 @@ def open_session(
             stack.callback(tracer.close)
         if private_bus is not None:
             bus = private_bus.open()
-        else:
-            assert config.board is not None
+        elif config.board is not None:
             bus = config.board.open()
+        else:
+            bus = BoardInterface("socketcan", config.host_channel or "").open()
         stack.callback(bus.shutdown)
         board_logger = None
         if config.board is not None and config.record:
             board_logger = _record_board(stack, bus, config.board, out / "bus.log")
+        if not config.rig:
+            node = BoardNode(bus, node_id, config.eds, table, sdo_timeout_s=config.sdo_timeout_s)
+            stack.callback(node.close)
+            return HilSession(config, None, node, firmware, tracer, private_bus, recorder, stack)
         rig = Rig(
             bus,
             node_id=node_id,
@@ -221,7 +237,7 @@ def open_session(
     except BaseException:
         stack.close()
         raise
-    return HilSession(config, rig, firmware, tracer, private_bus, recorder, stack)
+    return HilSession(config, rig, rig.node, firmware, tracer, private_bus, recorder, stack)
 
 
 def _record_board(

@@ -2,18 +2,19 @@
 faults now and then; no cycle may be lost and the firmware's memory must stay flat.
 
     make soak                                   # SOAK_CYCLES=1000000, through tools/with-vcan
-    tools/with-vcan -- .venv/bin/python -m hilrig.soak --cycles 20000 --fault-interval 2000
+    tools/with-vcan -- .venv/bin/hilrig soak --cycles 20000 --fault-interval 2000
 
-Why a lean driver: the scenario rig decodes seven TPDOs per cycle with canopen and steps the
-physics in Python, about 50-80 cycles/s inside the emulated VM, so a million cycles would take
-hours. This driver is still a real lockstep master on the real bus against the real firmware
-process, but it does only what a soak needs:
+It runs on the rig's own engine pieces, with a lean loop of its own on top (no physics: a
+constant rotation the checks can predict exactly):
 
+* The session (`hilrig.session`, without a Rig): the firmware on a private bus, canopen's
+  RemoteNode for SDO and NMT, and the frame link (`hilrig.transport`: one raw socket with kernel
+  receive filters for the node's TPDOs, EMCY and heartbeat).
 * The PDO layout (COB-IDs, transmission types, mapped objects and their types) is read once
-  from the generated EDS with canopen; frames are then packed and checked with precomputed
-  `struct` layouts on a raw SocketCAN socket (the kernel socket python-can wraps, minus the
-  per-frame Message objects) with kernel receive filters for the node's TPDOs, EMCY, SDO
-  answers and heartbeat only.
+  from the generated EDS with canopen and compiled into the same codecs the Rig uses
+  (`hilrig.transport.compile_pdos`); the due-at-SYNC rule is `hilrig.cia301.due_at_sync`.
+* The SDO transfers a fault needs go through canopen's SDO client; the node answers in order, so
+  after the answer everything it sent before is in the link's queue (the barrier).
 * Per cycle: the sensor RPDO (a constant-speed rotation consistent with the gearbox, see
   `SensorPattern`), the setpoint RPDO (the stream the watchdog watches), SYNC with counter;
   then every TPDO due at that SYNC must arrive once, with its mapped length; the status TPDO
@@ -60,7 +61,6 @@ import operator
 import os
 import random
 import signal
-import socket
 import struct
 import subprocess
 import sys
@@ -73,16 +73,28 @@ from types import FrameType
 from typing import Any, Protocol
 
 import canopen
-from canopen.pdo import PdoMap
+from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from hilrig.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, due_at_sync
+from hilrig.cia301 import (
+    NMT_COB_ID,
+    SYNC_COB_ID,
+    SYNC_COUNTER_MAX,
+    TIME_COB_ID,
+    FunctionCode,
+    due_at_sync,
+    emcy_cob_id,
+    heartbeat_cob_id,
+    sdo_request_cob_id,
+    sdo_response_cob_id,
+)
+from hilrig.driver import SETPOINT_STREAM
 from hilrig.errors import PdoMappingError, RigError
-from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
-from hilrig.lockstep import SETPOINT_STREAM
-from hilrig.netns import PrivateBus, private_buses_supported
+from hilrig.faults import FaultKind
+from hilrig.firmware import DEFAULT_EXECUTABLE, parse_stop_line
 from hilrig.node import NmtCommand
 from hilrig.physics import JointParams, thermistor_adc
 from hilrig.table import RigTable
+from hilrig.transport import FrameLink, PdoDirection, PdoLayout, can_frame, compile_pdos
 
 DEFAULT_EDS_PATH = Path(__file__).resolve().parents[2] / "build" / "protocol" / "board.eds"
 DEFAULT_FAULT_INTERVAL = 10_000
@@ -125,33 +137,33 @@ bit numbers are part of the bus protocol)."""
 MAX_EXTRA_STALE_CYCLES = 5
 MAX_STOPPED_SYNCS = 5
 
-EMCY_COB_ID_BASE = 0x80
-SDO_RESPONSE_COB_ID_BASE = 0x580
-SDO_REQUEST_COB_ID_BASE = 0x600
-HEARTBEAT_COB_ID_BASE = 0x700
 EMCY_ERROR_RESET = 0x0000
 EMCY_STALE_SENSOR = 0x5000  # co::emcy_code::kDeviceHardware
 EMCY_PDO_LENGTH = 0x8210  # co::emcy_code::kPdoLengthError
 RPDO_COMMUNICATION_BASE = 0x1400
 
-SOCKET_FRAME = struct.Struct("=IB3x8s")
-"""struct can_frame of SocketCAN (host byte order): can_id, len, 3 pad bytes, 8 data bytes."""
-FRAME_HEADER = struct.Struct("=IB3x")
 EMCY_PAYLOAD = struct.Struct("<HBH")
 """EMCY: error code, error register, then the board's 'about' object index."""
-SDO_HEADER = struct.Struct("<BHB")
 
 
 class SoakError(RigError, RuntimeError):
     """The soak could not go on (the firmware stopped answering, too many lost cycles)."""
 
 
-class FaultKind(enum.StrEnum):
-    MALFORMED_RPDO = "malformed_rpdo"
-    UNKNOWN_COB_ID = "unknown_cob_id"
-    SDO_UPLOAD = "sdo_upload"
-    STALE_SENSOR = "stale_sensor"
-    NMT_STOP_START = "nmt_stop_start"
+class SoakFault(enum.StrEnum):
+    """The faults the soak injects, spelled as `hilrig.faults` spells them (one vocabulary for
+    `hilrig sim --fault` and the soak), each with the outcome the soak checks."""
+
+    MALFORMED_RPDO = f"{FaultKind.MALFORMED}:length"
+    """The sensor RPDO a few bytes short: EMCY 0x8210, then the error reset."""
+    UNKNOWN_COB_ID = f"{FaultKind.MALFORMED}:cob-id"
+    """A frame on a COB-ID the node does not use: ignored."""
+    SDO_UPLOAD = f"{FaultKind.SDO_READ}"
+    """An SDO upload between two cycles, answered with the right value."""
+    STALE_SENSOR = f"{FaultKind.DROP}:sensors"
+    """The sensor RPDO withheld: the encoder-stale faults latch at exactly the limit."""
+    NMT_STOP_START = f"{FaultKind.NMT_STOP}"
+    """NMT stop, SYNCs that must go unanswered, NMT start."""
 
 
 class RunStatus(enum.StrEnum):
@@ -161,54 +173,7 @@ class RunStatus(enum.StrEnum):
     RUNNING = "running"
 
 
-def can_frame(cob_id: int, data: bytes) -> bytes:
-    """One SocketCAN frame (16 bytes) for a standard 11-bit COB-ID."""
-    if not 0 <= cob_id <= 0x7FF or len(data) > 8:
-        raise ValueError(f"CAN frame: expected an 11-bit id and <= 8 bytes, got 0x{cob_id:X} and {len(data)}")
-    return SOCKET_FRAME.pack(cob_id, len(data), data)
-
-
-def parse_frame(frame: bytes) -> tuple[int, bytes]:
-    """(COB-ID, data) of one SocketCAN frame."""
-    cob_id, length, data = SOCKET_FRAME.unpack(frame)
-    return cob_id, data[:length]
-
-
 # --- The PDO layout, from the EDS --------------------------------------------------------------
-@dataclass(frozen=True)
-class PdoSpec:
-    """One PDO as the EDS configures it, with its payload as a `struct` layout."""
-
-    direction: str  # "RPDO" or "TPDO"
-    number: int
-    cob_id: int
-    transmission_type: int
-    names: tuple[str, ...]
-    codes: tuple[str, ...]
-    """struct code of each mapped object (little-endian, CANopen)."""
-    addresses: tuple[tuple[int, int], ...]
-    """(index, subindex) of each mapped object."""
-
-    @property
-    def codec(self) -> struct.Struct:
-        return struct.Struct("<" + "".join(self.codes))
-
-    @property
-    def length(self) -> int:
-        return self.codec.size
-
-    @property
-    def label(self) -> str:
-        return f"{self.direction}{self.number} (0x{self.cob_id:03X})"
-
-    def pack(self, values: dict[str, float | int]) -> bytes:
-        return self.codec.pack(*(values[name] for name in self.names))
-
-    def object_bytes(self, name: str, value: float) -> bytes:
-        """How `name` with `value` reads over SDO: the same bytes as in this PDO."""
-        return struct.pack("<" + self.codes[self.names.index(name)], value)
-
-
 @dataclass(frozen=True)
 class SdoObject:
     """An object the soak reads over SDO, with the bytes the node must answer."""
@@ -222,11 +187,11 @@ class SdoObject:
 @dataclass(frozen=True)
 class SoakLayout:
     node_id: int
-    sensor: PdoSpec
-    setpoint: PdoSpec
-    tpdos: tuple[PdoSpec, ...]
+    sensor: PdoLayout
+    setpoint: PdoLayout
+    tpdos: tuple[PdoLayout, ...]
     """Enabled synchronous cyclic TPDOs (types 1..240): the ones due at SYNCs."""
-    status: PdoSpec
+    status: PdoLayout
     """The TPDO carrying safe_state and fault_flags."""
     encoder_stale_cycles: int
     thermistor_stale_cycles: int
@@ -243,74 +208,44 @@ class SoakLayout:
 
     @property
     def emcy_cob_id(self) -> int:
-        return EMCY_COB_ID_BASE + self.node_id
+        return emcy_cob_id(self.node_id)
 
     @property
     def sdo_response_cob_id(self) -> int:
-        return SDO_RESPONSE_COB_ID_BASE + self.node_id
+        return sdo_response_cob_id(self.node_id)
 
     @property
     def sdo_request_cob_id(self) -> int:
-        return SDO_REQUEST_COB_ID_BASE + self.node_id
+        return sdo_request_cob_id(self.node_id)
 
     @property
     def heartbeat_cob_id(self) -> int:
-        return HEARTBEAT_COB_ID_BASE + self.node_id
+        return heartbeat_cob_id(self.node_id)
 
     @property
     def receive_ids(self) -> tuple[int, ...]:
-        """What the driver's socket lets through: the TPDOs, EMCY, SDO answers, heartbeat."""
-        return (
-            *(p.cob_id for p in self.tpdos),
-            self.emcy_cob_id,
-            self.sdo_response_cob_id,
-            self.heartbeat_cob_id,
-        )
+        """What the driver's frame link lets through: the TPDOs, EMCY, heartbeat (the SDO
+        answers go to canopen's SDO client)."""
+        return (*(p.cob_id for p in self.tpdos), self.emcy_cob_id, self.heartbeat_cob_id)
 
     @property
     def due_period(self) -> int:
         """SYNC numbers repeat their set of due TPDOs with this period (lcm of the types)."""
         return math.lcm(*(p.transmission_type for p in self.tpdos))
 
-    def due_at(self, sync_number: int) -> tuple[PdoSpec, ...]:
+    def due_at(self, sync_number: int) -> tuple[PdoLayout, ...]:
         """TPDOs due at the sync_number-th SYNC since the node entered operational (1 = first)."""
         return tuple(p for p in self.tpdos if due_at_sync(p.transmission_type, sync_number))
 
     def status_bytes(self, fault_flags: int) -> bytes:
         """The status TPDO's payload for a latched fault mask (safe_state follows it)."""
-        return self.status.pack(
+        return self.status.pack_named(
             {"safe_state": 1.0 if fault_flags else 0.0, "fault_flags": float(fault_flags)}
         )
 
     def unknown_cob_ids(self) -> list[int]:
         """11-bit COB-IDs this node neither uses nor listens to (NMT, SYNC, TIME excluded)."""
         return [i for i in range(1, 0x800) if i not in self.used_cob_ids]
-
-
-def _codes(pdo_map: PdoMap, label: str) -> tuple[str, ...]:
-    codes = []
-    for var in pdo_map.map:
-        try:
-            code = var.od.STRUCT_TYPES[var.od.data_type].format.lstrip("<")
-        except KeyError:
-            raise PdoMappingError(f"{label}: {var.name} has a data type the soak cannot pack") from None
-        if struct.calcsize("<" + code) * 8 != var.length:
-            raise PdoMappingError(f"{label}: {var.name} maps {var.length} bits, its type has another size")
-        codes.append(code)
-    return tuple(codes)
-
-
-def _spec(direction: str, number: int, pdo_map: PdoMap) -> PdoSpec:
-    label = f"{direction}{number}"
-    return PdoSpec(
-        direction=direction,
-        number=number,
-        cob_id=(pdo_map.cob_id or 0) & 0x7FF,
-        transmission_type=pdo_map.trans_type if pdo_map.trans_type is not None else 255,
-        names=tuple(var.name for var in pdo_map.map),
-        codes=_codes(pdo_map, label),
-        addresses=tuple((var.index, var.subindex) for var in pdo_map.map),
-    )
 
 
 def load_layout(eds: str | Path, node_id: int, table: RigTable | None = None) -> SoakLayout:
@@ -325,8 +260,8 @@ def load_layout(eds: str | Path, node_id: int, table: RigTable | None = None) ->
     node.rpdo.read(from_od=True)
     node.tpdo.read(from_od=True)
     od = node.object_dictionary
-    rpdos = [_spec("RPDO", n, m) for n, m in node.rpdo.map.items() if m.enabled and m.map]
-    tpdos = [_spec("TPDO", n, m) for n, m in node.tpdo.map.items() if m.enabled and m.map]
+    rpdos = [p for p in compile_pdos(PdoDirection.RPDO, node.rpdo.map).values() if p.enabled and p.names]
+    tpdos = [p for p in compile_pdos(PdoDirection.TPDO, node.tpdo.map).values() if p.enabled and p.names]
     inputs = {io.name for io in table.board.hil_inputs}
     sensor = [p for p in rpdos if set(p.names) == inputs]
     setpoint = [p for p in rpdos if set(SETPOINT_STREAM) <= set(p.names)]
@@ -364,10 +299,11 @@ def load_layout(eds: str | Path, node_id: int, table: RigTable | None = None) ->
     for name in ("encoder_stale_cycles", "watchdog_cycles", "gear_ratio"):
         index, subindex, data = encoded(name, default(name))
         reads.append(SdoObject(name, index, subindex, data))
-    used = {0x000, SYNC_COB_ID, 0x100}
-    for pdos in (node.rpdo.map, node.tpdo.map):
-        used |= {(m.cob_id or 0) & 0x7FF for m in pdos.values()}
-    used |= {base + node_id for base in (EMCY_COB_ID_BASE, 0x580, 0x600, 0x700)}
+    used = {NMT_COB_ID, SYNC_COB_ID, TIME_COB_ID}
+    used |= {p.cob_id for p in (*compile_pdos(PdoDirection.RPDO, node.rpdo.map).values(), *tpdos)}
+    used |= {emcy_cob_id(node_id), sdo_response_cob_id(node_id), sdo_request_cob_id(node_id)}
+    used |= {heartbeat_cob_id(node_id)}
+    used |= {int(base) + node_id for base in FunctionCode if FunctionCode.TPDO1 <= base <= FunctionCode.RPDO4}
     return SoakLayout(
         node_id=node_id,
         sensor=sensor[0],
@@ -409,8 +345,7 @@ class SensorPattern:
         dt = period_us / 1e6
         self.motor_velocity_rad_s = MOTOR_COUNTS_PER_CYCLE / motor_cpr * 2 * math.pi / dt
         self.output_velocity_rad_s = self.motor_velocity_rad_s / gear
-        self._header = FRAME_HEADER.pack(layout.sensor.cob_id, layout.sensor.length)
-        self._codec = layout.sensor.codec
+        self._sensor = layout.sensor
         canonical = ("motor_encoder_counts", "output_encoder_counts", "thermistor_adc", "motor_current_adc")
         unknown = set(layout.sensor.names) - set(canonical)
         if unknown:
@@ -431,7 +366,7 @@ class SensorPattern:
 
     def frame(self, cycle: int) -> bytes:
         """The sensor RPDO of cycle `cycle` as a SocketCAN frame."""
-        return self._header + self._codec.pack(*self._order(self.values(cycle)))
+        return self._sensor.frame(self._order(self.values(cycle)))
 
 
 # --- The fault plan -------------------------------------------------------------------------
@@ -439,7 +374,7 @@ class SensorPattern:
 class PlannedFault:
     cycle: int
     """Firmware cycle (SYNCs while operational, 1 = first) whose SYNC the fault comes before."""
-    kind: FaultKind
+    kind: SoakFault
     arg: int
     """Kind-specific, drawn from the seed: the malformed frame's length, the unknown COB-ID, the
     SDO object (modulo the list), cycles withheld beyond the stale limit, SYNCs while stopped."""
@@ -471,7 +406,7 @@ def plan_faults(cycles: int, interval: int, seed: int, layout: SoakLayout) -> Fa
     if interval < min_fault_interval(layout):
         raise ValueError(f"fault interval: expected >= {min_fault_interval(layout)} cycles, got {interval}")
     rng = random.Random(seed)
-    kinds = list(FaultKind)
+    kinds = list(SoakFault)
     first_round = rng.sample(kinds, len(kinds))
     unknown_ids = layout.unknown_cob_ids()
     faults: list[PlannedFault] = []
@@ -482,11 +417,11 @@ def plan_faults(cycles: int, interval: int, seed: int, layout: SoakLayout) -> Fa
         at = nominal + (rng.randint(-(interval // 4), interval // 4) if i else 0)
         kind = first_round[i] if i < len(first_round) else rng.choice(kinds)
         arg = {
-            FaultKind.MALFORMED_RPDO: lambda: rng.randrange(layout.sensor.length),
-            FaultKind.UNKNOWN_COB_ID: lambda: rng.choice(unknown_ids),
-            FaultKind.SDO_UPLOAD: lambda: rng.randrange(1 << 16),
-            FaultKind.STALE_SENSOR: lambda: rng.randint(1, MAX_EXTRA_STALE_CYCLES),
-            FaultKind.NMT_STOP_START: lambda: rng.randint(1, MAX_STOPPED_SYNCS),
+            SoakFault.MALFORMED_RPDO: lambda: rng.randrange(layout.sensor.length),
+            SoakFault.UNKNOWN_COB_ID: lambda: rng.choice(unknown_ids),
+            SoakFault.SDO_UPLOAD: lambda: rng.randrange(1 << 16),
+            SoakFault.STALE_SENSOR: lambda: rng.randint(1, MAX_EXTRA_STALE_CYCLES),
+            SoakFault.NMT_STOP_START: lambda: rng.randint(1, MAX_STOPPED_SYNCS),
         }[kind]()
         faults.append(PlannedFault(at, kind, arg))
     round_done = len(faults) >= len(kinds)
@@ -658,13 +593,13 @@ def compare_counters(expected: dict[str, int], actual: dict[str, int]) -> list[s
 
 
 # --- The driver ---------------------------------------------------------------------------
-class FrameLink(Protocol):
-    """A raw CAN socket, or a stand-in in tests: whole SocketCAN frames in and out. recv raises
-    BlockingIOError (SO_RCVTIMEO expired) or TimeoutError when nothing arrives in time."""
+class SdoPort(Protocol):
+    """An SDO client: canopen's `SdoClient` (`RemoteNode.sdo`), or a stand-in in tests. Raises
+    canopen's SdoAbortedError / SdoCommunicationError."""
 
-    def send(self, frame: bytes, /) -> int: ...
+    def upload(self, index: int, subindex: int) -> bytes: ...
 
-    def recv(self, size: int, /) -> bytes: ...
+    def download(self, index: int, subindex: int, data: bytes) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -694,7 +629,8 @@ Emcy = tuple[int, int]
 
 
 class SoakDriver:
-    """The lean lockstep master. `start()` waits for the node's boot-up and starts it; `run()`
+    """The lean lockstep master on the rig's frame link (`hilrig.transport`), with canopen's SDO
+    client for the SDO it needs. `start()` waits for the node's boot-up and starts it; `run()`
     drives cycles until the count is reached or a stop is requested; `finish()` drains the bus.
 
     `probe` samples the firmware process (None: no memory figures), `liveness` raises
@@ -704,6 +640,7 @@ class SoakDriver:
     def __init__(
         self,
         link: FrameLink,
+        sdo: SdoPort,
         layout: SoakLayout,
         plan: FaultPlan,
         *,
@@ -730,6 +667,7 @@ class SoakDriver:
         self.clock = clock
         self._send = link.send
         self._recv = link.recv
+        self.sdo = sdo
         self.tally = Tally()
         self.cycle = 0
         """Firmware cycles so far: SYNCs sent while the node was operational."""
@@ -766,7 +704,7 @@ class SoakDriver:
             n: self.pattern.output_velocity_rad_s if n == "velocity_setpoint" else 0.0
             for n in layout.setpoint.names
         }
-        self._setpoint_frame = can_frame(layout.setpoint.cob_id, layout.setpoint.pack(setpoints))
+        self._setpoint_frame = can_frame(layout.setpoint.cob_id, layout.setpoint.pack_named(setpoints))
         self._sync_frames = [can_frame(SYNC_COB_ID, bytes([c])) for c in range(1, SYNC_COUNTER_MAX + 1)]
         self.sdo_reads = (
             *layout.sdo_reads,
@@ -799,7 +737,7 @@ class SoakDriver:
     def _other_frame(self, cob_id: int, data: bytes) -> bool:
         """EMCY or heartbeat between TPDOs; returns False for anything else."""
         if cob_id == self.layout.emcy_cob_id:
-            code, _register, about = EMCY_PAYLOAD.unpack_from(data, 8)
+            code, _register, about = EMCY_PAYLOAD.unpack_from(data)
             self.tally.emcy_received += 1
             self._cycle_emcy.append((code, about))
             if len(self.emcy_log) < 1000:
@@ -807,7 +745,7 @@ class SoakDriver:
             return True
         if cob_id == self.layout.heartbeat_cob_id:
             self.tally.heartbeats += 1
-            self.heartbeat_states[data[8]] += 1
+            self.heartbeat_states[data[0]] += 1
             return True
         return False
 
@@ -833,29 +771,29 @@ class SoakDriver:
         expected_status = self._healthy_status if status is None else status
         bits, lengths, status_cob = self._tpdo_bit, self._tpdo_length, self.layout.status.cob_id
         velocity_cob = self._velocity_cob
-        recv, unpack = self._recv, FRAME_HEADER.unpack_from
+        recv = self._recv
         got = 0
-        try:
-            while got != due:
-                data = recv(16)
-                cob_id, length = unpack(data)
-                bit = bits.get(cob_id)
-                if bit is None:
-                    if not self._other_frame(cob_id, data):
-                        self._problem(f"unexpected frame 0x{cob_id:03X} {data[8 : 8 + length].hex()}")
-                    continue
-                tally.tpdos_received += 1
-                if bit & got or not bit & due or length != lengths[cob_id]:
-                    self._tpdo_problem(cob_id, length, bit & got, bit & due)
-                got |= bit & due
-                if cob_id == status_cob:
-                    self._last_status = data[8:16]
-                    if self._last_status != expected_status:
-                        self._status_problem(expected_status)
-                elif cob_id == velocity_cob:
-                    self._velocity_payload = data
-        except (BlockingIOError, TimeoutError):
-            self._lost_cycle(due, got)
+        while got != due:
+            frame = recv(RECEIVE_TIMEOUT_S)
+            if frame is None:
+                self._lost_cycle(due, got)
+                break
+            cob_id, data = frame
+            bit = bits.get(cob_id)
+            if bit is None:
+                if not self._other_frame(cob_id, data):
+                    self._problem(f"unexpected frame 0x{cob_id:03X} {data.hex()}")
+                continue
+            tally.tpdos_received += 1
+            if bit & got or not bit & due or len(data) != lengths[cob_id]:
+                self._tpdo_problem(cob_id, len(data), bit & got, bit & due)
+            got |= bit & due
+            if cob_id == status_cob:
+                self._last_status = data
+                if data != expected_status:
+                    self._status_problem(expected_status)
+            elif cob_id == velocity_cob:
+                self._velocity_payload = data
         if self._cycle_emcy or emcy:
             self._check_emcy(emcy)
 
@@ -901,65 +839,60 @@ class SoakDriver:
             )
 
     # --- SDO ------------------------------------------------------------------------------
-    def _sdo(self, request: bytes, *, late_ok: bool = False, late: list[str] | None = None) -> bytes | None:
-        """Send one expedited SDO request, return the 8-byte answer (None after the hang guard).
-
-        Frames before the answer: EMCY and heartbeat are kept, a TPDO is a problem (between SYNCs
-        nothing is due) unless `late_ok` (resynchronising after a lost cycle: it is late)."""
-        self._send_counted(self.layout.sdo_request_cob_id, request)
+    def _sdo(
+        self,
+        what: str,
+        transfer: Callable[[], bytes | None],
+        *,
+        late_ok: bool = False,
+        late: list[str] | None = None,
+    ) -> tuple[bool, bytes | None]:
+        """One SDO transfer through canopen (one request frame: every object here is expedited),
+        then whatever the node sent before its answer: the answer comes after it, so it is in
+        the link's queue by now. EMCY and heartbeat are kept, a TPDO is a problem (between SYNCs
+        nothing is due) unless `late_ok` (resynchronising after a lost cycle: it is late).
+        Returns (whether it succeeded, what the transfer returned); a failure is a problem."""
+        self.tally.frames_sent += 1
         try:
-            while True:
-                data = self._recv(16)
-                cob_id, length = FRAME_HEADER.unpack_from(data)
-                if cob_id == self.layout.sdo_response_cob_id:
-                    return data[8 : 8 + length]
-                if cob_id in self._tpdo_bit:
-                    self.tally.tpdos_received += 1
-                    label = self._tpdo_by_cob[cob_id].label
-                    if late_ok and late is not None:
-                        late.append(label)
-                    else:
-                        self._problem(f"{label} arrived between SYNCs (no SYNC was due an answer)")
-                elif not self._other_frame(cob_id, data):
-                    self._problem(f"unexpected frame 0x{cob_id:03X} while waiting for an SDO answer")
-        except (BlockingIOError, TimeoutError):
+            result = transfer()
+            ok = True
+        except SdoAbortedError as error:
+            self._problem(f"{what}: abort 0x{error.code:08X}")
+            result, ok = None, False
+        except SdoCommunicationError as error:
             self.liveness()
-            self._problem(f"no SDO answer within {RECEIVE_TIMEOUT_S:g} s to {request.hex()}")
-            return None
+            self._problem(f"{what}: no SDO answer within {RECEIVE_TIMEOUT_S:g} s ({error})")
+            result, ok = None, False
+        while (frame := self._recv(0.0)) is not None:
+            cob_id, data = frame
+            if cob_id in self._tpdo_bit:
+                self.tally.tpdos_received += 1
+                label = self._tpdo_by_cob[cob_id].label
+                if late_ok and late is not None:
+                    late.append(label)
+                else:
+                    self._problem(f"{label} arrived between SYNCs (no SYNC was due an answer)")
+            elif not self._other_frame(cob_id, data):
+                self._problem(f"unexpected frame 0x{cob_id:03X} while waiting for an SDO answer")
+        return ok, result
 
     def sdo_upload(self, obj: SdoObject, *, late_ok: bool = False, late: list[str] | None = None) -> bool:
-        """Read `obj` (expedited) and check the answer; False (and a problem) when it is wrong."""
-        answer = self._sdo(
-            SDO_HEADER.pack(0x40, obj.index, obj.subindex) + bytes(4), late_ok=late_ok, late=late
+        """Read `obj` and check the answer; False (and a problem) when it is wrong."""
+        what = f"SDO upload {obj.label}"
+        ok, answer = self._sdo(
+            what, lambda: self.sdo.upload(obj.index, obj.subindex), late_ok=late_ok, late=late
         )
-        if answer is None:
-            return False
-        command, index, subindex = SDO_HEADER.unpack_from(answer)
-        if command == 0x80:
-            code = int.from_bytes(answer[4:8], "little")
-            self._problem(f"SDO upload {obj.label}: abort 0x{code:08X}")
-            return False
-        size = 4 - ((command >> 2) & 0x3) if command & 0x1 else 4
-        if command & 0xE3 != 0x43 or (index, subindex) != (obj.index, obj.subindex):
-            self._problem(f"SDO upload {obj.label}: expected an expedited answer, got {answer.hex()}")
-            return False
-        if answer[4 : 4 + size] != obj.expected:
+        if ok and answer != obj.expected:
             self._problem(
-                f"SDO upload {obj.label} 0x{obj.index:04X}:{obj.subindex}: expected "
-                f"{obj.expected.hex()}, got {answer[4 : 4 + size].hex()}"
+                f"{what} 0x{obj.index:04X}:{obj.subindex}: expected {obj.expected.hex()}, got "
+                f"{(answer or b'').hex()}"
             )
             return False
-        return True
+        return ok
 
     def sdo_download(self, label: str, index: int, subindex: int, data: bytes) -> bool:
-        command = 0x23 | ((4 - len(data)) << 2)
-        answer = self._sdo(SDO_HEADER.pack(command, index, subindex) + data.ljust(4, b"\0"))
-        if answer is None:
-            return False
-        if SDO_HEADER.unpack_from(answer) != (0x60, index, subindex):
-            self._problem(f"SDO download {label}: expected a confirmation, got {answer.hex()}")
-            return False
-        return True
+        ok, _ = self._sdo(f"SDO download {label}", lambda: self.sdo.download(index, subindex, data))
+        return ok
 
     def _barrier(self, *, late_ok: bool = False) -> tuple[str, ...]:
         """An SDO round trip: the node answers in order, so whatever it sent before is in."""
@@ -971,18 +904,17 @@ class SoakDriver:
     def start(self, boot_timeout_s: float = BOOT_TIMEOUT_S) -> None:
         """Wait for the boot-up, put the node in velocity mode, check the stale limit, start it."""
         deadline = self.clock() + boot_timeout_s
-        while True:
-            try:
-                data = self._recv(16)
-            except (BlockingIOError, TimeoutError):
+        while True:  # the boot-up, or (when it went out before the link was open) a heartbeat
+            frame = self._recv(1.0)
+            if frame is None:
                 self.liveness()
                 if self.clock() > deadline:
                     raise SoakError(
-                        f"no boot-up from node 0x{self.layout.node_id:02X} within {boot_timeout_s} s"
-                    ) from None
+                        f"no boot-up or heartbeat from node 0x{self.layout.node_id:02X} within "
+                        f"{boot_timeout_s} s"
+                    )
                 continue
-            cob_id, _ = FRAME_HEADER.unpack_from(data)
-            if cob_id == self.layout.heartbeat_cob_id and data[8] == 0x00:
+            if frame[0] == self.layout.heartbeat_cob_id:
                 break
         stale = next(o for o in self.layout.sdo_reads if o.label == "encoder_stale_cycles")
         if not self.sdo_upload(stale):
@@ -1008,11 +940,11 @@ class SoakDriver:
         faults = iter(self.plan.faults)
         next_fault = next(faults, None)
         inject = {
-            FaultKind.MALFORMED_RPDO: self._malformed_rpdo,
-            FaultKind.UNKNOWN_COB_ID: self._unknown_cob_id,
-            FaultKind.SDO_UPLOAD: self._sdo_upload_fault,
-            FaultKind.STALE_SENSOR: self._stale_sensor,
-            FaultKind.NMT_STOP_START: self._nmt_stop_start,
+            SoakFault.MALFORMED_RPDO: self._malformed_rpdo,
+            SoakFault.UNKNOWN_COB_ID: self._unknown_cob_id,
+            SoakFault.SDO_UPLOAD: self._sdo_upload_fault,
+            SoakFault.STALE_SENSOR: self._stale_sensor,
+            SoakFault.NMT_STOP_START: self._nmt_stop_start,
         }
         cycle = self._cycle
         while self.cycle < cycles:
@@ -1055,7 +987,7 @@ class SoakDriver:
         pdo = self._velocity_tpdo
         if pdo is None or not self._velocity_payload:
             return
-        values = dict(zip(pdo.names, pdo.codec.unpack_from(self._velocity_payload, 8), strict=True))
+        values = dict(zip(pdo.names, pdo.codec.unpack_from(self._velocity_payload), strict=True))
         self.velocity_samples.append(
             (self.cycle, values["motor_velocity"], values.get("output_velocity", math.nan))
         )
@@ -1176,37 +1108,6 @@ def format_progress(p: SoakProgress) -> str:
 
 
 # --- Command line -------------------------------------------------------------------------
-class _HostBus:
-    """The interface as it is (no private namespace): the firmware is started directly."""
-
-    def __init__(self, channel: str) -> None:
-        self.channel = channel
-
-    def popen(self, argv: list[str], **kwargs: Any) -> subprocess.Popen[Any]:
-        return subprocess.Popen(argv, **kwargs)
-
-
-def open_can_socket(channel: str, receive_ids: Sequence[int], timeout_s: float) -> socket.socket:
-    """A raw SocketCAN socket on `channel` that receives only standard data frames with
-    `receive_ids` (kernel filters) and whose recv raises BlockingIOError after `timeout_s`."""
-    sock = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
-    try:
-        mask = socket.CAN_SFF_MASK | socket.CAN_EFF_FLAG | socket.CAN_RTR_FLAG
-        filters = b"".join(struct.pack("=II", cob_id, mask) for cob_id in receive_ids)
-        sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FILTER, filters)
-        seconds = int(timeout_s)
-        sock.setsockopt(
-            socket.SOL_SOCKET,
-            socket.SO_RCVTIMEO,
-            struct.pack("ll", seconds, int((timeout_s - seconds) * 1e6)),
-        )
-        sock.bind((channel,))
-    except OSError:
-        sock.close()
-        raise
-    return sock
-
-
 class StopRequest:
     """SIGINT/SIGTERM or the stop file: finish the current cycle, then stop. A second signal
     raises KeyboardInterrupt (the report is still written)."""
@@ -1408,8 +1309,8 @@ def _velocity_summary(driver: SoakDriver | None, samples: list[tuple[int, float,
     }
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hilrig.soak", description=__doc__.split("\n\n")[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The soak's options (`hilrig soak --help`)."""
     parser.add_argument(
         "--cycles", type=int, default=1_000_000, help="firmware cycles to run (default 1000000)"
     )
@@ -1426,7 +1327,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--rss-bound-kib", type=int, default=DEFAULT_RSS_BOUND_KIB, help="allowed growth after warm-up"
     )
-    parser.add_argument("--node-id", type=int, default=0x10)
+    parser.add_argument("--node-id", type=lambda text: int(text, 0), default=0x10, help="default 0x10")
     parser.add_argument("--period-us", type=int, default=1000)
     parser.add_argument("--eds", type=Path, default=DEFAULT_EDS_PATH)
     parser.add_argument("--firmware", type=Path, default=DEFAULT_EXECUTABLE)
@@ -1441,9 +1342,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         action="store_true",
         help="leave transparent huge pages on for the firmware (khugepaged then makes its RSS jump)",
     )
-    args = parser.parse_args(argv)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """`python -m hilrig.soak`, the same as `hilrig soak`."""
+    parser = argparse.ArgumentParser(prog="hilrig soak", description=__doc__.split("\n\n")[0])
+    add_arguments(parser)
+    return run(parser.parse_args(argv), parser.error)
+
+
+def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
+    """Run the soak; the exit code (0 passed, 1 failed, 130 interrupted)."""
     if args.cycles <= 0:
-        parser.error(f"--cycles: expected > 0, got {args.cycles}")
+        return usage_error(f"--cycles: expected > 0, got {args.cycles}")
     if args.cpu is None:
         args.cpu = max(os.sched_getaffinity(0))
 
@@ -1491,68 +1402,74 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"bus {bus_info['path']}",
         flush=True,
     )
-    with contextlib.ExitStack() as stack:
-        if args.channel is None and private_buses_supported():
-            private = stack.enter_context(PrivateBus())
-            launcher: Any = private
-            bus_info |= {"namespace": private.name, "channel": private.channel}
-            with private.entered():
-                sock = open_can_socket(private.channel, layout.receive_ids, RECEIVE_TIMEOUT_S)
-        else:
-            channel = args.channel or "vcan0"
-            launcher = _HostBus(channel)
-            bus_info |= {"namespace": None, "channel": channel}
-            sock = open_can_socket(channel, layout.receive_ids, RECEIVE_TIMEOUT_S)
-        stack.callback(sock.close)
-        fw = Firmware(
-            launcher,
-            node_id=args.node_id,
-            log_path=out / "firmware.log",
-            period_us=args.period_us,
-            executable=args.firmware,
-            term_timeout_s=30.0,
-        )
+    from hilrig.session import SessionConfig, open_session  # the one place a session is assembled
+
+    config = SessionConfig(
+        out_dir=out,
+        node_id=args.node_id,
+        period_us=args.period_us,
+        trace=False,
+        record=False,
+        rig=False,
+        host_channel=args.channel,
+        executable=args.firmware,
+        eds=args.eds,
+        boot_timeout_s=BOOT_TIMEOUT_S,
+        sdo_timeout_s=RECEIVE_TIMEOUT_S,
+        firmware_term_timeout_s=30.0,
+    )
+    session = None
+    fw = None
+    try:
+        session = open_session(config)
+        fw = session.firmware
+        assert fw is not None and fw.process is not None
         firmware_info["argv"] = fw.argv
-        try:
-            fw.start()
-            assert fw.process is not None
-            pid = fw.process.pid
-            if args.pin:
-                _pin(0, args.cpu)
-                _pin(pid, args.cpu)
-            driver = SoakDriver(
-                sock,
-                layout,
-                plan,
-                period_us=args.period_us,
-                liveness=fw.check,
-                stop_requested=stop,
-                on_progress=lambda p: print(format_progress(p), flush=True),
-                on_checkpoint=lambda: write_json_atomic(report_path, report(RunStatus.RUNNING)),
-                sample_every=args.sample_every,
-            )
-            driver.start()
-            firmware_info["pid"] = _firmware_pid(fw.process)
-            firmware_info["startup_s"] = round(time.monotonic() - started, 1)
-            pinned = f", driver and firmware pinned to CPU {args.cpu}" if args.pin else ""
-            print(
-                f"soak: node 0x{args.node_id:02X} up {firmware_info['startup_s']} s after the start "
-                f"(firmware pid {pid}{pinned}); cycling",
-                flush=True,
-            )
-            driver.probe = lambda cycle, elapsed: sample_process(pid, cycle, elapsed)
-            driver.run(args.cycles)
-            driver.finish()
-            if driver.stopped_by_request:
-                status = RunStatus.INTERRUPTED
-        except (RigError, OSError) as failure:
-            error = f"{type(failure).__name__}: {failure}"
-        except KeyboardInterrupt:
+        bus_info |= {
+            "namespace": session.private_bus.name if session.private_bus is not None else None,
+            "channel": session.private_bus.channel if session.private_bus is not None else args.channel,
+        }
+        pid = fw.process.pid
+        if args.pin:
+            _pin(0, args.cpu)
+            _pin(pid, args.cpu)
+        link = session.node.open_link(list(layout.receive_ids))
+        driver = SoakDriver(
+            link,
+            session.node.remote.sdo,
+            layout,
+            plan,
+            period_us=args.period_us,
+            liveness=fw.check,
+            stop_requested=stop,
+            on_progress=lambda p: print(format_progress(p), flush=True),
+            on_checkpoint=lambda: write_json_atomic(report_path, report(RunStatus.RUNNING)),
+            sample_every=args.sample_every,
+        )
+        driver.start()
+        firmware_info["pid"] = _firmware_pid(fw.process)
+        firmware_info["startup_s"] = round(time.monotonic() - started, 1)
+        pinned = f", driver and firmware pinned to CPU {args.cpu}" if args.pin else ""
+        print(
+            f"soak: node 0x{args.node_id:02X} up {firmware_info['startup_s']} s after the start "
+            f"(firmware pid {pid}{pinned}); cycling",
+            flush=True,
+        )
+        driver.probe = lambda cycle, elapsed: sample_process(pid, cycle, elapsed)
+        driver.run(args.cycles)
+        driver.finish()
+        if driver.stopped_by_request:
             status = RunStatus.INTERRUPTED
-            error = "aborted by a second signal"
-        finally:
-            code = fw.stop()
-            firmware_info["exit_code"] = code
+    except (RigError, OSError) as failure:
+        error = f"{type(failure).__name__}: {failure}"
+    except KeyboardInterrupt:
+        status = RunStatus.INTERRUPTED
+        error = "aborted by a second signal"
+    finally:
+        if session is not None:
+            session.close()  # stops the firmware: its stop line is in its log now
+        if fw is not None:
+            firmware_info["exit_code"] = fw.process.returncode if fw.process is not None else None
             parsed = (
                 parse_stop_line(fw.log_path.read_text(errors="replace")) if fw.log_path.exists() else None
             )

@@ -22,27 +22,26 @@ from hilrig.soak import (
     EMCY_STALE_SENSOR,
     RPDO_COMMUNICATION_BASE,
     STALE_ENCODER_FLAGS,
-    FaultKind,
     FaultPlan,
     PlannedFault,
     ProcessSample,
     RunStatus,
     SensorPattern,
     SoakDriver,
+    SoakFault,
     SoakLayout,
     Tally,
     build_report,
-    can_frame,
     compare_counters,
     load_layout,
     memory_verdict,
     min_fault_interval,
-    parse_frame,
     parse_stop_line,
     plan_faults,
     thin,
     write_json_atomic,
 )
+from hilrig.transport import can_frame, parse_frame
 
 NODE_ID = 0x10
 DBC_PATH = DEFAULT_EDS_PATH.with_name("board.dbc")
@@ -74,7 +73,7 @@ def test_layout_is_the_eds_default_mapping(layout: SoakLayout) -> None:
     assert [p.number for p in layout.due_at(9)] == [1, 2, 3, 4, 5, 6, 7]
     assert [p.number for p in layout.due_at(10)] == [1, 2, 3, 4, 5, 6, 7, 8]
     assert layout.tpdos[0].length == 3  # I16 motor_duty + U8 led_pattern
-    assert set(layout.receive_ids) == {*(p.cob_id for p in layout.tpdos), 0x90, 0x590, 0x710}
+    assert set(layout.receive_ids) == {*(p.cob_id for p in layout.tpdos), 0x90, 0x710}
     assert layout.encoder_stale_cycles == 20
 
 
@@ -132,24 +131,24 @@ def test_fault_plan_is_determined_by_its_seed(layout: SoakLayout) -> None:
     assert first == plan_faults(1_000_000, 10_000, 11, layout)
     assert first != plan_faults(1_000_000, 10_000, 12, layout)
     assert len(first.faults) == 99
-    assert set(first.counts()) == {k.value for k in FaultKind}
+    assert set(first.counts()) == {k.value for k in SoakFault}
 
 
 def test_fault_plan_spacing_first_round_and_warmup(layout: SoakLayout) -> None:
     interval = 1000
     plan = plan_faults(100_000, interval, 3, layout)
     kinds = [f.kind for f in plan.faults]
-    assert sorted(kinds[: len(FaultKind)]) == sorted(FaultKind)  # every kind once, first
+    assert sorted(kinds[: len(SoakFault)]) == sorted(SoakFault)  # every kind once, first
     for n, fault in enumerate(plan.faults, start=1):
         assert abs(fault.cycle - n * interval) <= interval // 4
     assert plan.faults[-1].cycle + interval // 4 <= 100_000
-    assert plan.warmup_cycle == plan.faults[len(FaultKind) - 1].cycle + interval // 2
+    assert plan.warmup_cycle == plan.faults[len(SoakFault) - 1].cycle + interval // 2
     for fault in plan.faults:
-        if fault.kind is FaultKind.MALFORMED_RPDO:
+        if fault.kind is SoakFault.MALFORMED_RPDO:
             assert 0 <= fault.arg < layout.sensor.length
-        elif fault.kind is FaultKind.UNKNOWN_COB_ID:
+        elif fault.kind is SoakFault.UNKNOWN_COB_ID:
             assert fault.arg in layout.unknown_cob_ids()
-        elif fault.kind in (FaultKind.STALE_SENSOR, FaultKind.NMT_STOP_START):
+        elif fault.kind in (SoakFault.STALE_SENSOR, SoakFault.NMT_STOP_START):
             assert 1 <= fault.arg <= 5
 
 
@@ -266,16 +265,27 @@ class FakeFirmware:
         self.length_error = False
         self.objects = {(o.index, o.subindex): o.expected for o in layout.sdo_reads}
 
-    # The FrameLink the driver talks to.
-    def send(self, frame: bytes) -> int:
+    # The FrameLink the driver talks to (hilrig.transport).
+    def send(self, frame: bytes) -> None:
         self.counters["frames received"] += 1
         self._process(*parse_frame(frame))
-        return len(frame)
 
-    def recv(self, size: int) -> bytes:
-        if not self.out:
-            raise TimeoutError("nothing more from the fake")
-        return self.out.popleft()
+    def recv(self, timeout_s: float) -> tuple[int, bytes] | None:
+        return parse_frame(self.out.popleft()) if self.out else None
+
+    def close(self) -> None:
+        pass
+
+    # The SDO client (canopen's SdoClient in the real soak): one expedited request each.
+    def upload(self, index: int, subindex: int) -> bytes:
+        self.counters["frames received"] += 1
+        return self.objects[(index, subindex)]
+
+    def download(self, index: int, subindex: int, data: bytes) -> None:
+        self.counters["frames received"] += 1
+        self.objects[(index, subindex)] = data
+        if (index, subindex) == self.layout.fault_clear[:2]:
+            self.clear_requested = True
 
     def stop_line(self) -> str:
         c = self.counters
@@ -318,8 +328,6 @@ class FakeFirmware:
             self.sensor_pending = True
         elif cob_id == layout.setpoint.cob_id:
             pass
-        elif cob_id == layout.sdo_request_cob_id:
-            self._sdo(data)
         else:
             self.counters["ignored"] += 1
 
@@ -349,21 +357,6 @@ class FakeFirmware:
             self.counters["TPDOs sent"] += 1
             self._emit(pdo.cob_id, payload)
 
-    def _sdo(self, data: bytes) -> None:
-        command, index, subindex = struct.unpack_from("<BHB", data)
-        if command == 0x40:
-            value = self.objects[(index, subindex)]
-            answer = struct.pack("<BHB", 0x43 | ((4 - len(value)) << 2), index, subindex) + value.ljust(
-                4, b"\0"
-            )
-        else:
-            size = 4 - ((command >> 2) & 3)
-            self.objects[(index, subindex)] = data[4 : 4 + size]
-            if (index, subindex) == self.layout.fault_clear[:2]:
-                self.clear_requested = True
-            answer = struct.pack("<BHB4x", 0x60, index, subindex)
-        self._emit(self.layout.sdo_response_cob_id, answer)
-
 
 def _flat_probe(cycle: int, elapsed: float) -> ProcessSample:
     return ProcessSample(cycle, elapsed, 20_000, 8_000, 20_000, 5, cycle * 1e-4)
@@ -372,7 +365,7 @@ def _flat_probe(cycle: int, elapsed: float) -> ProcessSample:
 def _run(
     layout: SoakLayout, fake: FakeFirmware, plan: FaultPlan, cycles: int, **kwargs
 ) -> tuple[SoakDriver, dict[str, int]]:
-    driver = SoakDriver(fake, layout, plan, probe=_flat_probe, sample_every=100, **kwargs)
+    driver = SoakDriver(fake, fake, layout, plan, probe=_flat_probe, sample_every=100, **kwargs)
     driver.start()
     driver.run(cycles)
     driver.finish()
@@ -388,11 +381,14 @@ def test_clean_run_against_the_fake_passes_every_check(layout: SoakLayout) -> No
     assert driver.cycle == 3000 == fake.cycle
     assert compare_counters(driver.tally.expected_counters(), counters) == []
     assert sum(driver.faults_done.values()) == len(plan.faults) == 14
-    assert set(driver.faults_done) == {k.value for k in FaultKind}
+    assert set(driver.faults_done) == {k.value for k in SoakFault}
     assert driver.tally.syncs_stopped > 0 and driver.tally.length_errors > 0
     assert [s.cycle for s in driver.samples][:3] == [0, 100, 200] and driver.samples[-1].cycle == 3000
     codes = Counter(code for _, code, _ in driver.emcy_log)
-    stale, malformed = driver.faults_done["stale_sensor"], driver.faults_done["malformed_rpdo"]
+    stale, malformed = (
+        driver.faults_done[SoakFault.STALE_SENSOR],
+        driver.faults_done[SoakFault.MALFORMED_RPDO],
+    )
     assert codes == {
         EMCY_STALE_SENSOR: 2 * stale,
         EMCY_PDO_LENGTH: malformed,
@@ -417,13 +413,13 @@ def test_a_tpdo_that_is_not_due_is_a_problem_not_a_lost_cycle(layout: SoakLayout
 
 
 def test_tpdos_answered_while_stopped_are_caught(layout: SoakLayout) -> None:
-    plan = FaultPlan((PlannedFault(50, FaultKind.NMT_STOP_START, 2),), 0, 0, 1000)
+    plan = FaultPlan((PlannedFault(50, SoakFault.NMT_STOP_START, 2),), 0, 0, 1000)
     driver, _ = _run(layout, FakeFirmware(layout, answer_while_stopped=True), plan, 100)
     assert any("arrived between SYNCs" in p for p in driver.problems), driver.problems
 
 
 def test_a_latch_at_the_wrong_cycle_is_caught(layout: SoakLayout) -> None:
-    plan = FaultPlan((PlannedFault(50, FaultKind.STALE_SENSOR, 2),), 0, 0, 1000)
+    plan = FaultPlan((PlannedFault(50, SoakFault.STALE_SENSOR, 2),), 0, 0, 1000)
     driver, _ = _run(layout, FakeFirmware(layout, stale_limit=layout.encoder_stale_cycles + 1), plan, 100)
     assert (
         driver.problems
@@ -435,8 +431,8 @@ def test_a_wrong_sdo_answer_is_caught(layout: SoakLayout) -> None:
     fake = FakeFirmware(layout)
     vendor = layout.sdo_reads[0]
     fake.objects[(vendor.index, vendor.subindex)] = b"\x01\x02\x03\x04"
-    plan = FaultPlan((PlannedFault(20, FaultKind.SDO_UPLOAD, 0),), 0, 0, 1000)
-    driver = SoakDriver(fake, layout, plan)
+    plan = FaultPlan((PlannedFault(20, SoakFault.SDO_UPLOAD, 0),), 0, 0, 1000)
+    driver = SoakDriver(fake, fake, layout, plan)
     driver.start()
     driver.run(30)
     assert driver.problems == ["cycle 19: SDO upload vendor id 0x1018:1: expected 004c4948, got 01020304"]
@@ -444,7 +440,7 @@ def test_a_wrong_sdo_answer_is_caught(layout: SoakLayout) -> None:
 
 def test_stop_request_ends_the_run_early(layout: SoakLayout) -> None:
     fake = FakeFirmware(layout)
-    driver = SoakDriver(fake, layout, FaultPlan((), 0, 0, 1000), stop_requested=lambda: True)
+    driver = SoakDriver(fake, fake, layout, FaultPlan((), 0, 0, 1000), stop_requested=lambda: True)
     driver.start()
     driver.run(10_000)
     assert driver.stopped_by_request and driver.cycle == 256

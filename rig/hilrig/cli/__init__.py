@@ -7,6 +7,7 @@
     hilrig scan                               # which nodes are on the bus
     hilrig record bus.log / replay bus.log --decode
     hilrig sim --out out/demo                 # firmware + physics in lockstep, a summary
+    hilrig soak --cycles 1000000              # the long run: no cycle lost, memory flat
 
 Every command takes `--interface`/`--channel` (any python-can interface) and `--help`.
 Exit codes: 0 done, 1 the bus or the node failed (one line on stderr, no traceback),
@@ -31,7 +32,7 @@ from typing import NoReturn
 from hilrig.cli.common import Command, UsageError, one_line
 from hilrig.errors import RigError
 
-COMMAND_MODULES: tuple[str, ...] = ("fields", "sdo", "watch", "scan", "record", "sim", "busload")
+COMMAND_MODULES: tuple[str, ...] = ("fields", "sdo", "watch", "scan", "record", "sim", "busload", "soak")
 """Modules of `hilrig.cli` whose COMMANDS are registered, in the order `--help` lists them."""
 
 EXIT_OK = 0
