@@ -83,13 +83,19 @@ class _Direction:
     def __init__(self) -> None:
         self.rows: dict[PdoLayout, _PdoRows] = {}
         self.where: dict[str, list[tuple[_PdoRows, int]]] = {}
+        self._by_identity: dict[int, tuple[PdoLayout, _PdoRows]] = {}
 
     def rows_of(self, pdo: PdoLayout) -> _PdoRows:
+        # By identity first (an int key); equal layouts read again after a restart share rows.
+        known = self._by_identity.get(id(pdo))
+        if known is not None and known[0] is pdo:
+            return known[1]
         rows = self.rows.get(pdo)
         if rows is None:
             rows = self.rows[pdo] = _PdoRows()
             for position, name in enumerate(pdo.names):
                 self.where.setdefault(name, []).append((rows, position))
+        self._by_identity[id(pdo)] = (pdo, rows)
         return rows
 
     def series(self, name: str) -> tuple[list[int], list[Value]]:
@@ -185,9 +191,9 @@ class History:
 
 
 # --- One cycle's result ---------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class CycleResult:
-    """What one cycle (lockstep) or tick (real time) exchanged."""
+    """What one cycle (lockstep) or tick (real time) exchanged (treat it as read-only)."""
 
     cycle: int
     time_s: float
@@ -276,7 +282,10 @@ class Driver:
         self._tpdo_by_cob: dict[int, PdoLayout] = {}
         self._emcy_cob_id = emcy_cob_id(node.node_id)
         self._actuator: tuple[PdoLayout, int] | None = None
-        self._due_table: list[frozenset[PdoLayout]] = [frozenset()]
+        self._due_table: list[frozenset[int]] = [frozenset()]
+        """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
+        self._tpdo_lengths: dict[int, int] = {}
+        self._tpdo_unpack: dict[int, Callable[[bytes], tuple[Value, ...]]] = {}
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
         self._tpdo_names: frozenset[str] = frozenset()
 
@@ -354,8 +363,10 @@ class Driver:
         cyclic = [p for p in enabled_tpdos if p.is_cyclic]
         period = math.lcm(*(p.transmission_type for p in cyclic)) if cyclic else 1
         self._due_table = [
-            frozenset(p for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
+            frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
         ]
+        self._tpdo_lengths = {p.cob_id: p.length for p in enabled_tpdos}
+        self._tpdo_unpack = {p.cob_id: p.codec.unpack for p in enabled_tpdos}
         self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
         self._pending.clear()
 

@@ -26,7 +26,6 @@ from hilrig.driver import (
     CycleResult,
     Driver,
     History,
-    PdoRow,
     Value,
     resolve_truth_name,
     sync_counter,
@@ -34,7 +33,6 @@ from hilrig.driver import (
 )
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.physics import duty_from_motor_duty
-from hilrig.transport import PdoLayout
 
 
 class LockstepDriver(Driver):
@@ -63,41 +61,38 @@ class LockstepDriver(Driver):
             due = frozenset()
         sent = self._transmit_rpdos(raw)
         self.link.send(sync_frame(counter))
-        received = self._collect(n, t, due, sync_number)
+        got = self._collect(n, t, due, sync_number)
 
         duty = 0.0
         actuator = self._actuator
         if actuator is not None:
             # Without the actuator TPDO (node not operational) the bridge is off, as a motor
             # driver whose command stream stopped would be.
-            for pdo, values in received:
-                if pdo is actuator[0]:
-                    duty = duty_from_motor_duty(int(values[actuator[1]]))
+            values = got.get(actuator[0].cob_id)
+            if values is not None:
+                duty = duty_from_motor_duty(int(values[actuator[1]]))
+        by_cob = self._tpdo_by_cob
+        received = tuple((by_cob[cob_id], values) for cob_id, values in got.items())
         self.history.record_truth(state)
         self.history.record_rows(n, received, sent)
         self.plant.step(self.period_s, duty)
         self.cycle = n + 1
-        return CycleResult(
-            cycle=n,
-            time_s=t,
-            sync_counter=counter,
-            raw=raw,
-            received_rows=received,
-            duty=duty,
-            sent_rows=sent,
-            truth=state,
-        )
+        return CycleResult(n, t, counter, raw, received, duty, sent, state)
 
-    def _collect(self, n: int, t: float, due: frozenset[PdoLayout], sync_number: int) -> tuple[PdoRow, ...]:
-        """Read the link until every TPDO due at this SYNC is in (the wall-clock bound is only a
-        hang guard), then what is already queued behind them; TPDOs that are not cyclic
-        (event-driven) are taken as they come. A cyclic TPDO twice, one not due, or a frame of
-        the wrong length is a LockstepError of this cycle."""
-        got: dict[PdoLayout, tuple[Value, ...]] = {}
+    def _collect(
+        self, n: int, t: float, due: frozenset[int], sync_number: int
+    ) -> dict[int, tuple[Value, ...]]:
+        """Read the link until every TPDO due at this SYNC (COB-IDs in `due`) is in (the
+        wall-clock bound is only a hang guard), then what is already queued behind them; TPDOs
+        that are not cyclic (event-driven) are taken as they come. A cyclic TPDO twice, one not
+        due, or a frame of the wrong length is a LockstepError of this cycle. Returns the values
+        by COB-ID, in arrival order."""
+        got: dict[int, tuple[Value, ...]] = {}
         missing = set(due)
         by_cob = self._tpdo_by_cob
 
         def take(cob_id: int, data: bytes, between_syncs: bool = False) -> None:
+            """Any frame but a due TPDO of the right length: EMCY, acyclic TPDO, or a problem."""
             pdo = by_cob.get(cob_id)
             if pdo is None:
                 self._other_frame(cob_id, data)
@@ -106,20 +101,19 @@ class LockstepDriver(Driver):
             if values is None:
                 problem = f"arrived with {len(data)} bytes, its mapping has {pdo.length}"
             elif not pdo.is_cyclic:
-                got[pdo] = values
+                got[cob_id] = values
                 return
             elif between_syncs:
                 problem = "arrived between SYNCs"
-            elif pdo in got:
+            elif cob_id in got:
                 problem = "arrived twice"
-            elif pdo not in due:
+            elif cob_id not in due:
                 problem = (
                     f"arrived but is not due at SYNC {sync_number} since operational "
                     f"(transmission type {pdo.transmission_type})"
                 )
-            else:
-                got[pdo] = values
-                missing.discard(pdo)
+            else:  # a due TPDO after all (its COB-ID was taken out of `missing` already)
+                got[cob_id] = values
                 return
             raise self._error(n, t, f"{pdo.label} {problem}")
 
@@ -127,11 +121,18 @@ class LockstepDriver(Driver):
         for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
             take(cob_id, data, between_syncs=True)
         recv = self.link.recv
+        lengths = self._tpdo_lengths
+        unpack = self._tpdo_unpack
         waited = 0.0
         while missing:
             frame = recv(LIVENESS_SLICE_S)
             if frame is not None:
-                take(*frame)
+                cob_id, data = frame
+                if cob_id in missing and len(data) == lengths[cob_id]:  # the usual frame
+                    got[cob_id] = unpack[cob_id](data)
+                    missing.discard(cob_id)
+                else:
+                    take(cob_id, data)
                 continue
             waited += LIVENESS_SLICE_S
             if self.liveness is not None:
@@ -140,14 +141,14 @@ class LockstepDriver(Driver):
                 except FirmwareError as error:
                     raise FirmwareError(f"cycle {n} (t = {t:.6g} s): {error}") from error
             if waited >= self.tpdo_timeout_s:
-                labels = ", ".join(p.label for p in sorted(missing, key=lambda p: p.number))
+                labels = ", ".join(by_cob[c].label for c in sorted(missing, key=lambda c: by_cob[c].number))
                 verb = "did" if len(missing) == 1 else "do"
                 heartbeat = self.node.last_heartbeat
                 hint = f"; last heartbeat: {heartbeat.name}" if heartbeat is not None else ""
                 raise self._error(n, t, f"{labels} {verb} not arrive within {self.tpdo_timeout_s:g} s{hint}")
         while (frame := recv(0.0)) is not None:  # queued behind the due ones: this SYNC's too
             take(*frame)
-        return tuple(got.items())
+        return got
 
     @staticmethod
     def _error(cycle: int, t: float, what: str) -> LockstepError:

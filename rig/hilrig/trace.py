@@ -33,6 +33,7 @@ from __future__ import annotations
 import contextlib
 import enum
 import importlib.util
+import operator
 import os
 import queue
 import socket
@@ -205,12 +206,6 @@ class _CycleRow:
     groups: tuple[tuple[Sequence[str], Sequence[Value]], ...]
     """(names, values) pairs: one per PDO, or one per dict given to `log_cycle`."""
     truth: JointState | None  # None: real time without physics
-
-
-def _groups(row: _CycleRow | CycleResult) -> Iterable[tuple[Sequence[str], Sequence[Value]]]:
-    if isinstance(row, _CycleRow):
-        return row.groups
-    return [(pdo.names, values) for pdo, values in (*row.received_rows, *row.sent_rows)]
 
 
 class Tracer(RigObserver):
@@ -453,34 +448,57 @@ class Tracer(RigObserver):
                 self._error = error
 
     def _send_batch(self, batch: list[_CycleRow | CycleResult]) -> None:
-        """Pivot rows into one column per entity and send each with `send_columns`."""
-        series: dict[str, tuple[list[int], list[float], list[float]]] = {}
-        paths = self._paths
-        for row in batch:
-            cycle, t = row.cycle, row.time_s
-            for names, values in _groups(row):
-                for name, value in zip(names, values, strict=True):
-                    cycles, times, column = series.setdefault(paths[name], ([], [], []))
-                    cycles.append(cycle)
-                    times.append(t)
-                    column.append(value)
-        for path, (cycles, times, column) in series.items():
-            self._send_scalars(path, cycles, times, np.asarray(column, dtype=np.float64))
+        """Pivot rows into one column per entity and send each with `send_columns`.
 
-        batch = [row for row in batch if row.truth is not None]
-        if not batch:
+        Values are grouped by the PDO (or dict) that carried them, so a group of N cycles becomes
+        one N x k array in one numpy call, and each of its k columns one entity's column."""
+        # Keyed by the identity of the names tuple: every PDO layout holds one, shared by all its
+        # rows; per row and group only the row's index and the values are appended.
+        groups: dict[int, tuple[Sequence[str], list[int], list[Sequence[Value]]]] = {}
+        for index, row in enumerate(batch):
+            if isinstance(row, _CycleRow):
+                pairs: Iterable[tuple[Sequence[str], Sequence[Value]]] = row.groups
+            else:
+                pairs = [(pdo.names, values) for pdo, values in (*row.received_rows, *row.sent_rows)]
+            for names, values in pairs:
+                entry = groups.get(id(names))
+                if entry is None:
+                    entry = groups[id(names)] = (names, [], [])
+                entry[1].append(index)
+                entry[2].append(values)
+        all_cycles = np.asarray([row.cycle for row in batch], dtype=np.int64)
+        all_times = np.asarray([row.time_s for row in batch], dtype=np.float64)
+        series: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        paths = self._paths
+        for names, indexes, rows in groups.values():
+            if not names:
+                continue
+            matrix = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(names))
+            cycle_column = all_cycles[indexes]
+            time_column = all_times[indexes]
+            for i, name in enumerate(names):
+                series.setdefault(paths[name], []).append((cycle_column, time_column, matrix[:, i]))
+        for path, parts in series.items():
+            if len(parts) == 1:
+                cycle_column, time_column, values = parts[0]
+            else:  # the same entity in several PDOs (or sent and received): one timeline
+                cycle_column = np.concatenate([p[0] for p in parts])
+                order = np.argsort(cycle_column, kind="stable")
+                cycle_column = cycle_column[order]
+                time_column = np.concatenate([p[1] for p in parts])[order]
+                values = np.concatenate([p[2] for p in parts])[order]
+            self._send_scalars(path, cycle_column, time_column, values)
+
+        with_truth = [i for i, row in enumerate(batch) if row.truth is not None]
+        if not with_truth:
             return
-        cycles = [row.cycle for row in batch]
-        times = [row.time_s for row in batch]
-        for quantity in TRUTH_QUANTITIES[:-1]:
-            self._send_scalars(
-                truth_path(quantity),
-                cycles,
-                times,
-                np.fromiter(
-                    (getattr(row.truth, quantity) for row in batch), dtype=np.float64, count=len(batch)
-                ),
-            )
+        batch = [batch[i] for i in with_truth]
+        cycles, times = all_cycles[with_truth], all_times[with_truth]
+        quantities = TRUTH_QUANTITIES[:-1]
+        truth_of = operator.attrgetter(*quantities)
+        matrix = np.asarray([truth_of(row.truth) for row in batch], dtype=np.float64)
+        for i, quantity in enumerate(quantities):
+            self._send_scalars(truth_path(quantity), cycles, times, matrix[:, i])
         with self._lock:
             params = self._params
         if params is not None:

@@ -1,0 +1,157 @@
+"""The lockstep driver's frame handling and its History, against a scripted in-process link
+(exact frames, no threads, no bus): what a cycle takes, what it refuses, and how values are
+stored per PDO."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import deque
+from collections.abc import Callable
+
+import canopen
+import numpy as np
+import pytest
+
+from hilrig.driver import History
+from hilrig.errors import LockstepError
+from hilrig.lockstep import LockstepDriver
+from hilrig.node import NmtState
+from hilrig.physics import JointParams, JointPlant, SensorModel
+from hilrig.rig import DEFAULT_EDS_PATH
+from hilrig.table import RigTable
+from hilrig.transport import PdoDirection, PdoLayout, compile_pdos, parse_frame
+
+NODE_ID = 0x10
+EMCY = 0x80 + NODE_ID
+
+
+class ScriptedLink:
+    """Answers each SYNC with the TPDOs due at it; `script(sync_number, frames)` may change the
+    answer (drop, duplicate, shorten, add frames)."""
+
+    def __init__(self, tpdos: list[PdoLayout]) -> None:
+        self.tpdos = tpdos
+        self.out: deque[tuple[int, bytes]] = deque()
+        self.sent: list[tuple[int, bytes]] = []
+        self.sync_number = 0
+        self.script: Callable[[int, list[tuple[int, bytes]]], list[tuple[int, bytes]]] = lambda n, f: f
+
+    def send(self, frame: bytes) -> None:
+        cob_id, data = parse_frame(frame)
+        self.sent.append((cob_id, data))
+        if cob_id == 0x80:
+            self.sync_number += 1
+            due = [(p.cob_id, bytes(range(p.length))) for p in self.tpdos if p.due_at_sync(self.sync_number)]
+            self.out.extend(self.script(self.sync_number, due))
+
+    def recv(self, timeout_s: float) -> tuple[int, bytes] | None:
+        return self.out.popleft() if self.out else None
+
+    def close(self) -> None:
+        pass
+
+
+class StubNode:
+    node_id = NODE_ID
+    last_heartbeat = None
+
+    def __init__(self) -> None:
+        network = canopen.Network()
+        remote = canopen.RemoteNode(NODE_ID, str(DEFAULT_EDS_PATH))
+        network.add_node(remote)
+        remote.rpdo.read(from_od=True)
+        remote.tpdo.read(from_od=True)
+        self.rpdos = compile_pdos(PdoDirection.RPDO, remote.rpdo.map)
+        self.tpdos = compile_pdos(PdoDirection.TPDO, remote.tpdo.map)
+        self.table = RigTable.load()
+        self.link = ScriptedLink([p for p in self.tpdos.values() if p.is_cyclic])
+        self.emcy: list[bytes] = []
+
+    def open_link(self, receive_ids: list[int]) -> ScriptedLink:
+        return self.link
+
+    def emcy_received(self, data: bytes) -> None:
+        self.emcy.append(data)
+
+
+@pytest.fixture
+def driver() -> LockstepDriver:
+    params = JointParams()
+    node = StubNode()
+    driver = LockstepDriver(
+        node, JointPlant(params), SensorModel(params, 1), period_us=1000, tpdo_timeout_s=0.5
+    )  # type: ignore[arg-type]
+    driver.configure()
+    driver.node_entered(NmtState.OPERATIONAL)
+    return driver
+
+
+def _link(driver: LockstepDriver) -> ScriptedLink:
+    return driver.node.link  # type: ignore[attr-defined,return-value]
+
+
+def test_a_cycle_sends_sensors_setpoints_and_sync_and_takes_every_due_tpdo(driver) -> None:
+    result = driver.step()
+    sent_ids = [cob_id for cob_id, _ in _link(driver).sent]
+    assert sent_ids == [0x210, 0x310, 0x80]  # sensor RPDO, setpoint stream, SYNC counter 1
+    assert _link(driver).sent[-1] == (0x80, b"\x01")
+    assert sorted(p.number for p, _ in result.received_rows) == [1, 2, 3, 4, 5, 6, 7]
+    assert result.received["motor_duty"] == int.from_bytes(b"\x00\x01", "little", signed=True)
+    assert driver.cycle == 1 and driver.malformed_frames == 0
+
+
+def test_tpdo_of_the_wrong_length_is_counted_and_reported_for_its_cycle(driver) -> None:
+    _link(driver).script = lambda n, frames: [(c, d[:-1]) if c == 0x190 else (c, d) for c, d in frames]
+    with pytest.raises(
+        LockstepError, match=r"cycle 0 \(t = 0 s\): TPDO1 \(0x190\) arrived with 2 bytes, its mapping has 3"
+    ):
+        driver.step()
+    assert driver.malformed_frames == 1
+
+
+def test_a_tpdo_twice_is_reported(driver) -> None:
+    _link(driver).script = lambda n, frames: [*frames, frames[2]]
+    with pytest.raises(LockstepError, match=r"TPDO3 \(0x390\) arrived twice"):
+        driver.step()
+
+
+def test_a_missing_tpdo_times_out_naming_it(driver) -> None:
+    _link(driver).script = lambda n, frames: [f for f in frames if f[0] != 0x2D0]
+    with pytest.raises(LockstepError, match=r"TPDO6 \(0x2D0\) did not arrive within 0.5 s"):
+        driver.step()
+
+
+def test_emcy_among_the_tpdos_is_dispatched_and_the_cycle_completes(driver) -> None:
+    emcy = bytes.fromhex("1082011014000000")
+    _link(driver).script = lambda n, frames: [frames[0], (EMCY, emcy), *frames[1:]]
+    driver.step()
+    assert driver.node.emcy == [emcy]  # type: ignore[attr-defined]
+
+
+def test_emcy_between_cycles_is_dispatched_by_poll_and_a_late_tpdo_is_reported_next_cycle(driver) -> None:
+    driver.step()
+    link = _link(driver)
+    link.out.extend([(EMCY, bytes(8)), (0x190, bytes(3))])
+    driver.poll()
+    assert driver.node.emcy == [bytes(8)]  # type: ignore[attr-defined]
+    with pytest.raises(LockstepError, match=r"cycle 1 .*TPDO1 \(0x190\) arrived between SYNCs"):
+        driver.step()
+
+
+def test_history_keeps_rows_per_pdo_and_merges_a_name_carried_twice() -> None:
+    first = PdoLayout(PdoDirection.TPDO, 1, 0x190, True, 1, ("a", "b"), ("h", "f"))
+    second = PdoLayout(PdoDirection.TPDO, 9, 0x4D0, True, 2, ("b",), ("f",))
+    history = History(period_us=1000)
+    for cycle in range(4):
+        rows = [(first, (cycle, cycle * 0.5))]
+        if cycle % 2:
+            rows.append((second, (100.0 + cycle,)))
+        history.record_rows(cycle, rows, ())
+    t, b = history.received("b")
+    assert list(t) == [0.0, 0.001, 0.001, 0.002, 0.003, 0.003]
+    assert list(b) == [0.0, 0.5, 101.0, 1.0, 1.5, 103.0]
+    assert history.latest_received("b") == 103.0 and history.latest_received("a") == 3
+    twin = dataclasses.replace(first)  # the same mapping read again after a restart
+    history.record_rows(4, [(twin, (4, 2.0))], ())
+    assert np.array_equal(history.received("a")[1], [0, 1, 2, 3, 4])
+    assert not history.has_received("c") and not history.has_sent("a")
