@@ -21,11 +21,12 @@ Every scalar entity carries a static `SeriesLines` name with its unit ("motor_ve
 Timelines: `cycle` (sequence) and `sim_time` (duration, exact cycle * period) in lockstep; in
 real-time mode (`clock="wall"`) `wall_time` (timestamp) replaces `sim_time`.
 
-Off the hot path: `log_cycle` only appends the cycle's dicts to a list (no Rerun call). Every
-`batch_cycles` cycles the list is handed to a background thread that pivots it into columns and
-sends one `send_columns` chunk per entity. Nothing is ever dropped and the lockstep loop never
-waits for Rerun (see `rig/bench_trace.py` for the measurement). `import rerun` is slow in the
-emulated VM, so it happens only when a Tracer is made.
+Off the hot path: as a `RigObserver` the tracer only appends each cycle's result to a list (no
+Rerun call). Every `batch_cycles` cycles the list is handed to a background thread that pivots
+it into columns, PDO by PDO (one numpy array per PDO and batch), and sends one `send_columns`
+chunk per entity. Nothing is ever dropped and the lockstep loop never waits for Rerun (`make
+bench` measures a traced Rig against an untraced one). `import rerun` is slow in the emulated VM,
+so it happens only when a Tracer is made.
 """
 
 from __future__ import annotations
