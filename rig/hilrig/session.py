@@ -150,10 +150,15 @@ def _tracer(config: SessionConfig, table: RigTable) -> Tracer | None:
 
 
 def open_session(
-    config: SessionConfig, *, table: RigTable | None = None, before_start: Callable[[Rig], None] | None = None
+    config: SessionConfig,
+    *,
+    table: RigTable | None = None,
+    before_start: Callable[[Rig], None] | None = None,
+    private_bus: PrivateBus | None = None,
 ) -> HilSession:
     """Open a session (see the module doc); the caller closes it (`HilSession.close`).
-    `before_start` sees the rig before it talks to the node."""
+    `before_start` sees the rig before it talks to the node. `private_bus`: run on this private
+    bus (the caller's, e.g. a test's that also sends frames of its own) instead of a new one."""
     table = table if table is not None else RigTable.load()
     mode = TimingMode(config.mode)
     out = config.out_dir
@@ -161,10 +166,9 @@ def open_session(
     node_id = config.node_id if config.node_id is not None else table.board.node.default_node_id
     stack = contextlib.ExitStack()
     try:
-        private_bus: PrivateBus | None = None
         recorder: RecorderProcess | None = None
         firmware: Firmware | None = None
-        if config.board is None and config.host_channel is None:
+        if config.board is None and config.host_channel is None and private_bus is None:
             if not private_buses_supported():
                 raise BusUnavailableError(
                     "a HIL session needs root and a kernel with vcan for its private bus: run "
@@ -270,10 +274,14 @@ class _HostChannel:
 
 @contextlib.contextmanager
 def hil_session(
-    config: SessionConfig, *, table: RigTable | None = None, before_start: Callable[[Rig], None] | None = None
+    config: SessionConfig,
+    *,
+    table: RigTable | None = None,
+    before_start: Callable[[Rig], None] | None = None,
+    private_bus: PrivateBus | None = None,
 ) -> Iterator[HilSession]:
     """`open_session` as a context manager: closed in reverse order however the body ends."""
-    session = open_session(config, table=table, before_start=before_start)
+    session = open_session(config, table=table, before_start=before_start, private_bus=private_bus)
     try:
         yield session
     finally:
