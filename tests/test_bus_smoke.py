@@ -11,7 +11,9 @@ from pathlib import Path
 import can
 import pytest
 
+from hilrig.buslog import RecorderProcess
 from hilrig.netns import RECEIVE_QUEUE_BYTES, PrivateBus
+from hilrig.transport import RawCanLink, can_frame, open_raw_socket, socketcan_socket
 
 pytestmark = pytest.mark.bus
 
@@ -67,3 +69,40 @@ def test_the_rigs_sockets_get_a_deep_receive_queue(private_bus: PrivateBus) -> N
     with private_bus.open() as bus:
         granted = bus.socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
     assert granted >= RECEIVE_QUEUE_BYTES, f"receive queue {granted} bytes, expected >= {RECEIVE_QUEUE_BYTES}"
+
+
+def test_the_frame_link_opens_beside_a_bus_in_its_namespace_and_filters(private_bus: PrivateBus) -> None:
+    """The raw-socket link (hilrig.transport) lands in the private bus's namespace, not this
+    thread's, and the kernel passes it only the COB-IDs it asked for."""
+    with private_bus.open() as bus, PrivateBus() as other, other.open() as elsewhere:
+        link = RawCanLink(open_raw_socket(private_bus.channel, [0x190], beside=socketcan_socket(bus)))
+        try:
+            assert link.socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF) >= RECEIVE_QUEUE_BYTES
+            elsewhere.send(can.Message(arbitration_id=0x190, data=b"\x09", is_extended_id=False))
+            for cob_id, data in ((0x290, b"\x01"), (0x190, b"\x02\x03")):
+                bus.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False))
+            assert link.recv(10.0) == (0x190, b"\x02\x03")
+            assert link.recv(0.0) is None
+            link.send(can_frame(0x210, b"\xaa"))
+            echo = _recv_id(bus, 0x210, timeout_s=10.0)
+            assert bytes(echo.data) == b"\xaa"
+        finally:
+            link.close()
+
+
+def test_the_recorder_process_logs_every_frame_whole_with_kernel_timestamps(
+    private_bus: PrivateBus, tmp_path: Path
+) -> None:
+    path = tmp_path / "bus.log"
+    recorder = RecorderProcess(private_bus, path)
+    with private_bus.open() as bus:
+        sent = [(0x100 + n, bytes([n] * (n % 9))) for n in range(50)]
+        for cob_id, data in sent:
+            bus.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False))
+        bus.send(can.Message(arbitration_id=0x1ABCDEF, data=b"\x01", is_extended_id=True))
+    assert recorder.close() == 51
+    logged = list(can.LogReader(str(path)))
+    assert [(m.arbitration_id, bytes(m.data)) for m in logged[:50]] == sent
+    assert logged[50].is_extended_id and logged[50].arbitration_id == 0x1ABCDEF
+    stamps = [m.timestamp for m in logged]
+    assert stamps == sorted(stamps) and stamps[0] > 1e9  # kernel time, seconds since the epoch

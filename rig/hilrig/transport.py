@@ -47,6 +47,8 @@ about 800 bytes of kernel memory). The default (net.core.rmem_default, about 200
 frames) overflows in half a second when a Python reader is descheduled on a loaded machine, and
 the kernel then drops frames without a word."""
 SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
+SO_TIMESTAMP = getattr(socket, "SO_TIMESTAMP", 29)
+"""Linux's SO_TIMESTAMP (also the ancillary message type SCM_TIMESTAMP); Python does not name it."""
 _SIOCGSKNS = 0x894C
 """ioctl: a file descriptor of the network namespace a socket lives in (Linux >= 4.9)."""
 _CLONE_NEWNET = 0x40000000
@@ -232,7 +234,7 @@ class RawCanLink:
 
     def enable_timestamps(self) -> None:
         """Have the kernel stamp every received frame (`recv_stamped`)."""
-        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_TIMESTAMP, 1)
+        self.socket.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMP, 1)
 
     def recv_stamped(self, timeout_s: float) -> tuple[int, bytes, float] | None:
         """(raw can_id with its EFF/RTR/ERR flags, data, kernel receive time [s since the epoch])
@@ -245,7 +247,7 @@ class RawCanLink:
             return None
         stamp = 0.0
         for level, kind, payload in ancillary:
-            if level == socket.SOL_SOCKET and kind == socket.SO_TIMESTAMP:
+            if level == socket.SOL_SOCKET and kind == SO_TIMESTAMP:
                 seconds, micros = _TIMEVAL.unpack_from(payload)
                 stamp = seconds + micros / 1e6
         can_id, length = CAN_HEADER.unpack_from(frame)
