@@ -23,6 +23,12 @@ static_assert(board::kNode.device_name.size() <= SdoServer::kBufferBytes &&
                   board::kNode.software_version.size() <= SdoServer::kBufferBytes,
               "string objects must fit the SDO server's segment buffer");
 
+// A raw HIL input register starts at 0, or at the nearest end of its range if 0 is outside it
+// (the EDS states the same DefaultValue).
+std::int32_t hil_input_power_on_value(const board::IoInfo& io) {
+  return static_cast<std::int32_t>(std::min<std::int64_t>(std::max<std::int64_t>(0, io.min), io.max));
+}
+
 }  // namespace
 
 Node::Node(std::uint8_t node_id, CanPort& port, FieldAccess& fields, HilIo& hil,
@@ -33,7 +39,11 @@ Node::Node(std::uint8_t node_id, CanPort& port, FieldAccess& fields, HilIo& hil,
       hil_(hil),
       storage_(storage),
       serial_number_(serial_number),
-      sdo_(object_access(*this)) {}
+      sdo_(object_access(*this)) {
+  for (std::size_t i = 0; i < board::kHilInputCount; ++i) {
+    hil_inputs_[i] = hil_input_power_on_value(board::kHilInputs[i]);
+  }
+}
 
 void Node::start(std::uint32_t now_us) {
   parameter_load_ = load_stored_parameters();
@@ -222,12 +232,6 @@ namespace {
 
 using parameter_image::StoredValue;
 
-// A raw HIL input register starts at 0, or at the nearest end of its range if 0 is outside it
-// (the EDS states the same DefaultValue).
-std::int32_t hil_input_power_on_value(const board::IoInfo& io) {
-  return static_cast<std::int32_t>(std::min<std::int64_t>(std::max<std::int64_t>(0, io.min), io.max));
-}
-
 bool groups_include(ParameterGroup group, bool communication) {
   return group == ParameterGroup::All ||
          group == (communication ? ParameterGroup::Communication : ParameterGroup::Application);
@@ -249,6 +253,12 @@ void Node::apply_power_on_values() {
   for (std::size_t i = 0; i < board::kHilInputCount; ++i) {
     hil_inputs_[i] = hil_input_power_on_value(board::kHilInputs[i]);
   }
+  // 0x1001 and 0x1003 are not stored: back to "no error" as at power-on (no error reset frame:
+  // the boot-up message that follows tells the master the node started afresh).
+  for (ActiveError& error : active_errors_) error.active = false;
+  error_register_ = 0;
+  error_history_.fill(0);
+  error_history_count_ = 0;
   parameter_load_ = load_stored_parameters();
 }
 
