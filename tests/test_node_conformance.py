@@ -118,14 +118,17 @@ def test_tpdo_remapped_in_pre_operational_is_sent_on_sync(node_under_test: NodeU
     node_under_test.network.sync.transmit()
     tpdo.wait_for_reception(timeout=30)
     assert tpdo[f"{TABLE.field('velocity_kp').name}"].raw == pytest.approx(TABLE.field("velocity_kp").default)
-    # Changing a mapping while operational is refused: "data cannot be stored because of the
-    # present device state".
-    expect_abort(0x08000022, lambda: node.sdo.download(0x1A07, 0, b"\x00"))
+    # Changing the mapping of a valid PDO is refused with "unsupported access" (CiA 301,
+    # 7.5.2.38); so is any mapping change while operational, with "present device state".
+    expect_abort(0x06010000, lambda: node.sdo.download(0x1A07, 0, b"\x00"))
+    node.sdo.download(0x1806, 1, struct.pack("<I", node.sdo[0x1806][1].raw | 0x80000000))
+    expect_abort(0x08000022, lambda: node.sdo.download(0x1A06, 0, b"\x00"))
 
 
 def test_mapping_errors_are_answered(node_under_test: NodeUnderTest) -> None:
     sdo = node_under_test.node.sdo
-    sdo.download(0x1800, 1, struct.pack("<I", 0x80000000 | (0x180 + NODE_ID)))  # disable TPDO1
+    # Disable TPDO1 (bit 30: no RTR, as every TPDO COB-ID of this node).
+    sdo.download(0x1800, 1, struct.pack("<I", 0xC0000000 | (0x180 + NODE_ID)))
     sdo.download(0x1A00, 0, b"\x00")
     # 0x1008 (a string) cannot be mapped into a PDO.
     expect_abort(0x06040041, lambda: sdo.download(0x1A00, 1, struct.pack("<I", 0x10080008)))

@@ -180,7 +180,7 @@ TEST_F(NmtTest, ExtendedAndRemoteFramesAreIgnored) {
   EXPECT_EQ(node.counters().frames_ignored, 2u);
 }
 
-// CiA 301, 7.2.8.2.2.2 (reset node): every object the firmware does not store is back at its
+// CiA 301, 7.2.8 (NMT reset node): every object the firmware does not store is back at its
 // power-on value, the HIL inputs included (the issue found 0x3001 at its last value).
 TEST_F(NmtTest, ResetNodeReturnsHilInputsToTheirPowerOnValues) {
   ASSERT_EQ(index_of(board::HilInputId::output_encoder_counts), 0x3001);

@@ -313,7 +313,7 @@ SdoAbort Node::write_communication(std::uint16_t index, std::uint8_t sub, std::u
       for (Pdo& pdo : tpdos_) pdo.sync_started = false;  // start values apply to the new count
       return SdoAbort::None;
     case 0x1020:
-      // Written by a configuration tool, then stored with 0x1010 (CiA 301, 7.5.2.30).
+      // Written by a configuration tool, then stored with 0x1010 (CiA 301, 7.5.2.23).
       (sub == 1 ? configuration_date_ : configuration_time_) = value;
       return SdoAbort::None;
     default: break;
