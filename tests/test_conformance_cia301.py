@@ -33,6 +33,17 @@ NOT_VALID = 0x8000_0000
 SAVE = 0x6576_6173  # "save"
 
 
+# canopen's default SDO timeout (0.3 s) is shorter than an answer can take inside the emulated VM
+# on a loaded machine: a bounded hang guard instead, as the scenarios use.
+SDO_TIMEOUT_S = 5.0
+
+
+@pytest.fixture(autouse=True)
+def _patient_sdo_client(request: pytest.FixtureRequest) -> None:
+    if "node_under_test" in request.fixturenames:
+        request.getfixturevalue("node_under_test").node.sdo.RESPONSE_TIMEOUT = SDO_TIMEOUT_S
+
+
 def raw_sdo(under_test: NodeUnderTest, request: bytes) -> bytes:
     """One raw SDO request frame and the server's answer."""
     frame = can.Message(arbitration_id=SDO_RX, data=request.ljust(8, b"\x00"), is_extended_id=False)
@@ -225,6 +236,7 @@ class TestStoreRestore_7_5_2_13:
     ) -> None:
         params = scenario_dir / "params.bin"
         first = start_node(private_bus, scenario_dir, params_file=params)
+        first.node.sdo.RESPONSE_TIMEOUT = SDO_TIMEOUT_S
         try:
             for index in (0x1010, 0x1011):  # sub 1 all, 2 communication, 3 application
                 assert upload(first, index, 0) == 3, f"{index:#06x}"
