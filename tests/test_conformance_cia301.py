@@ -80,6 +80,16 @@ def nmt(under_test: NodeUnderTest, command: int) -> None:
     under_test.bus.send(frame)
 
 
+def start_operational(under_test: NodeUnderTest, heartbeats: int = 5) -> None:
+    """NMT start, back when a heartbeat says operational (one sent just before the command
+    still says pre-operational)."""
+    nmt(under_test, 0x01)
+    states = [under_test.node.nmt.wait_for_heartbeat(timeout=30) for _ in range(1)]
+    while states[-1] != "OPERATIONAL" and len(states) < heartbeats:
+        states.append(under_test.node.nmt.wait_for_heartbeat(timeout=30))
+    assert states[-1] == "OPERATIONAL", f"expected the node operational, heartbeats said {states}"
+
+
 def reset_node(under_test: NodeUnderTest) -> None:
     """NMT reset node, back when the boot-up message came (listening before sending)."""
     under_test.wait_for(BOOT_UP, after_subscribing=lambda: nmt(under_test, 0x81), data=b"\x00")
@@ -161,8 +171,7 @@ class TestPdo_7_2_2:
             assert cob_id & NO_RTR, f"{pdo.name}: COB-ID {cob_id:#010x} claims RTR is allowed"
         # Configuring "RTR allowed" is refused: the node would not keep the promise.
         assert download(node_under_test, 0x1800, 1, NOT_VALID | TPDO1, 4) == 0x06090030
-        nmt(node_under_test, 0x01)
-        assert node_under_test.node.nmt.wait_for_heartbeat(timeout=30) == "OPERATIONAL"
+        start_operational(node_under_test)
         answers: list[int] = []
         node_under_test.network.subscribe(TPDO1, lambda can_id, data, ts: answers.append(len(data)))
         remote = can.Message(arbitration_id=TPDO1, is_remote_frame=True, dlc=3, is_extended_id=False)
@@ -196,8 +205,7 @@ class TestSync_7_2_5:
         assert download(node_under_test, 0x1801, 2, 4, 1) == 0
         assert download(node_under_test, 0x1801, 6, 3, 1) == 0
         assert download(node_under_test, 0x1801, 1, NO_RTR | TPDO2, 4) == 0
-        nmt(node_under_test, 0x01)
-        assert node_under_test.node.nmt.wait_for_heartbeat(timeout=30) == "OPERATIONAL"
+        start_operational(node_under_test)
         counters = [n % 10 + 1 for n in range(20)]
         sent_at = [c for c in counters if sync_and_collect(node_under_test, c, TPDO2)]
         assert sent_at == [3, 7, 1, 5, 9], f"expected TPDO2 at SYNC counters 3, 7, 1, 5, 9; got {sent_at}"
@@ -215,8 +223,7 @@ class TestNmt_7_2_8:
         assert download(node_under_test, 0x3001, 0, 1234, 2) == 0
         assert download(node_under_test, 0x1019, 0, 16, 1) == 0
         node_under_test.node.sdo["velocity_setpoint"].raw = 2.5
-        nmt(node_under_test, 0x01)
-        assert node_under_test.node.nmt.wait_for_heartbeat(timeout=30) == "OPERATIONAL"
+        start_operational(node_under_test)
         sensors = TABLE.rpdos[0].cob_id(NODE_ID)
         for cycle in range(5):
             counts = struct.pack("<HHHh", 1000 + 100 * cycle, 200 + cycle, 2048, 500)
