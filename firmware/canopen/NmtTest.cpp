@@ -180,5 +180,70 @@ TEST_F(NmtTest, ExtendedAndRemoteFramesAreIgnored) {
   EXPECT_EQ(node.counters().frames_ignored, 2u);
 }
 
+// CiA 301, 7.2.8 (NMT reset node): every object the firmware does not store is back at its
+// power-on value, the HIL inputs included (the issue found 0x3001 at its last value).
+TEST_F(NmtTest, ResetNodeReturnsHilInputsToTheirPowerOnValues) {
+  ASSERT_EQ(index_of(board::HilInputId::output_encoder_counts), 0x3001);
+  EXPECT_EQ(sdo({0x2B, 0x01, 0x30, 0x00, 0xD2, 0x04, 0, 0}),
+            (std::array<std::uint8_t, 8>{0x60, 0x01, 0x30, 0x00, 0, 0, 0, 0}));
+  EXPECT_EQ(sdo({0x40, 0x01, 0x30, 0x00, 0, 0, 0, 0}),
+            (std::array<std::uint8_t, 8>{0x4B, 0x01, 0x30, 0x00, 0xD2, 0x04, 0, 0}));
+  nmt(NmtCommand::ResetNode);
+  EXPECT_EQ(next_sent(), make_frame(kHeartbeat, {0x00}));
+  EXPECT_EQ(sdo({0x40, 0x01, 0x30, 0x00, 0, 0, 0, 0}),
+            (std::array<std::uint8_t, 8>{0x4B, 0x01, 0x30, 0x00, 0x00, 0x00, 0, 0}));
+}
+
+TEST_F(NmtTest, ResetCommunicationLeavesTheApplicationAlone) {
+  const FieldId id = FieldId::velocity_setpoint;
+  ASSERT_EQ(download_float(index_of(id), 1.25f), SdoAbort::None);
+  ASSERT_EQ(download(0x3001, 0, 1234, 2), SdoAbort::None);
+  nmt(NmtCommand::ResetCommunication);
+  all_sent();
+  EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(id)], 1.25f);
+  EXPECT_EQ(upload(0x3001, 0), 1234u);
+}
+
+class CountingApplicationReset final : public ApplicationReset {
+ public:
+  explicit CountingApplicationReset(FakeBoard& board) : board_{board} {}
+  void reset_application() override {
+    ++resets;
+    board_.values.fill(-7.0f);  // whatever a fresh application holds: the node writes after it
+  }
+  int resets = 0;
+
+ private:
+  FakeBoard& board_;
+};
+
+TEST_F(NmtTest, ResetNodeResetsTheApplicationThenAppliesDefaultsAndStoredValues) {
+  CountingApplicationReset application{fields};
+  node.set_application_reset(&application);
+  const FieldId stored = FieldId::velocity_kp;
+  ASSERT_EQ(download_float(index_of(stored), board::info(stored).max), SdoAbort::None);
+  ASSERT_EQ(download(0x1010, 3, Node::kStoreSignature, 4), SdoAbort::None);
+  nmt(NmtCommand::ResetCommunication);
+  EXPECT_EQ(application.resets, 0);
+  nmt(NmtCommand::ResetNode);
+  EXPECT_EQ(application.resets, 1);
+  EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(stored)], board::info(stored).max);
+  const FieldId command = FieldId::control_mode;
+  EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(command)], board::info(command).default_value);
+}
+
+TEST_F(NmtTest, ResetNodeClearsTheErrorRegisterAndHistory) {
+  node.report_emcy(emcy::over_temperature(FieldId::winding_temperature));
+  all_sent();  // the EMCY frame
+  ASSERT_NE(upload(0x1001, 0), 0u);
+  ASSERT_EQ(upload(0x1003, 0), 1u);
+  nmt(NmtCommand::ResetNode);
+  EXPECT_EQ(next_sent(), make_frame(kHeartbeat, {0x00}));
+  EXPECT_TRUE(all_sent().empty()) << "no error reset frame: the boot-up says it all";
+  EXPECT_EQ(upload(0x1001, 0), 0u);
+  EXPECT_EQ(upload(0x1003, 0), 0u);
+  EXPECT_EQ(node.error_register(), 0u);
+}
+
 }  // namespace
 }  // namespace co::test

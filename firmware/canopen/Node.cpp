@@ -2,6 +2,7 @@
 #include "Node.hpp"
 
 #include <algorithm>
+#include <bit>
 
 #include "ObjectTables.hpp"
 
@@ -22,6 +23,12 @@ static_assert(board::kNode.device_name.size() <= SdoServer::kBufferBytes &&
                   board::kNode.software_version.size() <= SdoServer::kBufferBytes,
               "string objects must fit the SDO server's segment buffer");
 
+// A raw HIL input register starts at 0, or at the nearest end of its range if 0 is outside it
+// (the EDS states the same DefaultValue).
+std::int32_t hil_input_power_on_value(const board::IoInfo& io) {
+  return static_cast<std::int32_t>(std::min<std::int64_t>(std::max<std::int64_t>(0, io.min), io.max));
+}
+
 }  // namespace
 
 Node::Node(std::uint8_t node_id, CanPort& port, FieldAccess& fields, HilIo& hil,
@@ -32,7 +39,11 @@ Node::Node(std::uint8_t node_id, CanPort& port, FieldAccess& fields, HilIo& hil,
       hil_(hil),
       storage_(storage),
       serial_number_(serial_number),
-      sdo_(object_access(*this)) {}
+      sdo_(object_access(*this)) {
+  for (std::size_t i = 0; i < board::kHilInputCount; ++i) {
+    hil_inputs_[i] = hil_input_power_on_value(board::kHilInputs[i]);
+  }
+}
 
 void Node::start(std::uint32_t now_us) {
   parameter_load_ = load_stored_parameters();
@@ -124,9 +135,13 @@ void Node::enter(NmtState state) {
 void Node::reset_communication(std::uint32_t now_us) {
   sdo_.reset();
   sync_cob_id_ = 0x80;
+  sync_overflow_ = 0;
+  configuration_date_ = 0;
+  configuration_time_ = 0;
   heartbeat_ms_ = board::kNode.heartbeat_ms;
   load_default_pdos();
-  state_ = NmtState::PreOperational;
+  state_ = NmtState::PreOperational;  // stored PDO mappings replay under pre-operational rules
+  load_stored_communication();
   last_heartbeat_us_ = now_us;
   const std::array<std::uint8_t, 1> boot_up = {static_cast<std::uint8_t>(NmtState::Initialising)};
   send(kErrorControlCobIdBase + node_id_, boot_up);
@@ -151,6 +166,15 @@ void Node::handle_sync(const CanFrame& frame, ProcessResult& result) {
   for (Pdo& pdo : tpdos_) {
     if (!pdo.valid() || pdo.transmission_type > 240) continue;
     if (pdo.transmission_type == 0) {
+      pdo.due_at_sync = true;
+      continue;
+    }
+    // SYNC start value (0x1800+n:06), used only when the SYNC carries a counter (0x1019 != 0):
+    // the first transmission is at the SYNC whose counter equals it, then every n-th SYNC.
+    if (sync_overflow_ != 0 && pdo.sync_start_value != 0 && !pdo.sync_started) {
+      if (!result.sync_has_counter || result.sync_counter != pdo.sync_start_value) continue;
+      pdo.sync_started = true;
+      pdo.syncs_since_sent = 0;
       pdo.due_at_sync = true;
       continue;
     }
@@ -199,8 +223,26 @@ void Node::poll(std::uint32_t now_us) {
 }
 
 // --- Power-on values and parameter storage -------------------------------------------------
+//
+// Power-on value of an object = its stored value if 0x1010 stored one, else its default.
+// Reset node sets the application's (board fields, HIL inputs) and then, through reset
+// communication, the communication objects' power-on values.
+
+namespace {
+
+using parameter_image::StoredValue;
+
+bool groups_include(ParameterGroup group, bool communication) {
+  return group == ParameterGroup::All ||
+         group == (communication ? ParameterGroup::Communication : ParameterGroup::Application);
+}
+
+}  // namespace
 
 void Node::apply_power_on_values() {
+  // The platform resets its components, board and registers first; what the node holds
+  // follows. A HIL input's register is the application's; the node keeps what reads show.
+  if (application_reset_ != nullptr) application_reset_->reset_application();
   for (std::size_t i = 0; i < board::kFieldCount; ++i) {
     const board::FieldInfo& field = board::kFields[i];
     if (field.access != board::Access::ReadWrite) continue;
@@ -208,6 +250,15 @@ void Node::apply_power_on_values() {
       ++counters_.field_writes_refused;
     }
   }
+  for (std::size_t i = 0; i < board::kHilInputCount; ++i) {
+    hil_inputs_[i] = hil_input_power_on_value(board::kHilInputs[i]);
+  }
+  // 0x1001 and 0x1003 are not stored: back to "no error" as at power-on (no error reset frame:
+  // the boot-up message that follows tells the master the node started afresh).
+  for (ActiveError& error : active_errors_) error.active = false;
+  error_register_ = 0;
+  error_history_.fill(0);
+  error_history_count_ = 0;
   parameter_load_ = load_stored_parameters();
 }
 
@@ -221,34 +272,183 @@ ParameterLoad Node::load_stored_parameters() {
     case parameter_image::Check::Valid: break;
   }
   for (std::size_t i = 0; i < count; ++i) {
-    const parameter_image::StoredValue stored = parameter_image::entry(image, i);
+    const StoredValue stored = parameter_image::entry(image, i);
     const auto field = tables::field_at(stored.index);
     // Entries of fields this firmware no longer stores are skipped, as are values outside
     // today's range: the default stays, which is safer than a clamped value.
-    if (!field || !board::info(*field).stored) continue;
-    (void)write_field(*field, stored.value);
+    if (!field || stored.sub != 0 || !board::info(*field).stored) continue;
+    (void)write_field(*field, std::bit_cast<float>(stored.raw));
   }
   return ParameterLoad::Loaded;
 }
 
-bool Node::store_parameters() {
-  const std::size_t size = parameter_image::encode(fields_, image_);
+void Node::load_stored_communication() {
+  const std::size_t size = storage_.load(image_);
+  const std::span<const std::byte> image(image_.data(), std::min(size, image_.size()));
+  std::size_t count = 0;
+  if (parameter_image::check(image, count) != parameter_image::Check::Valid) return;
+  for (std::size_t i = 0; i < count; ++i) {
+    const StoredValue stored = parameter_image::entry(image, i);
+    // The same checks as an SDO write: a value today's firmware refuses keeps its default.
+    switch (stored.index) {
+      case 0x1005:
+      case 0x1017:
+      case 0x1019:
+      case 0x1020: (void)write_communication(stored.index, stored.sub, stored.raw, 0); break;
+      default: break;
+    }
+  }
+  for (std::size_t n = 0; n < rpdos_.size(); ++n) {
+    if (!load_stored_pdo(rpdos_[n], true, static_cast<std::uint16_t>(tables::kRpdoCommunicationBase + n),
+                         static_cast<std::uint16_t>(tables::kRpdoMappingBase + n), image, count)) {
+      load_default_pdo(rpdos_[n], board::kDefaultRpdos[n], true);
+    }
+  }
+  for (std::size_t n = 0; n < tpdos_.size(); ++n) {
+    if (!load_stored_pdo(tpdos_[n], false, static_cast<std::uint16_t>(tables::kTpdoCommunicationBase + n),
+                         static_cast<std::uint16_t>(tables::kTpdoMappingBase + n), image, count)) {
+      load_default_pdo(tpdos_[n], board::kDefaultTpdos[n], false);
+    }
+  }
+}
+
+bool Node::load_stored_pdo(Pdo& pdo, bool is_rpdo, std::uint16_t communication_index,
+                           std::uint16_t mapping_index, std::span<const std::byte> image,
+                           std::size_t count) {
+  // Start from today's value of every sub-index, overlay what is stored, then replay it in the
+  // CiA 301 order (invalid, parameters, mapping count 0, entries, count, COB-ID) so the SDO
+  // checks apply. false: a stored value is refused now; the caller restores the defaults.
+  std::array<std::uint32_t, 7> communication = {0, pdo.cob_id, pdo.transmission_type,
+                                                pdo.inhibit_time_100us, 0, pdo.event_timer_ms,
+                                                pdo.sync_start_value};
+  std::array<std::uint32_t, kMaxMappedObjects + 1> mapping{};
+  mapping[0] = pdo.mapping_count;
+  std::copy(pdo.mapping.begin(), pdo.mapping.end(), mapping.begin() + 1);
+  bool stored_any = false;
+  for (std::size_t i = 0; i < count; ++i) {
+    const StoredValue stored = parameter_image::entry(image, i);
+    if (stored.index == communication_index && stored.sub >= 1 && stored.sub < communication.size()) {
+      communication[stored.sub] = stored.raw;
+      stored_any = true;
+    } else if (stored.index == mapping_index && stored.sub < mapping.size()) {
+      mapping[stored.sub] = stored.raw;
+      stored_any = true;
+    }
+  }
+  if (!stored_any) return true;
+  auto ok = [](SdoAbort result) { return result == SdoAbort::None; };
+  if (!ok(write_pdo_communication(pdo, is_rpdo, 1, communication[1] | tables::kPdoInvalidBit)) ||
+      !ok(write_pdo_communication(pdo, is_rpdo, 2, communication[2])) ||
+      !ok(write_pdo_communication(pdo, is_rpdo, 3, communication[3])) ||
+      !ok(write_pdo_communication(pdo, is_rpdo, 5, communication[5])) ||
+      (!is_rpdo && !ok(write_pdo_communication(pdo, is_rpdo, 6, communication[6]))) ||
+      !ok(write_pdo_mapping(pdo, is_rpdo, 0, 0))) {
+    return false;
+  }
+  for (std::uint8_t sub = 1; sub <= kMaxMappedObjects; ++sub) {
+    if (!ok(write_pdo_mapping(pdo, is_rpdo, sub, mapping[sub]))) return false;
+  }
+  return ok(write_pdo_mapping(pdo, is_rpdo, 0, mapping[0])) &&
+         ok(write_pdo_communication(pdo, is_rpdo, 1, communication[1]));
+}
+
+std::size_t Node::collect_communication(std::span<StoredValue> out) const {
+  std::size_t n = 0;
+  auto add = [&](std::uint16_t index, std::uint8_t sub) {
+    if (n < out.size()) out[n++] = {index, sub, read_communication(index, sub)};
+  };
+  add(0x1005, 0);
+  add(0x1017, 0);
+  add(0x1019, 0);
+  add(0x1020, 1);
+  add(0x1020, 2);
+  for (std::size_t i = 0; i < rpdos_.size(); ++i) {
+    const auto communication = static_cast<std::uint16_t>(tables::kRpdoCommunicationBase + i);
+    for (const int sub : {1, 2, 3, 5}) add(communication, static_cast<std::uint8_t>(sub));
+    for (std::uint8_t sub = 0; sub <= kMaxMappedObjects; ++sub) {
+      add(static_cast<std::uint16_t>(tables::kRpdoMappingBase + i), sub);
+    }
+  }
+  for (std::size_t i = 0; i < tpdos_.size(); ++i) {
+    const auto communication = static_cast<std::uint16_t>(tables::kTpdoCommunicationBase + i);
+    for (const int sub : {1, 2, 3, 5, 6}) add(communication, static_cast<std::uint8_t>(sub));
+    for (std::uint8_t sub = 0; sub <= kMaxMappedObjects; ++sub) {
+      add(static_cast<std::uint16_t>(tables::kTpdoMappingBase + i), sub);
+    }
+  }
+  return n;
+}
+
+std::size_t Node::collect_application(std::span<StoredValue> out) {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < board::kFieldCount && n < out.size(); ++i) {
+    const board::FieldInfo& field = board::kFields[i];
+    if (!field.stored) continue;
+    out[n++] = {field.index, 0,
+                std::bit_cast<std::uint32_t>(fields_.read(static_cast<board::FieldId>(i)))};
+  }
+  return n;
+}
+
+std::size_t Node::stored_entries(std::span<StoredValue> out, bool communication) {
+  // What storage holds today for one group; nothing when the image is missing or corrupt.
+  const std::size_t size = storage_.load(image_);
+  const std::span<const std::byte> image(image_.data(), std::min(size, image_.size()));
+  std::size_t count = 0;
+  if (parameter_image::check(image, count) != parameter_image::Check::Valid) return 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < count && n < out.size(); ++i) {
+    const StoredValue stored = parameter_image::entry(image, i);
+    if (parameter_image::is_communication(stored.index) == communication) out[n++] = stored;
+  }
+  return n;
+}
+
+bool Node::save_image(std::span<const StoredValue> values, std::size_t count) {
+  const std::size_t size = parameter_image::encode(values.first(count), image_);
   return storage_.save(std::span<const std::byte>(image_.data(), size));
 }
 
-bool Node::restore_default_parameters() {
-  // Defaults apply at once (a rig wants to see them without a reset) and are stored, so they
-  // are also what the next start-up loads.
+bool Node::store_parameters(ParameterGroup group) {
+  // The group not named keeps what storage holds for it (0x1010:02 leaves stored gains alone).
+  std::size_t n = 0;
+  const std::span<StoredValue> all(staged_);
+  n += groups_include(group, true) ? collect_communication(all.subspan(n))
+                                   : stored_entries(all.subspan(n), true);
+  n += groups_include(group, false) ? collect_application(all.subspan(n))
+                                    : stored_entries(all.subspan(n), false);
+  return save_image(staged_, n);
+}
+
+bool Node::restore_default_parameters(ParameterGroup group) {
+  // Application defaults apply at once (a rig wants to see them without a reset) and are
+  // stored, so they are also what the next start-up loads. Communication defaults leave
+  // storage and take effect at the next reset (changing PDOs under a running master would
+  // surprise it). Either way the boot-up configuration changed: 0x1020 no longer matches.
   bool all_accepted = true;
-  for (std::size_t i = 0; i < board::kFieldCount; ++i) {
-    const board::FieldInfo& field = board::kFields[i];
-    if (!field.stored) continue;
-    if (fields_.write(static_cast<board::FieldId>(i), field.default_value) == WriteResult::Refused) {
-      ++counters_.field_writes_refused;
-      all_accepted = false;
+  const bool application = groups_include(group, false);
+  if (application) {
+    for (std::size_t i = 0; i < board::kFieldCount; ++i) {
+      const board::FieldInfo& field = board::kFields[i];
+      if (!field.stored) continue;
+      if (fields_.write(static_cast<board::FieldId>(i), field.default_value) == WriteResult::Refused) {
+        ++counters_.field_writes_refused;
+        all_accepted = false;
+      }
     }
   }
-  return store_parameters() && all_accepted;
+  configuration_date_ = 0;
+  configuration_time_ = 0;
+  std::size_t n = 0;
+  const std::span<StoredValue> all(staged_);
+  if (!groups_include(group, true)) {
+    const std::size_t kept = stored_entries(all, true);
+    for (std::size_t i = 0; i < kept; ++i) {
+      if (staged_[i].index != 0x1020) staged_[n++] = staged_[i];
+    }
+  }
+  n += application ? collect_application(all.subspan(n)) : stored_entries(all.subspan(n), false);
+  return save_image(staged_, n) && all_accepted;
 }
 
 // --- EMCY -----------------------------------------------------------------------------------

@@ -50,6 +50,27 @@ struct ProcessResult {
                                   // power-on values; reset component state if needed
 };
 
+// What 0x1010 "store parameters" / 0x1011 "restore default parameters" act on: the value is the
+// sub-index (CiA 301, 7.5.2.13/14).
+enum class ParameterGroup : std::uint8_t {
+  All = 1,            // everything below
+  Communication = 2,  // 0x1005, 0x1017, 0x1019, 0x1020, PDO communication and mapping records
+  Application = 3,    // board fields marked `stored` in board.toml
+};
+
+// Called on NMT reset node, before the node sets the application's objects to their power-on
+// values: the platform resets its components, the board and its driver registers.
+class ApplicationReset {
+ public:
+  virtual ~ApplicationReset() = default;
+  virtual void reset_application() = 0;
+
+ protected:
+  ApplicationReset() = default;
+  ApplicationReset(const ApplicationReset&) = default;
+  ApplicationReset& operator=(const ApplicationReset&) = default;
+};
+
 enum class ParameterLoad : std::uint8_t {
   NotAttempted,   // start() not called yet
   Loaded,         // a valid image was applied
@@ -119,9 +140,16 @@ class Node final {
   bool clear_emcy(std::uint16_t error_code);
   bool clear_all_emcy();
 
-  // Local equivalents of writing 0x1010 / 0x1011 sub 1. false: storage or the board refused.
-  bool store_parameters();
-  bool restore_default_parameters();
+  // Local equivalents of writing 0x1010 / 0x1011 sub `group`. false: storage or the board
+  // refused. Store keeps the stored values of the other group. Restore: application defaults
+  // apply at once and are stored; communication defaults are dropped from storage and apply at
+  // the next reset communication (CiA 301: restored values are valid after a reset).
+  bool store_parameters(ParameterGroup group = ParameterGroup::All);
+  bool restore_default_parameters(ParameterGroup group = ParameterGroup::All);
+
+  // Optional: without it, reset node resets only what the node holds (bus-written fields and
+  // the HIL inputs' read-back). Must outlive the node.
+  void set_application_reset(ApplicationReset* reset) { application_reset_ = reset; }
 
   NmtState state() const { return state_; }
   std::uint8_t node_id() const { return node_id_; }
@@ -153,6 +181,7 @@ class Node final {
     std::uint8_t transmission_type = 255;
     std::uint16_t inhibit_time_100us = 0;  // TPDO only
     std::uint16_t event_timer_ms = 0;      // TPDO only
+    std::uint8_t sync_start_value = 0;     // TPDO only (sub 6); 0 = not used
     // Mapping parameter (0x1600+n / 0x1A00+n).
     std::uint8_t mapping_count = 0;
     std::array<std::uint32_t, kMaxMappedObjects> mapping{};
@@ -161,6 +190,7 @@ class Node final {
     // Run-time state.
     std::uint8_t syncs_since_sent = 0;
     bool due_at_sync = false;
+    bool sync_started = false;  // the SYNC start value was seen (or is not used)
     bool sent_once = false;
     std::uint32_t last_sent_us = 0;
     std::array<std::uint8_t, 8> last_payload{};
@@ -198,10 +228,11 @@ class Node final {
   std::int32_t hil_input_value(board::HilInputId id) const;
 
   // PDOs (Pdo.cpp).
-  SdoAbort write_pdo_communication(Pdo& pdo, std::uint8_t sub, std::uint32_t value);
+  SdoAbort write_pdo_communication(Pdo& pdo, bool is_rpdo, std::uint8_t sub, std::uint32_t value);
   SdoAbort write_pdo_mapping(Pdo& pdo, bool is_rpdo, std::uint8_t sub, std::uint32_t value);
   SdoAbort resolve_mapping(std::uint32_t entry, bool is_rpdo, MappedObject& mapped) const;
   void load_default_pdos();
+  void load_default_pdo(Pdo& pdo, const board::PdoDefault& defaults, bool is_rpdo);
   void reset_pdo_runtime();
   void receive_rpdo(std::size_t number, const CanFrame& frame, std::uint32_t now_us);
   void poll_rpdo_deadlines(std::uint32_t now_us);
@@ -219,6 +250,14 @@ class Node final {
   void reset_communication(std::uint32_t now_us);
   void apply_power_on_values();
   ParameterLoad load_stored_parameters();
+  void load_stored_communication();
+  bool load_stored_pdo(Pdo& pdo, bool is_rpdo, std::uint16_t communication_index,
+                       std::uint16_t mapping_index, std::span<const std::byte> image,
+                       std::size_t count);
+  std::size_t collect_communication(std::span<parameter_image::StoredValue> out) const;
+  std::size_t collect_application(std::span<parameter_image::StoredValue> out);
+  std::size_t stored_entries(std::span<parameter_image::StoredValue> out, bool communication);
+  bool save_image(std::span<const parameter_image::StoredValue> values, std::size_t count);
   void send_emcy(std::uint16_t code, const std::array<std::uint8_t, 5>& manufacturer);
   void update_error_register();
   bool may_send_emcy() const;
@@ -234,6 +273,9 @@ class Node final {
 
   NmtState state_ = NmtState::Initialising;
   std::uint32_t sync_cob_id_ = 0x80;
+  std::uint8_t sync_overflow_ = 0;  // 0x1019: 0 = SYNC without counter, else counter 1..value
+  std::uint32_t configuration_date_ = 0;  // 0x1020:01, days since 1984-01-01 (written by a master)
+  std::uint32_t configuration_time_ = 0;  // 0x1020:02, ms after midnight
   std::uint16_t heartbeat_ms_ = 0;
   std::uint32_t last_heartbeat_us_ = 0;
   std::array<Pdo, board::kRpdoCount> rpdos_{};
@@ -246,7 +288,9 @@ class Node final {
   std::uint8_t error_history_count_ = 0;
 
   ParameterLoad parameter_load_ = ParameterLoad::NotAttempted;
+  ApplicationReset* application_reset_ = nullptr;
   std::array<std::byte, parameter_image::kCapacity> image_{};
+  std::array<parameter_image::StoredValue, parameter_image::kMaxEntries> staged_{};
   NodeCounters counters_;
 };
 

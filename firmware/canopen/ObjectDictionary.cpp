@@ -12,7 +12,12 @@ namespace {
 
 using board::DataType;
 
-constexpr std::uint8_t kPdoCommunicationHighestSub = 5;
+constexpr std::uint8_t kRpdoCommunicationHighestSub = 5;
+constexpr std::uint8_t kTpdoCommunicationHighestSub = 6;  // + SYNC start value
+constexpr std::uint8_t kStoreHighestSub = 3;               // all, communication, application
+constexpr std::uint8_t kVerifyConfigurationHighestSub = 2;  // date, time
+// 0x1010/0x1011 sub 1..3 read: bit 0 = saves/restores on command, bit 1 = no autonomous save.
+constexpr std::uint32_t kSavesOnCommand = 0x0000'0001u;
 constexpr std::uint8_t kIdentityHighestSub = 4;
 
 // Offset of `index` within a block of `count` objects starting at `base`, if inside.
@@ -55,10 +60,15 @@ SdoAbort Node::find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) c
     case 0x1010:
     case 0x1011:
       if (sub == 0) return record(DataType::Unsigned8, false);
-      if (sub == 1) return record(DataType::Unsigned32, true);
+      if (sub <= kStoreHighestSub) return record(DataType::Unsigned32, true);
       return SdoAbort::SubIndexDoesNotExist;
     case 0x1014: return simple(DataType::Unsigned32, false);
     case 0x1017: return simple(DataType::Unsigned16, true);
+    case 0x1019: return simple(DataType::Unsigned8, true);
+    case 0x1020:
+      if (sub == 0) return record(DataType::Unsigned8, false);
+      if (sub <= kVerifyConfigurationHighestSub) return record(DataType::Unsigned32, true);
+      return SdoAbort::SubIndexDoesNotExist;
     case 0x1018:
       if (sub == 0) return record(DataType::Unsigned8, false);
       if (sub <= kIdentityHighestSub) return record(DataType::Unsigned32, false);
@@ -67,13 +77,14 @@ SdoAbort Node::find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) c
   }
 
   std::size_t n = 0;
-  // RPDO and TPDO communication records have the same layout (as in the EDS).
-  if (in_block(index, tables::kRpdoCommunicationBase, board::kRpdoCount, n) ||
-      in_block(index, tables::kTpdoCommunicationBase, board::kTpdoCount, n)) {
+  // RPDO and TPDO communication records share sub 1..5; sub 6 (SYNC start value) is TPDO only.
+  const bool tpdo_communication = in_block(index, tables::kTpdoCommunicationBase, board::kTpdoCount, n);
+  if (tpdo_communication || in_block(index, tables::kRpdoCommunicationBase, board::kRpdoCount, n)) {
     if (sub == 0) return record(DataType::Unsigned8, false);
     if (sub == 1) return record(DataType::Unsigned32, true);
     if (sub == 2) return record(DataType::Unsigned8, true);
     if (sub == 3 || sub == 5) return record(DataType::Unsigned16, true);
+    if (sub == 6 && tpdo_communication) return record(DataType::Unsigned8, true);
     return SdoAbort::SubIndexDoesNotExist;  // 4 is reserved by CiA 301
   }
   if (in_block(index, tables::kRpdoMappingBase, board::kRpdoCount, n) ||
@@ -122,9 +133,13 @@ std::uint32_t Node::read_communication(std::uint16_t index, std::uint8_t sub) co
     case 0x1003: return sub == 0 ? error_history_count_ : error_history_[sub - 1u];
     case 0x1005: return sync_cob_id_;
     case 0x1010:
-    case 0x1011: return 1u;  // sub0: highest sub-index 1; sub1: bit 0 = saves on command
+    case 0x1011: return sub == 0 ? kStoreHighestSub : kSavesOnCommand;
     case 0x1014: return 0x80u + node_id_;
     case 0x1017: return heartbeat_ms_;
+    case 0x1019: return sync_overflow_;
+    case 0x1020:
+      if (sub == 0) return kVerifyConfigurationHighestSub;
+      return sub == 1 ? configuration_date_ : configuration_time_;
     case 0x1018:
       switch (sub) {
         case 0: return kIdentityHighestSub;
@@ -141,11 +156,12 @@ std::uint32_t Node::read_communication(std::uint16_t index, std::uint8_t sub) co
     const bool is_rpdo = index < tables::kTpdoCommunicationBase;
     const Pdo& pdo = is_rpdo ? rpdos_[n] : tpdos_[n];
     switch (sub) {
-      case 0: return kPdoCommunicationHighestSub;
+      case 0: return is_rpdo ? kRpdoCommunicationHighestSub : kTpdoCommunicationHighestSub;
       case 1: return pdo.cob_id;
       case 2: return pdo.transmission_type;
       case 3: return pdo.inhibit_time_100us;
-      default: return pdo.event_timer_ms;
+      case 5: return pdo.event_timer_ms;
+      default: return pdo.sync_start_value;
     }
   }
   if (in_block(index, tables::kRpdoMappingBase, board::kRpdoCount, n) ||
@@ -278,22 +294,36 @@ SdoAbort Node::write_communication(std::uint16_t index, std::uint8_t sub, std::u
       return SdoAbort::None;
     case 0x1010:
       if (value != kStoreSignature) return SdoAbort::DataCannotBeStored;
-      return store_parameters() ? SdoAbort::None : SdoAbort::DataCannotBeStored;
+      return store_parameters(static_cast<ParameterGroup>(sub)) ? SdoAbort::None
+                                                                : SdoAbort::DataCannotBeStored;
     case 0x1011:
       if (value != kRestoreSignature) return SdoAbort::DataCannotBeStored;
-      return restore_default_parameters() ? SdoAbort::None : SdoAbort::DataCannotBeStored;
+      return restore_default_parameters(static_cast<ParameterGroup>(sub))
+                 ? SdoAbort::None
+                 : SdoAbort::DataCannotBeStored;
     case 0x1017:
       heartbeat_ms_ = static_cast<std::uint16_t>(value);
       last_heartbeat_us_ = now_us;  // the new period counts from now
+      return SdoAbort::None;
+    case 0x1019:
+      // 0: SYNC without counter; 2..240: counter overflow value; 1 and 241..255 reserved.
+      // (CiA 301 refuses changes while 0x1006 is not 0; this node has no 0x1006.)
+      if (value == 1 || value > 240) return SdoAbort::ValueRangeExceeded;
+      sync_overflow_ = static_cast<std::uint8_t>(value);
+      for (Pdo& pdo : tpdos_) pdo.sync_started = false;  // start values apply to the new count
+      return SdoAbort::None;
+    case 0x1020:
+      // Written by a configuration tool, then stored with 0x1010 (CiA 301, 7.5.2.23).
+      (sub == 1 ? configuration_date_ : configuration_time_) = value;
       return SdoAbort::None;
     default: break;
   }
   std::size_t n = 0;
   if (in_block(index, tables::kRpdoCommunicationBase, board::kRpdoCount, n)) {
-    return write_pdo_communication(rpdos_[n], sub, value);
+    return write_pdo_communication(rpdos_[n], true, sub, value);
   }
   if (in_block(index, tables::kTpdoCommunicationBase, board::kTpdoCount, n)) {
-    return write_pdo_communication(tpdos_[n], sub, value);
+    return write_pdo_communication(tpdos_[n], false, sub, value);
   }
   if (in_block(index, tables::kRpdoMappingBase, board::kRpdoCount, n)) {
     return write_pdo_mapping(rpdos_[n], true, sub, value);

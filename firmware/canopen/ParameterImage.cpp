@@ -1,7 +1,6 @@
 #include "ParameterImage.hpp"
 
 #include <array>
-#include <bit>
 
 namespace co::parameter_image {
 namespace {
@@ -52,15 +51,13 @@ std::uint32_t crc32(std::span<const std::byte> bytes) {
   return c ^ 0xFFFF'FFFFu;
 }
 
-std::size_t encode(FieldAccess& fields, std::span<std::byte, kCapacity> out) {
-  std::size_t count = 0;
-  for (std::size_t i = 0; i < board::kFieldCount; ++i) {
-    const board::FieldInfo& field = board::kFields[i];
-    if (!field.stored) continue;
-    std::byte* at = out.data() + kHeaderBytes + count * kEntryBytes;
-    put_u16(at, field.index);
-    put_u32(at + 2, std::bit_cast<std::uint32_t>(fields.read(static_cast<board::FieldId>(i))));
-    ++count;
+std::size_t encode(std::span<const StoredValue> values, std::span<std::byte, kCapacity> out) {
+  const std::size_t count = values.size() < kMaxEntries ? values.size() : kMaxEntries;
+  for (std::size_t i = 0; i < count; ++i) {
+    std::byte* at = out.data() + kHeaderBytes + i * kEntryBytes;
+    put_u16(at, values[i].index);
+    at[2] = static_cast<std::byte>(values[i].sub);
+    put_u32(at + 3, values[i].raw);
   }
   const std::size_t size = kHeaderBytes + count * kEntryBytes;
   put_u32(out.data(), kMagic);
@@ -70,22 +67,34 @@ std::size_t encode(FieldAccess& fields, std::span<std::byte, kCapacity> out) {
   return size;
 }
 
+namespace {
+
+std::size_t entry_bytes(std::uint16_t version) {
+  return version == kFieldsOnlyFormatVersion ? kFieldsOnlyEntryBytes : kEntryBytes;
+}
+
+}  // namespace
+
 Check check(std::span<const std::byte> image, std::size_t& entry_count) {
   if (image.empty()) return Check::Empty;
   if (image.size() < kHeaderBytes) return Check::Corrupt;
-  if (get_u32(image.data()) != kMagic || get_u16(image.data() + 4) != kFormatVersion) {
+  const std::uint16_t version = get_u16(image.data() + 4);
+  if (get_u32(image.data()) != kMagic ||
+      (version != kFormatVersion && version != kFieldsOnlyFormatVersion)) {
     return Check::Corrupt;
   }
   const std::size_t count = get_u16(image.data() + 6);
-  if (image.size() != kHeaderBytes + count * kEntryBytes) return Check::Corrupt;
+  if (image.size() != kHeaderBytes + count * entry_bytes(version)) return Check::Corrupt;
   if (get_u32(image.data() + 8) != image_crc(image)) return Check::Corrupt;
   entry_count = count;
   return Check::Valid;
 }
 
 StoredValue entry(std::span<const std::byte> image, std::size_t i) {
-  const std::byte* at = image.data() + kHeaderBytes + i * kEntryBytes;
-  return {get_u16(at), std::bit_cast<float>(get_u32(at + 2))};
+  const std::uint16_t version = get_u16(image.data() + 4);
+  const std::byte* at = image.data() + kHeaderBytes + i * entry_bytes(version);
+  if (version == kFieldsOnlyFormatVersion) return {get_u16(at), 0, get_u32(at + 2)};
+  return {get_u16(at), std::to_integer<std::uint8_t>(at[2]), get_u32(at + 3)};
 }
 
 }  // namespace co::parameter_image

@@ -11,7 +11,10 @@ namespace co {
 namespace {
 
 constexpr std::uint32_t kInvalidBit = 0x8000'0000u;
-constexpr std::uint32_t kRtrBit = 0x4000'0000u;  // TPDO: 1 = no RTR allowed; kept as written
+// TPDO: 1 = no RTR allowed. The node does not answer remote frames (CiA AN 802 advises
+// against RTR; a remote-requested TPDO would also arrive between two SYNCs and break the
+// lockstep rig's one-frame-per-cycle accounting), so a TPDO COB-ID always has it set.
+constexpr std::uint32_t kRtrBit = 0x4000'0000u;
 constexpr std::uint8_t kLastSynchronousType = 240;
 constexpr std::uint8_t kEventManufacturer = 254;
 constexpr std::uint8_t kEventProfile = 255;
@@ -47,7 +50,8 @@ SdoAbort Node::resolve_mapping(std::uint32_t entry, bool is_rpdo, MappedObject& 
   return SdoAbort::None;
 }
 
-SdoAbort Node::write_pdo_communication(Pdo& pdo, std::uint8_t sub, std::uint32_t value) {
+SdoAbort Node::write_pdo_communication(Pdo& pdo, bool is_rpdo, std::uint8_t sub,
+                                       std::uint32_t value) {
   switch (sub) {
     case 1: {
       const bool valid = (value & kInvalidBit) == 0;
@@ -55,6 +59,8 @@ SdoAbort Node::write_pdo_communication(Pdo& pdo, std::uint8_t sub, std::uint32_t
       // bit 29 (29-bit id) and bits 11..28 must be zero; the id may change only while the
       // PDO is invalid; an enabled PDO needs a usable id and a mapping.
       if ((value & 0x3FFF'F800u) != 0) return SdoAbort::ValueRangeExceeded;
+      // A TPDO cannot be configured "RTR allowed": the node would not keep that promise.
+      if (!is_rpdo && (value & kRtrBit) == 0) return SdoAbort::ValueRangeExceeded;
       if (valid && pdo.valid() && can_id != pdo.can_id()) return SdoAbort::ValueRangeExceeded;
       if (valid && (tables::is_restricted_can_id(can_id) || pdo.mapping_count == 0)) {
         return SdoAbort::ValueRangeExceeded;
@@ -66,6 +72,7 @@ SdoAbort Node::write_pdo_communication(Pdo& pdo, std::uint8_t sub, std::uint32_t
         pdo.sent_once = false;
         pdo.syncs_since_sent = 0;
         pdo.due_at_sync = false;
+        pdo.sync_started = false;
         pdo.buffered = false;
       }
       return SdoAbort::None;
@@ -84,15 +91,24 @@ SdoAbort Node::write_pdo_communication(Pdo& pdo, std::uint8_t sub, std::uint32_t
     case 5:  // TPDO: event timer; RPDO: deadline for the next reception
       pdo.event_timer_ms = static_cast<std::uint16_t>(value);
       return SdoAbort::None;
+    case 6:  // TPDO only: SYNC start value; changed only while the PDO is invalid
+      if (is_rpdo) return SdoAbort::SubIndexDoesNotExist;
+      // Like the COB-ID, it may change only while the PDO is invalid (0x06090030 as there).
+      if (value > kLastSynchronousType || pdo.valid()) return SdoAbort::ValueRangeExceeded;
+      pdo.sync_start_value = static_cast<std::uint8_t>(value);
+      return SdoAbort::None;
     default: return SdoAbort::SubIndexDoesNotExist;
   }
 }
 
 SdoAbort Node::write_pdo_mapping(Pdo& pdo, bool is_rpdo, std::uint8_t sub, std::uint32_t value) {
-  // CiA 301 procedure: only in pre-operational, PDO invalid, sub0 = 0 while entries change.
-  if (state_ == NmtState::Operational || pdo.valid()) return SdoAbort::DeviceState;
+  // CiA 301 procedure (7.5.2.36/38): PDO invalid, sub0 = 0 while entries change. A write out
+  // of that order is "unsupported access" (0x06010000), one of the codes the clause names.
+  if (pdo.valid()) return SdoAbort::UnsupportedAccess;
+  // Remapping in operational is optional in CiA 301; this node remaps in pre-operational only.
+  if (state_ == NmtState::Operational) return SdoAbort::DeviceState;
   if (sub != 0) {
-    if (pdo.mapping_count != 0) return SdoAbort::DeviceState;
+    if (pdo.mapping_count != 0) return SdoAbort::UnsupportedAccess;
     MappedObject mapped;
     if (value != 0) {  // 0 = empty entry, allowed while the mapping is disabled
       if (const SdoAbort r = resolve_mapping(value, is_rpdo, mapped); r != SdoAbort::None) return r;
@@ -101,7 +117,8 @@ SdoAbort Node::write_pdo_mapping(Pdo& pdo, bool is_rpdo, std::uint8_t sub, std::
     return SdoAbort::None;
   }
 
-  if (value > kMaxMappedObjects) return SdoAbort::ValueTooHigh;
+  // More entries than the record has: "number and length of objects exceeds PDO length".
+  if (value > kMaxMappedObjects) return SdoAbort::PdoLengthExceeded;
   std::array<MappedObject, kMaxMappedObjects> mapped{};
   std::size_t bytes = 0;
   for (std::size_t i = 0; i < value; ++i) {
@@ -117,36 +134,42 @@ SdoAbort Node::write_pdo_mapping(Pdo& pdo, bool is_rpdo, std::uint8_t sub, std::
   return SdoAbort::None;
 }
 
-void Node::load_default_pdos() {
-  auto load = [this](Pdo& pdo, const board::PdoDefault& defaults, bool is_rpdo) {
-    pdo = Pdo{};
-    pdo.cob_id = (defaults.cob_id_base + node_id_) | (defaults.enabled ? 0u : kInvalidBit);
-    pdo.transmission_type = defaults.transmission_type;
-    pdo.inhibit_time_100us = defaults.inhibit_time_100us;
-    pdo.event_timer_ms = defaults.event_timer_ms;
-    const std::size_t count = std::min<std::size_t>(defaults.count, kMaxMappedObjects);
-    std::size_t bytes = 0;
-    for (std::size_t i = 0; i < count; ++i) {
-      pdo.mapping[i] = mapping_entry(defaults.entries[i]);
-      if (resolve_mapping(pdo.mapping[i], is_rpdo, pdo.mapped[i]) != SdoAbort::None) {
-        ++counters_.default_pdo_errors;  // a table bug: leave this PDO disabled and empty
-        pdo.cob_id |= kInvalidBit;
-        pdo.mapping_count = 0;
-        pdo.payload_bytes = 0;
-        return;
-      }
-      bytes += pdo.mapped[i].size;
-    }
-    if (bytes > 8) {
-      ++counters_.default_pdo_errors;
+void Node::load_default_pdo(Pdo& pdo, const board::PdoDefault& defaults, bool is_rpdo) {
+  pdo = Pdo{};
+  pdo.cob_id = (defaults.cob_id_base + node_id_) | (defaults.enabled ? 0u : kInvalidBit) |
+               (is_rpdo ? 0u : kRtrBit);
+  pdo.transmission_type = defaults.transmission_type;
+  pdo.inhibit_time_100us = defaults.inhibit_time_100us;
+  pdo.event_timer_ms = defaults.event_timer_ms;
+  const std::size_t count = std::min<std::size_t>(defaults.count, kMaxMappedObjects);
+  std::size_t bytes = 0;
+  for (std::size_t i = 0; i < count; ++i) {
+    pdo.mapping[i] = mapping_entry(defaults.entries[i]);
+    if (resolve_mapping(pdo.mapping[i], is_rpdo, pdo.mapped[i]) != SdoAbort::None) {
+      ++counters_.default_pdo_errors;  // a table bug: leave this PDO disabled and empty
       pdo.cob_id |= kInvalidBit;
+      pdo.mapping_count = 0;
+      pdo.payload_bytes = 0;
       return;
     }
-    pdo.mapping_count = static_cast<std::uint8_t>(count);
-    pdo.payload_bytes = static_cast<std::uint8_t>(bytes);
-  };
-  for (std::size_t n = 0; n < board::kRpdoCount; ++n) load(rpdos_[n], board::kDefaultRpdos[n], true);
-  for (std::size_t n = 0; n < board::kTpdoCount; ++n) load(tpdos_[n], board::kDefaultTpdos[n], false);
+    bytes += pdo.mapped[i].size;
+  }
+  if (bytes > 8) {
+    ++counters_.default_pdo_errors;
+    pdo.cob_id |= kInvalidBit;
+    return;
+  }
+  pdo.mapping_count = static_cast<std::uint8_t>(count);
+  pdo.payload_bytes = static_cast<std::uint8_t>(bytes);
+}
+
+void Node::load_default_pdos() {
+  for (std::size_t n = 0; n < board::kRpdoCount; ++n) {
+    load_default_pdo(rpdos_[n], board::kDefaultRpdos[n], true);
+  }
+  for (std::size_t n = 0; n < board::kTpdoCount; ++n) {
+    load_default_pdo(tpdos_[n], board::kDefaultTpdos[n], false);
+  }
 }
 
 void Node::reset_pdo_runtime() {
@@ -158,6 +181,7 @@ void Node::reset_pdo_runtime() {
     pdo.syncs_since_sent = 0;
     pdo.due_at_sync = false;
     pdo.sent_once = false;
+    pdo.sync_started = false;
   }
 }
 

@@ -2,6 +2,7 @@
 // TPDOs, RPDO reception including the length error.
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "NodeTestSupport.hpp"
 
@@ -13,6 +14,7 @@ using board::HilInputId;
 using board::HilOutputId;
 
 constexpr std::uint32_t kInvalid = 0x8000'0000u;
+constexpr std::uint32_t kNoRtr = 0x4000'0000u;  // TPDO COB-ID bit 30: no remote request
 
 std::uint32_t map(std::uint16_t index, std::uint8_t bits) {
   return (std::uint32_t{index} << 16) | bits;
@@ -27,6 +29,7 @@ class PdoTest : public NodeTest {
   // The CiA 301 procedure: disable, sub0 = 0, entries, sub0 = n, enable.
   void remap(std::uint16_t communication, std::uint16_t mapping, std::uint32_t cob_id,
              std::uint8_t transmission_type, std::initializer_list<std::uint32_t> entries) {
+    if (communication >= 0x1800) cob_id |= kNoRtr;
     ASSERT_EQ(download(communication, 1, cob_id | kInvalid, 4), SdoAbort::None);
     ASSERT_EQ(download(communication, 2, transmission_type, 1), SdoAbort::None);
     ASSERT_EQ(download(mapping, 0, 0, 1), SdoAbort::None);
@@ -44,7 +47,7 @@ class PdoTest : public NodeTest {
     }
   }
   void prepare_disabled_tpdo1() {
-    ASSERT_EQ(download(0x1800, 1, kTpdo1 | kInvalid, 4), SdoAbort::None);
+    ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1 | kInvalid, 4), SdoAbort::None);
     ASSERT_EQ(download(0x1A00, 0, 0, 1), SdoAbort::None);
   }
   float& value(FieldId id) { return fields.values[FakeBoard::index(id)]; }
@@ -56,8 +59,9 @@ TEST_F(PdoTest, DefaultPdosMatchTheTableAndResolve) {
     const board::PdoDefault& d = board::kDefaultTpdos[n];
     const auto comm = static_cast<std::uint16_t>(0x1800 + n);
     const auto mapping = static_cast<std::uint16_t>(0x1A00 + n);
-    EXPECT_EQ(upload(comm, 0), 5u);
-    EXPECT_EQ(upload(comm, 1), (d.cob_id_base + kNodeId) | (d.enabled ? 0u : kInvalid));
+    EXPECT_EQ(upload(comm, 0), 6u);
+    EXPECT_EQ(upload(comm, 1), (d.cob_id_base + kNodeId) | (d.enabled ? 0u : kInvalid) | kNoRtr);
+    EXPECT_EQ(upload(comm, 6), 0u) << "no SYNC start value";
     EXPECT_EQ(upload(comm, 2), d.transmission_type);
     EXPECT_EQ(upload(comm, 3), d.inhibit_time_100us);
     EXPECT_EQ(upload(comm, 5), d.event_timer_ms);
@@ -167,20 +171,27 @@ TEST_F(PdoTest, EventTimerSendsUnchangedValues) {
 
 TEST_F(PdoTest, MappingChangeWhileOperationalAbortsDeviceState) {
   nmt(NmtCommand::Start);
-  ASSERT_EQ(download(0x1800, 1, kTpdo1 | kInvalid, 4), SdoAbort::None);
+  ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1 | kInvalid, 4), SdoAbort::None);
   EXPECT_EQ(download(0x1A00, 0, 0, 1), SdoAbort::DeviceState);
   EXPECT_EQ(download(0x1A00, 1, map(FieldId::motor_velocity), 4), SdoAbort::DeviceState);
 }
 
-TEST_F(PdoTest, MappingChangeWhilePdoValidAbortsDeviceState) {
+// CiA 301, 7.5.2.36/38: the codes named for writes out of the remapping order are 0x06010000,
+// 0x06040041 and 0x08000000; this node answers 0x06010000 "unsupported access".
+TEST_F(PdoTest, MappingCountZeroWhilePdoValidAbortsUnsupportedAccess) {
   ASSERT_EQ(upload(0x1800, 1) & kInvalid, 0u) << "TPDO1 is enabled by default";
-  EXPECT_EQ(download(0x1A00, 0, 0, 1), SdoAbort::DeviceState);
+  EXPECT_EQ(sdo({0x2F, 0x00, 0x1A, 0x00, 0x00, 0, 0, 0}),
+            abort_data(0x1A00, 0, SdoAbort::UnsupportedAccess));
+  EXPECT_EQ(download(0x1A00, 1, map(FieldId::motor_velocity), 4), SdoAbort::UnsupportedAccess);
+  EXPECT_EQ(download(0x1600, 0, 0, 1), SdoAbort::UnsupportedAccess) << "RPDO1 alike";
 }
 
-TEST_F(PdoTest, MappingEntryWhileSub0IsNotZeroAbortsDeviceState) {
-  ASSERT_EQ(download(0x1800, 1, kTpdo1 | kInvalid, 4), SdoAbort::None);
+TEST_F(PdoTest, MappingEntryWhileSub0IsNotZeroAbortsUnsupportedAccess) {
+  ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1 | kInvalid, 4), SdoAbort::None);
   ASSERT_NE(upload(0x1A00, 0), 0u);
-  EXPECT_EQ(download(0x1A00, 1, map(FieldId::motor_velocity), 4), SdoAbort::DeviceState);
+  const auto entry = le32(map(FieldId::motor_velocity));
+  EXPECT_EQ(sdo({0x23, 0x00, 0x1A, 0x01, entry[0], entry[1], entry[2], entry[3]}),
+            abort_data(0x1A00, 1, SdoAbort::UnsupportedAccess));
 }
 
 TEST_F(PdoTest, MappingObjectsThatCannotBeMappedAborts) {
@@ -209,9 +220,11 @@ TEST_F(PdoTest, MappingMoreThan64BitsAbortsPdoLengthExceeded) {
   EXPECT_EQ(download(0x1A00, 0, 2, 1), SdoAbort::None);
 }
 
-TEST_F(PdoTest, MappingCountAboveEightAbortsValueTooHigh) {
+TEST_F(PdoTest, MappingCountAboveTheEntriesAbortsPdoLengthExceeded) {
   prepare_disabled_tpdo1();
-  EXPECT_EQ(download(0x1A00, 0, 9, 1), SdoAbort::ValueTooHigh);
+  EXPECT_EQ(sdo({0x2F, 0x00, 0x1A, 0x00, 0x09, 0, 0, 0}),
+            abort_data(0x1A00, 0, SdoAbort::PdoLengthExceeded));
+  EXPECT_EQ(upload(0x1A00, 0), 0u);
   EXPECT_EQ(upload_abort(0x1A00, 9), SdoAbort::SubIndexDoesNotExist);
 }
 
@@ -225,19 +238,19 @@ TEST_F(PdoTest, MappingCountOverAnEmptyEntryAbortsObjectCannotBeMapped) {
 TEST_F(PdoTest, CobIdRules) {
   // Enabling with an empty mapping.
   prepare_disabled_tpdo1();
-  EXPECT_EQ(download(0x1800, 1, kTpdo1, 4), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | kTpdo1, 4), SdoAbort::ValueRangeExceeded);
   ASSERT_EQ(download(0x1A00, 1, map(FieldId::motor_velocity), 4), SdoAbort::None);
   ASSERT_EQ(download(0x1A00, 0, 1, 1), SdoAbort::None);
   // Reserved identifiers and 29-bit ids.
-  EXPECT_EQ(download(0x1800, 1, 0x700 + kNodeId, 4), SdoAbort::ValueRangeExceeded);
-  EXPECT_EQ(download(0x1800, 1, 0x590, 4), SdoAbort::ValueRangeExceeded);
-  EXPECT_EQ(download(0x1800, 1, 0x2000'0000u | kTpdo1, 4), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | (0x700 + kNodeId), 4), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | 0x590, 4), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | 0x2000'0000u | kTpdo1, 4), SdoAbort::ValueRangeExceeded);
   // A new id while valid needs the invalid step in between.
-  ASSERT_EQ(download(0x1800, 1, kTpdo1, 4), SdoAbort::None);
-  EXPECT_EQ(download(0x1800, 1, 0x1A0, 4), SdoAbort::ValueRangeExceeded);
-  ASSERT_EQ(download(0x1800, 1, 0x1A0 | kInvalid, 4), SdoAbort::None);
-  EXPECT_EQ(download(0x1800, 1, 0x1A0, 4), SdoAbort::None);
-  EXPECT_EQ(upload(0x1800, 1), 0x1A0u);
+  ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1, 4), SdoAbort::None);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | 0x1A0, 4), SdoAbort::ValueRangeExceeded);
+  ASSERT_EQ(download(0x1800, 1, kNoRtr | 0x1A0 | kInvalid, 4), SdoAbort::None);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | 0x1A0, 4), SdoAbort::None);
+  EXPECT_EQ(upload(0x1800, 1), kNoRtr | 0x1A0u);
 }
 
 TEST_F(PdoTest, InvalidTransmissionTypesAbortValueRangeExceeded) {
@@ -357,12 +370,113 @@ TEST_F(RpdoDeadlineTest, ErrorRegisterCanBeMappedIntoATpdo) {
   ASSERT_EQ(download(0x1A00, 1, 0x1001'0008u, 4), SdoAbort::None);
   ASSERT_EQ(download(0x1A00, 0, 1, 1), SdoAbort::None);
   ASSERT_EQ(download(0x1800, 2, 1, 1), SdoAbort::None);
-  ASSERT_EQ(download(0x1800, 1, cob_id, 4), SdoAbort::None);
+  ASSERT_EQ(download(0x1800, 1, kNoRtr | cob_id, 4), SdoAbort::None);
   nmt(NmtCommand::Start);
   node.report_emcy(emcy::over_temperature(board::FieldId::winding_temperature));
   all_sent();
   sync();
   EXPECT_EQ(next_sent(), make_frame(cob_id, {0x09}));
+}
+
+// --- RTR (CiA 301, 7.2.2.2 / 7.5.2.37 bit 30): the node serves no remote requests, so every
+// TPDO COB-ID says so.
+
+TEST_F(PdoTest, DefaultTpdoCobIdsSayNoRtrAndRpdoCobIdsLeaveBit30Clear) {
+  for (std::uint16_t n = 0; n < board::kTpdoCount; ++n) {
+    EXPECT_EQ(upload(static_cast<std::uint16_t>(0x1800 + n), 1) & kNoRtr, kNoRtr) << "TPDO" << n + 1;
+  }
+  for (std::uint16_t n = 0; n < board::kRpdoCount; ++n) {
+    EXPECT_EQ(upload(static_cast<std::uint16_t>(0x1400 + n), 1) & kNoRtr, 0u) << "RPDO" << n + 1;
+  }
+}
+
+TEST_F(PdoTest, TpdoCobIdWithRtrAllowedIsRefused) {
+  const auto refused = le32(kTpdo1 | kInvalid);  // bit 30 clear: "RTR allowed"
+  EXPECT_EQ(sdo({0x23, 0x00, 0x18, 0x01, refused[0], refused[1], refused[2], refused[3]}),
+            abort_data(0x1800, 1, SdoAbort::ValueRangeExceeded));
+  EXPECT_EQ(upload(0x1800, 1), kNoRtr | kTpdo1) << "unchanged";
+}
+
+TEST_F(PdoTest, RemoteFrameOnATpdoIdGetsNoAnswer) {
+  nmt(NmtCommand::Start);
+  receive(make_frame(kTpdo1 | CanFrame::kRemoteFlag, {}));
+  node.poll(now_us);
+  EXPECT_TRUE(all_sent().empty());
+}
+
+// --- SYNC counter (CiA 301, 7.5.2.22 0x1019) and SYNC start value (7.5.2.37 sub 6).
+
+class SyncStartTest : public PdoTest {
+ protected:
+  void sync_with_counter(std::uint8_t counter) {
+    ASSERT_TRUE(receive(0x080, {counter}).sync);
+    node.transmit_synchronous_pdos(now_us);
+  }
+  // TPDO1 alone, every `period`-th SYNC, first at counter `start`.
+  void configure(std::uint8_t period, std::uint8_t start) {
+    disable_other_tpdos();
+    ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1 | kInvalid, 4), SdoAbort::None);
+    ASSERT_EQ(download(0x1800, 2, period, 1), SdoAbort::None);
+    ASSERT_EQ(download(0x1800, 6, start, 1), SdoAbort::None);
+    ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1, 4), SdoAbort::None);
+    port.clear_sent();
+  }
+  // Counters of the SYNCs 1..n (wrapping at `overflow`) that TPDO1 came after.
+  std::vector<int> counters_with_tpdo1(int syncs, std::uint8_t overflow) {
+    std::vector<int> seen;
+    for (int i = 0; i < syncs; ++i) {
+      const auto counter = static_cast<std::uint8_t>(i % overflow + 1);
+      sync_with_counter(counter);
+      for (const CanFrame& frame : all_sent()) {
+        if (frame.id == kTpdo1) seen.push_back(counter);
+      }
+    }
+    return seen;
+  }
+};
+
+TEST_F(SyncStartTest, CounterOverflowValueDefaultsToZeroAndTakes2To240) {
+  EXPECT_EQ(upload(0x1019, 0), 0u);
+  EXPECT_EQ(sdo({0x2F, 0x19, 0x10, 0x00, 0x01, 0, 0, 0}),
+            abort_data(0x1019, 0, SdoAbort::ValueRangeExceeded));
+  EXPECT_EQ(download(0x1019, 0, 241, 1), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(0x1019, 0, 2, 1), SdoAbort::None);
+  EXPECT_EQ(download(0x1019, 0, 240, 1), SdoAbort::None);
+  EXPECT_EQ(upload(0x1019, 0), 240u);
+}
+
+TEST_F(SyncStartTest, StartValueChangesOnlyWhileThePdoIsInvalid) {
+  EXPECT_EQ(sdo({0x2F, 0x00, 0x18, 0x06, 0x03, 0, 0, 0}),
+            abort_data(0x1800, 6, SdoAbort::ValueRangeExceeded));
+  ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1 | kInvalid, 4), SdoAbort::None);
+  EXPECT_EQ(download(0x1800, 6, 241, 1), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(0x1800, 6, 3, 1), SdoAbort::None);
+  EXPECT_EQ(upload(0x1800, 6), 3u);
+  EXPECT_EQ(upload_abort(0x1400, 6), SdoAbort::SubIndexDoesNotExist) << "RPDOs have no sub 6";
+}
+
+TEST_F(SyncStartTest, TpdoStartsAtTheSyncWhoseCounterEqualsTheStartValue) {
+  ASSERT_EQ(download(0x1019, 0, 10, 1), SdoAbort::None);
+  configure(4, 3);
+  nmt(NmtCommand::Start);
+  EXPECT_EQ(counters_with_tpdo1(20, 10), (std::vector<int>{3, 7, 1, 5, 9}));
+}
+
+TEST_F(SyncStartTest, StartValueIsIgnoredWithoutASyncCounter) {
+  // 0x1019 = 0 (the default): counting starts at the first SYNC, as without a start value.
+  configure(4, 3);
+  nmt(NmtCommand::Start);
+  EXPECT_EQ(counters_with_tpdo1(12, 240), (std::vector<int>{4, 8, 12}));
+}
+
+TEST_F(SyncStartTest, RestartAfterStopWaitsForTheStartValueAgain) {
+  ASSERT_EQ(download(0x1019, 0, 10, 1), SdoAbort::None);
+  configure(1, 5);
+  nmt(NmtCommand::Start);
+  EXPECT_EQ(counters_with_tpdo1(6, 10), (std::vector<int>{5, 6}));
+  nmt(NmtCommand::EnterPreOperational);
+  nmt(NmtCommand::Start);
+  EXPECT_EQ(counters_with_tpdo1(6, 10), (std::vector<int>{5, 6}));
 }
 
 }  // namespace

@@ -31,17 +31,32 @@ from canopen.objectdictionary import (
 )
 
 from boardproto.cpp_header import GENERATED_BANNER
-from boardproto.table import PDO_NOT_VALID, BoardTable, DataType, Field, HilIo, Pdo
+from boardproto.table import BoardTable, DataType, Field, HilIo, Pdo, PdoDirection
 
 # StorageLocation values (a CANopenNode convention; CiA 306 leaves the key free):
 # stored fields survive a reset once 0x1010 sub 1 was written, the rest do not.
 STORAGE_PERSISTENT = "PERSIST"
 STORAGE_VOLATILE = "RAM"
 
-# 0x1010 / 0x1011 sub 1 read value: bit 0 = the device saves/restores on command.
+# 0x1010 / 0x1011 sub 1..3 read value: bit 0 = the device saves/restores on command.
 SAVES_ON_COMMAND = 0x0000_0001
+# 0x1010 / 0x1011 sub-indices: 1 all parameters, 2 communication (0x1000..0x1FFF), 3 application.
+STORE_GROUPS = ((1, "all"), (2, "communication"), (3, "application"))
 SYNC_COB_ID = 0x80
-PDO_COMMUNICATION_SUBINDICES = 5  # sub 1 COB-ID, 2 type, 3 inhibit, (4 reserved), 5 event timer
+EMCY_COB_ID_BASE = 0x80
+# sub 1 COB-ID, 2 type, 3 inhibit, (4 reserved), 5 event timer; TPDOs also 6 SYNC start value.
+RPDO_COMMUNICATION_SUBINDICES = 5
+TPDO_COMMUNICATION_SUBINDICES = 6
+# What CiA 301 defines that this node does not implement, and why. Written into the EDS's
+# [Comments] and repeated in the README's conformance statement.
+NOT_SUPPORTED = (
+    "Not supported: node guarding and life guarding (0x100C/0x100D; optional, deprecated by",
+    "CiA 301 in favour of the heartbeat, which the node produces). Remote frames (RTR): every",
+    "TPDO COB-ID has bit 30 set; transmission types 252/253 are refused. SYNC producer, TIME,",
+    "multiple SDO servers, SDO client, LSS.",
+    "Not yet supported: heartbeat consumer 0x1016 (issue: modular robot), SDO block transfer",
+    "(issue: recorder).",
+)
 SUPPORTED_BITRATES = frozenset({125_000, 250_000, 500_000, 1_000_000})
 
 
@@ -114,6 +129,7 @@ def _io_variable(io_object: HilIo) -> ODVariable:
 def _pdo_records(pdo: Pdo, default_node_id: int) -> tuple[ODRecord, ODRecord]:
     communication = ODRecord(f"{pdo.name} communication parameter", pdo.communication_index)
     index = pdo.communication_index
+    is_tpdo = pdo.direction is PdoDirection.TPDO
     communication.add_member(
         _variable(
             "Highest sub-index supported",
@@ -121,7 +137,7 @@ def _pdo_records(pdo: Pdo, default_node_id: int) -> tuple[ODRecord, ODRecord]:
             0,
             DataType.UNSIGNED8,
             "ro",
-            PDO_COMMUNICATION_SUBINDICES,
+            TPDO_COMMUNICATION_SUBINDICES if is_tpdo else RPDO_COMMUNICATION_SUBINDICES,
         )
     )
     cob_id = _variable(
@@ -133,8 +149,7 @@ def _pdo_records(pdo: Pdo, default_node_id: int) -> tuple[ODRecord, ODRecord]:
         pdo.cob_id_value(default_node_id),
     )
     # Written verbatim by the exporter; resolved per node id by import_od / RemoteNode.
-    flag = PDO_NOT_VALID if not pdo.enabled else 0
-    cob_id.default_raw = f"$NODEID+0x{pdo.cob_id_base | flag:X}"
+    cob_id.default_raw = f"$NODEID+0x{pdo.cob_id_base | pdo.cob_id_flags:X}"
     cob_id.relative = True
     communication.add_member(cob_id)
     communication.add_member(
@@ -146,6 +161,12 @@ def _pdo_records(pdo: Pdo, default_node_id: int) -> tuple[ODRecord, ODRecord]:
     communication.add_member(
         _variable("Event timer", index, 5, DataType.UNSIGNED16, "rw", pdo.event_timer_ms)
     )
+    if is_tpdo:
+        # 0 = not used; with a SYNC counter (0x1019 > 0) the first transmission is at the
+        # SYNC whose counter equals it.
+        start = _variable("SYNC start value", index, 6, DataType.UNSIGNED8, "rw", 0)
+        start.min, start.max = 0, 240
+        communication.add_member(start)
 
     mapping = ODRecord(f"{pdo.name} mapping parameter", pdo.mapping_index)
     index = pdo.mapping_index
@@ -209,38 +230,37 @@ def _add_communication_objects(od: ObjectDictionary, table: BoardTable) -> None:
             node.software_version,
         )
     )
-    od.add_object(
-        _array(
-            "Store parameters",
-            0x1010,
-            "Highest sub-index supported",
-            1,
-            "ro",
-            [_variable("Save all parameters", 0x1010, 1, DataType.UNSIGNED32, "rw", SAVES_ON_COMMAND)],
+    for index, array_name, verb in (
+        (0x1010, "Store parameters", "Save"),
+        (0x1011, "Restore default parameters", "Restore"),
+    ):
+        od.add_object(
+            _array(
+                array_name,
+                index,
+                "Highest sub-index supported",
+                len(STORE_GROUPS),
+                "ro",
+                [
+                    _variable(
+                        f"{verb} {group} parameters", index, sub, DataType.UNSIGNED32, "rw", SAVES_ON_COMMAND
+                    )
+                    for sub, group in STORE_GROUPS
+                ],
+            )
         )
+    emcy_cob_id = _variable(
+        "COB-ID EMCY", 0x1014, 0, DataType.UNSIGNED32, "ro", EMCY_COB_ID_BASE + node.default_node_id
     )
-    od.add_object(
-        _array(
-            "Restore default parameters",
-            0x1011,
-            "Highest sub-index supported",
-            1,
-            "ro",
-            [
-                _variable(
-                    "Restore all default parameters",
-                    0x1011,
-                    1,
-                    DataType.UNSIGNED32,
-                    "rw",
-                    SAVES_ON_COMMAND,
-                )
-            ],
-        )
-    )
+    emcy_cob_id.default_raw = f"$NODEID+0x{EMCY_COB_ID_BASE:X}"
+    emcy_cob_id.relative = True
+    od.add_object(emcy_cob_id)
     od.add_object(
         _variable("Producer heartbeat time", 0x1017, 0, DataType.UNSIGNED16, "rw", node.heartbeat_ms)
     )
+    overflow = _variable("Synchronous counter overflow value", 0x1019, 0, DataType.UNSIGNED8, "rw", 0)
+    overflow.min, overflow.max = 0, 240  # 1 and 241..255 are reserved: refused
+    od.add_object(overflow)
     identity = ODRecord("Identity object", 0x1018)
     for subindex, name, value in (
         (0, "Highest sub-index supported", 4),
@@ -252,6 +272,19 @@ def _add_communication_objects(od: ObjectDictionary, table: BoardTable) -> None:
         data_type = DataType.UNSIGNED8 if subindex == 0 else DataType.UNSIGNED32
         identity.add_member(_variable(name, 0x1018, subindex, data_type, "ro", value))
     od.add_object(identity)
+    od.add_object(
+        _array(
+            "Verify configuration",
+            0x1020,
+            "Highest sub-index supported",
+            2,
+            "ro",
+            [
+                _variable("Configuration date", 0x1020, 1, DataType.UNSIGNED32, "rw", 0),
+                _variable("Configuration time", 0x1020, 2, DataType.UNSIGNED32, "rw", 0),
+            ],
+        )
+    )
 
     for pdo in table.pdos:
         for record in _pdo_records(pdo, node.default_node_id):
@@ -277,7 +310,7 @@ def build_object_dictionary(table: BoardTable) -> ObjectDictionary:
     info.nr_of_RXPDO = len(table.rpdos)
     info.nr_of_TXPDO = len(table.tpdos)
     info.LSS_supported = False
-    od.comments = GENERATED_BANNER.removeprefix("// ")
+    od.comments = "\n".join((GENERATED_BANNER.removeprefix("// "), *NOT_SUPPORTED))
 
     _add_communication_objects(od, table)
     for field in table.fields:

@@ -218,6 +218,9 @@ class PdoEntry:
 
 
 PDO_NOT_VALID = 0x8000_0000  # COB-ID bit 31: PDO disabled
+# COB-ID bit 30 of a TPDO: no remote request (RTR) allowed. The node answers no RTR, so every
+# TPDO says so; on an RPDO the bit is reserved and stays 0.
+RTR_NOT_ALLOWED = 0x4000_0000
 
 
 @dataclass(frozen=True)
@@ -258,8 +261,15 @@ class Pdo:
         return self.cob_id_base + node_id
 
     def cob_id_value(self, node_id: int) -> int:
-        """The UNSIGNED32 of communication sub-index 1, with bit 31 set when disabled."""
-        return self.cob_id(node_id) | (0 if self.enabled else PDO_NOT_VALID)
+        """The UNSIGNED32 of communication sub-index 1: bit 31 set when disabled, bit 30 set on
+        a TPDO (no RTR)."""
+        return self.cob_id(node_id) | self.cob_id_flags
+
+    @property
+    def cob_id_flags(self) -> int:
+        """Bits 31 (not valid) and 30 (TPDO: no RTR) of the default COB-ID."""
+        rtr = RTR_NOT_ALLOWED if self.direction is PdoDirection.TPDO else 0
+        return rtr | (0 if self.enabled else PDO_NOT_VALID)
 
 
 class UnknownNameError(KeyError):

@@ -84,10 +84,19 @@ def test_communication_objects(od: canopen.ObjectDictionary, table: BoardTable) 
     assert _variable(od, 0x1008).data_type == datatypes.VISIBLE_STRING
     assert _variable(od, 0x1009).default == node.hardware_version
     assert _variable(od, 0x100A).default == node.software_version
-    for index in (0x1010, 0x1011):
+    for index in (0x1010, 0x1011):  # 1 all, 2 communication, 3 application
         assert isinstance(od[index], ODArray)
-        assert _variable(od, index, 0).default == 1
-        assert _variable(od, index, 1).access_type == "rw"
+        assert _variable(od, index, 0).default == 3
+        for sub in (1, 2, 3):
+            assert _variable(od, index, sub).access_type == "rw"
+            assert _variable(od, index, sub).default == 1  # saves on command
+    assert _variable(od, 0x1014).default == 0x80 + node.default_node_id
+    assert _variable(od, 0x1014).access_type == "ro"
+    assert _variable(od, 0x1019).default == 0
+    assert (_variable(od, 0x1019).min, _variable(od, 0x1019).max) == (0, 240)
+    verify = od[0x1020]
+    assert isinstance(verify, ODArray)
+    assert sorted(verify.subindices) == [0, 1, 2]
     assert _variable(od, 0x1017).default == node.heartbeat_ms == 100
     identity = od[0x1018]
     assert isinstance(identity, ODRecord)
@@ -133,11 +142,36 @@ def test_remote_node_sees_default_pdos_for_any_node_id(
         assert _pdo_layout(node.tpdo.map[pdo.number]) == _expected_layout(pdo, node_id), pdo.name
     assert node.tpdo.map[1].cob_id == 0x180 + node_id
     assert node.rpdo.map[1].cob_id == 0x200 + node_id
+    assert not any(pdo_map.rtr_allowed for pdo_map in node.tpdo.map.values())
 
 
 def test_cob_ids_are_node_relative_in_the_file(eds_sections: configparser.RawConfigParser) -> None:
-    assert eds_sections["1800sub1"]["DefaultValue"] == "$NODEID+0x180"
+    assert eds_sections["1800sub1"]["DefaultValue"] == "$NODEID+0x40000180"  # bit 30: no RTR
     assert eds_sections["1403sub1"]["DefaultValue"] == "$NODEID+0x80000500"  # RPDO4 disabled
+    assert eds_sections["1014"]["DefaultValue"] == "$NODEID+0x80"
+
+
+def test_tpdos_have_a_sync_start_value_and_rpdos_do_not(
+    od: canopen.ObjectDictionary, table: BoardTable
+) -> None:
+    for pdo in table.tpdos:
+        record = od[pdo.communication_index]
+        assert isinstance(record, ODRecord)
+        assert record[0].default == 6
+        assert record[6].default == 0, pdo.name
+    for pdo in table.rpdos:
+        record = od[pdo.communication_index]
+        assert isinstance(record, ODRecord)
+        assert record[0].default == 5
+        assert 6 not in record.subindices, pdo.name
+
+
+def test_eds_states_what_is_not_supported(eds_sections: configparser.RawConfigParser) -> None:
+    comments = " ".join(
+        eds_sections["Comments"][f"Line{n}"] for n in range(1, int(eds_sections["Comments"]["Lines"]) + 1)
+    )
+    for topic in ("node guarding", "0x1016", "block transfer", "RTR"):
+        assert topic in comments, topic
 
 
 def test_eds_is_deterministic(table: BoardTable, eds_path: Path) -> None:

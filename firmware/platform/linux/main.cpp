@@ -111,57 +111,6 @@ class BusWriter final : public core::ExternalWriter {
   core::SetResult write(board::FieldId id, float value) { return boardSet(id, value); }
 };
 
-// The node's view of the board: reads anything, writes only what the node owns.
-class BoardFieldAccess final : public co::FieldAccess {
- public:
-  BoardFieldAccess(core::MessageBoard& board, BusWriter& writer) : board_{board}, writer_{writer} {}
-  float read(board::FieldId id) override { return board_.get(id); }
-  co::WriteResult write(board::FieldId id, float value) override {
-    return writer_.write(id, value) == core::SetResult::Ok ? co::WriteResult::Accepted
-                                                                 : co::WriteResult::Refused;
-  }
-
- private:
-  core::MessageBoard& board_;
-  BusWriter& writer_;
-};
-
-// Raw hardware-in-the-loop I/O between the node's PDOs and the joint's driver registers. The
-// receive path writes registers only; the sensors drain them in their update().
-class HilIoOnRegisters final : public co::HilIo {
- public:
-  explicit HilIoOnRegisters(joint::HilRegisters& registers) : registers_{registers} {}
-  void write_input(board::HilInputId id, std::int32_t raw) override {
-    switch (id) {
-      case board::HilInputId::motor_encoder_counts:
-        registers_.write_motor_encoder(static_cast<std::uint16_t>(raw));
-        break;
-      case board::HilInputId::output_encoder_counts:
-        registers_.write_output_encoder(static_cast<std::uint16_t>(raw));
-        break;
-      case board::HilInputId::thermistor_adc:
-        registers_.write_thermistor_adc(static_cast<std::uint16_t>(raw));
-        break;
-      case board::HilInputId::motor_current_adc:
-        registers_.write_motor_current(static_cast<std::int16_t>(raw));
-        break;
-      case board::HilInputId::kCount:
-        break;
-    }
-  }
-  std::int32_t read_output(board::HilOutputId id) override {
-    switch (id) {
-      case board::HilOutputId::motor_duty: return registers_.motor_duty_raw();
-      case board::HilOutputId::led_pattern: return registers_.led_pattern_raw();
-      case board::HilOutputId::kCount: break;
-    }
-    return 0;
-  }
-
- private:
-  joint::HilRegisters& registers_;
-};
-
 // Without --params nothing is stored; 0x1010 answers "cannot store" through the node.
 class NoParameterStorage final : public co::ParameterStorage {
  public:
@@ -198,6 +147,8 @@ std::optional<co::EmcyReport> emcy_for(joint::FaultBit bit) {
 class FaultEmcyBridge {
  public:
   explicit FaultEmcyBridge(co::Node& node) : node_{node} {}
+  // Reset node: the node cleared its errors, a fresh application has latched none.
+  void forget() { reported_ = 0; }
   void after_cycle(const core::MessageBoard& board) {
     const auto flags = static_cast<std::uint32_t>(board.get(board::FieldId::fault_flags));
     for (const joint::FaultBit bit : joint::kFaultBits) {
@@ -240,28 +191,127 @@ class RogueWriter final : public core::Module {
   std::uint32_t at_cycle_;
 };
 
-void print_to_stdout(void*, std::string_view text) { std::fwrite(text.data(), 1, text.size(), stdout); }
+// Everything NMT reset node resets: the board, the scheduler with the demo joint's components,
+// and the driver registers. Built in place (none of its members moves) and rebuilt on reset node,
+// so after it every object the firmware does not store is at its power-on value, as after a
+// power cycle.
+struct Application {
+  explicit Application(const Options& options)
+      : demo_joint{board, registers.drivers(), static_cast<float>(options.period_us) * 1e-6f} {
+    if (options.rogue_write_cycle != 0) rogue_writer.emplace(board, options.rogue_write_cycle);
+  }
+  Application(const Application&) = delete;
+  Application& operator=(const Application&) = delete;
 
-int run(const Options& options) {
+  // false: a component came too late or the ownership/schedule check failed (message printed).
+  bool start() {
+    if (!scheduler.add(bus_writer) || !demo_joint.add_to(scheduler) ||
+        (rogue_writer && !scheduler.add(*rogue_writer))) {
+      std::fprintf(stderr, "joint-firmware: start-up error: components added after the scheduler started\n");
+      return false;
+    }
+    if (const core::StartupStatus status = scheduler.start(); !status.ok()) {
+      std::fprintf(stderr, "joint-firmware: start-up error: %s\n", status.message().c_str());
+      return false;
+    }
+    return true;
+  }
+
   core::MessageBoard board;
   core::Scheduler scheduler{board};
   BusWriter bus_writer{board};
   joint::HilRegisters registers;
-  const float period_s = static_cast<float>(options.period_us) * 1e-6f;
-  joint::DemoJoint demo_joint{board, registers.drivers(), period_s};
+  joint::DemoJoint demo_joint;
   std::optional<RogueWriter> rogue_writer;
-  if (options.rogue_write_cycle != 0) rogue_writer.emplace(board, options.rogue_write_cycle);
-  if (!scheduler.add(bus_writer) || !demo_joint.add_to(scheduler) ||
-      (rogue_writer && !scheduler.add(*rogue_writer))) {
-    std::fprintf(stderr, "joint-firmware: start-up error: components added after the scheduler started\n");
-    return kExitStartupFailure;
+};
+
+// The node's view of the board: reads anything, writes only what the node owns. Always the
+// current application's board (reset node replaces it).
+class BoardFieldAccess final : public co::FieldAccess {
+ public:
+  explicit BoardFieldAccess(std::optional<Application>& app) : app_{app} {}
+  float read(board::FieldId id) override { return app_->board.get(id); }
+  co::WriteResult write(board::FieldId id, float value) override {
+    return app_->bus_writer.write(id, value) == core::SetResult::Ok ? co::WriteResult::Accepted
+                                                                     : co::WriteResult::Refused;
   }
-  if (const core::StartupStatus status = scheduler.start(); !status.ok()) {
-    std::fprintf(stderr, "joint-firmware: start-up error: %s\n", status.message().c_str());
-    return kExitStartupFailure;
+
+ private:
+  std::optional<Application>& app_;
+};
+
+// Raw hardware-in-the-loop I/O between the node's PDOs and the joint's driver registers. The
+// receive path writes registers only; the sensors drain them in their update().
+class HilIoOnRegisters final : public co::HilIo {
+ public:
+  explicit HilIoOnRegisters(std::optional<Application>& app) : app_{app} {}
+  void write_input(board::HilInputId id, std::int32_t raw) override {
+    joint::HilRegisters& registers = app_->registers;
+    switch (id) {
+      case board::HilInputId::motor_encoder_counts:
+        registers.write_motor_encoder(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::output_encoder_counts:
+        registers.write_output_encoder(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::thermistor_adc:
+        registers.write_thermistor_adc(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::motor_current_adc:
+        registers.write_motor_current(static_cast<std::int16_t>(raw));
+        break;
+      case board::HilInputId::kCount:
+        break;
+    }
   }
+  std::int32_t read_output(board::HilOutputId id) override {
+    switch (id) {
+      case board::HilOutputId::motor_duty: return app_->registers.motor_duty_raw();
+      case board::HilOutputId::led_pattern: return app_->registers.led_pattern_raw();
+      case board::HilOutputId::kCount: break;
+    }
+    return 0;
+  }
+
+ private:
+  std::optional<Application>& app_;
+};
+
+// NMT reset node: a fresh application in place of the old one, wired to the node again.
+class ApplicationRebuild final : public co::ApplicationReset {
+ public:
+  ApplicationRebuild(std::optional<Application>& app, const Options& options)
+      : app_{app}, options_{options} {}
+  void attach(co::Node& node, FaultEmcyBridge& fault_emcy) {
+    node_ = &node;
+    fault_emcy_ = &fault_emcy;
+  }
+  void reset_application() override {
+    app_.reset();
+    app_.emplace(options_);
+    // The same components started before; a failure here is a firmware bug, not a user error.
+    if (!app_->start()) failed_ = true;
+    app_->board.set_fault_hook({report_ownership_violation, node_});
+    fault_emcy_->forget();
+  }
+  bool failed() const { return failed_; }
+
+ private:
+  std::optional<Application>& app_;
+  const Options& options_;
+  co::Node* node_ = nullptr;
+  FaultEmcyBridge* fault_emcy_ = nullptr;
+  bool failed_ = false;
+};
+
+void print_to_stdout(void*, std::string_view text) { std::fwrite(text.data(), 1, text.size(), stdout); }
+
+int run(const Options& options) {
+  std::optional<Application> app;
+  app.emplace(options);
+  if (!app->start()) return kExitStartupFailure;
   if (options.print_schedule) {
-    scheduler.print_schedule(print_to_stdout, nullptr);
+    app->scheduler.print_schedule(print_to_stdout, nullptr);
     return 0;
   }
 
@@ -270,8 +320,8 @@ int run(const Options& options) {
     std::fprintf(stderr, "joint-firmware: %s\n", error.c_str());
     return kExitStartupFailure;
   }
-  BoardFieldAccess field_access{board, bus_writer};
-  HilIoOnRegisters hil_io{registers};
+  BoardFieldAccess field_access{app};
+  HilIoOnRegisters hil_io{app};
   std::unique_ptr<co::ParameterStorage> storage;
   if (options.params_file.empty()) {
     storage = std::make_unique<NoParameterStorage>();
@@ -279,8 +329,11 @@ int run(const Options& options) {
     storage = std::make_unique<linuxhw::FileParameterStorage>(options.params_file);
   }
   co::Node node{static_cast<std::uint8_t>(options.node_id), port, field_access, hil_io, *storage};
-  board.set_fault_hook({report_ownership_violation, &node});
+  app->board.set_fault_hook({report_ownership_violation, &node});
   FaultEmcyBridge fault_emcy{node};
+  ApplicationRebuild application_rebuild{app, options};
+  application_rebuild.attach(node, fault_emcy);
+  node.set_application_reset(&application_rebuild);
 
   // SIGINT/SIGTERM arrive as readable data on a file descriptor: the loop finishes the frame
   // or cycle at hand and exits cleanly, with nothing half-written.
@@ -306,7 +359,7 @@ int run(const Options& options) {
   }
 
   node.start(now_us());
-  if (rogue_writer) {
+  if (app->rogue_writer) {
     std::fprintf(stderr, "joint-firmware: FAULT INJECTION: rogue write of motor_duty_command at cycle %u\n",
                  options.rogue_write_cycle);
   }
@@ -320,8 +373,8 @@ int run(const Options& options) {
 
   core::CycleCounter cycles;
   auto run_cycle = [&](std::uint64_t periods) {
-    scheduler.run_cycle(cycles.advance(periods));
-    fault_emcy.after_cycle(board);
+    app->scheduler.run_cycle(cycles.advance(periods));
+    fault_emcy.after_cycle(app->board);
   };
 
   bool running = true;
@@ -346,6 +399,10 @@ int run(const Options& options) {
     co::CanFrame frame;
     while (port.receive(frame) == co::ReceiveResult::Received) {
       const co::ProcessResult result = node.process(frame, now_us());
+      if (application_rebuild.failed()) {
+        std::fprintf(stderr, "joint-firmware: reset node: the application did not start again\n");
+        return kExitStartupFailure;
+      }
       if (result.sync) {
         if (options.mode == Mode::Lockstep) run_cycle(1);
         node.transmit_synchronous_pdos(now_us());
@@ -363,7 +420,7 @@ int run(const Options& options) {
                counters.frames_received,
                counters.frames_ignored, counters.frames_malformed, counters.sdo_aborts_sent,
                counters.rpdo_length_errors, counters.tpdos_sent, counters.emcy_sent, counters.send_failures,
-               port.counters().error_frames, board.total_refused_writes());
+               port.counters().error_frames, app->board.total_refused_writes());
   return 0;
 }
 
