@@ -7,7 +7,14 @@ import pytest
 from boardproto import Access, BoardTable, DataType, Kind, UnknownNameError
 
 CONTRACT_FIELDS = {
-    Kind.SENSOR: ["motor_position", "output_position", "thermistor_resistance", "motor_current"],
+    Kind.SENSOR: [
+        "motor_position",
+        "output_position",
+        "thermistor_resistance",
+        "motor_current",
+        "motor_encoder_raw",
+        "output_encoder_raw",
+    ],
     Kind.VIRTUAL_SENSOR: [
         "motor_velocity",
         "output_velocity",

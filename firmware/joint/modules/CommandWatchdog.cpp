@@ -15,28 +15,15 @@ CommandWatchdog::CommandWatchdog(core::MessageBoard& board)
               .reads = {FieldId::control_mode, FieldId::velocity_setpoint, FieldId::torque_setpoint,
                         FieldId::watchdog_cycles}}) {}
 
-std::uint32_t CommandWatchdog::silent_cycles() const {
-  const core::MessageBoard& b = board();
-  const std::uint32_t since_start = b.cycle() - first_cycle_ + 1;
-  std::uint32_t silent = since_start;
-  for (const FieldId setpoint : {FieldId::velocity_setpoint, FieldId::torque_setpoint}) {
-    if (b.has(setpoint)) {
-      // Written before cycle stamp + 1: that cycle is the first that saw it.
-      const std::uint32_t age = b.cycle() - b.last_write_cycle(setpoint);
-      silent = std::min(silent, age == 0 ? 0 : age - 1);
-    }
-  }
-  return std::min(silent, since_start);
-}
-
 void CommandWatchdog::update() {
-  if (!started_) {
-    first_cycle_ = board().cycle();
-    started_ = true;
-  }
+  const core::MessageBoard& b = board();
+  const std::uint32_t elapsed_cycles = cycle_step_.update(b.cycle());
+  // Cycles run since the newest write of either setpoint arrived (both counters run every cycle).
+  const std::uint64_t silent = std::min(velocity_setpoint_silence_.update(b, FieldId::velocity_setpoint, elapsed_cycles),
+                                        torque_setpoint_silence_.update(b, FieldId::torque_setpoint, elapsed_cycles));
   const bool enabled = control_mode_from_field(boardGet(FieldId::control_mode)) != ControlMode::Disabled;
   const std::uint32_t limit_cycles = count_parameter(boardGet(FieldId::watchdog_cycles), 1);
-  boardSet(FieldId::watchdog_tripped, enabled && silent_cycles() >= limit_cycles ? 1.0F : 0.0F);
+  boardSet(FieldId::watchdog_tripped, enabled && silent >= limit_cycles ? 1.0F : 0.0F);
 }
 
 }  // namespace joint

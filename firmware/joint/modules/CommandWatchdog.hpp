@@ -13,6 +13,7 @@
 #include <cstdint>
 
 #include "core/MessageBoardUser.hpp"
+#include "joint/modules/SilenceCounter.hpp"
 
 namespace joint {
 
@@ -23,11 +24,10 @@ class CommandWatchdog final : public core::Module {
   void update() override;
 
  private:
-  // Cycles run since the newest write of either setpoint arrived.
-  std::uint32_t silent_cycles() const;
-
-  std::uint32_t first_cycle_ = 0;
-  bool started_ = false;
+  CycleStep cycle_step_;
+  // The bus writes between cycles: stamp lag 1. Counted in 64 bits (SilenceCounter.hpp).
+  SilenceCounter velocity_setpoint_silence_{1};
+  SilenceCounter torque_setpoint_silence_{1};
 };
 
 }  // namespace joint

@@ -70,5 +70,39 @@ TEST_F(CommandWatchdogTest, ReleasesWhenTheStreamResumes) {
   EXPECT_FALSE(tripped());  // latching is the fault manager's job
 }
 
+// Issue 20: counted in 64 bits, the silence survives the 32-bit cycle numbers' wrap.
+TEST_F(CommandWatchdogTest, TripsOnTimeAcross2To32CyclesSinceStart) {
+  ASSERT_EQ(bus.write(FieldId::control_mode, 1.0F), core::SetResult::Ok);
+  run_cycle(true);
+  // Late wake-ups of 2^20 periods each (each one trips the watchdog: a period
+  // without a setpoint), then streaming again 3 cycles before 2^32 cycles since
+  // the watchdog's first.
+  for (int jump = 1; jump < 4096; ++jump) {
+    cycle += (1U << 20) - 1;
+    run_cycle(true);
+  }
+  cycle = 0xFFFFFFFBU;
+  run_cycle(true);
+  run_cycle(true);
+  ASSERT_EQ(cycle, 0xFFFFFFFDU);
+  ASSERT_FALSE(tripped());
+  for (int silent = 1; silent < 5; ++silent) {
+    run_cycle(false);
+    ASSERT_FALSE(tripped()) << silent << " cycles without a setpoint";
+  }
+  run_cycle(false);
+  EXPECT_TRUE(tripped()) << "5 cycles without a setpoint, at cycle " << cycle;
+}
+
+TEST_F(CommandWatchdogTest, StaysTrippedThrough2To32SilentCycles) {
+  ASSERT_EQ(bus.write(FieldId::control_mode, 1.0F), core::SetResult::Ok);
+  run_cycle(true);
+  for (int jump = 1; jump <= 4096 + 2; ++jump) {
+    cycle += 1U << 20;
+    scheduler.run_cycle(cycle);
+    ASSERT_TRUE(tripped()) << "after " << jump << " x 2^20 silent cycles";
+  }
+}
+
 }  // namespace
 }  // namespace joint

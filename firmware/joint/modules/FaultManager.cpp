@@ -16,17 +16,7 @@ FaultManager::FaultManager(core::MessageBoard& board)
                         FieldId::encoder_stale_cycles, FieldId::thermistor_stale_cycles, FieldId::thermal_derate, FieldId::watchdog_tripped,
                         FieldId::fault_clear}}) {}
 
-std::uint32_t FaultManager::silent_cycles(FieldId sensor_field) const {
-  const core::MessageBoard& b = board();
-  const std::uint32_t since_start = b.cycle() - first_cycle_ + 1;
-  if (!b.has(sensor_field)) {
-    return since_start;
-  }
-  // Sensors write inside the cycle: a write in this cycle means 0 silent cycles.
-  return std::min(since_start, b.cycle() - b.last_write_cycle(sensor_field));
-}
-
-std::uint32_t FaultManager::active_causes() {
+std::uint32_t FaultManager::active_causes(std::uint32_t elapsed_cycles) {
   const std::uint32_t encoder_limit = count_parameter(boardGet(FieldId::encoder_stale_cycles), 1);
   std::uint32_t causes = 0;
   const auto raise_if = [&causes](bool condition, FaultBit bit) {
@@ -34,10 +24,14 @@ std::uint32_t FaultManager::active_causes() {
       causes |= fault_mask(bit);
     }
   };
-  raise_if(silent_cycles(FieldId::motor_position) >= encoder_limit, FaultBit::MotorEncoderStale);
-  raise_if(silent_cycles(FieldId::output_position) >= encoder_limit, FaultBit::OutputEncoderStale);
+  const core::MessageBoard& b = board();
+  raise_if(motor_encoder_silence_.update(b, FieldId::motor_position, elapsed_cycles) >= encoder_limit,
+           FaultBit::MotorEncoderStale);
+  raise_if(output_encoder_silence_.update(b, FieldId::output_position, elapsed_cycles) >= encoder_limit,
+           FaultBit::OutputEncoderStale);
   const std::uint32_t thermistor_limit = count_parameter(boardGet(FieldId::thermistor_stale_cycles), 1);
-  raise_if(silent_cycles(FieldId::thermistor_resistance) >= thermistor_limit, FaultBit::ThermistorStale);
+  raise_if(thermistor_silence_.update(b, FieldId::thermistor_resistance, elapsed_cycles) >= thermistor_limit,
+           FaultBit::ThermistorStale);
   raise_if(boardGet(FieldId::thermal_derate) == 0.0F, FaultBit::OverTemperature);
   raise_if(boardGet(FieldId::watchdog_tripped) != 0.0F, FaultBit::CommandWatchdog);
 
@@ -60,12 +54,9 @@ bool FaultManager::clear_requested() {
 }
 
 void FaultManager::update() {
-  if (!started_) {
-    first_cycle_ = board().cycle();
-    started_ = true;
-  }
+  const std::uint32_t elapsed_cycles = cycle_step_.update(board().cycle());
   const bool clear = clear_requested();
-  const std::uint32_t latched = latch_.update(active_causes(), clear);
+  const std::uint32_t latched = latch_.update(active_causes(elapsed_cycles), clear);
   boardSet(FieldId::fault_flags, static_cast<float>(latched));
   boardSet(FieldId::safe_state, latched != 0 ? 1.0F : 0.0F);
 }

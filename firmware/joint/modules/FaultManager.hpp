@@ -24,6 +24,7 @@
 
 #include "core/MessageBoardUser.hpp"
 #include "joint/modules/FaultLatch.hpp"
+#include "joint/modules/SilenceCounter.hpp"
 
 namespace joint {
 
@@ -34,14 +35,15 @@ class FaultManager final : public core::Module {
   void update() override;
 
  private:
-  std::uint32_t active_causes();
+  std::uint32_t active_causes(std::uint32_t elapsed_cycles);
   bool clear_requested();
-  // Cycles run without a write, counting the current one; see the header comment.
-  std::uint32_t silent_cycles(board::FieldId sensor_field) const;
 
   FaultLatch latch_;
-  std::uint32_t first_cycle_ = 0;
-  bool started_ = false;
+  CycleStep cycle_step_;
+  // Sensors write inside the cycle: stamp lag 0. Counted in 64 bits (SilenceCounter.hpp).
+  SilenceCounter motor_encoder_silence_{0};
+  SilenceCounter output_encoder_silence_{0};
+  SilenceCounter thermistor_silence_{0};
   std::uint32_t previous_refused_writes_ = 0;  // 0: a refusal before the first cycle latches too
   std::uint32_t seen_clear_stamp_ = 0;
   bool seen_clear_ = false;

@@ -144,5 +144,38 @@ TEST_F(FaultManagerTest, LatchesAStaleThermistor) {
   EXPECT_EQ(flags(), fault_mask(FaultBit::ThermistorStale));
 }
 
+// Issue 20: the silence is counted in 64 bits, so neither 2^32 cycles of running
+// nor 2^32 cycles of silence (49.7 days at 1 kHz) look like a fresh write.
+TEST_F(FaultManagerTest, StillSeesAnEncoderSilentFor2To32Cycles) {
+  run_cycles(1);
+  sensors.stop(FieldId::motor_position);
+  // Late wake-ups of 2^20 periods each (free-running), past 2^32 cycles of silence.
+  for (int jump = 1; jump <= 4096 + 2; ++jump) {
+    clear_faults();
+    cycle += 1U << 20;
+    scheduler.run_cycle(cycle);
+    ASSERT_TRUE(flags() & fault_mask(FaultBit::MotorEncoderStale)) << "after " << jump << " x 2^20 silent cycles";
+  }
+}
+
+TEST_F(FaultManagerTest, LatchesAStaleEncoderOnTimeAcross2To32CyclesSinceStart) {
+  ASSERT_EQ(bus.write(FieldId::encoder_stale_cycles, 20.0F), core::SetResult::Ok);
+  run_cycles(1);
+  for (int jump = 1; jump < 4096; ++jump) {  // healthy for 2^32 - 2^20 cycles
+    cycle += 1U << 20;
+    scheduler.run_cycle(cycle);
+  }
+  cycle = 0xFFFFFFF6U;  // 10 cycles before 2^32 cycles since the manager's first
+  scheduler.run_cycle(cycle);
+  ASSERT_EQ(flags(), 0U);
+  sensors.stop(FieldId::motor_position);
+  for (int silent = 1; silent < 20; ++silent) {
+    run_cycles(1);
+    ASSERT_EQ(flags(), 0U) << silent << " silent cycles";
+  }
+  run_cycles(1);
+  EXPECT_EQ(flags(), fault_mask(FaultBit::MotorEncoderStale)) << "20 silent cycles, at cycle " << cycle;
+}
+
 }  // namespace
 }  // namespace joint

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 #include <random>
 
@@ -49,6 +50,35 @@ TEST(SpringConstantRls, LosesConfidenceWhenTheDataDoNotFitALine) {
     rls.update(deflection_rad, noise(generator));
   }
   EXPECT_LT(rls.confidence(), 0.2);
+}
+
+// Issue 20: two hours of samples at 1 kHz, with a long stretch without
+// excitation in the middle (a joint turning at constant speed). The sums are
+// forgetting (bounded by 1 / (1 - lambda)), the covariance is capped, the
+// sample count saturates: after 7.2 million samples the estimator is as good
+// as after five thousand, and it still follows a change of the spring.
+TEST(SpringConstantRls, StaysAccurateAndResponsiveAfterTwoHoursOfSamples) {
+  SpringConstantRls rls;
+  rls.reset(50.0);
+  std::mt19937 generator{20};
+  std::normal_distribution<double> noise{0.0, 0.05};
+  constexpr int kTwoHours = 7'200'000;
+  double true_k = 80.0;
+  for (int n = 0; n < kTwoHours; ++n) {
+    const bool excited = n < 1'000'000 || n >= 6'000'000;
+    if (n == 7'000'000) true_k = 60.0;  // the spring changes in the last 200 s
+    const double deflection_rad =
+        excited ? 0.05 * std::sin(2.0 * std::numbers::pi * 0.5 * (n % 2000) * 0.001) : 0.02;
+    rls.update(deflection_rad, true_k * deflection_rad + 0.3 + noise(generator));
+    if (n == 5'999'999) {
+      ASSERT_TRUE(std::isfinite(rls.spring_constant())) << "after 5e6 samples without excitation";
+      EXPECT_LT(rls.confidence(), 0.05);
+    }
+  }
+  EXPECT_NEAR(rls.spring_constant(), 60.0, 0.01 * 60.0);
+  EXPECT_NEAR(rls.offset_nm(), 0.3, 0.05);
+  EXPECT_GT(rls.confidence(), 0.9);
+  EXPECT_EQ(rls.samples(), static_cast<std::uint32_t>(kTwoHours));
 }
 
 }  // namespace

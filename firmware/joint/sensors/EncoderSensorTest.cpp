@@ -24,7 +24,7 @@ class EncoderSensorTest : public ::testing::Test {
   core::Scheduler scheduler{board};
   HilRegisters registers;
   EncoderSensor encoder{board, "output_encoder", registers.drivers().output_encoder, FieldId::output_position,
-                        FieldId::output_encoder_counts_per_rev};
+                        FieldId::output_encoder_raw, FieldId::output_encoder_counts_per_rev};
 };
 
 TEST_F(EncoderSensorTest, WritesTheUnwrappedOutputAngleAfterAWrap) {
@@ -43,6 +43,17 @@ TEST_F(EncoderSensorTest, WritesNothingInACycleWithoutAFreshSample) {
   ASSERT_EQ(board.last_write_cycle(FieldId::output_position), 1U);
   scheduler.run_cycle(2);
   EXPECT_EQ(board.last_write_cycle(FieldId::output_position), 1U);
+}
+
+TEST_F(EncoderSensorTest, WritesTheRawCounterReadingBesideTheAngle) {
+  registers.write_output_encoder(65535);
+  scheduler.run_cycle(1);
+  EXPECT_EQ(board.get(FieldId::output_encoder_raw), 65535.0F);
+  EXPECT_EQ(board.last_write_cycle(FieldId::output_encoder_raw), 1U);
+  registers.write_output_encoder(3);
+  scheduler.run_cycle(2);
+  EXPECT_EQ(board.get(FieldId::output_encoder_raw), 3.0F);  // wrapped, as the hardware counts
+  EXPECT_NEAR(board.get(FieldId::output_position), 3.0F * 2.0F * std::numbers::pi_v<float> / 16384.0F, 1e-7F);
 }
 
 }  // namespace

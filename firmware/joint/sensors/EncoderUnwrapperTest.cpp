@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <numbers>
 
 namespace joint {
@@ -45,6 +46,22 @@ TEST(EncoderUnwrapper, KeepsCountingOverManyWrapsInBothDirections) {
 TEST(EncoderUnwrapper, ConvertsCountsToRadians) {
   EXPECT_FLOAT_EQ(counts_to_rad(4096, 4096.0F), 2.0F * std::numbers::pi_v<float>);
   EXPECT_FLOAT_EQ(counts_to_rad(-1024, 4096.0F), -0.5F * std::numbers::pi_v<float>);
+}
+
+TEST(EncoderUnwrapper, CounterStepIsTheSignedModularDifference) {
+  EXPECT_EQ(counter_step(2, 65535), 3);
+  EXPECT_EQ(counter_step(65535, 2), -3);
+  EXPECT_EQ(counter_step(40000, 7233), 32767);  // the largest step forward
+  EXPECT_EQ(counter_step(7233, 40000), -32767);
+  EXPECT_EQ(counter_step(40000, 7232), -32768);  // half a wrap reads as backwards
+}
+
+TEST(EncoderUnwrapper, ReadsACounterValueBackFromABoardField) {
+  EXPECT_EQ(counter_from_field(0.0F), 0U);
+  EXPECT_EQ(counter_from_field(65535.0F), 65535U);
+  EXPECT_EQ(counter_from_field(65536.0F), 0U);  // folded onto the counter, not undefined
+  EXPECT_EQ(counter_from_field(-1.0F), 65535U);
+  EXPECT_EQ(counter_from_field(std::numeric_limits<float>::quiet_NaN()), 0U);
 }
 
 }  // namespace
