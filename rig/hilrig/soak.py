@@ -1211,6 +1211,14 @@ def build_report(
         failures.append("firmware counters disagree: " + "; ".join(mismatches))
     if error:
         failures.append(error)
+    velocity_summary = _velocity_summary(driver, driver.velocity_samples if driver is not None else [])
+    for part in ("first_tenth", "last_tenth"):
+        for key, value in velocity_summary.get(part, {}).items():
+            if key.endswith("_max_error_pct") and value > velocity_summary["goal_max_error_pct"]:
+                failures.append(
+                    f"velocity estimate: {key.removesuffix('_max_error_pct')} off by {value} % in the "
+                    f"{part.replace('_', ' ')}, goal below {velocity_summary['goal_max_error_pct']} %"
+                )
     final = status
     if status is not RunStatus.RUNNING:
         if failures:
@@ -1221,7 +1229,6 @@ def build_report(
             final = RunStatus.PASSED
     cycles = driver.cycle if driver is not None else 0
     fw_cpu = [s.cpu_s for s in samples]
-    velocity = driver.velocity_samples if driver is not None else []
     return {
         "status": final.value,
         "failures": failures,
@@ -1274,7 +1281,7 @@ def build_report(
                 for c, code, about in (driver.emcy_log if driver else [])
             ][:300],
         },
-        "velocity": _velocity_summary(driver, velocity),
+        "velocity": velocity_summary,
         "duration_s": round(duration_s, 1),
         "cycling_s": round(cycling_s, 1) if cycling_s is not None else None,
         "rate_cycles_per_s": round(cycles / cycling_s, 1) if cycling_s else None,
@@ -1288,24 +1295,34 @@ def build_report(
 
 
 def _velocity_summary(driver: SoakDriver | None, samples: list[tuple[int, float, float]]) -> dict[str, Any]:
+    """The firmware's velocity estimates against the pattern's exact speeds, in the first and the
+    last tenth of the run (issue: numbers that stay right after hours): max error in percent."""
     if driver is None or not samples:
         return {}
-    expected = driver.pattern.motor_velocity_rad_s
+    expected = {"motor": driver.pattern.motor_velocity_rad_s, "output": driver.pattern.output_velocity_rad_s}
 
     def spread(part: list[tuple[int, float, float]]) -> dict[str, float]:
-        values = [v for _, v, _ in part]
-        return {
-            "min": round(min(values), 4),
-            "max": round(max(values), 4),
-            "max_error_pct": round(100 * max(abs(v - expected) for v in values) / expected, 3),
-        }
+        summary: dict[str, float] = {}
+        for position, what in ((1, "motor"), (2, "output")):
+            values = [row[position] for row in part if math.isfinite(row[position])]
+            if not values:
+                continue
+            truth = expected[what]
+            summary |= {
+                f"{what}_min": round(min(values), 6),
+                f"{what}_max": round(max(values), 6),
+                f"{what}_max_error_pct": round(100 * max(abs(v - truth) for v in values) / truth, 6),
+            }
+        return summary
 
     tenth = max(1, len(samples) // 10)
     return {
-        "expected_motor_velocity_rad_s": round(expected, 4),
+        "expected_motor_velocity_rad_s": round(expected["motor"], 6),
+        "expected_output_velocity_rad_s": round(expected["output"], 6),
         "first_tenth": spread(samples[:tenth]),
         "last_tenth": spread(samples[-tenth:]),
         "samples": len(samples),
+        "goal_max_error_pct": 0.1,
     }
 
 
@@ -1498,6 +1515,12 @@ def _print_summary(data: dict[str, Any], path: Path) -> None:
             f"; RSS at start {memory['rss_start_kib']} KiB" if memory.get("rss_start_kib") is not None else ""
         ),
         f"soak: firmware: {data['firmware']['stop_line'] or 'no stop line'}",
+        "soak: velocity estimate, max error in the first / last tenth: "
+        + ", ".join(
+            f"{what} {data['velocity'].get('first_tenth', {}).get(f'{what}_max_error_pct')} % / "
+            f"{data['velocity'].get('last_tenth', {}).get(f'{what}_max_error_pct')} %"
+            for what in ("motor", "output")
+        ),
         f"soak: bus: {data['bus'].get('path')} (namespace {data['bus'].get('namespace')})",
     ]
     lines += [f"soak: FAILED: {failure}" for failure in data["failures"]]

@@ -264,6 +264,11 @@ class FakeFirmware:
         self.clear_requested = False
         self.length_error = False
         self.objects = {(o.index, o.subindex): o.expected for o in layout.sdo_reads}
+        pattern = SensorPattern(layout, period_us=1000)
+        self.velocities = {
+            "motor_velocity": pattern.motor_velocity_rad_s,
+            "output_velocity": pattern.output_velocity_rad_s,
+        }
 
     # The FrameLink the driver talks to (hilrig.transport).
     def send(self, frame: bytes) -> None:
@@ -354,6 +359,8 @@ class FakeFirmware:
             if self.drop == (self.cycle, pdo.number):
                 continue
             payload = self.layout.status_bytes(self.flags) if pdo is self.layout.status else bytes(pdo.length)
+            if "motor_velocity" in pdo.names:  # the exact speeds of the sensor pattern
+                payload = pdo.pack_named({n: self.velocities.get(n, 0.0) for n in pdo.names})
             self.counters["TPDOs sent"] += 1
             self._emit(pdo.cob_id, payload)
 
@@ -493,3 +500,17 @@ def test_report_verdicts(layout: SoakLayout, tmp_path: Path) -> None:
     write_json_atomic(path, report)
     assert json.loads(path.read_text())["cycles"] == 300
     assert [p.name for p in path.parent.iterdir()] == ["report.json"]
+
+
+def test_a_velocity_estimate_off_by_more_than_the_goal_fails_the_run(layout: SoakLayout) -> None:
+    fake = FakeFirmware(layout)
+    fake.velocities["motor_velocity"] *= 1.002  # 0.2 %: what float32 angles gave after 100k cycles
+    driver, counters = _run(layout, fake, FaultPlan((), 0, 0, 1000), 300)
+    firmware = {"stop_line": fake.stop_line(), "counters": counters}
+    report = build_report(
+        args=_args(), driver=driver, plan=FaultPlan((), 0, 0, 1000), status=RunStatus.PASSED, error=None,
+        firmware=firmware, bus={}, started_wall=0.0, duration_s=1.0, driver_cpu_s=0.1,
+    )  # fmt: skip
+    assert report["status"] == "failed"
+    assert report["velocity"]["first_tenth"]["output_max_error_pct"] < 1e-4
+    assert any(f.startswith("velocity estimate: motor off by 0.2000") for f in report["failures"])
