@@ -88,8 +88,12 @@ def test_flood_of_frames_to_ignore_costs_no_control_cycle(make_scenario, private
     s.close()
     counters = stop_summary(s.firmware)
     assert counters["cycles"] == cycles, counters
-    assert counters["ignored"] >= flood.sent, (
-        f"expected all {flood.sent} flood frames received and ignored, got {counters}"
+    # Every flood frame is accounted for: ignored by the node, or dropped by the kernel because
+    # the node's receive queue was full (its controller's receive overrun, which it counts). The
+    # frames the node needs were not among the dropped: no cycle was lost, every TPDO came.
+    accounted = counters["ignored"] + counters["receive overruns"]
+    assert accounted >= flood.sent, (
+        f"expected all {flood.sent} flood frames ignored or counted as receive overruns, got {counters}"
     )
     print(
         f"\nflood on 0x{FLOOD_COB_ID:03X}: {flood.sent} frames in {flood.elapsed_s:.2f} s wall "

@@ -577,6 +577,7 @@ class Tally:
             "EMCY": self.emcy_received,
             "send failures": 0,
             "bus error frames": 0,
+            "receive overruns": 0,
             "board refused writes": 0,
         }
 

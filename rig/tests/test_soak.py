@@ -48,7 +48,7 @@ DBC_PATH = DEFAULT_EDS_PATH.with_name("board.dbc")
 STOP_LINE = (
     "joint-firmware: stopped after 3000 cycles; overruns 0; frames received 9001, ignored 2, "
     "malformed 0, SDO aborts 0, RPDO length errors 1, TPDOs sent 21300, EMCY 4, send failures 0, "
-    "bus error frames 0, board refused writes 0"
+    "bus error frames 0, receive overruns 0, board refused writes 0"
 )
 
 
@@ -298,7 +298,7 @@ class FakeFirmware:
             f"joint-firmware: stopped after {self.cycle} cycles; overruns 0; frames received "
             f"{c['frames received']}, ignored {c['ignored']}, malformed 0, SDO aborts 0, RPDO length errors "
             f"{c['RPDO length errors']}, TPDOs sent {c['TPDOs sent']}, EMCY {c['EMCY']}, send failures 0, "
-            "bus error frames 0, board refused writes 0"
+            "bus error frames 0, receive overruns 0, board refused writes 0"
         )
 
     def _emit(self, cob_id: int, data: bytes) -> None:

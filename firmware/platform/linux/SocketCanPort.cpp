@@ -6,6 +6,7 @@
 #include <net/if.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
+#include <sys/uio.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -42,6 +43,9 @@ bool SocketCanPort::open(const std::string& interface, std::string& error) {
   // Error frames are counted, not acted on: a HIL rig wants to see bus trouble in the stats.
   const can_err_mask_t error_mask = CAN_ERR_MASK;
   ::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &error_mask, sizeof(error_mask));
+  // The kernel then tells, with each frame, how many it dropped on this socket so far.
+  const int report_drops = 1;
+  ::setsockopt(fd_, SOL_SOCKET, SO_RXQ_OVFL, &report_drops, sizeof(report_drops));
   sockaddr_can address{};
   address.can_family = AF_CAN;
   address.can_ifindex = request.ifr_ifindex;
@@ -72,7 +76,14 @@ co::SendResult SocketCanPort::send(const co::CanFrame& frame) {
 co::ReceiveResult SocketCanPort::receive(co::CanFrame& frame) {
   for (;;) {
     can_frame raw{};
-    const ssize_t got = ::read(fd_, &raw, sizeof(raw));
+    iovec payload{&raw, sizeof(raw)};
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(std::uint32_t))];
+    msghdr message{};
+    message.msg_iov = &payload;
+    message.msg_iovlen = 1;
+    message.msg_control = control;
+    message.msg_controllen = sizeof(control);
+    const ssize_t got = ::recvmsg(fd_, &message, 0);
     if (got < 0) {
       if (errno == EAGAIN || errno == EWOULDBLOCK) {
         return co::ReceiveResult::Empty;
@@ -82,6 +93,11 @@ co::ReceiveResult SocketCanPort::receive(co::CanFrame& frame) {
       }
       ++counters_.receive_errors;
       return co::ReceiveResult::PortError;
+    }
+    for (cmsghdr* c = CMSG_FIRSTHDR(&message); c != nullptr; c = CMSG_NXTHDR(&message, c)) {
+      if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
+        std::memcpy(&counters_.receive_overruns, CMSG_DATA(c), sizeof(counters_.receive_overruns));
+      }
     }
     if (got != static_cast<ssize_t>(sizeof(raw))) {
       ++counters_.short_frames;

@@ -14,6 +14,9 @@ struct SocketCanCounters {
   std::uint32_t short_frames = 0;     // reads that were not a whole classic CAN frame
   std::uint32_t send_queue_full = 0;  // ENOBUFS/EAGAIN: the frame was dropped
   std::uint32_t send_errors = 0;      // other send failures
+  // Frames the kernel dropped because this socket's receive queue was full (SO_RXQ_OVFL): a
+  // CAN controller's receive overrun. A flood the loop cannot drain shows up here, not silently.
+  std::uint32_t receive_overruns = 0;
 };
 
 class SocketCanPort final : public co::CanPort {

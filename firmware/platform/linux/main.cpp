@@ -415,12 +415,12 @@ int run(const Options& options) {
   std::fprintf(stderr,
                "joint-firmware: stopped after %llu cycles; overruns %llu; frames received %u, ignored %u, "
                "malformed %u, SDO aborts %u, RPDO length errors %u, TPDOs sent %u, EMCY %u, send failures %u, "
-               "bus error frames %u, board refused writes %u\n",
+               "bus error frames %u, receive overruns %u, board refused writes %u\n",
                static_cast<unsigned long long>(cycles.run()), static_cast<unsigned long long>(cycles.skipped()),
                counters.frames_received,
                counters.frames_ignored, counters.frames_malformed, counters.sdo_aborts_sent,
                counters.rpdo_length_errors, counters.tpdos_sent, counters.emcy_sent, counters.send_failures,
-               port.counters().error_frames, app->board.total_refused_writes());
+               port.counters().error_frames, port.counters().receive_overruns, app->board.total_refused_writes());
   return 0;
 }
 
