@@ -234,3 +234,32 @@ def test_real_time_stamps_read_back_to_the_nanosecond(tmp_path: Path, table: Rig
     [duty_path] = [p for p in trace.scalars if p.endswith("/motor_duty_command")]
     assert trace.times[duty_path] == pytest.approx(ticks, abs=1e-9)
     assert trace.scalars[duty_path] == pytest.approx([0.0, 0.1, 0.2])
+
+
+@pytest.mark.parametrize("latency_s", [None, 0.0], ids=["file-default", "live-latency-0"])
+def test_batches_wait_for_their_size_unless_a_live_latency_is_due(
+    tmp_path: Path, table: RigTable, latency_s: float | None
+) -> None:
+    # A file alone waits for whole batches (each costs one send per entity); with a latency bound
+    # (a live viewer's default is LIVE_LATENCY_S) a batch goes out once that much time passed:
+    # 0 s here, so every cycle goes at once. Either way close() leaves nothing behind.
+    path = tmp_path / "batches.rrd"
+    tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=1000, max_latency_s=latency_s, background=False)
+    assert tracer.max_latency_s == latency_s
+    for cycle in range(5):
+        tracer.log_cycle(cycle, cycle * 0.001, {"motor_duty_command": 0.1 * cycle}, {}, None)
+        assert tracer.pending_cycles == (cycle + 1 if latency_s is None else 0)
+    tracer.close()
+    trace = Trace.read(path)
+    [duty_path] = [p for p in trace.scalars if p.endswith("/motor_duty_command")]
+    assert trace.scalars[duty_path] == pytest.approx([0.0, 0.1, 0.2, 0.3, 0.4])
+
+
+def test_a_live_sink_gets_a_latency_bound_by_default(tmp_path: Path) -> None:
+    from hilrig.trace import LIVE_LATENCY_S, default_latency
+
+    rrd = TraceSink.rrd(tmp_path / "a.rrd")
+    assert default_latency([rrd]) is None
+    assert default_latency([rrd, TraceSink.spawn()]) == LIVE_LATENCY_S
+    assert default_latency([TraceSink.connect()]) == LIVE_LATENCY_S
+    assert default_latency([TraceSink.serve_web()]) == LIVE_LATENCY_S
