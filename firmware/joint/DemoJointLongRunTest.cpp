@@ -113,7 +113,8 @@ struct ErrorWindow {
 // Two hours of continuous rotation at the joint's top speed (velocity setpoint
 // beyond reach, the loop saturated at max_duty): 7.2 million cycles, the motor
 // turns 3.3e6 rad. Before issue 20 the velocity estimate differentiated float
-// angles and was tens of percent off by the end.
+// angles; this test on that code (measured): 0.1 s means 0.2 % off in the last
+// minute (0.0025 % in the first), single cycles up to 76 of 455 rad/s off.
 TEST(DemoJointLongRun, TwoHoursAtTopSpeedKeepEveryEstimateAsGoodAsInTheFirstMinute) {
   JointOnPlant rig;
   rig.velocity_setpoint_rad_s = 50.0F;  // the table's maximum: more than the motor can give
