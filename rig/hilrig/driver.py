@@ -68,11 +68,13 @@ def resolve_truth_name(name: str) -> str:
 
 # --- History --------------------------------------------------------------------------------
 class _PdoRows:
-    """Every cycle one PDO was exchanged in, with the values it carried. Cheap to append."""
+    """Every cycle one PDO was exchanged in, with the values it carried. Cheap to append; only
+    ever appended to, so a length is a mark that stays valid (`History.mark`)."""
 
-    __slots__ = ("cycles", "values")
+    __slots__ = ("cycles", "names", "values")
 
-    def __init__(self) -> None:
+    def __init__(self, names: tuple[str, ...]) -> None:
+        self.names = names
         self.cycles: list[int] = []
         self.values: list[tuple[Value, ...]] = []
 
@@ -92,7 +94,7 @@ class _Direction:
             return known[1]
         rows = self.rows.get(pdo)
         if rows is None:
-            rows = self.rows[pdo] = _PdoRows()
+            rows = self.rows[pdo] = _PdoRows(pdo.names)
             for position, name in enumerate(pdo.names):
                 self.where.setdefault(name, []).append((rows, position))
         self._by_identity[id(pdo)] = (pdo, rows)
@@ -121,6 +123,18 @@ class _Direction:
         return best
 
 
+@dataclass(frozen=True, slots=True)
+class HistoryMark:
+    """Where every PDO's rows and the truth ended at one moment (`History.mark`)."""
+
+    rows: dict[_PdoRows, int]
+    truth: int
+
+
+HistoryBlock = tuple[tuple[str, ...], list[int], list[tuple[Value, ...]]]
+"""(names, cycles, values): one PDO's rows between two marks."""
+
+
 class History:
     """Per-cycle record of what the node sent, what the rig sent, and the plant's truth.
 
@@ -145,6 +159,30 @@ class History:
     @property
     def cycles(self) -> int:
         return len(self._truth)
+
+    def mark(self) -> HistoryMark:
+        """Where everything recorded so far ends: what an observer has taken so far (the tracer
+        takes whole batches of columns from here instead of copying every cycle's values)."""
+        rows = {r: len(r.cycles) for d in (self._received, self._sent) for r in d.rows.values()}
+        return HistoryMark(rows, len(self._truth))
+
+    def blocks_between(self, start: HistoryMark, end: HistoryMark) -> list[HistoryBlock]:
+        """What was recorded after `start` up to `end`, PDO by PDO (safe from another thread
+        while the rig records on: rows are only appended to)."""
+        blocks = []
+        for rows, stop in end.rows.items():
+            begin = start.rows.get(rows, 0)
+            if stop > begin:
+                blocks.append((rows.names, rows.cycles[begin:stop], rows.values[begin:stop]))
+        return blocks
+
+    def truth_between(self, start: HistoryMark, end: HistoryMark) -> tuple[range, list[JointState]]:
+        """The cycles and plant states recorded after `start` up to `end` (one per cycle)."""
+        return range(start.truth, end.truth), self._truth[start.truth : end.truth]
+
+    def times_of(self, cycles: Iterable[int]) -> np.ndarray:
+        """The times of these cycles [s], as `time_of` gives them."""
+        return self._times(cycles)
 
     def record_truth(self, state: JointState) -> None:
         self._truth.append(state)
@@ -486,6 +524,8 @@ __all__ = [
     "CycleResult",
     "Driver",
     "History",
+    "HistoryBlock",
+    "HistoryMark",
     "PdoRow",
     "resolve_truth_name",
     "sync_counter",

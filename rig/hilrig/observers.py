@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from hilrig.driver import CycleResult
+    from hilrig.driver import CycleResult, History
     from hilrig.node import EmcyRecord, NmtState
     from hilrig.physics import JointParams
 
@@ -21,6 +21,10 @@ class RigObserver:
 
     def on_params(self, params: JointParams) -> None:
         """The plant's parameters, once, when the observer is attached."""
+
+    def on_history(self, history: History) -> None:
+        """The rig's per-cycle history, once, when the observer is attached: an observer that
+        wants columns rather than rows can take them from it (`History.mark`)."""
 
     def on_cycle(self, result: CycleResult) -> None:
         """One completed cycle (tick): what went out, what came back, the plant's truth."""

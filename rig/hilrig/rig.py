@@ -146,6 +146,7 @@ class Rig:
     def add_observer(self, observer: RigObserver) -> None:
         """Let `observer` watch every later cycle and event (`hilrig.observers`)."""
         observer.on_params(self.params)
+        observer.on_history(self.driver.history)
         self.observers.append(observer)
 
     def log_event(self, path: str, text: str, *, warning: bool = True) -> None:

@@ -52,7 +52,7 @@ from urllib.parse import quote
 import numpy as np
 
 from boardproto import Field, IoDirection, Kind
-from hilrig.driver import CycleResult
+from hilrig.driver import CycleResult, History, HistoryMark
 from hilrig.node import EmcyRecord, NmtState
 from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointState
@@ -221,6 +221,20 @@ def default_latency(sinks: Sequence[TraceSink]) -> float | None:
     return LIVE_LATENCY_S if any(sink.kind is not SinkKind.RRD for sink in sinks) else None
 
 
+@dataclass(frozen=True, slots=True)
+class _HistorySpan:
+    """What a Rig recorded between two marks of its History: one batch for the sender."""
+
+    history: History
+    start: HistoryMark
+    end: HistoryMark
+
+
+_Part = tuple[Sequence[str], np.ndarray, np.ndarray, np.ndarray]
+"""(names, cycles, times, values matrix with one column per name)."""
+_Batch = list[_CycleRow | CycleResult] | _HistorySpan
+
+
 class _Group:
     """The rows of one PDO (or one `log_cycle` dict) in a batch: which rows, and their values."""
 
@@ -285,6 +299,11 @@ class Tracer(RigObserver):
         self._paths = self._entity_paths(table)
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
         self._pending: list[_CycleRow | CycleResult] = []
+        # Following a Rig's History (on_history): a cycle costs a count; a batch is the span
+        # between two marks, taken from the history's own per-PDO rows as columns.
+        self._history: History | None = None
+        self._history_mark: HistoryMark | None = None
+        self._history_cycles = 0
         self._lock = threading.Lock()  # guards the swap of _pending, and _params (event threads)
         self._closed = False
         self._error: BaseException | None = None
@@ -294,7 +313,7 @@ class Tracer(RigObserver):
         if blueprint is not None:
             self.recording.send_blueprint(load_blueprint(blueprint), make_active=True, make_default=True)
 
-        self._queue: queue.SimpleQueue[list[_CycleRow | CycleResult] | None] | None = None
+        self._queue: queue.SimpleQueue[_Batch | None] | None = None
         self._worker: threading.Thread | None = None
         if background:
             self._queue = queue.SimpleQueue()
@@ -373,14 +392,30 @@ class Tracer(RigObserver):
     @property
     def pending_cycles(self) -> int:
         """Cycles logged but not handed to the sender yet (close() sends them)."""
-        return len(self._pending)
+        return len(self._pending) + self._history_cycles
 
     # --- As an observer of a Rig --------------------------------------------------------
     def on_params(self, params: JointParams) -> None:
         self.log_plant_params(params)
 
+    def on_history(self, history: History) -> None:
+        if self.cycles_logged == 0 and self._history is None:
+            self._history = history
+            self._history_mark = history.mark()
+
     def on_cycle(self, result: CycleResult) -> None:
-        self._append(result)
+        if self._history is None:
+            self._append(result)
+            return
+        # The rig recorded this cycle in its History already: only count it.
+        if self._closed:
+            raise RuntimeError("Tracer is closed")
+        self._history_cycles += 1
+        self.cycles_logged += 1
+        if self._history_cycles >= self.batch_cycles or (
+            self.max_latency_s is not None and time.monotonic() >= self._next_hand_over
+        ):
+            self._hand_over()
 
     def on_nmt(self, state: NmtState, t: float, *, cycle: int | None, source: str) -> None:
         self.log_nmt(state, t, cycle=cycle, source=source)
@@ -470,13 +505,18 @@ class Tracer(RigObserver):
         if self.max_latency_s is not None:
             self._next_hand_over = time.monotonic() + self.max_latency_s
         with self._lock:
-            batch, self._pending = self._pending, []
-        if not batch:
-            return
-        if self._queue is not None:
-            self._queue.put(batch)
-        else:
-            self._send_batch(batch)
+            rows, self._pending = self._pending, []
+        batch: list[_Batch] = [rows] if rows else []
+        if self._history is not None and self._history_cycles:
+            assert self._history_mark is not None
+            end = self._history.mark()
+            batch.append(_HistorySpan(self._history, self._history_mark, end))
+            self._history_mark, self._history_cycles = end, 0
+        for part in batch:
+            if self._queue is not None:
+                self._queue.put(part)
+            else:
+                self._send(part)
 
     def _work(self) -> None:
         assert self._queue is not None
@@ -484,12 +524,33 @@ class Tracer(RigObserver):
             if self._error is not None:
                 continue
             try:
-                self._send_batch(batch)
+                self._send(batch)
             except BaseException as error:  # reported by close(); the lockstep loop never waits
                 self._error = error
 
+    def _send(self, batch: _Batch) -> None:
+        if isinstance(batch, _HistorySpan):
+            self._send_span(batch)
+        else:
+            self._send_batch(batch)
+
+    def _send_span(self, span: _HistorySpan) -> None:
+        """A span of a Rig's History: its per-PDO rows are columns already (one numpy call per
+        PDO and batch, no per-cycle work here)."""
+        history = span.history
+        parts: list[_Part] = []
+        for names, cycles, rows in history.blocks_between(span.start, span.end):
+            cycle_column = np.asarray(cycles, dtype=np.int64)
+            matrix = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(names))
+            parts.append((names, cycle_column, history.times_of(cycles), matrix))
+        self._send_parts(parts)
+        cycles, states = history.truth_between(span.start, span.end)
+        if states:
+            self._send_truth(np.asarray(cycles, dtype=np.int64), history.times_of(cycles), states)
+
     def _send_batch(self, batch: list[_CycleRow | CycleResult]) -> None:
-        """Pivot rows into one column per entity and send each with `send_columns`.
+        """Rows (log_cycle, or cycles of a Rig not followed through its History): pivoted into
+        one column per entity and sent with `send_columns`.
 
         Values are grouped by the PDO (or dict) that carried them, so a group of N cycles becomes
         one N x k array in one numpy call, and each of its k columns one entity's column."""
@@ -521,36 +582,43 @@ class Tracer(RigObserver):
                 group.add_values(values)
         all_cycles = np.asarray([row.cycle for row in batch], dtype=np.int64)
         all_times = np.asarray([row.time_s for row in batch], dtype=np.float64)
-        series: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
-        paths = self._paths
+        parts: list[_Part] = []
         for group in groups.values():
             names, indexes, rows = group.names, group.indexes, group.rows
             if not names:
                 continue
             matrix = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(names))
-            cycle_column = all_cycles[indexes]
-            time_column = all_times[indexes]
-            for i, name in enumerate(names):
-                series.setdefault(paths[name], []).append((cycle_column, time_column, matrix[:, i]))
-        for path, parts in series.items():
-            if len(parts) == 1:
-                cycle_column, time_column, values = parts[0]
-            else:  # the same entity in several PDOs (or sent and received): one timeline
-                cycle_column = np.concatenate([p[0] for p in parts])
-                order = np.argsort(cycle_column, kind="stable")
-                cycle_column = cycle_column[order]
-                time_column = np.concatenate([p[1] for p in parts])[order]
-                values = np.concatenate([p[2] for p in parts])[order]
-            self._send_scalars(path, cycle_column, time_column, values)
+            parts.append((names, all_cycles[indexes], all_times[indexes], matrix))
+        self._send_parts(parts)
 
         with_truth = [i for i, row in enumerate(batch) if row.truth is not None]
-        if not with_truth:
-            return
-        batch = [batch[i] for i in with_truth]
-        cycles, times = all_cycles[with_truth], all_times[with_truth]
+        if with_truth:
+            states = [batch[i].truth for i in with_truth]
+            self._send_truth(all_cycles[with_truth], all_times[with_truth], states)  # type: ignore[arg-type]
+
+    def _send_parts(self, parts: Sequence[_Part]) -> None:
+        """One `send_columns` per entity: each part's columns, merged in cycle order where one
+        name came in several PDOs (or was sent and received)."""
+        series: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        paths = self._paths
+        for names, cycle_column, time_column, matrix in parts:
+            for i, name in enumerate(names):
+                series.setdefault(paths[name], []).append((cycle_column, time_column, matrix[:, i]))
+        for path, columns in series.items():
+            if len(columns) == 1:
+                cycle_column, time_column, values = columns[0]
+            else:
+                cycle_column = np.concatenate([c[0] for c in columns])
+                order = np.argsort(cycle_column, kind="stable")
+                cycle_column = cycle_column[order]
+                time_column = np.concatenate([c[1] for c in columns])[order]
+                values = np.concatenate([c[2] for c in columns])[order]
+            self._send_scalars(path, cycle_column, time_column, values)
+
+    def _send_truth(self, cycles: np.ndarray, times: np.ndarray, states: Sequence[JointState]) -> None:
         quantities = TRUTH_QUANTITIES[:-1]
         truth_of = operator.attrgetter(*quantities)
-        matrix = np.asarray([truth_of(row.truth) for row in batch], dtype=np.float64)
+        matrix = np.asarray([truth_of(state) for state in states], dtype=np.float64)
         for i, quantity in enumerate(quantities):
             self._send_scalars(truth_path(quantity), cycles, times, matrix[:, i])
         with self._lock:
@@ -560,7 +628,7 @@ class Tracer(RigObserver):
                 truth_path(TRUE_SPRING_STIFFNESS),
                 cycles,
                 times,
-                np.full(len(batch), params.spring_stiffness_nm_per_rad),
+                np.full(len(states), params.spring_stiffness_nm_per_rad),
             )
 
     def _send_scalars(

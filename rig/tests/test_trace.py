@@ -54,15 +54,23 @@ class Run:
     path: Path
 
 
-@pytest.fixture(params=[True, False], ids=["background", "inline"])
+class _RowsOnly(Tracer):
+    """A tracer that is not shown the rig's History: it pivots every cycle's rows itself."""
+
+    def on_history(self, history: object) -> None:
+        pass
+
+
+@pytest.fixture(
+    params=[(Tracer, True), (Tracer, False), (_RowsOnly, True)], ids=["background", "inline", "rows"]
+)
 def traced(request: pytest.FixtureRequest, table: RigTable, tmp_path: Path) -> Iterator[Run]:
     channel = f"hilrig-trace-{next(_channels)}"
     rig_bus, fake_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
     fake = FakeJointNode(fake_bus, table=table)
     path = tmp_path / "scenario" / "trace.rrd"
-    tracer = Tracer(
-        TraceSink.rrd(path), table, batch_cycles=BATCH, background=request.param, blueprint="faults"
-    )
+    kind, background = request.param
+    tracer = kind(TraceSink.rrd(path), table, batch_cycles=BATCH, background=background, blueprint="faults")
     rig = Rig(rig_bus, table=table, params=PARAMS, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
     fake.boot()
     try:
