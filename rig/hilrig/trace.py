@@ -21,12 +21,14 @@ Every scalar entity carries a static `SeriesLines` name with its unit ("motor_ve
 Timelines: `cycle` (sequence) and `sim_time` (duration, exact cycle * period) in lockstep; in
 real-time mode (`clock="wall"`) `wall_time` (timestamp) replaces `sim_time`.
 
-Off the hot path: as a `RigObserver` the tracer only appends each cycle's result to a list (no
-Rerun call). Every `batch_cycles` cycles (and, for a live viewer, at least once a second) the
-list is handed to a background thread that pivots it into columns, PDO by PDO (one numpy array
-per PDO and batch), and sends one `send_columns` chunk per entity. Nothing is ever dropped and
-the lockstep loop never waits for Rerun (`make bench` measures a traced Rig against an untraced
-one). `import rerun` is slow in the emulated VM, so it happens only when a Tracer is made.
+Off the hot path: as a `RigObserver` the tracer follows the rig's `History` (`on_history`), which
+already keeps every PDO's values per cycle, so a traced cycle costs a count and no Rerun call.
+Every `batch_cycles` cycles (and, for a live viewer, at least once a second) the span since the
+last batch (two `History.mark`s) goes to a background thread that turns each PDO's rows into one
+numpy array and sends one `send_columns` chunk per entity. Rows given by `log_cycle` (a replayed
+log) are pivoted the same way. Nothing is ever dropped and the lockstep loop never waits for
+Rerun (`make bench` measures a traced Rig against an untraced one). `import rerun` is slow in the
+emulated VM, so it happens only when a Tracer is made.
 """
 
 from __future__ import annotations
