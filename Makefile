@@ -26,7 +26,7 @@ endef
 help: ## list the targets (default)
 	@echo "Hardware-in-the-loop test rig over CAN. Targets:"
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/^([a-z-]+):.*## (.*)/  make \1\t\2/' | expand -t 20
-	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), CMAKE_FLAGS=..."
+	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), CMAKE_FLAGS=..."
 
 .PHONY: deps
 deps: ## install missing Debian packages (root) and the pinned Python venv
@@ -37,9 +37,29 @@ build: deps ## build the firmware, its tests and the protocol files (build/)
 	$(call configure_and_build,$(BUILD),-DCMAKE_BUILD_TYPE=RelWithDebInfo -DHIL_SANITIZE=ON -DHIL_TESTS=ON)
 	@echo "build: firmware build/bin/joint-firmware, protocol files build/protocol/board.{eds,dbc}"
 
+# Shards for CI (one job each): SHARD=K/N runs shard K of N of the bus-level scenarios, split by
+# pytest-split from tests/.test_durations; shard 1 also runs the C++ and Python unit stages.
+# Checked before anything builds: a malformed SHARD stops make with one line.
+SHARD ?=
+ifneq ($(SHARD),)
+SHARD_ERROR := $(shell python3 tools/scenario_shards.py check '$(SHARD)' 2>&1)
+ifneq ($(SHARD_ERROR),)
+$(error $(SHARD_ERROR))
+endif
+endif
+
 .PHONY: test
-test: build ## run everything: C++ tests, Python tests, bus-level scenarios
-	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests
+test: build ## run everything: C++ tests, Python tests, bus-level scenarios (SHARD=K/N: one CI job of N)
+	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests $(if $(SHARD),--shard $(SHARD))
+
+# The durations come from the JUnit XML run-tests writes rather than pytest-split's
+# --store-durations: that option writes the file from every xdist worker and from each of the two
+# pytest runs in turn, non-atomically; the JUnit files are the controller's record of both runs.
+# Only a run that passed rewrites the file (make stops at the failing line before).
+.PHONY: durations
+durations: build ## run every bus-level scenario, then record their durations in tests/.test_durations
+	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests --bus-only
+	@$(PY) tools/scenario_shards.py durations tests/.test_durations $(CURDIR)/$(OUT)/test-results/scenarios*.xml
 
 .PHONY: run
 run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary, trace

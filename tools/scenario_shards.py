@@ -209,7 +209,7 @@ def main(argv: list[str]) -> int:
         else:
             print(usage, file=sys.stderr)
             return 2
-    except (ValueError, RuntimeError) as error:
+    except (ValueError, RuntimeError, OSError, ET.ParseError) as error:
         print(f"{Path(argv[0]).name}: {error}", file=sys.stderr)
         return 2
     return 0

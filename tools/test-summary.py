@@ -4,20 +4,28 @@ Prints how many C++ tests, Python unit tests and bus-level scenarios ran, which 
 scenarios used, one line per failure, and closes with the plain "N passed, N failed" line.
 Exits non-zero when a stage is missing, collected nothing, or had failures.
 
-    python tools/test-summary.py out/test-results
+    python tools/test-summary.py out/test-results [--shard K/N] [--bus-only]
+
+--shard K/N: the run was one CI job of N (`make test SHARD=K/N`): the unit stages are expected
+in shard 1 only. --bus-only: the bus-level stage alone (`make durations`).
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from scenario_shards import Shard, parse_shard  # tools/, this script's own folder
+
+# The stage that runs in every shard; the others run in shard 1 (tools/run-tests).
+BUS_STAGE = "bus-level scenarios"
 STAGES = (
     ("cpp.xml", "C++ unit tests"),
     ("python-unit.xml", "Python unit tests"),
-    ("scenarios*.xml", "bus-level scenarios"),
+    ("scenarios*.xml", BUS_STAGE),
 )
 
 
@@ -43,14 +51,30 @@ def read_junit(path: Path) -> StageResult:
     return result
 
 
+def shard_spec(text: str) -> Shard:
+    try:
+        return parse_shard(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def main(argv: list[str]) -> int:
-    if len(argv) != 2:
-        print("usage: test-summary.py RESULTS_DIR", file=sys.stderr)
-        return 2
-    results = Path(argv[1])
+    parser = argparse.ArgumentParser(description="Summarise a test run from its JUnit XML files.")
+    parser.add_argument("results", type=Path, help="the folder of the JUnit XML files")
+    parser.add_argument("--shard", type=shard_spec, help="K/N: the run was shard K of N")
+    parser.add_argument("--bus-only", action="store_true", help="the run had the bus-level stage alone")
+    options = parser.parse_args(argv[1:])
+    results: Path = options.results
+    shard: Shard | None = options.shard
     ok = True
-    total_passed = total_failed = total_skipped = 0
+    total_passed = total_failed = total_skipped = bus_ran = 0
     for file_name, title in STAGES:
+        if title != BUS_STAGE and options.bus_only:
+            print(f"{title:22} not run (bus-level stage only)")
+            continue
+        if title != BUS_STAGE and shard is not None and shard.index != 1:
+            print(f"{title:22} not in this shard (shard 1/{shard.count} runs it)")
+            continue
         paths = sorted(results.glob(file_name))
         if not paths:
             print(f"{title:22} did not run (no {results / file_name})")
@@ -72,9 +96,16 @@ def main(argv: list[str]) -> int:
             print(f"    FAILED {name}")
         if ran == 0 or stage.failed:
             ok = False
+        if title == BUS_STAGE:
+            bus_ran = ran + stage.skipped
         total_passed += stage.passed
         total_failed += stage.failed
         total_skipped += stage.skipped
+    if shard is not None:
+        print(
+            f"shard {shard}: {bus_ran} bus-level scenarios"
+            f" (the C++ and Python unit stages run in shard 1/{shard.count})"
+        )
     bus_path = results / "bus-path.txt"
     where = bus_path.read_text().strip() if bus_path.exists() else "unknown (the bus stage did not start)"
     print(f"bus path used by the scenarios: {where}")
