@@ -45,7 +45,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, Self
@@ -556,30 +556,20 @@ class Tracer(RigObserver):
 
         Values are grouped by the PDO (or dict) that carried them, so a group of N cycles becomes
         one N x k array in one numpy call, and each of its k columns one entity's column."""
-        # Keyed by the identity of the PDO layout (or of a `log_cycle` dict's names): a group of
-        # rows shares one names tuple, so per row and group only two appends happen here, through
-        # bound methods (this loop is the tracer's whole per-cycle cost in Python).
+        # Keyed by the identity of the names tuple (every PDO layout holds one, shared by all its
+        # rows; a `log_cycle` row has its own): per row and group only two appends happen here.
         groups: dict[int, _Group] = {}
         get = groups.get
         for index, row in enumerate(batch):
-            if type(row) is _CycleRow:
-                for names, values in row.groups:
-                    group = get(id(names))
-                    if group is None:
-                        group = groups[id(names)] = _Group(names)
-                    group.add_index(index)
-                    group.add_values(values)
-                continue
-            for pdo, values in row.received_rows:
-                group = get(id(pdo))
+            pairs: Iterable[tuple[Sequence[str], Sequence[Value]]] = (
+                row.groups
+                if type(row) is _CycleRow
+                else [(pdo.names, values) for pdo, values in (*row.received_rows, *row.sent_rows)]
+            )
+            for names, values in pairs:
+                group = get(id(names))
                 if group is None:
-                    group = groups[id(pdo)] = _Group(pdo.names)
-                group.add_index(index)
-                group.add_values(values)
-            for pdo, values in row.sent_rows:
-                group = get(id(pdo))
-                if group is None:
-                    group = groups[id(pdo)] = _Group(pdo.names)
+                    group = groups[id(names)] = _Group(names)
                 group.add_index(index)
                 group.add_values(values)
         all_cycles = np.asarray([row.cycle for row in batch], dtype=np.int64)
