@@ -237,19 +237,6 @@ _Part = tuple[Sequence[str], np.ndarray, np.ndarray, np.ndarray]
 _Batch = list[_CycleRow | CycleResult] | _HistorySpan
 
 
-class _Group:
-    """The rows of one PDO (or one `log_cycle` dict) in a batch: which rows, and their values."""
-
-    __slots__ = ("add_index", "add_values", "indexes", "names", "rows")
-
-    def __init__(self, names: Sequence[str]) -> None:
-        self.names = names
-        self.indexes: list[int] = []
-        self.rows: list[Sequence[Value]] = []
-        self.add_index = self.indexes.append
-        self.add_values = self.rows.append
-
-
 class Tracer(RigObserver):
     """Logs the rig's cycles, NMT changes, EMCYs and SDO aborts to Rerun.
 
@@ -381,15 +368,17 @@ class Tracer(RigObserver):
 
     def _append(self, row: _CycleRow | CycleResult) -> None:
         # The rig's thread alone appends and hands over (no lock on this path: it runs every cycle).
-        if self._closed:
-            raise RuntimeError("Tracer is closed")
-        pending = self._pending
-        pending.append(row)
+        self._check_open()
+        self._pending.append(row)
         self.cycles_logged += 1
-        if len(pending) >= self.batch_cycles or (
-            self.max_latency_s is not None and time.monotonic() >= self._next_hand_over
-        ):
+        if self._batch_due(len(self._pending)):
             self._hand_over()
+
+    def _batch_due(self, pending: int) -> bool:
+        """A whole batch is pending, or a live viewer has waited `max_latency_s` for one."""
+        return pending >= self.batch_cycles or (
+            self.max_latency_s is not None and time.monotonic() >= self._next_hand_over
+        )
 
     @property
     def pending_cycles(self) -> int:
@@ -410,13 +399,10 @@ class Tracer(RigObserver):
             self._append(result)
             return
         # The rig recorded this cycle in its History already: only count it.
-        if self._closed:
-            raise RuntimeError("Tracer is closed")
+        self._check_open()
         self._history_cycles += 1
         self.cycles_logged += 1
-        if self._history_cycles >= self.batch_cycles or (
-            self.max_latency_s is not None and time.monotonic() >= self._next_hand_over
-        ):
+        if self._batch_due(self._history_cycles):
             self._hand_over()
 
     def on_nmt(self, state: NmtState, t: float, *, cycle: int | None, source: str) -> None:
@@ -557,26 +543,23 @@ class Tracer(RigObserver):
         Values are grouped by the PDO (or dict) that carried them, so a group of N cycles becomes
         one N x k array in one numpy call, and each of its k columns one entity's column."""
         # Keyed by the identity of the names tuple (every PDO layout holds one, shared by all its
-        # rows; a `log_cycle` row has its own): per row and group only two appends happen here.
-        groups: dict[int, _Group] = {}
-        get = groups.get
+        # rows; a `log_cycle` row has its own): per row and group the index and values are appended.
+        groups: dict[int, tuple[Sequence[str], list[int], list[Sequence[Value]]]] = {}
         for index, row in enumerate(batch):
-            pairs: Iterable[tuple[Sequence[str], Sequence[Value]]] = (
-                row.groups
-                if type(row) is _CycleRow
-                else [(pdo.names, values) for pdo, values in (*row.received_rows, *row.sent_rows)]
-            )
+            if isinstance(row, _CycleRow):
+                pairs: Iterable[tuple[Sequence[str], Sequence[Value]]] = row.groups
+            else:
+                pairs = [(pdo.names, values) for pdo, values in (*row.received_rows, *row.sent_rows)]
             for names, values in pairs:
-                group = get(id(names))
-                if group is None:
-                    group = groups[id(names)] = _Group(names)
-                group.add_index(index)
-                group.add_values(values)
+                entry = groups.get(id(names))
+                if entry is None:
+                    entry = groups[id(names)] = (names, [], [])
+                entry[1].append(index)
+                entry[2].append(values)
         all_cycles = np.asarray([row.cycle for row in batch], dtype=np.int64)
         all_times = np.asarray([row.time_s for row in batch], dtype=np.float64)
         parts: list[_Part] = []
-        for group in groups.values():
-            names, indexes, rows = group.names, group.indexes, group.rows
+        for names, indexes, rows in groups.values():
             if not names:
                 continue
             matrix = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(names))
@@ -599,7 +582,7 @@ class Tracer(RigObserver):
         for path, columns in series.items():
             if len(columns) == 1:
                 cycle_column, time_column, values = columns[0]
-            else:
+            else:  # the same entity in several PDOs (or sent and received): one timeline
                 cycle_column = np.concatenate([c[0] for c in columns])
                 order = np.argsort(cycle_column, kind="stable")
                 cycle_column = cycle_column[order]
