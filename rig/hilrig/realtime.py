@@ -59,7 +59,13 @@ class WallHistory(History):
         return self._tick_times[cycle]
 
     def _times(self, cycles: Iterable[int]) -> np.ndarray:
-        return np.asarray(self._tick_times, dtype=float)[np.fromiter(cycles, dtype=np.int64)]
+        # Only the ticks spanned are converted: the tracer asks for each batch's cycles, and the
+        # whole list grows for as long as the rig runs.
+        indexes = np.fromiter(cycles, dtype=np.int64)
+        if not len(indexes):
+            return np.empty(0)
+        first, last = int(indexes.min()), int(indexes.max())
+        return np.asarray(self._tick_times[first : last + 1], dtype=float)[indexes - first]
 
 
 class RealTimeDriver(Driver):

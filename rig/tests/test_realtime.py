@@ -15,7 +15,7 @@ import pytest
 from hilrig.errors import NoValueError, RealTimeError
 from hilrig.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
 from hilrig.physics import JointParams
-from hilrig.realtime import RealTimeDriver
+from hilrig.realtime import RealTimeDriver, WallHistory
 from hilrig.rig import Rig
 from hilrig.table import RigTable
 
@@ -207,3 +207,13 @@ def test_mode_and_physics_are_checked_when_the_rig_is_made(table: RigTable) -> N
             Rig(bus, table=table, physics=False)
     finally:
         bus.shutdown()
+
+
+def test_wall_history_gives_the_recorded_tick_times_of_any_cycles() -> None:
+    history = WallHistory(50_000)
+    ticks = [0.0, 0.021595240, 0.05, 0.083000017]
+    for t in ticks:
+        history.record_tick(t)
+    assert history.times_of([2, 1, 3]).tolist() == [ticks[2], ticks[1], ticks[3]]
+    assert history.times_of(range(4)).tolist() == ticks
+    assert history.times_of([]).tolist() == []
