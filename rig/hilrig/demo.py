@@ -290,6 +290,10 @@ def _fmt(value: float | None, unit: str, digits: str = ".3g") -> str:
     return "-" if value is None else f"{value:{digits}} {unit}"
 
 
+def _rate(cycles: int, seconds: float) -> str:
+    return f"{cycles / seconds:.0f} cycles/s; " if seconds > 0 else ""
+
+
 def format_summary(summary: DemoSummary) -> str:
     """The summary table people read after `make run`."""
     faults = "none"
@@ -305,9 +309,7 @@ def format_summary(summary: DemoSummary) -> str:
         (
             "simulated",
             f"{summary.cycles} cycles = {summary.simulated_s:.3f} s in {summary.cycling_s:.1f} s wall "
-            f"({summary.cycles / summary.cycling_s:.0f} cycles/s; {summary.wall_s:.1f} s with start-up)"
-            if summary.cycling_s > 0
-            else f"{summary.cycles} cycles = {summary.simulated_s:.3f} s in {summary.wall_s:.1f} s wall",
+            f"({_rate(summary.cycles, summary.cycling_s)}{summary.wall_s:.1f} s with start-up)",
         ),
         (
             "velocity tracking error",
