@@ -16,8 +16,13 @@ from typing import Any, TypeVar
 from boardproto.table import (
     HIL_IO_TYPES,
     Access,
+    BitSet,
     BoardTable,
+    EmcyCode,
+    EnumValue,
+    ErrorRegisterBit,
     Field,
+    FlagBit,
     HilIo,
     IoDirection,
     Kind,
@@ -26,6 +31,7 @@ from boardproto.table import (
     Pdo,
     PdoDirection,
     PdoEntry,
+    ValueEnum,
     unknown_name_message,
 )
 
@@ -147,7 +153,9 @@ _CPP_KEYWORDS = frozenset(
 # 252/253 are RTR-only TPDO types the firmware does not implement).
 _TRANSMISSION_TYPES = frozenset((*range(0, 241), 254, 255))
 
-_TOP_LEVEL_KEYS = frozenset({"node", "field", "hil_input", "hil_output", "pdo", "rpdo", "tpdo"})
+_TOP_LEVEL_KEYS = frozenset(
+    {"node", "emcy", "field", "enum", "bitset", "hil_input", "hil_output", "pdo", "rpdo", "tpdo"}
+)
 _NODE_KEYS = frozenset(
     {
         "device_type",
@@ -166,6 +174,13 @@ _FIELD_KEYS = frozenset(
     {"name", "index", "unit", "kind", "access", "min", "max", "default", "stored", "description"}
 )
 _HIL_IO_KEYS = frozenset({"name", "index", "type", "min", "max", "unit", "description"})
+_VALUES_KEY = frozenset({"values"})  # optional on fields and HIL I/O: the enum or bitset carried
+_NAMED_SET_KEYS = frozenset({"name", "description"})
+_ENUM_VALUE_KEYS = frozenset({"name", "value", "description"})
+_BIT_REQUIRED_KEYS = frozenset({"name", "bit", "description"})
+_BIT_OPTIONAL_KEYS = frozenset({"emcy", "about"})
+_EMCY_KEYS = frozenset({"name", "code", "error_register", "description"})
+MAX_FLAG_BITS = 24  # a bitset travels in a REAL32 field: integers are exact up to 2**24
 _PDO_SLOT_KEYS = frozenset({"rpdo_slots", "tpdo_slots"})
 _PDO_REQUIRED_KEYS = frozenset({"number", "transmission_type", "map"})
 _PDO_OPTIONAL_KEYS = frozenset({"enabled", "inhibit_time_100us", "event_timer_ms", "cob_id_base"})
@@ -228,6 +243,9 @@ class _Entry:
             raise self.error(f"{key} must be one line of printable ASCII, got {value!r}")
         return value
 
+    def optional_text(self, key: str) -> str | None:
+        return self.text(key) if key in self.data else None
+
     def unit(self) -> str:
         value = self.text("unit")
         if not _UNIT.fullmatch(value):
@@ -289,7 +307,7 @@ def _load_node(source: Path, data: Any) -> NodeIdentity:
 
 def _load_field(source: Path, position: int, data: Any) -> Field:
     entry = _Entry(source, _entry_label("field", position, data), data)
-    entry.check_keys(_FIELD_KEYS)
+    entry.check_keys(_FIELD_KEYS, _VALUES_KEY)
     name = _check_name(entry)
     index = entry.integer("index", 0, 0xFFFF)
     kind = entry.choice("kind", Kind)
@@ -320,12 +338,13 @@ def _load_field(source: Path, position: int, data: Any) -> Field:
         default=default,
         stored=stored,
         description=entry.text("description"),
+        values=entry.optional_text("values"),
     )
 
 
 def _load_hil_io(source: Path, direction: IoDirection, position: int, data: Any) -> HilIo:
     entry = _Entry(source, _entry_label(f"hil_{direction.value}", position, data), data)
-    entry.check_keys(_HIL_IO_KEYS)
+    entry.check_keys(_HIL_IO_KEYS, _VALUES_KEY)
     name = _check_name(entry)
     index = entry.integer("index", 0, 0xFFFF)
     type_name = entry.text("type")
@@ -347,7 +366,124 @@ def _load_hil_io(source: Path, direction: IoDirection, position: int, data: Any)
         unit=entry.unit(),
         description=entry.text("description"),
         direction=direction,
+        values=entry.optional_text("values"),
     )
+
+
+def _load_emcy(source: Path, position: int, data: Any) -> EmcyCode:
+    entry = _Entry(source, _entry_label("emcy", position, data), data)
+    entry.check_keys(_EMCY_KEYS)
+    registers = {bit.toml_name: bit for bit in ErrorRegisterBit}
+    register = entry.text("error_register")
+    if register not in registers:
+        raise entry.error(f"unknown error_register {register!r} (one of: {', '.join(registers)})")
+    # 0x0000 is "error reset"; the firmware sends it itself when an error clears.
+    return EmcyCode(
+        name=_check_name(entry),
+        code=entry.integer("code", 0x0001, 0xFFFF),
+        error_register=registers[register],
+        description=entry.text("description"),
+    )
+
+
+def _nested(entry: _Entry, key: str) -> list[Any]:
+    value = entry.data.get(key)
+    if not isinstance(value, list) or not value:
+        raise entry.error(f"defines no [[{entry.what.split()[0]}.{key}]]")
+    return value
+
+
+def _load_enum(source: Path, position: int, data: Any) -> ValueEnum:
+    entry = _Entry(source, _entry_label("enum", position, data), data)
+    entry.check_keys(_NAMED_SET_KEYS | {"values"})
+    name = _check_name(entry)
+    values: list[EnumValue] = []
+    for n, item in enumerate(_nested(entry, "values")):
+        value_entry = _Entry(source, f"{entry.what}: {_entry_label('value', n, item)}", item)
+        value_entry.check_keys(_ENUM_VALUE_KEYS)
+        value = EnumValue(
+            name=_check_name(value_entry),
+            # exact in the REAL32 field that carries it
+            value=value_entry.integer("value", -(1 << 24), 1 << 24),
+            description=value_entry.text("description"),
+        )
+        for other in values:
+            if other.name == value.name:
+                raise value_entry.error("duplicate name")
+            if other.value == value.value:
+                raise value_entry.error(f"value {value.value} already used by {other.name!r}")
+        values.append(value)
+    return ValueEnum(name=name, description=entry.text("description"), values=tuple(values))
+
+
+def _load_bitset(
+    source: Path, position: int, data: Any, emcy: Mapping[str, EmcyCode], objects: Mapping[str, ObjectEntry]
+) -> BitSet:
+    entry = _Entry(source, _entry_label("bitset", position, data), data)
+    entry.check_keys(_NAMED_SET_KEYS | {"bits"})
+    name = _check_name(entry)
+    bits: list[FlagBit] = []
+    for n, item in enumerate(_nested(entry, "bits")):
+        bit_entry = _Entry(source, f"{entry.what}: {_entry_label('bit', n, item)}", item)
+        bit_entry.check_keys(_BIT_REQUIRED_KEYS, _BIT_OPTIONAL_KEYS)
+        bit = FlagBit(
+            name=_check_name(bit_entry),
+            bit=bit_entry.integer("bit", 0, MAX_FLAG_BITS - 1),
+            description=bit_entry.text("description"),
+            emcy=bit_entry.optional_text("emcy"),
+            about=bit_entry.optional_text("about"),
+        )
+        if bit.emcy is not None and bit.emcy not in emcy:
+            raise bit_entry.error(unknown_name_message("[[emcy]]", bit.emcy, emcy))
+        if bit.about is not None:
+            if bit.emcy is None:
+                raise bit_entry.error("about names the object of an EMCY: set emcy too")
+            if bit.about not in objects:
+                raise bit_entry.error(unknown_name_message("board object", bit.about, objects))
+        for other in bits:
+            if other.name == bit.name:
+                raise bit_entry.error("duplicate name")
+            if other.bit == bit.bit:
+                raise bit_entry.error(f"bit {bit.bit} already used by {other.name!r}")
+        bits.append(bit)
+    return BitSet(name=name, description=entry.text("description"), bits=tuple(bits))
+
+
+def _check_values(
+    source: Path, entries: list[ObjectEntry], enums: list[ValueEnum], bitsets: list[BitSet]
+) -> None:
+    """Every `values = "x"` names an enum or bitset, and the carrier's range holds its values."""
+    sets: dict[str, ValueEnum | BitSet] = {}
+    for named in (*enums, *bitsets):
+        if named.name in sets:
+            raise TableError(f"{source}: {named.name!r}: an enum and a bitset cannot share a name")
+        sets[named.name] = named
+    for entry in entries:
+        if entry.values is None:
+            continue
+        what = "field" if isinstance(entry, Field) else f"hil_{entry.direction.value}"
+        where = f"{source}: {what} {entry.name!r}"
+        if entry.values not in sets:
+            raise TableError(f"{where}: values: {unknown_name_message('enum or bitset', entry.values, sets)}")
+        named = sets[entry.values]
+        numbers = (
+            [v.value for v in named.values]
+            if isinstance(named, ValueEnum)
+            else [sum(b.mask for b in named.bits)]
+        )
+        outside = [n for n in numbers if not entry.min <= n <= entry.max]
+        if outside:
+            raise TableError(
+                f"{where}: {named.name} value {outside[0]} outside its range [{entry.min}, {entry.max}]"
+            )
+
+
+def _unique_names(source: Path, what: str, items: list[Any]) -> None:
+    seen: set[str] = set()
+    for item in items:
+        if item.name in seen:
+            raise TableError(f"{source}: {what} {item.name!r}: duplicate name")
+        seen.add(item.name)
 
 
 def _check_unique(source: Path, entries: list[ObjectEntry]) -> None:
@@ -523,6 +659,21 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
     _check_unique(source, all_entries)
     entries_by_name = {e.name: e for e in all_entries}
 
+    emcy = [_load_emcy(source, i, d) for i, d in enumerate(_array_of_tables(source, document, "emcy"))]
+    _unique_names(source, "emcy", emcy)
+    for i, code in enumerate(emcy):
+        if any(other.code == code.code for other in emcy[:i]):
+            raise TableError(f"{source}: emcy {code.name!r}: code 0x{code.code:04X} already used")
+    emcy_by_name = {e.name: e for e in emcy}
+    enums = [_load_enum(source, i, d) for i, d in enumerate(_array_of_tables(source, document, "enum"))]
+    _unique_names(source, "enum", enums)
+    bitsets = [
+        _load_bitset(source, i, d, emcy_by_name, entries_by_name)
+        for i, d in enumerate(_array_of_tables(source, document, "bitset"))
+    ]
+    _unique_names(source, "bitset", bitsets)
+    _check_values(source, all_entries, enums, bitsets)
+
     pdo_section = _Entry(source, "pdo", document.get("pdo", {}))
     pdo_section.check_keys(_PDO_SLOT_KEYS)
     rpdos = _load_pdos(
@@ -548,6 +699,9 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
         hil_outputs=tuple(outputs),
         rpdos=rpdos,
         tpdos=tpdos,
+        enums=tuple(enums),
+        bitsets=tuple(bitsets),
+        emcy_codes=tuple(emcy),
     )
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import difflib
 import enum
+import functools
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
@@ -127,6 +128,7 @@ class Field:
     default: float
     stored: bool
     description: str
+    values: str | None = None  # the [[enum]] or [[bitset]] its values come from
 
     subindex = 0
     data_type = DataType.REAL32
@@ -153,6 +155,7 @@ class HilIo:
     unit: str
     description: str
     direction: IoDirection
+    values: str | None = None  # the [[enum]] or [[bitset]] its values come from
 
     subindex = 0
 
@@ -166,6 +169,126 @@ class HilIo:
 
 
 ObjectEntry = Field | HilIo
+
+
+class ErrorRegisterBit(enum.IntFlag):
+    """Bits of the error register 0x1001 (CiA 301, 7.5.2.2); names are the board.toml spelling."""
+
+    GENERIC = 0x01  # set whenever any error is active
+    CURRENT = 0x02
+    VOLTAGE = 0x04
+    TEMPERATURE = 0x08
+    COMMUNICATION = 0x10
+    DEVICE_PROFILE = 0x20
+    MANUFACTURER = 0x80
+
+    @property
+    def toml_name(self) -> str:
+        return (self.name or "").lower()
+
+
+ERROR_RESET_CODE = 0x0000
+"""The EMCY code of an 'error reset or no error' frame (CiA 301)."""
+
+
+def camel_case(snake: str) -> str:
+    """control_mode -> ControlMode: the type name in C++ and Python."""
+    return "".join(part.capitalize() for part in snake.split("_"))
+
+
+@dataclass(frozen=True)
+class EnumValue:
+    name: str
+    value: int
+    description: str
+
+
+@dataclass(frozen=True)
+class ValueEnum:
+    """A named set of values a field carries ([[enum]] in board.toml), e.g. control modes."""
+
+    name: str
+    description: str
+    values: tuple[EnumValue, ...]
+
+    @property
+    def type_name(self) -> str:
+        return camel_case(self.name)
+
+    def value(self, name: str) -> EnumValue:
+        return _lookup(f"value of {self.name}", {v.name: v for v in self.values}, name)
+
+    def name_of(self, number: float) -> str | None:
+        """The value's name, or None for a number that is none of the values."""
+        for value in self.values:
+            if value.value == number:
+                return value.name
+        return None
+
+    def python_type(self) -> type[enum.IntEnum]:
+        """An IntEnum built from the table (members upper-case: ControlMode.VELOCITY)."""
+        return _python_enum(self)
+
+
+@dataclass(frozen=True)
+class FlagBit:
+    name: str
+    bit: int
+    description: str
+    emcy: str | None  # the [[emcy]] raised when the bit latches
+    about: str | None  # the object the EMCY names; None when the raiser names it at run time
+
+    @property
+    def mask(self) -> int:
+        return 1 << self.bit
+
+
+@dataclass(frozen=True)
+class BitSet:
+    """Named bits of a flags field ([[bitset]] in board.toml), e.g. the fault flags."""
+
+    name: str
+    description: str
+    bits: tuple[FlagBit, ...]
+
+    @property
+    def type_name(self) -> str:
+        return camel_case(self.name)
+
+    def bit(self, name: str) -> FlagBit:
+        return _lookup(f"bit of {self.name}", {b.name: b for b in self.bits}, name)
+
+    def names_of(self, flags: float) -> tuple[str, ...]:
+        """Names of the bits set in `flags`, lowest first; an unnamed set bit is 'bit N'."""
+        number = int(flags)
+        named = {b.bit: b.name for b in self.bits}
+        return tuple(named.get(n, f"bit {n}") for n in range(number.bit_length()) if number >> n & 1)
+
+    def python_type(self) -> type[enum.IntFlag]:
+        """An IntFlag built from the table (members upper-case: FaultFlags.MOTOR_ENCODER_STALE)."""
+        return _python_flag(self)
+
+
+@dataclass(frozen=True)
+class EmcyCode:
+    """An emergency code the firmware raises ([[emcy]] in board.toml)."""
+
+    name: str
+    code: int
+    error_register: ErrorRegisterBit
+    description: str
+
+
+@functools.cache
+def _python_enum(values: ValueEnum) -> type[enum.IntEnum]:
+    members = {v.name.upper(): v.value for v in values.values}
+    return enum.IntEnum(values.type_name, members)  # type: ignore[return-value]
+
+
+@functools.cache
+def _python_flag(bitset: BitSet) -> type[enum.IntFlag]:
+    members = {b.name.upper(): b.mask for b in bitset.bits}
+    return enum.IntFlag(bitset.type_name, members)  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
@@ -306,6 +429,9 @@ class BoardTable:
     hil_outputs: tuple[HilIo, ...]
     rpdos: tuple[Pdo, ...]  # every RPDO slot, number 1..n in order
     tpdos: tuple[Pdo, ...]  # every TPDO slot, number 1..n in order
+    enums: tuple[ValueEnum, ...] = ()
+    bitsets: tuple[BitSet, ...] = ()
+    emcy_codes: tuple[EmcyCode, ...] = ()
 
     @cached_property
     def _fields_by_name(self) -> dict[str, Field]:
@@ -356,6 +482,25 @@ class BoardTable:
 
     def rpdo(self, number: int) -> Pdo:
         return self._pdo(self.rpdos, "RPDO", number)
+
+    def enum(self, name: str) -> ValueEnum:
+        return _lookup("enum", {e.name: e for e in self.enums}, name)
+
+    def bitset(self, name: str) -> BitSet:
+        return _lookup("bitset", {b.name: b for b in self.bitsets}, name)
+
+    def emcy(self, name: str) -> EmcyCode:
+        return _lookup("EMCY code", {e.name: e for e in self.emcy_codes}, name)
+
+    def emcy_by_code(self, code: int) -> EmcyCode | None:
+        return next((e for e in self.emcy_codes if e.code == code), None)
+
+    def values_of(self, name: str) -> ValueEnum | BitSet | None:
+        """The enum or bitset the named field or HIL I/O object carries, if it declares one."""
+        values = self.entry(name).values
+        if values is None:
+            return None
+        return next(e for e in (*self.enums, *self.bitsets) if e.name == values)
 
     def tpdo(self, number: int) -> Pdo:
         return self._pdo(self.tpdos, "TPDO", number)
