@@ -14,8 +14,8 @@ import pytest
 from conftest import NODE_ID, REPO, start_node, stop_node, stop_summary
 
 from boardproto import load_table
+from boardproto.cia301 import NmtState
 from hilrig.netns import PrivateBus
-from hilrig.node import NmtState
 from hilrig.physics import JointParams
 
 pytestmark = pytest.mark.bus

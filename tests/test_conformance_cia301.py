@@ -70,8 +70,9 @@ def upload(under_test: NodeUnderTest, index: int, sub: int = 0) -> int:
 def upload_abort(under_test: NodeUnderTest, index: int, sub: int = 0) -> int | None:
     answer = raw_sdo(under_test, struct.pack("<BHB", 0x40, index, sub))
     if answer[0] == 0x41:  # a segmented upload (a string): end it, the object exists
-        under_test.bus.send(can.Message(arbitration_id=SDO_RX, data=bytes([0x80, 0, 0, 0, 0, 0, 0, 0]),
-                                        is_extended_id=False))
+        under_test.bus.send(
+            can.Message(arbitration_id=SDO_RX, data=bytes([0x80, 0, 0, 0, 0, 0, 0, 0]), is_extended_id=False)
+        )
     return struct.unpack_from("<I", answer, 4)[0] if answer[0] == 0x80 else None
 
 

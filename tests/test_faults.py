@@ -12,9 +12,9 @@ from canopen.nmt import NmtError
 from conftest import NODE_ID, REPO, stop_summary
 
 from boardproto import load_table
+from boardproto.cia301 import NmtCommand, NmtState
 from hilrig.errors import FirmwareError
 from hilrig.faults import FaultInjector, FaultPlan
-from hilrig.node import NmtCommand, NmtState
 from hilrig.physics import JointParams
 
 pytestmark = pytest.mark.bus

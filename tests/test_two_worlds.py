@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from boardproto.cia301 import NmtState
 from hilrig.expect import Expect
-from hilrig.node import NmtState
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
 

@@ -293,7 +293,7 @@ class BusBench:
     def floor_rate(self, cycles: int, warmup: int, budget_s: float) -> tuple[float, int]:
         """The floor: the same RPDO frames + SYNC out and the same TPDO frames back, over one raw
         socket with kernel filters (`hilrig.transport`), no physics, no checks, no trace."""
-        from hilrig.cia301 import SYNC_COB_ID
+        from boardproto.cia301 import SYNC_COB_ID
         from hilrig.transport import RawCanLink, can_frame, open_raw_socket
 
         rpdos, tpdos = self._floor_layout()
@@ -472,7 +472,8 @@ class BusBench:
 
     # --- free-running timing -------------------------------------------------------------------
     def free_running(self, cycles: int) -> dict[str, Any]:
-        from hilrig.node import BoardNode, NmtCommand
+        from boardproto.cia301 import NmtCommand
+        from hilrig.node import BoardNode
 
         carrier = next(
             p for p in self.proto.tpdos if "velocity_controller_output" in [e.name for e in p.entries]

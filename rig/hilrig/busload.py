@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import TextIO
 
 from boardproto import BoardTable, Pdo, TableError, load_table
+from boardproto.cia301 import SYNC_COB_ID, heartbeat_cob_id
 
 STANDARD_BITRATES: tuple[int, ...] = (125_000, 250_000, 500_000, 1_000_000)
 """Classic CAN bit rates the command reports by default, in bit/s."""
@@ -55,8 +56,6 @@ WARNING_LOAD = 0.70
 """Above this share of the bus (worst-case stuffing) the command prints a WARNING line."""
 
 DEFAULT_RATE_HZ = 1000.0
-SYNC_COB_ID = 0x080
-HEARTBEAT_COB_ID_BASE = 0x700
 SYNC_DATA_BYTES = 1  # the SYNC counter
 HEARTBEAT_DATA_BYTES = 1
 MAX_DATA_BYTES = 8
@@ -180,7 +179,7 @@ def lockstep_traffic(table: BoardTable, rate_hz: float, node_id: int | None = No
         traffic.append(
             Traffic(
                 "heartbeat",
-                HEARTBEAT_COB_ID_BASE + node,
+                heartbeat_cob_id(node),
                 HEARTBEAT_DATA_BYTES,
                 1000 / table.node.heartbeat_ms,
                 True,  # it can fall into the busiest cycle too

@@ -26,6 +26,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
+from boardproto.cia301 import TPDO_FUNCTIONS, cob_id, emcy_cob_id, heartbeat_cob_id, sdo_response_cob_id
 from hilrig.table import RigTable
 
 if TYPE_CHECKING:
@@ -174,8 +175,8 @@ def node_cob_ids(table: RigTable, node_id: int) -> frozenset[int]:
     """COB-IDs node `node_id` itself sends on (CiA 301 predefined connection set and the
     table's TPDOs): EMCY, TPDOs, SDO answers, heartbeat and boot-up."""
     tpdos = {pdo.cob_id(node_id) for pdo in table.board.tpdos}
-    fixed = {0x080 + node_id, 0x580 + node_id, 0x700 + node_id}
-    fixed |= {base + node_id for base in (0x180, 0x280, 0x380, 0x480)}
+    fixed = {emcy_cob_id(node_id), sdo_response_cob_id(node_id), heartbeat_cob_id(node_id)}
+    fixed |= {cob_id(function, node_id) for function in TPDO_FUNCTIONS}
     return frozenset(tpdos | fixed)
 
 

@@ -31,7 +31,7 @@ from hilrig.node import EmcyRecord
 from hilrig.physics import JointParams
 from hilrig.rig import DEFAULT_EDS_PATH, Rig
 from hilrig.session import SessionConfig, hil_session
-from hilrig.table import RigTable
+from hilrig.table import BOARD_TABLE, ControlMode, RigTable
 
 if TYPE_CHECKING:
     pass
@@ -39,8 +39,6 @@ if TYPE_CHECKING:
 Scenario = Callable[[Rig], object]
 Progress = Callable[[str], None]
 
-VELOCITY_MODE = 1
-TORQUE_MODE = 2
 SETTLE_S = 0.2
 """Tracking errors skip this long after each setpoint or mode change (the step response)."""
 BOOT_TIMEOUT_S = 60.0
@@ -149,9 +147,9 @@ def run_profile(rig: Rig, mode: int, steps: tuple[Step, ...], progress: Progress
 
 def default_scenario(progress: Progress) -> Scenario:
     def scenario(rig: Rig) -> None:
-        run_profile(rig, VELOCITY_MODE, VELOCITY_PROFILE, progress, "velocity profile")
-        run_profile(rig, TORQUE_MODE, TORQUE_PROFILE, progress, "torque profile")
-        rig.set("control_mode", 0)
+        run_profile(rig, ControlMode.VELOCITY, VELOCITY_PROFILE, progress, "velocity profile")
+        run_profile(rig, ControlMode.TORQUE, TORQUE_PROFILE, progress, "torque profile")
+        rig.set("control_mode", ControlMode.DISABLED)
         rig.run(cycles=1)
 
     return scenario
@@ -269,9 +267,9 @@ def summarize(
         wall_s=time.monotonic() - started,
         cycling_s=cycling_s,
         velocity_rms_error_rad_s=_rms_tracking(
-            rig, VELOCITY_MODE, "velocity_setpoint", "motor_velocity", 1.0 / gear_ratio
+            rig, ControlMode.VELOCITY, "velocity_setpoint", "motor_velocity", 1.0 / gear_ratio
         ),
-        torque_rms_error_nm=_rms_tracking(rig, TORQUE_MODE, "torque_setpoint", "joint_torque", 1.0),
+        torque_rms_error_nm=_rms_tracking(rig, ControlMode.TORQUE, "torque_setpoint", "joint_torque", 1.0),
         spring_constant_estimate=float(rig.read("spring_constant_estimate")),
         spring_constant_confidence=float(rig.read("spring_constant_confidence")),
         spring_constant_true=options.params.spring_stiffness_nm_per_rad,
@@ -298,7 +296,8 @@ def format_summary(summary: DemoSummary) -> str:
     """The summary table people read after `make run`."""
     faults = "none"
     if summary.emcy or summary.fault_flags or summary.safe_state:
-        parts = [f"fault_flags 0x{summary.fault_flags:X}"] if summary.fault_flags else []
+        names = ", ".join(BOARD_TABLE.bitset("fault_flags").names_of(summary.fault_flags))
+        parts = [f"fault_flags 0x{summary.fault_flags:X} ({names})"] if summary.fault_flags else []
         if summary.safe_state:
             parts.append("safe state entered")
         parts += [str(record) for record in summary.emcy[:5]]

@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hilrig.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, emcy_cob_id
+from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id
 from hilrig.errors import NoValueError, PdoMappingError
-from hilrig.node import BoardNode, NmtState
+from hilrig.node import BoardNode
 from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
 from hilrig.table import unknown_name
 from hilrig.transport import FrameLink, PdoLayout, can_frame

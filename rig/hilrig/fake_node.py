@@ -22,7 +22,8 @@ from canopen.pdo import PdoVariable
 from canopen.sdo import SdoAbortedError
 
 from boardproto import Field
-from hilrig.node import RECEIVE_POLL_S, NmtState, SdoAbortCode
+from boardproto.cia301 import SYNC_COB_ID, NmtState, heartbeat_cob_id
+from hilrig.node import RECEIVE_POLL_S, SdoAbortCode
 from hilrig.table import RigTable
 
 Value = float | int
@@ -86,7 +87,7 @@ class FakeJointNode:
         }
         self.local.add_write_callback(self._check_range)
         self.network.subscribe(0, self._after_nmt)  # after NmtSlave, which subscribed first
-        self.network.subscribe(0x80, self._on_sync)
+        self.network.subscribe(SYNC_COB_ID, self._on_sync)
         self.network.NOTIFIER_CYCLE = RECEIVE_POLL_S
         self.network.connect()  # bus given: only starts the receive thread
 
@@ -103,7 +104,7 @@ class FakeJointNode:
     def boot(self) -> None:
         """Enter pre-operational (canopen starts the heartbeat) and send the boot-up message."""
         self.local.nmt.state = "PRE-OPERATIONAL"
-        self.network.send_message(0x700 + self.node_id, bytes([NmtState.INITIALISING]))
+        self.network.send_message(heartbeat_cob_id(self.node_id), bytes([NmtState.INITIALISING]))
 
     def send_emcy(self, code: int, register: int, data: bytes = b"") -> None:
         self.local.emcy.send(code, register, data)

@@ -380,7 +380,7 @@ class FaultInjector:
             self.rig.restart_node(self.firmware.restart, boot_timeout_s=self.boot_timeout_s)
             self._record(f"{spec}: firmware booted again and is operational")
         elif kind is FaultKind.NMT_STOP:
-            from hilrig.node import NmtCommand
+            from boardproto.cia301 import NmtCommand
 
             self.rig.nmt(NmtCommand.STOP)
             self._record(f"{spec}: NMT stop sent (SYNCs go unanswered)")
@@ -405,7 +405,7 @@ class FaultInjector:
         elif spec.kind is FaultKind.FLOOD:
             self._floods.pop(spec, None)
         elif spec.kind is FaultKind.NMT_STOP:
-            from hilrig.node import NmtCommand
+            from boardproto.cia301 import NmtCommand
 
             self.rig.nmt(NmtCommand.START)
         self._record(f"{spec}: ended")

@@ -14,7 +14,15 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from hilrig.node import EmcyRecord, NmtState, explain_abort
+from boardproto.cia301 import (
+    SYNC_COB_ID,
+    NmtState,
+    SdoCommand,
+    emcy_cob_id,
+    heartbeat_cob_id,
+    sdo_response_cob_id,
+)
+from hilrig.node import EmcyRecord, explain_abort
 from hilrig.table import RigTable
 
 if TYPE_CHECKING:
@@ -52,7 +60,8 @@ def trace_log(
 
     stats = LogTraceStats()
     tpdo_ids = {pdo.cob_id(node_id) for pdo in table.board.tpdos}
-    emcy_id, sdo_answer_id, heartbeat_id = 0x080 + node_id, 0x580 + node_id, 0x700 + node_id
+    emcy_id, sdo_answer_id = emcy_cob_id(node_id), sdo_response_cob_id(node_id)
+    heartbeat_id = heartbeat_cob_id(node_id)
     cycle = -1  # index of the open cycle (the last SYNC seen); -1 before the first SYNC
     cycle_t = 0.0
     sent: dict[str, Value] = {}  # RPDO values since the last SYNC: they belong to the next cycle
@@ -76,7 +85,7 @@ def trace_log(
         first_t = t if first_t is None else first_t
         cob_id, data = message.arbitration_id, bytes(message.data)
         at_cycle = max(cycle, 0)
-        if cob_id == 0x080:  # SYNC: the open cycle is complete, the next one starts
+        if cob_id == SYNC_COB_ID:  # SYNC: the open cycle is complete, the next one starts
             close_cycle()
             cycle, cycle_t = cycle + 1, t
             open_sent, sent, received = sent, {}, {}
@@ -88,7 +97,7 @@ def trace_log(
             tracer.log_text(EMCY_PATH, f"{record} (s into the log)", level, t=t, cycle=at_cycle)
             stats.events += 1
             continue
-        if cob_id == sdo_answer_id and len(data) == 8 and data[0] == 0x80:
+        if cob_id == sdo_answer_id and len(data) == 8 and data[0] == SdoCommand.ABORT:
             index, subindex, code = struct.unpack_from("<HBI", data, 1)
             entry = table.entry_at(index)
             what = f"{entry.name if entry else f'0x{index:04X}'} sub {subindex}: {explain_abort(code, entry)}"

@@ -27,8 +27,10 @@ from canopen.emcy import EmcyError
 from canopen.pdo import PdoMap
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from hilrig.cia301 import (
+from boardproto.cia301 import (
     SYNC_COUNTER_MAX,
+    NmtCommand,
+    NmtState,
     heartbeat_cob_id,
     sdo_response_cob_id,
 )
@@ -48,33 +50,6 @@ _T = TypeVar("_T")
 
 RECEIVE_POLL_S = 0.05
 """How often canopen's receive thread wakes up without traffic (bounds the time close() takes)."""
-
-
-class NmtState(enum.IntEnum):
-    """NMT states; the values are the heartbeat state bytes (CiA 301)."""
-
-    INITIALISING = 0x00  # the boot-up message carries this
-    STOPPED = 0x04
-    OPERATIONAL = 0x05
-    PRE_OPERATIONAL = 0x7F
-
-
-class NmtCommand(enum.IntEnum):
-    """NMT command specifiers (first byte of the frame on COB-ID 0)."""
-
-    START = 0x01
-    STOP = 0x02
-    ENTER_PRE_OPERATIONAL = 0x80
-    RESET_NODE = 0x81
-    RESET_COMMUNICATION = 0x82
-
-    @property
-    def resulting_state(self) -> NmtState:
-        """The state the node is in after this command (resets end in pre-operational)."""
-        return {
-            NmtCommand.START: NmtState.OPERATIONAL,
-            NmtCommand.STOP: NmtState.STOPPED,
-        }.get(self, NmtState.PRE_OPERATIONAL)
 
 
 class SdoAbortCode(enum.IntEnum):

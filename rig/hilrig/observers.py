@@ -11,8 +11,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from boardproto.cia301 import NmtState
     from hilrig.driver import CycleResult, History
-    from hilrig.node import EmcyRecord, NmtState
+    from hilrig.node import EmcyRecord
     from hilrig.physics import JointParams
 
 

@@ -29,6 +29,7 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
+from boardproto.cia301 import NmtState
 from hilrig.driver import (
     CycleResult,
     Driver,
@@ -39,7 +40,7 @@ from hilrig.driver import (
     sync_frame,
 )
 from hilrig.errors import RealTimeError
-from hilrig.node import BoardNode, NmtState
+from hilrig.node import BoardNode
 from hilrig.physics import JointPlant, SensorModel, duty_from_motor_duty
 from hilrig.transport import PdoLayout
 

@@ -34,10 +34,11 @@ import can
 import numpy as np
 from canopen.emcy import EmcyError
 
+from boardproto.cia301 import NmtCommand, NmtState
 from hilrig.driver import Driver, resolve_truth_name
 from hilrig.errors import FieldAccessError, NoValueError, ScenarioTimeoutError, SdoAbortError
 from hilrig.lockstep import LockstepDriver, cycles_for
-from hilrig.node import BoardNode, EmcyRecord, NmtCommand, NmtState
+from hilrig.node import BoardNode, EmcyRecord
 from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointPlant, JointState, RawSensors, SensorModel
 from hilrig.realtime import RealTimeDriver

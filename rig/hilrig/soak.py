@@ -75,25 +75,26 @@ from typing import Any, Protocol
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from hilrig.cia301 import (
+from boardproto.cia301 import (
     NMT_COB_ID,
     SYNC_COB_ID,
     SYNC_COUNTER_MAX,
     TIME_COB_ID,
     FunctionCode,
+    NmtCommand,
     due_at_sync,
     emcy_cob_id,
     heartbeat_cob_id,
     sdo_request_cob_id,
     sdo_response_cob_id,
 )
+from boardproto.table import ERROR_RESET_CODE
 from hilrig.driver import SETPOINT_STREAM
 from hilrig.errors import PdoMappingError, RigError
 from hilrig.faults import FaultKind
 from hilrig.firmware import DEFAULT_EXECUTABLE, parse_stop_line
-from hilrig.node import NmtCommand
 from hilrig.physics import JointParams, thermistor_adc
-from hilrig.table import RigTable
+from hilrig.table import BOARD_TABLE, ControlMode, EmcyCode, FaultFlags, RigTable
 from hilrig.transport import FrameLink, PdoDirection, PdoLayout, can_frame, compile_pdos
 
 DEFAULT_EDS_PATH = Path(__file__).resolve().parents[2] / "build" / "protocol" / "board.eds"
@@ -127,19 +128,22 @@ HOUSEKEEPING_EVERY = 256
 SERIES_POINTS = 250
 """The report keeps at most this many RSS samples (evenly thinned); the summary uses all."""
 
-VELOCITY_MODE = 1.0
-"""control_mode 1: the velocity loop (board.toml), so the controllers and the watchdog run."""
+VELOCITY_MODE = float(ControlMode.VELOCITY)
+"""The velocity loop (board.toml), so the controllers and the watchdog run."""
 MOTOR_COUNTS_PER_CYCLE = 25
 """The sensor pattern turns the motor encoder by this many counts per cycle (38 rad/s at 1 kHz)."""
-STALE_ENCODER_FLAGS = 0b11
-"""fault_flags bits 0 and 1, MotorEncoderStale and OutputEncoderStale (firmware/joint/FaultBits.hpp;
-bit numbers are part of the bus protocol)."""
+STALE_ENCODER_BITS = tuple(
+    BOARD_TABLE.bitset("fault_flags").bit(name) for name in ("motor_encoder_stale", "output_encoder_stale")
+)
+"""The fault bits the stale-sensor fault latches (the soak withholds both encoders), with the EMCY
+each raises and the object it names (board.toml)."""
+STALE_ENCODER_FLAGS = FaultFlags.MOTOR_ENCODER_STALE | FaultFlags.OUTPUT_ENCODER_STALE
 MAX_EXTRA_STALE_CYCLES = 5
 MAX_STOPPED_SYNCS = 5
 
-EMCY_ERROR_RESET = 0x0000
-EMCY_STALE_SENSOR = 0x5000  # co::emcy_code::kDeviceHardware
-EMCY_PDO_LENGTH = 0x8210  # co::emcy_code::kPdoLengthError
+EMCY_ERROR_RESET = ERROR_RESET_CODE
+EMCY_STALE_SENSOR = EmcyCode[(STALE_ENCODER_BITS[0].emcy or "").upper()]
+EMCY_PDO_LENGTH = EmcyCode.PDO_LENGTH_ERROR
 RPDO_COMMUNICATION_BASE = 0x1400
 
 EMCY_PAYLOAD = struct.Struct("<HBH")
@@ -240,7 +244,7 @@ class SoakLayout:
     def status_bytes(self, fault_flags: int) -> bytes:
         """The status TPDO's payload for a latched fault mask (safe_state follows it)."""
         return self.status.pack_named(
-            {"safe_state": 1.0 if fault_flags else 0.0, "fault_flags": float(fault_flags)}
+            {"safe_state": float(bool(fault_flags)), "fault_flags": float(fault_flags)}
         )
 
     def unknown_cob_ids(self) -> list[int]:
@@ -312,7 +316,7 @@ def load_layout(eds: str | Path, node_id: int, table: RigTable | None = None) ->
         status=status[0],
         encoder_stale_cycles=encoder_stale,
         thermistor_stale_cycles=thermistor_stale,
-        stale_about=(od["motor_position"].index, od["output_position"].index),
+        stale_about=tuple(od[bit.about].index for bit in STALE_ENCODER_BITS if bit.about),
         fault_clear=encoded("fault_clear", 1.0),
         control_mode=encoded("control_mode", VELOCITY_MODE),
         sdo_reads=tuple(reads),
@@ -691,13 +695,13 @@ class SoakDriver:
         self._velocity_tpdo = next((p for p in layout.tpdos if "motor_velocity" in p.names), None)
         self._velocity_payload = b""
         self._velocity_cob = self._velocity_tpdo.cob_id if self._velocity_tpdo is not None else -1
-        self._tpdo_bit = {p.cob_id: 1 << i for i, p in enumerate(layout.tpdos)}
+        self._tpdo_mask = {p.cob_id: 1 << i for i, p in enumerate(layout.tpdos)}
         self._tpdo_length = {p.cob_id: p.length for p in layout.tpdos}
         self._tpdo_by_cob = {p.cob_id: p for p in layout.tpdos}
         period = layout.due_period
         self._due_period = period
         self._due_mask = [
-            sum(self._tpdo_bit[p.cob_id] for p in layout.due_at(n if n else period)) for n in range(period)
+            sum(self._tpdo_mask[p.cob_id] for p in layout.due_at(n if n else period)) for n in range(period)
         ]
         self._healthy_status = layout.status_bytes(0)
         self._latched_status = layout.status_bytes(STALE_ENCODER_FLAGS)
@@ -770,7 +774,7 @@ class SoakDriver:
         tally.syncs_operational += 1
         due = self._due_mask[self._sync_number % self._due_period]
         expected_status = self._healthy_status if status is None else status
-        bits, lengths, status_cob = self._tpdo_bit, self._tpdo_length, self.layout.status.cob_id
+        bits, lengths, status_cob = self._tpdo_mask, self._tpdo_length, self.layout.status.cob_id
         velocity_cob = self._velocity_cob
         recv = self._recv
         got = 0
@@ -823,8 +827,8 @@ class SoakDriver:
 
     def _lost_cycle(self, due: int, got: int) -> None:
         labels = {p.cob_id: p.label for p in self.layout.tpdos}
-        missing = tuple(labels[c] for c, b in self._tpdo_bit.items() if due & b and not got & b)
-        received = tuple(labels[c] for c, b in self._tpdo_bit.items() if got & b)
+        missing = tuple(labels[c] for c, b in self._tpdo_mask.items() if due & b and not got & b)
+        received = tuple(labels[c] for c, b in self._tpdo_mask.items() if got & b)
         self.liveness()  # a dead firmware reads as a crash, not as a lost cycle
         late = self._barrier(late_ok=True)
         self.lost.append(
@@ -866,7 +870,7 @@ class SoakDriver:
             result, ok = None, False
         while (frame := self._recv(0.0)) is not None:
             cob_id, data = frame
-            if cob_id in self._tpdo_bit:
+            if cob_id in self._tpdo_mask:
                 self.tally.tpdos_received += 1
                 label = self._tpdo_by_cob[cob_id].label
                 if late_ok and late is not None:

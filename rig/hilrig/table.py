@@ -11,6 +11,7 @@ rig at once. A name the table does not define raises `FieldNameError` with the c
 from __future__ import annotations
 
 import difflib
+import enum
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -19,6 +20,17 @@ from hilrig.errors import FieldNameError
 
 DEFAULT_TABLE_PATH = Path(__file__).resolve().parents[2] / "protocol" / "board.toml"
 """protocol/board.toml of the checkout this package lives in."""
+
+BOARD_TABLE = load_table(DEFAULT_TABLE_PATH)
+"""The table the firmware of this checkout is built from."""
+
+# The named values that travel in fields, built from board.toml at import: moving a fault bit or
+# adding a control mode there changes these with no other edit. Members are the table's names in
+# upper case (ControlMode.VELOCITY, FaultFlags.MOTOR_ENCODER_STALE, EmcyCode.STALE_SENSOR).
+ControlMode = BOARD_TABLE.enum("control_mode").python_type()
+LedPattern = BOARD_TABLE.enum("led_pattern").python_type()
+FaultFlags = BOARD_TABLE.bitset("fault_flags").python_type()
+EmcyCode = enum.IntEnum("EmcyCode", {code.name.upper(): code.code for code in BOARD_TABLE.emcy_codes})
 
 ObjectEntry = Field | HilIo
 

@@ -54,8 +54,9 @@ from urllib.parse import quote
 import numpy as np
 
 from boardproto import Field, IoDirection, Kind
+from boardproto.cia301 import NmtState
 from hilrig.driver import CycleResult, History, HistoryMark
-from hilrig.node import EmcyRecord, NmtState
+from hilrig.node import EmcyRecord
 from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointState
 from hilrig.table import RigTable, unknown_name

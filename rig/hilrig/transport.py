@@ -28,7 +28,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
-from hilrig.cia301 import LAST_SYNCHRONOUS_TYPE, STANDARD_ID_MASK, due_at_sync
+from boardproto.cia301 import LAST_SYNCHRONOUS_TYPE, STANDARD_ID_MASK, due_at_sync
 from hilrig.errors import PdoMappingError
 
 if TYPE_CHECKING:

@@ -12,10 +12,10 @@ import canopen
 import numpy as np
 import pytest
 
+from boardproto.cia301 import NmtState
 from hilrig.driver import History
 from hilrig.errors import LockstepError
 from hilrig.lockstep import LockstepDriver
-from hilrig.node import NmtState
 from hilrig.physics import JointParams, JointPlant, SensorModel
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.table import RigTable

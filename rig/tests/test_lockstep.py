@@ -15,6 +15,7 @@ import cantools
 import numpy as np
 import pytest
 
+from boardproto.cia301 import NmtCommand
 from hilrig.errors import (
     FieldAccessError,
     FieldNameError,
@@ -26,7 +27,6 @@ from hilrig.errors import (
     SdoAbortError,
 )
 from hilrig.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
-from hilrig.node import NmtCommand
 from hilrig.physics import JointParams, JointPlant, RawSensors, SensorModel, duty_from_motor_duty
 from hilrig.rig import DEFAULT_EDS_PATH, Rig
 from hilrig.table import RigTable

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import pytest
 
+from boardproto.cia301 import NmtCommand, NmtState
 from hilrig.errors import FieldNameError
-from hilrig.node import NmtCommand, NmtState, SdoAbortCode, explain_abort
+from hilrig.node import SdoAbortCode, explain_abort
 from hilrig.table import RigTable
 from hilrig.transport import PdoDirection, PdoLayout
 

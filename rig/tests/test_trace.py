@@ -13,9 +13,9 @@ from pathlib import Path
 import can
 import pytest
 
+from boardproto.cia301 import NmtCommand
 from hilrig.errors import FieldNameError, SdoAbortError
 from hilrig.fake_node import FakeJointNode
-from hilrig.node import NmtCommand
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
 from hilrig.table import RigTable

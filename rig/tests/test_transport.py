@@ -13,7 +13,7 @@ import canopen
 import cantools
 import pytest
 
-from hilrig.cia301 import FunctionCode, cob_id, due_at_sync, sync_counter
+from boardproto.cia301 import FunctionCode, cob_id, due_at_sync, sync_counter
 from hilrig.errors import PdoMappingError
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.transport import (

@@ -301,20 +301,21 @@ def _trace(args: argparse.Namespace) -> int:
 
 def describe_frame(cob_id: int, data: bytes, node: int) -> str:
     """CiA 301 services that are not in the DBC, in words."""
+    from boardproto.cia301 import NMT_COB_ID, SYNC_COB_ID, FunctionCode, function_of
     from hilrig.cli.scan import state_name
 
-    function, sender = cob_id & 0x780, cob_id & 0x7F
-    if cob_id == 0x000 and len(data) >= 2:
+    function, sender = function_of(cob_id)
+    if cob_id == NMT_COB_ID and len(data) >= 2:
         return f"NMT command 0x{data[0]:02X} to {'all' if data[1] == 0 else f'node 0x{data[1]:02X}'}"
-    if cob_id == 0x080:
+    if cob_id == SYNC_COB_ID:
         return f"SYNC {data[0]}" if data else "SYNC"
-    if function == 0x080:
+    if function == FunctionCode.SYNC_EMCY:
         return f"EMCY node 0x{sender:02X} code 0x{int.from_bytes(data[:2], 'little'):04X}"
-    if function == 0x700 and len(data) == 1:
+    if function == FunctionCode.HEARTBEAT and len(data) == 1:
         return f"heartbeat node 0x{sender:02X} {state_name(data[0] & 0x7F)}"
-    if function == 0x580:
+    if function == FunctionCode.SDO_RESPONSE:
         return f"SDO answer from node 0x{sender:02X}"
-    if function == 0x600:
+    if function == FunctionCode.SDO_REQUEST:
         return f"SDO request to node 0x{sender:02X}"
     return ""
 

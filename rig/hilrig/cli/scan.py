@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from boardproto.cia301 import FunctionCode, SdoCommand, function_of, sdo_request_cob_id
 from hilrig.cli.common import (
     MAX_NODE_ID,
     Command,
@@ -30,13 +31,8 @@ from hilrig.errors import NodeSilentError
 if TYPE_CHECKING:
     import can
 
-HEARTBEAT_BASE = 0x700
-SDO_REQUEST_BASE = 0x600
-SDO_RESPONSE_BASE = 0x580
 IDENTITY_INDEX = 0x1018
 DEVICE_NAME_INDEX = 0x1008
-SDO_UPLOAD_REQUEST = 0x40  # CiA 301 ccs=2 initiate upload
-SDO_ABORT = 0x80
 SEND_RETRY_S = 0.002
 
 
@@ -52,7 +48,7 @@ class FoundNode:
 
 
 def state_name(state: int | None) -> str:
-    from hilrig.node import NmtState
+    from boardproto.cia301 import NmtState
 
     if state is None:
         return "(no heartbeat)"
@@ -65,8 +61,9 @@ def state_name(state: int | None) -> str:
 def probe_frame(node_id: int) -> can.Message:
     import can
 
-    data = bytes([SDO_UPLOAD_REQUEST, IDENTITY_INDEX & 0xFF, IDENTITY_INDEX >> 8, 1, 0, 0, 0, 0])
-    return can.Message(arbitration_id=SDO_REQUEST_BASE + node_id, data=data, is_extended_id=False)
+    request = SdoCommand.INITIATE_UPLOAD_REQUEST
+    data = bytes([request, IDENTITY_INDEX & 0xFF, IDENTITY_INDEX >> 8, 1, 0, 0, 0, 0])
+    return can.Message(arbitration_id=sdo_request_cob_id(node_id), data=data, is_extended_id=False)
 
 
 def _send(bus: can.BusABC, message: can.Message, deadline: float) -> None:
@@ -94,12 +91,12 @@ def listen(bus: can.BusABC, listen_s: float, ids: range, *, probe: bool) -> dict
         if message is None or message.is_extended_id or message.is_remote_frame:
             continue
         cob_id = message.arbitration_id
-        node_id = cob_id & 0x7F
+        function, node_id = function_of(cob_id)
         if node_id not in ids:
             continue
-        if cob_id - node_id == HEARTBEAT_BASE and len(message.data) == 1:
+        if function == FunctionCode.HEARTBEAT and len(message.data) == 1:
             found.setdefault(node_id, FoundNode(node_id)).state = message.data[0] & 0x7F
-        elif cob_id - node_id == SDO_RESPONSE_BASE and len(message.data) == 8:
+        elif function == FunctionCode.SDO_RESPONSE and len(message.data) == 8:
             data = bytes(message.data)
             if int.from_bytes(data[1:3], "little") != IDENTITY_INDEX or data[3] != 1:
                 continue

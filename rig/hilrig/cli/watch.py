@@ -178,7 +178,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hilrig.node import NmtCommand
+    from boardproto.cia301 import NmtCommand
 
     table = load_table(args)
     requested = check_names(table, args.names)

@@ -31,7 +31,10 @@ class FunctionCode(enum.IntEnum):
 
 
 NODE_ID_MASK = 0x7F
+FUNCTION_CODE_MASK = 0x780
 STANDARD_ID_MASK = 0x7FF
+TPDO_FUNCTIONS = (FunctionCode.TPDO1, FunctionCode.TPDO2, FunctionCode.TPDO3, FunctionCode.TPDO4)
+RPDO_FUNCTIONS = (FunctionCode.RPDO1, FunctionCode.RPDO2, FunctionCode.RPDO3, FunctionCode.RPDO4)
 SYNC_COB_ID = int(FunctionCode.SYNC_EMCY)
 NMT_COB_ID = int(FunctionCode.NMT)
 TIME_COB_ID = int(FunctionCode.TIME)
@@ -40,6 +43,48 @@ SYNC_COUNTER_MAX = 240
 LAST_SYNCHRONOUS_TYPE = 240
 """PDO transmission types 1..240: synchronous, every n-th SYNC; 0: acyclic synchronous;
 254/255: event-driven."""
+
+
+class NmtState(enum.IntEnum):
+    """NMT states; the values are the heartbeat state bytes (CiA 301)."""
+
+    INITIALISING = 0x00  # the boot-up message carries this
+    STOPPED = 0x04
+    OPERATIONAL = 0x05
+    PRE_OPERATIONAL = 0x7F
+
+
+class NmtCommand(enum.IntEnum):
+    """NMT command specifiers (first byte of the frame on COB-ID 0)."""
+
+    START = 0x01
+    STOP = 0x02
+    ENTER_PRE_OPERATIONAL = 0x80
+    RESET_NODE = 0x81
+    RESET_COMMUNICATION = 0x82
+
+    @property
+    def resulting_state(self) -> NmtState:
+        """The state the node is in after this command (resets end in pre-operational)."""
+        return {
+            NmtCommand.START: NmtState.OPERATIONAL,
+            NmtCommand.STOP: NmtState.STOPPED,
+        }.get(self, NmtState.PRE_OPERATIONAL)
+
+
+class SdoCommand(enum.IntEnum):
+    """First byte of an SDO frame (the command specifier in its top 3 bits) for the frames the rig
+    builds or recognises by hand; canopen's SDO client does the rest."""
+
+    INITIATE_DOWNLOAD_REQUEST = 0x20  # ccs 1; the low bits say expedited / size indicated
+    INITIATE_UPLOAD_REQUEST = 0x40  # ccs 2
+    INITIATE_DOWNLOAD_RESPONSE = 0x60  # scs 3
+    ABORT = 0x80  # cs 4, both directions
+
+
+def function_of(cob_id: int) -> tuple[int, int]:
+    """(function code bits, node id) of an 11-bit COB-ID: 0x190 -> (0x180, 0x10)."""
+    return cob_id & FUNCTION_CODE_MASK, cob_id & NODE_ID_MASK
 
 
 def cob_id(function: FunctionCode, node_id: int) -> int:
@@ -89,7 +134,14 @@ __all__ = [
     "SYNC_COB_ID",
     "SYNC_COUNTER_MAX",
     "TIME_COB_ID",
+    "FUNCTION_CODE_MASK",
+    "RPDO_FUNCTIONS",
+    "TPDO_FUNCTIONS",
     "FunctionCode",
+    "SdoCommand",
+    "function_of",
+    "NmtCommand",
+    "NmtState",
     "cob_id",
     "due_at_sync",
     "emcy_cob_id",
