@@ -14,6 +14,7 @@ import can
 import canopen
 import pytest
 
+from boardproto.cia301 import NmtState, heartbeat_cob_id
 from hilrig.buslog import BusRecorder
 from hilrig.expect import Expect
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
@@ -143,7 +144,10 @@ def start_node(private_bus: PrivateBus, scenario_dir: Path, params_file: Path | 
     network.connect()
     node = network.add_node(canopen.RemoteNode(NODE_ID, str(EDS)))
     booted = threading.Event()
-    network.subscribe(0x700 + NODE_ID, lambda can_id, data, ts: booted.set() if data[:1] == b"\x00" else None)
+    boot_up = bytes([NmtState.INITIALISING])
+    network.subscribe(
+        heartbeat_cob_id(NODE_ID), lambda can_id, data, ts: booted.set() if data[:1] == boot_up else None
+    )
     firmware = Firmware(
         private_bus, node_id=NODE_ID, log_path=scenario_dir / "firmware.log", params_file=params_file
     )

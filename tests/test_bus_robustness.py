@@ -14,15 +14,27 @@ import pytest
 from conftest import NODE_ID, REPO, start_node, stop_node, stop_summary
 
 from boardproto import load_table
-from boardproto.cia301 import NmtState
+from boardproto.cia301 import (
+    NMT_COB_ID,
+    STANDARD_ID_MASK,
+    SYNC_COB_ID,
+    NmtCommand,
+    NmtState,
+    SdoCommand,
+    sdo_request_cob_id,
+    sdo_response_cob_id,
+)
+from boardproto.table import ERROR_RESET_CODE
 from hilrig.netns import PrivateBus
+from hilrig.node import SdoAbortCode
 from hilrig.physics import JointParams
+from hilrig.table import ControlMode, EmcyCode
 
 pytestmark = pytest.mark.bus
 
-VELOCITY_MODE = 1.0
+VELOCITY_MODE = ControlMode.VELOCITY
 GEAR_RATIO = JointParams().gear_ratio
-EMCY_PDO_LENGTH = 0x8210
+EMCY_PDO_LENGTH = EmcyCode.PDO_LENGTH_ERROR
 TABLE = load_table(REPO / "protocol" / "board.toml")
 
 FLOOD_COB_ID = 0x001
@@ -111,9 +123,9 @@ def test_malformed_frames_are_counted_and_ignored(make_scenario, private_bus: Pr
     assert rpdo2.names == ("velocity_setpoint", "torque_setpoint")
     bad = [
         # SDO upload request of velocity_kp in 4 bytes (CiA 301: SDO frames carry 8)
-        (0x600 + NODE_ID, bytes([0x40, 0x00, 0x25, 0x00])),
-        (0x000, bytes([0x02])),  # NMT "stop" without the node-id byte
-        (0x080, bytes([0x01, 0x00])),  # SYNC with 2 bytes (0 or 1 allowed): must run no cycle
+        (sdo_request_cob_id(NODE_ID), bytes([SdoCommand.INITIATE_UPLOAD_REQUEST, 0x00, 0x25, 0x00])),
+        (NMT_COB_ID, bytes([NmtCommand.STOP])),  # NMT "stop" without the node-id byte
+        (SYNC_COB_ID, bytes([0x01, 0x00])),  # SYNC with 2 bytes (0 or 1 allowed): must run no cycle
         (rpdo2.cob_id, struct.pack("<f", 50.0)),  # RPDO2 with 4 of its 8 bytes
         (0x7E0, bytes([0xDE, 0xAD])),  # a COB-ID no service of this node uses
     ]
@@ -124,10 +136,12 @@ def test_malformed_frames_are_counted_and_ignored(make_scenario, private_bus: Pr
     s.rig.run(seconds=0.3)
 
     length_errors = [r for r in s.rig.emcy if r.code == EMCY_PDO_LENGTH]
-    assert len(length_errors) == 1 and length_errors[0].object_index == 0x1401, (
-        f"expected one EMCY 0x8210 about 0x1401 (RPDO2), got {[str(r) for r in s.rig.emcy]}"
+    rpdo2_communication = TABLE.rpdo(2).communication_index
+    assert len(length_errors) == 1 and length_errors[0].object_index == rpdo2_communication, (
+        f"expected one {EMCY_PDO_LENGTH!r} about 0x{rpdo2_communication:04X} (RPDO2), "
+        f"got {[str(r) for r in s.rig.emcy]}"
     )
-    assert any(r.code == 0 and r.time_s >= length_errors[0].time_s for r in s.rig.emcy), (
+    assert any(r.code == ERROR_RESET_CODE and r.time_s >= length_errors[0].time_s for r in s.rig.emcy), (
         "expected an EMCY error reset once well-formed RPDO2 frames came again"
     )
     assert s.rig.read("velocity_setpoint") == pytest.approx(2.0), "the short RPDO2 changed velocity_setpoint"
@@ -147,10 +161,9 @@ def test_malformed_frames_are_counted_and_ignored(make_scenario, private_bus: Pr
     print(f"\nmalformed frames: {counters}")
 
 
-NMT_STOP, NMT_PRE_OPERATIONAL, NMT_RESET_NODE, NMT_RESET_COMMUNICATION = 0x02, 0x80, 0x81, 0x82
 SDO_CLIENT_TIMEOUT_S = 30.0  # hang guard for the software-emulated VM, not a timing check
-ABORT_TOGGLE_BIT = 0x05030000
-ABORT_COMMAND_SPECIFIER = 0x05040001
+ABORT_TOGGLE_BIT = SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED
+ABORT_COMMAND_SPECIFIER = SdoAbortCode.COMMAND_SPECIFIER_INVALID
 
 
 class SdoProbe:
@@ -160,12 +173,14 @@ class SdoProbe:
 
     def __init__(self, private_bus: PrivateBus) -> None:
         self.bus = private_bus.open()
-        self.bus.set_filters([{"can_id": 0x580 + NODE_ID, "can_mask": 0x7FF}])
+        self.bus.set_filters([{"can_id": sdo_response_cob_id(NODE_ID), "can_mask": STANDARD_ID_MASK}])
 
     def ask(self, *request: int) -> bytes:
         self.bus.send(
             can.Message(
-                arbitration_id=0x600 + NODE_ID, data=bytes(request).ljust(8, b"\0"), is_extended_id=False
+                arbitration_id=sdo_request_cob_id(NODE_ID),
+                data=bytes(request).ljust(8, b"\0"),
+                is_extended_id=False,
             )
         )
         answer = self.bus.recv(SDO_CLIENT_TIMEOUT_S)
@@ -177,7 +192,7 @@ class SdoProbe:
 
 
 def abort_code(answer: bytes) -> int | None:
-    return struct.unpack_from("<I", answer, 4)[0] if answer[0] == 0x80 else None
+    return struct.unpack_from("<I", answer, 4)[0] if answer[0] == SdoCommand.ABORT else None
 
 
 def test_nmt_for_other_nodes_and_sdo_out_of_order_cost_no_cycle(
@@ -191,8 +206,13 @@ def test_nmt_for_other_nodes_and_sdo_out_of_order_cost_no_cycle(
     # NMT stop, pre-operational and both resets, addressed to other nodes: none is for this one.
     # A node that obeyed would stop its TPDOs (the lockstep rig raises at once) or boot again.
     for other in (0x01, NODE_ID - 1, NODE_ID + 1, 0x7F):
-        for command in (NMT_STOP, NMT_PRE_OPERATIONAL, NMT_RESET_NODE, NMT_RESET_COMMUNICATION):
-            s.rig.send_frame(0x000, bytes([command, other]))
+        for command in (
+            NmtCommand.STOP,
+            NmtCommand.ENTER_PRE_OPERATIONAL,
+            NmtCommand.RESET_NODE,
+            NmtCommand.RESET_COMMUNICATION,
+        ):
+            s.rig.send_frame(NMT_COB_ID, bytes([command, other]))
         s.rig.run(cycles=5)
     s.rig.run(seconds=0.1)
     assert s.rig.nmt_state is NmtState.OPERATIONAL, f"expected OPERATIONAL, got {s.rig.nmt_state}"
@@ -246,7 +266,7 @@ def test_sync_flood_runs_exactly_one_cycle_per_sync(private_bus: PrivateBus, sce
         started = time.monotonic()
         for _ in range(SYNC_BURSTS):
             for _ in range(SYNCS_PER_BURST):
-                network.send_message(0x080, b"")
+                network.send_message(SYNC_COB_ID, b"")
             node.sdo.upload(0x1001, 0)  # error register: answered after the burst was handled
         elapsed = time.monotonic() - started
     finally:

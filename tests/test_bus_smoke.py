@@ -10,6 +10,7 @@ from pathlib import Path
 
 import can
 import pytest
+from bus_echo_peer import ECHO_ANSWER_ID, ECHO_REQUEST_ID, READY_ID
 
 from hilrig.buslog import RecorderProcess
 from hilrig.netns import RECEIVE_QUEUE_BYTES, PrivateBus
@@ -33,11 +34,11 @@ def test_round_trip_between_two_processes(private_bus: PrivateBus) -> None:
     with private_bus.open() as bus:
         peer = private_bus.popen([sys.executable, str(PEER), private_bus.channel])
         try:
-            _recv_id(bus, 0x700, timeout_s=60.0)
+            _recv_id(bus, READY_ID, timeout_s=60.0)
             for n in range(20):
                 payload = bytes([n, n + 1, n + 2, 0xAA])
-                bus.send(can.Message(arbitration_id=0x123, data=payload, is_extended_id=False))
-                echo = _recv_id(bus, 0x124, timeout_s=10.0)
+                bus.send(can.Message(arbitration_id=ECHO_REQUEST_ID, data=payload, is_extended_id=False))
+                echo = _recv_id(bus, ECHO_ANSWER_ID, timeout_s=10.0)
                 assert bytes(echo.data) == bytes(reversed(payload))
             bus.send(can.Message(arbitration_id=0x7FF, data=b"", is_extended_id=False))
             assert peer.wait(timeout=60) == 0
@@ -49,8 +50,8 @@ def test_round_trip_between_two_processes(private_bus: PrivateBus) -> None:
 
 def test_private_buses_are_isolated(private_bus: PrivateBus) -> None:
     with PrivateBus() as other, private_bus.open() as mine, other.open() as theirs:
-        theirs.send(can.Message(arbitration_id=0x321, data=b"\x01", is_extended_id=False))
-        mine.send(can.Message(arbitration_id=0x322, data=b"\x02", is_extended_id=False))
+        theirs.send(can.Message(arbitration_id=0x7B1, data=b"\x01", is_extended_id=False))
+        mine.send(can.Message(arbitration_id=0x7B2, data=b"\x02", is_extended_id=False))
         # Our own frame is not echoed back to us (python-can default), so the only frame our
         # socket could ever see here is the other namespace's: it must never arrive.
         assert mine.recv(timeout=0.5) is None
@@ -75,16 +76,17 @@ def test_the_frame_link_opens_beside_a_bus_in_its_namespace_and_filters(private_
     """The raw-socket link (hilrig.transport) lands in the private bus's namespace, not this
     thread's, and the kernel passes it only the COB-IDs it asked for."""
     with private_bus.open() as bus, PrivateBus() as other, other.open() as elsewhere:
-        link = RawCanLink(open_raw_socket(private_bus.channel, [0x190], beside=socketcan_socket(bus)))
+        wanted, other_id, sent_id = 0x7C1, 0x7C2, 0x7C3  # no CANopen service's: a bus-level test
+        link = RawCanLink(open_raw_socket(private_bus.channel, [wanted], beside=socketcan_socket(bus)))
         try:
             assert link.socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF) >= RECEIVE_QUEUE_BYTES
-            elsewhere.send(can.Message(arbitration_id=0x190, data=b"\x09", is_extended_id=False))
-            for cob_id, data in ((0x290, b"\x01"), (0x190, b"\x02\x03")):
+            elsewhere.send(can.Message(arbitration_id=wanted, data=b"\x09", is_extended_id=False))
+            for cob_id, data in ((other_id, b"\x01"), (wanted, b"\x02\x03")):
                 bus.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False))
-            assert link.recv(10.0) == (0x190, b"\x02\x03")
+            assert link.recv(10.0) == (wanted, b"\x02\x03")
             assert link.recv(0.0) is None
-            link.send(can_frame(0x210, b"\xaa"))
-            echo = _recv_id(bus, 0x210, timeout_s=10.0)
+            link.send(can_frame(sent_id, b"\xaa"))
+            echo = _recv_id(bus, sent_id, timeout_s=10.0)
             assert bytes(echo.data) == b"\xaa"
         finally:
             link.close()
@@ -96,7 +98,7 @@ def test_the_recorder_process_logs_every_frame_whole_with_kernel_timestamps(
     path = tmp_path / "bus.log"
     recorder = RecorderProcess(private_bus, path)
     with private_bus.open() as bus:
-        sent = [(0x100 + n, bytes([n] * (n % 9))) for n in range(50)]
+        sent = [(0x101 + n, bytes([n] * (n % 9))) for n in range(50)]
         for cob_id, data in sent:
             bus.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False))
         bus.send(can.Message(arbitration_id=0x1ABCDEF, data=b"\x01", is_extended_id=True))

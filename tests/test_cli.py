@@ -12,6 +12,7 @@ import pytest
 from conftest import NODE_ID, REPO, NodeUnderTest
 
 from boardproto import load_table
+from boardproto.cia301 import SYNC_COB_ID
 from hilrig.netns import PrivateBus
 
 pytestmark = pytest.mark.bus
@@ -107,7 +108,7 @@ def test_watch_record_and_replay_decode(
     assert title.startswith(f"node 0x{NODE_ID:02X} ")
     by_name = {row.split()[0]: row.split() for row in rows}
     assert set(by_name) == {"motor_duty", "led_pattern", "winding_temperature", "velocity_ki"}
-    assert by_name["motor_duty"][3:5] == ["TPDO1", f"(0x{0x180 + NODE_ID:03X})"]
+    assert by_name["motor_duty"][3:5] == ["TPDO1", f"(0x{TABLE.tpdo(1).cob_id(NODE_ID):03X})"]
     assert by_name["velocity_ki"][1:4] == [f"{TABLE.field('velocity_ki').default:g}", "1/rad", "SDO"]
     assert by_name["winding_temperature"][2:4] == ["degC", "TPDO8"]
     float(by_name["winding_temperature"][1])  # a number, not "-"
@@ -187,5 +188,5 @@ def test_sim_reports_a_killed_firmware_with_the_evidence(scenario_dir: Path) -> 
     for name in ("trace.rrd", "bus.log", "firmware.log"):
         assert f"{out / name}" in error
         assert (out / name).stat().st_size > 0
-    syncs = [m for m in can.LogReader(str(out / "bus.log")) if m.arbitration_id == 0x80]
+    syncs = [m for m in can.LogReader(str(out / "bus.log")) if m.arbitration_id == SYNC_COB_ID]
     assert len(syncs) == 101, "cycles 0..99 answered, cycle 100's SYNC found the firmware dead"

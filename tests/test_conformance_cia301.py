@@ -17,17 +17,27 @@ import pytest
 from conftest import EDS, NODE_ID, REPO, NodeUnderTest, start_node, stop_node
 
 from boardproto import load_table
+from boardproto.cia301 import (
+    NMT_COB_ID,
+    SYNC_COB_ID,
+    FunctionCode,
+    SdoCommand,
+    cob_id,
+    heartbeat_cob_id,
+    sdo_request_cob_id,
+    sdo_response_cob_id,
+)
 from hilrig.netns import PrivateBus
 
 pytestmark = pytest.mark.bus
 
 TABLE = load_table(REPO / "protocol" / "board.toml")
-SDO_RX = 0x600 + NODE_ID
-SDO_TX = 0x580 + NODE_ID
-BOOT_UP = 0x700 + NODE_ID
-SYNC = 0x080
-TPDO1 = 0x180 + NODE_ID
-TPDO2 = 0x280 + NODE_ID
+SDO_RX = sdo_request_cob_id(NODE_ID)
+SDO_TX = sdo_response_cob_id(NODE_ID)
+BOOT_UP = heartbeat_cob_id(NODE_ID)
+SYNC = SYNC_COB_ID
+TPDO1 = cob_id(FunctionCode.TPDO1, NODE_ID)
+TPDO2 = cob_id(FunctionCode.TPDO2, NODE_ID)
 NO_RTR = 0x4000_0000
 NOT_VALID = 0x8000_0000
 SAVE = 0x6576_6173  # "save"
@@ -54,7 +64,7 @@ def download(under_test: NodeUnderTest, index: int, sub: int, value: int, size: 
     """Expedited download; returns 0 on success, else the abort code."""
     command = 0x23 | ((4 - size) << 2)
     answer = raw_sdo(under_test, struct.pack("<BHBI", command, index, sub, value))
-    if answer[0] == 0x80:
+    if answer[0] == SdoCommand.ABORT:
         return struct.unpack_from("<I", answer, 4)[0]
     assert answer[0] == 0x60, f"expected a download response to {index:#06x}:{sub}, got {answer.hex()}"
     return 0
@@ -71,13 +81,17 @@ def upload_abort(under_test: NodeUnderTest, index: int, sub: int = 0) -> int | N
     answer = raw_sdo(under_test, struct.pack("<BHB", 0x40, index, sub))
     if answer[0] == 0x41:  # a segmented upload (a string): end it, the object exists
         under_test.bus.send(
-            can.Message(arbitration_id=SDO_RX, data=bytes([0x80, 0, 0, 0, 0, 0, 0, 0]), is_extended_id=False)
+            can.Message(
+                arbitration_id=SDO_RX,
+                data=bytes([SdoCommand.ABORT, 0, 0, 0, 0, 0, 0, 0]),
+                is_extended_id=False,
+            )
         )
-    return struct.unpack_from("<I", answer, 4)[0] if answer[0] == 0x80 else None
+    return struct.unpack_from("<I", answer, 4)[0] if answer[0] == SdoCommand.ABORT else None
 
 
 def nmt(under_test: NodeUnderTest, command: int) -> None:
-    frame = can.Message(arbitration_id=0x000, data=bytes([command, NODE_ID]), is_extended_id=False)
+    frame = can.Message(arbitration_id=NMT_COB_ID, data=bytes([command, NODE_ID]), is_extended_id=False)
     under_test.bus.send(frame)
 
 

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from hilrig.lockstep import TRUTH_NAMES
+from hilrig.table import ControlMode
 
 pytestmark = pytest.mark.bus
 
-VELOCITY_MODE = 1.0
+VELOCITY_MODE = ControlMode.VELOCITY
 Series = tuple[np.ndarray, np.ndarray]
 
 

@@ -12,22 +12,24 @@ from canopen.nmt import NmtError
 from conftest import NODE_ID, REPO, stop_summary
 
 from boardproto import load_table
-from boardproto.cia301 import NmtCommand, NmtState
+from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState
+from boardproto.table import ERROR_RESET_CODE
 from hilrig.errors import FirmwareError
 from hilrig.faults import FaultInjector, FaultPlan
 from hilrig.physics import JointParams
+from hilrig.table import ControlMode, EmcyCode, FaultFlags
 
 pytestmark = pytest.mark.bus
 
 TABLE = load_table(REPO / "protocol" / "board.toml")
-VELOCITY_MODE = 1.0
+VELOCITY_MODE = ControlMode.VELOCITY
 GEAR_RATIO = JointParams().gear_ratio
 
-EMCY_ERROR_RESET = 0x0000
-EMCY_COMMAND_WATCHDOG = 0x8100
-EMCY_OWNERSHIP_VIOLATION = 0xFF00
-COMMAND_WATCHDOG_BIT = 1 << 4
-OWNERSHIP_VIOLATION_BIT = 1 << 5
+EMCY_ERROR_RESET = ERROR_RESET_CODE
+EMCY_COMMAND_WATCHDOG = EmcyCode.SETPOINT_STREAM_LOST
+EMCY_OWNERSHIP_VIOLATION = EmcyCode.OWNERSHIP_VIOLATION
+COMMAND_WATCHDOG_BIT = FaultFlags.COMMAND_WATCHDOG
+OWNERSHIP_VIOLATION_BIT = FaultFlags.OWNERSHIP_VIOLATION
 HEARTBEAT_S = TABLE.node.heartbeat_ms / 1000
 
 
@@ -58,7 +60,9 @@ def test_latched_fault_holds_until_fault_clear_then_error_reset(make_scenario) -
     s.expect.stays_within("safe_state", 1, 1, after_s=resumed_at)
     s.expect.stays_within("fault_flags", COMMAND_WATCHDOG_BIT, COMMAND_WATCHDOG_BIT, after_s=resumed_at)
     s.expect.stays_within("motor_duty", 0, 0, after_s=resumed_at + s.rig.period_s)
-    assert EMCY_COMMAND_WATCHDOG in emcy_codes(s.rig), f"expected EMCY 0x8100, got {emcy_codes(s.rig)}"
+    assert EMCY_COMMAND_WATCHDOG in emcy_codes(s.rig), (
+        f"expected {EMCY_COMMAND_WATCHDOG!r}, got {emcy_codes(s.rig)}"
+    )
     assert EMCY_ERROR_RESET not in emcy_codes(s.rig, after_s=resumed_at), (
         f"expected no EMCY error reset while latched, got {emcy_codes(s.rig, after_s=resumed_at)}"
     )
@@ -115,9 +119,14 @@ def test_write_by_a_non_owner_is_refused_and_reported_by_emcy(make_scenario) -> 
     before = [r for r in s.rig.emcy if r.time_s < rogue_t]
     assert not before, f"expected no EMCY before the rogue write, got {[str(r) for r in before]}"
     t_latch = s.expect.eventually(
-        "fault_flags", lambda v: int(v) & OWNERSHIP_VIOLATION_BIT, "fault_flags bit 5", after_s=rogue_t
+        "fault_flags",
+        lambda v: int(v) & OWNERSHIP_VIOLATION_BIT,
+        f"fault_flags {OWNERSHIP_VIOLATION_BIT!r}",
+        after_s=rogue_t,
     )
-    assert t_latch <= rogue_t + s.rig.period_s, f"expected bit 5 latched by cycle {ROGUE_CYCLE}, at {t_latch}"
+    assert t_latch <= rogue_t + s.rig.period_s, (
+        f"expected {OWNERSHIP_VIOLATION_BIT!r} latched by cycle {ROGUE_CYCLE}, at {t_latch}"
+    )
     s.expect.stays_within("fault_flags", OWNERSHIP_VIOLATION_BIT, OWNERSHIP_VIOLATION_BIT, after_s=t_latch)
     s.expect.stays_within("safe_state", 1, 1, after_s=t_latch)
     s.expect.stays_within("motor_duty", 0, 0, after_s=t_latch + s.rig.period_s)
@@ -172,7 +181,7 @@ def test_nmt_stop_halts_pdos_and_cycles_and_start_resumes_them(make_scenario) ->
             inside = message.data[0] == 0x02
         elif inside:
             between.append(message)
-    syncs = sum(m.arbitration_id == 0x80 for m in between)
+    syncs = sum(m.arbitration_id == SYNC_COB_ID for m in between)
     tpdos = [m for m in between if m.arbitration_id in tpdo_ids]
     assert syncs == stopped_cycles and not tpdos, (
         f"expected {stopped_cycles} SYNCs and no TPDO while stopped in {s.bus_log}, "
@@ -213,7 +222,7 @@ def test_killed_firmware_is_named_at_its_cycle_and_its_heartbeat_is_missed(make_
 
     s.close()  # the trace and bus log are complete now
     messages = list(can.LogReader(str(s.bus_log)))
-    syncs = [m for m in messages if m.arbitration_id == 0x80]
+    syncs = [m for m in messages if m.arbitration_id == SYNC_COB_ID]
     assert len(syncs) == KILL_CYCLE + 1, f"expected {KILL_CYCLE + 1} SYNCs in {s.bus_log}, got {len(syncs)}"
     import rerun as rr
 

@@ -10,22 +10,22 @@ import numpy as np
 import pytest
 
 from hilrig.physics import JointParams
+from hilrig.table import ControlMode, EmcyCode, FaultFlags
 
 pytestmark = pytest.mark.bus
 
-DISABLED, VELOCITY_MODE, TORQUE_MODE = 0.0, 1.0, 2.0
 GEAR_RATIO = JointParams().gear_ratio
 # A load with strong viscous friction: constant torque through the spring then gives a steady
 # speed, so torque control and the estimator see quasi-static motion.
 VISCOUS_LOAD = dataclasses.replace(JointParams(), load_viscous_friction_nm_s_per_rad=1.0)
 
-EMCY_STALE_SENSOR = 0x5000
-EMCY_OVER_TEMPERATURE = 0x4210
-EMCY_COMMAND_WATCHDOG = 0x8100
-
 
 def emcy_codes(rig) -> list[int]:
     return [record.code for record in rig.emcy]
+
+
+def latched_faults(rig) -> FaultFlags:
+    return FaultFlags(int(rig.field("fault_flags")))
 
 
 def test_velocity_step_settles_within_2_percent(make_scenario) -> None:
@@ -33,7 +33,7 @@ def test_velocity_step_settles_within_2_percent(make_scenario) -> None:
     # settles fast and clean. The load behind the spring follows with the spring-load ring
     # (about 70 rad/s, lightly damped), so its band is reached later: both are stated here.
     s = make_scenario()
-    s.rig.set("control_mode", VELOCITY_MODE)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
     s.rig.set("velocity_setpoint", 4.0)
     s.rig.run(seconds=1.5)
     target_motor = 4.0 * GEAR_RATIO
@@ -50,7 +50,7 @@ def test_velocity_step_settles_within_2_percent(make_scenario) -> None:
 
 def test_torque_step_through_the_spring(make_scenario) -> None:
     s = make_scenario(params=VISCOUS_LOAD)
-    s.rig.set("control_mode", TORQUE_MODE)
+    s.rig.set("control_mode", ControlMode.TORQUE)
     s.rig.set("torque_setpoint", 2.0)
     s.rig.run(seconds=1.2)
     settled = s.expect.settles_within("joint_torque", target=2.0, tolerance=0.02, by_s=0.9)
@@ -66,7 +66,7 @@ def test_spring_constant_is_estimated_within_5_percent(make_scenario) -> None:
     # plant's, not echo the nominal one.
     true_k = 60.0
     s = make_scenario(params=dataclasses.replace(VISCOUS_LOAD, spring_stiffness_nm_per_rad=true_k))
-    s.rig.set("control_mode", TORQUE_MODE)
+    s.rig.set("control_mode", ControlMode.TORQUE)
     for step, torque in enumerate([0.5, 2.5, 1.0, 3.0, 0.5, 2.0, 1.5, 3.0]):
         s.rig.at(0.35 * step, lambda rig, torque=torque: rig.set("torque_setpoint", torque))
     s.rig.run(seconds=2.8)
@@ -87,7 +87,7 @@ def test_thermal_derating_then_cut_off_with_hysteresis(make_scenario) -> None:
     s.rig.set("thermal_warning_c", 35.0)
     s.rig.set("thermal_limit_c", 40.0)
     s.rig.set("thermal_hysteresis_c", 5.0)
-    s.rig.set("control_mode", VELOCITY_MODE)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
     s.rig.set("velocity_setpoint", 1.0)
     s.rig.run(seconds=0.2)
     s.rig.plant.set_ambient_temperature(50.0)
@@ -98,7 +98,10 @@ def test_thermal_derating_then_cut_off_with_hysteresis(make_scenario) -> None:
         f"expected derating before the cut-off at {t_cut:.3f} s, first at {derate_t:.3f} s"
     )
     s.rig.run(seconds=0.05)
-    assert EMCY_OVER_TEMPERATURE in emcy_codes(s.rig), f"expected EMCY 0x4210, got {emcy_codes(s.rig)}"
+    assert EmcyCode.OVER_TEMPERATURE in emcy_codes(s.rig), (
+        f"expected {EmcyCode.OVER_TEMPERATURE!r}, got {emcy_codes(s.rig)}"
+    )
+    assert latched_faults(s.rig) == FaultFlags.OVER_TEMPERATURE, f"latched: {latched_faults(s.rig)!r}"
     s.expect.stays_within("motor_duty", 0, 0, after_s=t_cut + 0.01)
     # The enclosure cools again. Above limit - hysteresis (35 degC) a clear is refused: the
     # fault re-latches at once.
@@ -128,7 +131,7 @@ def test_thermal_derating_then_cut_off_with_hysteresis(make_scenario) -> None:
 
 def test_silent_encoder_goes_to_safe_state_with_emcy(make_scenario) -> None:
     s = make_scenario()
-    s.rig.set("control_mode", VELOCITY_MODE)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
     s.rig.set("velocity_setpoint", 2.0)
     s.rig.run(seconds=0.3)
     s.rig.pause_rpdo(1)  # the sensor frame stops: both encoders and the thermistor go silent
@@ -141,12 +144,16 @@ def test_silent_encoder_goes_to_safe_state_with_emcy(make_scenario) -> None:
         f"got {t_safe:.3f} s"
     )
     s.expect.stays_within("motor_duty", 0, 0, after_s=t_safe + s.rig.period_s)
-    assert EMCY_STALE_SENSOR in emcy_codes(s.rig), f"expected EMCY 0x5000, got {emcy_codes(s.rig)}"
+    assert EmcyCode.STALE_SENSOR in emcy_codes(s.rig), (
+        f"expected {EmcyCode.STALE_SENSOR!r}, got {emcy_codes(s.rig)}"
+    )
+    stale = FaultFlags.MOTOR_ENCODER_STALE | FaultFlags.OUTPUT_ENCODER_STALE | FaultFlags.THERMISTOR_STALE
+    assert latched_faults(s.rig) & stale == stale, f"latched: {latched_faults(s.rig)!r}"
 
 
 def test_command_watchdog_stops_the_motor_when_setpoints_stop(make_scenario) -> None:
     s = make_scenario()
-    s.rig.set("control_mode", VELOCITY_MODE)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
     s.rig.set("velocity_setpoint", 2.0)
     s.rig.run(seconds=0.3)
     s.expect.never("watchdog_tripped", lambda v: v != 0.0, "a watchdog trip while setpoints flow")
@@ -162,4 +169,7 @@ def test_command_watchdog_stops_the_motor_when_setpoints_stop(make_scenario) -> 
         f"got {t_trip:.3f} s"
     )
     s.expect.eventually("safe_state", lambda v: v == 1.0, "safe_state == 1", after_s=stopped_at)
-    assert EMCY_COMMAND_WATCHDOG in emcy_codes(s.rig), f"expected EMCY 0x8100, got {emcy_codes(s.rig)}"
+    assert EmcyCode.SETPOINT_STREAM_LOST in emcy_codes(s.rig), (
+        f"expected {EmcyCode.SETPOINT_STREAM_LOST!r}, got {emcy_codes(s.rig)}"
+    )
+    assert latched_faults(s.rig) == FaultFlags.COMMAND_WATCHDOG, f"latched: {latched_faults(s.rig)!r}"

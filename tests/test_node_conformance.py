@@ -17,13 +17,16 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from conftest import NODE_ID, REPO, NodeUnderTest, start_node, stop_node
 
 from boardproto import load_table
+from boardproto.cia301 import SdoCommand, heartbeat_cob_id, sdo_request_cob_id, sdo_response_cob_id
 from hilrig.netns import PrivateBus
+from hilrig.table import EmcyCode
 
 pytestmark = pytest.mark.bus
 
 TABLE = load_table(REPO / "protocol" / "board.toml")
-SDO_RX = 0x600 + NODE_ID
-SDO_TX = 0x580 + NODE_ID
+SDO_RX = sdo_request_cob_id(NODE_ID)
+SDO_TX = sdo_response_cob_id(NODE_ID)
+HEARTBEAT = heartbeat_cob_id(NODE_ID)
 
 
 # canopen's default SDO timeout (0.3 s) is shorter than an answer can take inside the emulated VM
@@ -51,7 +54,7 @@ def raw_sdo(under_test: NodeUnderTest, request: bytes) -> bytes:
 
 
 def abort_code(answer: bytes) -> int:
-    assert answer[0] == 0x80, f"expected an SDO abort (0x80), got {answer.hex()}"
+    assert answer[0] == SdoCommand.ABORT, f"expected an SDO abort (0x80), got {answer.hex()}"
     return struct.unpack_from("<I", answer, 4)[0]
 
 
@@ -139,7 +142,7 @@ def test_tpdo_remapped_in_pre_operational_is_sent_on_sync(node_under_test: NodeU
 def test_mapping_errors_are_answered(node_under_test: NodeUnderTest) -> None:
     sdo = node_under_test.node.sdo
     # Disable TPDO1 (bit 30: no RTR, as every TPDO COB-ID of this node).
-    sdo.download(0x1800, 1, struct.pack("<I", 0xC0000000 | (0x180 + NODE_ID)))
+    sdo.download(0x1800, 1, struct.pack("<I", 0xC0000000 | TABLE.tpdo(1).cob_id(NODE_ID)))
     sdo.download(0x1A00, 0, b"\x00")
     # 0x1008 (a string) cannot be mapped into a PDO.
     expect_abort(0x06040041, lambda: sdo.download(0x1A00, 1, struct.pack("<I", 0x10080008)))
@@ -177,7 +180,7 @@ def test_nmt_states_walk_and_reset_gives_boot_up_and_defaults(node_under_test: N
     # The boot-up (state byte 0x00) must come; wait_for fails if only heartbeats do. Listen
     # first: on a loaded machine the boot-up can beat a late subscription.
     node_under_test.wait_for(
-        0x700 + NODE_ID, after_subscribing=lambda: setattr(node.nmt, "state", "RESET"), data=b"\x00"
+        HEARTBEAT, after_subscribing=lambda: setattr(node.nmt, "state", "RESET"), data=b"\x00"
     )
     assert node.sdo["velocity_setpoint"].raw == pytest.approx(TABLE.field("velocity_setpoint").default)
 
@@ -187,11 +190,11 @@ def test_heartbeat_follows_the_configured_period(node_under_test: NodeUnderTest)
     # shared); what is checked is that 0x1017 changes the period, not the jitter.
     node = node_under_test.node
     node.sdo[0x1017].raw = 40
-    stamps = [node_under_test.wait_for(0x700 + NODE_ID).timestamp for _ in range(12)]
+    stamps = [node_under_test.wait_for(HEARTBEAT).timestamp for _ in range(12)]
     fast = statistics.median(b - a for a, b in itertools.pairwise(stamps))
     node.sdo[0x1017].raw = 200
-    node_under_test.wait_for(0x700 + NODE_ID)
-    stamps = [node_under_test.wait_for(0x700 + NODE_ID).timestamp for _ in range(6)]
+    node_under_test.wait_for(HEARTBEAT)
+    stamps = [node_under_test.wait_for(HEARTBEAT).timestamp for _ in range(6)]
     slow = statistics.median(b - a for a, b in itertools.pairwise(stamps))
     assert 0.02 < fast < 0.08, f"expected heartbeats about 40 ms apart, got {fast * 1e3:.1f} ms"
     assert slow > 2 * fast, (
@@ -206,8 +209,8 @@ def test_stale_encoder_is_reported_by_emcy_naming_the_field(node_under_test: Nod
     # SYNCs without any sensor frame: the encoders go silent.
     for _ in range(stale_limit + 5):
         node_under_test.network.sync.transmit()
-    emcy = node.emcy.wait(0x5000, timeout=30)
-    assert emcy is not None, "expected EMCY 0x5000 (stale sensor)"
+    emcy = node.emcy.wait(EmcyCode.STALE_SENSOR, timeout=30)
+    assert emcy is not None, f"expected {EmcyCode.STALE_SENSOR!r}"
     assert struct.unpack_from("<H", emcy.data, 0)[0] in {
         TABLE.field("motor_position").index,
         TABLE.field("output_position").index,
@@ -231,7 +234,7 @@ def test_parameters_stored_survive_a_restart(private_bus: PrivateBus, scenario_d
         assert second.node.sdo["velocity_kp"].raw == pytest.approx(0.125)
         second.node.sdo[0x1011][1].raw = 0x64616F6C  # "load": restore defaults
         second.wait_for(
-            0x700 + NODE_ID,
+            HEARTBEAT,
             after_subscribing=lambda: setattr(second.node.nmt, "state", "RESET"),
             data=b"\x00",
         )

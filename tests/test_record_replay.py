@@ -14,18 +14,19 @@ import cantools
 import pytest
 from conftest import BOOT_TIMEOUT_S, NODE_ID, REPO
 
+from boardproto.cia301 import emcy_cob_id, heartbeat_cob_id
 from hilrig.buslog import BusRecorder, node_cob_ids
 from hilrig.faults import FaultInjector, FaultPlan
 from hilrig.firmware import Firmware
 from hilrig.netns import PrivateBus
-from hilrig.table import RigTable
+from hilrig.table import ControlMode, RigTable
 
 pytestmark = pytest.mark.bus
 
 HILRIG = str(REPO / ".venv" / "bin" / "hilrig")
 DBC = REPO / "build" / "protocol" / "board.dbc"
 TABLE = RigTable.load()
-HEARTBEAT_ID = 0x700 + NODE_ID
+HEARTBEAT_ID = heartbeat_cob_id(NODE_ID)
 REPLAY_TIMEOUT_S = 600  # hang guard for the software-emulated VM, not a timing check
 # Faults in the recorded run, so the replay has to reproduce more than a quiet loop.
 FAULTS = [
@@ -57,7 +58,7 @@ def test_a_recorded_run_replays_into_a_fresh_firmware_with_identical_decoded_fie
 ) -> None:
     first = make_scenario(seed=5, trace=False, subdir="recorded")
     FaultInjector(first.rig, FaultPlan.parse(FAULTS), firmware=first.firmware).install()
-    first.rig.set("control_mode", 1.0)
+    first.rig.set("control_mode", ControlMode.VELOCITY)
     first.rig.set("velocity_setpoint", 2.0)
     first.rig.run(seconds=0.2)
     cycles = first.rig.cycle
@@ -109,7 +110,7 @@ def test_a_recorded_run_replays_into_a_fresh_firmware_with_identical_decoded_fie
     assert [(m.arbitration_id, bytes(m.data)) for m in replayed] == [
         (m.arbitration_id, bytes(m.data)) for m in recorded
     ]
-    emcy = [m for m in recorded if m.arbitration_id == 0x080 + NODE_ID]
+    emcy = [m for m in recorded if m.arbitration_id == emcy_cob_id(NODE_ID)]
     assert emcy, f"expected the malformed frame's EMCY in {first.bus_log}"
     print(
         f"\nreplayed {len(first_tpdos)} TPDOs of {cycles} cycles, {len(recorded)} node frames "

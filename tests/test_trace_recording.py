@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hilrig.table import ControlMode
 from hilrig.trace import EMCY_PATH, entity_paths
 from hilrig.trace_reader import Trace
 
@@ -15,7 +16,7 @@ pytestmark = pytest.mark.bus
 
 def test_a_scenario_trace_holds_every_streamed_field_and_its_faults(make_scenario) -> None:
     s = make_scenario()
-    s.rig.set("control_mode", 1.0)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
     s.rig.set("velocity_setpoint", 1.0)
     s.rig.run(seconds=0.1)
     s.rig.pause_rpdo(2)  # the setpoint stream stops: the watchdog trips, EMCY 0x8100

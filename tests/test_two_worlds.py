@@ -24,10 +24,11 @@ from boardproto.cia301 import NmtState
 from hilrig.expect import Expect
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
+from hilrig.table import ControlMode
 
 pytestmark = pytest.mark.bus
 
-VELOCITY_MODE = 1.0
+VELOCITY_MODE = ControlMode.VELOCITY
 SETPOINT_RAD_S = 2.0
 GEAR_RATIO = JointParams().gear_ratio
 HOLD_S = 4.0
