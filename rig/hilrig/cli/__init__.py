@@ -1,6 +1,7 @@
 """`hilrig`: the rig's command-line tool, for people at a bench and for `make run`.
 
     hilrig fields --kind parameter            # the table, no bus needed
+    hilrig dbc --node-id 0x20 -o board-32.dbc # the DBC for a board at another node id
     hilrig get motor_velocity velocity_kp     # SDO, values with units
     hilrig set velocity_kp=0.2                # SDO; a refusal is explained in words
     hilrig watch --sync-period-ms 10          # live table of the TPDO fields
@@ -32,7 +33,17 @@ from typing import NoReturn
 from hilrig.cli.common import Command, UsageError, one_line
 from hilrig.errors import RigError
 
-COMMAND_MODULES: tuple[str, ...] = ("fields", "sdo", "watch", "scan", "record", "sim", "busload", "soak")
+COMMAND_MODULES: tuple[str, ...] = (
+    "fields",
+    "dbc",
+    "sdo",
+    "watch",
+    "scan",
+    "record",
+    "sim",
+    "busload",
+    "soak",
+)
 """Modules of `hilrig.cli` whose COMMANDS are registered, in the order `--help` lists them."""
 
 EXIT_OK = 0
