@@ -16,6 +16,9 @@ Entity paths mirror the data (dashboards/ builds its views on exactly these):
     /truth/<quantity>        the plant's ground truth (JointState attributes, unit in the name),
                              plus spring_stiffness_nm_per_rad from the plant parameters
     /events/nmt, /events/emcy, /events/sdo    text log entries with a level
+    <field or HIL path>/label  for a field whose values have names in board.toml (control_mode,
+                             fault_flags, led_pattern): a text entry at each change of value,
+                             "control_mode = velocity", "fault_flags = motor_encoder_stale|..."
 
 Every scalar entity carries a static `SeriesLines` name with its unit ("motor_velocity [rad/s]").
 Timelines: `cycle` (sequence) and `sim_time` (duration, exact cycle * period) in lockstep; in
@@ -55,6 +58,7 @@ import numpy as np
 
 from boardproto import Field, IoDirection, Kind
 from boardproto.cia301 import NmtState
+from boardproto.table import BitSet, ValueEnum
 from hilrig.driver import CycleResult, History, HistoryMark
 from hilrig.node import EmcyRecord
 from hilrig.observers import RigObserver
@@ -90,6 +94,7 @@ TRUTH_ROOT = "/truth"
 EVENTS_ROOT = "/events"
 NMT_PATH = f"{EVENTS_ROOT}/nmt"
 EMCY_PATH = f"{EVENTS_ROOT}/emcy"
+LABEL_CHILD = "label"
 SDO_PATH = f"{EVENTS_ROOT}/sdo"
 TRUE_SPRING_STIFFNESS = "spring_stiffness_nm_per_rad"
 """Extra truth series: the plant's spring constant, to plot next to spring_constant_estimate."""
@@ -288,6 +293,14 @@ class Tracer(RigObserver):
         self._params: JointParams | None = None
         self._paths = self._entity_paths(table)
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
+        # Entities whose values have names (board.toml enums and bitsets): each change of value
+        # also goes in as a TextLog at <entity>/label, so the viewer shows "velocity" beside 1.
+        self._value_names: dict[str, ValueEnum | BitSet] = {
+            self._paths[entry.name]: values
+            for entry in table.board.entries
+            if (values := table.board.values_of(entry.name)) is not None
+        }
+        self._last_named_value: dict[str, float] = {}
         self._pending: list[_CycleRow | CycleResult] = []
         # Following a Rig's History (on_history): a cycle costs a count; a batch is the span
         # between two marks, taken from the history's own per-PDO rows as columns.
@@ -614,13 +627,35 @@ class Tracer(RigObserver):
         if path not in self._named:
             self._named.add(path)
             self.recording.log(path, rr.SeriesLines(names=self._series_name(path)), static=True)
+        indexes = [
+            rr.TimeColumn(CYCLE_TIMELINE, sequence=np.asarray(cycles, dtype=np.int64)),
+            self._time_column(times),
+        ]
+        self.recording.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values))
+        named = self._value_names.get(path)
+        if named is not None:
+            self._send_value_names(path, named, np.asarray(cycles), np.asarray(times), values)
+
+    def _send_value_names(
+        self, path: str, named: ValueEnum | BitSet, cycles: np.ndarray, times: np.ndarray, values: np.ndarray
+    ) -> None:
+        """The name of each new value (where it differs from the one before), as a TextLog at
+        `<path>/label` (a child entity: the number's own entity keeps one component per row)."""
+        before = self._last_named_value.get(path, np.nan)
+        previous = np.concatenate(([before], values[:-1]))
+        changed = np.flatnonzero(values != previous)  # NaN != anything: the first value counts
+        if not len(changed):
+            return
+        self._last_named_value[path] = float(values[-1])
+        rr = self._rr
+        texts = [f"{path.rsplit('/', 1)[-1]} = {value_name(named, float(values[i]))}" for i in changed]
         self.recording.send_columns(
-            path,
+            label_path(path),
             indexes=[
-                rr.TimeColumn(CYCLE_TIMELINE, sequence=np.asarray(cycles, dtype=np.int64)),
-                self._time_column(times),
+                rr.TimeColumn(CYCLE_TIMELINE, sequence=cycles[changed].astype(np.int64)),
+                self._time_column(times[changed]),
             ],
-            columns=rr.Scalars.columns(scalars=values),
+            columns=rr.TextLog.columns(text=texts, level=[Severity.INFO.value] * len(texts)),
         )
 
     def _time_column(self, times: Sequence[float]) -> rr.TimeColumn:
@@ -651,6 +686,21 @@ class Tracer(RigObserver):
         if path.startswith(TRUTH_ROOT):
             return f"true {name} [{truth_unit(name)}]"
         return f"{name} [{self.table.entry(name).unit}]"
+
+
+def label_path(path: str) -> str:
+    """Where the names of an enum or bitset entity's values go ("velocity" for control_mode 1)."""
+    return f"{path}/{LABEL_CHILD}"
+
+
+def value_name(named: ValueEnum | BitSet, value: float) -> str:
+    """'velocity' for control_mode 1, 'motor_encoder_stale|output_encoder_stale' for fault_flags 3,
+    'none' for 0; a number that is no value of an enum is shown as such ('7 (no control_mode)')."""
+    if isinstance(named, BitSet):
+        if value != int(value) or value < 0:
+            return f"{value:g} (no {named.name})"
+        return "|".join(named.names_of(value)) or "none"
+    return named.name_of(value) or f"{value:g} (no {named.name})"
 
 
 def entity_paths(table: RigTable) -> dict[str, str]:

@@ -1,0 +1,58 @@
+"""Fields whose values have names in board.toml (enums, bitsets) carry those names in the trace:
+a text entry at `<entity>/label` each time the value changes, next to the number."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import can
+
+from hilrig.fake_node import FakeJointNode
+from hilrig.physics import JointParams
+from hilrig.rig import Rig
+from hilrig.table import BOARD_TABLE, ControlMode, FaultFlags, RigTable
+from hilrig.trace import Tracer, TraceSink, entity_paths, label_path, value_name
+from hilrig.trace_reader import Trace
+
+
+def test_an_enum_value_and_a_fault_combination_get_their_names() -> None:
+    modes, faults = BOARD_TABLE.enum("control_mode"), BOARD_TABLE.bitset("fault_flags")
+    assert value_name(modes, float(ControlMode.TORQUE)) == "torque"
+    assert value_name(modes, 7.0) == "7 (no control_mode)"
+    assert value_name(faults, 0.0) == "none"
+    both = FaultFlags.MOTOR_ENCODER_STALE | FaultFlags.OVER_TEMPERATURE
+    assert value_name(faults, float(both)) == "motor_encoder_stale|over_temperature"
+    assert value_name(faults, float(1 << 20)) == "bit 20"  # latched by a newer firmware
+    assert value_name(faults, 0.5) == "0.5 (no fault_flags)"
+
+
+def test_a_traced_run_names_each_new_value_of_an_enum_field(tmp_path: Path) -> None:
+    table = RigTable.load()
+    rig_bus, fake_bus = (can.Bus(interface="virtual", channel="hilrig-trace-labels") for _ in range(2))
+    fake = FakeJointNode(fake_bus, table=table)
+    path = tmp_path / "trace.rrd"
+    tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=7, background=False, blueprint=None)
+    rig = Rig(rig_bus, table=table, params=JointParams(), seed=1, tpdo_timeout_s=0.5, tracer=tracer)
+    fake.boot()
+    try:
+        rig.start()
+        rig.set("control_mode", ControlMode.VELOCITY)
+        rig.run(cycles=10)
+        rig.set("control_mode", ControlMode.TORQUE)
+        rig.run(cycles=10)
+    finally:
+        rig.close()
+        fake.close()
+        tracer.close()
+        rig_bus.shutdown()
+        fake_bus.shutdown()
+
+    trace = Trace.read(path)
+    paths = entity_paths(table)
+    mode_labels = [text for text, _level in trace.texts[label_path(paths["control_mode"])]]
+    assert mode_labels[-2:] == ["control_mode = velocity", "control_mode = torque"], mode_labels
+    assert len(trace.scalars[paths["control_mode"]]) >= 2  # the numbers stay where they were
+    fault_labels = trace.texts[label_path(paths["fault_flags"])]
+    assert [text for text, _ in fault_labels] == ["fault_flags = none"]  # once: it never changed
+    assert trace.texts[label_path(paths["led_pattern"])], "led_pattern (a HIL output) is named too"
+    assert "motor_velocity" not in {p.rsplit("/", 2)[-2] for p in trace.texts if p.endswith("/label")}
