@@ -9,6 +9,7 @@ from __future__ import annotations
 import difflib
 import enum
 import functools
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
@@ -225,6 +226,10 @@ class ValueEnum:
                 return value.name
         return None
 
+    def label(self, number: float) -> str:
+        """'velocity' for 1; a number that is none of the values says so: '7 (no control_mode)'."""
+        return self.name_of(number) or f"{number:g} (no {self.name})"
+
     def python_type(self) -> type[enum.IntEnum]:
         """An IntEnum built from the table (members upper-case: ControlMode.VELOCITY)."""
         return _python_enum(self)
@@ -263,6 +268,13 @@ class BitSet:
         number = int(flags)
         named = {b.bit: b.name for b in self.bits}
         return tuple(named.get(n, f"bit {n}") for n in range(number.bit_length()) if number >> n & 1)
+
+    def label(self, flags: float) -> str:
+        """'motor_encoder_stale|over_temperature' for 9, 'none' for 0; a number that cannot be a
+        set of bits says so: '0.5 (no fault_flags)'."""
+        if not math.isfinite(flags) or flags != int(flags) or flags < 0:
+            return f"{flags:g} (no {self.name})"
+        return "|".join(self.names_of(flags)) or "none"
 
     def python_type(self) -> type[enum.IntFlag]:
         """An IntFlag built from the table (members upper-case: FaultFlags.MOTOR_ENCODER_STALE)."""

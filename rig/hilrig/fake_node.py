@@ -24,7 +24,7 @@ from canopen.sdo import SdoAbortedError
 from boardproto import Field
 from boardproto.cia301 import SYNC_COB_ID, NmtState, heartbeat_cob_id
 from hilrig.node import RECEIVE_POLL_S, SdoAbortCode
-from hilrig.table import RigTable
+from hilrig.table import LedPattern, RigTable
 
 Value = float | int
 Law = Callable[[Mapping[str, Value]], Mapping[str, Value]]
@@ -47,7 +47,7 @@ def default_law(inputs: Mapping[str, Value]) -> dict[str, Value]:
     duty = round(float(inputs["velocity_setpoint"]) * DUTY_PER_VELOCITY_SETPOINT)
     return {
         "motor_duty": max(-10000, min(10000, duty)),
-        "led_pattern": 1,
+        "led_pattern": int(LedPattern.ON),
         "motor_velocity": float(inputs["motor_encoder_counts"]),
         "output_velocity": float(inputs["output_encoder_counts"]),
     }

@@ -696,11 +696,7 @@ def label_path(path: str) -> str:
 def value_name(named: ValueEnum | BitSet, value: float) -> str:
     """'velocity' for control_mode 1, 'motor_encoder_stale|output_encoder_stale' for fault_flags 3,
     'none' for 0; a number that is no value of an enum is shown as such ('7 (no control_mode)')."""
-    if isinstance(named, BitSet):
-        if value != int(value) or value < 0:
-            return f"{value:g} (no {named.name})"
-        return "|".join(named.names_of(value)) or "none"
-    return named.name_of(value) or f"{value:g} (no {named.name})"
+    return named.label(value)
 
 
 def entity_paths(table: RigTable) -> dict[str, str]:

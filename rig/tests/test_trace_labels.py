@@ -24,6 +24,7 @@ def test_an_enum_value_and_a_fault_combination_get_their_names() -> None:
     assert value_name(faults, float(both)) == "motor_encoder_stale|over_temperature"
     assert value_name(faults, float(1 << 20)) == "bit 20"  # latched by a newer firmware
     assert value_name(faults, 0.5) == "0.5 (no fault_flags)"
+    assert value_name(faults, float("nan")) == "nan (no fault_flags)"
 
 
 def test_a_traced_run_names_each_new_value_of_an_enum_field(tmp_path: Path) -> None:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Self, TextIO
 
+from boardproto.table import BitSet, ValueEnum
 from hilrig.errors import BusUnavailableError, FieldNameError, RigError
 from hilrig.table import DEFAULT_TABLE_PATH, ObjectEntry, RigTable
 
@@ -191,12 +192,13 @@ def resolved_node_id(args: argparse.Namespace, table: RigTable) -> int:
     return args.node_id if args.node_id is not None else table.board.node.default_node_id
 
 
-def format_value(value: float | None) -> str:
+def format_value(value: float | None, named: ValueEnum | BitSet | None = None) -> str:
+    """The number; for a field whose values have names in board.toml, the name first:
+    'velocity (1)', 'motor_encoder_stale|thermistor_stale (5)', 'none (0)'."""
     if value is None:
         return "-"
-    if isinstance(value, float):
-        return f"{value:.6g}"
-    return str(value)
+    text = f"{value:.6g}" if isinstance(value, float) else str(value)
+    return f"{named.label(float(value))} ({text})" if named is not None else text
 
 
 def format_unit(unit: str) -> str:

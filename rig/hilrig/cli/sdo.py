@@ -7,6 +7,7 @@ import math
 import sys
 
 from boardproto import Field
+from boardproto.table import BitSet, ValueEnum
 from hilrig.cli.common import (
     Command,
     UsageError,
@@ -22,16 +23,48 @@ from hilrig.cli.common import (
     silent_hint,
 )
 from hilrig.errors import SdoAbortError, SdoTimeoutError
-from hilrig.table import ObjectEntry
+from hilrig.table import ObjectEntry, RigTable, unknown_name
 
 
-def parse_assignment(text: str, entry_of: dict[str, ObjectEntry]) -> tuple[str, float | int]:
-    """'velocity_kp=0.2' -> ('velocity_kp', 0.2); HIL I/O objects take integers."""
+def parse_named(name: str, named: ValueEnum | BitSet, text: str) -> int | None:
+    """The number a value name stands for ('velocity', 'motor_encoder_stale|thermistor_stale',
+    'none'); None when `text` is no name (a number, say); a misspelt name is a usage error."""
+    if not text[:1].isalpha():
+        return None
+    if isinstance(named, ValueEnum):
+        number = next((v.value for v in named.values if v.name == text), None)
+        if number is None:
+            raise UsageError(
+                f"{name}: {unknown_name(f'{named.name} value', text, [v.name for v in named.values])}"
+            )
+        return number
+    if text == "none":
+        return 0
+    flags = 0
+    for part in text.split("|"):
+        bit = next((b for b in named.bits if b.name == part.strip()), None)
+        if bit is None:
+            raise UsageError(
+                f"{name}: {unknown_name(f'{named.name} bit', part.strip(), [b.name for b in named.bits])}"
+            )
+        flags |= bit.mask
+    return flags
+
+
+def parse_assignment(
+    text: str, entry_of: dict[str, ObjectEntry], table: RigTable | None = None
+) -> tuple[str, float | int]:
+    """'velocity_kp=0.2' -> ('velocity_kp', 0.2); HIL I/O objects take integers; a field whose
+    values have names in board.toml also takes a name: 'control_mode=velocity' -> 1.0."""
     name, sep, value_text = text.partition("=")
     name, value_text = name.strip(), value_text.strip()
     if not sep or not name or not value_text:
         raise UsageError(f"expected NAME=VALUE, got {text!r} (e.g. velocity_kp=0.2)")
     entry = entry_of[name]
+    named = table.board.values_of(name) if table is not None else None
+    number = parse_named(name, named, value_text) if named is not None else None
+    if number is not None:
+        return name, float(number) if isinstance(entry, Field) else number
     if isinstance(entry, Field):
         try:
             value: float | int = float(value_text)
@@ -80,7 +113,8 @@ def run_get(args: argparse.Namespace) -> int:
                 failures.append(str(error))
                 rows.append([entry.name, "=", "?", "(refused)"])
                 continue
-            rows.append([entry.name, "=", format_value(value), format_unit(entry.unit)])
+            named = table.board.values_of(entry.name)
+            rows.append([entry.name, "=", format_value(value, named), format_unit(entry.unit)])
     print_table(rows)
     for failure in failures:
         print(f"hilrig get: error: {failure}", file=sys.stderr)
@@ -91,7 +125,7 @@ def run_set(args: argparse.Namespace) -> int:
     table = load_table(args)
     names = [text.partition("=")[0].strip() for text in args.assignments]
     entry_of = {entry.name: entry for entry in check_names(table, [n for n in names if n])}
-    assignments = [parse_assignment(text, entry_of) for text in args.assignments]
+    assignments = [parse_assignment(text, entry_of, table) for text in args.assignments]
     with open_bus(args) as bus, board_node(args, bus, table) as node:
         for number, (name, value) in enumerate(assignments):
             try:
@@ -107,7 +141,8 @@ def run_set(args: argparse.Namespace) -> int:
                     file=sys.stderr,
                 )
                 return 1
-            print_table([[name, "=", format_value(actual), format_unit(entry_of[name].unit)]])
+            shown = format_value(actual, table.board.values_of(name))
+            print_table([[name, "=", shown, format_unit(entry_of[name].unit)]])
             sys.stdout.flush()
     return 0
 

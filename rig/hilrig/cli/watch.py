@@ -16,6 +16,7 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, TextIO
 
+from boardproto.table import BitSet, ValueEnum
 from hilrig.cli.common import (
     Command,
     SyncProducer,
@@ -56,8 +57,11 @@ class Reading:
 class Board:
     """Latest value of each watched field, fed by the TPDO callback (receive thread)."""
 
-    def __init__(self, entries: list[ObjectEntry]) -> None:
+    def __init__(
+        self, entries: list[ObjectEntry], named: dict[str, ValueEnum | BitSet] | None = None
+    ) -> None:
         self.entries = entries
+        self.named = named or {}  # names of the values of fields that have them (board.toml)
         self.readings = {e.name: Reading() for e in entries}
         self._lock = threading.Lock()
         self.changed = threading.Condition(self._lock)
@@ -94,7 +98,7 @@ class Board:
             return [
                 [
                     e.name,
-                    format_value(self.readings[e.name].value),
+                    format_value(self.readings[e.name].value, self.named.get(e.name)),
                     format_unit(e.unit),
                     self.readings[e.name].source,
                     str(self.readings[e.name].updates),
@@ -195,7 +199,8 @@ def run(args: argparse.Namespace) -> int:
             for n in p.names
         ]
         polled = [e.name for e in entries if e.name not in streamed]
-        board = Board(entries)
+        named = {e.name: values for e in entries if (values := table.board.values_of(e.name)) is not None}
+        board = Board(entries, named)
         node.on_tpdo(board.on_tpdo)
         if args.nmt_start:
             node.nmt(NmtCommand.START)
