@@ -130,8 +130,11 @@ def test_watch_record_and_replay_decode(
 
 
 SHORT_SCENARIO = """
+from hilrig.table import ControlMode
+
+
 def scenario(rig):
-    rig.set("control_mode", 1)
+    rig.set("control_mode", ControlMode.VELOCITY)
     rig.set("velocity_setpoint", 2.0)
     rig.run(seconds=0.3)
 """

@@ -94,6 +94,21 @@ def cob_id(function: FunctionCode, node_id: int) -> int:
     return int(function) + node_id
 
 
+PDO_EXTENSION_OFFSET = 0x40
+"""PDO 5..8 by the common extension of the predefined set: PDO 1..4's bases + 0x40 (so they share
+identifiers with PDO 1..4 of node id + 64)."""
+
+
+def predefined_pdo_base(functions: tuple[FunctionCode, ...], number: int) -> int | None:
+    """COB-ID base of PDO `number` (1-based) of one direction (`TPDO_FUNCTIONS` or
+    `RPDO_FUNCTIONS`): 1..4 from the predefined connection set, 5..8 the same + 0x40; None beyond
+    (there is no standard default after PDO 4)."""
+    if not 1 <= number <= 2 * len(functions):
+        return None
+    block, step = divmod(number - 1, len(functions))
+    return int(functions[step]) + PDO_EXTENSION_OFFSET * block
+
+
 def emcy_cob_id(node_id: int) -> int:
     return cob_id(FunctionCode.SYNC_EMCY, node_id)
 
@@ -127,25 +142,27 @@ def due_at_sync(transmission_type: int, sync_number: int) -> bool:
 
 
 __all__ = [
+    "FUNCTION_CODE_MASK",
     "LAST_SYNCHRONOUS_TYPE",
     "NMT_COB_ID",
     "NODE_ID_MASK",
+    "PDO_EXTENSION_OFFSET",
+    "RPDO_FUNCTIONS",
     "STANDARD_ID_MASK",
     "SYNC_COB_ID",
     "SYNC_COUNTER_MAX",
     "TIME_COB_ID",
-    "FUNCTION_CODE_MASK",
-    "RPDO_FUNCTIONS",
     "TPDO_FUNCTIONS",
     "FunctionCode",
-    "SdoCommand",
-    "function_of",
     "NmtCommand",
     "NmtState",
+    "SdoCommand",
     "cob_id",
     "due_at_sync",
     "emcy_cob_id",
+    "function_of",
     "heartbeat_cob_id",
+    "predefined_pdo_base",
     "sdo_request_cob_id",
     "sdo_response_cob_id",
     "sync_counter",

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
+from boardproto.cia301 import RPDO_FUNCTIONS, TPDO_FUNCTIONS, predefined_pdo_base
 from boardproto.table import (
     HIL_IO_TYPES,
     Access,
@@ -510,10 +511,7 @@ def _check_unique(source: Path, entries: list[ObjectEntry]) -> None:
 def default_cob_id_base(direction: PdoDirection, number: int) -> int | None:
     """CiA 301 pre-defined connection set for PDO 1..4, and the same + 0x40 for 5..8
     (a common extension; there is no standard default beyond PDO 4)."""
-    if not 1 <= number <= 8:
-        return None
-    block, step = divmod(number - 1, 4)
-    return direction.predefined_cob_id_base + 0x100 * step + 0x40 * block
+    return predefined_pdo_base(RPDO_FUNCTIONS if direction is PdoDirection.RPDO else TPDO_FUNCTIONS, number)
 
 
 def _load_pdos(

@@ -16,6 +16,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import TypeVar
 
+from boardproto.cia301 import FunctionCode
+
 _T = TypeVar("_T")
 
 FIELD_BITS = 32  # every board field is a REAL32
@@ -334,7 +336,7 @@ class PdoDirection(enum.StrEnum):
     @property
     def predefined_cob_id_base(self) -> int:
         """CiA 301 pre-defined connection set base of PDO 1 (0x200 / 0x180)."""
-        return 0x200 if self is PdoDirection.RPDO else 0x180
+        return int(FunctionCode.RPDO1 if self is PdoDirection.RPDO else FunctionCode.TPDO1)
 
 
 @dataclass(frozen=True)

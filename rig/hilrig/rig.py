@@ -1,7 +1,7 @@
 """The scenario API: a lockstep rig around one board node, written to read like the test.
 
     with Rig(bus, params=JointParams.fast_thermal(), seed=1) as rig:
-        rig.set("control_mode", 1)              # SDO, or the RPDO that carries it
+        rig.set("control_mode", ControlMode.VELOCITY)   # SDO, or the RPDO that carries it
         rig.set("velocity_setpoint", 10.0)      # goes out in the setpoint stream
         rig.at(0.5, lambda rig: rig.set("velocity_setpoint", 0.0))
         rig.run(seconds=1.0)

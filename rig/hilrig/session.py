@@ -4,7 +4,7 @@ order and closed in reverse on one `contextlib.ExitStack`. Used by the pytest fi
 `hilrig sim` / `make run`, the bench and the trace bench::
 
     with hil_session(SessionConfig(out_dir=Path("out/run"), seed=1)) as session:
-        session.rig.set("control_mode", 1)
+        session.rig.set("control_mode", ControlMode.VELOCITY)  # from hilrig.table
         session.rig.run(seconds=1.0)
     # firmware stopped (SIGTERM, its stop line in out/run/firmware.log), out/run/bus.log and
     # out/run/trace.rrd whole

@@ -30,6 +30,7 @@ from collections.abc import Sequence
 from types import FrameType
 from typing import NoReturn
 
+from boardproto import TableError
 from hilrig.cli.common import Command, UsageError, one_line
 from hilrig.errors import RigError
 
@@ -117,8 +118,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous = None
     try:
         return int(args.run(args))
-    except UsageError as error:
-        print(f"{prog}: error: {error}", file=sys.stderr)
+    except (UsageError, TableError) as error:  # a bad table file is a bad argument (--table)
+        print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
         return EXIT_USAGE
     except BrokenPipeError:  # `hilrig ... | head` stopped reading: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -333,6 +333,7 @@ def _decode(args: argparse.Namespace) -> int:
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
     dbc = NodeDbc(database, table, node)
     units = {e.name: format_unit(e.unit) for e in table.board.entries}
+    named = {e.name: v for e in table.board.entries if (v := table.board.values_of(e.name)) is not None}
     wanted = set(args.field or ())
     first: float | None = None
     frames = 0
@@ -355,7 +356,7 @@ def _decode(args: argparse.Namespace) -> int:
                     if wanted and not shown:
                         continue
                     text = f"{dbc_message.name}  " + "  ".join(
-                        f"{k}={format_value(v)}{' ' + units.get(k, '') if units.get(k) else ''}"
+                        f"{k}={format_value(v, named.get(k))}{' ' + units.get(k, '') if units.get(k) else ''}"
                         for k, v in shown.items()
                     )
             elif wanted:
