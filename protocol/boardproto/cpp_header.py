@@ -2,7 +2,20 @@
 
 from __future__ import annotations
 
-from boardproto.table import BoardTable, DataType, Field, HilIo, Pdo
+from boardproto.loader import TableError
+from boardproto.table import (
+    BitSet,
+    BoardTable,
+    DataType,
+    EmcyCode,
+    ErrorRegisterBit,
+    Field,
+    FlagBit,
+    HilIo,
+    Pdo,
+    ValueEnum,
+    camel_case,
+)
 
 GENERATED_BANNER = "// Generated from protocol/board.toml by protocol/boardproto. Do not edit."
 PDO_MAX_ENTRIES = 8
@@ -68,8 +81,299 @@ def _data_type_enumerators() -> str:
     return ",\n".join(f"  {t.cpp_name} = 0x{t.value:04X}" for t in DataType)
 
 
+# Smallest integer type that holds every value of an [[enum]] (values fit in 25 bits signed).
+_ENUM_TYPES = (
+    ("std::uint8_t", 0, 0xFF),
+    ("std::int8_t", -0x80, 0x7F),
+    ("std::uint16_t", 0, 0xFFFF),
+    ("std::int16_t", -0x8000, 0x7FFF),
+    ("std::int32_t", -0x8000_0000, 0x7FFF_FFFF),
+)
+
+# C++ types the header declares itself: an [[enum]] or [[bitset]] must not take their names.
+_FIXED_TYPE_NAMES = frozenset(
+    {
+        "FieldId",
+        "Kind",
+        "Access",
+        "DataType",
+        "FieldInfo",
+        "HilInputId",
+        "HilOutputId",
+        "IoInfo",
+        "NodeIdentity",
+        "PdoMapEntry",
+        "PdoDefault",
+        "EmcyId",
+        "EmcyInfo",
+        "FlagInfo",
+    }
+)
+
+
+def cpp_comment(text: str) -> str:
+    """Text for the rest of a // line: a trailing backslash would splice the next line in."""
+    return text + "." if text.endswith("\\") else text
+
+
+def enum_underlying_type(values: ValueEnum) -> str:
+    """The narrowest of uint8/int8/uint16/int16/int32 that holds every value."""
+    numbers = [v.value for v in values.values]
+    return next(name for name, low, high in _ENUM_TYPES if low <= min(numbers) and max(numbers) <= high)
+
+
+def bit_type_name(bitset: BitSet) -> str:
+    """fault_flags -> FaultFlagsBit: the enum class of its bit numbers."""
+    return f"{bitset.type_name}Bit"
+
+
+def bits_by_number(bitset: BitSet) -> tuple[FlagBit, ...]:
+    """The bits lowest first (the order of the generated arrays)."""
+    return tuple(sorted(bitset.bits, key=lambda b: b.bit))
+
+
+def _check_cpp_names(table: BoardTable) -> None:
+    """The C++ names made from board.toml names must not collide (CamelCase joins words:
+    'a_1b' and 'a1b' both become A1b; an enum 'kind' would redefine board::Kind)."""
+    taken: dict[str, str] = {name: "a type of the header itself" for name in _FIXED_TYPE_NAMES}
+    named: list[tuple[str, str, str, list[str]]] = [
+        ("enum", e.name, e.type_name, [v.name for v in e.values]) for e in table.enums
+    ]
+    named += [("bitset", b.name, bit_type_name(b), [bit.name for bit in b.bits]) for b in table.bitsets]
+    for what, name, type_name, members in named:
+        where = f"{table.source}: {what} {name!r}"
+        if type_name in taken:
+            raise TableError(f"{where}: its C++ type name {type_name} is already {taken[type_name]}")
+        taken[type_name] = f"the type of {what} {name!r}"
+        enumerators: dict[str, str] = {}
+        for member in members:
+            cpp_name = camel_case(member)
+            if cpp_name in enumerators:
+                raise TableError(
+                    f"{where}: {member!r} and {enumerators[cpp_name]!r} both become the C++ name {cpp_name}"
+                )
+            enumerators[cpp_name] = member
+
+
+def _carried_by(table: BoardTable, name: str) -> str:
+    carriers = [f"{e.name} (0x{e.index:04X})" for e in table.entries if e.values == name]
+    return ", ".join(carriers) or "no field yet"
+
+
+def _aligned_enumerators(items: list[tuple[str, str]]) -> str:
+    """`Name = value,  // comment` lines, the comments aligned."""
+    width = max(len(code) for code, _ in items) + 1
+    return "\n".join(f"  {(code + ','):<{width}}  // {cpp_comment(comment)}" for code, comment in items)
+
+
+def _brace_list(items: list[str]) -> str:
+    """`{a, b}` on one line when short, else one item a line."""
+    one_line = "{" + ", ".join(items) + "}"
+    if len(one_line) <= 60:
+        return one_line
+    return "{\n" + "".join(f"    {item},\n" for item in items) + "}"
+
+
+def _switch_to_string(type_name: str, argument: str, members: list[str]) -> str:
+    cases = "\n".join(f'    case {type_name}::{camel_case(m)}: return "{m}";' for m in members)
+    return f"""constexpr std::string_view to_string({type_name} {argument}) {{
+  switch ({argument}) {{
+{cases}
+  }}
+  return {{}};
+}}"""
+
+
+def _value_enum(table: BoardTable, values: ValueEnum) -> str:
+    type_name = values.type_name
+    underlying = enum_underlying_type(values)
+    enumerators = _aligned_enumerators(
+        [(f"{camel_case(v.name)} = {v.value}", v.description) for v in values.values]
+    )
+    listed = _brace_list([f"{type_name}::{camel_case(v.name)}" for v in values.values])
+    return f"""// {values.name}: {cpp_comment(values.description)}
+// Carried by: {_carried_by(table, values.name)}.
+enum class {type_name} : {underlying} {{
+{enumerators}
+}};
+inline constexpr std::array<{type_name}, {len(values.values)}> k{type_name}Values = {listed};
+// The number its field carries.
+constexpr float to_value({type_name} value) {{ return static_cast<float>(static_cast<{underlying}>(value)); }}
+// The name in board.toml; empty for a number that is none of the values.
+{_switch_to_string(type_name, "value", [v.name for v in values.values])}
+// The value a field's number is exactly; std::nullopt for any other number.
+constexpr std::optional<{type_name}> {values.name}_from_value(float value) {{
+  return from_value(k{type_name}Values, value);
+}}
+"""
+
+
+def _flag_info_initializer(table: BoardTable, bit: FlagBit) -> str:
+    emcy = f"EmcyId::{bit.emcy}" if bit.emcy is not None else "std::nullopt"
+    if bit.about is None:
+        about = "std::nullopt"
+        about_comment = "the raiser names the object" if bit.emcy is not None else "raises no EMCY"
+    else:
+        about = f"std::uint16_t{{0x{table.entry(bit.about).index:04X}}}"
+        about_comment = f"about {bit.about}"
+    return (
+        f"    // bit {bit.bit}: {about_comment}\n"
+        f"    {{.name = {cpp_string(bit.name)}, .bit = {bit.bit}, .emcy = {emcy}, .about_index = {about},\n"
+        f"     .description = {cpp_string(bit.description)}}},"
+    )
+
+
+def _bitset(table: BoardTable, bitset: BitSet) -> str:
+    type_name = bit_type_name(bitset)
+    bits = bits_by_number(bitset)
+    enumerators = _aligned_enumerators([(f"{camel_case(b.name)} = {b.bit}", b.description) for b in bits])
+    listed = _brace_list([f"{type_name}::{camel_case(b.name)}" for b in bits])
+    all_bits = sum(b.mask for b in bits)
+    infos = "\n".join(_flag_info_initializer(table, b) for b in bits)
+    return f"""// {bitset.name}: {cpp_comment(bitset.description)}
+// Carried by: {_carried_by(table, bitset.name)}. The enumerators are bit numbers.
+enum class {type_name} : std::uint8_t {{
+{enumerators}
+}};
+// Every bit, lowest first.
+inline constexpr std::array<{type_name}, {len(bits)}> k{bitset.type_name}Bits = {listed};
+// Every named bit set.
+inline constexpr std::uint32_t k{bitset.type_name}Mask = 0x{all_bits:08X};
+constexpr std::uint32_t mask({type_name} bit) {{
+  return std::uint32_t{{1}} << static_cast<std::uint8_t>(bit);
+}}
+// The name in board.toml; empty for a number that is none of the bits.
+{_switch_to_string(type_name, "bit", [b.name for b in bits])}
+// Each bit and the EMCY it raises when it latches, lowest bit first.
+inline constexpr std::array<FlagInfo, {len(bits)}> k{bitset.type_name}Info = {{{{
+{infos}
+}}}};
+"""
+
+
+def _error_register_constants() -> str:
+    return "\n".join(
+        f"inline constexpr std::uint8_t k{camel_case(bit.toml_name)} = 0x{bit.value:02X};"
+        + ("  // set whenever any error is active" if bit is ErrorRegisterBit.GENERIC else "")
+        for bit in ErrorRegisterBit
+    )
+
+
+def _register_constant(code: EmcyCode) -> str:
+    return f"error_register::k{camel_case(code.error_register.toml_name)}"
+
+
+def _emcy_initializer(code: EmcyCode) -> str:
+    return (
+        f"    {{.name = {cpp_string(code.name)}, .code = 0x{code.code:04X}, "
+        f".register_bit = {_register_constant(code)},\n"
+        f"     .description = {cpp_string(code.description)}}},"
+    )
+
+
+def _emcy_section(table: BoardTable) -> str:
+    codes = table.emcy_codes
+    ids = _enumerators(
+        [c.name for c in codes],
+        [f"0x{c.code:04X}, error register: {c.error_register.toml_name}" for c in codes],
+    )
+    infos = "\n".join(_emcy_initializer(c) for c in codes)
+    declarations = [
+        f"inline constexpr std::uint16_t k{camel_case(c.name)} = info(EmcyId::{c.name}).code;" for c in codes
+    ]
+    width = max((len(d) for d in declarations), default=0)
+    constants = "\n".join(
+        f"{d:<{width}}  // 0x{c.code:04X}" for d, c in zip(declarations, codes, strict=True)
+    )
+    return f"""// ---------------------------------------------------------------------------
+// Emergency (EMCY) codes the firmware raises (CiA 301, 7.2.7.1). Each sets one bit of the
+// error register 0x1001; the frame's 5 manufacturer bytes start with the object index (LE)
+// the error is about.
+// ---------------------------------------------------------------------------
+// Bits of the error register 0x1001 (CiA 301, 7.5.2.2).
+namespace error_register {{
+{_error_register_constants()}
+}}  // namespace error_register
+
+enum class EmcyId : std::uint8_t {{
+{ids}
+}};
+inline constexpr std::size_t kEmcyCount = static_cast<std::size_t>(EmcyId::kCount);
+
+struct EmcyInfo {{
+  std::string_view name;        // snake_case, as in board.toml
+  std::uint16_t code;           // the frame's error code
+  std::uint8_t register_bit;    // the bit of 0x1001 it sets (error_register::k...)
+  std::string_view description;
+}};
+
+inline constexpr std::array<EmcyInfo, kEmcyCount> kEmcyCodes = {{{{
+{infos}
+}}}};
+
+constexpr const EmcyInfo& info(EmcyId id) {{ return kEmcyCodes[static_cast<std::size_t>(id)]; }}
+
+// The codes by name.
+namespace emcy_code {{
+{constants}
+}}  // namespace emcy_code
+"""
+
+
+def _visitor(name: str, calls: list[str]) -> str:
+    if not calls:
+        return f"template <typename Visit>\nconstexpr void {name}(Visit&&) {{}}"
+    body = "\n".join(f"  visit({call});" for call in calls)
+    return f"template <typename Visit>\nconstexpr void {name}(Visit&& visit) {{\n{body}\n}}"
+
+
+def _values_section(table: BoardTable) -> str:
+    enums = "\n".join(_value_enum(table, e) for e in table.enums)
+    bitsets = "\n".join(_bitset(table, b) for b in table.bitsets)
+    each_enum = _visitor(
+        "for_each_enum", [f'std::string_view{{"{e.name}"}}, k{e.type_name}Values' for e in table.enums]
+    )
+    each_bitset = _visitor(
+        "for_each_bitset",
+        [f'std::string_view{{"{b.name}"}}, k{b.type_name}Bits, k{b.type_name}Info' for b in table.bitsets],
+    )
+    return f"""// ---------------------------------------------------------------------------
+// Values that travel in fields ([[enum]] and [[bitset]]). A field carries them as a
+// float; what a number that is none of them means is the reader's rule, not the table's.
+// ---------------------------------------------------------------------------
+// The value of `values` a field's number is exactly; std::nullopt for any other number.
+template <typename Value, std::size_t N>
+constexpr std::optional<Value> from_value(const std::array<Value, N>& values, float number) {{
+  for (const Value value : values) {{
+    if (to_value(value) == number) return value;
+  }}
+  return std::nullopt;
+}}
+
+// A bit of a [[bitset]] and what it reports on the bus when it latches.
+struct FlagInfo {{
+  std::string_view name;                     // snake_case, as in board.toml
+  std::uint8_t bit;                          // bit number: the flag's value is 1 << bit
+  std::optional<EmcyId> emcy;                // raised when the bit latches; std::nullopt: none
+  std::optional<std::uint16_t> about_index;  // object index in the EMCY's manufacturer bytes;
+                                             // std::nullopt: the raiser names it at run time
+  std::string_view description;
+
+  constexpr std::uint32_t mask() const {{ return std::uint32_t{{1}} << bit; }}
+}};
+
+{enums}
+{bitsets}
+// Every [[enum]] and [[bitset]], for code that walks them all (the cross-check test):
+// visit(name, values) per enum, visit(name, bits, info) per bitset.
+{each_enum}
+{each_bitset}
+"""
+
+
 def generate_header(table: BoardTable) -> str:
     """The whole header text. Deterministic: same table, same bytes."""
+    _check_cpp_names(table)
     node = table.node
     field_ids = _enumerators(
         [f.name for f in table.fields],
@@ -90,7 +394,8 @@ def generate_header(table: BoardTable) -> str:
     tpdos = "\n".join(_pdo_initializer(p) for p in table.tpdos)
 
     return f"""{GENERATED_BANNER}
-// Board fields, hardware-in-the-loop I/O objects, node identity and default PDOs.
+// Board fields, hardware-in-the-loop I/O objects, node identity, default PDOs, EMCY codes and
+// the values fields carry (enums, flag bits).
 // Edit protocol/board.toml and rebuild; the EDS and DBC beside this header come from
 // the same table.
 #pragma once
@@ -98,6 +403,7 @@ def generate_header(table: BoardTable) -> str:
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string_view>
 
 namespace board {{
@@ -224,5 +530,7 @@ inline constexpr std::array<PdoDefault, kTpdoCount> kDefaultTpdos = {{{{
 {tpdos}
 }}}};
 
+{_emcy_section(table)}
+{_values_section(table)}
 }}  // namespace board
 """
