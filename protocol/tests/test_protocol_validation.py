@@ -215,3 +215,186 @@ def test_refuses_bytes_that_are_not_utf8(minimal_table: str, tmp_path: Path) -> 
     path = tmp_path / "board.toml"
     path.write_bytes(minimal_table.encode().replace(b"Motor angle", b"Motor \x98ngle"))
     refused(path, "not UTF-8 text", "byte ")
+
+
+# ---------------------------------------------------------------------------
+# [[emcy]], [[enum]], [[bitset]] and `values`: the minimal table plus one of each, carried by
+# its fields (velocity_kp: 0..1 carries control_mode, motor_position: -10..10 the fault flags).
+# ---------------------------------------------------------------------------
+VALUE_SETS = """
+[[emcy]]
+name = "stale_sensor"
+code = 0x5000
+error_register = "generic"
+description = "A sensor went stale"
+
+[[emcy]]
+name = "over_temperature"
+code = 0x4210
+error_register = "temperature"
+description = "Too hot"
+
+[[enum]]
+name = "control_mode"
+description = "Mode"
+
+[[enum.values]]
+name = "disabled"
+value = 0
+description = "Off"
+
+[[enum.values]]
+name = "velocity"
+value = 1
+description = "Velocity loop"
+
+[[bitset]]
+name = "fault_flags"
+description = "Faults"
+
+[[bitset.bits]]
+name = "encoder_stale"
+bit = 0
+emcy = "stale_sensor"
+about = "motor_position"
+description = "No encoder sample"
+
+[[bitset.bits]]
+name = "over_temperature"
+bit = 1
+emcy = "over_temperature"
+description = "The raiser names the object"
+"""
+CARRIERS = (
+    ('description = "Gain"', 'description = "Gain"\nvalues = "control_mode"'),
+    ('description = "Motor angle"', 'description = "Motor angle"\nvalues = "fault_flags"'),
+)
+
+
+@pytest.fixture
+def values_table(minimal_table: str) -> str:
+    text = minimal_table + VALUE_SETS
+    for old, new in CARRIERS:
+        text = text.replace(old, new)
+    return text
+
+
+@pytest.fixture
+def edit_values(values_table: str, write_table: TableWriter) -> TableEditor:
+    """Replace one exact piece of the table with value sets, write it, return its path."""
+
+    def edit(old: str, new: str) -> Path:
+        assert values_table.count(old) == 1, f"test setup: {old!r} must occur exactly once"
+        return write_table(values_table.replace(old, new))
+
+    return edit
+
+
+def test_value_sets_table_is_valid(values_table: str, write_table: TableWriter) -> None:
+    table = load_table(write_table(values_table))
+    assert [e.name for e in table.emcy_codes] == ["stale_sensor", "over_temperature"]
+    assert table.values_of("velocity_kp") == table.enum("control_mode")
+    assert table.values_of("motor_position") == table.bitset("fault_flags")
+    assert table.bitset("fault_flags").bit("over_temperature").about is None
+
+
+def test_refuses_unknown_key_in_an_enum_value(edit_values: TableEditor) -> None:
+    refused(
+        edit_values("value = 1\n", "value = 1\nvalu = 2\n"),
+        "enum 'control_mode': value 'velocity'",
+        "unknown key 'valu'",
+        "did you mean 'value'",
+    )
+
+
+def test_refuses_duplicate_enum_value(edit_values: TableEditor) -> None:
+    refused(
+        edit_values("value = 1\n", "value = 0\n"),
+        "enum 'control_mode': value 'velocity'",
+        "value 0 already used by 'disabled'",
+    )
+
+
+def test_refuses_duplicate_bit(edit_values: TableEditor) -> None:
+    refused(
+        edit_values("bit = 1\n", "bit = 0\n"),
+        "bitset 'fault_flags': bit 'over_temperature'",
+        "bit 0 already used by 'encoder_stale'",
+    )
+
+
+def test_refuses_bit_that_a_float_cannot_hold(edit_values: TableEditor) -> None:
+    refused(
+        edit_values("bit = 1\n", "bit = 24\n"),
+        "bit 'over_temperature'",
+        "bit 24 outside 0..23",
+    )
+
+
+def test_refuses_bit_naming_an_unknown_emcy(edit_values: TableEditor) -> None:
+    refused(
+        edit_values('emcy = "stale_sensor"', 'emcy = "stale_sensr"'),
+        "bit 'encoder_stale'",
+        "no [[emcy]] named 'stale_sensr'",
+        "did you mean 'stale_sensor'",
+    )
+
+
+def test_refuses_about_without_emcy(edit_values: TableEditor) -> None:
+    refused(
+        edit_values('emcy = "stale_sensor"\n', ""),
+        "bit 'encoder_stale'",
+        "about names the object of an EMCY: set emcy too",
+    )
+
+
+def test_refuses_about_naming_an_unknown_field(edit_values: TableEditor) -> None:
+    refused(
+        edit_values('about = "motor_position"', 'about = "motor_postion"'),
+        "bit 'encoder_stale'",
+        "no board object named 'motor_postion'",
+        "did you mean 'motor_position'",
+    )
+
+
+def test_refuses_values_naming_an_unknown_enum(edit_values: TableEditor) -> None:
+    refused(
+        edit_values('values = "control_mode"', 'values = "control_mod"'),
+        "field 'velocity_kp'",
+        "no enum or bitset named 'control_mod'",
+        "did you mean 'control_mode'",
+    )
+
+
+def test_refuses_enum_value_outside_the_carrying_fields_range(edit_values: TableEditor) -> None:
+    extra = '\n[[enum.values]]\nname = "torque"\nvalue = 2\ndescription = "Torque loop"\n'
+    refused(
+        edit_values('description = "Velocity loop"\n', f'description = "Velocity loop"\n{extra}'),
+        "field 'velocity_kp'",
+        "control_mode value 2 outside its range [0.0, 1.0]",
+    )
+
+
+def test_refuses_bitset_whose_bits_exceed_the_carrying_fields_range(edit_values: TableEditor) -> None:
+    refused(
+        edit_values("bit = 1\n", "bit = 4\n"),
+        "field 'motor_position'",
+        "fault_flags value 17 outside its range [-10.0, 10.0]",
+    )
+
+
+def test_refuses_duplicate_emcy_code(edit_values: TableEditor) -> None:
+    refused(
+        edit_values("code = 0x4210", "code = 0x5000"),
+        "emcy 'over_temperature'",
+        "code 0x5000 already used",
+    )
+
+
+def test_refuses_unknown_error_register(edit_values: TableEditor) -> None:
+    refused(
+        edit_values('error_register = "temperature"', 'error_register = "temprature"'),
+        "emcy 'over_temperature'",
+        "unknown error_register 'temprature'",
+        "one of: generic, current, voltage, temperature",
+    )
