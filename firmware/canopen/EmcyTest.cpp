@@ -85,10 +85,10 @@ TEST_F(EmcyTest, WritingZeroToTheCountClearsTheHistoryAndOtherValuesAbort) {
 TEST_F(EmcyTest, ClearingSendsErrorResetAndClearsTheRegister) {
   node.report_emcy(emcy::over_temperature(FieldId::winding_temperature));
   all_sent();
-  EXPECT_TRUE(node.clear_emcy(emcy_code::kDeviceTemperature));
+  EXPECT_TRUE(node.clear_emcy(board::emcy_code::kOverTemperature));
   EXPECT_EQ(next_sent(), make_frame(kEmcy, {0, 0, 0, 0, 0, 0, 0, 0}));
   EXPECT_EQ(node.error_register(), 0);
-  EXPECT_FALSE(node.clear_emcy(emcy_code::kDeviceTemperature)) << "nothing left to clear";
+  EXPECT_FALSE(node.clear_emcy(board::emcy_code::kOverTemperature)) << "nothing left to clear";
   EXPECT_TRUE(all_sent().empty());
   EXPECT_EQ(upload(0x1003, 0), 1u) << "clearing keeps the history";
 }

@@ -25,13 +25,13 @@
 #include "FileParameterStorage.hpp"
 #include "SocketCanPort.hpp"
 #include "board/fields.hpp"
+#include "canopen/FlagEmcy.hpp"
 #include "canopen/Node.hpp"
 #include "core/CycleCounter.hpp"
 #include "core/MessageBoard.hpp"
 #include "core/MessageBoardUser.hpp"
 #include "core/Scheduler.hpp"
 #include "joint/DemoJoint.hpp"
-#include "joint/FaultBits.hpp"
 #include "joint/drivers/HilRegisters.hpp"
 
 namespace {
@@ -51,6 +51,24 @@ struct Options {
 // Exit codes: 0 clean stop, 1 start-up failure (bus, schedule), 2 bad command line.
 constexpr int kExitStartupFailure = 1;
 constexpr int kExitUsage = 2;
+
+// The field --inject-rogue-write-at-cycle writes without owning it.
+constexpr board::FieldId kRogueTarget = board::FieldId::motor_duty_command;
+
+// --inject-rogue-write-at-cycle's help, with the EMCY code and fault bit board.toml gives.
+std::string rogue_write_help() {
+  const board::FieldInfo& target = board::info(kRogueTarget);
+  std::array<char, 512> text{};
+  std::snprintf(text.data(), text.size(),
+                "FAULT INJECTION for hardware-in-the-loop tests, never for a real joint: at control\n"
+                "cycle N (1 = the first) an extra module that owns no field writes %.*s.\n"
+                "The board must refuse it: value kept, refusal counted, EMCY 0x%04X naming 0x%04X,\n"
+                "fault_flags bit %u (ownership violation) latched, safe state. 0 = off",
+                static_cast<int>(target.name.size()), target.name.data(),
+                static_cast<unsigned>(board::emcy_code::kOwnershipViolation), static_cast<unsigned>(target.index),
+                static_cast<unsigned>(board::FaultFlagsBit::OwnershipViolation));
+  return text.data();
+}
 
 std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
   CLI::App app{
@@ -75,11 +93,7 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
                  "file for stored parameters (0x1010 store / 0x1011 restore); loaded at start-up");
   app.add_flag("--print-schedule", options.print_schedule,
                "print the control cycle's update order with each component's reads and writes, and exit");
-  app.add_option("--inject-rogue-write-at-cycle", options.rogue_write_cycle,
-                 "FAULT INJECTION for hardware-in-the-loop tests, never for a real joint: at control\n"
-                 "cycle N (1 = the first) an extra module that owns no field writes motor_duty_command.\n"
-                 "The board must refuse it: value kept, refusal counted, EMCY 0xFF00 naming 0x2202,\n"
-                 "fault_flags bit 5 (ownership violation) latched, safe state. 0 = off")
+  app.add_option("--inject-rogue-write-at-cycle", options.rogue_write_cycle, rogue_write_help())
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   try {
@@ -118,66 +132,19 @@ class NoParameterStorage final : public co::ParameterStorage {
   std::size_t load(std::span<std::byte>) override { return 0; }
 };
 
-// The board's refused writes become EMCY frames naming the field (manufacturer-specific code
-// 0xFF00, the field's object index in the manufacturer bytes).
+// The board's refused writes become EMCY frames naming the field (board.toml's [[emcy]]
+// ownership_violation, the field's object index in the manufacturer bytes). The fault bit it
+// latches names no object, so the FlagEmcyReporter leaves this report to the hook.
 void report_ownership_violation(void* context, const core::WriteViolation& violation) {
   static_cast<co::Node*>(context)->report_emcy(co::emcy::ownership_violation(violation.field));
 }
-
-// What each latched fault bit of the joint's fault manager is reported as on the bus. The
-// ownership bit has no entry: the board's fault hook already reported it, naming the field.
-std::optional<co::EmcyReport> emcy_for(joint::FaultBit bit) {
-  using board::FieldId;
-  switch (bit) {
-    case joint::FaultBit::MotorEncoderStale: return co::emcy::stale_sensor(FieldId::motor_position);
-    case joint::FaultBit::OutputEncoderStale: return co::emcy::stale_sensor(FieldId::output_position);
-    case joint::FaultBit::ThermistorStale: return co::emcy::stale_sensor(FieldId::thermistor_resistance);
-    case joint::FaultBit::OverTemperature: return co::emcy::over_temperature(FieldId::winding_temperature);
-    case joint::FaultBit::CommandWatchdog:
-      // 0x8100 communication, generic: the setpoint stream (RPDO) went silent.
-      return co::EmcyReport{0x8100, co::error_register::kCommunication,
-                            co::emcy::about_index(board::info(FieldId::velocity_setpoint).index)};
-    case joint::FaultBit::OwnershipViolation: return std::nullopt;
-  }
-  return std::nullopt;
-}
-
-// Newly latched fault bits become EMCY frames and cleared ones error resets, so a CANopen
-// master sees faults without polling fault_flags.
-class FaultEmcyBridge {
- public:
-  explicit FaultEmcyBridge(co::Node& node) : node_{node} {}
-  // Reset node: the node cleared its errors, a fresh application has latched none.
-  void forget() { reported_ = 0; }
-  void after_cycle(const core::MessageBoard& board) {
-    const auto flags = static_cast<std::uint32_t>(board.get(board::FieldId::fault_flags));
-    for (const joint::FaultBit bit : joint::kFaultBits) {
-      const std::uint32_t mask = joint::fault_mask(bit);
-      const bool raised = (flags & mask) != 0 && (reported_ & mask) == 0;
-      const bool cleared = (flags & mask) == 0 && (reported_ & mask) != 0;
-      if (bit == joint::FaultBit::OwnershipViolation) {
-        if (cleared) node_.clear_emcy(co::emcy_code::kOwnershipViolation);
-        continue;
-      }
-      if (const std::optional<co::EmcyReport> report = emcy_for(bit)) {
-        if (raised) node_.report_emcy(*report);
-        if (cleared) node_.clear_emcy(*report);
-      }
-    }
-    reported_ = flags;
-  }
-
- private:
-  co::Node& node_;
-  std::uint32_t reported_ = 0;
-};
 
 // Fault injection for HIL tests (--inject-rogue-write-at-cycle): a module that declares no
 // writes, so it owns nothing, and at one cycle writes a field another component owns. It exists
 // so a scenario can watch the board's single-writer rule hold on the real bus.
 class RogueWriter final : public core::Module {
  public:
-  static constexpr board::FieldId kTarget = board::FieldId::motor_duty_command;
+  static constexpr board::FieldId kTarget = kRogueTarget;
   static constexpr float kRogueValue = 0.875F;  // a duty the joint's owner never commands at rest
 
   RogueWriter(core::MessageBoard& board, std::uint32_t at_cycle)
@@ -282,7 +249,7 @@ class ApplicationRebuild final : public co::ApplicationReset {
  public:
   ApplicationRebuild(std::optional<Application>& app, const Options& options)
       : app_{app}, options_{options} {}
-  void attach(co::Node& node, FaultEmcyBridge& fault_emcy) {
+  void attach(co::Node& node, co::FlagEmcyReporter& fault_emcy) {
     node_ = &node;
     fault_emcy_ = &fault_emcy;
   }
@@ -300,7 +267,7 @@ class ApplicationRebuild final : public co::ApplicationReset {
   std::optional<Application>& app_;
   const Options& options_;
   co::Node* node_ = nullptr;
-  FaultEmcyBridge* fault_emcy_ = nullptr;
+  co::FlagEmcyReporter* fault_emcy_ = nullptr;
   bool failed_ = false;
 };
 
@@ -330,7 +297,9 @@ int run(const Options& options) {
   }
   co::Node node{static_cast<std::uint8_t>(options.node_id), port, field_access, hil_io, *storage};
   app->board.set_fault_hook({report_ownership_violation, &node});
-  FaultEmcyBridge fault_emcy{node};
+  // Newly latched fault bits become EMCY frames and cleared ones error resets, as board.toml's
+  // [[bitset]] fault_flags says (each bit's emcy and about).
+  co::FlagEmcyReporter fault_emcy{node, board::kFaultFlagsInfo};
   ApplicationRebuild application_rebuild{app, options};
   application_rebuild.attach(node, fault_emcy);
   node.set_application_reset(&application_rebuild);
@@ -374,7 +343,7 @@ int run(const Options& options) {
   core::CycleCounter cycles;
   auto run_cycle = [&](std::uint64_t periods) {
     app->scheduler.run_cycle(cycles.advance(periods));
-    fault_emcy.after_cycle(app->board);
+    fault_emcy.update(static_cast<std::uint32_t>(app->board.get(board::FieldId::fault_flags)));
   };
 
   bool running = true;
