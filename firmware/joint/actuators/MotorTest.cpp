@@ -65,5 +65,25 @@ TEST_F(ActuatorTest, StatusLedShowsTheCommandedPattern) {
   EXPECT_EQ(registers.led_pattern_raw(), 3);
 }
 
+TEST_F(ActuatorTest, StatusLedDrivesEveryPatternOfTheTableAsItsNumber) {
+  std::uint32_t cycle = 0;
+  for (const LedPattern pattern : board::kLedPatternValues) {
+    modules.hold(FieldId::led_pattern_command, board::to_value(pattern));
+    scheduler.run_cycle(++cycle);
+    EXPECT_EQ(registers.led_pattern_raw(), static_cast<std::uint8_t>(pattern)) << board::to_string(pattern);
+  }
+}
+
+TEST_F(ActuatorTest, StatusLedShowsANumberThatIsNoPatternAsTheFaultPattern) {
+  std::uint32_t cycle = 0;
+  for (const float command : {1.5F, 4.0F, -1.0F, std::numeric_limits<float>::quiet_NaN()}) {
+    modules.hold(FieldId::led_pattern_command, 0.0F);
+    scheduler.run_cycle(++cycle);
+    modules.hold(FieldId::led_pattern_command, command);
+    scheduler.run_cycle(++cycle);
+    EXPECT_EQ(registers.led_pattern_raw(), static_cast<std::uint8_t>(LedPattern::FastBlink)) << command;
+  }
+}
+
 }  // namespace
 }  // namespace joint

@@ -9,15 +9,7 @@ StatusLed::StatusLed(core::MessageBoard& board, LedOutput& output)
 
 void StatusLed::update() {
   const float command = boardGet(FieldId::led_pattern_command);
-  LedPattern pattern = LedPattern::FastBlink;
-  if (command == 0.0F) {
-    pattern = LedPattern::Off;
-  } else if (command == 1.0F) {
-    pattern = LedPattern::On;
-  } else if (command == 2.0F) {
-    pattern = LedPattern::SlowBlink;
-  }
-  output_.write(pattern);
+  output_.write(board::led_pattern_from_value(command).value_or(LedPattern::FastBlink));
 }
 
 }  // namespace joint

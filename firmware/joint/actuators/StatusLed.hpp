@@ -1,5 +1,5 @@
-// The status LED: led_pattern_command -> LedOutput. A value outside 0..3
-// (cannot come from LedPatternSelector) shows as the fault pattern.
+// The status LED: led_pattern_command -> LedOutput. A number that is none of the
+// patterns (cannot come from LedPatternSelector) shows as the fault pattern.
 #pragma once
 
 #include "core/MessageBoardUser.hpp"

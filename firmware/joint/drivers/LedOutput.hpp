@@ -1,16 +1,12 @@
-// The status LED driver: it renders a pattern number (the blinking is its job).
+// The status LED driver: it renders a pattern number (the blinking is its job). The patterns
+// are board.toml's [[enum]] led_pattern, generated into board/fields.hpp.
 #pragma once
 
-#include <cstdint>
+#include "board/fields.hpp"
 
 namespace joint {
 
-enum class LedPattern : std::uint8_t {
-  Off = 0,
-  On = 1,         // ok, drive enabled
-  SlowBlink = 2,  // disabled (control_mode 0)
-  FastBlink = 3,  // fault: safe state
-};
+using LedPattern = board::LedPattern;
 
 class LedOutput {
  public:

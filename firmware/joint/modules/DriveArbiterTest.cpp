@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 namespace joint {
 namespace {
 
@@ -38,6 +40,10 @@ TEST(DriveArbiter, LimitsToMaxDutyTimesThermalDerate) {
 TEST(DriveArbiter, TreatsAnUnknownModeAsDisabled) {
   EXPECT_EQ(control_mode_from_field(1.5F), ControlMode::Disabled);
   EXPECT_EQ(control_mode_from_field(7.0F), ControlMode::Disabled);
+  EXPECT_EQ(control_mode_from_field(-1.0F), ControlMode::Disabled);
+  EXPECT_EQ(control_mode_from_field(std::numeric_limits<float>::quiet_NaN()), ControlMode::Disabled);
+  EXPECT_EQ(control_mode_from_field(1.0F), ControlMode::Velocity);
+  EXPECT_EQ(control_mode_from_field(3.0F), ControlMode::Position);
   EXPECT_EQ(control_mode_from_field(2.0F), ControlMode::Torque);
 }
 

@@ -1,4 +1,4 @@
-// Collects the joint's faults into fault_flags (bits: FaultBits.hpp), latches
+// Collects the joint's faults into fault_flags (bits: board.toml's [[bitset]] fault_flags), latches
 // them, and holds safe_state = 1 while any is latched.
 //
 // Causes, evaluated every cycle:

@@ -11,7 +11,7 @@ LedPatternSelector::LedPatternSelector(core::MessageBoard& board)
 void LedPatternSelector::update() {
   const LedPattern pattern = select_led_pattern(boardGet(FieldId::safe_state) != 0.0F,
                                                 control_mode_from_field(boardGet(FieldId::control_mode)));
-  boardSet(FieldId::led_pattern_command, static_cast<float>(pattern));
+  boardSet(FieldId::led_pattern_command, board::to_value(pattern));
 }
 
 }  // namespace joint
