@@ -86,11 +86,13 @@ def write_json_atomically(path: Path, data: Any) -> None:
 def _sdo_turnarounds(spy: Any) -> dict[int, list[float]]:
     """Per node id: seconds from each SDO request to the node's next answer, both stamped by
     the kernel on receipt (the spy socket saw both)."""
+    from boardproto.cia301 import FunctionCode, function_of
+
     pending: dict[int, float] = {}
     turnaround: dict[int, list[float]] = {FIRMWARE_NODE_ID: [], LOCAL_NODE_ID: []}
     while (message := spy.recv(timeout=0.5)) is not None:
-        node = message.arbitration_id & 0x7F
-        if message.arbitration_id & 0x780 == 0x600:
+        function, node = function_of(message.arbitration_id)
+        if function == FunctionCode.SDO_REQUEST:
             pending[node] = message.timestamp
         elif node in pending and node in turnaround:
             turnaround[node].append(message.timestamp - pending.pop(node))
@@ -284,8 +286,10 @@ class BusBench:
         return rpdos, tpdos
 
     def _await_boot_up(self, next_cob_id: Callable[[], int | None], fw: Any) -> None:
+        from boardproto.cia301 import heartbeat_cob_id
+
         deadline = time.monotonic() + 30
-        while next_cob_id() != 0x700 + FIRMWARE_NODE_ID:
+        while next_cob_id() != heartbeat_cob_id(FIRMWARE_NODE_ID):
             fw.check()
             if time.monotonic() > deadline:
                 raise RuntimeError("floor: no boot-up from the firmware within 30 s")
@@ -293,13 +297,20 @@ class BusBench:
     def floor_rate(self, cycles: int, warmup: int, budget_s: float) -> tuple[float, int]:
         """The floor: the same RPDO frames + SYNC out and the same TPDO frames back, over one raw
         socket with kernel filters (`hilrig.transport`), no physics, no checks, no trace."""
-        from boardproto.cia301 import SYNC_COB_ID
+        from boardproto.cia301 import (
+            NMT_COB_ID,
+            SYNC_COB_ID,
+            SYNC_COUNTER_MAX,
+            NmtCommand,
+            heartbeat_cob_id,
+            sync_counter,
+        )
         from hilrig.transport import RawCanLink, can_frame, open_raw_socket
 
         rpdos, tpdos = self._floor_layout()
         out_frames = [p.frame([0] * len(p.names)) for p in rpdos]
-        syncs = [can_frame(SYNC_COB_ID, bytes([n % 240 + 1])) for n in range(240)]
-        receive = [p.cob_id for p in tpdos] + [0x700 + FIRMWARE_NODE_ID]
+        syncs = [can_frame(SYNC_COB_ID, bytes([sync_counter(n)])) for n in range(SYNC_COUNTER_MAX)]
+        receive = [p.cob_id for p in tpdos] + [heartbeat_cob_id(FIRMWARE_NODE_ID)]
         with self.bus.entered():
             sock = open_raw_socket(self.bus.channel, receive)
         link = RawCanLink(sock)
@@ -311,7 +322,7 @@ class BusBench:
                     return frame[0] if frame is not None else None
 
                 self._await_boot_up(next_cob_id, fw)
-                link.send(can_frame(0, bytes([0x01, FIRMWARE_NODE_ID])))
+                link.send(can_frame(NMT_COB_ID, bytes([NmtCommand.START, FIRMWARE_NODE_ID])))
                 period = math.lcm(*(p.transmission_type for p in tpdos))
                 expected = [sum(1 for p in tpdos if p.due_at_sync(n + 1)) for n in range(period)]
                 send, recv = link.send, link.recv
@@ -324,7 +335,7 @@ class BusBench:
                         break
                     for frame in out_frames:
                         send(frame)
-                    send(syncs[n % 240])
+                    send(syncs[n % SYNC_COUNTER_MAX])
                     for _ in range(expected[n % period]):
                         if recv(5.0) is None:
                             fw.check()
@@ -340,10 +351,19 @@ class BusBench:
         """For comparison: the same exchange through python-can's Bus (Message objects)."""
         import can
 
+        from boardproto.cia301 import (
+            NMT_COB_ID,
+            STANDARD_ID_MASK,
+            SYNC_COB_ID,
+            NmtCommand,
+            heartbeat_cob_id,
+            sync_counter,
+        )
+
         rpdos, tpdos = self._floor_layout()
         tpdo_ids = {p.cob_id for p in tpdos}
-        bootup = 0x700 + FIRMWARE_NODE_ID
-        filters = [{"can_id": cob, "can_mask": 0x7FF} for cob in (*tpdo_ids, bootup)]
+        bootup = heartbeat_cob_id(FIRMWARE_NODE_ID)
+        filters = [{"can_id": cob, "can_mask": STANDARD_ID_MASK} for cob in (*tpdo_ids, bootup)]
         payloads = [(p.cob_id, p.pack([0] * len(p.names))) for p in rpdos]
         with self.bus.open(can_filters=filters) as can_bus, self.firmware("python-can") as fw:
 
@@ -352,7 +372,11 @@ class BusBench:
                 return msg.arbitration_id if msg is not None else None
 
             self._await_boot_up(next_cob_id, fw)
-            can_bus.send(can.Message(arbitration_id=0, data=[0x01, FIRMWARE_NODE_ID], is_extended_id=False))
+            can_bus.send(
+                can.Message(
+                    arbitration_id=NMT_COB_ID, data=[NmtCommand.START, FIRMWARE_NODE_ID], is_extended_id=False
+                )
+            )
             start = 0.0
             done = 0
             for n in range(warmup + cycles):
@@ -362,7 +386,9 @@ class BusBench:
                     break
                 for cob, data in payloads:
                     can_bus.send(can.Message(arbitration_id=cob, data=data, is_extended_id=False))
-                can_bus.send(can.Message(arbitration_id=0x80, data=[n % 240 + 1], is_extended_id=False))
+                can_bus.send(
+                    can.Message(arbitration_id=SYNC_COB_ID, data=[sync_counter(n)], is_extended_id=False)
+                )
                 for _ in range(sum(1 for p in tpdos if p.due_at_sync(n + 1))):
                     if can_bus.recv(5.0) is None:
                         fw.check()
@@ -375,6 +401,8 @@ class BusBench:
     # --- SDO latency ---------------------------------------------------------------------------
     def sdo_latency(self, uploads: int, budget_s: float) -> dict[str, Any]:
         import canopen
+
+        from boardproto.cia301 import STANDARD_ID_MASK, FunctionCode, cob_id
 
         entry = self.table.entry(SDO_OBJECT)
         server = self.bus.popen(
@@ -402,8 +430,8 @@ class BusBench:
                 # give each server's turnaround without the Python client's share.
                 spy.set_filters(
                     [
-                        {"can_id": base + n, "can_mask": 0x7FF}
-                        for base in (0x580, 0x600)
+                        {"can_id": cob_id(function, n), "can_mask": STANDARD_ID_MASK}
+                        for function in (FunctionCode.SDO_RESPONSE, FunctionCode.SDO_REQUEST)
                         for n in (FIRMWARE_NODE_ID, LOCAL_NODE_ID)
                     ]
                 )
@@ -472,14 +500,15 @@ class BusBench:
 
     # --- free-running timing -------------------------------------------------------------------
     def free_running(self, cycles: int) -> dict[str, Any]:
-        from boardproto.cia301 import NmtCommand
+        from boardproto.cia301 import STANDARD_ID_MASK, NmtCommand
         from hilrig.node import BoardNode
+        from hilrig.table import ControlMode
 
         carrier = next(
             p for p in self.proto.tpdos if "velocity_controller_output" in [e.name for e in p.entries]
         )
         cob = carrier.cob_id(FIRMWARE_NODE_ID)
-        filters = [{"can_id": cob, "can_mask": 0x7FF}]
+        filters = [{"can_id": cob, "can_mask": STANDARD_ID_MASK}]
         period_s = PERIOD_US / 1e6
         with (
             self.bus.open(can_filters=filters) as meter,
@@ -505,7 +534,7 @@ class BusBench:
                 sdo.download(comm, 2, bytes([255]))  # event-driven
                 sdo.download(comm, 3, (0).to_bytes(2, "little"))  # no inhibit time
                 sdo.download(comm, 5, (0).to_bytes(2, "little"))  # no event timer
-                node.write("control_mode", 1.0)  # velocity
+                node.write("control_mode", float(ControlMode.VELOCITY))
                 if node.read("safe_state") != 0.0:
                     flags = node.read("fault_flags")
                     raise RuntimeError(

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from boardproto import load_table
+from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, heartbeat_cob_id
 from hilrig.busload import (
     STANDARD_BITRATES,
     Traffic,
@@ -24,7 +25,8 @@ from hilrig.busload import (
 
 # A node with two RPDOs (one disabled), three TPDOs of transmission types 1, 10 and 254, and a
 # 100 ms heartbeat. Every number in the tests below is computed by hand from it.
-TABLE = """\
+NODE_ID = 0x10
+TABLE = f"""\
 [node]
 device_type = 0
 vendor_id = 1
@@ -33,7 +35,7 @@ revision = 3
 device_name = "n"
 hardware_version = "h"
 software_version = "s"
-default_node_id = 0x10
+default_node_id = 0x{NODE_ID:02X}
 heartbeat_ms = 100
 error_history_length = 4
 
@@ -140,7 +142,11 @@ def test_refuses_lengths_a_classic_frame_cannot_have(data_bytes: int) -> None:
 
 
 def test_one_eight_byte_frame_per_millisecond_on_1_mbit() -> None:
-    load = bus_load([Traffic("RPDO1", 0x210, 8, 1000.0, True)], rate_hz=1000, bitrate=1_000_000)
+    load = bus_load(
+        [Traffic("RPDO1", cob_id(FunctionCode.RPDO1, NODE_ID), 8, 1000.0, True)],
+        rate_hz=1000,
+        bitrate=1_000_000,
+    )
     assert load.nominal == pytest.approx(0.111)
     assert load.worst_case == pytest.approx(0.135)
     assert load.peak_cycle_worst_case == pytest.approx(0.135)
@@ -148,7 +154,7 @@ def test_one_eight_byte_frame_per_millisecond_on_1_mbit() -> None:
 
 
 def test_load_scales_inversely_with_the_bitrate() -> None:
-    traffic = [Traffic("SYNC", 0x80, 1, 1000.0, True)]
+    traffic = [Traffic("SYNC", SYNC_COB_ID, 1, 1000.0, True)]
     loads = [bus_load(traffic, 1000, rate).worst_case for rate in STANDARD_BITRATES]
     assert loads == pytest.approx([65_000 / 125_000, 65_000 / 250_000, 65_000 / 500_000, 0.065])
 
@@ -165,16 +171,16 @@ def test_lockstep_traffic_follows_the_pdo_layout(table_path: Path) -> None:
     # RPDO2 is disabled: the rig does not send it.
     assert list(traffic) == ["RPDO1", "SYNC", "TPDO1", "TPDO2", "TPDO3", "heartbeat"]
     assert (traffic["RPDO1"].can_id, traffic["RPDO1"].data_bytes, traffic["RPDO1"].per_second) == (
-        0x210,
+        cob_id(FunctionCode.RPDO1, NODE_ID),
         6,  # unsigned16 + REAL32
         1000,
     )
-    assert (traffic["SYNC"].can_id, traffic["SYNC"].data_bytes) == (0x080, 1)
+    assert (traffic["SYNC"].can_id, traffic["SYNC"].data_bytes) == (SYNC_COB_ID, 1)
     assert (traffic["TPDO1"].data_bytes, traffic["TPDO1"].per_second) == (2, 1000)
     assert (traffic["TPDO2"].data_bytes, traffic["TPDO2"].per_second) == (8, 100)  # every 10th SYNC
     # Event driven: once per cycle at most, and the 5 ms inhibit time allows only 200/s.
     assert (traffic["TPDO3"].data_bytes, traffic["TPDO3"].per_second) == (4, 200)
-    assert (traffic["heartbeat"].can_id, traffic["heartbeat"].per_second) == (0x710, 10)
+    assert (traffic["heartbeat"].can_id, traffic["heartbeat"].per_second) == (heartbeat_cob_id(NODE_ID), 10)
 
 
 def test_lockstep_load_of_the_hand_computed_table(table_path: Path) -> None:

@@ -13,13 +13,26 @@ from pathlib import Path
 import can
 import pytest
 
+from boardproto.cia301 import (
+    NMT_COB_ID,
+    SYNC_COB_ID,
+    FunctionCode,
+    NmtCommand,
+    NmtState,
+    cob_id,
+    emcy_cob_id,
+    heartbeat_cob_id,
+    sdo_request_cob_id,
+    sdo_response_cob_id,
+)
 from hilrig.buslog import whole_file_logger
 from hilrig.cli import COMMAND_MODULES, commands, main
 from hilrig.demo import ScenarioFileError, load_scenario
 from hilrig.fake_node import FakeJointNode
-from hilrig.table import RigTable
+from hilrig.table import LedPattern, RigTable
 
 DEFAULT_KP = RigTable.load().field("velocity_kp").default  # from board.toml, not a copy
+NODE_ID = RigTable.load().board.node.default_node_id  # the fake node's: board.toml's default
 
 HILRIG = [sys.executable, "-m", "hilrig.cli"]
 _channels = itertools.count()
@@ -310,7 +323,8 @@ def test_record_then_replay_decode(
     assert len(lines) == 40
     assert any("0x000  NMT command 0x01 to node 0x10" in line for line in lines)
     assert any("0x080  SYNC 1" in line for line in lines)
-    assert any("0x190  TPDO1  motor_duty=0 0.01%  led_pattern=1" in line for line in lines)
+    tpdo1 = f"0x190  TPDO1  motor_duty=0 0.01%  led_pattern=on ({int(LedPattern.ON)})"
+    assert any(tpdo1 in line for line in lines)
     code, out, _ = run(capsys, "replay", str(log), "--decode", "--field", "motor_velocity")
     assert code == 0
     assert out and all(
@@ -335,19 +349,22 @@ def test_record_then_replay_into_a_trace(
     )
     assert not list(tmp_path.glob(".*partial*"))
     # Which cycles (SYNC index) the log has a TPDO1 for: exactly those carry motor_duty.
+    tpdo1 = RigTable.load().board.tpdo(1).cob_id(NODE_ID)
     expected: list[int] = []
     syncs = -1
     for message in can.LogReader(str(log)):
-        if message.arbitration_id == 0x80:
+        if message.arbitration_id == SYNC_COB_ID:
             syncs += 1
-        elif message.arbitration_id == 0x190 and syncs >= 0 and expected[-1:] != [syncs]:
+        elif message.arbitration_id == tpdo1 and syncs >= 0 and expected[-1:] != [syncs]:
             expected.append(syncs)
     assert len(expected) >= 5
     paths = Tracer._entity_paths(RigTable.load())
     trace = Trace.read(rrd)
     assert trace.cycles[paths["motor_duty"]] == expected
-    assert trace.scalars[paths["led_pattern"]] == [1.0] * len(expected)  # the fake's law: LED on
-    heartbeats = {bytes(m.data) for m in can.LogReader(str(log)) if m.arbitration_id == 0x710}
+    assert trace.scalars[paths["led_pattern"]] == [float(LedPattern.ON)] * len(expected)  # the fake's law
+    heartbeats = {
+        bytes(m.data) for m in can.LogReader(str(log)) if m.arbitration_id == heartbeat_cob_id(NODE_ID)
+    }
     nmt = [text for text, _ in trace.texts["/events/nmt"]]
     assert len(nmt) == len(heartbeats), (nmt, heartbeats)  # one entry per state change seen
     assert f"{syncs + 1} cycles" in err
@@ -360,7 +377,9 @@ def test_replay_sends_the_log_into_the_bus(
     with whole_file_logger(log) as logger:
         for n in range(5):
             logger(
-                can.Message(timestamp=1.0 + n * 1e-3, arbitration_id=0x80, data=[n + 1], is_extended_id=False)
+                can.Message(
+                    timestamp=1.0 + n * 1e-3, arbitration_id=SYNC_COB_ID, data=[n + 1], is_extended_id=False
+                )
             )
     with can.Bus(interface="virtual", channel=channel) as listener:
         code, _, err = run(capsys, "replay", str(log), "-i", "virtual", "-c", channel)
@@ -374,22 +393,24 @@ def test_replay_as_master_leaves_out_what_the_node_sent(
     capsys: pytest.CaptureFixture[str], channel: str, tmp_path: Path
 ) -> None:
     log = tmp_path / "run.log"
+    rpdo1, sdo_request = cob_id(FunctionCode.RPDO1, NODE_ID), sdo_request_cob_id(NODE_ID)
+    flood, other_tpdo1 = 0x001, cob_id(FunctionCode.TPDO1, NODE_ID + 1)
     frames = [
-        (0x000, b"\x01\x10"),  # NMT start node 0x10: the master's
-        (0x710, b"\x05"),  # heartbeat of node 0x10: the node's own
-        (0x210, bytes(8)),  # RPDO1 to node 0x10: the master's
-        (0x080, b"\x01"),  # SYNC: the master's
-        (0x190, bytes(4)),  # TPDO1 of node 0x10: the node's own
-        (0x590, bytes(8)),  # SDO answer of node 0x10: the node's own
-        (0x090, bytes(8)),  # EMCY of node 0x10: the node's own
-        (0x610, bytes(8)),  # SDO request to node 0x10: the master's
-        (0x001, bytes(8)),  # an injected flood frame: not the node's
-        (0x191, bytes(4)),  # TPDO1 of another node (0x11): not node 0x10's
+        (NMT_COB_ID, bytes([NmtCommand.START, NODE_ID])),  # NMT start node 0x10: the master's
+        (heartbeat_cob_id(NODE_ID), bytes([NmtState.OPERATIONAL])),  # heartbeat of node 0x10: the node's own
+        (rpdo1, bytes(8)),  # RPDO1 to node 0x10: the master's
+        (SYNC_COB_ID, b"\x01"),  # SYNC: the master's
+        (cob_id(FunctionCode.TPDO1, NODE_ID), bytes(4)),  # TPDO1 of node 0x10: the node's own
+        (sdo_response_cob_id(NODE_ID), bytes(8)),  # SDO answer of node 0x10: the node's own
+        (emcy_cob_id(NODE_ID), bytes(8)),  # EMCY of node 0x10: the node's own
+        (sdo_request, bytes(8)),  # SDO request to node 0x10: the master's
+        (flood, bytes(8)),  # an injected flood frame: not the node's
+        (other_tpdo1, bytes(4)),  # TPDO1 of another node (0x11): not node 0x10's
     ]
     with whole_file_logger(log) as logger:
-        for n, (cob_id, data) in enumerate(frames):
+        for n, (can_id, data) in enumerate(frames):
             logger(
-                can.Message(timestamp=1.0 + n * 1e-3, arbitration_id=cob_id, data=data, is_extended_id=False)
+                can.Message(timestamp=1.0 + n * 1e-3, arbitration_id=can_id, data=data, is_extended_id=False)
             )
     with can.Bus(interface="virtual", channel=channel) as listener:
         code, _, err = run(
@@ -398,7 +419,14 @@ def test_replay_as_master_leaves_out_what_the_node_sent(
         assert code == 0, err
         assert "without node 0x10's own frames" in err and "replay: 6 frames sent" in err
         received = [listener.recv(1.0) for _ in range(6)]
-    assert [m.arbitration_id for m in received if m is not None] == [0x000, 0x210, 0x080, 0x610, 0x001, 0x191]
+    assert [m.arbitration_id for m in received if m is not None] == [
+        NMT_COB_ID,
+        rpdo1,
+        SYNC_COB_ID,
+        sdo_request,
+        flood,
+        other_tpdo1,
+    ]
 
 
 def test_an_interrupted_recording_is_still_a_whole_file(tmp_path: Path) -> None:

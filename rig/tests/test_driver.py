@@ -12,17 +12,19 @@ import canopen
 import numpy as np
 import pytest
 
-from boardproto.cia301 import NmtState
+from boardproto.cia301 import SYNC_COB_ID, NmtState, emcy_cob_id
 from hilrig.driver import History
 from hilrig.errors import LockstepError
 from hilrig.lockstep import LockstepDriver
 from hilrig.physics import JointParams, JointPlant, SensorModel
 from hilrig.rig import DEFAULT_EDS_PATH
-from hilrig.table import RigTable
+from hilrig.table import BOARD_TABLE, RigTable
 from hilrig.transport import PdoDirection, PdoLayout, compile_pdos, parse_frame
 
 NODE_ID = 0x10
-EMCY = 0x80 + NODE_ID
+EMCY = emcy_cob_id(NODE_ID)
+SENSORS, SETPOINTS = (BOARD_TABLE.rpdo(n).cob_id(NODE_ID) for n in (1, 2))
+TPDO1, TPDO6, TPDO8 = (BOARD_TABLE.tpdo(n).cob_id(NODE_ID) for n in (1, 6, 8))
 
 
 class ScriptedLink:
@@ -39,7 +41,7 @@ class ScriptedLink:
     def send(self, frame: bytes) -> None:
         cob_id, data = parse_frame(frame)
         self.sent.append((cob_id, data))
-        if cob_id == 0x80:
+        if cob_id == SYNC_COB_ID:
             self.sync_number += 1
             due = [(p.cob_id, bytes(range(p.length))) for p in self.tpdos if p.due_at_sync(self.sync_number)]
             self.out.extend(self.script(self.sync_number, due))
@@ -93,15 +95,15 @@ def _link(driver: LockstepDriver) -> ScriptedLink:
 def test_a_cycle_sends_sensors_setpoints_and_sync_and_takes_every_due_tpdo(driver) -> None:
     result = driver.step()
     sent_ids = [cob_id for cob_id, _ in _link(driver).sent]
-    assert sent_ids == [0x210, 0x310, 0x80]  # sensor RPDO, setpoint stream, SYNC counter 1
-    assert _link(driver).sent[-1] == (0x80, b"\x01")
+    assert sent_ids == [SENSORS, SETPOINTS, SYNC_COB_ID]  # sensor RPDO, setpoint stream, SYNC counter 1
+    assert _link(driver).sent[-1] == (SYNC_COB_ID, b"\x01")
     assert sorted(p.number for p, _ in result.received_rows) == [1, 2, 3, 4, 5, 6, 7]
     assert result.received["motor_duty"] == int.from_bytes(b"\x00\x01", "little", signed=True)
     assert driver.cycle == 1 and driver.malformed_frames == 0
 
 
 def test_tpdo_of_the_wrong_length_is_counted_and_reported_for_its_cycle(driver) -> None:
-    _link(driver).script = lambda n, frames: [(c, d[:-1]) if c == 0x190 else (c, d) for c, d in frames]
+    _link(driver).script = lambda n, frames: [(c, d[:-1]) if c == TPDO1 else (c, d) for c, d in frames]
     with pytest.raises(
         LockstepError, match=r"cycle 0 \(t = 0 s\): TPDO1 \(0x190\) arrived with 2 bytes, its mapping has 3"
     ):
@@ -116,7 +118,7 @@ def test_a_tpdo_twice_is_reported(driver) -> None:
 
 
 def test_a_missing_tpdo_times_out_naming_it(driver) -> None:
-    _link(driver).script = lambda n, frames: [f for f in frames if f[0] != 0x2D0]
+    _link(driver).script = lambda n, frames: [f for f in frames if f[0] != TPDO6]
     with pytest.raises(LockstepError, match=r"TPDO6 \(0x2D0\) did not arrive within 0.5 s"):
         driver.step()
 
@@ -131,7 +133,7 @@ def test_emcy_among_the_tpdos_is_dispatched_and_the_cycle_completes(driver) -> N
 def test_emcy_between_cycles_is_dispatched_by_poll_and_a_late_tpdo_is_reported_next_cycle(driver) -> None:
     driver.step()
     link = _link(driver)
-    link.out.extend([(EMCY, bytes(8)), (0x190, bytes(3))])
+    link.out.extend([(EMCY, bytes(8)), (TPDO1, bytes(3))])
     driver.poll()
     assert driver.node.emcy == [bytes(8)]  # type: ignore[attr-defined]
     with pytest.raises(LockstepError, match=r"cycle 1 .*TPDO1 \(0x190\) arrived between SYNCs"):
@@ -139,8 +141,8 @@ def test_emcy_between_cycles_is_dispatched_by_poll_and_a_late_tpdo_is_reported_n
 
 
 def test_history_keeps_rows_per_pdo_and_merges_a_name_carried_twice() -> None:
-    first = PdoLayout(PdoDirection.TPDO, 1, 0x190, True, 1, ("a", "b"), ("h", "f"))
-    second = PdoLayout(PdoDirection.TPDO, 9, 0x4D0, True, 2, ("b",), ("f",))
+    first = PdoLayout(PdoDirection.TPDO, 1, TPDO1, True, 1, ("a", "b"), ("h", "f"))
+    second = PdoLayout(PdoDirection.TPDO, 9, TPDO8, True, 2, ("b",), ("f",))
     history = History(period_us=1000)
     for cycle in range(4):
         rows = [(first, (cycle, cycle * 0.5))]

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import can
 import pytest
 
+from boardproto.cia301 import SYNC_COB_ID
 from hilrig.errors import FirmwareError
 from hilrig.fake_node import FakeJointNode
 from hilrig.faults import (
@@ -28,7 +29,7 @@ from hilrig.rig import Rig
 from hilrig.table import RigTable
 
 TABLE = RigTable.load()
-RPDO1 = 0x200 + 0x10
+RPDO1 = TABLE.board.rpdo(1).cob_id(TABLE.board.node.default_node_id)  # the fake node's sensor RPDO
 _channels = itertools.count()
 
 
@@ -253,7 +254,7 @@ def _rpdo1_per_cycle(frames: list[can.Message]) -> list[int]:
     counts: list[int] = []
     pending = 0
     for message in frames:
-        if message.arbitration_id == 0x80:
+        if message.arbitration_id == SYNC_COB_ID:
             counts.append(pending)
             pending = 0
         elif message.arbitration_id == RPDO1:

@@ -15,7 +15,7 @@ import cantools
 import numpy as np
 import pytest
 
-from boardproto.cia301 import NmtCommand
+from boardproto.cia301 import NMT_COB_ID, SYNC_COB_ID, NmtCommand
 from hilrig.errors import (
     FieldAccessError,
     FieldNameError,
@@ -27,15 +27,19 @@ from hilrig.errors import (
     SdoAbortError,
 )
 from hilrig.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
+from hilrig.node import SdoAbortCode
 from hilrig.physics import JointParams, JointPlant, RawSensors, SensorModel, duty_from_motor_duty
 from hilrig.rig import DEFAULT_EDS_PATH, Rig
-from hilrig.table import RigTable
+from hilrig.table import BOARD_TABLE, ControlMode, EmcyCode, LedPattern, RigTable
 
 DBC_PATH = DEFAULT_EDS_PATH.with_name("board.dbc")
 PARAMS = JointParams.fast_thermal()
 SEED = 7
 _channels = itertools.count()
-_TPDO_IDS = {pdo.cob_id(0x10) for pdo in RigTable.load().board.tpdos if pdo.enabled}
+NODE_ID = BOARD_TABLE.node.default_node_id  # the fake node's
+_TPDO_IDS = {pdo.cob_id(NODE_ID) for pdo in BOARD_TABLE.tpdos if pdo.enabled}
+OVER_TEMPERATURE = BOARD_TABLE.emcy("over_temperature")
+WINDING_TEMPERATURE = BOARD_TABLE.field("winding_temperature").index  # what the EMCY is about
 
 
 @pytest.fixture(scope="session")
@@ -109,7 +113,7 @@ def test_waits_for_slow_tpdos_only_at_their_sync(bench: Bench) -> None:
 def test_sync_counter_wraps_after_240(bench: Bench) -> None:
     bench.rig.run(cycles=242)
     assert bench.fake.syncs[238:] == [239, 240, 1, 2]
-    sync_payloads = [m.data[0] for m in bench.frames() if m.arbitration_id == 0x80]
+    sync_payloads = [m.data[0] for m in bench.frames() if m.arbitration_id == SYNC_COB_ID]
     assert sync_payloads[238:] == [239, 240, 1, 2]
 
 
@@ -164,29 +168,32 @@ def test_setpoint_stream_goes_out_every_cycle_with_the_latest_value(
 
 def test_other_rpdos_go_out_once_after_a_change(bench: Bench, dbc: cantools.database.can.Database) -> None:
     bench.rig.run(cycles=3)
-    bench.rig.set("control_mode", 1)
+    bench.rig.set("control_mode", ControlMode.VELOCITY)
     bench.rig.run(cycles=3)
-    frames = [m for m in bench.frames() if m.arbitration_id == 0x410]
+    rpdo3 = BOARD_TABLE.rpdo(3).cob_id(NODE_ID)
+    frames = [m for m in bench.frames() if m.arbitration_id == rpdo3]
     assert len(frames) == 1
-    assert dbc.decode_message("RPDO3", frames[0].data)["control_mode"] == 1.0
+    decoded = dbc.decode_message("RPDO3", frames[0].data, decode_choices=False)  # numbers, not names
+    assert decoded["control_mode"] == float(ControlMode.VELOCITY)
     t, mode = bench.rig.sent("control_mode")
-    assert (list(t), list(mode)) == ([0.003], [1.0])
+    assert (list(t), list(mode)) == ([0.003], [float(ControlMode.VELOCITY)])
 
 
 def test_field_returns_the_latest_tpdo_value(bench: Bench) -> None:
     bench.rig.run(cycles=5)
     raw = bench.fake.last_inputs["motor_encoder_counts"]
     assert bench.rig.field("motor_velocity") == float(raw)
-    assert bench.rig.field("led_pattern") == 1
+    assert bench.rig.field("led_pattern") == LedPattern.ON
 
 
 def test_silenced_setpoint_stream_stops_rpdo2(bench: Bench) -> None:
+    rpdo2 = BOARD_TABLE.rpdo(2).cob_id(NODE_ID)
     bench.rig.pause_rpdo(2)
     bench.rig.run(cycles=3)
-    assert not [m for m in bench.frames() if m.arbitration_id == 0x310]
+    assert not [m for m in bench.frames() if m.arbitration_id == rpdo2]
     bench.rig.resume_rpdo(2)
     bench.rig.run(cycles=1)
-    assert len([m for m in bench.frames() if m.arbitration_id == 0x310]) == 1
+    assert len([m for m in bench.frames() if m.arbitration_id == rpdo2]) == 1
 
 
 def test_sensor_override_replaces_what_is_sent(bench: Bench, dbc: cantools.database.can.Database) -> None:
@@ -243,16 +250,14 @@ def test_dead_firmware_reads_as_firmware_error_not_timeout(unstarted: Bench) -> 
 # --- Start-up ----------------------------------------------------------------------------
 def test_start_puts_the_node_operational(unstarted: Bench) -> None:
     unstarted.rig.start()
-    assert [(m.arbitration_id, bytes(m.data)) for m in unstarted.frames() if m.arbitration_id == 0][-1] == (
-        0,
-        bytes([0x01, 0x10]),
-    )
+    nmt = [(m.arbitration_id, bytes(m.data)) for m in unstarted.frames() if m.arbitration_id == NMT_COB_ID]
+    assert nmt[-1] == (NMT_COB_ID, bytes([NmtCommand.START, NODE_ID]))
     unstarted.rig.run(cycles=1)  # the fake answers SYNC only once it is operational
     assert unstarted.fake.state.name == "OPERATIONAL"
 
 
 def test_start_refuses_an_actuator_tpdo_that_is_not_sent_every_sync(unstarted: Bench) -> None:
-    unstarted.fake.set_pdo_parameter(0x1800, 2, 10)
+    unstarted.fake.set_pdo_parameter(BOARD_TABLE.tpdo(1).communication_index, 2, 10)
     with pytest.raises(
         PdoMappingError, match=re.escape("TPDO1 (0x190) carries motor_duty with transmission type 10")
     ):
@@ -260,7 +265,7 @@ def test_start_refuses_an_actuator_tpdo_that_is_not_sent_every_sync(unstarted: B
 
 
 def test_start_refuses_a_mapping_without_the_sensor_inputs(unstarted: Bench) -> None:
-    unstarted.fake.set_pdo_parameter(0x1600, 0, 3)  # RPDO1 loses motor_current_adc
+    unstarted.fake.set_pdo_parameter(BOARD_TABLE.rpdo(1).mapping_index, 0, 3)  # RPDO1 loses motor_current_adc
     with pytest.raises(PdoMappingError, match="HIL input motor_current_adc is in no enabled RPDO"):
         unstarted.rig.start()
 
@@ -306,7 +311,7 @@ def test_sdo_write_refused_by_the_node_is_explained(bench: Bench) -> None:
     with pytest.raises(SdoAbortError) as info:
         bench.rig.set("velocity_kp", 99.0)
     assert str(info.value) == "write velocity_kp: 0x06090031 value too high (max 10.0)"
-    assert info.value.abort_code == 0x06090031
+    assert info.value.abort_code == SdoAbortCode.VALUE_TOO_HIGH
     read_only = "write motor_velocity: 0x06010002 object is read-only"
     with pytest.raises(SdoAbortError, match=re.escape(read_only)):
         bench.rig.set("motor_velocity", 1.0)
@@ -319,11 +324,17 @@ def test_sdo_write_and_read_back_by_name(bench: Bench) -> None:
 
 def test_emcy_is_recorded_with_cycle_and_time(bench: Bench) -> None:
     bench.rig.run(cycles=5)
-    bench.fake.send_emcy(0x4210, 0x08, bytes([0x04, 0x21, 0, 0, 0]))
+    about = WINDING_TEMPERATURE.to_bytes(2, "little") + bytes(3)
+    bench.fake.send_emcy(EmcyCode.OVER_TEMPERATURE, OVER_TEMPERATURE.error_register, about)
     bench.rig.run(cycles=1)  # frames arrive in order: the EMCY before cycle 5's TPDOs
     (emcy,) = bench.rig.emcy
-    assert (emcy.code, emcy.register, emcy.cycle, emcy.time_s) == (0x4210, 0x08, 5, 0.005)
-    assert emcy.object_index == 0x2104
+    assert (emcy.code, emcy.register, emcy.cycle, emcy.time_s) == (
+        EmcyCode.OVER_TEMPERATURE,
+        OVER_TEMPERATURE.error_register,
+        5,
+        0.005,
+    )
+    assert emcy.object_index == WINDING_TEMPERATURE
     assert "Temperature" in str(emcy)
 
 
@@ -353,7 +364,7 @@ def _split_by_sync(frames: list[can.Message]) -> list[tuple[list[can.Message], l
     cycles: list[tuple[list[can.Message], list[can.Message]]] = []
     pending: list[can.Message] = []
     for message in frames:
-        if message.arbitration_id == 0x80:
+        if message.arbitration_id == SYNC_COB_ID:
             cycles.append((pending, []))
             pending = []
         elif cycles and message.arbitration_id in _TPDO_IDS:

@@ -7,12 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from boardproto.cia301 import NmtCommand, NmtState
+from boardproto.cia301 import FunctionCode, NmtCommand, NmtState, cob_id
 from hilrig.errors import FieldNameError
 from hilrig.node import SdoAbortCode, explain_abort
 from hilrig.table import RigTable
 from hilrig.transport import PdoDirection, PdoLayout
 
+TPDO2_ID = cob_id(FunctionCode.TPDO2, 0x10)  # of node 0x10
 FIRMWARE_ABORTS = Path(__file__).resolve().parents[2] / "firmware" / "canopen" / "SdoAbort.hpp"
 
 
@@ -88,7 +89,7 @@ def test_table_is_the_generated_one_not_a_copy(table: RigTable) -> None:
     ],
 )
 def test_tpdo_due_at_every_nth_sync_since_operational(transmission_type: int, due_syncs: list[int]) -> None:
-    pdo = PdoLayout(PdoDirection.TPDO, 2, 0x290, True, transmission_type, ("a", "b"))
+    pdo = PdoLayout(PdoDirection.TPDO, 2, TPDO2_ID, True, transmission_type, ("a", "b"))
     assert [n for n in range(1, 13) if pdo.due_at_sync(n)] == due_syncs
     assert pdo.label == "TPDO2 (0x290)"
 

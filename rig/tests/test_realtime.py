@@ -12,16 +12,18 @@ from dataclasses import dataclass
 import can
 import pytest
 
+from boardproto.cia301 import SYNC_COB_ID
 from hilrig.errors import NoValueError, RealTimeError
 from hilrig.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
 from hilrig.physics import JointParams
 from hilrig.realtime import RealTimeDriver, WallHistory
 from hilrig.rig import Rig
-from hilrig.table import RigTable
+from hilrig.table import BOARD_TABLE, RigTable
 
 PERIOD_US = 10_000
 PERIOD_S = PERIOD_US / 1e6
-SYNC_ID, RPDO1_ID, RPDO2_ID = 0x080, 0x210, 0x310  # node 0x10
+NODE_ID = BOARD_TABLE.node.default_node_id  # the fake node's, 0x10
+RPDO1_ID, RPDO2_ID = (BOARD_TABLE.rpdo(n).cob_id(NODE_ID) for n in (1, 2))  # sensors, setpoint stream
 _channels = itertools.count()
 
 
@@ -143,8 +145,8 @@ def test_history_is_on_the_wall_timeline(late_bench: Bench) -> None:
 
 def test_each_tick_sends_sensors_setpoints_then_sync(bench: Bench) -> None:
     bench.rig.run(cycles=4)
-    ids = [i for i in bench.frame_ids() if i in (SYNC_ID, RPDO1_ID, RPDO2_ID)]
-    assert ids == [RPDO1_ID, RPDO2_ID, SYNC_ID] * 4
+    ids = [i for i in bench.frame_ids() if i in (SYNC_COB_ID, RPDO1_ID, RPDO2_ID)]
+    assert ids == [RPDO1_ID, RPDO2_ID, SYNC_COB_ID] * 4
 
 
 def test_run_and_events_count_in_wall_seconds(bench: Bench) -> None:
@@ -164,7 +166,7 @@ def test_without_physics_no_sensor_rpdo_goes_out_and_the_plant_stands_still(tabl
         ids = bench.frame_ids()
         assert RPDO1_ID not in ids
         assert ids.count(RPDO2_ID) == 5
-        assert ids.count(SYNC_ID) == 5
+        assert ids.count(SYNC_COB_ID) == 5
         assert bench.rig.state == initial
         with pytest.raises(NoValueError, match="without physics"):
             bench.rig.truth("load_velocity")

@@ -15,12 +15,29 @@ from pathlib import Path
 import cantools
 import pytest
 
+from boardproto.cia301 import (
+    NMT_COB_ID,
+    PDO_EXTENSION_OFFSET,
+    RPDO_FUNCTIONS,
+    SYNC_COB_ID,
+    TIME_COB_ID,
+    TPDO_FUNCTIONS,
+    NmtCommand,
+    NmtState,
+    cob_id,
+    emcy_cob_id,
+    heartbeat_cob_id,
+    sdo_request_cob_id,
+    sdo_response_cob_id,
+)
+from boardproto.table import ErrorRegisterBit
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.soak import (
     EMCY_ERROR_RESET,
     EMCY_PDO_LENGTH,
     EMCY_STALE_SENSOR,
     RPDO_COMMUNICATION_BASE,
+    STALE_ENCODER_BITS,
     STALE_ENCODER_FLAGS,
     FaultPlan,
     PlannedFault,
@@ -41,6 +58,7 @@ from hilrig.soak import (
     thin,
     write_json_atomic,
 )
+from hilrig.table import FaultFlags
 from hilrig.transport import can_frame, parse_frame
 
 NODE_ID = 0x10
@@ -67,19 +85,34 @@ def test_layout_is_the_eds_default_mapping(layout: SoakLayout) -> None:
     assert layout.sensor.label == "RPDO1 (0x210)"
     assert layout.sensor.codec.format == "<HHHh"
     assert layout.setpoint.names == ("velocity_setpoint", "torque_setpoint")
-    assert [p.cob_id for p in layout.tpdos] == [0x190, 0x290, 0x390, 0x490, 0x1D0, 0x2D0, 0x3D0, 0x4D0]
+    tpdo1_to_4 = [cob_id(tpdo, NODE_ID) for tpdo in TPDO_FUNCTIONS]
+    tpdo5_to_8 = [cob + PDO_EXTENSION_OFFSET for cob in tpdo1_to_4]  # the predefined set's extension
+    assert [p.cob_id for p in layout.tpdos] == tpdo1_to_4 + tpdo5_to_8
     assert layout.status.label == "TPDO6 (0x2D0)"
     assert layout.due_period == 10
     assert [p.number for p in layout.due_at(9)] == [1, 2, 3, 4, 5, 6, 7]
     assert [p.number for p in layout.due_at(10)] == [1, 2, 3, 4, 5, 6, 7, 8]
     assert layout.tpdos[0].length == 3  # I16 motor_duty + U8 led_pattern
-    assert set(layout.receive_ids) == {*(p.cob_id for p in layout.tpdos), 0x90, 0x710}
+    assert set(layout.receive_ids) == {
+        *(p.cob_id for p in layout.tpdos),
+        emcy_cob_id(NODE_ID),
+        heartbeat_cob_id(NODE_ID),
+    }
     assert layout.encoder_stale_cycles == 20
 
 
 def test_unknown_cob_ids_avoid_everything_the_node_uses(layout: SoakLayout) -> None:
     unknown = set(layout.unknown_cob_ids())
-    node_ids = {0x000, 0x080, 0x090, 0x100, 0x590, 0x610, 0x710, 0x210, 0x310, 0x410, 0x510}
+    node_ids = {
+        NMT_COB_ID,
+        SYNC_COB_ID,
+        emcy_cob_id(NODE_ID),
+        TIME_COB_ID,
+        sdo_response_cob_id(NODE_ID),
+        sdo_request_cob_id(NODE_ID),
+        heartbeat_cob_id(NODE_ID),
+        *(cob_id(rpdo, NODE_ID) for rpdo in RPDO_FUNCTIONS),
+    }
     assert not unknown & (node_ids | {p.cob_id for p in layout.tpdos})
     assert 0x123 in unknown
 
@@ -103,9 +136,12 @@ def test_sensor_frame_decodes_with_the_dbc_to_the_pattern(layout: SoakLayout, db
 
 
 def test_status_and_sdo_bytes_decode_with_the_dbc(layout: SoakLayout, dbc) -> None:
-    decoded = dbc.decode_message(layout.status.cob_id, layout.status_bytes(STALE_ENCODER_FLAGS))
-    assert decoded == {"safe_state": 1.0, "fault_flags": 3.0}
-    assert dbc.decode_message(layout.status.cob_id, layout.status_bytes(0)) == {
+    status = layout.status.cob_id
+    decoded = dbc.decode_message(status, layout.status_bytes(STALE_ENCODER_FLAGS), decode_choices=False)
+    both_encoders = FaultFlags.MOTOR_ENCODER_STALE | FaultFlags.OUTPUT_ENCODER_STALE
+    latched = {"safe_state": 1.0, "fault_flags": float(both_encoders)}
+    assert decoded == latched
+    assert dbc.decode_message(status, layout.status_bytes(0), decode_choices=False) == {
         "safe_state": 0.0,
         "fault_flags": 0.0,
     }
@@ -122,7 +158,7 @@ def test_can_frame_round_trip_and_limits() -> None:
     with pytest.raises(ValueError, match="11-bit"):
         can_frame(0x800, b"")
     with pytest.raises(ValueError, match="8 bytes"):
-        can_frame(0x100, bytes(9))
+        can_frame(0x123, bytes(9))
 
 
 # --- Fault plan ---------------------------------------------------------------------------
@@ -253,7 +289,7 @@ class FakeFirmware:
         self.extra = extra  # (cycle, TPDO number): sent although not due
         self.answer_while_stopped = answer_while_stopped
         self.stale_limit = stale_limit if stale_limit is not None else layout.encoder_stale_cycles
-        self.out: deque[bytes] = deque([can_frame(layout.heartbeat_cob_id, b"\x00")])
+        self.out: deque[bytes] = deque([can_frame(layout.heartbeat_cob_id, bytes([NmtState.INITIALISING]))])
         self.state = "pre-operational"
         self.cycle = 0
         self.sync_number = 0
@@ -306,19 +342,20 @@ class FakeFirmware:
 
     def _emcy(self, code: int, about: int) -> None:
         self.counters["EMCY"] += 1
-        self._emit(self.layout.emcy_cob_id, struct.pack("<HBH3x", code, 1 if code else 0, about))
+        register = ErrorRegisterBit.GENERIC if code != EMCY_ERROR_RESET else 0
+        self._emit(self.layout.emcy_cob_id, struct.pack("<HBH3x", code, register, about))
 
     def _process(self, cob_id: int, data: bytes) -> None:
         layout = self.layout
-        if cob_id == 0:
+        if cob_id == NMT_COB_ID:
             if data[1] == layout.node_id:
-                self.state = {1: "operational", 2: "stopped"}[data[0]]
+                self.state = {NmtCommand.START: "operational", NmtCommand.STOP: "stopped"}[data[0]]
                 self.sync_number = 0
             return
-        if self.state == "stopped" and not (cob_id == 0x80 and self.answer_while_stopped):
+        if self.state == "stopped" and not (cob_id == SYNC_COB_ID and self.answer_while_stopped):
             self.counters["ignored"] += 1
             return
-        if cob_id == 0x80:
+        if cob_id == SYNC_COB_ID:
             self._sync()
         elif cob_id == layout.sensor.cob_id:
             if len(data) < layout.sensor.length:
@@ -347,8 +384,8 @@ class FakeFirmware:
                 self._emcy(EMCY_ERROR_RESET, 0)
             self.flags &= causes
             self.clear_requested = False
-        for bit, about in enumerate(self.layout.stale_about):
-            if causes & ~self.flags & (1 << bit):
+        for bit, about in zip(STALE_ENCODER_BITS, self.layout.stale_about, strict=True):
+            if causes & ~self.flags & bit.mask:
                 self._emcy(EMCY_STALE_SENSOR, about)
         self.flags |= causes
         self.sync_number += 1

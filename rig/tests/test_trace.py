@@ -18,7 +18,7 @@ from hilrig.errors import FieldNameError, SdoAbortError
 from hilrig.fake_node import FakeJointNode
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
-from hilrig.table import RigTable
+from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
 from hilrig.trace import (
     EMCY_PATH,
     NMT_PATH,
@@ -93,7 +93,9 @@ def _scenario(run: Run) -> None:
     rig.set("velocity_kp", 0.25)
     with pytest.raises(SdoAbortError):
         rig.set("velocity_kp", 99.0)
-    run.fake.send_emcy(0x4210, 0x08, bytes([0x04, 0x21, 0, 0, 0]))
+    over_temperature = BOARD_TABLE.emcy("over_temperature")
+    about = BOARD_TABLE.field("winding_temperature").index.to_bytes(2, "little") + bytes(3)
+    run.fake.send_emcy(EmcyCode.OVER_TEMPERATURE, over_temperature.error_register, about)
     rig.run(cycles=CYCLES - 12)
     run.tracer.close()
 

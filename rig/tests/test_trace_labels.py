@@ -18,12 +18,12 @@ from hilrig.trace_reader import Trace
 def test_an_enum_value_and_a_fault_combination_get_their_names() -> None:
     modes, faults = BOARD_TABLE.enum("control_mode"), BOARD_TABLE.bitset("fault_flags")
     assert value_name(modes, float(ControlMode.TORQUE)) == "torque"
-    assert value_name(modes, 7.0) == "7 (no control_mode)"
+    assert value_name(modes, 7.0) == "7 (no control_mode)"  # protocol-literal: on purpose no mode's number
     assert value_name(faults, 0.0) == "none"
     both = FaultFlags.MOTOR_ENCODER_STALE | FaultFlags.OVER_TEMPERATURE
     assert value_name(faults, float(both)) == "motor_encoder_stale|over_temperature"
     assert value_name(faults, float(1 << 20)) == "bit 20"  # latched by a newer firmware
-    assert value_name(faults, 0.5) == "0.5 (no fault_flags)"
+    assert value_name(faults, 0.5) == "0.5 (no fault_flags)"  # protocol-literal: on purpose no set of bits
     assert value_name(faults, float("nan")) == "nan (no fault_flags)"
 
 
@@ -52,7 +52,8 @@ def test_a_traced_run_names_each_new_value_of_an_enum_field(tmp_path: Path) -> N
     paths = entity_paths(table)
     mode_labels = [text for text, _level in trace.texts[label_path(paths["control_mode"])]]
     assert mode_labels[-2:] == ["control_mode = velocity", "control_mode = torque"], mode_labels
-    assert len(trace.scalars[paths["control_mode"]]) >= 2  # the numbers stay where they were
+    mode_numbers = trace.scalars[paths["control_mode"]]
+    assert len(mode_numbers) >= 2  # the numbers stay where they were
     fault_labels = trace.texts[label_path(paths["fault_flags"])]
     assert [text for text, _ in fault_labels] == ["fault_flags = none"]  # once: it never changed
     assert trace.texts[label_path(paths["led_pattern"])], "led_pattern (a HIL output) is named too"

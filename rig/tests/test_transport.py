@@ -13,7 +13,7 @@ import canopen
 import cantools
 import pytest
 
-from boardproto.cia301 import FunctionCode, cob_id, due_at_sync, sync_counter
+from boardproto.cia301 import FunctionCode, cob_id, due_at_sync, emcy_cob_id, sync_counter
 from hilrig.errors import PdoMappingError
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.transport import (
@@ -27,6 +27,7 @@ from hilrig.transport import (
 )
 
 NODE_ID = 0x10
+TPDO1_ID, EMCY_ID = cob_id(FunctionCode.TPDO1, NODE_ID), emcy_cob_id(NODE_ID)
 _channels = itertools.count()
 
 
@@ -70,7 +71,8 @@ def test_every_pdo_frame_decodes_with_the_dbc_to_what_was_packed(pdos, dbc) -> N
         assert len(frame) == CAN_FRAME_SIZE
         got_id, data = parse_frame(frame)
         assert got_id == pdo.cob_id and len(data) == pdo.length
-        assert dbc.decode_message(got_id, data) == dict(zip(pdo.names, values, strict=True))
+        decoded = dbc.decode_message(got_id, data, decode_choices=False)  # numbers, not value names
+        assert decoded == dict(zip(pdo.names, values, strict=True))
         assert pdo.unpack(data) == tuple(values)
         assert pdo.object_bytes(pdo.names[0], values[0]) == struct.pack("<" + pdo.formats[0], values[0])
 
@@ -107,7 +109,7 @@ def test_unpackable_types_are_refused_by_name() -> None:
         name, od, length, index, subindex = "label", Od(), 64, 0x2000, 0
 
     class Map:
-        cob_id, enabled, trans_type, map = 0x190, True, 1, [Var()]
+        cob_id, enabled, trans_type, map = TPDO1_ID, True, 1, [Var()]
 
     with pytest.raises(PdoMappingError, match="TPDO1: label has a data type no PDO codec can pack"):
         compile_pdos(PdoDirection.TPDO, {1: Map()})  # type: ignore[dict-item]
@@ -118,7 +120,7 @@ def test_can_frame_limits() -> None:
     with pytest.raises(ValueError, match="11-bit"):
         can_frame(0x800, b"")
     with pytest.raises(ValueError, match="<= 8 bytes"):
-        can_frame(0x100, bytes(9))
+        can_frame(0x123, bytes(9))
 
 
 def test_connection_set_rules() -> None:
@@ -136,19 +138,20 @@ def test_bus_link_passes_only_the_wanted_standard_data_frames() -> None:
         can.Bus(interface="virtual", channel=channel) as other,
     ):
         notifier = can.Notifier(ours, [], timeout=0.01)
-        link = BusLink(ours, notifier, [0x190, 0x090])
+        link = BusLink(ours, notifier, [TPDO1_ID, EMCY_ID])
+        unwanted, rpdo1 = cob_id(FunctionCode.TPDO2, NODE_ID), cob_id(FunctionCode.RPDO1, NODE_ID)
         try:
-            other.send(can.Message(arbitration_id=0x290, data=b"\x01", is_extended_id=False))
-            other.send(can.Message(arbitration_id=0x190, data=b"\x01\x02\x03", is_extended_id=False))
-            other.send(can.Message(arbitration_id=0x190, is_extended_id=True, data=b"\x09"))
-            other.send(can.Message(arbitration_id=0x090, data=bytes(8), is_extended_id=False))
-            assert link.recv(5.0) == (0x190, b"\x01\x02\x03")
-            assert link.recv(5.0) == (0x090, bytes(8))
+            other.send(can.Message(arbitration_id=unwanted, data=b"\x01", is_extended_id=False))
+            other.send(can.Message(arbitration_id=TPDO1_ID, data=b"\x01\x02\x03", is_extended_id=False))
+            other.send(can.Message(arbitration_id=TPDO1_ID, is_extended_id=True, data=b"\x09"))
+            other.send(can.Message(arbitration_id=EMCY_ID, data=bytes(8), is_extended_id=False))
+            assert link.recv(5.0) == (TPDO1_ID, b"\x01\x02\x03")
+            assert link.recv(5.0) == (EMCY_ID, bytes(8))
             assert link.recv(0.05) is None
-            link.send(can_frame(0x210, b"\xaa\xbb"))
+            link.send(can_frame(rpdo1, b"\xaa\xbb"))
             message = other.recv(5.0)
             assert message is not None and (message.arbitration_id, bytes(message.data)) == (
-                0x210,
+                rpdo1,
                 b"\xaa\xbb",
             )
         finally:

@@ -30,7 +30,7 @@ from playwright.sync_api import ConsoleMessage, Error, Page, ViewportSize, sync_
 from hilrig.fake_node import FakeJointNode
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
-from hilrig.table import RigTable
+from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
 from hilrig.trace import (
     APPLICATION_ID,
     CYCLE_TIMELINE,
@@ -88,7 +88,7 @@ def _fields(data: bytes) -> dict[int, list[int | bytes]]:
             at += 1
             value |= (byte & 0x7F) << shift
             shift += 7
-            if byte < 0x80:
+            if byte < 0x80:  # protocol-literal: protobuf varint continuation bit, not a COB-ID
                 return value
 
     while at < len(data):
@@ -232,7 +232,9 @@ def trace(tmp_path: Path) -> Path:
         rig.at(0.1, lambda r: r.set("velocity_setpoint", -2.0))
         rig.run(cycles=CYCLES // 2)
         rig.set("velocity_kp", 0.25)
-        fake.send_emcy(0x4210, 0x08, bytes([0x04, 0x21, 0, 0, 0]))
+        over_temperature = BOARD_TABLE.emcy("over_temperature")
+        about = BOARD_TABLE.field("winding_temperature").index.to_bytes(2, "little") + bytes(3)
+        fake.send_emcy(EmcyCode.OVER_TEMPERATURE, over_temperature.error_register, about)
         rig.run(cycles=CYCLES - CYCLES // 2)
     finally:
         rig.close()
