@@ -39,6 +39,7 @@ SCANNED_DIRECTORIES = ("rig", "tests", "tools")
 MARKER = "# protocol-literal:"
 THIS_FILE = Path(__file__).resolve()
 
+# NMT's COB-ID is 0: a literal 0 is far too common to flag; NMT frames are spelled NMT_COB_ID.
 COB_ID_BASES = frozenset(int(code) for code in FunctionCode if code != FunctionCode.NMT)
 PER_NODE_BASES = COB_ID_BASES - {int(FunctionCode.TIME)}  # TIME has no node id
 NODE_ID_MASK = 0x7F
@@ -76,16 +77,24 @@ def _is_cob_id(value: int, spelled: str) -> bool:
 
 
 def _words(node: ast.AST) -> Iterator[str]:
-    """Lower-case names, attributes and strings that appear in an expression."""
-    for child in ast.walk(node):
-        if isinstance(child, ast.Name):
-            yield child.id.lower()
-        elif isinstance(child, ast.Attribute):
-            yield child.attr.lower()
-        elif isinstance(child, ast.Constant) and isinstance(child.value, str):
-            yield child.value.lower()
-        elif isinstance(child, ast.keyword) and child.arg:
-            yield child.arg.lower()
+    """Lower-case names, attributes and strings that appear in an expression, except inside a
+    subscript's index (`x[paths["control_mode"]]` is not about the mode's value) and a dict
+    (its own context: each key goes with its value)."""
+    if isinstance(node, ast.Name):
+        yield node.id.lower()
+    elif isinstance(node, ast.Attribute):
+        yield node.attr.lower()
+    elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+        yield node.value.lower()
+    elif isinstance(node, ast.keyword) and node.arg:
+        yield node.arg.lower()
+    if isinstance(node, ast.Subscript):
+        yield from _words(node.value)
+        return
+    if isinstance(node, ast.Dict):
+        return
+    for child in ast.iter_child_nodes(node):
+        yield from _words(child)
 
 
 def _numbers(node: ast.AST) -> Iterator[ast.Constant]:
@@ -93,6 +102,8 @@ def _numbers(node: ast.AST) -> Iterator[ast.Constant]:
     if isinstance(node, ast.Subscript):
         yield from _numbers(node.value)
         return
+    if isinstance(node, ast.Dict):
+        return  # a context of its own
     if isinstance(node, ast.Constant):
         if isinstance(node.value, int | float) and not isinstance(node.value, bool):
             yield node
@@ -117,21 +128,31 @@ _VALUE_CONTEXTS = (ast.Compare, ast.BinOp, ast.Call, ast.Assign, ast.AnnAssign, 
 class _Scanner(ast.NodeVisitor):
     def __init__(self, path: Path, source: str, emcy_codes: frozenset[int]) -> None:
         self.path = path
-        self.lines = source.splitlines()
+        self.lines = source.split("\n")  # as the parser counts lines
+        self.encoded_lines = [line.encode() for line in self.lines]  # AST columns count UTF-8 bytes
         self.source = source
         self.emcy_codes = emcy_codes
         self.findings: dict[tuple[int, int], Finding] = {}
 
+    def _spelled(self, node: ast.Constant) -> str:
+        """The literal as written (ast.get_source_segment re-splits the file on every call)."""
+        if node.end_lineno != node.lineno or node.end_col_offset is None:
+            return ""
+        line = self.encoded_lines[node.lineno - 1]
+        return line[node.col_offset : node.end_col_offset].decode("utf-8", "replace")
+
     def _add(self, node: ast.Constant, why: str) -> None:
         line = self.lines[node.lineno - 1]
         if MARKER in line:
-            return
-        text = ast.get_source_segment(self.source, node) or repr(node.value)
+            if line.split(MARKER, 1)[1].strip():
+                return
+            why = f"{why} (the {MARKER!r} mark on this line gives no reason)"
+        text = self._spelled(node) or repr(node.value)
         self.findings.setdefault((node.lineno, node.col_offset), Finding(self.path, node.lineno, text, why))
 
     def visit_Constant(self, node: ast.Constant) -> None:
         if isinstance(node.value, int) and not isinstance(node.value, bool):
-            spelled = ast.get_source_segment(self.source, node) or ""
+            spelled = self._spelled(node)
             if spelled.lower().startswith("0x"):
                 if _is_cob_id(node.value, spelled):
                     self._add(node, "a COB-ID of the CiA 301 connection set: use boardproto.cia301")
@@ -160,7 +181,11 @@ class _Scanner(ast.NodeVisitor):
 def _direct_number(node: ast.AST) -> ast.Constant | None:
     if isinstance(node, ast.UnaryOp):
         node = node.operand
-    if isinstance(node, ast.Constant) and isinstance(node.value, int | float) and not isinstance(node.value, bool):
+    if (
+        isinstance(node, ast.Constant)
+        and isinstance(node.value, int | float)
+        and not isinstance(node.value, bool)
+    ):
         return node
     return None
 

@@ -22,7 +22,7 @@ from canopen.pdo import PdoVariable
 from canopen.sdo import SdoAbortedError
 
 from boardproto import Field
-from boardproto.cia301 import SYNC_COB_ID, NmtState, heartbeat_cob_id
+from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState, heartbeat_cob_id
 from hilrig.node import RECEIVE_POLL_S, SdoAbortCode
 from hilrig.table import LedPattern, RigTable
 
@@ -115,7 +115,7 @@ class FakeJointNode:
         self.local.data_store.setdefault(index, {})[subindex] = od.encode_raw(value)
 
     def _after_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        if data[0] == 0x01 and data[1] in (0, self.node_id):
+        if data[0] == NmtCommand.START and data[1] in (0, self.node_id):
             with self._lock:
                 self._sync_number = 0  # the firmware counts SYNCs from entering operational
 

@@ -933,7 +933,7 @@ class SoakDriver:
         self._last_progress = (0, self.started_at)
 
     def _nmt(self, command: NmtCommand) -> None:
-        self._send_counted(0x000, bytes([int(command), self.layout.node_id]))
+        self._send_counted(NMT_COB_ID, bytes([int(command), self.layout.node_id]))
         if command is NmtCommand.START:
             self._sync_number = 0  # the node counts SYNCs for its TPDOs from here
 

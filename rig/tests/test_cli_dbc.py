@@ -13,6 +13,7 @@ import cantools.logreader
 import pytest
 from cantools.database.can import Database
 
+from boardproto.cia301 import FunctionCode, cob_id
 from hilrig.cli import main
 from hilrig.table import RigTable
 
@@ -41,7 +42,7 @@ def test_writes_the_dbc_for_the_node_id_to_stdout(capsys: pytest.CaptureFixture[
     assert (code, err) == (0, "")
     database = load(out)
     assert {m.name: m.frame_id for m in database.messages} == frame_ids(0x20)
-    assert database.get_message_by_name("TPDO1").frame_id == 0x1A0
+    assert database.get_message_by_name("TPDO1").frame_id == cob_id(FunctionCode.TPDO1, 0x20)
     assert run(capsys, "dbc", "-n", "32")[1] == out  # decimal and hex alike
 
 
@@ -82,7 +83,8 @@ def test_a_node_id_above_63_warns_that_pdo_5_to_8_take_another_nodes_ids(
 ) -> None:
     code, out, err = run(capsys, "dbc", "--node-id", "0x50")
     assert code == 0
-    assert load(out).get_message_by_name("TPDO5").frame_id == 0x210
+    rpdo1_of_node_0x10 = cob_id(FunctionCode.RPDO1, 0x10)
+    assert load(out).get_message_by_name("TPDO5").frame_id == rpdo1_of_node_0x10
     assert err.count("\n") == 1
     assert err.startswith("hilrig dbc: warning: node id 0x50 is above 63")
     assert "TPDO5 0x210 = RPDO1 of node 0x10" in err
