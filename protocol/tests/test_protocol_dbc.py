@@ -18,14 +18,14 @@ from boardproto import BoardTable, load_table
 from boardproto.dbc import MAX_COMBINED_BITS, build_database, node_id_warning, value_choices
 from boardproto.table import BitSet, FlagBit
 
-FAULT_BITS = (
-    "motor_encoder_stale",
-    "output_encoder_stale",
-    "thermistor_stale",
-    "over_temperature",
-    "command_watchdog",
-    "ownership_violation",
+# Every fault value below comes from the table: moving a bit in board.toml moves them too.
+TABLE = load_table(Path(__file__).resolve().parents[1] / "board.toml")
+FAULTS = TABLE.bitset("fault_flags")
+ENCODERS_STALE = sorted(
+    (FAULTS.bit("motor_encoder_stale"), FAULTS.bit("output_encoder_stale")), key=lambda b: b.bit
 )
+ENCODERS_STALE_FLAGS = ENCODERS_STALE[0].mask | ENCODERS_STALE[1].mask
+ENCODERS_STALE_NAME = f"{ENCODERS_STALE[0].name}|{ENCODERS_STALE[1].name}"
 
 
 @pytest.fixture(scope="module")
@@ -121,9 +121,9 @@ def test_a_bitset_names_none_each_bit_and_each_combination(database: Database, t
     assert len(names) == 2 ** len(bits)
     assert names[0] == "none"
     assert {bit.mask: names[bit.mask] for bit in bits} == {bit.mask: bit.name for bit in bits}
-    assert tuple(names[1 << n] for n in range(len(FAULT_BITS))) == FAULT_BITS
-    assert names[0b11] == "motor_encoder_stale|output_encoder_stale"
-    assert names[0b10100] == "thermistor_stale|command_watchdog"
+    assert names[ENCODERS_STALE_FLAGS] == ENCODERS_STALE_NAME
+    by_bit = sorted(bits, key=lambda b: b.bit)
+    assert names[by_bit[0].mask | by_bit[-1].mask] == f"{by_bit[0].name}|{by_bit[-1].name}"
 
 
 def test_a_bitset_too_wide_to_combine_names_its_single_bits() -> None:
@@ -145,11 +145,12 @@ def test_a_real32_enum_of_1_0_decodes_to_its_name(database: Database) -> None:
 
 def test_a_real32_bitset_decodes_to_the_names_of_its_bits(database: Database) -> None:
     message = database.get_message_by_name("TPDO6")  # safe_state, fault_flags: REAL32
-    assert str(message.decode(struct.pack("<ff", 1.0, 3.0))["fault_flags"]) == (
-        "motor_encoder_stale|output_encoder_stale"
+    assert str(message.decode(struct.pack("<ff", 1.0, ENCODERS_STALE_FLAGS))["fault_flags"]) == (
+        ENCODERS_STALE_NAME
     )
     assert str(message.decode(struct.pack("<ff", 0.0, 0.0))["fault_flags"]) == "none"
-    assert message.decode(struct.pack("<ff", 1.0, 64.0))["fault_flags"] == 64.0  # no bit 6 (yet)
+    unnamed = float(1 << max(b.bit for b in FAULTS.bits) + 1)
+    assert message.decode(struct.pack("<ff", 1.0, unnamed))["fault_flags"] == unnamed  # no such bit (yet)
 
 
 def test_without_choices_a_real32_decodes_to_its_exact_number(database: Database) -> None:
@@ -167,14 +168,17 @@ def test_value_tables_are_written_as_val_lines_and_float_types(dbc_path: Path, d
     assert f'VAL_ {rpdo3} control_mode 0 "disabled" 1 "velocity" 2 "torque" 3 "position" ;' in text
     assert f"SIG_VALTYPE_ {rpdo3} control_mode : 1;" in text  # IEEE float, as before
     tpdo6 = database.get_message_by_name("TPDO6").frame_id
-    assert f'VAL_ {tpdo6} fault_flags 0 "none" 1 "motor_encoder_stale" 2 "output_encoder_stale" 3 ' in text
+    lowest = sorted(FAULTS.bits, key=lambda b: b.bit)[:2]
+    assert f'VAL_ {tpdo6} fault_flags 0 "none" {lowest[0].mask} "{lowest[0].name}" ' in text
+    assert f' {lowest[1].mask} "{lowest[1].name}" ' in text
 
 
 def test_cantools_decode_prints_the_names_in_a_candump_log(dbc_path: Path, tmp_path: Path) -> None:
     """`python -m cantools decode board.dbc < candump.log`, what a person at a bench types."""
+    status = struct.pack("<ff", 1.0, ENCODERS_STALE_FLAGS).hex().upper()  # safe_state, fault_flags
     log = (
         "(1700000000.000000) vcan0 410#0000803F00000000\n"  # RPDO3: control_mode 1.0
-        "(1700000000.001000) vcan0 2D0#0000803F00004040\n"  # TPDO6: safe_state 1.0, fault_flags 3.0
+        f"(1700000000.001000) vcan0 2D0#{status}\n"  # TPDO6
         "(1700000000.002000) vcan0 190#E80302\n"  # TPDO1: motor_duty 1000, led_pattern 2
     )
     result = subprocess.run(
@@ -187,7 +191,7 @@ def test_cantools_decode_prints_the_names_in_a_candump_log(dbc_path: Path, tmp_p
     )
     lines = result.stdout.splitlines()
     assert lines[0].endswith(":: RPDO3(control_mode: velocity, position_setpoint: 0.0 rad)")
-    assert "fault_flags: motor_encoder_stale|output_encoder_stale" in lines[1]
+    assert f"fault_flags: {ENCODERS_STALE_NAME}" in lines[1]
     assert "led_pattern: slow_blink" in lines[2]
 
 
