@@ -88,7 +88,7 @@ struct NodeCounters {
   std::uint32_t sdo_requests = 0;
   std::uint32_t sdo_aborts_sent = 0;
   std::uint32_t rpdos_received = 0;       // applied or buffered until the next SYNC
-  std::uint32_t rpdo_length_errors = 0;   // shorter than the mapping: dropped, EMCY 0x8210
+  std::uint32_t rpdo_length_errors = 0;   // shorter than the mapping: dropped, EMCY pdo_length_error
   std::uint32_t rpdo_values_rejected = 0; // mapped value out of range or refused by the board
   std::uint32_t tpdos_sent = 0;
   std::uint32_t heartbeats_sent = 0;
@@ -120,7 +120,7 @@ class Node final {
   ProcessResult process(const CanFrame& frame, std::uint32_t now_us);
 
   // Timers: heartbeat, SDO server timeout, event-driven TPDOs (event timer, change of value
-  // limited by the inhibit time), RPDO deadlines (EMCY 0x8250). Call at least once per
+  // limited by the inhibit time), RPDO deadlines (EMCY rpdo_timeout). Call at least once per
   // millisecond for exact timing.
   void poll(std::uint32_t now_us);
 

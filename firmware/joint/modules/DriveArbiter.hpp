@@ -1,8 +1,9 @@
 // The command interface: picks the duty the motor applies from control_mode
-// (1 and 3: the velocity loop, 2: the torque loop, 0 or anything else: none),
-// forces 0 in the safe state, and limits it to max_duty * thermal_derate (the
-// derate bounds the drive rather than scaling it, so a hot winding caps the
-// current instead of weakening every command). Writes motor_duty_command.
+// (Velocity and Position: the velocity loop, Torque: the torque loop, Disabled or any
+// other number: none), forces 0 in the safe state, and limits it to
+// max_duty * thermal_derate (the derate bounds the drive rather than scaling it, so a
+// hot winding caps the current instead of weakening every command). Writes
+// motor_duty_command.
 #pragma once
 
 #include "core/MessageBoardUser.hpp"

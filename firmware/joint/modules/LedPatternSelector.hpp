@@ -1,5 +1,5 @@
 // Chooses the status LED pattern: fast blink in the safe state, slow blink
-// while disabled (control_mode 0), on while a control mode runs. Writes
+// while ControlMode::Disabled, on while a control mode runs. Writes
 // led_pattern_command; the StatusLed actuator drives the LED from it.
 #pragma once
 

@@ -1,4 +1,4 @@
-// The torque loop (control_mode 2): PI on joint_torque (the spring's torque)
+// The torque loop (ControlMode::Torque): PI on joint_torque (the spring's torque)
 // against torque_setpoint, writing torque_controller_output (duty). With a
 // voltage-driven motor the duty sets roughly the gearbox speed, i.e. the rate
 // of change of spring twist, so the plant is close to an integrator and a PI

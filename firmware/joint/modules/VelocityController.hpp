@@ -1,5 +1,5 @@
-// The velocity loop (control_mode 1) and, with PositionLoop in front of it, the
-// position loop (control_mode 3). Writes velocity_controller_output (duty).
+// The velocity loop (ControlMode::Velocity) and, with PositionLoop in front of it, the
+// position loop (ControlMode::Position). Writes velocity_controller_output (duty).
 //
 // What it regulates: the gearbox-side output velocity, motor_velocity /
 // gear_ratio, against velocity_setpoint. That measurement is collocated with
