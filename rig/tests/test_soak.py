@@ -465,10 +465,8 @@ def test_tpdos_answered_while_stopped_are_caught(layout: SoakLayout) -> None:
 def test_a_latch_at_the_wrong_cycle_is_caught(layout: SoakLayout) -> None:
     plan = FaultPlan((PlannedFault(50, SoakFault.STALE_SENSOR, 2),), 0, 0, 1000)
     driver, _ = _run(layout, FakeFirmware(layout, stale_limit=layout.encoder_stale_cycles + 1), plan, 100)
-    assert (
-        driver.problems
-        and "TPDO6 (0x2D0): expected {'safe_state': 1.0, 'fault_flags': 3.0}" in (driver.problems[0])
-    )
+    expected = {"safe_state": 1.0, "fault_flags": float(STALE_ENCODER_FLAGS)}
+    assert driver.problems and f"TPDO6 (0x2D0): expected {expected}" in driver.problems[0]
 
 
 def test_a_wrong_sdo_answer_is_caught(layout: SoakLayout) -> None:
