@@ -477,6 +477,10 @@ def _check_values(
             raise TableError(
                 f"{where}: {named.name} value {outside[0]} outside its range [{entry.min}, {entry.max}]"
             )
+        # The firmware starts with the default: it must mean something.
+        if isinstance(entry, Field) and isinstance(named, ValueEnum) and named.name_of(entry.default) is None:
+            choices = ", ".join(f"{v.name} {v.value}" for v in named.values)
+            raise TableError(f"{where}: default {entry.default!r} is no {named.name} value ({choices})")
 
 
 def _unique_names(source: Path, what: str, items: list[Any]) -> None:

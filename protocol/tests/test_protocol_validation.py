@@ -266,6 +266,7 @@ emcy = "over_temperature"
 description = "The raiser names the object"
 """
 CARRIERS = (
+    ("default = 0.05", "default = 0.0  # disabled"),  # velocity_kp carries control_mode
     ('description = "Gain"', 'description = "Gain"\nvalues = "control_mode"'),
     ('description = "Motor angle"', 'description = "Motor angle"\nvalues = "fault_flags"'),
 )
@@ -372,6 +373,14 @@ def test_refuses_enum_value_outside_the_carrying_fields_range(edit_values: Table
         edit_values('description = "Velocity loop"\n', f'description = "Velocity loop"\n{extra}'),
         "field 'velocity_kp'",
         "control_mode value 2 outside its range [0.0, 1.0]",
+    )
+
+
+def test_refuses_an_enum_carrier_whose_default_is_no_value(edit_values: TableEditor) -> None:
+    refused(
+        edit_values("default = 0.0  # disabled", "default = 0.5"),
+        "field 'velocity_kp'",
+        "default 0.5 is no control_mode value (disabled 0, velocity 1)",
     )
 
 
