@@ -8,6 +8,7 @@ import subprocess
 from pathlib import Path
 
 import can
+import cantools
 import pytest
 from conftest import NODE_ID, REPO, NodeUnderTest
 
@@ -171,6 +172,24 @@ def test_sim_injects_faults_from_the_command_line(scenario_dir: Path) -> None:
     firmware_log = (out / "firmware.log").read_text()
     assert "killed with SIGKILL and started again" in firmware_log
     assert (out / "trace.rrd").stat().st_size > 0
+
+    # The bus log is candump text: cantools reads it with the build's DBC and names the values
+    # (what `python -m cantools decode board.dbc < bus.log` prints; protocol/tests runs that
+    # command itself, natively: a second Python start costs ~15 s in the micro-VM).
+    database = cantools.database.load_file(str(REPO / "build/protocol/board.dbc"))
+    named: dict[str, set[str]] = {"control_mode": set(), "fault_flags": set(), "led_pattern": set()}
+    messages = {m.frame_id: m for m in database.messages}
+    for entry in cantools.logreader.Parser((out / "bus.log").open()):
+        message = messages.get(entry.frame_id)
+        # The injected 7-byte RPDO1 does not decode: cantools says so, and so does the node.
+        if message is not None and len(entry.data) == message.length:
+            for name, value in message.decode(entry.data).items():
+                if name in named:
+                    named[name].add(str(value))
+    assert "velocity" in named["control_mode"], named
+    assert "none" in named["fault_flags"], named
+    patterns = {v.name for v in TABLE.enum("led_pattern").values}
+    assert named["led_pattern"] and named["led_pattern"] <= patterns, named
 
 
 def test_sim_reports_a_killed_firmware_with_the_evidence(scenario_dir: Path) -> None:

@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hilrig.cli.common import DEFAULT_EDS, Command, UsageError, existing_file, node_id, positive_int, progress
-from hilrig.faults import FAULT_SYNTAX_HELP, FaultPlan, FaultSpec, FaultSpecError
+
+if TYPE_CHECKING:
+    from hilrig.faults import FaultSpec
 
 
 def fault_spec(text: str) -> FaultSpec:
+    from hilrig.faults import FaultSpec, FaultSpecError
+
     try:
         return FaultSpec.parse(text)
     except FaultSpecError as error:
@@ -17,6 +22,8 @@ def fault_spec(text: str) -> FaultSpec:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    from hilrig.faults import FAULT_SYNTAX_HELP  # the fault models need numpy: only for `sim`
+
     parser.add_argument(
         "--out",
         type=Path,
@@ -63,6 +70,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hilrig.demo import DemoOptions, format_summary, run_demo
+    from hilrig.faults import FaultPlan
     from hilrig.firmware import DEFAULT_EXECUTABLE
 
     executable = args.firmware or DEFAULT_EXECUTABLE
