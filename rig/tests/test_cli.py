@@ -7,7 +7,6 @@ import itertools
 import re
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import can
@@ -36,25 +35,6 @@ NODE_ID = RigTable.load().board.node.default_node_id  # the fake node's: board.t
 
 HILRIG = [sys.executable, "-m", "hilrig.cli"]
 _channels = itertools.count()
-
-
-@pytest.fixture
-def channel() -> str:
-    """A virtual bus channel of this test alone."""
-    return f"cli-test-{next(_channels)}"
-
-
-@pytest.fixture
-def fake(channel: str) -> Iterator[FakeJointNode]:
-    """The fake joint node, booted (pre-operational), on `channel` of the virtual bus."""
-    bus = can.Bus(interface="virtual", channel=channel)
-    node = FakeJointNode(bus, table=RigTable.load())
-    node.boot()
-    try:
-        yield node
-    finally:
-        node.close()
-        bus.shutdown()
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:

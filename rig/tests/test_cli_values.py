@@ -4,36 +4,23 @@ FakeJointNode on python-can's virtual bus."""
 
 from __future__ import annotations
 
-import itertools
-from collections.abc import Iterator
-
-import can
 import pytest
 
 from hilrig.cli import main
 from hilrig.fake_node import FakeJointNode
 from hilrig.table import ControlMode, FaultFlags, LedPattern, RigTable
 
-_channels = itertools.count()
-
-
-@pytest.fixture
-def channel() -> Iterator[str]:
-    name = f"cli-values-{next(_channels)}"
-    bus = can.Bus(interface="virtual", channel=name)
-    node = FakeJointNode(bus, table=RigTable.load())
-    node.boot()
-    try:
-        yield name
-    finally:
-        node.close()
-        bus.shutdown()
-
 
 def run(capsys: pytest.CaptureFixture[str], channel: str, *argv: str) -> tuple[int, list[list[str]], str]:
     code = main([*argv, "--interface", "virtual", "--channel", channel, "--sdo-timeout", "2"])
     out, err = capsys.readouterr()
     return code, [line.split() for line in out.splitlines()], err
+
+
+@pytest.fixture
+def channel(channel: str, fake: FakeJointNode) -> str:
+    """A virtual bus channel with the booted fake joint node on it."""
+    return channel
 
 
 def test_set_takes_a_value_name_and_get_shows_it(capsys: pytest.CaptureFixture[str], channel: str) -> None:
