@@ -1341,6 +1341,8 @@ def _velocity_summary(driver: SoakDriver | None, samples: list[tuple[int, float,
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The soak's options (`hilrig soak --help`)."""
+    from hilrig.cli.common import node_id
+
     parser.add_argument(
         "--cycles", type=int, default=1_000_000, help="firmware cycles to run (default 1000000)"
     )
@@ -1357,7 +1359,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--rss-bound-kib", type=int, default=DEFAULT_RSS_BOUND_KIB, help="allowed growth after warm-up"
     )
-    parser.add_argument("--node-id", type=lambda text: int(text, 0), default=0x10, help="default 0x10")
+    default_node = BOARD_TABLE.node.default_node_id
+    parser.add_argument(
+        "--node-id", type=node_id, default=default_node, help=f"default 0x{default_node:02X} (board.toml's)"
+    )
     parser.add_argument("--period-us", type=int, default=1000)
     parser.add_argument("--eds", type=Path, default=DEFAULT_EDS_PATH)
     parser.add_argument("--firmware", type=Path, default=DEFAULT_EXECUTABLE)

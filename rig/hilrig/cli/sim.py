@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hilrig.cli.common import DEFAULT_EDS, Command, UsageError, existing_file, node_id, positive_int, progress
+from hilrig.table import BOARD_TABLE
 
 if TYPE_CHECKING:
     from hilrig.faults import FaultSpec
@@ -37,7 +38,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="FILE.py",
         help="run `scenario(rig)` from this file instead of the velocity and torque profiles",
     )
-    parser.add_argument("-n", "--node-id", type=node_id, default=0x10, help="node id (default: 0x10)")
+    default_node = BOARD_TABLE.node.default_node_id
+    parser.add_argument(
+        "-n",
+        "--node-id",
+        type=node_id,
+        default=default_node,
+        help=f"node id (default: 0x{default_node:02X}, board.toml's)",
+    )
     parser.add_argument(
         "--period-us",
         type=positive_int,
