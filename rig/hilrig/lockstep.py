@@ -72,7 +72,7 @@ class LockstepDriver(Driver):
             if values is not None:
                 duty = duty_from_motor_duty(int(values[actuator[1]]))
         by_cob = self._tpdo_by_cob
-        received = tuple((by_cob[cob_id], values) for cob_id, values in got.items())
+        received = tuple([(by_cob[cob_id], values) for cob_id, values in got.items()])
         self.history.record_truth(state)
         self.history.record_rows(n, received, sent)
         self.plant.step(self.period_s, duty)
