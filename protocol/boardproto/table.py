@@ -219,7 +219,7 @@ class ValueEnum:
         return camel_case(self.name)
 
     def value(self, name: str) -> EnumValue:
-        return _lookup(f"value of {self.name}", {v.name: v for v in self.values}, name)
+        return _lookup(f"{self.name} value", {v.name: v for v in self.values}, name)
 
     def name_of(self, number: float) -> str | None:
         """The value's name, or None for a number that is none of the values."""
@@ -263,7 +263,7 @@ class BitSet:
         return camel_case(self.name)
 
     def bit(self, name: str) -> FlagBit:
-        return _lookup(f"bit of {self.name}", {b.name: b for b in self.bits}, name)
+        return _lookup(f"{self.name} bit", {b.name: b for b in self.bits}, name)
 
     def names_of(self, flags: float) -> tuple[str, ...]:
         """Names of the bits set in `flags`, lowest first; an unnamed set bit is 'bit N'."""
@@ -511,10 +511,14 @@ class BoardTable:
 
     def values_of(self, name: str) -> ValueEnum | BitSet | None:
         """The enum or bitset the named field or HIL I/O object carries, if it declares one."""
-        values = self.entry(name).values
-        if values is None:
-            return None
-        return next(e for e in (*self.enums, *self.bitsets) if e.name == values)
+        self.entry(name)  # an unknown name raises, with the close matches
+        return self.named_values.get(name)
+
+    @cached_property
+    def named_values(self) -> dict[str, ValueEnum | BitSet]:
+        """The enum or bitset of every field and HIL I/O object that declares one, by name."""
+        sets = {s.name: s for s in (*self.enums, *self.bitsets)}
+        return {e.name: sets[e.values] for e in self.entries if e.values is not None}
 
     def tpdo(self, number: int) -> Pdo:
         return self._pdo(self.tpdos, "TPDO", number)

@@ -296,7 +296,7 @@ def format_summary(summary: DemoSummary) -> str:
     """The summary table people read after `make run`."""
     faults = "none"
     if summary.emcy or summary.fault_flags or summary.safe_state:
-        names = ", ".join(BOARD_TABLE.bitset("fault_flags").names_of(summary.fault_flags))
+        names = BOARD_TABLE.bitset("fault_flags").label(summary.fault_flags)
         parts = [f"fault_flags 0x{summary.fault_flags:X} ({names})"] if summary.fault_flags else []
         if summary.safe_state:
             parts.append("safe state entered")

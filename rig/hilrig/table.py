@@ -52,7 +52,8 @@ class RigTable:
 
     @classmethod
     def load(cls, path: str | Path = DEFAULT_TABLE_PATH) -> RigTable:
-        return cls(load_table(path))
+        # The checkout's table is parsed once, at import (BOARD_TABLE); others on each call.
+        return cls(BOARD_TABLE if Path(path) == DEFAULT_TABLE_PATH else load_table(path))
 
     @property
     def names(self) -> tuple[str, ...]:

@@ -297,9 +297,7 @@ class Tracer(RigObserver):
         # Entities whose values have names (board.toml enums and bitsets): each change of value
         # also goes in as a TextLog at <entity>/label, so the viewer shows "velocity" beside 1.
         self._value_names: dict[str, ValueEnum | BitSet] = {
-            self._paths[entry.name]: values
-            for entry in table.board.entries
-            if (values := table.board.values_of(entry.name)) is not None
+            self._paths[name]: values for name, values in table.board.named_values.items()
         }
         self._last_named_value: dict[str, float] = {}
         self._pending: list[_CycleRow | CycleResult] = []

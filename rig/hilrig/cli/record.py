@@ -333,7 +333,7 @@ def _decode(args: argparse.Namespace) -> int:
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
     dbc = NodeDbc(database, table, node)
     units = {e.name: format_unit(e.unit) for e in table.board.entries}
-    named = {e.name: v for e in table.board.entries if (v := table.board.values_of(e.name)) is not None}
+    named = table.board.named_values
     wanted = set(args.field or ())
     first: float | None = None
     frames = 0

@@ -6,7 +6,7 @@ import argparse
 import math
 import sys
 
-from boardproto import Field
+from boardproto import Field, UnknownNameError
 from boardproto.table import BitSet, ValueEnum
 from hilrig.cli.common import (
     Command,
@@ -23,7 +23,7 @@ from hilrig.cli.common import (
     silent_hint,
 )
 from hilrig.errors import SdoAbortError, SdoTimeoutError
-from hilrig.table import ObjectEntry, RigTable, unknown_name
+from hilrig.table import ObjectEntry, RigTable
 
 
 def parse_named(name: str, named: ValueEnum | BitSet, text: str) -> int | None:
@@ -31,24 +31,14 @@ def parse_named(name: str, named: ValueEnum | BitSet, text: str) -> int | None:
     'none'); None when `text` is no name (a number, say); a misspelt name is a usage error."""
     if not text[:1].isalpha():
         return None
-    if isinstance(named, ValueEnum):
-        number = next((v.value for v in named.values if v.name == text), None)
-        if number is None:
-            raise UsageError(
-                f"{name}: {unknown_name(f'{named.name} value', text, [v.name for v in named.values])}"
-            )
-        return number
-    if text == "none":
-        return 0
-    flags = 0
-    for part in text.split("|"):
-        bit = next((b for b in named.bits if b.name == part.strip()), None)
-        if bit is None:
-            raise UsageError(
-                f"{name}: {unknown_name(f'{named.name} bit', part.strip(), [b.name for b in named.bits])}"
-            )
-        flags |= bit.mask
-    return flags
+    try:  # the table's own look-ups: a miss names the close matches
+        if isinstance(named, ValueEnum):
+            return named.value(text).value
+        if text == "none":
+            return 0
+        return sum({named.bit(part.strip()).mask for part in text.split("|")})
+    except UnknownNameError as error:
+        raise UsageError(f"{name}: {error}") from None
 
 
 def parse_assignment(

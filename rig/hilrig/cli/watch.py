@@ -199,8 +199,7 @@ def run(args: argparse.Namespace) -> int:
             for n in p.names
         ]
         polled = [e.name for e in entries if e.name not in streamed]
-        named = {e.name: values for e in entries if (values := table.board.values_of(e.name)) is not None}
-        board = Board(entries, named)
+        board = Board(entries, table.board.named_values)
         node.on_tpdo(board.on_tpdo)
         if args.nmt_start:
             node.nmt(NmtCommand.START)
