@@ -184,6 +184,10 @@ class SdoProbe:
             )
         )
         answer = self.bus.recv(SDO_CLIENT_TIMEOUT_S)
+        # python-can sets the kernel filter after binding the socket: a frame that came in
+        # between (a heartbeat, seen once in a clean-clone run) can still be queued. Skip it.
+        while answer is not None and answer.arbitration_id != sdo_response_cob_id(NODE_ID):
+            answer = self.bus.recv(SDO_CLIENT_TIMEOUT_S)
         assert answer is not None, f"no SDO answer to {bytes(request).hex(' ')}"
         return bytes(answer.data)
 
