@@ -463,8 +463,7 @@ class Driver:
         (to `BoardNode.on_emcy`), TPDOs are kept for the next cycle."""
         if self._link is None:
             return
-        recv = self._link.recv
-        while (frame := recv(0.0)) is not None:
+        for frame in self._link.recv_many(0.0):
             if frame[0] in self._tpdo_by_cob:
                 self._pending.append(frame)
             else:
@@ -474,10 +473,11 @@ class Driver:
         if cob_id == self._emcy_cob_id:
             self.node.emcy_received(data)
 
-    def _transmit_rpdos(self, raw: RawSensors | None) -> tuple[PdoRow, ...]:
+    def _transmit_rpdos(self, raw: RawSensors | None, sync: bytes) -> tuple[PdoRow, ...]:
         """Send one cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint
-        stream, any RPDO a scenario changed); return what was sent."""
-        send = self.link.send
+        stream, any RPDO a scenario changed) and then the `sync` frame, all in one batch;
+        return the RPDOs sent."""
+        frames: list[bytes] = []
         sent: list[PdoRow] = []
         paused = self.paused_rpdos
         if raw is not None:
@@ -485,7 +485,7 @@ class Driver:
                 if pdo.number in paused:
                     continue
                 values = values_of(raw)
-                send(pdo.frame(values))
+                frames.append(pdo.frame(values))
                 sent.append((pdo, values))
         dirty = self._dirty_rpdos
         for number, values in self._rpdo_values.items():
@@ -495,9 +495,11 @@ class Driver:
             pdo = self._rpdo_layouts[number]
             if frame is None:
                 frame = self._rpdo_frames[number] = pdo.frame(values)
-            send(frame)
+            frames.append(frame)
             sent.append((pdo, tuple(values)))
             dirty.discard(number)
+        frames.append(sync)
+        self.link.send_many(b"".join(frames))
         return tuple(sent)
 
     def _decode(self, pdo: PdoLayout, data: bytes) -> tuple[Value, ...] | None:
