@@ -197,6 +197,19 @@ void Node::handle_sdo(const CanFrame& frame, std::uint32_t now_us) {
     send(kSdoResponseCobIdBase + node_id_, response);
   }
   counters_.sdo_aborts_sent += sdo_.aborts_sent() - aborts_before;
+  send_sdo_segments(now_us);
+}
+
+void Node::send_sdo_segments(std::uint32_t now_us) {
+  const std::uint32_t aborts_before = sdo_.aborts_sent();
+  std::array<std::uint8_t, 8> segment{};
+  for (std::size_t n = 0; n < kSdoSegmentsPerCall && sdo_.peek_segment(segment); ++n) {
+    // Refused (transmit queue full): the server keeps it for the next poll rather than leave
+    // a gap the client would have to ask for again.
+    if (!send(kSdoResponseCobIdBase + node_id_, segment)) break;
+    sdo_.segment_sent(now_us);
+  }
+  counters_.sdo_aborts_sent += sdo_.aborts_sent() - aborts_before;
 }
 
 void Node::poll(std::uint32_t now_us) {
@@ -215,6 +228,7 @@ void Node::poll(std::uint32_t now_us) {
       ++counters_.sdo_aborts_sent;
       send(kSdoResponseCobIdBase + node_id_, response);
     }
+    send_sdo_segments(now_us);
   }
   if (state_ == NmtState::Operational) {
     poll_event_tpdos(now_us);

@@ -187,6 +187,10 @@ ObjectAccess Node::object_access(Node& node) {
                     std::span<const std::uint8_t> data, std::uint32_t now_us) {
     return static_cast<Node*>(self)->write(index, sub, data, now_us);
   };
+  access.read_at = [](void* self, std::uint16_t index, std::uint8_t sub, std::size_t offset,
+                      std::span<std::uint8_t> out, std::size_t& length, std::size_t& total_size) {
+    return static_cast<Node*>(self)->read_at(index, sub, offset, out, length, total_size);
+  };
   return access;
 }
 
@@ -226,6 +230,20 @@ SdoAbort Node::read(std::uint16_t index, std::uint8_t sub, std::span<std::uint8_
       break;
   }
   tables::put_le(out.first(length), raw);
+  return SdoAbort::None;
+}
+
+SdoAbort Node::read_at(std::uint16_t index, std::uint8_t sub, std::size_t offset,
+                       std::span<std::uint8_t> out, std::size_t& length, std::size_t& total_size) {
+  // Every object here is small: read it whole and hand out the part asked for. A DOMAIN larger
+  // than the SDO buffer would serve its bytes from where it keeps them instead.
+  std::array<std::uint8_t, SdoServer::kBufferBytes> value{};
+  std::size_t size = 0;
+  if (const SdoAbort result = read(index, sub, value, size); result != SdoAbort::None) return result;
+  const std::size_t start = std::min(offset, size);
+  length = std::min(out.size(), size - start);
+  std::copy_n(value.begin() + static_cast<long>(start), length, out.begin());
+  total_size = size;
   return SdoAbort::None;
 }
 

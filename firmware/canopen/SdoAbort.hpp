@@ -9,7 +9,11 @@ enum class SdoAbort : std::uint32_t {
   None = 0x0000'0000,                  // not an abort: the access succeeded
   ToggleBitNotAlternated = 0x0503'0000,
   ProtocolTimedOut = 0x0504'0000,      // no next segment from the client in time
-  CommandSpecifierInvalid = 0x0504'0001,  // unknown command, also block transfer (unsupported)
+  CommandSpecifierInvalid = 0x0504'0001,  // unknown, or not what the transfer at hand expects
+  InvalidBlockSize = 0x0504'0002,      // block mode: blksize 0 or above 127
+  InvalidSequenceNumber = 0x0504'0003, // block mode: seqno 0 or past blksize, ackseq past what was sent
+  CrcError = 0x0504'0004,              // block mode: the client's CRC does not match the data
+  OutOfMemory = 0x0504'0005,           // the value is larger than the server can buffer
   UnsupportedAccess = 0x0601'0000,
   WriteOnly = 0x0601'0001,             // attempt to read a write-only object
   ReadOnly = 0x0601'0002,              // attempt to write a read-only object

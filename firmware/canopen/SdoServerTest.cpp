@@ -236,13 +236,18 @@ TEST_F(SdoServerTest, HilOutputIsReadWithItsOwnSize) {
   EXPECT_EQ(sdo(request(0x40, index_of(id), 0)), request(0x4B, index_of(id), 0, 0xFB2E));
 }
 
-TEST_F(SdoServerTest, UnknownAndBlockCommandSpecifiersAbort) {
+TEST_F(SdoServerTest, UnknownCommandSpecifierAborts) {
   EXPECT_EQ(sdo(request(0xE0, 0x1000, 0)), abort_data(0x1000, 0, SdoAbort::CommandSpecifierInvalid));
-  EXPECT_EQ(sdo(request(0xC6, 0x1000, 0, 4)),  // block download initiate
-            abort_data(0x1000, 0, SdoAbort::CommandSpecifierInvalid));
-  EXPECT_EQ(sdo(request(0xA4, 0x1008, 0, 0x7F)),  // block upload initiate
-            abort_data(0x1008, 0, SdoAbort::CommandSpecifierInvalid));
-  EXPECT_EQ(node.counters().sdo_aborts_sent, 3u);
+  EXPECT_EQ(sdo(request(0xFF, 0x1008, 0)), abort_data(0x1008, 0, SdoAbort::CommandSpecifierInvalid));
+  EXPECT_EQ(node.counters().sdo_aborts_sent, 2u);
+}
+
+TEST_F(SdoServerTest, BlockTransferRequestsAreServed) {
+  // Frame by frame in SdoBlockTest.cpp; here only that they are no longer refused.
+  EXPECT_EQ(sdo(request(0xC6, 0x1000, 0, 4)),  // block download initiate: 0x1000 is read-only
+            abort_data(0x1000, 0, SdoAbort::ReadOnly));
+  EXPECT_EQ(sdo(request(0xA4, 0x1008, 0, 0x7F)),  // block upload initiate, blksize 127
+            request(0xC6, 0x1008, 0, static_cast<std::uint32_t>(board::kNode.device_name.size())));
 }
 
 TEST_F(SdoServerTest, SegmentRequestWithoutTransferAborts) {

@@ -54,8 +54,7 @@ NOT_SUPPORTED = (
     "CiA 301 in favour of the heartbeat, which the node produces). Remote frames (RTR): every",
     "TPDO COB-ID has bit 30 set; transmission types 252/253 are refused. SYNC producer, TIME,",
     "multiple SDO servers, SDO client, LSS.",
-    "Not yet supported: heartbeat consumer 0x1016 (issue: modular robot), SDO block transfer",
-    "(issue: recorder).",
+    "Not yet supported: heartbeat consumer 0x1016 (issue: modular robot).",
 )
 SUPPORTED_BITRATES = frozenset({125_000, 250_000, 500_000, 1_000_000})
 

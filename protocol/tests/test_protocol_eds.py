@@ -170,7 +170,7 @@ def test_eds_states_what_is_not_supported(eds_sections: configparser.RawConfigPa
     comments = " ".join(
         eds_sections["Comments"][f"Line{n}"] for n in range(1, int(eds_sections["Comments"]["Lines"]) + 1)
     )
-    for topic in ("node guarding", "0x1016", "block transfer", "RTR"):
+    for topic in ("node guarding", "0x1016", "RTR"):
         assert topic in comments, topic
 
 

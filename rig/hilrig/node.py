@@ -58,6 +58,10 @@ class SdoAbortCode(enum.IntEnum):
     TOGGLE_BIT_NOT_ALTERNATED = 0x0503_0000
     PROTOCOL_TIMED_OUT = 0x0504_0000
     COMMAND_SPECIFIER_INVALID = 0x0504_0001
+    INVALID_BLOCK_SIZE = 0x0504_0002
+    INVALID_SEQUENCE_NUMBER = 0x0504_0003
+    CRC_ERROR = 0x0504_0004
+    OUT_OF_MEMORY = 0x0504_0005
     UNSUPPORTED_ACCESS = 0x0601_0000
     WRITE_ONLY = 0x0601_0001
     READ_ONLY = 0x0601_0002
@@ -81,7 +85,11 @@ class SdoAbortCode(enum.IntEnum):
 _ABORT_WORDS: dict[SdoAbortCode, str] = {
     SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED: "toggle bit not alternated",
     SdoAbortCode.PROTOCOL_TIMED_OUT: "SDO protocol timed out",
-    SdoAbortCode.COMMAND_SPECIFIER_INVALID: "command not supported (block transfer?)",
+    SdoAbortCode.COMMAND_SPECIFIER_INVALID: "command not valid (undefined, or out of turn in the transfer)",
+    SdoAbortCode.INVALID_BLOCK_SIZE: "block transfer: block size 0 or above 127",
+    SdoAbortCode.INVALID_SEQUENCE_NUMBER: "block transfer: invalid sequence number",
+    SdoAbortCode.CRC_ERROR: "block transfer: CRC does not match the data",
+    SdoAbortCode.OUT_OF_MEMORY: "value larger than the node can buffer",
     SdoAbortCode.UNSUPPORTED_ACCESS: "unsupported access",
     SdoAbortCode.WRITE_ONLY: "object is write-only",
     SdoAbortCode.READ_ONLY: "object is read-only over the bus",

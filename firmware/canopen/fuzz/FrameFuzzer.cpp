@@ -1,7 +1,8 @@
 // libFuzzer target: a byte stream cut into a sequence of CAN frames fed to one co::Node, the
 // way the Linux platform drives it (poll, process, and after a SYNC the synchronous TPDOs).
-// Covers NMT, SYNC, the SDO server (expedited, segmented, timeouts) and RPDO reception, and the
-// TPDOs and EMCYs they cause. Every violated invariant calls abort() so libFuzzer reports it.
+// Covers NMT, SYNC, the SDO server (expedited, segmented, block, timeouts) and RPDO reception,
+// and the TPDOs and EMCYs they cause. Every violated invariant calls abort() so libFuzzer
+// reports it.
 //
 // Input layout (firmware/canopen/fuzz/make_seeds.py writes seeds in it):
 //   byte 0           board config: (b % 64) < field count -> the board refuses writes to that
@@ -22,8 +23,13 @@
 //   2. Every SDO request the node must serve (0x600+id, 8 bytes, pre-operational or
 //      operational, not a client abort) gets exactly one response on 0x580+id, a valid server
 //      command or an abort with a code from the CiA 301 table; requests it must not serve get
-//      none. A segmented transfer left open by the client is aborted with "SDO protocol timed
-//      out" by the first poll() at least SdoServer::kSegmentTimeoutUs later, and only then.
+//      none. Block transfer, as a client sees it: a download segment inside a sub-block gets
+//      no answer, except the last of the sub-block, which gets the ack naming the last segment
+//      in sequence; a block upload start or ack gets a burst of segments numbered 1, 2, ...
+//      up to blksize or the last bit, Node::kSdoSegmentsPerCall per process()/poll() until the
+//      sub-block is out (or the end frame once all is acknowledged); the client's end gets
+//      nothing. A transfer left open by the client is aborted with "SDO protocol timed out" by
+//      the first poll() at least SdoServer::kSegmentTimeoutUs later, and only then.
 //   3. Counters: each frame given to process() lands in exactly one outcome counter; the SDO,
 //      heartbeat, TPDO and EMCY counters equal the frames seen on the port; nothing was dropped.
 //   4. Error register: non-zero implies the generic bit; every EMCY (not an error reset) carries
@@ -126,7 +132,9 @@ class Input {
 bool known_abort_code(std::uint32_t code) {
   using co::SdoAbort;
   for (SdoAbort a : {SdoAbort::ToggleBitNotAlternated, SdoAbort::ProtocolTimedOut,
-                     SdoAbort::CommandSpecifierInvalid, SdoAbort::UnsupportedAccess,
+                     SdoAbort::CommandSpecifierInvalid, SdoAbort::InvalidBlockSize,
+                     SdoAbort::InvalidSequenceNumber, SdoAbort::CrcError, SdoAbort::OutOfMemory,
+                     SdoAbort::UnsupportedAccess,
                      SdoAbort::WriteOnly, SdoAbort::ReadOnly, SdoAbort::ObjectDoesNotExist,
                      SdoAbort::ObjectCannotBeMapped, SdoAbort::PdoLengthExceeded,
                      SdoAbort::LengthMismatch, SdoAbort::LengthTooHigh, SdoAbort::LengthTooLow,
@@ -138,17 +146,50 @@ bool known_abort_code(std::uint32_t code) {
   return false;
 }
 
+// CRC-16/CCITT (0x1021, initial 0) of SDO block transfers, in the byte-wise shift form (the
+// server computes it bit by bit).
+std::uint16_t crc16(std::span<const std::uint8_t> bytes) {
+  std::uint16_t crc = 0;
+  for (const std::uint8_t byte : bytes) {
+    auto x = static_cast<std::uint16_t>((crc >> 8) ^ byte);
+    x = static_cast<std::uint16_t>(x ^ (x >> 4));
+    crc = static_cast<std::uint16_t>((crc << 8) ^ (x << 12) ^ (x << 5) ^ x);
+  }
+  return crc;
+}
+
 std::uint32_t le32(const std::array<std::uint8_t, 8>& d, std::size_t at) {
   return d[at] | (d[at + 1] << 8) | (d[at + 2] << 16) | (std::uint32_t{d[at + 3]} << 24);
 }
 
-// The client's view of the SDO channel: which segmented transfer (if any) the server must
-// still have open, and since when it has been silent.
+// The client's view of the SDO channel: which transfer (if any) the server must still have
+// open, and since when it has been silent.
 struct SdoModel {
-  enum class Open : std::uint8_t { None, Download, Upload };
+  enum class Open : std::uint8_t {
+    None,
+    Download,          // segmented
+    Upload,            // segmented
+    BlockDownload,     // inside a sub-block: every frame but 0x80 is a segment
+    BlockDownloadEnd,  // the last segment is in: the end request is due
+    BlockUploadStart,  // initiate answered: the start request is due
+    BlockUpload,       // the server sends a sub-block, the client acknowledges
+    BlockUploadEnd,    // the server ended: the client's end is due
+  };
   Open open = Open::None;
   std::uint8_t multiplexer[3] = {};
   std::uint32_t last_activity_us = 0;
+  std::uint8_t block_size = 0;  // blksize of the sub-block under way
+  std::uint8_t sequence = 0;    // download: last segment in sequence; upload: last one sent
+  bool last_sent = false;       // upload: the sub-block ended with the last bit
+  // Block upload: the value as the segments delivered it, to check the end frame's n and CRC.
+  bool crc_requested = false;
+  std::uint32_t announced_size = 0;
+  std::size_t block_start = 0;  // offset of the sub-block's first byte
+  std::vector<std::uint8_t> received;
+
+  bool sub_block_open() const {
+    return open == Open::BlockUpload && sequence < block_size && !last_sent;
+  }
 };
 
 // Everything the node sent since the last drain, sorted by what it is.
@@ -271,7 +312,10 @@ class Harness {
     Sent sent = drain();
     const bool due = sdo_.open != SdoModel::Open::None && node_.state() != co::NmtState::Stopped &&
                      now_us_ - sdo_.last_activity_us >= co::SdoServer::kSegmentTimeoutUs;
-    if (!due) {
+    if (!due && sdo_.sub_block_open() && node_.state() != co::NmtState::Stopped) {
+      check(!sent.sdo.empty(), "poll() did not go on with the sub-block", sdo_.sequence);
+      check_segments(sent.sdo);
+    } else if (!due) {
       check(sent.sdo.empty(), "poll() sent an SDO frame with no transfer timing out",
             sent.sdo.empty() ? 0 : sent.sdo.front().data[0]);
     } else {
@@ -301,10 +345,16 @@ class Harness {
     if (result.sync) node_.transmit_synchronous_pdos(now_us_);
     Sent sent = drain();
 
-    if (!served || cs == 4) {  // not for the server, or a client abort: nothing to answer
+    if (served && sdo_.open == SdoModel::Open::BlockDownload && frame.data[0] != 0x80) {
+      check_block_download_segment(frame.data, sent.sdo);
+    } else if (!served || cs == 4) {  // not for the server, or a client abort: nothing to answer
       check(sent.sdo.empty(), "SDO response to a request that must not be answered",
             frame.id, frame.data[0]);
       if (served) sdo_.open = SdoModel::Open::None;
+    } else if (cs == 5) {
+      check_block_upload_request(frame.data, sent.sdo);
+    } else if (cs == 6) {
+      check_block_download_request(frame.data, sent.sdo);
     } else {
       check(sent.sdo.size() == 1, "SDO request not answered with exactly one response",
             frame.data[0], sent.sdo.size());
@@ -369,8 +419,205 @@ class Harness {
           sdo_.last_activity_us = now_us_;
         }
         return;
-      default: fail("block transfer (unsupported) answered without an abort", r[0]);
+      default: fail("command specifier 7 answered without an abort", r[0]);
     }
+  }
+
+  // One frame that must be an abort with `code` (any known code when None); ends the transfer.
+  void expect_abort(const std::vector<co::CanFrame>& frames, co::SdoAbort code, const char* what) {
+    check(frames.size() == 1 && frames.front().data[0] == 0x80, what,
+          frames.empty() ? 0 : frames.front().data[0], frames.size());
+    check_abort(frames.front());
+    if (code != co::SdoAbort::None) {
+      check(le32(frames.front().data, 4) == co::to_code(code), what, le32(frames.front().data, 4));
+    }
+    sdo_.open = SdoModel::Open::None;
+  }
+
+  static bool valid_block_size(std::uint8_t segments) { return segments >= 1 && segments <= 127; }
+
+  void check_block_download_segment(const std::array<std::uint8_t, 8>& q,
+                                    const std::vector<co::CanFrame>& frames) {
+    const std::uint8_t sequence = q[0] & 0x7F;
+    const bool last = (q[0] & 0x80) != 0;
+    if (sequence == 0 || sequence > sdo_.block_size) {
+      expect_abort(frames, co::SdoAbort::InvalidSequenceNumber, "segment outside blksize not aborted");
+      return;
+    }
+    const bool in_sequence = sequence == sdo_.sequence + 1;
+    if (!frames.empty() && frames.front().data[0] == 0x80) {
+      // Only new data can be too much for the object.
+      check(in_sequence, "segment out of sequence aborted instead of ignored", sequence, sdo_.sequence);
+      expect_abort(frames, co::SdoAbort::LengthTooHigh, "segment abort other than length too high");
+      return;
+    }
+    if (in_sequence) sdo_.sequence = sequence;
+    sdo_.last_activity_us = now_us_;
+    if (sequence < sdo_.block_size && !last) {
+      check(frames.empty(), "segment inside a sub-block answered", q[0], frames.size());
+      return;
+    }
+    check(frames.size() == 1, "end of sub-block not acknowledged once", q[0], frames.size());
+    const auto& r = frames.front().data;
+    check(r[0] == 0xA2 && r[1] == sdo_.sequence && valid_block_size(r[2]),
+          "bad block download ack (must name the last segment in sequence)", le32(r, 0), sdo_.sequence);
+    if (in_sequence && last) {
+      sdo_.open = SdoModel::Open::BlockDownloadEnd;
+    } else {
+      sdo_.sequence = 0;
+      sdo_.block_size = r[2];
+    }
+  }
+
+  void check_block_download_request(const std::array<std::uint8_t, 8>& q,
+                                    const std::vector<co::CanFrame>& frames) {
+    check(frames.size() == 1, "block download request not answered once", q[0], frames.size());
+    const auto& r = frames.front().data;
+    if ((q[0] & 0x01) == 0) {  // initiate: a new transfer whatever was open
+      if (r[0] == 0x80) {
+        check(r[1] == q[1] && r[2] == q[2] && r[3] == q[3], "abort names another object");
+        expect_abort(frames, co::SdoAbort::None, "");
+        return;
+      }
+      check(r[0] == 0xA4 && r[1] == q[1] && r[2] == q[2] && r[3] == q[3] && valid_block_size(r[4]),
+            "bad block download initiate response", le32(r, 0), r[4]);
+      open(SdoModel::Open::BlockDownload, q);
+      sdo_.block_size = r[4];
+      sdo_.sequence = 0;
+      return;
+    }
+    if (sdo_.open != SdoModel::Open::BlockDownloadEnd) {
+      expect_abort(frames, co::SdoAbort::CommandSpecifierInvalid, "block download end out of turn");
+      return;
+    }
+    check(r[0] == 0xA1 || r[0] == 0x80, "bad block download end response", r[0]);
+    if (r[0] == 0x80) check_abort(frames.front());
+    sdo_.open = SdoModel::Open::None;
+  }
+
+  void check_block_upload_request(const std::array<std::uint8_t, 8>& q,
+                                  const std::vector<co::CanFrame>& frames) {
+    const std::uint8_t subcommand = q[0] & 0x03;
+    if (subcommand == 0) {  // initiate: a new transfer whatever was open
+      check(frames.size() == 1, "block upload initiate not answered once", frames.size());
+      const auto& r = frames.front().data;
+      const bool echoes = r[1] == q[1] && r[2] == q[2] && r[3] == q[3];
+      check(echoes, "block upload initiate answer names another object", r[0]);
+      if (r[0] == 0x80) {
+        expect_abort(frames,
+                     valid_block_size(q[4]) ? co::SdoAbort::None : co::SdoAbort::InvalidBlockSize,
+                     "blksize 0 or > 127 not refused as such");
+        return;
+      }
+      check(valid_block_size(q[4]), "block upload accepted blksize 0 or > 127", q[4]);
+      if (r[0] == 0xC6) {
+        open(SdoModel::Open::BlockUploadStart, q);
+        sdo_.block_size = q[4];
+        sdo_.crc_requested = (q[0] & 0x04) != 0;
+        sdo_.announced_size = le32(r, 4);
+        sdo_.block_start = 0;
+        sdo_.received.clear();
+        return;
+      }
+      // The protocol switch: a normal upload, only for a value no larger than pst.
+      const std::uint32_t size = r[0] == 0x41 ? le32(r, 4) : 4u - ((r[0] >> 2) & 0x3u);
+      check(r[0] == 0x41 || (r[0] & 0xF3) == 0x43, "bad block upload initiate response", r[0]);
+      check(q[5] != 0 && size <= q[5], "normal upload answer to a block upload above pst", size, q[5]);
+      if (r[0] == 0x41) {
+        open(SdoModel::Open::Upload, q);
+      } else {
+        sdo_.open = SdoModel::Open::None;
+      }
+      return;
+    }
+    const SdoModel::Open expected = subcommand == 3   ? SdoModel::Open::BlockUploadStart
+                                    : subcommand == 2 ? SdoModel::Open::BlockUpload
+                                                      : SdoModel::Open::BlockUploadEnd;
+    if (sdo_.open != expected) {
+      expect_abort(frames, co::SdoAbort::CommandSpecifierInvalid, "block upload command out of turn");
+      return;
+    }
+    sdo_.last_activity_us = now_us_;
+    switch (subcommand) {
+      case 3:  // start: the first sub-block
+        sdo_.open = SdoModel::Open::BlockUpload;
+        sdo_.sequence = 0;
+        sdo_.last_sent = false;
+        check(!frames.empty(), "block upload start sent no segment");
+        check_segments(frames);
+        return;
+      case 2: {  // ack
+        if (q[1] > sdo_.sequence) {
+          expect_abort(frames, co::SdoAbort::InvalidSequenceNumber, "ack of segments never sent");
+          return;
+        }
+        if (!valid_block_size(q[2])) {
+          expect_abort(frames, co::SdoAbort::InvalidBlockSize, "ack with blksize 0 or > 127");
+          return;
+        }
+        if (sdo_.last_sent && q[1] == sdo_.sequence) {
+          check(frames.size() == 1 && (frames.front().data[0] & 0xE3) == 0xC1,
+                "all acknowledged but no block upload end", frames.size());
+          check_upload_end(frames.front().data);
+          sdo_.open = SdoModel::Open::BlockUploadEnd;
+          return;
+        }
+        sdo_.block_start += std::size_t{q[1]} * 7u;  // repeated from the segment after ackseq
+        sdo_.block_size = q[2];
+        sdo_.sequence = 0;
+        sdo_.last_sent = false;
+        check(!frames.empty(), "block upload ack sent no segment");
+        check_segments(frames);
+        return;
+      }
+      default:  // the client's end
+        check(frames.empty(), "client's block upload end answered", frames.size());
+        sdo_.open = SdoModel::Open::None;
+        return;
+    }
+  }
+
+  // The server's end: n leaves exactly the announced size, the CRC is that of the bytes the
+  // segments carried (0 when the client did not ask for one).
+  void check_upload_end(const std::array<std::uint8_t, 8>& r) {
+    const std::size_t unused = (r[0] >> 2) & 0x7u;
+    check(sdo_.received.size() >= 7 && sdo_.received.size() % 7 == 0, "segments not 7 bytes each",
+          sdo_.received.size());
+    const std::size_t size = sdo_.received.size() - unused;
+    check(size == sdo_.announced_size, "block upload delivered another size than announced", size,
+          sdo_.announced_size);
+    const std::uint16_t crc = sdo_.crc_requested ? crc16(std::span(sdo_.received).first(size)) : 0;
+    check((r[1] | (r[2] << 8)) == crc, "block upload end CRC does not match the data", r[1] | (r[2] << 8),
+          crc);
+  }
+
+  // A burst of block upload segments: numbered on from the last one sent, within blksize,
+  // nothing after the last bit, and as many as the node may send per call unless the
+  // sub-block ended.
+  void check_segments(const std::vector<co::CanFrame>& frames) {
+    check(frames.size() <= co::Node::kSdoSegmentsPerCall, "more segments than allowed per call",
+          frames.size());
+    for (const co::CanFrame& f : frames) {
+      check(f.data[0] != 0x80, "block upload segment replaced by an abort", le32(f.data, 4));
+      const std::uint8_t sequence = f.data[0] & 0x7F;
+      check(sdo_.sub_block_open() && sequence == sdo_.sequence + 1,
+            "block upload segment out of sequence or past the sub-block", f.data[0], sdo_.sequence);
+      sdo_.sequence = sequence;
+      sdo_.last_sent = (f.data[0] & 0x80) != 0;
+      // A repeated segment must carry the same bytes as the first time.
+      const std::size_t offset = sdo_.block_start + (sequence - 1u) * 7u;
+      check(offset <= sdo_.received.size(), "block upload segment skipped data", offset);
+      for (std::size_t i = 0; i < 7; ++i) {
+        if (offset + i < sdo_.received.size()) {
+          check(sdo_.received[offset + i] == f.data[1 + i], "repeated segment differs", offset + i);
+        } else {
+          sdo_.received.push_back(f.data[1 + i]);
+        }
+      }
+    }
+    sdo_.last_activity_us = now_us_;
+    check(!sdo_.sub_block_open() || frames.size() == co::Node::kSdoSegmentsPerCall,
+          "sub-block stalled: fewer segments than allowed per call", frames.size());
   }
 
   void open(SdoModel::Open kind, const std::array<std::uint8_t, 8>& q) {

@@ -6,6 +6,7 @@ The byte layout is documented at the top of FrameFuzzer.cpp.
 
 from __future__ import annotations
 
+import binascii
 import struct
 from pathlib import Path
 
@@ -28,6 +29,30 @@ def sdo(*data: int, dt: int = 0) -> bytes:
 
 def nmt_start() -> bytes:
     return frame(NMT, bytes([0x01, NODE_ID]))
+
+
+def crc16(data: bytes) -> tuple[int, int]:
+    """CRC of SDO block transfer (CiA 301: CCITT 0x1021, initial 0), as its two frame bytes."""
+    crc = binascii.crc_hqx(data, 0)
+    return crc & 0xFF, crc >> 8
+
+
+def block_download(index: int, value: bytes, crc_of: bytes | None = None) -> bytes:
+    """Initiate (CRC, size), one sub-block of segments, end with the CRC of `crc_of`."""
+    records = sdo(0xC6, index & 0xFF, index >> 8, 0x00, *struct.pack("<I", len(value)))
+    chunks = [value[i : i + 7] for i in range(0, len(value), 7)]
+    for seqno, chunk in enumerate(chunks, start=1):
+        records += sdo(seqno | (0x80 if seqno == len(chunks) else 0), *chunk)
+    unused = 7 - len(chunks[-1])
+    return records + sdo(0xC1 | (unused << 2), *crc16(value if crc_of is None else crc_of))
+
+
+def block_upload(index: int, blksize: int, acks: list[int], pst: int = 0) -> bytes:
+    """Initiate (CRC), start, one ack per entry of `acks` (ackseq), the client's end."""
+    records = sdo(0xA4, index & 0xFF, index >> 8, 0x00, blksize, pst) + sdo(0xA3)
+    for ackseq in acks:
+        records += sdo(0xA2, ackseq, blksize)
+    return records + sdo(0xA1)
 
 
 def seeds() -> dict[str, bytes]:
@@ -54,6 +79,24 @@ def seeds() -> dict[str, bytes]:
         "sync_cob_id_on_sdo_request": bytes([NO_REFUSAL])
         + sdo(0x23, 0x05, 0x10, 0x00, (0x600 + NODE_ID) & 0xFF, (0x600 + NODE_ID) >> 8)
         + sdo(0x40, 0x00, 0x10, 0x00),
+        # Block transfer: whole exchanges the fuzzer can then cut, repeat and corrupt.
+        "sdo_block_download_2401": bytes([NO_REFUSAL]) + block_download(0x2401, velocity),
+        "sdo_block_download_2401_wrong_crc": bytes([NO_REFUSAL])
+        + block_download(0x2401, velocity, crc_of=b"\x00" + velocity[1:]),
+        "sdo_block_download_past_the_object": bytes([NO_REFUSAL])
+        + sdo(0xC4, 0x01, 0x24, 0x00)  # size not indicated
+        + sdo(0x01, *b"1234567")
+        + sdo(0x81, *b"89"),
+        "sdo_block_upload_1008": bytes([NO_REFUSAL]) + block_upload(0x1008, 127, [3]),
+        # blksize 1: a sub-block per segment; ack 0 asks for the first one again.
+        "sdo_block_upload_1008_repeat": bytes([NO_REFUSAL]) + block_upload(0x1008, 1, [0, 1, 1, 1]),
+        "sdo_block_upload_1008_pst_fallback": bytes([NO_REFUSAL])
+        + sdo(0xA4, 0x08, 0x10, 0x00, 127, 18)
+        + segments,
+        "sdo_block_upload_timeout": bytes([NO_REFUSAL])
+        + sdo(0xA4, 0x08, 0x10, 0x00, 127)
+        + sdo(0xA3)
+        + sdo(0xA2, 3, 127, dt=0xFF),
         "store_then_reset_node": bytes([NO_REFUSAL | 0x40])
         + sdo(0x23, 0x00, 0x25, 0x00, *struct.pack("<f", 0.5))
         + sdo(0x23, 0x10, 0x10, 0x01, *b"save")
