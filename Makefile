@@ -26,7 +26,7 @@ endef
 help: ## list the targets (default)
 	@echo "Hardware-in-the-loop test rig over CAN. Targets:"
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/^([a-z-]+):.*## (.*)/  make \1\t\2/' | expand -t 20
-	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), CMAKE_FLAGS=..."
+	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), VIEWER=web (make run), CMAKE_FLAGS=..."
 
 .PHONY: deps
 deps: ## install missing Debian packages (root) and the pinned Python venv
@@ -61,9 +61,13 @@ durations: build ## run every bus-level scenario, then record their durations in
 	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests --bus-only
 	@$(PY) tools/scenario_shards.py durations tests/.test_durations $(CURDIR)/$(OUT)/test-results/scenarios*.xml
 
+# VIEWER=spawn | web[:PORT] | connect[:URL]: also stream the trace live (hilrig sim --viewer).
+VIEWER ?=
+
 .PHONY: run
-run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary, trace
-	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/with-vcan -- $(PY) tools/run-demo.py --out $(CURDIR)/$(OUT)/demo
+run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary, trace (VIEWER=web: live)
+	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/with-vcan -- $(PY) tools/run-demo.py --out $(CURDIR)/$(OUT)/demo \
+	  $(if $(VIEWER),--viewer $(VIEWER))
 
 .PHONY: bench
 bench: deps ## benchmarks, each a ratio measured side by side in one run

@@ -23,6 +23,7 @@ from hilrig.physics import JointParams
 from hilrig.rig import Rig
 from hilrig.session import BoardInterface, HilSession, SessionConfig, open_session
 from hilrig.table import RigTable
+from hilrig.trace import TraceSink, live_sinks_from_environment, parse_live_sink
 
 REPO = Path(__file__).resolve().parent.parent
 EDS = REPO / "build" / "protocol" / "board.eds"
@@ -61,6 +62,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     )
     group.addoption(
         "--hil-node-id", type=lambda text: int(text, 0), help=f"the board's node id (default {NODE_ID:#x})"
+    )
+    group.addoption(
+        "--hil-viewer",
+        action="append",
+        metavar="WHERE",
+        help="also stream every scenario's trace live (repeatable): spawn[:PORT], web[:PORT] or "
+        "connect[:URL], as `hilrig sim --viewer` (default: $HIL_TRACE); trace.rrd is always written",
     )
 
 
@@ -240,6 +248,7 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
             node_id = config.getoption("hil_node_id") or NODE_ID
         session_config = SessionConfig(
             out_dir=run_dir,
+            live=_live_sinks(config) if trace else (),
             params=params,
             seed=seed,
             node_id=node_id,
@@ -274,6 +283,17 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
     yield make
     for session in reversed(sessions):
         session.close()
+
+
+def _live_sinks(config: pytest.Config) -> list[TraceSink]:
+    """--hil-viewer, else $HIL_TRACE; a bad spelling stops the run with one line."""
+    spelled = config.getoption("hil_viewer")
+    try:
+        if spelled:
+            return [parse_live_sink(text) for text in spelled]
+        return live_sinks_from_environment()
+    except ValueError as error:
+        raise pytest.UsageError(f"--hil-viewer: {error}") from None
 
 
 def _evidence(scenario_dir: Path, traced: bool) -> str:

@@ -7,6 +7,10 @@ or inside the micro-VM of `tools/with-vcan`)::
     summary = run_demo(DemoOptions(out_dir=Path("out/demo")))
     print(format_summary(summary))
 
+With `board=BoardInterface(...)` the same profiles run in real time against a board (or a
+free-running firmware) on that interface: no firmware is started, the rig sends SYNC every
+period. `live` sinks stream the trace to a viewer while it runs, beside out_dir/trace.rrd.
+
 A scenario file defines `def scenario(rig): ...` and drives the `Rig` itself (rig.set,
 rig.run, rig.at...); the summary is computed from what it ran.
 """
@@ -23,7 +27,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hilrig.errors import BusUnavailableError, FirmwareError, LockstepError, RigError
+from hilrig.errors import BusUnavailableError, FirmwareError, LockstepError, RealTimeError, RigError
 from hilrig.faults import FaultEvent, FaultInjector, FaultPlan
 from hilrig.firmware import DEFAULT_EXECUTABLE
 from hilrig.netns import private_buses_supported
@@ -34,7 +38,8 @@ from hilrig.session import SessionConfig, hil_session
 from hilrig.table import BOARD_TABLE, ControlMode, RigTable
 
 if TYPE_CHECKING:
-    pass
+    from hilrig.session import BoardInterface
+    from hilrig.trace import TraceSink
 
 Scenario = Callable[[Rig], object]
 Progress = Callable[[str], None]
@@ -98,6 +103,10 @@ class DemoOptions:
     executable: Path = DEFAULT_EXECUTABLE
     eds: Path = DEFAULT_EDS_PATH
     faults: FaultPlan = field(default_factory=FaultPlan)
+    live: tuple[TraceSink, ...] = ()
+    """Where the trace also streams while the run goes (spawn, web, connect), beside trace.rrd."""
+    board: BoardInterface | None = None
+    """A board (or free-running firmware) on an interface: real time, no firmware started."""
 
 
 @dataclass(frozen=True)
@@ -119,10 +128,13 @@ class DemoSummary:
     safe_state: bool
     emcy: tuple[EmcyRecord, ...]
     bus_log: Path
-    firmware_log: Path
+    firmware_log: Path | None
+    """None: a board's run (no firmware process of the rig's)."""
     frames_logged: int
     trace: Path | None = None
     faults: tuple[FaultEvent, ...] = ()
+    viewer_url: str | None = None
+    """The page of the web viewer serving this run's trace (a `web` live sink)."""
 
 
 def load_scenario(path: Path) -> Scenario:
@@ -156,9 +168,9 @@ def default_scenario(progress: Progress) -> Scenario:
 
 
 def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
-    """Firmware + rig in lockstep on a private bus (`hilrig.session`); the bus log goes to
-    out_dir/bus.log."""
-    if not private_buses_supported():
+    """Firmware + rig in lockstep on a private bus (`hilrig.session`), or the rig in real time
+    against `options.board`; the bus log goes to out_dir/bus.log."""
+    if options.board is None and not private_buses_supported():
         raise BusUnavailableError(
             "the simulation needs root and a kernel with vcan for its private bus: "
             "run `make run`, or `tools/with-vcan -- .venv/bin/hilrig sim`"
@@ -173,10 +185,18 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
     started = time.monotonic()
     if options.trace:
         progress("sim: tracing to Rerun (importing rerun-sdk takes a while in the VM)")
-    progress(
-        f"sim: starting {options.executable.name} (node 0x{options.node_id:02X}, lockstep, "
-        f"{options.period_us} us) on a private bus"
-    )
+        if options.live:
+            progress("sim: streaming the trace live to " + ", ".join(map(str, options.live)))
+    if options.board is None:
+        progress(
+            f"sim: starting {options.executable.name} (node 0x{options.node_id:02X}, lockstep, "
+            f"{options.period_us} us) on a private bus"
+        )
+    else:
+        progress(
+            f"sim: node 0x{options.node_id:02X} on {options.board.interface} {options.board.channel}, "
+            f"real time, SYNC every {options.period_us} us"
+        )
     config = SessionConfig(
         out_dir=out,
         params=options.params,
@@ -184,14 +204,17 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         node_id=options.node_id,
         period_us=options.period_us,
         trace=options.trace,
+        live=options.live if options.trace else (),
         executable=options.executable,
         eds=options.eds,
         boot_timeout_s=BOOT_TIMEOUT_S,
         sdo_timeout_s=1.0,
+        board=options.board,
+        mode="lockstep" if options.board is None else "realtime",
     )
     with hil_session(config, table=table) as session:
         rig = session.rig
-        assert session.firmware is not None
+        assert rig is not None
         injector: FaultInjector | None = None
         if options.faults:
             injector = FaultInjector(
@@ -206,7 +229,7 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         cycling_started = time.monotonic()
         try:
             scenario(rig)
-        except (FirmwareError, LockstepError) as error:
+        except (FirmwareError, LockstepError, RealTimeError) as error:
             first_line = str(error).splitlines()[0].rstrip(";: ")
             raise RunAbortedError(f"{first_line}; {session.evidence()}") from error
         cycling_s = time.monotonic() - cycling_started
@@ -214,8 +237,12 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         if injector is not None:
             summary = dataclasses.replace(summary, faults=tuple(injector.log))
         recorder = session.recorder
+        viewer_url = session.tracer.web_url if session.tracer is not None else None
     summary = dataclasses.replace(
-        summary, frames_logged=recorder.frames if recorder is not None and recorder.frames is not None else 0
+        summary,
+        frames_logged=recorder.frames if recorder is not None and recorder.frames is not None else 0,
+        firmware_log=out / "firmware.log" if options.board is None else None,
+        viewer_url=viewer_url,
     )
     if options.trace:
         summary = dataclasses.replace(summary, trace=out / "trace.rrd")
@@ -340,12 +367,15 @@ def format_summary(summary: DemoSummary) -> str:
             "bus log",
             f"{summary.bus_log} ({summary.frames_logged} frames; `hilrig replay {summary.bus_log} --decode`)",
         ),
-        ("firmware log", str(summary.firmware_log)),
     ]
+    if summary.firmware_log is not None:
+        rows.append(("firmware log", str(summary.firmware_log)))
     if summary.trace is not None:
         rows += [
             ("trace (Rerun)", str(summary.trace)),
             ("open it with", f".venv/bin/python -m dashboards overview {summary.trace}   (--web: browser)"),
         ]
+    if summary.viewer_url is not None:
+        rows.append(("live web viewer", summary.viewer_url))
     width = max(len(name) for name, _ in rows)
     return "\n".join(f"{name.ljust(width)}  {value}" for name, value in rows)

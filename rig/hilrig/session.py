@@ -65,7 +65,8 @@ class BoardInterface:
 @dataclass(frozen=True)
 class SessionConfig:
     """Everything a session is made of. out_dir: firmware.log, bus.log and trace.rrd go here.
-    trace: a trace.rrd in out_dir (True), these sinks (a sequence of `TraceSink`), or none.
+    trace: a trace.rrd in out_dir (True; `live` sinks beside it), these sinks (a sequence of
+    `TraceSink`), or none.
     board: a real board (no firmware is started); None: the firmware on a private vcan0.
     firmware_period_us: the firmware's own period (default: the rig's, or 10 ms in real time).
     """
@@ -78,6 +79,8 @@ class SessionConfig:
     period_us: int = 1000
     physics: bool = True
     trace: bool | Sequence[TraceSink] = True
+    live: Sequence[TraceSink] = ()
+    """With trace=True: also stream to these sinks (a viewer) while the run goes."""
     record: bool = True
     board: BoardInterface | None = None
     executable: Path = DEFAULT_EXECUTABLE
@@ -145,6 +148,11 @@ def _tracer(config: SessionConfig, table: RigTable) -> Tracer | None:
 
     clock = "wall" if TimingMode(config.mode) is TimingMode.REALTIME else "simulation"
     if config.trace is True:
+        if config.live:
+            from hilrig.trace import TraceSink
+
+            sinks = [TraceSink.rrd(config.out_dir / "trace.rrd"), *config.live]
+            return Tracer(sinks, table, clock=clock, recording_name=config.out_dir.name)
         return Tracer.for_scenario(config.out_dir, table, clock=clock)
     return Tracer(list(config.trace), table, clock=clock, recording_name=config.out_dir.name)
 

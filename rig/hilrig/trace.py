@@ -61,6 +61,7 @@ from boardproto import Field, IoDirection, Kind
 from boardproto.cia301 import NmtState
 from boardproto.table import BitSet, ValueEnum
 from hilrig.driver import CycleResult, History, HistoryMark
+from hilrig.errors import RigError
 from hilrig.node import EmcyRecord
 from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointState
@@ -197,7 +198,7 @@ class TraceSink:
 
     @classmethod
     def parse(cls, spec: str) -> TraceSink:
-        """'rrd:PATH' | 'spawn[:PORT]' | 'connect[:URL]' | 'web[:PORT]'."""
+        """'rrd:PATH' | 'spawn[:PORT]' | 'connect[:URL]' | 'web[:PORT[:GRPC_PORT]]'."""
         kind, _, arg = spec.partition(":")
         try:
             sink_kind = SinkKind(kind)
@@ -211,7 +212,50 @@ class TraceSink:
             return cls.spawn(int(arg)) if arg else cls.spawn()
         if sink_kind is SinkKind.CONNECT:
             return cls.connect(arg) if arg else cls.connect()
-        return cls.serve_web(int(arg)) if arg else cls.serve_web()
+        if not arg:
+            return cls.serve_web()
+        web_port, _, grpc_port = arg.partition(":")
+        return cls.serve_web(int(web_port), int(grpc_port)) if grpc_port else cls.serve_web(int(web_port))
+
+    def __str__(self) -> str:
+        """The spelling `parse` reads: 'rrd:out/trace.rrd', 'spawn:9876', 'web:9090', 'connect:URL'."""
+        if self.kind is SinkKind.RRD:
+            return f"rrd:{self.path}"
+        if self.kind is SinkKind.CONNECT:
+            return f"connect:{self.url}"
+        if self.kind is SinkKind.WEB:
+            return f"web:{self.port}:{self.url}"
+        return f"{self.kind.value}:{self.port}"
+
+
+LIVE_TRACE_ENV = "HIL_TRACE"
+"""Live sinks for every traced run (comma-separated, as `TraceSink.parse` reads them, no rrd):
+`hilrig sim` takes them as its default --viewer and pytest scenarios stream to them, beside the
+trace.rrd they always write. The compose file sets it to the viewer service's address."""
+
+
+def parse_live_sink(text: str) -> TraceSink:
+    """A live sink (spawn, web or connect); ValueError for a file sink or a bad spelling."""
+    try:
+        sink = TraceSink.parse(text)
+    except (ValueError, RigError) as error:  # an unknown kind, a port that is no number
+        raise ValueError(
+            f"{text!r}: {error} (spawn[:PORT], web[:PORT[:GRPC_PORT]] or connect[:URL])"
+        ) from None
+    if sink.kind is SinkKind.RRD:
+        raise ValueError(f"{text!r}: the trace file is always written; name a live sink here")
+    return sink
+
+
+def live_sinks_from_environment(environ: Mapping[str, str] = os.environ) -> list[TraceSink]:
+    """The live sinks $HIL_TRACE names (none when unset); ValueError naming the variable."""
+    sinks = []
+    for part in filter(None, (p.strip() for p in environ.get(LIVE_TRACE_ENV, "").split(","))):
+        try:
+            sinks.append(parse_live_sink(part))
+        except ValueError as error:
+            raise ValueError(f"${LIVE_TRACE_ENV}: {error}") from None
+    return sinks
 
 
 # --- The tracer -----------------------------------------------------------------------------
@@ -289,7 +333,7 @@ class Tracer(RigObserver):
         self.clock: Clock = clock
         self.time_timeline = SIM_TIME_TIMELINE if clock == "simulation" else WALL_TIME_TIMELINE
         self.web_url: str | None = None
-        """http://localhost:PORT of the served web viewer, when a web sink is used."""
+        """The page of the served web viewer (with the data's address), when a web sink is used."""
         self.cycles_logged = 0
         self._params: JointParams | None = None
         self._paths = self._entity_paths(table)
@@ -349,7 +393,7 @@ class Tracer(RigObserver):
                 native.append(server)
                 port = sink.port or DEFAULT_WEB_PORT
                 rr.serve_web_viewer(web_port=port, open_browser=False, connect_to=server.uri)
-                self.web_url = f"http://localhost:{port}"
+                self.web_url = web_viewer_url(port, int(sink.url or DEFAULT_GRPC_PORT))
         self.recording.set_sinks(*native)
 
     # --- What the Rig calls -----------------------------------------------------------------

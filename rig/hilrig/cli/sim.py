@@ -3,14 +3,25 @@
 from __future__ import annotations
 
 import argparse
+import signal
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hilrig.cli.common import DEFAULT_EDS, Command, UsageError, existing_file, node_id, positive_int, progress
+from hilrig.cli.common import (
+    DEFAULT_EDS,
+    Command,
+    UsageError,
+    add_bus_options,
+    existing_file,
+    node_id,
+    positive_int,
+    progress,
+)
 from hilrig.table import BOARD_TABLE
 
 if TYPE_CHECKING:
     from hilrig.faults import FaultSpec
+    from hilrig.trace import TraceSink
 
 
 def fault_spec(text: str) -> FaultSpec:
@@ -19,6 +30,16 @@ def fault_spec(text: str) -> FaultSpec:
     try:
         return FaultSpec.parse(text)
     except FaultSpecError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def live_sink(text: str) -> TraceSink:
+    """A `--viewer` value: spawn[:PORT] | web[:PORT] | connect[:URL] (the file is always written)."""
+    from hilrig.trace import parse_live_sink
+
+    try:
+        return parse_live_sink(text)
+    except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
@@ -74,16 +95,58 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_EDS,
         help="the board's EDS (default: build/protocol/board.eds)",
     )
+    trace = parser.add_argument_group("trace (Rerun)")
+    trace.add_argument(
+        "--viewer",
+        action="append",
+        type=live_sink,
+        default=None,
+        metavar="WHERE",
+        help="also stream the trace live while the run goes (repeatable): spawn[:PORT] (a native "
+        "viewer), web[:PORT] (serve the web viewer, default port 9090; the run then keeps serving "
+        "until Ctrl-C), connect[:URL] (a running viewer or `rerun --serve-web`, default "
+        "rerun+http://127.0.0.1:9876/proxy); default: $HIL_TRACE. trace.rrd is always written",
+    )
+    trace.add_argument(
+        "--keep-serving",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="with a web viewer: keep serving the run's trace after the summary, until Ctrl-C "
+        "(the data lives in this process; default: yes)",
+    )
+    trace.add_argument(
+        "--no-trace", action="store_true", help="no trace at all (faster start: no rerun import)"
+    )
+    parser.add_argument(
+        "--board",
+        action="store_true",
+        help="run in real time against a board, or a free-running firmware, on the bus of -i/-c "
+        "instead of starting the firmware on a private bus (the rig sends SYNC every --period-us)",
+    )
+    add_bus_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     from hilrig.demo import DemoOptions, format_summary, run_demo
     from hilrig.faults import FaultPlan
     from hilrig.firmware import DEFAULT_EXECUTABLE
+    from hilrig.session import BoardInterface
+    from hilrig.trace import SinkKind, live_sinks_from_environment
 
     executable = args.firmware or DEFAULT_EXECUTABLE
-    if not executable.is_file():
+    if not args.board and not executable.is_file():
         raise UsageError(f"firmware {executable} does not exist: build it with `make build`")
+    try:
+        live = args.viewer if args.viewer is not None else live_sinks_from_environment()
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.no_trace and args.viewer:
+        raise UsageError("--viewer streams the trace, --no-trace makes none: choose one")
+    if args.no_trace:
+        live = []
+    board = None
+    if args.board:
+        board = BoardInterface(args.interface, args.channel, args.bitrate)
     options = DemoOptions(
         out_dir=args.out,
         scenario_file=args.scenario,
@@ -93,11 +156,23 @@ def run(args: argparse.Namespace) -> int:
         executable=executable,
         eds=args.eds,
         faults=FaultPlan(tuple(args.fault)),
+        trace=not args.no_trace,
+        live=tuple(live),
+        board=board,
     )
     summary = run_demo(options, progress=progress)
     text = format_summary(summary)
+    args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "summary.txt").write_text(text + "\n")
-    print(text)
+    print(text, flush=True)
+    if args.keep_serving and summary.viewer_url is not None and any(s.kind is SinkKind.WEB for s in live):
+        # The web viewer's data lives in this process: keep it until the person is done.
+        progress(f"sim: the web viewer keeps serving this run at {summary.viewer_url}; Ctrl-C to stop")
+        try:
+            while True:
+                signal.pause()
+        except KeyboardInterrupt:
+            progress("sim: stopped serving")
     return 0
 
 
@@ -117,9 +192,15 @@ COMMANDS = (
         "dropped or late, sensor values frozen, offset or out of range, malformed frames,\n"
         "a flood, the firmware killed or restarted. A killed firmware ends the run with\n"
         "the cycle it was noticed in and the paths of the trace and logs (exit code 1).\n\n"
+        "Live: --viewer spawn | web[:PORT] | connect[:URL] streams the trace while the run\n"
+        "goes, beside trace.rrd (`make run VIEWER=web`). A board: --board -i pcan -c\n"
+        "PCAN_USBBUS1 runs the same profiles in real time against the board (or a\n"
+        "free-running firmware) on that bus.\n\n"
         "  tools/with-vcan -- .venv/bin/hilrig sim --out out/demo\n"
         "  ... sim --fault delay:motor_encoder_counts=20@0.3+0.4 --fault restart@1.5\n"
-        "  sudo .venv/bin/hilrig sim --scenario my_scenario.py   # def scenario(rig): ...",
+        "  sudo .venv/bin/hilrig sim --scenario my_scenario.py   # def scenario(rig): ...\n"
+        "  hilrig sim --viewer web          # then open http://localhost:9090\n"
+        "  hilrig sim --board -c vcan0 --period-us 10000 --viewer connect",
         configure=configure,
         run=run,
     ),

@@ -1,0 +1,200 @@
+"""Live traces: where `hilrig sim` (and the scenarios, through $HIL_TRACE) stream while running.
+
+The live test runs the real command, `hilrig sim --board ... --viewer web:PORT:GRPC`, in a
+thread of this process against the in-process fake node on a python-can `virtual` bus (the
+command's real-board path: no firmware, real time), and headless Chromium shows the recording
+growing in the served web viewer while the run is still going.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+
+import can
+import pytest
+from test_web_viewer import (
+    CAPTURE_HANDLE,
+    CHROMIUM,
+    CHROMIUM_FLAGS,
+    VIEWPORT,
+    WAIT_S,
+    free_port,
+    wait_for_state,
+)
+
+from hilrig.cli import main
+from hilrig.fake_node import FakeJointNode
+from hilrig.table import RigTable
+from hilrig.trace import (
+    LIVE_TRACE_ENV,
+    WALL_TIME_TIMELINE,
+    SinkKind,
+    TraceSink,
+    live_sinks_from_environment,
+    parse_live_sink,
+    web_viewer_url,
+)
+
+
+# --- Spelling --------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "spelled",
+    ["spawn", "spawn:9877", "web", "web:8080", "web:8080:9999", "connect", "connect:rerun+http://h:1/proxy"],
+)
+def test_a_live_sink_reads_back_as_it_prints(spelled: str) -> None:
+    sink = parse_live_sink(spelled)
+    assert parse_live_sink(str(sink)) == sink
+
+
+def test_a_web_sink_takes_both_ports() -> None:
+    sink = parse_live_sink("web:8080:9999")
+    assert (sink.kind, sink.port, sink.url) == (SinkKind.WEB, 8080, "9999")
+
+
+@pytest.mark.parametrize(
+    ("spelled", "message"),
+    [
+        ("rrd:out/x.rrd", "the trace file is always written"),
+        ("spwan", "did you mean 'spawn'"),
+        ("web:abc", "web\\[:PORT\\[:GRPC_PORT\\]\\]"),
+    ],
+)
+def test_a_bad_live_sink_says_what_to_write(spelled: str, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        parse_live_sink(spelled)
+
+
+def test_the_environment_names_live_sinks() -> None:
+    assert live_sinks_from_environment({}) == []
+    sinks = live_sinks_from_environment({LIVE_TRACE_ENV: "connect, spawn:9000"})
+    assert sinks == [TraceSink.connect(), TraceSink.spawn(9000)]
+    with pytest.raises(ValueError, match=f"\\${LIVE_TRACE_ENV}: 'rrd:x'"):
+        live_sinks_from_environment({LIVE_TRACE_ENV: "rrd:x"})
+
+
+@pytest.mark.parametrize(
+    ("argv", "environment", "message"),
+    [
+        (["--viewer", "rrd:x.rrd"], {}, "the trace file is always written"),
+        (["--viewer", "web", "--no-trace"], {}, "choose one"),
+        ([], {LIVE_TRACE_ENV: "bogus"}, "$HIL_TRACE: 'bogus'"),
+    ],
+)
+def test_sim_refuses_a_bad_viewer_in_one_line(
+    argv: list[str],
+    environment: dict[str, str],
+    message: str,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+) -> None:
+    for name, value in environment.items():
+        monkeypatch.setenv(name, value)
+    # --board: no firmware is needed to get this far; the check comes before any bus is opened.
+    code = main(["sim", "--board", "-i", "virtual", "--out", str(tmp_path), *argv])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.splitlines()) == 1 and message in err, err
+
+
+# --- Live, in the browser --------------------------------------------------------------------
+SCENARIO = """
+from pathlib import Path
+
+from hilrig.table import ControlMode
+
+STOP = Path({stop!r})
+HANG_GUARD_S = 600.0
+
+
+def scenario(rig):
+    rig.set("control_mode", ControlMode.VELOCITY)
+    rig.set("velocity_setpoint", 2.0)
+    while not STOP.exists() and rig.t < HANG_GUARD_S:
+        rig.run(seconds=0.05)
+"""
+
+
+@pytest.mark.skipif(not CHROMIUM.exists(), reason=f"no {CHROMIUM}: apt-get install chromium (tools/deps)")
+@pytest.mark.timeout(600)
+def test_sim_streams_to_a_web_viewer_that_shows_the_recording_grow_while_it_runs(tmp_path: Path) -> None:
+    from playwright.sync_api import sync_playwright
+
+    table = RigTable.load()
+    channel = f"live-{os.getpid()}"
+    stop = tmp_path / "stop"
+    scenario = tmp_path / "until_stopped.py"
+    scenario.write_text(SCENARIO.format(stop=str(stop)))
+    web_port, grpc_port = free_port(), free_port()
+    fake_bus = can.Bus(interface="virtual", channel=channel)
+    fake = FakeJointNode(fake_bus, table=table)
+    fake.boot()  # its heartbeat tells the rig it is there, whenever the rig's bus opens
+    argv = [
+        "sim",
+        "--board",
+        "-i",
+        "virtual",
+        "-c",
+        channel,
+        "--period-us",
+        "10000",
+        "--scenario",
+        str(scenario),
+        "--out",
+        str(tmp_path / "out"),
+        "--viewer",
+        f"web:{web_port}:{grpc_port}",
+        "--no-keep-serving",
+    ]
+    result: list[int] = []
+    run = threading.Thread(target=lambda: result.append(main(argv)), name="hilrig-sim")
+    run.start()
+    try:
+        with sync_playwright() as playwright:
+            browser = playwright.chromium.launch(
+                executable_path=str(CHROMIUM), args=CHROMIUM_FLAGS, timeout=WAIT_S * 1000
+            )
+            try:
+                page = browser.new_page(viewport=VIEWPORT)
+                page.set_default_timeout(WAIT_S * 1000)
+                url = f"{web_viewer_url(web_port, grpc_port)}&renderer=webgl"
+                deadline_pages = 0
+                while True:  # the web server comes up once the session has imported rerun
+                    try:
+                        page.goto(url, wait_until="domcontentloaded")
+                        break
+                    except Exception:
+                        assert run.is_alive(), f"hilrig sim ended with {result} before serving {url}"
+                        deadline_pages += 1
+                        assert deadline_pages < 120, f"nothing served at {url}"
+                        page.wait_for_timeout(1000)
+                page.evaluate(CAPTURE_HANDLE)
+                page.wait_for_function("() => window.hilrigViewer !== undefined")
+                first = wait_for_state(
+                    page,
+                    lambda s: s.timeline_ends.get(WALL_TIME_TIMELINE, 0) > 0,
+                    "the live recording on the wall-clock timeline",
+                )
+                assert run.is_alive(), "the run ended before the viewer showed anything"
+                started = first.timeline_ends[WALL_TIME_TIMELINE]
+                later = wait_for_state(
+                    page,
+                    lambda s: s.timeline_ends.get(WALL_TIME_TIMELINE, 0) > started,
+                    "the recording to grow",
+                )
+                assert run.is_alive(), "the recording grew only after the run had ended"
+            finally:
+                browser.close()
+    finally:
+        stop.touch()
+        run.join(timeout=WAIT_S)
+        fake.close()
+        fake_bus.shutdown()
+    assert not run.is_alive(), "hilrig sim did not end after its scenario"
+    assert result == [0]
+    assert later.timeline_ends[WALL_TIME_TIMELINE] > started
+    assert (tmp_path / "out" / "trace.rrd").stat().st_size > 0, "the file is written beside the live sink"
+    summary = (tmp_path / "out" / "summary.txt").read_text()
+    assert web_viewer_url(web_port, grpc_port) in summary
