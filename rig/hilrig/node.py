@@ -161,7 +161,7 @@ class BoardNode:
         self,
         bus: can.BusABC,
         node_id: int,
-        eds: str | Path,
+        eds: str | Path | canopen.ObjectDictionary | None,
         table: RigTable,
         *,
         sdo_timeout_s: float = 1.0,
@@ -169,7 +169,11 @@ class BoardNode:
         self.node_id = node_id
         self.table = table
         self.network = canopen.Network(bus)
-        self.remote = canopen.RemoteNode(node_id, str(eds))
+        if eds is None:  # raw SDO by index needs no dictionary
+            eds = canopen.ObjectDictionary()
+        self.remote = canopen.RemoteNode(
+            node_id, eds if isinstance(eds, canopen.ObjectDictionary) else str(eds)
+        )
         self.remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
         self.network.add_node(self.remote)
         self.rpdos: dict[int, PdoLayout] = {}

@@ -11,8 +11,9 @@
     hilrig soak --cycles 1000000              # the long run: no cycle lost, memory flat
 
 Every command takes `--interface`/`--channel` (any python-can interface) and `--help`.
-Exit codes: 0 done, 1 the bus or the node failed (one line on stderr, no traceback),
-2 the command line is wrong (one line saying what to type instead), 130 interrupted.
+Exit codes: 0 done, 1 the bus, the node or a log's content failed (one line on stderr, no
+traceback), 2 the command line or a file, definition or interface it needs is wrong (one line
+saying what to do instead), 130 interrupted.
 
 Adding a command: write `hilrig/cli/<module>.py` with `COMMANDS = (Command(...),)` and add
 the module's name to `COMMAND_MODULES`.
@@ -26,13 +27,14 @@ import logging
 import os
 import signal
 import sys
+import traceback
 from collections.abc import Sequence
 from types import FrameType
 from typing import NoReturn
 
 from boardproto import TableError
 from hilrig.cli.common import Command, UsageError, one_line
-from hilrig.errors import RigError
+from hilrig.errors import LogFormatError, RigError
 
 COMMAND_MODULES: tuple[str, ...] = (
     "fields",
@@ -126,9 +128,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous = None
     try:
         return int(args.run(args))
-    except (UsageError, TableError) as error:  # a bad table file is a bad argument (--table)
-        print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
-        return EXIT_USAGE
+    except (UsageError, TableError, LogFormatError) as error:  # a bad --table or FILE is a bad argument
+        return _report(prog, error, EXIT_USAGE, verbose=args.verbose)
     except BrokenPipeError:  # `hilrig ... | head` stopped reading: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
@@ -136,13 +137,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{prog}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (RigError, OSError) as error:
-        print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
-        return EXIT_FAILED
+        return _report(prog, error, EXIT_FAILED, verbose=args.verbose)
     except Exception as error:
+        # What python-can, canopen and cantools raise is about the bus, the node or a file;
+        # anything else is a bug in hilrig: its traceback is what a report needs.
         if type(error).__module__.split(".")[0] not in ("can", "canopen", "cantools"):
             raise
-        print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
-        return EXIT_FAILED
+        return _report(prog, error, EXIT_FAILED, verbose=args.verbose)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _report(prog: str, error: BaseException, code: int, *, verbose: bool) -> int:
+    """One line on stderr; with --verbose the traceback first (which call failed, and why)."""
+    if verbose:
+        traceback.print_exception(error, file=sys.stderr)
+    print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
+    return code

@@ -6,7 +6,16 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hilrig.cli.common import DEFAULT_EDS, Command, UsageError, existing_file, node_id, positive_int, progress
+from hilrig.cli.common import (
+    EDS_HINT,
+    Command,
+    UsageError,
+    eds_path,
+    existing_file,
+    node_id,
+    positive_int,
+    progress,
+)
 from hilrig.table import BOARD_TABLE
 
 if TYPE_CHECKING:
@@ -70,8 +79,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--eds",
-        type=existing_file("EDS", "build it with `make build` or pass --eds FILE"),
-        default=DEFAULT_EDS,
+        type=existing_file("EDS", EDS_HINT),
+        default=None,
         help="the board's EDS (default: build/protocol/board.eds)",
     )
 
@@ -91,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         period_us=args.period_us,
         seed=args.seed,
         executable=executable,
-        eds=args.eds,
+        eds=eds_path(args),
         faults=FaultPlan(tuple(args.fault)),
     )
     summary = run_demo(options, progress=progress)
