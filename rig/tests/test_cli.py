@@ -441,10 +441,20 @@ def test_a_scenario_file_must_define_scenario(tmp_path: Path) -> None:
     assert load_scenario(script).__name__ == "scenario"
 
 
-def test_bus_load_is_a_command_and_warns_above_70_percent(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "125k", "--bitrate", "1M")
-    assert code == 0
+def test_bus_load_is_a_command_warns_above_70_and_fails_above_100_percent(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, out, err = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "125k", "--bitrate", "1M")
+    assert code == 1
     rows = {row.split()[0] for row in out.splitlines() if row[:1].isdigit() and "bit/s" in row}
     assert rows == {"125", "1"}
-    # 125 kbit/s at 100 Hz is about 91 % nominal: over the line; 1 Mbit/s is about 11 %: fine.
-    assert "WARNING: 125 kbit/s" in out and "WARNING: 1 Mbit/s" not in out
+    # 125 kbit/s at 100 Hz is about 91 % nominal and 111 % worst case: it does not fit; 1 Mbit/s
+    # is about 14 %: fine.
+    assert "OVERLOAD: 125 kbit/s" in out and "1 Mbit/s:" not in out
+    assert (
+        err
+        == "hilrig bus-load: error: at 100 Hz the exchange does not fit 125 kbit/s (above 100 % of the bus)\n"
+    )
+    code, out, err = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "200k")
+    assert (code, err) == (0, "")
+    assert "WARNING: 200 kbit/s" in out  # about 69 % worst case, 78 % in the busiest cycle
