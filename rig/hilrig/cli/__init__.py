@@ -4,6 +4,8 @@
     hilrig dbc --node-id 0x20 -o board-32.dbc # the DBC for a board at another node id
     hilrig get motor_velocity velocity_kp     # SDO, values with units
     hilrig set velocity_kp=0.2                # SDO; a refusal is explained in words
+    hilrig sdo read 0x1018:1                  # any object by index, value and hex
+    hilrig nmt start --wait                   # NMT, and the state the heartbeat then shows
     hilrig watch --sync-period-ms 10          # live table of the TPDO fields
     hilrig scan                               # which nodes are on the bus
     hilrig record bus.log / replay bus.log --decode
@@ -40,6 +42,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "fields",
     "dbc",
     "sdo",
+    "sdo_raw",
+    "nmt",
     "watch",
     "scan",
     "record",
