@@ -1,19 +1,24 @@
 """Bad input is never a traceback: every file, definition or configuration a user can get wrong
-ends the command with one line on stderr that names it, and the exit code of the rule: 2 refused
-before anything ran (fix the command line or what it names), 1 ran and failed (a log's content
-breaks off)."""
+ends the command with one line on stderr that names it, and the exit code of `hilrig --help`'s
+rule: 2 refused before anything ran (fix the command line or what it names), 1 ran and failed
+(a log's content breaks off). Also --version, `python -m hilrig`, -v after the command and the
+bash completion script."""
 
 from __future__ import annotations
 
 import gzip
 import importlib.util
+import shutil
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 from boardproto.cia301 import SYNC_COB_ID
-from hilrig.cli import EXIT_FAILED, EXIT_USAGE, common, main, record
+from hilrig.cli import EXIT_FAILED, EXIT_USAGE, common, main, record, version
+from hilrig.table import RigTable
 
 CANDUMP_SCREEN = "  vcan0  080   [1]  01\n  vcan0  080   [1]  02\n"  # candump without -L
 CANDUMP_LOG = f"(1700000000.000000) vcan0 {SYNC_COB_ID:03X}#01\n"  # candump -L
@@ -140,6 +145,16 @@ def test_bad_input_is_one_line_with_the_rules_exit_code(
         assert text in err
 
 
+def test_verbose_adds_the_traceback_of_a_handled_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = write("cut.log", CANDUMP_LOG + "(zz) vcan0 12G#\n")(tmp_path)
+    code = main(["replay", str(log), "--decode", "-v"])  # -v after the command
+    _, err = capsys.readouterr()
+    assert code == EXIT_FAILED
+    assert err.startswith("Traceback") and err.splitlines()[-1].startswith("hilrig replay: error: ")
+
+
 def test_replay_reads_gzipped_logs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = tmp_path / "bus.log.gz"
     log.write_bytes(gzip.compress(CANDUMP_LOG.encode()))
@@ -147,3 +162,54 @@ def test_replay_reads_gzipped_logs(tmp_path: Path, capsys: pytest.CaptureFixture
     out, err = capsys.readouterr()
     assert (code, err) == (0, "")
     assert out.split() == ["0.000000", f"0x{SYNC_COB_ID:03X}", "SYNC", "1"]
+
+
+def test_version_names_hilrig_and_its_libraries(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--version"]) == 0
+    out = capsys.readouterr().out
+    assert out == version() + "\n"
+    assert out.startswith("hilrig ") and "python-can " in out and "canopen " in out and "Python 3." in out
+
+
+def test_python_m_hilrig_is_the_console_script(tmp_path: Path) -> None:
+    txt = write("bus.txt", CANDUMP_LOG)(tmp_path)
+    done = subprocess.run(
+        [sys.executable, "-m", "hilrig", "replay", str(txt)], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == EXIT_USAGE
+    assert done.stdout == "" and done.stderr.count("\n") == 1
+    assert done.stderr.startswith(f"hilrig replay: error: {txt}: python-can reads no .txt files")
+
+
+def test_help_states_the_exit_code_rule(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "exit codes" in out
+    for code in ("  0 ", "  1 ", "  2 ", "  130 "):
+        assert code in out
+
+
+@pytest.mark.skipif(shutil.which("bash") is None, reason="no bash")
+@pytest.mark.parametrize(
+    ("words", "expected"),
+    [
+        (["nm"], ["nmt"]),
+        (["nmt", "re"], ["reset", "reset-comm"]),
+        (["sdo", ""], ["read", "write"]),
+        (["sdo", "read", "0x1018", "--ty"], ["--type"]),
+        (["sdo", "read", "0x1018", "--type", "u1"], ["u16"]),
+        (["get", "-i", "socketc"], ["socketcan", "socketcand"]),
+        (["get", "velocity_k"], [n for n in RigTable.load().names if n.startswith("velocity_k")]),
+        (["record", "x.log", "--fil"], ["--filter"]),
+    ],
+)
+def test_bash_completion_completes_commands_options_and_choices(
+    capsys: pytest.CaptureFixture[str], words: list[str], expected: list[str]
+) -> None:
+    assert main(["completion", "bash"]) == 0
+    script = capsys.readouterr().out
+    line = " ".join(["hilrig", *(f"'{w}'" for w in words)])
+    complete = f'COMP_WORDS=({line}); COMP_CWORD={len(words)}; _hilrig; printf "%s\\n" "${{COMPREPLY[@]}}"'
+    probe = f"{script}\n{complete}\n"
+    done = subprocess.run(["bash", "-c", probe], capture_output=True, text=True, check=True)
+    assert sorted(done.stdout.split()) == sorted(expected), done.stderr
