@@ -16,6 +16,7 @@ import pytest
 
 from boardproto.cia301 import NmtState, heartbeat_cob_id
 from hilrig.buslog import BusRecorder
+from hilrig.cli.common import bitrate
 from hilrig.expect import Expect
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
 from hilrig.netns import PrivateBus, private_buses_supported
@@ -53,7 +54,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "lockstep scenarios are skipped",
     )
     group.addoption("--hil-channel", help="the interface's channel, e.g. can0 or PCAN_USBBUS1")
-    group.addoption("--hil-bitrate", type=int, help="bit rate for interfaces that set it (e.g. 1000000)")
+    group.addoption(
+        "--hil-bitrate", type=bitrate, help="bit rate for interfaces that set it (e.g. 1M, 500k, 125000)"
+    )
     group.addoption(
         "--hil-physics",
         action="store_true",

@@ -78,6 +78,26 @@ def test_scan_get_and_set_against_the_firmware(
     )
 
 
+def test_sdo_by_index_and_nmt_against_the_firmware(
+    private_bus: PrivateBus, node_under_test: NodeUnderTest
+) -> None:
+    node = TABLE.node
+    read = hilrig(private_bus, "sdo", "read", "0x1018:1", *SDO_TIMEOUT)
+    assert read.returncode == 0, read.stderr
+    assert read.stdout == (
+        f"0x1018:01 Identity object.Vendor-ID = {node.vendor_id} (0x{node.vendor_id:08X}, u32)\n"
+    )
+    # u16 from the EDS; the master reads back what the command wrote
+    written = hilrig(private_bus, "sdo", "write", "0x1017", "50", *SDO_TIMEOUT)
+    assert written.returncode == 0, written.stderr
+    assert written.stdout == "0x1017:00 Producer heartbeat time := 50 (0x0032, u16)\n"
+    assert node_under_test.node.sdo[0x1017].raw == 50
+    # NMT start, and the heartbeat that then says operational (30 s: a hang guard in the VM)
+    started = hilrig(private_bus, "nmt", "start", "--wait", "--timeout", "30")
+    assert started.returncode == 0, started.stderr
+    assert started.stdout.startswith(f"node 0x{NODE_ID:02X}: operational, "), started.stdout
+
+
 def test_watch_record_and_replay_decode(
     private_bus: PrivateBus, node_under_test: NodeUnderTest, scenario_dir: Path
 ) -> None:

@@ -1,10 +1,12 @@
-"""Bus load of the lockstep exchange on a real classic CAN bus ("will my trace mapping fit?").
+"""Bus load of the lockstep exchange on a real CAN bus ("will my trace mapping fit?").
 
 The virtual bus has no bit rate; a real one does. For a PDO layout (`boardproto.load_table`)
 and a control-cycle rate this module counts the frames of each cycle and the share of a
-125 k / 250 k / 500 k / 1 Mbit/s bus they take, nominal and with worst-case bit stuffing::
+125 k / 250 k / 500 k / 1 Mbit/s bus they take, nominal and with worst-case bit stuffing, as
+classic CAN frames or as CAN FD frames (with a faster data phase or without)::
 
-    hilrig bus-load --rate-hz 1000 --bitrate 500000 --table protocol/board.toml
+    hilrig bus-load --rate-hz 1000 --bitrate 500k --table protocol/board.toml
+    hilrig bus-load --bitrate 500k --data-bitrate 2M      # the same PDOs as CAN FD frames
 
 Frame length, classic CAN 2.0A data frame (11-bit identifier) with n data bytes:
 
@@ -23,6 +25,30 @@ Area Network (CAN) schedulability analysis: Refuted, revisited and revised", Rea
 8 bytes and undercounts; tables that say 132 use yet other conventions (e.g. no intermission
 and a different stuff bound). We use the 135 convention: it is the safe one for a budget.
 
+CAN FD base-format data frame (ISO 11898-1:2015) with n data bytes (n padded up to a length a
+DLC can say: 0..8, 12, 16, 20, 24, 32, 48, 64). With a bit rate switch the bits from ESI to the
+CRC are sent at the data bit rate, the rest at the nominal (arbitration) bit rate:
+
+    at the nominal rate  A = 30
+        SOF 1 + identifier 11 + RRS 1 + IDE 1 + FDF 1 + res 1 + BRS 1               (17, before
+        the switch) + CRC delimiter 1 + ACK slot 1 + ACK delimiter 1 + end of frame 7
+        + intermission 3                                                              (13, after)
+    at the data rate     D = 5 + 8n + 4 + c + ceil((4 + c) / 4)
+        ESI 1 + DLC 4 + data 8n + stuff count 4 (3 bits + parity) + CRC c (17 for n <= 16,
+        21 above) + the fixed stuff bits of stuff count and CRC: one before them and one after
+        every 4 bits (6 with CRC-17, 7 with CRC-21)
+    dynamic stuff bits   S = floor((22 + 8n - 1) / 4)   (worst case, as for classic CAN)
+        SOF .. end of data (22 + 8n bits) is stuffed dynamically; at most 3 of them fall
+        before the switch (after bits 5, 9, 13), counted at the nominal rate, the rest at
+        the data rate
+    frame time           A / nominal + D / data   (nominal: no dynamic stuff bits)
+                         (A + 3) / nominal + (D + S - 3) / data   (worst case)
+
+The CRC delimiter, during which the rate switches back, is counted whole at the nominal rate
+(the safe side). Without a switch (--fd without --data-bitrate) both rates are the nominal one.
+So an 8-byte FD frame at 500 kbit/s with a 2 Mbit/s data phase takes 30/500k + 96/2M =
+108 us, worst case 33/500k + 114/2M = 123 us (a classic one: 222 us, worst case 270 us).
+
 What one lockstep cycle puts on the bus (`lockstep_traffic`):
   * every enabled RPDO that maps something: the rig sends each of them every cycle;
   * SYNC with its 1-byte counter, every cycle;
@@ -32,21 +58,19 @@ What one lockstep cycle puts on the bus (`lockstep_traffic`):
     inhibit time, and at least at the event-timer rate;
   * the node's heartbeat (1 byte) every heartbeat_ms, independent of the cycle.
 
-Bus load = bits per second / bit rate, averaged over time. The peak cycle (every synchronous
-TPDO due at once) must also fit in one cycle period: that share is reported beside it.
+Bus load = busy time per second, averaged over time. The peak cycle (every synchronous TPDO
+due at once) must also fit in one cycle period: that share is reported beside it. Above 70 %
+(worst case, or the busiest cycle) a WARNING line; above 100 % the exchange does not fit.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TextIO
 
-from boardproto import BoardTable, Pdo, TableError, load_table
+from boardproto import BoardTable, Pdo
 from boardproto.cia301 import SYNC_COB_ID, heartbeat_cob_id
 
 STANDARD_BITRATES: tuple[int, ...] = (125_000, 250_000, 500_000, 1_000_000)
@@ -54,6 +78,8 @@ STANDARD_BITRATES: tuple[int, ...] = (125_000, 250_000, 500_000, 1_000_000)
 
 WARNING_LOAD = 0.70
 """Above this share of the bus (worst-case stuffing) the command prints a WARNING line."""
+FULL_LOAD = 1.0
+"""Above this share the exchange does not fit the bus (`hilrig bus-load` exits with 1)."""
 
 DEFAULT_RATE_HZ = 1000.0
 SYNC_DATA_BYTES = 1  # the SYNC counter
@@ -88,6 +114,78 @@ def frame_bits_worst_case(data_bytes: int) -> int:
     return frame_bits_nominal(data_bytes) + stuff_bits_worst_case(data_bytes)
 
 
+FD_DATA_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
+"""The data field lengths of a CAN FD frame (DLC 0..15); a payload is padded to the next one."""
+
+_FD_ARBITRATION_BITS = 17  # SOF, identifier 11, RRS, IDE, FDF, res, BRS: before the switch
+_FD_ARBITRATION_STUFF_BITS = 3  # the most dynamic stuff bits before the switch (after 5, 9, 13)
+_FD_TAIL_BITS = 13  # CRC delimiter, ACK slot, ACK delimiter, end of frame 7, intermission 3
+_FD_CONTROL_BITS = 5  # ESI, DLC 4
+_FD_STUFF_COUNT_BITS = 4  # 3-bit stuff count + parity
+_FD_CRC17_MAX_BYTES = 16  # CRC-17 up to 16 data bytes, CRC-21 above
+_FD_CRC17_BITS = 17
+_FD_CRC21_BITS = 21
+
+
+def fd_data_length(data_bytes: int) -> int:
+    """The data field a CAN FD frame needs for `data_bytes` bytes: 9 -> 12, 33 -> 48."""
+    for length in FD_DATA_LENGTHS:
+        if length >= data_bytes >= 0:
+            return length
+    raise ValueError(f"a CAN FD frame carries 0..64 data bytes, got {data_bytes}")
+
+
+def fd_frame_bits(data_bytes: int, *, worst_case: bool) -> tuple[int, int]:
+    """(bits at the nominal bit rate, bits at the data bit rate) of a CAN FD base-format data
+    frame: (30, 5 + 8n + 4 + c + ceil((4 + c) / 4)), plus, in the worst case, 3 dynamic stuff
+    bits at the nominal rate and floor((22 + 8n - 1) / 4) - 3 at the data rate (see the module)."""
+    n = fd_data_length(data_bytes)
+    crc_bits = _FD_CRC17_BITS if n <= _FD_CRC17_MAX_BYTES else _FD_CRC21_BITS
+    fixed_stuff_bits = -(-(_FD_STUFF_COUNT_BITS + crc_bits) // 4)  # ceil: one per 4 bits, one first
+    nominal = _FD_ARBITRATION_BITS + _FD_TAIL_BITS
+    data = _FD_CONTROL_BITS + 8 * n + _FD_STUFF_COUNT_BITS + crc_bits + fixed_stuff_bits
+    if worst_case:
+        dynamic = (_FD_ARBITRATION_BITS + _FD_CONTROL_BITS + 8 * n - 1) // 4
+        before_switch = min(dynamic, _FD_ARBITRATION_STUFF_BITS)
+        nominal += before_switch
+        data += dynamic - before_switch
+    return nominal, data
+
+
+@dataclass(frozen=True)
+class BusRates:
+    """The bit rates of a bus: classic CAN at `bitrate`, or CAN FD (`fd`, or implied by
+    `data_bitrate`) with its data phase at `data_bitrate`, or at `bitrate` without a switch."""
+
+    bitrate: int  # bit/s, nominal (arbitration)
+    data_bitrate: int | None = None  # bit/s, CAN FD data phase (bit rate switch)
+    fd: bool = False
+
+    def __post_init__(self) -> None:
+        if self.bitrate <= 0 or (self.data_bitrate is not None and self.data_bitrate <= 0):
+            raise ValueError(f"bit rates must be positive, got {self.bitrate} and {self.data_bitrate}")
+
+    @property
+    def is_fd(self) -> bool:
+        return self.fd or self.data_bitrate is not None
+
+    def frame_seconds(self, data_bytes: int, *, worst_case: bool) -> float:
+        """Time one data frame with `data_bytes` bytes takes on this bus."""
+        if not self.is_fd:
+            bits = frame_bits_worst_case(data_bytes) if worst_case else frame_bits_nominal(data_bytes)
+            return bits / self.bitrate
+        nominal, data = fd_frame_bits(data_bytes, worst_case=worst_case)
+        return nominal / self.bitrate + data / (self.data_bitrate or self.bitrate)
+
+    @property
+    def label(self) -> str:
+        """'500 kbit/s', '500 kbit/s FD', '500 kbit/s + 2 Mbit/s FD'."""
+        if not self.is_fd:
+            return _bitrate_label(self.bitrate)
+        data = f" + {_bitrate_label(self.data_bitrate)}" if self.data_bitrate else ""
+        return f"{_bitrate_label(self.bitrate)}{data} FD"
+
+
 @dataclass(frozen=True)
 class Traffic:
     """One periodic frame on the bus."""
@@ -109,16 +207,25 @@ class Traffic:
 
 @dataclass(frozen=True)
 class BusLoad:
-    """Share of one bus (1.0 = 100 %) the traffic takes at `bitrate`."""
+    """Share of one bus (1.0 = 100 %) the traffic takes at `rates`."""
 
-    bitrate: int  # bit/s
+    rates: BusRates
     nominal: float  # average, no stuff bits
     worst_case: float  # average, worst-case stuffing
-    peak_cycle_worst_case: float  # the busiest cycle's bits / (bitrate * cycle period)
+    peak_cycle_worst_case: float  # the busiest cycle's time / the cycle period
+
+    @property
+    def bitrate(self) -> int:
+        return self.rates.bitrate
 
     @property
     def warning(self) -> bool:
         return self.worst_case > WARNING_LOAD or self.peak_cycle_worst_case > WARNING_LOAD
+
+    @property
+    def overloaded(self) -> bool:
+        """The exchange does not fit: on average, or in its busiest cycle (worst-case stuffing)."""
+        return self.worst_case > FULL_LOAD or self.peak_cycle_worst_case > FULL_LOAD
 
 
 def _check_rate(rate_hz: float) -> None:
@@ -126,21 +233,16 @@ def _check_rate(rate_hz: float) -> None:
         raise ValueError(f"the cycle rate must be a positive number of Hz, got {rate_hz}")
 
 
-def bus_load(traffic: Iterable[Traffic], rate_hz: float, bitrate: int) -> BusLoad:
-    """Average and peak-cycle share of a `bitrate` bus taken by `traffic` at `rate_hz` cycles/s."""
+def bus_load(traffic: Iterable[Traffic], rate_hz: float, bitrate: int | BusRates) -> BusLoad:
+    """Average and peak-cycle share of a bus taken by `traffic` at `rate_hz` cycles/s; `bitrate`
+    is a classic CAN bit rate in bit/s, or the BusRates of a CAN FD bus."""
     _check_rate(rate_hz)
-    if bitrate <= 0:
-        raise ValueError(f"the bit rate must be positive, got {bitrate}")
+    rates = bitrate if isinstance(bitrate, BusRates) else BusRates(bitrate)
     items = list(traffic)
-    nominal = sum(t.per_second * t.bits_nominal for t in items)
-    worst = sum(t.per_second * t.bits_worst_case for t in items)
-    peak_bits = sum(t.bits_worst_case for t in items if t.in_peak_cycle)
-    return BusLoad(
-        bitrate=bitrate,
-        nominal=nominal / bitrate,
-        worst_case=worst / bitrate,
-        peak_cycle_worst_case=peak_bits * rate_hz / bitrate,
-    )
+    nominal = sum(t.per_second * rates.frame_seconds(t.data_bytes, worst_case=False) for t in items)
+    worst = sum(t.per_second * rates.frame_seconds(t.data_bytes, worst_case=True) for t in items)
+    peak = sum(rates.frame_seconds(t.data_bytes, worst_case=True) for t in items if t.in_peak_cycle)
+    return BusLoad(rates=rates, nominal=nominal, worst_case=worst, peak_cycle_worst_case=peak * rate_hz)
 
 
 def _tpdo_per_second(pdo: Pdo, rate_hz: float) -> float:
@@ -188,85 +290,7 @@ def lockstep_traffic(table: BoardTable, rate_hz: float, node_id: int | None = No
     return traffic
 
 
-# --- command line -----------------------------------------------------------------------------
-
-BUS_LOAD_HELP = "share of a real CAN bus the lockstep exchange takes (no bus needed)"
-BUS_LOAD_DESCRIPTION = __doc__.split("\n\n")[0] if __doc__ else BUS_LOAD_HELP
-
-
-def _bitrate(text: str) -> int:
-    """'500000', '500k', '1M' -> bit/s."""
-    scale = {"k": 1_000, "m": 1_000_000}.get(text[-1:].lower(), 1)
-    digits = text[:-1] if scale != 1 else text
-    try:
-        value = float(digits) * scale
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a bit rate like 500000, 500k or 1M, got {text!r}"
-        ) from None
-    if not (math.isfinite(value) and value > 0 and value == int(value)):
-        raise argparse.ArgumentTypeError(f"expected a positive bit rate in bit/s, got {text!r}")
-    return int(value)
-
-
-def _rate(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a cycle rate in Hz like 1000, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive cycle rate in Hz, got {text!r}")
-    return value
-
-
-def _node_id(text: str) -> int:
-    try:
-        value = int(text, 0)
-    except ValueError:
-        value = 0
-    if not 1 <= value <= 127:
-        raise argparse.ArgumentTypeError(f"expected a node id 1..127 (e.g. 16 or 0x10), got {text!r}")
-    return value
-
-
-def _default_table() -> Path:
-    from hilrig.table import DEFAULT_TABLE_PATH  # the checkout's protocol/board.toml
-
-    return DEFAULT_TABLE_PATH
-
-
-def configure_bus_load_parser(parser: argparse.ArgumentParser) -> None:
-    """Adds the options of `bus-load` to `parser` (usable as `Command.configure`)."""
-    parser.add_argument(
-        "--rate-hz", type=_rate, default=DEFAULT_RATE_HZ, help="control-cycle (SYNC) rate (default 1000)"
-    )
-    parser.add_argument(
-        "--bitrate",
-        type=_bitrate,
-        action="append",
-        help="bus bit rate, e.g. 500000 or 500k; repeat for several (default: 125k 250k 500k 1M)",
-    )
-    parser.add_argument(
-        "--table", type=Path, default=None, help="field table (default: protocol/board.toml of the checkout)"
-    )
-    parser.add_argument(
-        "--node-id", type=_node_id, default=None, help="node id for the COB-IDs shown (default: the table's)"
-    )
-
-
-def add_bus_load_command(
-    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
-) -> argparse.ArgumentParser:
-    """Registers `bus-load` on an argparse sub-command set; `args.run(args)` then runs it."""
-    parser = subparsers.add_parser(
-        "bus-load",
-        help=BUS_LOAD_HELP,
-        description=BUS_LOAD_DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    configure_bus_load_parser(parser)
-    parser.set_defaults(run=run_bus_load)
-    return parser
+# --- report -----------------------------------------------------------------------------
 
 
 def _percent(share: float) -> str:
@@ -296,9 +320,23 @@ def _table(rows: Sequence[Sequence[str]], out: TextIO) -> None:
         print("  ".join(cells).rstrip(), file=out)
 
 
-def report(traffic: Sequence[Traffic], rate_hz: float, bitrates: Sequence[int], out: TextIO) -> list[BusLoad]:
-    """Prints the frames of a cycle and the load per bit rate, with WARNING lines; returns the loads."""
-    frame_rows = [["frame", "COB-ID", "bytes", "per cycle", "bits", "worst-case bits"]]
+def _bits(rates: BusRates, data_bytes: int, *, worst_case: bool) -> str:
+    """'111', or for CAN FD '30+96': bits at the nominal rate + bits at the data rate."""
+    if not rates.is_fd:
+        return str(frame_bits_worst_case(data_bytes) if worst_case else frame_bits_nominal(data_bytes))
+    nominal, data = fd_frame_bits(data_bytes, worst_case=worst_case)
+    return f"{nominal}+{data}"
+
+
+def report(
+    traffic: Sequence[Traffic], rate_hz: float, bitrates: Sequence[int | BusRates], out: TextIO
+) -> list[BusLoad]:
+    """Prints the frames of a cycle and the load per bit rate, with a WARNING line above 70 %
+    and an OVERLOAD line above 100 %; returns the loads."""
+    all_rates = [rate if isinstance(rate, BusRates) else BusRates(rate) for rate in bitrates]
+    shown = all_rates[0]  # the frame kind whose bits the table shows (the command never mixes)
+    bits_header = "bits" if not shown.is_fd else "bits (nominal+data rate)"
+    frame_rows = [["frame", "COB-ID", "bytes", "per cycle", bits_header, "worst-case bits"]]
     for t in traffic:
         frame_rows.append(
             [
@@ -306,18 +344,18 @@ def report(traffic: Sequence[Traffic], rate_hz: float, bitrates: Sequence[int], 
                 f"0x{t.can_id:03X}",
                 str(t.data_bytes),
                 _format_rate(t.per_second, rate_hz),
-                str(t.bits_nominal),
-                str(t.bits_worst_case),
+                _bits(shown, t.data_bytes, worst_case=False),
+                _bits(shown, t.data_bytes, worst_case=True),
             ]
         )
     _table(frame_rows, out)
     print(file=out)
-    loads = [bus_load(traffic, rate_hz, bitrate) for bitrate in bitrates]
+    loads = [bus_load(traffic, rate_hz, rates) for rates in all_rates]
     load_rows = [["bit rate", "load", "worst case", "busiest cycle"]]
     for load in loads:
         load_rows.append(
             [
-                _bitrate_label(load.bitrate),
+                load.rates.label,
                 _percent(load.nominal),
                 _percent(load.worst_case),
                 _percent(load.peak_cycle_worst_case),
@@ -326,26 +364,18 @@ def report(traffic: Sequence[Traffic], rate_hz: float, bitrates: Sequence[int], 
     print(f"at {rate_hz:g} Hz (worst case: with worst-case bit stuffing):", file=out)
     _table(load_rows, out)
     for load in loads:
-        if load.warning:
+        if load.overloaded:
             print(
-                f"WARNING: {_bitrate_label(load.bitrate)}: {_percent(load.worst_case)} of the bus "
+                f"OVERLOAD: {load.rates.label}: {_percent(load.worst_case)} of the bus (busiest cycle "
+                f"{_percent(load.peak_cycle_worst_case)}) is above {_percent(FULL_LOAD)}: the exchange "
+                "does not fit; lower the rate, map fewer PDOs or use a faster bus",
+                file=out,
+            )
+        elif load.warning:
+            print(
+                f"WARNING: {load.rates.label}: {_percent(load.worst_case)} of the bus "
                 f"(busiest cycle {_percent(load.peak_cycle_worst_case)}) is above "
                 f"{_percent(WARNING_LOAD)}: lower the rate, map fewer PDOs or use a faster bus",
                 file=out,
             )
     return loads
-
-
-def run_bus_load(args: argparse.Namespace) -> int:
-    """`hilrig bus-load`: 0 printed (a WARNING line is not a failure), 1 the table is unusable."""
-    path: Path = args.table if args.table is not None else _default_table()
-    try:
-        table = load_table(path)
-    except TableError as error:
-        print(f"bus-load: {error}", file=sys.stderr)
-        return 1
-    bitrates = args.bitrate or list(STANDARD_BITRATES)
-    traffic = lockstep_traffic(table, args.rate_hz, args.node_id)
-    print(f"bus load of the lockstep exchange, table {path}", file=sys.stdout)
-    report(traffic, args.rate_hz, bitrates, sys.stdout)
-    return 0

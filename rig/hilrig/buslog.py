@@ -7,6 +7,9 @@ the logger was stopped (flushed and closed; a BLF file gets its header and objec
 then). So the named file is always a whole log, also after Ctrl-C or SIGTERM; a hard kill
 (SIGKILL) leaves it untouched and the partial file behind.
 
+`read_log` is the one way the command line reads a log: python-can's `can.LogReader` (format by
+extension, also gzipped), with every problem of the file said in one line that names it.
+
 `RecorderProcess` runs that logger in a process of its own (`python -m hilrig.buslog`): every
 frame becomes a python-can Message there, and in the rig's own process those would compete with
 the lockstep loop for the interpreter lock.
@@ -16,17 +19,20 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gzip
 import os
+import re
 import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from boardproto.cia301 import TPDO_FUNCTIONS, cob_id, emcy_cob_id, heartbeat_cob_id, sdo_response_cob_id
+from hilrig.errors import LogFileError, LogFormatError, one_line
 from hilrig.table import RigTable
 
 if TYPE_CHECKING:
@@ -34,6 +40,10 @@ if TYPE_CHECKING:
     import cantools.database
 
 LOG_FORMATS = (".log", ".blf", ".asc", ".csv", ".trc")
+"""The formats the project writes (python-can reads more: `readable_formats`)."""
+
+_CANDUMP_LOG_LINE = re.compile(r"\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")  # (1700000000.000000) can0 123#1122
+_CANDUMP_SCREEN_LINE = re.compile(r"(\(\S+\)\s+)?\S+\s+[0-9A-Fa-f]+\s+\[\d+\]")  # can0  123   [2]  11 22
 
 
 def partial_path(path: Path) -> Path:
@@ -54,6 +64,97 @@ def whole_file_logger(path: Path) -> Iterator[can.Listener]:
     finally:
         logger.stop()  # flush and close: the file is complete from here on
         os.replace(partial, path)
+
+
+def readable_formats() -> str:
+    """The extensions python-can's LogReader reads, from python-can itself."""
+    from can.io.player import MESSAGE_READERS
+
+    names = [_kind(suffix) for suffix in sorted(MESSAGE_READERS)]
+    return ", ".join(names) + ", each also gzipped (.log.gz)"
+
+
+def _format_of(path: Path) -> str:
+    """The extension that picks the reader, as python-can sees it: 'bus.log.gz' -> '.log'."""
+    suffixes = [suffix.lower() for suffix in path.suffixes]
+    if suffixes[-1:] == [".gz"]:
+        return suffixes[0] if len(suffixes) == 2 else ".gz"
+    return suffixes[-1] if suffixes else ""
+
+
+def _first_line(path: Path) -> str:
+    try:
+        with gzip.open(path, "rb") if path.suffix.lower() == ".gz" else path.open("rb") as file:
+            return file.readline(200).decode("ascii", "replace").strip()
+    except (OSError, EOFError):
+        return ""
+
+
+def _content_hint(path: Path, suffix: str) -> str:
+    """What a candump file in the wrong form or under the wrong name needs."""
+    line = _first_line(path)
+    if suffix == ".log" and _CANDUMP_SCREEN_LINE.match(line):
+        return (
+            "; this is candump's screen output: python-can reads its log form, `candump -L` "
+            "(or `hilrig record`), lines like '(1700000000.000000) can0 123#1122'"
+        )
+    if suffix != ".log" and _CANDUMP_LOG_LINE.match(line):
+        return "; its first line is candump -L: name the file *.log"
+    return ""
+
+
+def _kind(suffix: str) -> str:
+    return f"{suffix} (candump -L)" if suffix == ".log" else suffix
+
+
+@contextmanager
+def read_log(path: Path) -> Iterator[Iterator[can.Message]]:
+    """The frames of the log at `path`, read by python-can's LogReader (format by extension).
+
+    A format python-can does not read (or not without a package this machine lacks) raises
+    LogFormatError; content it cannot parse, at the start or part-way, LogFileError. Both name
+    the file; the first lists the formats read."""
+    import can
+    from can.io.player import MESSAGE_READERS
+
+    suffix = _format_of(path)
+    if suffix not in MESSAGE_READERS:
+        shown = f"{suffix} files" if suffix else "files without an extension"
+        raise LogFormatError(
+            f"{path}: python-can reads no {shown} (the format follows the extension); it reads "
+            f"{readable_formats()}{_content_hint(path, suffix)}"
+        )
+    try:
+        reader = can.LogReader(str(path))
+    except (NotImplementedError, ImportError) as error:  # .mf4 without asammdf
+        raise LogFormatError(f"{path}: {one_line(error)}") from error
+    except Exception as error:  # the reader's parse errors have no common base
+        raise LogFileError(
+            f"{path}: python-can cannot read this {_kind(suffix)} file ({one_line(error)})"
+            f"{_content_hint(path, suffix)}"
+        ) from error
+    try:
+        yield _checked_frames(path, suffix, reader)
+    finally:
+        reader.stop()
+
+
+def _checked_frames(path: Path, suffix: str, frames: Iterable[can.Message]) -> Iterator[can.Message]:
+    count = 0
+    iterator = iter(frames)
+    while True:
+        try:
+            message = next(iterator)
+        except StopIteration:
+            return
+        except Exception as error:  # only python-can's parser runs here: the file is at fault
+            where = f"after frame {count}" if count else "from its start"
+            raise LogFileError(
+                f"{path}: python-can cannot read this {_kind(suffix)} file {where} ({one_line(error)})"
+                f"{_content_hint(path, suffix)}"
+            ) from error
+        count += 1
+        yield message
 
 
 class BusRecorder:

@@ -4,6 +4,11 @@ they fit, so callers can catch ``TimeoutError`` or ``ValueError`` without knowin
 from __future__ import annotations
 
 
+def one_line(error: BaseException) -> str:
+    """The error's message on one line (what the command line prints); its type if it has none."""
+    return " ".join(str(error).split()) or type(error).__name__
+
+
 class RigError(Exception):
     """Base of every error the rig raises on purpose."""
 
@@ -64,3 +69,12 @@ class ScenarioTimeoutError(RigError, TimeoutError):
 
 class FieldAccessError(RigError, ValueError):
     """A field the rig cannot set that way (e.g. a raw sensor input the physics computes)."""
+
+
+class LogFileError(RigError, ValueError):
+    """A bus log whose content python-can cannot read: garbled or cut off (the file is named)."""
+
+
+class LogFormatError(LogFileError):
+    """A bus log in a format python-can does not read, or not without a package that is not
+    installed (the message lists the formats, or says what to install)."""

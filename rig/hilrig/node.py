@@ -169,7 +169,7 @@ class BoardNode:
         self,
         bus: can.BusABC,
         node_id: int,
-        eds: str | Path,
+        eds: str | Path | canopen.ObjectDictionary | None,
         table: RigTable,
         *,
         sdo_timeout_s: float = 1.0,
@@ -177,7 +177,11 @@ class BoardNode:
         self.node_id = node_id
         self.table = table
         self.network = canopen.Network(bus)
-        self.remote = canopen.RemoteNode(node_id, str(eds))
+        if eds is None:  # raw SDO by index needs no dictionary
+            eds = canopen.ObjectDictionary()
+        self.remote = canopen.RemoteNode(
+            node_id, eds if isinstance(eds, canopen.ObjectDictionary) else str(eds)
+        )
         self.remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
         self.network.add_node(self.remote)
         self.rpdos: dict[int, PdoLayout] = {}
@@ -303,6 +307,23 @@ class BoardNode:
         self._call_sdo(
             f"write {name}", entry, lambda: self.remote.sdo.download(entry.index, entry.subindex, data)
         )
+
+    # --- SDO by index ---------------------------------------------------------------
+    def upload(self, index: int, subindex: int, what: str | None = None) -> bytes:
+        """Upload any object's bytes (segmented when long); a refusal is SdoAbortError in words."""
+        what = what or f"read 0x{index:04X}:{subindex:02X}"
+        return self._upload(index, subindex, what, self._entry_at(index, subindex))
+
+    def download(self, index: int, subindex: int, data: bytes, what: str | None = None) -> None:
+        """Download bytes to any object (segmented when longer than 4)."""
+        what = what or f"write 0x{index:04X}:{subindex:02X}"
+        self._call_sdo(
+            what, self._entry_at(index, subindex), lambda: self.remote.sdo.download(index, subindex, data)
+        )
+
+    def _entry_at(self, index: int, subindex: int) -> ObjectEntry | None:
+        entry = self.table.entry_at(index)
+        return entry if entry is not None and entry.subindex == subindex else None
 
     def _upload(self, index: int, subindex: int, what: str, entry: ObjectEntry | None = None) -> bytes:
         return self._call_sdo(what, entry, lambda: self.remote.sdo.upload(index, subindex))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import io
 from pathlib import Path
 
@@ -12,16 +11,18 @@ from boardproto import load_table
 from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, heartbeat_cob_id
 from hilrig.busload import (
     STANDARD_BITRATES,
+    BusRates,
     Traffic,
-    add_bus_load_command,
     bus_load,
+    fd_data_length,
+    fd_frame_bits,
     frame_bits_nominal,
     frame_bits_worst_case,
     lockstep_traffic,
     report,
-    run_bus_load,
     stuff_bits_worst_case,
 )
+from hilrig.cli import main
 
 # A node with two RPDOs (one disabled), three TPDOs of transmission types 1, 10 and 254, and a
 # 100 ms heartbeat. Every number in the tests below is computed by hand from it.
@@ -203,51 +204,168 @@ def test_acyclic_synchronous_tpdo_counts_every_sync(table_path: Path) -> None:
     assert traffic["TPDO2"].per_second == 500
 
 
-def test_report_warns_above_70_percent_only(table_path: Path) -> None:
+def test_report_warns_above_70_percent_and_flags_above_100(table_path: Path) -> None:
     traffic = lockstep_traffic(load_table(table_path), rate_hz=1000)
     out = io.StringIO()
-    loads = report(traffic, 1000, [250_000, 1_000_000], out)
+    loads = report(traffic, 1000, [250_000, 750_000, 1_000_000], out)
     text = out.getvalue()
-    warnings = [line for line in text.splitlines() if line.startswith("WARNING")]
-    assert [load.warning for load in loads] == [True, False]
-    assert len(warnings) == 1 and "250 kbit/s" in warnings[0], text
-    assert "115.3 %" in text  # 288_150 / 250_000 worst case
+    lines = [line for line in text.splitlines() if line.startswith(("WARNING", "OVERLOAD"))]
+    assert [(load.warning, load.overloaded) for load in loads] == [
+        (True, True),
+        (True, False),
+        (False, False),
+    ]
+    # 250 kbit/s: 288_150 / 250_000 = 115.3 % worst case; 750 kbit/s: busiest cycle 550_000 / 750_000
+    assert [line.split(":")[:2] for line in lines] == [
+        ["OVERLOAD", " 250 kbit/s"],
+        ["WARNING", " 750 kbit/s"],
+    ]
+    assert "115.3 %" in lines[0] and "73.3 %" in lines[1], text
 
 
-def _parse(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="hilrig")
-    add_bus_load_command(parser.add_subparsers(dest="command", required=True))
-    return parser.parse_args(argv)
+# --- CAN FD: every number below by hand from the formulas in hilrig.busload's docstring ----------
+@pytest.mark.parametrize(
+    ("data_bytes", "nominal", "worst"),
+    [
+        # (30, 5 + 8n + 4 + 17 + 6); worst case: + 3 bits at the nominal rate,
+        # + floor((21 + 8n) / 4) - 3 at the data rate
+        (0, (30, 32), (33, 34)),  # 5 stuff bits: 3 + 2
+        (1, (30, 40), (33, 44)),  # 7: 3 + 4
+        (8, (30, 96), (33, 114)),  # 21: 3 + 18
+        (9, (30, 128), (33, 154)),  # padded to 12 bytes: 5 + 96 + 4 + 17 + 6; 29 stuff bits
+        (20, (30, 197), (33, 239)),  # CRC-21 and 7 fixed stuff bits: 5 + 160 + 4 + 21 + 7; 45
+        (64, (30, 549), (33, 679)),  # 5 + 512 + 4 + 21 + 7; 133 stuff bits: 3 + 130
+    ],
+)
+def test_fd_frame_bits_match_the_hand_computed_values(
+    data_bytes: int, nominal: tuple[int, int], worst: tuple[int, int]
+) -> None:
+    assert fd_frame_bits(data_bytes, worst_case=False) == nominal
+    assert fd_frame_bits(data_bytes, worst_case=True) == worst
+
+
+def test_fd_payloads_are_padded_to_a_dlc_length() -> None:
+    assert [fd_data_length(n) for n in (0, 8, 9, 13, 17, 33, 49, 64)] == [0, 8, 12, 16, 20, 48, 64, 64]
+    with pytest.raises(ValueError, match=r"0\.\.64 data bytes"):
+        fd_data_length(65)
+
+
+def test_an_fd_frame_takes_arbitration_at_the_nominal_rate_and_data_at_the_data_rate() -> None:
+    # 8 bytes at 500 kbit/s with a 2 Mbit/s data phase: 30 bits / 500k + 96 bits / 2M = 60 + 48 us;
+    # worst case 33 / 500k + 114 / 2M = 66 + 57 us.
+    brs = BusRates(500_000, data_bitrate=2_000_000)
+    assert brs.frame_seconds(8, worst_case=False) == pytest.approx(108e-6)
+    assert brs.frame_seconds(8, worst_case=True) == pytest.approx(123e-6)
+    # Without a bit rate switch all 126 (147) bits go at 500 kbit/s: longer than classic (111)
+    no_brs = BusRates(500_000, fd=True)
+    assert no_brs.frame_seconds(8, worst_case=False) == pytest.approx(126 / 500_000)
+    assert no_brs.frame_seconds(8, worst_case=True) == pytest.approx(147 / 500_000)
+    assert BusRates(500_000).frame_seconds(8, worst_case=False) == pytest.approx(111 / 500_000)
+    assert [r.label for r in (brs, no_brs, BusRates(1_000_000))] == [
+        "500 kbit/s + 2 Mbit/s FD",
+        "500 kbit/s FD",
+        "1 Mbit/s",
+    ]
+
+
+def test_fd_load_of_one_eight_byte_frame_per_millisecond() -> None:
+    traffic = [Traffic("RPDO1", cob_id(FunctionCode.RPDO1, NODE_ID), 8, 1000.0, True)]
+    load = bus_load(traffic, rate_hz=1000, bitrate=BusRates(500_000, data_bitrate=2_000_000))
+    assert load.nominal == pytest.approx(0.108)
+    assert load.worst_case == pytest.approx(0.123)
+    assert load.peak_cycle_worst_case == pytest.approx(0.123)
+    assert load.bitrate == 500_000
+
+
+# --- the command: `hilrig bus-load` ------------------------------------------------------------
+def bus_load_command(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(["bus-load", *argv])
+    out, err = capsys.readouterr()
+    return code, out, err
 
 
 def test_command_prints_a_row_per_bitrate(table_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    args = _parse(["bus-load", "--table", str(table_path), "--rate-hz", "100", "--bitrate", "125k"])
-    assert args.run(args) == 0
-    out = capsys.readouterr().out
+    code, out, err = bus_load_command(
+        capsys, "--table", str(table_path), "--rate-hz", "100", "--bitrate", "125k"
+    )
+    assert (code, err) == (0, "")
     assert "125 kbit/s" in out and "250 kbit/s" not in out
     assert "WARNING" not in out  # 100 Hz: 37_000 bit/s = 29.6 %, busiest cycle 44 %
 
 
 def test_command_defaults_to_all_four_bitrates(table_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    args = _parse(["bus-load", "--table", str(table_path)])
-    assert args.rate_hz == 1000
-    assert run_bus_load(args) == 0
-    out = capsys.readouterr().out
+    code, out, _ = bus_load_command(capsys, "--table", str(table_path), "--rate-hz", "100")
+    assert code == 0
     for label in ("125 kbit/s", "250 kbit/s", "500 kbit/s", "1 Mbit/s"):
         assert label in out
+
+
+def test_command_warns_above_70_percent_with_exit_code_0(
+    table_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, err = bus_load_command(capsys, "--table", str(table_path), "-b", "750k")
+    assert (code, err) == (0, "")
+    warnings = [line for line in out.splitlines() if line.startswith("WARNING")]
+    assert len(warnings) == 1 and warnings[0].startswith(
+        "WARNING: 750 kbit/s: 38.4 % of the bus (busiest cycle 73.3 %)"
+    )
+
+
+def test_command_fails_above_100_percent_with_one_error_line(
+    table_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, err = bus_load_command(capsys, "--table", str(table_path), "-b", "250k", "-b", "1M")
+    assert code == 1
+    assert "OVERLOAD: 250 kbit/s: 115.3 % of the bus" in out and "1 Mbit/s:" not in out.split("OVERLOAD")[1]
+    assert err == (
+        "hilrig bus-load: error: at 1000 Hz the exchange does not fit 250 kbit/s (above 100 % of the bus)\n"
+    )
+
+
+def test_command_counts_fd_frames_with_the_data_bitrate(
+    table_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # At 500 kbit/s the busiest cycle of classic frames does not fit (110 %); as FD frames with a
+    # 2 Mbit/s data phase they do: RPDO1 (6 bytes) 30 + 80 bits, SYNC 30 + 40, TPDO1 (2) 30 + 48,
+    # TPDO2 (8) 30 + 96, TPDO3 (4) 30 + 64, heartbeat 30 + 40, at 1000, 1000, 1000, 100, 200, 10 /s.
+    code, out, err = bus_load_command(
+        capsys, "--table", str(table_path), "-b", "500k", "--data-bitrate", "2M"
+    )
+    assert (code, err) == (0, "")
+    rates = {1000: ("RPDO1", "SYNC", "TPDO1"), 100: ("TPDO2",), 200: ("TPDO3",), 10: ("heartbeat",)}
+    data_bits = {"RPDO1": 80, "SYNC": 40, "TPDO1": 48, "TPDO2": 96, "TPDO3": 64, "heartbeat": 40}
+    busy_s = sum(
+        per_s * (30 / 500_000 + data_bits[name] / 2_000_000)
+        for per_s, names in rates.items()
+        for name in names
+    )
+    row = next(line for line in out.splitlines() if line.startswith("500 kbit/s + 2 Mbit/s FD"))
+    assert row.split()[6] == f"{100 * busy_s:.1f}", row
+    assert "as CAN FD frames" in out.splitlines()[0]
+    assert "RPDO1       0x210      6          1                     30+80" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["--bitrate", "fast"], "expected a bit rate in bit/s like 125000, 500k or 1M, got 'fast'"),
+        (["--rate-hz", "0"], "expected a positive cycle rate in Hz"),
+        (["--node-id", "200"], "expected a node id 1..127"),
+        (["--table", "nowhere.toml"], "board table nowhere.toml does not exist"),
+        (["-b", "1M", "--data-bitrate", "500k"], "--data-bitrate 500000 is below a --bitrate (1000000)"),
+    ],
+)
+def test_command_refuses_bad_options(
+    capsys: pytest.CaptureFixture[str], argv: list[str], expected: str
+) -> None:
+    code, out, err = bus_load_command(capsys, *argv)
+    assert (code, out) == (2, "")
+    assert expected in err and err.count("\n") == 1, err
 
 
 def test_command_reports_a_bad_table_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text("[node\n")
-    args = _parse(["bus-load", "--table", str(bad)])
-    assert run_bus_load(args) == 1
-    err = capsys.readouterr().err
+    code, out, err = bus_load_command(capsys, "--table", str(bad))
+    assert (code, out) == (2, "")
     assert err.count("\n") == 1 and str(bad) in err
-
-
-@pytest.mark.parametrize("argv", [["--bitrate", "fast"], ["--rate-hz", "0"], ["--node-id", "200"]])
-def test_command_refuses_bad_options(argv: list[str]) -> None:
-    with pytest.raises(SystemExit) as exit_:
-        _parse(["bus-load", *argv])
-    assert exit_.value.code == 2

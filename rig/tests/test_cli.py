@@ -92,7 +92,10 @@ def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFix
         (["record", "bus.txt"], "expected a file ending in .log, .blf"),
         (["replay", "no-such.log", "--decode"], "log no-such.log does not exist; record one"),
         (["watch", "--once", "--count", "3"], "not allowed with argument"),
-        (["get", "velocity_kp", "--eds", "nowhere.eds"], "EDS nowhere.eds does not exist; build it"),
+        (
+            ["get", "velocity_kp", "--eds", "nowhere.eds"],
+            "EDS nowhere.eds does not exist; run `make build`, or give --eds FILE",
+        ),
         (["fields", "--kind", "sensors"], "invalid choice: 'sensors'"),
         (["fields", "no_such_thing"], "no field contains 'no_such_thing'"),
         (["sim", "--scenario", "nowhere.py"], "scenario nowhere.py does not exist"),
@@ -161,12 +164,12 @@ def test_console_script_exit_codes_without_traceback(tmp_path: Path) -> None:
     assert "winding_temperature" in fields.stdout
 
 
-def test_a_missing_bus_interface_is_one_line_exit_code_1(capsys: pytest.CaptureFixture[str]) -> None:
-    # The udp_multicast interface cannot bind to a channel that is no address.
-    code, out, err = run(capsys, "get", "velocity_kp", "-i", "udp_multicast", "-c", "not-an-address")
+def test_a_bus_that_does_not_open_is_one_line_exit_code_1(capsys: pytest.CaptureFixture[str]) -> None:
+    # No such SocketCAN interface (or, natively, no SocketCAN at all): the command ran and failed.
+    code, out, err = run(capsys, "get", "velocity_kp", "-i", "socketcan", "-c", "hilrig-nosuch0")
     assert code == 1
     assert out == ""
-    assert err.startswith("hilrig get: error: cannot open udp_multicast channel not-an-address: ")
+    assert err.startswith("hilrig get: error: cannot open socketcan channel hilrig-nosuch0: ")
     assert err.count("\n") == 1
 
 
@@ -262,6 +265,16 @@ def test_watch_once_starts_the_node_produces_sync_and_shows_values(
     assert "TPDO1 (0x190)" in rows[0] and rows[2].split()[3] == "SDO"
     assert "\x1b[" not in out, "no ANSI codes when not on a terminal"
     assert fake.syncs, "expected SYNCs from --sync-period-ms"
+
+
+def test_watch_takes_the_tpdo_mapping_from_the_eds(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    # The EDS's PDO COB-IDs are $NODEID+...: resolved for the node watched, as when read from it.
+    argv = ["--once", "--nmt-start", "--sync-period-ms", "5", "--pdo-from-eds", "motor_duty"]
+    code, out, err = run(capsys, "watch", *argv, *on_bus(channel))
+    assert (code, err) == (0, "")
+    assert f"TPDO1 (0x{cob_id(FunctionCode.TPDO1, NODE_ID):03X})" in out.splitlines()[2]
 
 
 def test_watch_once_without_sync_says_what_is_missing(
@@ -428,10 +441,20 @@ def test_a_scenario_file_must_define_scenario(tmp_path: Path) -> None:
     assert load_scenario(script).__name__ == "scenario"
 
 
-def test_bus_load_is_a_command_and_warns_above_70_percent(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "125k", "--bitrate", "1M")
-    assert code == 0
+def test_bus_load_is_a_command_warns_above_70_and_fails_above_100_percent(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, out, err = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "125k", "--bitrate", "1M")
+    assert code == 1
     rows = {row.split()[0] for row in out.splitlines() if row[:1].isdigit() and "bit/s" in row}
     assert rows == {"125", "1"}
-    # 125 kbit/s at 100 Hz is about 91 % nominal: over the line; 1 Mbit/s is about 11 %: fine.
-    assert "WARNING: 125 kbit/s" in out and "WARNING: 1 Mbit/s" not in out
+    # 125 kbit/s at 100 Hz is about 91 % nominal and 111 % worst case: it does not fit; 1 Mbit/s
+    # is about 14 %: fine.
+    assert "OVERLOAD: 125 kbit/s" in out and "1 Mbit/s:" not in out
+    assert (
+        err
+        == "hilrig bus-load: error: at 100 Hz the exchange does not fit 125 kbit/s (above 100 % of the bus)\n"
+    )
+    code, out, err = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "200k")
+    assert (code, err) == (0, "")
+    assert "WARNING: 200 kbit/s" in out  # about 69 % worst case, 78 % in the busiest cycle

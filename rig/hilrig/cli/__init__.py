@@ -4,15 +4,18 @@
     hilrig dbc --node-id 0x20 -o board-32.dbc # the DBC for a board at another node id
     hilrig get motor_velocity velocity_kp     # SDO, values with units
     hilrig set velocity_kp=0.2                # SDO; a refusal is explained in words
+    hilrig sdo read 0x1018:1                  # any object by index, value and hex
+    hilrig nmt start --wait                   # NMT, and the state the heartbeat then shows
     hilrig watch --sync-period-ms 10          # live table of the TPDO fields
     hilrig scan                               # which nodes are on the bus
     hilrig record bus.log / replay bus.log --decode
+    hilrig bus-load --bitrate 500k            # will the PDO exchange fit a real bus?
     hilrig sim --out out/demo                 # firmware + physics in lockstep, a summary
     hilrig soak --cycles 1000000              # the long run: no cycle lost, memory flat
 
-Every command takes `--interface`/`--channel` (any python-can interface) and `--help`.
-Exit codes: 0 done, 1 the bus or the node failed (one line on stderr, no traceback),
-2 the command line is wrong (one line saying what to type instead), 130 interrupted.
+Every command takes `--help`; those on a bus take python-can's bus options (`-i`, `-c`, `-b`,
+`--fd`, `--data-bitrate`, `--bus-kwargs`), defaulting to python-can's configuration.
+The exit codes are in `EXIT_CODES` (printed by `hilrig --help`).
 
 Adding a command: write `hilrig/cli/<module>.py` with `COMMANDS = (Command(...),)` and add
 the module's name to `COMMAND_MODULES`.
@@ -22,28 +25,35 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
 import logging
 import os
 import signal
 import sys
+import tomllib
+import traceback
 from collections.abc import Sequence
+from pathlib import Path
 from types import FrameType
 from typing import NoReturn
 
 from boardproto import TableError
-from hilrig.cli.common import Command, UsageError, one_line
-from hilrig.errors import RigError
+from hilrig.cli.common import Command, UsageError, add_verbose_option, one_line
+from hilrig.errors import LogFormatError, RigError
 
 COMMAND_MODULES: tuple[str, ...] = (
     "fields",
     "dbc",
     "sdo",
+    "sdo_raw",
+    "nmt",
     "watch",
     "scan",
     "record",
     "sim",
     "busload",
     "soak",
+    "completion",
 )
 """Modules of `hilrig.cli` whose COMMANDS are registered, in the order `--help` lists them."""
 
@@ -51,6 +61,56 @@ EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
+
+EXIT_CODES = """\
+exit codes (every error is one line on stderr; a traceback is a bug in hilrig):
+  0    done; a warning (e.g. bus load above 70 %) is still done
+  1    it ran and failed: the bus or adapter would not open or went away, the node was
+       silent or refused (the SDO abort code in words), a wait timed out, the bus load is
+       above 100 %, a log file's content cannot be parsed (at its start or part-way)
+  2    refused before anything ran, nothing sent: the command line is wrong (an option,
+       value, name or index), or something it needs is missing or unusable: a file that does
+       not exist or whose format is not read, the table, EDS or DBC, python-can's
+       configuration, an interface this machine cannot use or whose package is not
+       installed (the line says what to install); fix that, then run it again
+  130  interrupted (Ctrl-C, SIGTERM); files written so far are whole"""
+
+
+def version() -> str:
+    """'hilrig 0.1.0 (python-can 4.6.1, canopen 2.4.1, cantools 45.1.0, Python 3.11.7)': what a
+    bug report needs. From the installed package's metadata; run from a checkout that is not
+    installed, from rig/pyproject.toml."""
+    try:
+        own = importlib.metadata.version("hilrig")
+    except importlib.metadata.PackageNotFoundError:
+        own = _checkout_version()
+    parts = []
+    for name in ("python-can", "canopen", "cantools"):
+        try:
+            parts.append(f"{name} {importlib.metadata.version(name)}")
+        except importlib.metadata.PackageNotFoundError:
+            parts.append(f"{name} not installed")
+    python = ".".join(str(part) for part in sys.version_info[:3])
+    return f"hilrig {own} ({', '.join(parts)}, Python {python})"
+
+
+class _VersionAction(argparse.Action):
+    """--version, looked up only when asked for (metadata look-ups cost time in the micro-VM)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, help: str | None = None) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> NoReturn:
+        print(version())
+        parser.exit(EXIT_OK)
+
+
+def _checkout_version() -> str:
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    try:
+        return str(tomllib.loads(pyproject.read_text())["project"]["version"]) + " (not installed)"
+    except (OSError, KeyError, tomllib.TOMLDecodeError):
+        return "unknown (not installed)"
 
 
 class Parser(argparse.ArgumentParser):
@@ -76,10 +136,13 @@ def build_parser(argv: Sequence[str] | None = None) -> Parser:
     parser = Parser(
         prog="hilrig",
         description=__doc__.split("\n\n")[0],
-        epilog="`hilrig COMMAND --help` describes each command.",
+        epilog="`hilrig COMMAND --help` describes each command, with examples.\n\n" + EXIT_CODES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    add_verbose_option(parser)
+    parser.set_defaults(verbose=False)
     parser.add_argument(
-        "-v", "--verbose", action="store_true", help="log what python-can and canopen do (to stderr)"
+        "--version", action=_VersionAction, help="print the versions of hilrig and its libraries"
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=Parser)
     for command in commands():
@@ -87,8 +150,11 @@ def build_parser(argv: Sequence[str] | None = None) -> Parser:
             command.name,
             help=command.help,
             description=command.description,
+            epilog="exit codes: 0 done, 1 failed (bus, node, data), 2 bad command line; "
+            "`hilrig --help` has the whole rule",
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
+        add_verbose_option(command_parser)
         # Without a command line (tests, docs) every command is configured; with one, only
         # the command it names (none for `hilrig --help`, which lists names and help only).
         if argv is None or command.name == selected:
@@ -126,9 +192,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous = None
     try:
         return int(args.run(args))
-    except (UsageError, TableError) as error:  # a bad table file is a bad argument (--table)
-        print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
-        return EXIT_USAGE
+    except (UsageError, TableError, LogFormatError) as error:  # a bad --table or FILE is a bad argument
+        return _report(prog, error, EXIT_USAGE, verbose=args.verbose)
     except BrokenPipeError:  # `hilrig ... | head` stopped reading: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
@@ -136,13 +201,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{prog}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (RigError, OSError) as error:
-        print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
-        return EXIT_FAILED
+        return _report(prog, error, EXIT_FAILED, verbose=args.verbose)
     except Exception as error:
+        # What python-can, canopen and cantools raise is about the bus, the node or a file;
+        # anything else is a bug in hilrig: its traceback is what a report needs.
         if type(error).__module__.split(".")[0] not in ("can", "canopen", "cantools"):
             raise
-        print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
-        return EXIT_FAILED
+        return _report(prog, error, EXIT_FAILED, verbose=args.verbose)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _report(prog: str, error: BaseException, code: int, *, verbose: bool) -> int:
+    """One line on stderr; with --verbose the traceback first (which call failed, and why)."""
+    if verbose:
+        traceback.print_exception(error, file=sys.stderr)
+    print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
+    return code

@@ -11,19 +11,22 @@ import argparse
 import contextlib
 import difflib
 import errno
+import re
 import sys
 import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Self, TextIO
+from typing import TYPE_CHECKING, Any, Self, TextIO
 
 from boardproto.table import BitSet, ValueEnum
-from hilrig.errors import BusUnavailableError, FieldNameError, RigError
+from hilrig.errors import BusUnavailableError, FieldNameError, RigError, one_line
 from hilrig.table import DEFAULT_TABLE_PATH, ObjectEntry, RigTable
 
 if TYPE_CHECKING:
     import can
+    import canopen
+    import cantools.database
 
     from hilrig.node import BoardNode
 
@@ -32,7 +35,25 @@ DEFAULT_EDS = REPO / "build" / "protocol" / "board.eds"
 DEFAULT_DBC = REPO / "build" / "protocol" / "board.dbc"
 DEFAULT_INTERFACE = "socketcan"
 DEFAULT_CHANNEL = "vcan0"
+"""The bus when python-can's configuration names none: the rig's own virtual bus."""
 MAX_NODE_ID = 127
+EDS_HINT = "run `make build`, or give --eds FILE"
+DBC_HINT = "run `make build`, or give --dbc FILE"
+
+# The package an interface needs beyond python-can, and python-can's extra that pulls it in.
+# python-can raises "... not installed" for these; the line then says what to install.
+INTERFACE_PACKAGES: dict[str, tuple[str, str]] = {
+    "slcan": ("pyserial", "serial"),
+    "serial": ("pyserial", "serial"),
+    "robotell": ("pyserial", "serial"),
+    "seeedstudio": ("pyserial", "seeedstudio"),
+    "gs_usb": ("gs-usb", "gs-usb"),
+    "cantact": ("cantact", "cantact"),
+    "canalystii": ("canalystii", "canalystii"),
+    "neovi": ("python-ics", "neovi"),
+    "nixnet": ("nixnet", "nixnet"),
+    "udp_multicast": ("msgpack", "multicast"),
+}
 
 
 class UsageError(RigError, ValueError):
@@ -111,6 +132,81 @@ def existing_file(what: str, hint: str) -> Callable[[str], Path]:
     return check
 
 
+def required_file(path: Path, what: str, hint: str) -> Path:
+    """`path` if it is a file; else the usage error `existing_file` gives for a typed one (for
+    defaults, which argparse does not check: build/protocol/board.eds before `make build`)."""
+    if not path.is_file():
+        raise UsageError(f"{what} {path} does not exist; {hint}")
+    return path
+
+
+_BITRATE = re.compile(r"(?P<number>\d+(?:\.\d+)?)\s*(?P<scale>[kKmM]?)")
+_BITRATE_SCALE = {"": 1, "k": 1_000, "m": 1_000_000}
+
+
+def bitrate(text: str) -> int:
+    """'125000', '500k', '1M', '2.5M' -> bit/s: every bit rate option and python-can's
+    configured bit rates go through this one parser."""
+    match = _BITRATE.fullmatch(text.strip())
+    value = float(match["number"]) * _BITRATE_SCALE[match["scale"].lower()] if match else 0.0
+    if not value >= 1 or value != int(value):
+        raise argparse.ArgumentTypeError(
+            f"expected a bit rate in bit/s like 125000, 500k or 1M, got {text!r}"
+        )
+    return int(value)
+
+
+_BUS_KWARG = re.compile(r"(?P<name>[_a-zA-Z][-_a-zA-Z0-9]*)=(?P<value>\S*)")
+
+
+def bus_kwarg(text: str) -> tuple[str, Any]:
+    """'app_name=MyApp' -> ('app_name', 'MyApp'), the value typed as python-can's `can.logger
+    --bus-kwargs` types it ('1' -> 1, '0.5' -> 0.5, 'True' -> True)."""
+    match = _BUS_KWARG.fullmatch(text)
+    if match is None:
+        raise argparse.ArgumentTypeError(
+            f"expected KEY=VALUE for the interface (e.g. serial=1234), got {text!r}"
+        )
+    from can.util import cast_from_string
+
+    return match["name"].replace("-", "_"), cast_from_string(match["value"])
+
+
+MAX_CAN_ID = 0x1FFF_FFFF  # 29-bit identifiers
+
+
+@dataclass(frozen=True)
+class CanFilter:
+    """python-can's `can_id:can_mask` filter; `can_id~can_mask` (inverted) keeps the frames that
+    do NOT match. A frame is kept when any filter of a list keeps it."""
+
+    can_id: int
+    can_mask: int
+    inverted: bool = False
+
+    def keeps(self, arbitration_id: int) -> bool:
+        return ((arbitration_id ^ self.can_id) & self.can_mask == 0) != self.inverted
+
+    def __str__(self) -> str:
+        return f"{self.can_id:X}{'~' if self.inverted else ':'}{self.can_mask:X}"
+
+
+def can_filter(text: str) -> CanFilter:
+    """'180:780' (hex, as python-can's and candump's filters) -> CanFilter; '~' inverts."""
+    separator = ":" if ":" in text else "~"
+    id_text, found, mask_text = text.partition(separator)
+    try:
+        can_id, can_mask = int(id_text, 16), int(mask_text, 16)
+    except ValueError:
+        found = ""
+    if not found or not (0 <= can_id <= MAX_CAN_ID and 0 <= can_mask <= MAX_CAN_ID):
+        raise argparse.ArgumentTypeError(
+            f"expected a filter CAN_ID:MASK (keep) or CAN_ID~MASK (drop), in hex as python-can's "
+            f"logger takes them, e.g. 180:780, got {text!r}"
+        )
+    return CanFilter(can_id, can_mask, inverted=separator == "~")
+
+
 # --- Option groups ---------------------------------------------------------------------
 def add_table_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -122,31 +218,77 @@ def add_table_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_bus_options(parser: argparse.ArgumentParser) -> None:
-    group = parser.add_argument_group("bus (any python-can interface)")
+def add_verbose_option(parser: argparse.ArgumentParser) -> None:
+    """-v/--verbose; on a command's own parser too, so it may follow the command's name."""
+    parser.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        default=argparse.SUPPRESS,  # a command's parser leaves `hilrig -v COMMAND` as it was
+        help="log what python-can and canopen do (to stderr)",
+    )
+
+
+def add_bus_options(parser: argparse.ArgumentParser, *, filters: bool = False) -> None:
+    """python-can's bus options, spelt as its own tools spell them (`python -m can.logger`);
+    what is not given comes from python-can's configuration, as for `can.Bus()`."""
+    group = parser.add_argument_group(
+        "bus (any python-can interface)",
+        "Not given: from python-can's configuration (~/.canrc or can.ini, the CAN_INTERFACE,\n"
+        "CAN_CHANNEL, CAN_BITRATE and CAN_CONFIG environment variables); with none: socketcan vcan0.",
+    )
     group.add_argument(
         "-i",
         "--interface",
         type=interface_name,
-        default=DEFAULT_INTERFACE,
-        help=f"python-can interface: socketcan, pcan, kvaser, slcan, vector... "
-        f"(default: {DEFAULT_INTERFACE})",
+        default=None,
+        help="python-can interface: socketcan, pcan, kvaser, slcan, vector, virtual...",
     )
     group.add_argument(
         "-c",
         "--channel",
-        default=DEFAULT_CHANNEL,
-        help=f"channel of that interface: vcan0, can0, PCAN_USBBUS1, /dev/ttyACM0@115200... "
-        f"(default: {DEFAULT_CHANNEL})",
+        default=None,
+        help="channel of that interface: vcan0, can0, PCAN_USBBUS1, /dev/ttyACM0...",
     )
     group.add_argument(
         "-b",
         "--bitrate",
-        type=positive_int,
+        type=bitrate,
         default=None,
-        help="bit rate in bit/s for adapters that set it (pcan, kvaser, slcan); "
+        help="bit rate, e.g. 500k, 1M or 125000, for adapters that set it (pcan, kvaser, slcan); "
         "SocketCAN takes it from `ip link`",
     )
+    group.add_argument(
+        "--fd", action="store_const", const=True, default=None, help="CAN FD (implied by --data-bitrate)"
+    )
+    group.add_argument(
+        "--data-bitrate",
+        type=bitrate,
+        default=None,
+        metavar="BITRATE",
+        help="CAN FD data phase bit rate, e.g. 2M",
+    )
+    group.add_argument(
+        "--bus-kwargs",
+        type=bus_kwarg,
+        nargs="+",
+        default=None,
+        metavar="KEY=VALUE",
+        help="more keyword arguments of the interface, as python-can's tools take them: "
+        "`-i vector -c 1 --bus-kwargs app_name=MyApp serial=1234`",
+    )
+    if filters:
+        group.add_argument(
+            "--filter",
+            dest="filters",
+            type=can_filter,
+            nargs="+",
+            default=None,
+            metavar="ID:MASK",
+            help="keep only frames with (id & MASK) == (ID & MASK); ID~MASK keeps those that differ; a "
+            "frame one filter keeps is kept; hex, python-can's spelling: --filter 190:7FF 700:780 "
+            "(node 0x10's TPDO1 and every heartbeat)",
+        )
 
 
 def add_node_options(parser: argparse.ArgumentParser, *, sdo_timeout_s: float = 1.0) -> None:
@@ -161,8 +303,8 @@ def add_node_options(parser: argparse.ArgumentParser, *, sdo_timeout_s: float = 
     )
     group.add_argument(
         "--eds",
-        type=existing_file("EDS", "build it with `make build` or pass --eds FILE"),
-        default=DEFAULT_EDS,
+        type=existing_file("EDS", EDS_HINT),
+        default=None,
         help="the board's EDS (default: build/protocol/board.eds)",
     )
     group.add_argument(
@@ -234,20 +376,80 @@ def progress(message: str) -> None:
 
 # --- Bus and node ----------------------------------------------------------------------
 def describe_bus(args: argparse.Namespace) -> str:
+    """'socketcan channel vcan0': the bus `open_bus` opened (or would open)."""
     return f"{args.interface} channel {args.channel}"
+
+
+def bus_config(args: argparse.Namespace) -> dict[str, Any]:
+    """The keyword arguments of `can.Bus`: the command line first, then python-can's
+    configuration (`can.util.load_config`: ~/.canrc or can.ini, CAN_INTERFACE, CAN_CHANNEL,
+    CAN_BITRATE, CAN_CONFIG), then socketcan on vcan0 when nothing names an interface."""
+    import can
+
+    given: dict[str, Any] = dict(args.bus_kwargs or ())
+    for key in ("interface", "channel", "bitrate", "fd", "data_bitrate"):
+        if getattr(args, key, None) is not None:
+            given[key] = getattr(args, key)
+    if given.get("data_bitrate") is not None:
+        given.setdefault("fd", True)
+    filters: list[CanFilter] | None = getattr(args, "filters", None)
+    if filters and not any(f.inverted for f in filters):
+        # The kernel or adapter filters; an inverted filter is applied by the command instead.
+        given["can_filters"] = [{"can_id": f.can_id, "can_mask": f.can_mask} for f in filters]
+    try:
+        try:
+            config = dict(can.util.load_config(config=given))
+        except can.CanInterfaceNotImplementedError:
+            if "interface" in given or _configured_interface():
+                raise
+            config = dict(can.util.load_config(config={**given, "interface": DEFAULT_INTERFACE}))
+    except (can.CanInterfaceNotImplementedError, ValueError, TypeError) as error:
+        raise UsageError(
+            f"python-can's configuration (~/.canrc, can.ini, CAN_INTERFACE, CAN_CONFIG...) is unusable: "
+            f"{one_line(error)}; give --interface and --channel, or fix it"
+        ) from None
+    if config.get("channel") is None and config["interface"] == DEFAULT_INTERFACE:
+        config["channel"] = DEFAULT_CHANNEL
+    for key in ("bitrate", "data_bitrate"):
+        if isinstance(config.get(key), str):  # CAN_BITRATE=500k: one parser for every bit rate
+            try:
+                config[key] = bitrate(config[key])
+            except argparse.ArgumentTypeError as error:
+                raise UsageError(f"python-can's configuration: {key}: {error}") from None
+    return config
+
+
+def _configured_interface() -> bool:
+    """Whether any of python-can's configuration sources names an interface."""
+    import can
+
+    sources = (can.rc, can.util.load_environment_config(), can.util.load_file_config())
+    return any(source.get("interface") or source.get("bustype") for source in sources)
 
 
 @contextlib.contextmanager
 def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[can.BusABC]:
-    """The python-can bus of --interface/--channel/--bitrate; errors become one line."""
+    """The python-can bus of the bus options (`bus_config`) plus the command's own `kwargs`;
+    afterwards args.interface and args.channel name the bus opened. An interface that cannot
+    work on this machine (not installed, wrong platform, wrong options) is a usage error;
+    one that could but does not open (no adapter, no such channel) fails the command."""
     import can
 
-    options: dict[str, object] = dict(kwargs)
-    if args.bitrate is not None:
-        options["bitrate"] = args.bitrate
+    config = {**bus_config(args), **kwargs}
+    interface = args.interface = config["interface"]
+    args.channel = config.get("channel")
     try:
-        bus = can.Bus(interface=args.interface, channel=args.channel, **options)
-    except (can.CanError, OSError, ValueError, ImportError) as error:
+        bus = can.Bus(ignore_config=True, **config)
+    except (can.CanInterfaceNotImplementedError, ImportError) as error:
+        raise UsageError(
+            f"cannot use the {interface} interface: {_missing_hint(interface, error)}"
+        ) from error
+    except TypeError as error:  # the backend's constructor refused the options
+        raise UsageError(
+            f"the {interface} interface refused its options: {one_line(error)}; give them with "
+            "--bus-kwargs KEY=VALUE (see python-can's page of that interface)"
+        ) from error
+    except Exception as error:  # backends raise what they like: the adapter's problem, in words
         raise BusUnavailableError(
             f"cannot open {describe_bus(args)}: {one_line(error)}{_bus_hint(args, error)}"
         ) from error
@@ -258,6 +460,22 @@ def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[can.BusABC]
         yield bus
     finally:
         bus.shutdown()
+
+
+def _missing_hint(interface: str, error: BaseException) -> str:
+    """python-can's reason, and for a package that is not installed, how to install it."""
+    reason = one_line(error)
+    package = INTERFACE_PACKAGES.get(interface)
+    missing = isinstance(error, ImportError) or any(
+        words in reason.lower() for words in ("not installed", "install it", "no module named")
+    )
+    if package is None or not missing:
+        return reason
+    name, extra = package
+    return (
+        f"it needs the {name} package, which is not installed: pip install {name} "
+        f"(or pip install 'python-can[{extra}]')"
+    )
 
 
 def _bus_hint(args: argparse.Namespace, error: BaseException) -> str:
@@ -286,15 +504,47 @@ def _errno_of(error: BaseException | None) -> int | None:
     return None
 
 
-def one_line(error: BaseException) -> str:
-    return " ".join(str(error).split()) or type(error).__name__
+def eds_path(args: argparse.Namespace) -> Path:
+    """--eds, else build/protocol/board.eds; missing: a usage error saying how to get one."""
+    return args.eds if args.eds is not None else required_file(DEFAULT_EDS, "EDS", EDS_HINT)
+
+
+def load_eds(path: Path, node_id: int) -> canopen.ObjectDictionary:
+    """The object dictionary of an EDS for node `node_id` (its $NODEID+... COB-IDs resolved);
+    one canopen cannot read is a usage error (exit 2)."""
+    import canopen
+
+    try:
+        return canopen.import_od(str(path), node_id)
+    except Exception as error:  # configparser, KeyError, ValueError...: the file, not the rig
+        raise UsageError(
+            f"EDS {path} is not an EDS canopen can read ({one_line(error)}); {EDS_HINT}"
+        ) from None
+
+
+def load_dbc(path: Path) -> cantools.database.can.Database:
+    """A DBC (--dbc, else build/protocol/board.dbc); missing or unreadable: a usage error."""
+    import cantools
+
+    required_file(path, "DBC", DBC_HINT)
+    try:
+        database = cantools.database.load_file(str(path))
+    except Exception as error:  # cantools' parse errors have no common base
+        raise UsageError(
+            f"DBC {path} is not a DBC cantools can read ({one_line(error)}); {DBC_HINT}"
+        ) from None
+    if not isinstance(database, cantools.database.can.Database):
+        raise UsageError(f"{path} is no CAN database (a DBC); {DBC_HINT}")
+    return database
 
 
 @contextlib.contextmanager
 def board_node(args: argparse.Namespace, bus: can.BusABC, table: RigTable) -> Iterator[BoardNode]:
     from hilrig.node import BoardNode
 
-    node = BoardNode(bus, resolved_node_id(args, table), args.eds, table, sdo_timeout_s=args.sdo_timeout)
+    node_id = resolved_node_id(args, table)
+    od = load_eds(eds_path(args), node_id)
+    node = BoardNode(bus, node_id, od, table, sdo_timeout_s=args.sdo_timeout)
     try:
         yield node
     finally:

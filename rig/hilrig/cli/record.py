@@ -1,7 +1,8 @@
 """`hilrig record FILE` and `hilrig replay FILE`: bus traffic to and from log files.
 
 The format follows the extension, as python-can's `can.Logger`/`can.LogReader` choose it:
-`.log` (candump -L), `.blf` (Vector), `.asc`, `.csv`, `.trc`. `record` writes into a hidden
+`.log` (candump -L), `.blf` (Vector), `.asc`, `.csv`, `.trc`; `replay` also reads what else
+python-can reads (`.db`, `.mf4` with asammdf, gzipped `.log.gz`...). `record` writes into a hidden
 temporary file beside FILE and renames it to FILE only after the logger was stopped (flushed
 and closed; a BLF file gets its header and object count only then), so FILE is always a whole
 log: after Ctrl-C, SIGTERM, `--duration` or `--count` alike. A hard kill (SIGKILL) leaves FILE
@@ -19,9 +20,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hilrig.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, whole_file_logger
+from hilrig.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 from hilrig.cli.common import (
+    DBC_HINT,
     DEFAULT_DBC,
+    CanFilter,
     Command,
     SyncProducer,
     UsageError,
@@ -31,6 +34,7 @@ from hilrig.cli.common import (
     existing_file,
     format_unit,
     format_value,
+    load_dbc,
     load_table,
     node_id,
     open_bus,
@@ -41,7 +45,8 @@ from hilrig.cli.common import (
 
 if TYPE_CHECKING:
     import can
-    import cantools.database
+
+    from hilrig.table import RigTable
 
 PROGRESS_EVERY_S = 1.0
 
@@ -58,16 +63,21 @@ def log_path(text: str) -> Path:
 
 class _CountingSink:
     """python-can listener: passes frames to `sink` and counts them; after `limit` frames it
-    drops the rest and signals `done`, so `--count N` writes exactly N frames."""
+    drops the rest and signals `done`, so `--count N` writes exactly N frames. With `filters`,
+    only frames one of them keeps (the bus applies plain filters already; an inverted one,
+    `ID~MASK`, only here)."""
 
-    def __init__(self, sink: can.Listener, limit: int | None) -> None:
+    def __init__(self, sink: can.Listener, limit: int | None, filters: list[CanFilter] | None = None) -> None:
         self.sink = sink
         self.count = 0
         self.limit = limit
+        self.filters = filters
         self.done = threading.Event()
         self._lock = threading.Lock()
 
     def __call__(self, message: can.Message) -> None:
+        if self.filters and not any(f.keeps(message.arbitration_id) for f in self.filters):
+            return
         with self._lock:
             if self.done.is_set():
                 return
@@ -121,7 +131,7 @@ def configure_record(parser: argparse.ArgumentParser) -> None:
         help="node for --nmt-start (default: from the table, 0x10)",
     )
     add_table_option(parser)
-    add_bus_options(parser)
+    add_bus_options(parser, filters=True)
 
 
 def run_record(args: argparse.Namespace) -> int:
@@ -134,11 +144,12 @@ def run_record(args: argparse.Namespace) -> int:
     if args.nmt_start or args.sync_period_ms:
         import canopen  # noqa: F401  (seconds in the VM: import before frames are counted)
     with open_bus(args, receive_own_messages=True) as bus, whole_file_logger(path) as logger:
-        counter = _CountingSink(logger, args.count)
+        counter = _CountingSink(logger, args.count, args.filters)
         notifier = can.Notifier(bus, [counter])
         try:
             limit = " (Ctrl-C to stop)" if not (args.count or args.duration) else ""
-            progress(f"record: {describe_bus(args)} -> {path}{limit}")
+            kept = f", frames {' '.join(map(str, args.filters))}" if args.filters else ""
+            progress(f"record: {describe_bus(args)}{kept} -> {path}{limit}")
             with master_traffic(bus, args):
                 while not counter.done.is_set():
                     wait = PROGRESS_EVERY_S
@@ -166,9 +177,9 @@ def run_record(args: argparse.Namespace) -> int:
 def configure_replay(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "file",
-        type=existing_file("log", "record one with `hilrig record FILE`"),
+        type=existing_log,
         metavar="FILE",
-        help=f"log file: {', '.join(LOG_FORMATS)}",
+        help=f"log file: {', '.join(LOG_FORMATS)} or anything else python-can reads",
     )
     parser.add_argument(
         "--decode",
@@ -177,8 +188,8 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--dbc",
-        type=existing_file("DBC", "build it with `make build` or pass --dbc"),
-        default=DEFAULT_DBC,
+        type=existing_file("DBC", DBC_HINT),
+        default=None,
         help="--decode and --trace: the DBC (default: build/protocol/board.dbc)",
     )
     parser.add_argument(
@@ -216,6 +227,18 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
     add_bus_options(parser)
 
 
+def existing_log(text: str) -> Path:
+    path = Path(text)
+    if not path.is_file():
+        from hilrig.buslog import readable_formats  # imports python-can: only on this error
+
+        raise argparse.ArgumentTypeError(
+            f"log {text} does not exist; record one with `hilrig record FILE` "
+            f"(replay reads {readable_formats()})"
+        )
+    return path
+
+
 def rrd_path(text: str) -> Path:
     path = Path(text)
     if path.suffix != ".rrd":
@@ -236,9 +259,8 @@ def run_replay(args: argparse.Namespace) -> int:
     started = time.monotonic()
     next_report = started + PROGRESS_EVERY_S
     frames: Iterator[can.Message]
-    with open_bus(args) as bus:
-        reader = can.LogReader(str(args.file))
-        frames = can.MessageSync(reader, timestamps=not args.no_timing, gap=0.0)
+    with read_log(args.file) as logged, open_bus(args) as bus:
+        frames = can.MessageSync(logged, timestamps=not args.no_timing, gap=0.0)
         if args.as_master:
             table = load_table(args)
             node = args.node_id if args.node_id is not None else table.board.node.default_node_id
@@ -246,44 +268,40 @@ def run_replay(args: argparse.Namespace) -> int:
             progress(f"replay: {args.file} -> {describe_bus(args)}, without node 0x{node:02X}'s own frames")
         else:
             progress(f"replay: {args.file} -> {describe_bus(args)}")
-        try:
-            for message in frames:
-                bus.send(message, timeout=1.0)
-                sent += 1
-                if time.monotonic() >= next_report:
-                    progress(f"replay: {sent} frames, {time.monotonic() - started:.1f} s")
-                    next_report += PROGRESS_EVERY_S
-        finally:
-            reader.stop()
+        for message in frames:
+            bus.send(message, timeout=1.0)
+            sent += 1
+            if time.monotonic() >= next_report:
+                progress(f"replay: {sent} frames, {time.monotonic() - started:.1f} s")
+                next_report += PROGRESS_EVERY_S
     progress(f"replay: {sent} frames sent")
     return 0
 
 
 def _trace(args: argparse.Namespace) -> int:
-    import can
-    import cantools
-
     from hilrig.log_trace import trace_log
     from hilrig.trace import Tracer, TraceSink
 
     table = load_table(args)
-    database = cantools.database.load_file(str(args.dbc))
+    database = load_dbc(args.dbc or DEFAULT_DBC)
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
-    progress(f"replay: {args.file} -> {args.trace} (importing rerun-sdk)")
     partial = partial_path(args.trace)
-    tracer = Tracer(TraceSink.rrd(partial), table, clock="wall", recording_name=args.file.stem)
-    reader = can.LogReader(str(args.file))
-    try:
-        stats = trace_log(
-            reader,
-            NodeDbc(database, table, node),
-            table,
-            node,
-            tracer,
-            progress=lambda n: progress(f"replay: {n} frames traced"),
-        )
-    finally:
-        reader.stop()
+    with read_log(args.file) as logged:  # a format python-can does not read: said before rerun loads
+        progress(f"replay: {args.file} -> {args.trace} (importing rerun-sdk)")
+        tracer = Tracer(TraceSink.rrd(partial), table, clock="wall", recording_name=args.file.stem)
+        try:
+            stats = trace_log(
+                logged,
+                NodeDbc(database, table, node),
+                table,
+                node,
+                tracer,
+                progress=lambda n: progress(f"replay: {n} frames traced"),
+            )
+        except BaseException:
+            tracer.close()
+            partial.unlink(missing_ok=True)  # a log that breaks off leaves no half trace behind
+            raise
         tracer.close()
     if stats.frames == 0:
         partial.unlink(missing_ok=True)
@@ -321,60 +339,64 @@ def describe_frame(cob_id: int, data: bytes, node: int) -> str:
 
 
 def _decode(args: argparse.Namespace) -> int:
-    import can
-    import cantools
-
     table = load_table(args)
     if args.field:
         from hilrig.cli.common import check_names
 
         check_names(table, args.field)
-    database: cantools.database.can.Database = cantools.database.load_file(str(args.dbc))
+    database = load_dbc(args.dbc or DEFAULT_DBC)
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
-    dbc = NodeDbc(database, table, node)
-    units = {e.name: format_unit(e.unit) for e in table.board.entries}
-    named = table.board.named_values
-    wanted = set(args.field or ())
+    decoder = _FrameDecoder(NodeDbc(database, table, node), table, node, set(args.field or ()))
     first: float | None = None
     frames = 0
-    out = sys.stdout
-    reader = can.LogReader(str(args.file))
-    try:
-        for message in reader:
-            frames += 1
-            first = message.timestamp if first is None else first
-            data = bytes(message.data)
-            text = ""
-            dbc_message = dbc.message(message.arbitration_id)
-            if dbc_message is not None and not message.is_extended_id:
-                try:
-                    values = dbc_message.decode(data, decode_choices=False)
-                except Exception as error:  # a frame that does not fit its DBC message
-                    text = f"{dbc_message.name} (undecodable: {error})"
-                else:
-                    shown = {k: v for k, v in values.items() if not wanted or k in wanted}
-                    if wanted and not shown:
-                        continue
-                    text = f"{dbc_message.name}  " + "  ".join(
-                        f"{k}={format_value(v, named.get(k))}{' ' + units.get(k, '') if units.get(k) else ''}"
-                        for k, v in shown.items()
+    with read_log(args.file) as logged:
+        try:
+            for message in logged:
+                frames += 1
+                first = message.timestamp if first is None else first
+                text = decoder.describe(message)
+                if text is not None:
+                    sys.stdout.write(
+                        f"{message.timestamp - first:12.6f}  0x{message.arbitration_id:03X}  {text}\n"
                     )
-            elif wanted:
-                continue
-            else:
-                text = describe_frame(message.arbitration_id, data, node)
-            out.write(
-                f"{message.timestamp - first:12.6f}  0x{message.arbitration_id:03X}  "
-                f"{text or data.hex(' ')}\n"
-            )
-    except BrokenPipeError:  # `| head` closed the pipe: that is fine
-        sys.stderr.close()
-        return 0
-    finally:
-        reader.stop()
+        except BrokenPipeError:  # `| head` closed the pipe: that is fine
+            sys.stderr.close()
+            return 0
     if frames == 0:
         raise UsageError(f"{args.file} holds no frames")
     return 0
+
+
+class _FrameDecoder:
+    """One logged frame in words: its fields decoded by the DBC, or the CiA 301 service."""
+
+    def __init__(self, dbc: NodeDbc, table: RigTable, node: int, wanted: set[str]) -> None:
+        self.dbc = dbc
+        self.node = node
+        self.wanted = wanted  # --field: only frames with these, only these shown
+        self.units = {e.name: format_unit(e.unit) for e in table.board.entries}
+        self.named = table.board.named_values
+
+    def describe(self, message: can.Message) -> str | None:
+        """The text of the frame; None when --field leaves it out."""
+        data = bytes(message.data)
+        dbc_message = self.dbc.message(message.arbitration_id)
+        if dbc_message is None or message.is_extended_id:
+            if self.wanted:
+                return None
+            return describe_frame(message.arbitration_id, data, self.node) or data.hex(" ")
+        try:
+            values = dbc_message.decode(data, decode_choices=False)
+        except Exception as error:  # a frame that does not fit its DBC message
+            return f"{dbc_message.name} (undecodable: {error})"
+        shown = {k: v for k, v in values.items() if not self.wanted or k in self.wanted}
+        if self.wanted and not shown:
+            return None
+        return f"{dbc_message.name}  " + "  ".join(self._value(k, v) for k, v in shown.items())
+
+    def _value(self, name: str, value: float) -> str:
+        unit = self.units.get(name)
+        return f"{name}={format_value(value, self.named.get(name))}{' ' + unit if unit else ''}"
 
 
 COMMANDS = (

@@ -8,10 +8,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hilrig.cli.common import (
-    DEFAULT_EDS,
+    EDS_HINT,
     Command,
     UsageError,
     add_bus_options,
+    bus_config,
+    eds_path,
     existing_file,
     node_id,
     positive_int,
@@ -91,8 +93,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--eds",
-        type=existing_file("EDS", "build it with `make build` or pass --eds FILE"),
-        default=DEFAULT_EDS,
+        type=existing_file("EDS", EDS_HINT),
+        default=None,
         help="the board's EDS (default: build/protocol/board.eds)",
     )
     trace = parser.add_argument_group("trace (Rerun)")
@@ -146,7 +148,10 @@ def run(args: argparse.Namespace) -> int:
         live = []
     board = None
     if args.board:
-        board = BoardInterface(args.interface, args.channel, args.bitrate)
+        config = bus_config(args)  # python-can's configuration fills what the options leave out
+        board = BoardInterface(
+            config.pop("interface"), config.pop("channel", None), config.pop("bitrate", None), config
+        )
     options = DemoOptions(
         out_dir=args.out,
         scenario_file=args.scenario,
@@ -154,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
         period_us=args.period_us,
         seed=args.seed,
         executable=executable,
-        eds=args.eds,
+        eds=eds_path(args),
         faults=FaultPlan(tuple(args.fault)),
         trace=not args.no_trace,
         live=tuple(live),

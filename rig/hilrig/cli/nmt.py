@@ -1,0 +1,186 @@
+"""`hilrig nmt start|stop|preop|reset|reset-comm [NODE|all]`: network management by hand.
+
+Sends the NMT command (canopen's NMT master) to one node, or to every node (`all`, node id 0
+on the wire). With --wait, for one node, it then waits for the state change to show: the
+boot-up message after a reset, else a heartbeat in the new state, and says how long it took.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+import time
+from dataclasses import dataclass
+
+from boardproto.cia301 import NmtCommand, NmtState, heartbeat_cob_id
+from hilrig.cli.common import (
+    Command,
+    UsageError,
+    add_bus_options,
+    add_table_option,
+    describe_bus,
+    load_table,
+    node_id,
+    open_bus,
+    positive_float,
+)
+from hilrig.errors import NodeSilentError
+
+ACTIONS: dict[str, NmtCommand] = {
+    "start": NmtCommand.START,
+    "stop": NmtCommand.STOP,
+    "preop": NmtCommand.ENTER_PRE_OPERATIONAL,
+    "reset": NmtCommand.RESET_NODE,
+    "reset-comm": NmtCommand.RESET_COMMUNICATION,
+}
+"""The command line's words for the CiA 301 NMT commands."""
+
+ALL_NODES = 0
+"""Node id 0 in an NMT frame addresses every node (CiA 301)."""
+
+DEFAULT_WAIT_S = 3.0
+_STATE_MASK = 0x7F  # the heartbeat byte's top bit is node guarding's toggle bit, not state
+
+
+def nmt_target(text: str) -> int:
+    """'all' -> 0, else a node id 1..127."""
+    return ALL_NODES if text.lower() == "all" else node_id(text)
+
+
+def _state_name(state: int) -> str:
+    from hilrig.cli.scan import state_name
+
+    return state_name(state)
+
+
+@dataclass(frozen=True)
+class Heard:
+    state: int  # the heartbeat's state byte (0 = boot-up)
+    at: float  # time.monotonic()
+
+
+class HeartbeatWatch:
+    """What one node's boot-up and heartbeat frames said, as they arrive (canopen's receive
+    thread calls `on_frame`)."""
+
+    def __init__(self) -> None:
+        self.heard: list[Heard] = []
+        self._changed = threading.Condition()
+
+    def on_frame(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if len(data) != 1:
+            return
+        with self._changed:
+            self.heard.append(Heard(data[0] & _STATE_MASK, time.monotonic()))
+            self._changed.notify_all()
+
+    def wait_for(self, state: NmtState, since: int, timeout_s: float) -> Heard | None:
+        """The first frame from `since` on (an index into `heard`) showing `state`, or None."""
+        with self._changed:
+            self._changed.wait_for(lambda: self._find(state, since) is not None, timeout_s)
+            return self._find(state, since)
+
+    def _find(self, state: NmtState, since: int) -> Heard | None:
+        return next((h for h in self.heard[since:] if h.state == state), None)
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("action", choices=list(ACTIONS), metavar="{" + ",".join(ACTIONS) + "}")
+    parser.add_argument(
+        "node",
+        nargs="?",
+        type=nmt_target,
+        default=None,
+        metavar="NODE|all",
+        help="node id 1..127 (decimal or 0x hex), or all (default: the table's, 0x10)",
+    )
+    parser.add_argument(
+        "-w",
+        "--wait",
+        action="store_true",
+        help="wait for the node to show the change: its boot-up after a reset, else a heartbeat "
+        "in the new state (needs its heartbeat producer time, 0x1017, set)",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=positive_float,
+        default=DEFAULT_WAIT_S,
+        metavar="S",
+        help=f"--wait: seconds to wait (default: {DEFAULT_WAIT_S:g})",
+    )
+    add_table_option(parser)
+    add_bus_options(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    import canopen
+
+    command = ACTIONS[args.action]
+    target = args.node if args.node is not None else load_table(args).board.node.default_node_id
+    if args.wait and target == ALL_NODES:
+        raise UsageError(
+            "--wait needs one node: after an NMT command to all, each node answers in its own time "
+            "(`hilrig scan` lists their states)"
+        )
+    addressee = "all nodes" if target == ALL_NODES else f"node 0x{target:02X}"
+    with open_bus(args) as bus:
+        network = canopen.Network(bus)  # not connected: only sends unless it has to listen
+        watch = HeartbeatWatch()
+        if args.wait:
+            network.subscribe(heartbeat_cob_id(target), watch.on_frame)
+            network.connect()  # the bus is given: this starts canopen's receive thread
+        try:
+            master = canopen.nmt.NmtMaster(target)
+            master.network = network
+            since = len(watch.heard)
+            sent_at = time.monotonic()
+            master.send_command(int(command))
+            if not args.wait:
+                print(f"NMT {args.action} sent to {addressee} on {describe_bus(args)}")
+                return 0
+            expected = NmtState.INITIALISING if _is_reset(command) else command.resulting_state
+            heard = watch.wait_for(expected, since, args.timeout)
+        finally:
+            if network.notifier is not None:
+                network.notifier.stop(1.0)
+    if heard is None:
+        raise NodeSilentError(_silence(target, args.action, expected, watch, args.timeout))
+    after = f"{heard.at - sent_at:.2f} s after NMT {args.action}"
+    if expected is NmtState.INITIALISING:
+        print(f"node 0x{target:02X}: boot-up {after}, now {_state_name(command.resulting_state)}")
+    else:
+        print(f"node 0x{target:02X}: {_state_name(expected)}, {after}")
+    sys.stdout.flush()
+    return 0
+
+
+def _is_reset(command: NmtCommand) -> bool:
+    return command in (NmtCommand.RESET_NODE, NmtCommand.RESET_COMMUNICATION)
+
+
+def _silence(target: int, action: str, expected: NmtState, watch: HeartbeatWatch, timeout_s: float) -> str:
+    what = "boot-up" if expected is NmtState.INITIALISING else f"heartbeat showing {_state_name(expected)}"
+    if watch.heard:
+        last = f"last heard: {_state_name(watch.heard[-1].state)}"
+    else:
+        last = (
+            "heard nothing from it: is it on this bus with this node id, and its heartbeat "
+            f"producer time (0x1017) set? `hilrig sdo read 0x1017 -n 0x{target:02X}`"
+        )
+    return f"node 0x{target:02X}: no {what} within {timeout_s:g} s of NMT {action}; {last}"
+
+
+COMMANDS = (
+    Command(
+        name="nmt",
+        help="send an NMT command (start, stop, preop, reset, reset-comm) to a node or all",
+        description=__doc__.split("\n\n", 1)[1].strip() + "\n\n"
+        "  hilrig nmt start                  # the table's node (0x10) to operational\n"
+        "  hilrig nmt start 0x10 --wait      # ... and wait for its heartbeat to say so\n"
+        "  hilrig nmt reset all              # every node on the bus\n"
+        "  hilrig nmt reset-comm 5 -w --timeout 5",
+        configure=configure,
+        run=run,
+    ),
+)
