@@ -107,6 +107,13 @@ def test_commands_name_what_the_repository_has() -> None:
             options = set(re.findall(r'add_(?:option|flag)\("(--[a-z-]+)"', FIRMWARE_MAIN.read_text()))
             given = {arg for arg in command[1:] if arg.startswith("--")}
             assert given <= options, f"{name}: the firmware has no option {given - options}"
+        elif command[0] == ".venv/bin/hilrig":
+            from hilrig.cli import build_parser
+
+            try:  # the command line hilrig itself would accept (argparse exits on a bad one)
+                build_parser(command[1:]).parse_args(command[1:])
+            except SystemExit as error:
+                raise AssertionError(f"{name}: hilrig refuses {command[1:]}") from error
         else:
             assert command[0] == ".venv/bin/rerun", f"{name}: unexpected program {command[0]}"
         for volume in service.get("volumes", []):
