@@ -373,7 +373,7 @@ def format_summary(summary: DemoSummary) -> str:
     if summary.trace is not None:
         rows += [
             ("trace (Rerun)", str(summary.trace)),
-            ("open it with", f".venv/bin/python -m dashboards overview {summary.trace}   (--web: browser)"),
+            ("open it with", f"hilrig view {summary.trace}   (--dashboard tuning, --web: browser)"),
         ]
     if summary.viewer_url is not None:
         rows.append(("live web viewer", summary.viewer_url))

@@ -338,7 +338,7 @@ def test_record_then_replay_into_a_trace(
     code, out, err = run(capsys, "replay", str(log), "--trace", str(rrd))
     assert code == 0, err
     assert (
-        out == f".venv/bin/python -m dashboards overview {rrd}   # add --web on a machine without a display\n"
+        out == f"hilrig view {rrd}   # add --web on a machine without a display\n"
     )
     assert not list(tmp_path.glob(".*partial*"))
     # Which cycles (SYNC index) the log has a TPDO1 for: exactly those carry motor_duty.

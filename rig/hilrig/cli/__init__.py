@@ -51,6 +51,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "scan",
     "record",
     "sim",
+    "view",
     "busload",
     "soak",
     "completion",

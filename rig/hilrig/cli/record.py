@@ -211,7 +211,7 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
         metavar="OUT.rrd",
         help="instead of sending: every PDO field decoded with the DBC into a Rerun trace, cycle by "
         "cycle (grouped by SYNC), with EMCY, SDO aborts and NMT changes; open it with "
-        "`python -m dashboards overview OUT.rrd`",
+        "`hilrig view OUT.rrd`",
     )
     parser.add_argument(
         "--no-timing", action="store_true", help="send as fast as possible instead of at the recorded pace"
@@ -312,7 +312,7 @@ def _trace(args: argparse.Namespace) -> int:
         f"({stats.undecodable} did not fit their DBC message), {stats.events} events -> {args.trace}"
     )
     print(
-        f".venv/bin/python -m dashboards overview {args.trace}   # add --web on a machine without a display"
+        f"hilrig view {args.trace}   # add --web on a machine without a display"
     )
     return 0
 
