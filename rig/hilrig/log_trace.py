@@ -9,8 +9,10 @@ the recording; EMCY, SDO aborts and NMT state changes from heartbeats as text lo
 
 from __future__ import annotations
 
+import queue
 import struct
-from collections.abc import Callable, Iterable
+import threading
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -29,7 +31,7 @@ if TYPE_CHECKING:
     import can
 
     from hilrig.buslog import NodeDbc
-    from hilrig.trace import Tracer
+    from hilrig.trace import Tracer, TraceSink
 
 Value = float | int
 
@@ -132,4 +134,51 @@ def trace_log(
     return stats
 
 
-__all__ = ["LogTraceStats", "trace_log"]
+class LiveBusTrace:
+    """A can.Listener (duck-typed) that streams a live bus into a Rerun trace as it goes: the
+    frames are decoded by `trace_log` (PDO fields by the DBC, grouped by SYNC, EMCY, SDO aborts,
+    NMT) on a thread of its own, on the wall-clock timeline, into `sinks` (a viewer: spawn, web,
+    connect). `stop()` sends what is left and closes the trace; `stats` says what went in.
+    Python-can's notifier thread only queues each frame, so a slow viewer never stalls the
+    recording beside it."""
+
+    def __init__(
+        self, sinks: Sequence[TraceSink], dbc: NodeDbc, table: RigTable, node_id: int, name: str
+    ) -> None:
+        from hilrig.trace import Tracer
+
+        self.tracer = Tracer(list(sinks), table, clock="wall", recording_name=name)
+        self.stats = LogTraceStats()
+        self._frames: queue.SimpleQueue[can.Message | None] = queue.SimpleQueue()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(
+            target=self._run, args=(dbc, table, node_id), name="hilrig-live-trace", daemon=True
+        )
+        self._thread.start()
+
+    def _run(self, dbc: NodeDbc, table: RigTable, node_id: int) -> None:
+        try:
+            self.stats = trace_log(iter(self._frames.get, None), dbc, table, node_id, self.tracer)
+        except BaseException as error:  # reported by stop(), on the caller's thread
+            self._error = error
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self._frames.put(msg)
+
+    __call__ = on_message_received  # how can.Notifier calls its listeners
+
+    def on_error(self, exc: Exception) -> None:  # python-can's Listener interface
+        pass
+
+    def stop(self) -> None:
+        """End the stream: the frames queued so far go in, then the trace is closed."""
+        if self._thread.is_alive():
+            self._frames.put(None)
+            self._thread.join()
+        self.tracer.close()
+        if self._error is not None:
+            error, self._error = self._error, None
+            raise RuntimeError(f"the live trace failed: {error}") from error
+
+
+__all__ = ["LiveBusTrace", "LogTraceStats", "trace_log"]

@@ -9,6 +9,9 @@ growing in the served web viewer while the run is still going.
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -22,6 +25,7 @@ from test_web_viewer import (
     WAIT_S,
     free_port,
     wait_for_state,
+    wait_until_listening,
 )
 
 from hilrig.cli import main
@@ -32,6 +36,7 @@ from hilrig.trace import (
     WALL_TIME_TIMELINE,
     SinkKind,
     TraceSink,
+    ViewerProcess,
     live_sinks_from_environment,
     parse_live_sink,
     web_viewer_url,
@@ -198,3 +203,42 @@ def test_sim_streams_to_a_web_viewer_that_shows_the_recording_grow_while_it_runs
     assert (tmp_path / "out" / "trace.rrd").stat().st_size > 0, "the file is written beside the live sink"
     summary = (tmp_path / "out" / "summary.txt").read_text()
     assert web_viewer_url(web_port, grpc_port) in summary
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the server's file is a stream
+def test_record_streams_a_boards_pdos_live_to_a_viewer(tmp_path: Path) -> None:
+    """`hilrig record --viewer connect:URL` against the fake node (we are its master: NMT start,
+    SYNC): a Rerun server that saves what it receives gets the decoded fields on the wall clock."""
+    from hilrig.trace import entity_paths
+    from hilrig.trace_reader import Trace
+
+    table = RigTable.load()
+    saved = tmp_path / "viewer.rrd"
+    grpc_port = free_port()
+    server = [sys.executable, "-m", "rerun", "--serve-web", "--port", str(grpc_port)]
+    viewer = ViewerProcess(
+        [*server, "--web-viewer-port", str(free_port()), "--save", str(saved)],
+        process_group=0,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    channel = f"live-record-{os.getpid()}"
+    fake_bus = can.Bus(interface="virtual", channel=channel)
+    fake = FakeJointNode(fake_bus, table=table)
+    try:
+        wait_until_listening(grpc_port, viewer)
+        fake.boot()
+        bus = ["-i", "virtual", "-c", channel]
+        master = ["--nmt-start", "--sync-period-ms", "5", "--count", "300"]
+        live = ["--viewer", f"connect:rerun+http://127.0.0.1:{grpc_port}/proxy"]
+        code = main(["record", str(tmp_path / "bus.log"), *bus, *master, *live])
+        assert code == 0
+    finally:
+        fake.close()
+        fake_bus.shutdown()
+        viewer.send_signal(signal.SIGINT)  # the server finishes its file on Ctrl-C
+        viewer.wait(timeout=WAIT_S)
+    trace = Trace.read(saved)
+    motor_velocity = entity_paths(table)["motor_velocity"]
+    assert len(trace.scalars[motor_velocity]) > 10, sorted(trace.scalars)
+    assert min(trace.times[motor_velocity]) > 1e9, "stamped with the wall clock (Unix seconds)"

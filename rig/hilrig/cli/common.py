@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     import cantools.database
 
     from hilrig.node import BoardNode
+    from hilrig.trace import TraceSink
 
 REPO = Path(__file__).resolve().parents[3]
 DEFAULT_EDS = REPO / "build" / "protocol" / "board.eds"
@@ -208,6 +209,22 @@ def can_filter(text: str) -> CanFilter:
 
 
 # --- Option groups ---------------------------------------------------------------------
+def live_sink(text: str) -> TraceSink:
+    """A `--viewer` value: spawn[:PORT] | web[:PORT[:GRPC_PORT]] | connect[:URL]."""
+    from hilrig.trace import parse_live_sink
+
+    try:
+        return parse_live_sink(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+LIVE_VIEWER_HELP = (
+    "spawn[:PORT] (a native viewer), web[:PORT] (serve the web viewer, default port 9090), "
+    "connect[:URL] (a running viewer or `rerun --serve-web`, default rerun+http://127.0.0.1:9876/proxy)"
+)
+
+
 def add_table_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--table",

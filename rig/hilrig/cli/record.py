@@ -24,6 +24,7 @@ from hilrig.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_
 from hilrig.cli.common import (
     DBC_HINT,
     DEFAULT_DBC,
+    LIVE_VIEWER_HELP,
     CanFilter,
     Command,
     SyncProducer,
@@ -34,6 +35,7 @@ from hilrig.cli.common import (
     existing_file,
     format_unit,
     format_value,
+    live_sink,
     load_dbc,
     load_table,
     node_id,
@@ -46,6 +48,7 @@ from hilrig.cli.common import (
 if TYPE_CHECKING:
     import can
 
+    from hilrig.log_trace import LiveBusTrace
     from hilrig.table import RigTable
 
 PROGRESS_EVERY_S = 1.0
@@ -130,6 +133,21 @@ def configure_record(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="node for --nmt-start (default: from the table, 0x10)",
     )
+    parser.add_argument(
+        "--viewer",
+        action="append",
+        type=live_sink,
+        default=None,
+        metavar="WHERE",
+        help="also stream the recorded frames live to Rerun, PDO fields decoded with the DBC on the "
+        "wall-clock timeline (repeatable): " + LIVE_VIEWER_HELP + "; a web viewer serves while recording",
+    )
+    parser.add_argument(
+        "--dbc",
+        type=existing_file("DBC", DBC_HINT),
+        default=None,
+        help="--viewer: the DBC (default: build/protocol/board.dbc)",
+    )
     add_table_option(parser)
     add_bus_options(parser, filters=True)
 
@@ -143,8 +161,19 @@ def run_record(args: argparse.Namespace) -> int:
     interactive = sys.stderr.isatty()
     if args.nmt_start or args.sync_period_ms:
         import canopen  # noqa: F401  (seconds in the VM: import before frames are counted)
+    live = None
+    if args.viewer:
+        from hilrig.log_trace import LiveBusTrace
+
+        table = load_table(args)
+        node = args.node_id if args.node_id is not None else table.board.node.default_node_id
+        dbc = NodeDbc(load_dbc(args.dbc or DEFAULT_DBC), table, node)
+        progress("record: streaming live to " + ", ".join(map(str, args.viewer)) + " (importing rerun-sdk)")
+        live = LiveBusTrace(args.viewer, dbc, table, node, name=path.stem)
+        if live.tracer.web_url is not None:
+            progress(f"record: web viewer at {live.tracer.web_url}")
     with open_bus(args, receive_own_messages=True) as bus, whole_file_logger(path) as logger:
-        counter = _CountingSink(logger, args.count, args.filters)
+        counter = _CountingSink(logger if live is None else _Both(logger, live), args.count, args.filters)
         notifier = can.Notifier(bus, [counter])
         try:
             limit = " (Ctrl-C to stop)" if not (args.count or args.duration) else ""
@@ -169,8 +198,23 @@ def run_record(args: argparse.Namespace) -> int:
             notifier.stop()
             if interactive:
                 print(file=sys.stderr)
+            if live is not None:
+                live.stop()
     progress(f"record: {counter.count} frames written to {path}")
+    if live is not None:
+        progress(f"record: {live.stats.cycles} cycles, {live.stats.decoded} PDOs streamed live")
     return 0
+
+
+class _Both:
+    """Two listeners as one: the log file and the live trace get the same frames."""
+
+    def __init__(self, first: can.Listener, second: LiveBusTrace) -> None:
+        self.first, self.second = first, second
+
+    def on_message_received(self, message: can.Message) -> None:
+        self.first.on_message_received(message)
+        self.second.on_message_received(message)
 
 
 # --- replay ----------------------------------------------------------------------------
@@ -311,9 +355,7 @@ def _trace(args: argparse.Namespace) -> int:
         f"replay: {stats.frames} frames, {stats.cycles} cycles, {stats.decoded} PDOs decoded "
         f"({stats.undecodable} did not fit their DBC message), {stats.events} events -> {args.trace}"
     )
-    print(
-        f"hilrig view {args.trace}   # add --web on a machine without a display"
-    )
+    print(f"hilrig view {args.trace}   # add --web on a machine without a display")
     return 0
 
 

@@ -15,6 +15,7 @@ from hilrig.cli.common import (
     bus_config,
     eds_path,
     existing_file,
+    live_sink,
     node_id,
     positive_int,
     progress,
@@ -23,7 +24,6 @@ from hilrig.table import BOARD_TABLE
 
 if TYPE_CHECKING:
     from hilrig.faults import FaultSpec
-    from hilrig.trace import TraceSink
 
 
 def fault_spec(text: str) -> FaultSpec:
@@ -32,16 +32,6 @@ def fault_spec(text: str) -> FaultSpec:
     try:
         return FaultSpec.parse(text)
     except FaultSpecError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
-
-
-def live_sink(text: str) -> TraceSink:
-    """A `--viewer` value: spawn[:PORT] | web[:PORT] | connect[:URL] (the file is always written)."""
-    from hilrig.trace import parse_live_sink
-
-    try:
-        return parse_live_sink(text)
-    except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
