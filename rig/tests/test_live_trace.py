@@ -206,9 +206,11 @@ def test_sim_streams_to_a_web_viewer_that_shows_the_recording_grow_while_it_runs
 
 
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the server's file is a stream
-def test_record_streams_a_boards_pdos_live_to_a_viewer(tmp_path: Path) -> None:
-    """`hilrig record --viewer connect:URL` against the fake node (we are its master: NMT start,
-    SYNC): a Rerun server that saves what it receives gets the decoded fields on the wall clock."""
+@pytest.mark.parametrize("command", ["record", "watch"])
+def test_a_boards_pdos_stream_live_to_a_viewer(command: str, tmp_path: Path) -> None:
+    """`hilrig record|watch --viewer connect:URL` against the fake node (we are its master: NMT
+    start, SYNC): a Rerun server that saves what it receives gets the decoded fields on the wall
+    clock."""
     from hilrig.trace import entity_paths
     from hilrig.trace_reader import Trace
 
@@ -222,16 +224,19 @@ def test_record_streams_a_boards_pdos_live_to_a_viewer(tmp_path: Path) -> None:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-    channel = f"live-record-{os.getpid()}"
+    channel = f"live-{command}-{os.getpid()}"
     fake_bus = can.Bus(interface="virtual", channel=channel)
     fake = FakeJointNode(fake_bus, table=table)
     try:
         wait_until_listening(grpc_port, viewer)
         fake.boot()
         bus = ["-i", "virtual", "-c", channel]
-        master = ["--nmt-start", "--sync-period-ms", "5", "--count", "300"]
         live = ["--viewer", f"connect:rerun+http://127.0.0.1:{grpc_port}/proxy"]
-        code = main(["record", str(tmp_path / "bus.log"), *bus, *master, *live])
+        if command == "record":
+            argv = ["record", str(tmp_path / "bus.log"), "--count", "300"]
+        else:
+            argv = ["watch", "--pdo-from-eds", "--count", "5", "--interval", "0.2"]
+        code = main([*argv, *bus, "--nmt-start", "--sync-period-ms", "5", *live])
         assert code == 0
     finally:
         fake.close()

@@ -13,11 +13,14 @@ import argparse
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, TextIO
 
 from boardproto.table import BitSet, ValueEnum
 from hilrig.cli.common import (
+    DEFAULT_DBC,
+    LIVE_VIEWER_HELP,
     Command,
     SyncProducer,
     add_node_options,
@@ -25,18 +28,23 @@ from hilrig.cli.common import (
     check_names,
     format_unit,
     format_value,
+    live_sink,
+    load_dbc,
     load_table,
     open_bus,
     positive_float,
     positive_int,
     print_table,
+    progress,
     silent_hint,
 )
 from hilrig.errors import NodeSilentError, RigError, SdoTimeoutError
 from hilrig.table import ObjectEntry
 
 if TYPE_CHECKING:
+    from hilrig.log_trace import LiveBusTrace
     from hilrig.node import BoardNode
+    from hilrig.table import RigTable
     from hilrig.transport import PdoLayout
 
 CLEAR_LINE = "\x1b[2K"
@@ -178,6 +186,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="take the TPDO mapping from the EDS instead of reading it from the node",
     )
+    parser.add_argument(
+        "--viewer",
+        action="append",
+        type=live_sink,
+        default=None,
+        metavar="WHERE",
+        help="also stream the node's PDOs live to Rerun, decoded with the DBC (build/protocol/"
+        "board.dbc) on the wall-clock timeline (repeatable): " + LIVE_VIEWER_HELP,
+    )
     add_node_options(parser)
 
 
@@ -201,10 +218,12 @@ def run(args: argparse.Namespace) -> int:
         polled = [e.name for e in entries if e.name not in streamed]
         board = Board(entries, table.board.named_values)
         node.on_tpdo(board.on_tpdo)
+        live = _live_trace(args, node, table) if args.viewer else None
         if args.nmt_start:
             node.nmt(NmtCommand.START)
         screen = Screen(sys.stdout, in_place=sys.stdout.isatty() and not args.once and args.count != 1)
-        sync = SyncProducer(node.send_sync, args.sync_period_ms / 1e3) if args.sync_period_ms else None
+        send_sync = node.send_sync if live is None else _traced(node.send_sync, live)
+        sync = SyncProducer(send_sync, args.sync_period_ms / 1e3) if args.sync_period_ms else None
         if sync is not None:
             sync.__enter__()
         try:
@@ -212,6 +231,43 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if sync is not None:
                 sync.__exit__(None, None, None)
+            if live is not None:
+                notifier = node.network.notifier
+                if notifier is not None:
+                    notifier.remove_listener(live)
+                live.stop()
+
+
+def _traced(send_sync: Callable[[int], None], live: LiveBusTrace) -> Callable[[int], None]:
+    """Our own SYNCs into the live trace too (a bus does not hand a sender its own frames),
+    so it can group the TPDOs into cycles."""
+    import can
+
+    from boardproto.cia301 import SYNC_COB_ID
+
+    def send(counter: int) -> None:
+        send_sync(counter)
+        stamp = time.time()  # as python-can stamps received frames
+        live.on_message_received(
+            can.Message(arbitration_id=SYNC_COB_ID, data=[counter], is_extended_id=False, timestamp=stamp)
+        )
+
+    return send
+
+
+def _live_trace(args: argparse.Namespace, node: BoardNode, table: RigTable) -> LiveBusTrace:
+    """The node's frames into a live Rerun trace, from canopen's own receive thread."""
+    from hilrig.buslog import NodeDbc
+    from hilrig.log_trace import LiveBusTrace
+
+    dbc = NodeDbc(load_dbc(DEFAULT_DBC), table, node.node_id)
+    progress("watch: streaming live to " + ", ".join(map(str, args.viewer)) + " (importing rerun-sdk)")
+    live = LiveBusTrace(args.viewer, dbc, table, node.node_id, name=f"watch-node-{node.node_id}")
+    if live.tracer.web_url is not None:
+        progress(f"watch: web viewer at {live.tracer.web_url}")
+    assert node.network.notifier is not None  # BoardNode connected the network
+    node.network.notifier.add_listener(live)
+    return live
 
 
 def _title(args: argparse.Namespace, node: BoardNode, started: float) -> str:
