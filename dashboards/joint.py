@@ -122,6 +122,27 @@ def faults(table: RigTable) -> rrb.Blueprint:
     ), timeline=CYCLE_TIMELINE)
 
 
+def named_fields(table: RigTable) -> list[str]:
+    """Every board field some dashboard plots by name, in first-named order: what a trace must
+    hold for no plot to miss a series (`hilrig sim` polls the ones no PDO carries)."""
+    field_of = {path: name for name, path in entity_paths(table).items()}
+    names: dict[str, None] = {}
+
+    def walk(part: rrb.Container | rrb.View) -> None:
+        if isinstance(part, rrb.View):
+            contents = part.contents if isinstance(part.contents, list) else []
+            names.update((field_of[c], None) for c in contents if isinstance(c, str) and c in field_of)
+        else:
+            for child in part.contents:
+                walk(child)
+
+    for build in BLUEPRINTS.values():
+        root = build(table).root_container
+        if root is not None:
+            walk(root)
+    return list(names)
+
+
 BLUEPRINTS: dict[str, Callable[[RigTable], rrb.Blueprint]] = {
     "overview": overview,
     "tuning": tuning,

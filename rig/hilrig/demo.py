@@ -103,6 +103,9 @@ class DemoOptions:
     executable: Path = DEFAULT_EXECUTABLE
     eds: Path = DEFAULT_EDS_PATH
     faults: FaultPlan = field(default_factory=FaultPlan)
+    poll_every: int = 100
+    """With a trace: every how many cycles the fields a dashboard plots but no PDO carries are
+    read over SDO into it (0: never)."""
     live: tuple[TraceSink, ...] = ()
     """Where the trace also streams while the run goes (spawn, web, connect), beside trace.rrd."""
     board: BoardInterface | None = None
@@ -225,6 +228,19 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
                 on_event=lambda e: progress(f"sim: t = {e.time_s:.3f} s  fault {e.text}"),
             )
             injector.install()
+        if options.trace and options.poll_every > 0:
+            from hilrig.trace import dashboard_fields
+
+            driver = rig.driver
+            slow = [
+                name
+                for name in dashboard_fields(table)
+                if name not in driver.tpdo_names() and driver.rpdo_of(name) is None
+            ]
+            if slow:
+                rig.poll_over_sdo(slow, every_cycles=options.poll_every)
+                every = options.poll_every
+                progress(f"sim: reading {', '.join(slow)} over SDO every {every} cycles (in no PDO)")
         progress("sim: node operational, running the scenario")
         cycling_started = time.monotonic()
         try:

@@ -22,7 +22,7 @@ from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.node import BoardNode
 from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
 from hilrig.table import unknown_name
-from hilrig.transport import FrameLink, PdoLayout, can_frame
+from hilrig.transport import FrameLink, PdoDirection, PdoLayout, can_frame
 
 Value = float | int
 PdoRow = tuple[PdoLayout, tuple[Value, ...]]
@@ -64,6 +64,14 @@ def resolve_truth_name(name: str) -> str:
     if name in TRUTH_ALIASES:
         return TRUTH_ALIASES[name]
     raise unknown_name("ground-truth quantity", name, (*TRUTH_NAMES, *TRUTH_ALIASES))
+
+
+def sdo_poll_layout(names: tuple[str, ...]) -> PdoLayout:
+    """The history's row layout of fields read over SDO (`Rig.poll_over_sdo`): a TPDO-like
+    record with no COB-ID (number 0, disabled), so it is stored and traced like received PDOs."""
+    return PdoLayout(
+        direction=PdoDirection.TPDO, number=0, cob_id=0, enabled=False, transmission_type=255, names=names
+    )
 
 
 # --- History --------------------------------------------------------------------------------
@@ -530,6 +538,7 @@ __all__ = [
     "HistoryMark",
     "PdoRow",
     "resolve_truth_name",
+    "sdo_poll_layout",
     "sync_counter",
     "sync_frame",
 ]

@@ -24,7 +24,7 @@ import enum
 import heapq
 import itertools
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
@@ -35,7 +35,7 @@ import numpy as np
 from canopen.emcy import EmcyError
 
 from boardproto.cia301 import NmtCommand, NmtState
-from hilrig.driver import Driver, resolve_truth_name
+from hilrig.driver import Driver, resolve_truth_name, sdo_poll_layout
 from hilrig.errors import FieldAccessError, NoValueError, ScenarioTimeoutError, SdoAbortError
 from hilrig.lockstep import LockstepDriver, cycles_for
 from hilrig.node import BoardNode, EmcyRecord
@@ -46,6 +46,7 @@ from hilrig.table import RigTable
 
 if TYPE_CHECKING:  # hilrig.trace imports rerun (slow) only when a Tracer is made
     from hilrig.trace import Tracer
+    from hilrig.transport import PdoLayout
 
 DEFAULT_EDS_PATH = Path(__file__).resolve().parents[2] / "build" / "protocol" / "board.eds"
 """The EDS generated from protocol/board.toml in this checkout's build tree."""
@@ -138,6 +139,7 @@ class Rig:
         self._cycle_hooks: list[Event] = []
         self.node.on_emcy(self._on_emcy)
         self.observers: list[RigObserver] = []
+        self._polled: tuple[PdoLayout, int] | None = None  # Rig.poll_over_sdo: (names, every)
         self._heartbeat_state: NmtState | None = None
         self.node.remote.nmt.add_heartbeat_callback(self._on_heartbeat_state)
         self.tracer = tracer
@@ -148,7 +150,34 @@ class Rig:
         """Let `observer` watch every later cycle and event (`hilrig.observers`)."""
         observer.on_params(self.params)
         observer.on_history(self.driver.history)
+        if self._polled is not None:
+            observer.on_polled(self._polled[0].names, self._polled[1])
         self.observers.append(observer)
+
+    def poll_over_sdo(self, names: Sequence[str], every_cycles: int) -> None:
+        """Read these fields (which travel in no PDO) over SDO after every `every_cycles`-th
+        cycle, into the history (`rig.history(name)`) and so into the trace, marked as polled.
+        Each read is an SDO round trip between two cycles: in lockstep it costs wall time, not
+        simulation time. Replaces an earlier poll; no names: stop polling."""
+        if every_cycles < 1:
+            raise ValueError(f"every_cycles: expected >= 1, got {every_cycles}")
+        self.table.check(names)
+        streamed = sorted(set(names) & self.driver.tpdo_names())
+        if streamed:
+            raise ValueError(f"{', '.join(streamed)}: in a TPDO already, every cycle it is due")
+        if not names:
+            self._polled = None
+            return
+        self._polled = (sdo_poll_layout(tuple(names)), every_cycles)
+        for observer in self.observers:
+            observer.on_polled(tuple(names), every_cycles)
+
+    def _poll(self, cycle: int) -> None:
+        assert self._polled is not None
+        layout, every = self._polled
+        if cycle % every == 0:
+            values = tuple(self.read(name) for name in layout.names)
+            self.driver.history.record_rows(cycle, ((layout, values),), ())
 
     def log_event(self, path: str, text: str, *, warning: bool = True) -> None:
         """A line on the observers' timeline (e.g. an injected fault under /events/faults)."""
@@ -269,6 +298,8 @@ class Rig:
         for hook in self._cycle_hooks:
             hook(self)
         result = self.driver.step()
+        if self._polled is not None:
+            self._poll(result.cycle)
         for observer in self.observers:
             observer.on_cycle(result)
 

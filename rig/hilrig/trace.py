@@ -338,6 +338,7 @@ class Tracer(RigObserver):
         self._params: JointParams | None = None
         self._paths = self._entity_paths(table)
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
+        self._polled: dict[str, int] = {}  # field -> every how many cycles it is read over SDO
         # Entities whose values have names (board.toml enums and bitsets): each change of value
         # also goes in as a TextLog at <entity>/label, so the viewer shows "velocity" beside 1.
         self._value_names: dict[str, ValueEnum | BitSet] = {
@@ -450,6 +451,10 @@ class Tracer(RigObserver):
         if self.cycles_logged == 0 and self._history is None:
             self._history = history
             self._history_mark = history.mark()
+
+    def on_polled(self, names: tuple[str, ...], every_cycles: int) -> None:
+        with self._lock:
+            self._polled.update(dict.fromkeys(names, every_cycles))
 
     def on_cycle(self, result: CycleResult) -> None:
         if self._history is None:
@@ -728,7 +733,9 @@ class Tracer(RigObserver):
         name = path.rsplit("/", 1)[-1]
         if path.startswith(TRUTH_ROOT):
             return f"true {name} [{truth_unit(name)}]"
-        return f"{name} [{self.table.entry(name).unit}]"
+        every = self._polled.get(name)
+        polled = f" (SDO, every {every} cycles)" if every is not None else ""
+        return f"{name} [{self.table.entry(name).unit}]{polled}"
 
 
 def _matrix(rows: Iterable[Sequence[Value]], width: int, count: int | None = None) -> np.ndarray:
@@ -782,6 +789,12 @@ def _dashboards() -> Any:
 def load_blueprint(name: str) -> rrb.Blueprint:
     """The dashboards/ blueprint called `name` (FieldNameError with close matches otherwise)."""
     return _dashboards().blueprint(name)
+
+
+def dashboard_fields(table: RigTable) -> list[str]:
+    """Every board field a dashboard plots by name (`dashboards.joint.named_fields`)."""
+    names: list[str] = _dashboards().named_fields(table)
+    return names
 
 
 def blueprint_names() -> tuple[str, ...]:
@@ -894,6 +907,7 @@ __all__ = [
     "Tracer",
     "ViewerProcess",
     "blueprint_names",
+    "dashboard_fields",
     "entity_paths",
     "field_path",
     "kind_path",

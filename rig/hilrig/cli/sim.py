@@ -107,6 +107,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "(the data lives in this process; default: yes)",
     )
     trace.add_argument(
+        "--poll-every",
+        type=int,
+        default=100,
+        metavar="N",
+        help="read the fields a dashboard plots but no PDO carries (the spring constant estimate, "
+        "thermal limits...) over SDO every N cycles into the trace (default: 100; 0: never)",
+    )
+    trace.add_argument(
         "--no-trace", action="store_true", help="no trace at all (faster start: no rerun import)"
     )
     parser.add_argument(
@@ -136,6 +144,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--viewer streams the trace, --no-trace makes none: choose one")
     if args.no_trace:
         live = []
+    if args.poll_every < 0:
+        raise UsageError(f"--poll-every: expected a number of cycles >= 0, got {args.poll_every}")
     board = None
     if args.board:
         config = bus_config(args)  # python-can's configuration fills what the options leave out
@@ -154,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
         trace=not args.no_trace,
         live=tuple(live),
         board=board,
+        poll_every=args.poll_every,
     )
     summary = run_demo(options, progress=progress)
     text = format_summary(summary)
