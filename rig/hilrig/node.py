@@ -68,6 +68,7 @@ class SdoAbortCode(enum.IntEnum):
     OBJECT_DOES_NOT_EXIST = 0x0602_0000
     OBJECT_CANNOT_BE_MAPPED = 0x0604_0041
     PDO_LENGTH_EXCEEDED = 0x0604_0042
+    PARAMETER_INCOMPATIBLE = 0x0604_0043
     LENGTH_MISMATCH = 0x0607_0010
     LENGTH_TOO_HIGH = 0x0607_0012
     LENGTH_TOO_LOW = 0x0607_0013
@@ -96,6 +97,7 @@ _ABORT_WORDS: dict[SdoAbortCode, str] = {
     SdoAbortCode.OBJECT_DOES_NOT_EXIST: "no such object in the node's dictionary",
     SdoAbortCode.OBJECT_CANNOT_BE_MAPPED: "object cannot be mapped to a PDO",
     SdoAbortCode.PDO_LENGTH_EXCEEDED: "mapping exceeds the 64 bits of a PDO",
+    SdoAbortCode.PARAMETER_INCOMPATIBLE: "settings that do not fit together (e.g. arming a recorder without channels)",
     SdoAbortCode.LENGTH_MISMATCH: "data length does not match the object's type",
     SdoAbortCode.LENGTH_TOO_HIGH: "data longer than the object's type",
     SdoAbortCode.LENGTH_TOO_LOW: "data shorter than the object's type",
