@@ -97,7 +97,7 @@ _ABORT_WORDS: dict[SdoAbortCode, str] = {
     SdoAbortCode.OBJECT_DOES_NOT_EXIST: "no such object in the node's dictionary",
     SdoAbortCode.OBJECT_CANNOT_BE_MAPPED: "object cannot be mapped to a PDO",
     SdoAbortCode.PDO_LENGTH_EXCEEDED: "mapping exceeds the 64 bits of a PDO",
-    SdoAbortCode.PARAMETER_INCOMPATIBLE: "settings that do not fit together (e.g. arming a recorder without channels)",
+    SdoAbortCode.PARAMETER_INCOMPATIBLE: "settings that do not fit together (a recorder without channels...)",
     SdoAbortCode.LENGTH_MISMATCH: "data length does not match the object's type",
     SdoAbortCode.LENGTH_TOO_HIGH: "data longer than the object's type",
     SdoAbortCode.LENGTH_TOO_LOW: "data shorter than the object's type",
