@@ -274,7 +274,10 @@ std::size_t Recorder::header(std::array<std::uint8_t, kMaxHeaderBytes>& out) con
   const std::size_t channels = done ? active_.channel_count : 0;
   const std::size_t bytes = layout::header_bytes(channels);
   auto put = [&](std::size_t offset, std::size_t size, std::uint32_t value) {
-    tables::put_le(std::span(out).subspan(offset, size), value);
+    // Little-endian; bounded by the array itself (GCC cannot tell that channels <= kMaxChannels).
+    for (std::size_t i = 0; i < size && offset + i < out.size(); ++i) {
+      out[offset + i] = static_cast<std::uint8_t>(value >> (8 * i));
+    }
   };
   put(layout::kVersionOffset, 1, layout::kLayoutVersion);
   put(layout::kChannelCountOffset, 1, static_cast<std::uint32_t>(channels));
