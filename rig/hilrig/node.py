@@ -306,6 +306,23 @@ class BoardNode:
             f"write {name}", entry, lambda: self.remote.sdo.download(entry.index, entry.subindex, data)
         )
 
+    def download_raw(self, index: int, subindex: int, data: bytes, what: str) -> None:
+        """Download bytes to any object (the recorder's settings); a refusal is SdoAbortError."""
+        self._call_sdo(what, None, lambda: self.remote.sdo.download(index, subindex, data))
+
+    def upload_raw(self, index: int, subindex: int, what: str) -> bytes:
+        """Upload any object's bytes; a refusal is SdoAbortError."""
+        return self._upload(index, subindex, what)
+
+    def block_upload(self, index: int, subindex: int, what: str) -> bytes:
+        """Upload by SDO block transfer (CiA 301, with CRC): for large values (a DOMAIN)."""
+
+        def transfer() -> bytes:
+            with self.remote.sdo.open(index, subindex, "rb", block_transfer=True) as stream:
+                return bytes(stream.read())
+
+        return self._call_sdo(what, None, transfer)
+
     def _upload(self, index: int, subindex: int, what: str, entry: ObjectEntry | None = None) -> bytes:
         return self._call_sdo(what, entry, lambda: self.remote.sdo.upload(index, subindex))
 

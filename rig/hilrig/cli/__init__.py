@@ -5,6 +5,7 @@
     hilrig get motor_velocity velocity_kp     # SDO, values with units
     hilrig set velocity_kp=0.2                # SDO; a refusal is explained in words
     hilrig watch --sync-period-ms 10          # live table of the TPDO fields
+    hilrig capture motor_velocity --samples 2000   # the board's recorder: every cycle, uploaded
     hilrig scan                               # which nodes are on the bus
     hilrig record bus.log / replay bus.log --decode
     hilrig sim --out out/demo                 # firmware + physics in lockstep, a summary
@@ -39,6 +40,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "dbc",
     "sdo",
     "watch",
+    "capture",
     "scan",
     "record",
     "sim",
