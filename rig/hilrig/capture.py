@@ -14,8 +14,10 @@ by SDO block transfer, and write it as a CSV and a Rerun trace that looks like a
 
 What the objects mean is board.toml's [recorder]; the recording's bytes are
 `boardproto.recording`. Sample k was taken at the firmware's control cycle
-`recording.cycle_of(k)`: in lockstep the rig's cycle numbers, so a capture and a trace of the
-same run line up on the `cycle` timeline.
+`recording.cycle_of(k)`. In lockstep that number counts the SYNCs the firmware process has seen
+(every SYNC runs a cycle, pre-operational too), while the rig numbers its cycles from 0: when
+the rig sent every SYNC since the firmware started, firmware cycle c is the rig's cycle c - 1
+(whose TPDOs carry what the recorder sampled at the end of cycle c).
 """
 
 from __future__ import annotations
