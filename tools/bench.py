@@ -21,6 +21,9 @@ What is measured, and against what:
 * Firmware cycle cost: fw_board_bench (Google Benchmark) ratios, and the instructions of one
   control cycle under callgrind (`fw_cycle_count`): the real demo joint, the benchmark's
   stand-ins on the core board, and the same stand-ins on the naive unordered_map board.
+* Field recorder cost: the instructions of its end-of-cycle call under callgrind, armed with 8
+  channels (a sample every cycle and a level trigger looked at, its dearest state) next to
+  idle, and the armed cost as a share of the demo joint's cycle.
 * Bus load: `hilrig.busload` for the default PDO mapping at 1 kHz.
 * Free-running timing: the firmware in `--mode free`, no SYNC on the bus. Over SDO the rig
   turns the TPDO carrying velocity_controller_output into an event-driven one (type 255,
@@ -122,6 +125,11 @@ def machine() -> dict[str, Any]:
 # --- native part: fw_board_bench and callgrind --------------------------------------------------
 
 CALLGRIND_CYCLES = 2000
+# fw_cycle_count's loops: the demo joint, the stand-ins on the core and on the naive board, and
+# the field recorder's end-of-cycle call idle and armed with 8 channels.
+CALLGRIND_LOOPS = ("demo", "core", "naive", "recorder_idle", "recorder_armed")
+RECORDER_IDLE_GOAL = 10  # instructions per cycle: an idle recorder is a comparison
+RECORDER_ARMED_SHARE_GOAL = 0.10  # of the demo joint's cycle, 8 channels armed
 
 
 def run_board_bench(out: Path) -> dict[str, float]:
@@ -177,7 +185,7 @@ def native_main(args: argparse.Namespace) -> int:
     else:
         say(f"instruction counts under callgrind ({CALLGRIND_CYCLES} cycles per loop, minus a 0-cycle run)")
         per_cycle = {}
-        for loop in ("demo", "core", "naive"):
+        for loop in CALLGRIND_LOOPS:
             total = callgrind_instructions(out, loop, CALLGRIND_CYCLES)
             empty = callgrind_instructions(out, loop, 0)
             per_cycle[loop] = (total - empty) / CALLGRIND_CYCLES
@@ -683,6 +691,31 @@ def _ratio(a: float, b: float) -> float:
     return a / b if b else float("nan")
 
 
+def _recorder_rows(row: Callable[..., None], ipc: dict[str, float]) -> None:
+    """The field recorder's cost per cycle: armed (8 channels) vs idle, and vs a demo cycle.
+    A native.json of an older run has no recorder loops: no rows then."""
+    if "recorder_armed" not in ipc or "recorder_idle" not in ipc:
+        return
+    armed, idle, demo = ipc["recorder_armed"], ipc["recorder_idle"], ipc["demo"]
+    row(
+        "instructions/cycle: recorder 8 channels armed vs idle",
+        f"{armed:.0f}",
+        f"{idle:.0f}",
+        _ratio(armed, idle),
+        f"idle <= {RECORDER_IDLE_GOAL}",
+        idle <= RECORDER_IDLE_GOAL,
+    )
+    share = _ratio(armed, demo)
+    row(
+        "instructions/cycle: recorder 8 channels armed vs demo joint",
+        f"{armed:.0f}",
+        f"{demo:.0f}",
+        share,
+        f"<= {RECORDER_ARMED_SHARE_GOAL:.0%}",
+        share <= RECORDER_ARMED_SHARE_GOAL,
+    )
+
+
 def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> dict[str, Any]:
     rows: list[dict[str, Any]] = []
 
@@ -795,6 +828,7 @@ def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> 
             f"{ipc['naive']:.0f}",
             _ratio(ipc["core"], ipc["naive"]),
         )
+        _recorder_rows(row, ipc)
     load = bus["bus_load"]
     for item in load["loads"]:
         mbit = item["bitrate"] / 1e6

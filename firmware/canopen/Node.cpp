@@ -257,6 +257,7 @@ void Node::apply_power_on_values() {
   // The platform resets its components, board and registers first; what the node holds
   // follows. A HIL input's register is the application's; the node keeps what reads show.
   if (application_reset_ != nullptr) application_reset_->reset_application();
+  if (recorder_ != nullptr) recorder_->reset();
   for (std::size_t i = 0; i < board::kFieldCount; ++i) {
     const board::FieldInfo& field = board::kFields[i];
     if (field.access != board::Access::ReadWrite) continue;

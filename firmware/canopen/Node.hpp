@@ -17,6 +17,7 @@
 #include "Emcy.hpp"
 #include "Interfaces.hpp"
 #include "ParameterImage.hpp"
+#include "Recorder.hpp"
 #include "SdoAbort.hpp"
 #include "SdoServer.hpp"
 #include "board/fields.hpp"
@@ -157,6 +158,11 @@ class Node final {
   // the HIL inputs' read-back). Must outlive the node.
   void set_application_reset(ApplicationReset* reset) { application_reset_ = reset; }
 
+  // The field recorder whose objects (board.toml's [recorder]) the node serves; the platform
+  // owns it (static memory) and feeds it a sample after every control cycle. Without one those
+  // objects do not exist. Reset node resets it. Must outlive the node.
+  void set_recorder(Recorder* recorder) { recorder_ = recorder; }
+
   NmtState state() const { return state_; }
   std::uint8_t node_id() const { return node_id_; }
   std::uint8_t error_register() const { return error_register_; }
@@ -165,11 +171,11 @@ class Node final {
   std::uint16_t heartbeat_period_ms() const { return heartbeat_ms_; }
 
  private:
-  enum class Target : std::uint8_t { Communication, Field, HilInput, HilOutput };
+  enum class Target : std::uint8_t { Communication, Field, HilInput, HilOutput, Recorder };
   // One (index, sub-index) of the object dictionary as the SDO server and PDOs see it.
   struct Entry {
     board::DataType type = board::DataType::Unsigned32;
-    std::uint8_t size = 0;  // bytes
+    std::uint8_t size = 0;  // bytes (0: a string or DOMAIN, sized by its value)
     bool readable = true;
     bool writable = false;
     Target target = Target::Communication;
@@ -298,6 +304,7 @@ class Node final {
 
   ParameterLoad parameter_load_ = ParameterLoad::NotAttempted;
   ApplicationReset* application_reset_ = nullptr;
+  Recorder* recorder_ = nullptr;
   std::array<std::byte, parameter_image::kCapacity> image_{};
   std::array<parameter_image::StoredValue, parameter_image::kMaxEntries> staged_{};
   NodeCounters counters_;

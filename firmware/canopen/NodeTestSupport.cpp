@@ -59,6 +59,7 @@ std::uint16_t index_of(board::HilOutputId id) {
 }
 
 void NodeTest::SetUp() {
+  node.set_recorder(&recorder);
   node.start(now_us);
   port.clear_sent();  // the boot-up message has its own test
   // Heartbeats would interleave with the frames a test scripts; HeartbeatTest turns them on.

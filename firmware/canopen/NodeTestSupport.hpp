@@ -93,6 +93,7 @@ class NodeTest : public ::testing::Test {
   FakeBoard fields;
   FakeHil hil;
   MemoryStorage storage;
+  Recorder recorder;  // served by the node (set in SetUp); tests feed it samples themselves
   Node node{kNodeId, port, fields, hil, storage, kSerial};
   std::uint32_t now_us = 1'000;
 };

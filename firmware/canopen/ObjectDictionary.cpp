@@ -94,6 +94,15 @@ SdoAbort Node::find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) c
     return SdoAbort::SubIndexDoesNotExist;
   }
 
+  if (recorder_ != nullptr && Recorder::is_recorder_object(index)) {
+    DataType type = DataType::Unsigned8;
+    bool writable = false;
+    if (const SdoAbort found = Recorder::find(index, sub, type, writable); found != SdoAbort::None) {
+      return found;
+    }
+    entry = {type, tables::size_of(type), true, writable, Target::Recorder, 0};
+    return SdoAbort::None;
+  }
   if (const auto field = tables::field_at(index)) {
     if (sub != 0) return SdoAbort::SubIndexDoesNotExist;
     entry = {DataType::Real32, 4, true, board::info(*field).access == board::Access::ReadWrite,
@@ -220,6 +229,15 @@ SdoAbort Node::read(std::uint16_t index, std::uint8_t sub, std::span<std::uint8_
     case Target::HilOutput:
       raw = static_cast<std::uint32_t>(hil_.read_output(static_cast<board::HilOutputId>(entry.id)));
       break;
+    case Target::Recorder:
+      if (entry.type == DataType::Domain) {
+        std::size_t total = 0;
+        const SdoAbort result = recorder_->read_data(0, out, length, total);
+        if (result == SdoAbort::None && total > length) return SdoAbort::OutOfMemory;
+        return result;
+      }
+      raw = recorder_->read(index, sub);
+      break;
     case Target::Communication:
       if (entry.type == DataType::VisibleString) {
         const std::string_view text = string_value(index);
@@ -235,8 +253,13 @@ SdoAbort Node::read(std::uint16_t index, std::uint8_t sub, std::span<std::uint8_
 
 SdoAbort Node::read_at(std::uint16_t index, std::uint8_t sub, std::size_t offset,
                        std::span<std::uint8_t> out, std::size_t& length, std::size_t& total_size) {
-  // Every object here is small: read it whole and hand out the part asked for. A DOMAIN larger
-  // than the SDO buffer would serve its bytes from where it keeps them instead.
+  // The recorder's DOMAIN is served from its sample memory, by offset.
+  if (recorder_ != nullptr && index == board::recorder::kData) {
+    Entry entry;
+    if (const SdoAbort found = find_entry(index, sub, entry); found != SdoAbort::None) return found;
+    return recorder_->read_data(offset, out, length, total_size);
+  }
+  // Every other object is small: read it whole and hand out the part asked for.
   std::array<std::uint8_t, SdoServer::kBufferBytes> value{};
   std::size_t size = 0;
   if (const SdoAbort result = read(index, sub, value, size); result != SdoAbort::None) return result;
@@ -261,6 +284,7 @@ SdoAbort Node::write(std::uint16_t index, std::uint8_t sub, std::span<const std:
     case Target::HilInput:
       return write_hil_input(static_cast<board::HilInputId>(entry.id), raw);
     case Target::HilOutput: return SdoAbort::ReadOnly;
+    case Target::Recorder: return recorder_->write(index, sub, raw);
     case Target::Communication: break;
   }
   return write_communication(index, sub, raw, now_us);

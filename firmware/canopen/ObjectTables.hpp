@@ -37,7 +37,8 @@ constexpr std::uint8_t size_of(board::DataType type) {
     case board::DataType::Integer32:
     case board::DataType::Unsigned32:
     case board::DataType::Real32: return 4;
-    case board::DataType::VisibleString: return 0;
+    case board::DataType::VisibleString:
+    case board::DataType::Domain: return 0;  // sized by the object, not the type
   }
   return 0;
 }

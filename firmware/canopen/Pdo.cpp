@@ -43,6 +43,7 @@ SdoAbort Node::resolve_mapping(std::uint32_t entry, bool is_rpdo, MappedObject& 
     case Target::HilInput: mappable = is_rpdo; break;
     case Target::HilOutput: mappable = !is_rpdo; break;
     case Target::Communication: mappable = !is_rpdo && index == 0x1001; break;  // error register
+    case Target::Recorder: break;  // settings and a recording: SDO only
   }
   // Whole objects only: the bit length must be the object's.
   if (!mappable || bits != object.size * 8u) return SdoAbort::ObjectCannotBeMapped;

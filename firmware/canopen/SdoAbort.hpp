@@ -20,6 +20,8 @@ enum class SdoAbort : std::uint32_t {
   ObjectDoesNotExist = 0x0602'0000,
   ObjectCannotBeMapped = 0x0604'0041,
   PdoLengthExceeded = 0x0604'0042,     // mapped objects exceed the 64 bits of a PDO
+  ParameterIncompatible = 0x0604'0043, // general parameter incompatibility (settings that do
+                                       // not fit together, e.g. arming a recorder without channels)
   LengthMismatch = 0x0607'0010,
   LengthTooHigh = 0x0607'0012,
   LengthTooLow = 0x0607'0013,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from boardproto.loader import TableError
+from boardproto.recording import FIXED_HEADER_BYTES, HEADER_FIELDS, LAYOUT_VERSION
 from boardproto.table import (
     BitSet,
     BoardTable,
@@ -13,6 +14,10 @@ from boardproto.table import (
     FlagBit,
     HilIo,
     Pdo,
+    Recorder,
+    RecorderObject,
+    RecorderStatusSub,
+    RecorderTriggerSub,
     ValueEnum,
     camel_case,
 )
@@ -107,6 +112,7 @@ _FIXED_TYPE_NAMES = frozenset(
         "EmcyId",
         "EmcyInfo",
         "FlagInfo",
+        "RecorderInfo",
     }
 )
 
@@ -155,8 +161,21 @@ def _check_cpp_names(table: BoardTable) -> None:
             enumerators[cpp_name] = member
 
 
+# The recorder objects that carry its enums' values (the loader requires these enums).
+_RECORDER_CARRIERS = {
+    "recorder_state": (RecorderObject.STATE, 0),
+    "recorder_trigger": (RecorderObject.TRIGGER, RecorderTriggerSub.SOURCE),
+    "recorder_edge": (RecorderObject.TRIGGER, RecorderTriggerSub.EDGE),
+}
+
+
 def _carried_by(table: BoardTable, name: str) -> str:
     carriers = [f"{e.name} (0x{e.index:04X})" for e in table.entries if e.values == name]
+    if table.recorder is not None and name in _RECORDER_CARRIERS:
+        recorder_object, sub = _RECORDER_CARRIERS[name]
+        carriers.append(
+            f"{recorder_object.object_name} (0x{table.recorder.index_of(recorder_object):04X} sub {sub})"
+        )
     return ", ".join(carriers) or "no field yet"
 
 
@@ -371,6 +390,99 @@ struct FlagInfo {{
 """
 
 
+def _constants(type_name: str, items: list[tuple[str, int, str]], width: int = 4) -> str:
+    """`inline constexpr <type> k<Name> = 0x...;  // comment` lines."""
+    spelled = [(name, str(value) if width == 0 else f"0x{value:0{width}X}") for name, value, _ in items]
+    lines = [f"inline constexpr {type_name} k{camel_case(name)} = {value};" for name, value in spelled]
+    column = max(len(line) for line in lines)
+    return "\n".join(
+        f"{line:<{column}}  // {comment}" if comment else line
+        for line, (_, _, comment) in zip(lines, items, strict=True)
+    )
+
+
+_RECORDER_OBJECT_COMMENTS = {
+    RecorderObject.STATE: "UNSIGNED8 rw: a RecorderState; write Armed to (re-)arm, Idle to stop",
+    RecorderObject.CHANNELS: "ARRAY rw: sub 0 channels in use, sub n a field's object index",
+    RecorderObject.DIVIDER: "UNSIGNED16 rw: one sample every n-th control cycle",
+    RecorderObject.SAMPLES: "UNSIGNED32 rw: samples per recording",
+    RecorderObject.TRIGGER: "RECORD rw: sub-indices in recorder::trigger_sub",
+    RecorderObject.STATUS: "RECORD ro: sub-indices in recorder::status_sub",
+    RecorderObject.DATA: "DOMAIN ro: the recording (layout in recorder::recording)",
+}
+
+
+def _recorder_section(recorder: Recorder) -> str:
+    objects = _constants(
+        "std::uint16_t",
+        [(o.name.lower(), recorder.index_of(o), _RECORDER_OBJECT_COMMENTS[o]) for o in RecorderObject],
+    )
+    trigger = _constants(
+        "std::uint8_t",
+        [(s.name.lower(), int(s), "") for s in RecorderTriggerSub]
+        + [("highest", max(RecorderTriggerSub), "sub 0 reads this")],
+        width=0,
+    )
+    status = _constants(
+        "std::uint8_t",
+        [(s.name.lower(), int(s), "") for s in RecorderStatusSub]
+        + [("highest", max(RecorderStatusSub), "sub 0 reads this")],
+        width=0,
+    )
+    offsets = "\n".join(
+        f"inline constexpr std::size_t k{camel_case(name)}Offset = {offset};  // {ctype}"
+        for name, offset, ctype in HEADER_FIELDS
+    )
+    return f"""// ---------------------------------------------------------------------------
+// Field recorder ([recorder] in board.toml): samples chosen board fields at the end of every
+// control cycle into static memory around a trigger; the host uploads the recording (DOMAIN).
+// Its states, trigger sources and edges are the [[enum]]s RecorderState, RecorderTrigger and
+// RecorderEdge above.
+// ---------------------------------------------------------------------------
+struct RecorderInfo {{
+  std::uint16_t index;            // the first object (recorder_state); the rest follow
+  std::uint8_t max_channels;      // channel array sub-indices 1..max_channels
+  std::uint32_t buffer_values;    // REAL32 values of sample memory (samples * channels)
+  std::uint32_t default_samples;  // samples per recording at power-on
+}};
+
+inline constexpr RecorderInfo kRecorder = {{
+    .index = 0x{recorder.index:04X},
+    .max_channels = {recorder.max_channels},
+    .buffer_values = {recorder.buffer_values},
+    .default_samples = {recorder.default_samples},
+}};
+
+namespace recorder {{
+// Object indices.
+{objects}
+
+// Sub-indices of the trigger record.
+namespace trigger_sub {{
+{trigger}
+}}  // namespace trigger_sub
+
+// Sub-indices of the status record.
+namespace status_sub {{
+{status}
+}}  // namespace status_sub
+
+// The bytes of recorder_data (protocol/boardproto/recording.py), little-endian: the fixed header
+// at these offsets, then the channels' field indices (UNSIGNED16 each) from kChannelsOffset,
+// then from header_bytes on the samples (REAL32 [samples][channels], oldest first).
+namespace recording {{
+inline constexpr std::uint8_t kLayoutVersion = {LAYOUT_VERSION};
+inline constexpr std::size_t kFixedHeaderBytes = {FIXED_HEADER_BYTES};
+{offsets}
+// Where sample 0 starts: the fixed header and the channel indices, rounded up to 4 bytes.
+constexpr std::size_t header_bytes(std::size_t channels) {{
+  return (kFixedHeaderBytes + 2 * channels + 3) / 4 * 4;
+}}
+}}  // namespace recording
+}}  // namespace recorder
+"""
+
+
 def generate_header(table: BoardTable) -> str:
     """The whole header text. Deterministic: same table, same bytes."""
     _check_cpp_names(table)
@@ -532,5 +644,5 @@ inline constexpr std::array<PdoDefault, kTpdoCount> kDefaultTpdos = {{{{
 
 {_emcy_section(table)}
 {_values_section(table)}
-}}  // namespace board
+{"" if table.recorder is None else _recorder_section(table.recorder)}}}  // namespace board
 """

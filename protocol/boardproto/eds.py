@@ -31,7 +31,18 @@ from canopen.objectdictionary import (
 )
 
 from boardproto.cpp_header import GENERATED_BANNER
-from boardproto.table import BoardTable, DataType, Field, HilIo, Pdo, PdoDirection
+from boardproto.table import (
+    BoardTable,
+    DataType,
+    Field,
+    HilIo,
+    Pdo,
+    PdoDirection,
+    Recorder,
+    RecorderObject,
+    RecorderStatusSub,
+    RecorderTriggerSub,
+)
 
 # StorageLocation values (a CANopenNode convention; CiA 306 leaves the key free):
 # stored fields survive a reset once 0x1010 sub 1 was written, the rest do not.
@@ -290,6 +301,113 @@ def _add_communication_objects(od: ObjectDictionary, table: BoardTable) -> None:
             od.add_object(record)
 
 
+def _limited(variable: ODVariable, low: float, high: float) -> ODVariable:
+    variable.min, variable.max = low, high
+    return variable
+
+
+def _recorder_objects(table: BoardTable, recorder: Recorder) -> list[ODVariable | ODArray | ODRecord]:
+    """The recorder's objects (board.toml's [recorder] comment says what each does)."""
+    state_index = recorder.index_of(RecorderObject.STATE)
+    state = _variable(
+        RecorderObject.STATE.object_name,
+        state_index,
+        0,
+        DataType.UNSIGNED8,
+        "rw",
+        table.enum("recorder_state").value("idle").value,
+    )
+    state.description = "A recorder_state value; write armed to (re-)arm, idle to stop"
+
+    channels_index = recorder.index_of(RecorderObject.CHANNELS)
+    channels = _array(
+        RecorderObject.CHANNELS.object_name,
+        channels_index,
+        "Channels in use",
+        0,
+        "rw",
+        [
+            _limited(
+                _variable(f"Channel {n}", channels_index, n, DataType.UNSIGNED16, "rw", 0),
+                0,
+                0xFFFF,
+            )
+            for n in range(1, recorder.max_channels + 1)
+        ],
+    )
+    channels[0].min, channels[0].max = 0, recorder.max_channels
+
+    divider = _limited(
+        _variable(
+            RecorderObject.DIVIDER.object_name,
+            recorder.index_of(RecorderObject.DIVIDER),
+            0,
+            DataType.UNSIGNED16,
+            "rw",
+            1,
+        ),
+        1,
+        0xFFFF,
+    )
+    samples = _limited(
+        _variable(
+            RecorderObject.SAMPLES.object_name,
+            recorder.index_of(RecorderObject.SAMPLES),
+            0,
+            DataType.UNSIGNED32,
+            "rw",
+            recorder.default_samples,
+        ),
+        1,
+        recorder.buffer_values,
+    )
+
+    trigger_index = recorder.index_of(RecorderObject.TRIGGER)
+    trigger = ODRecord(RecorderObject.TRIGGER.object_name, trigger_index)
+    trigger.add_member(
+        _variable(
+            "Highest sub-index supported", trigger_index, 0, DataType.UNSIGNED8, "ro", max(RecorderTriggerSub)
+        )
+    )
+    immediate = table.enum("recorder_trigger").value("immediate").value
+    rising = table.enum("recorder_edge").value("rising").value
+    for sub, data_type, default in (
+        (RecorderTriggerSub.SOURCE, DataType.UNSIGNED8, immediate),
+        (RecorderTriggerSub.FIELD, DataType.UNSIGNED16, 0),
+        (RecorderTriggerSub.LEVEL, DataType.REAL32, 0.0),
+        (RecorderTriggerSub.EDGE, DataType.UNSIGNED8, rising),
+        (RecorderTriggerSub.MASK, DataType.UNSIGNED32, 0),
+        (RecorderTriggerSub.PRE_TRIGGER_PERCENT, DataType.UNSIGNED8, 0),
+    ):
+        member = _variable(sub.name.lower(), trigger_index, sub, data_type, "rw", default)
+        if sub is RecorderTriggerSub.PRE_TRIGGER_PERCENT:
+            member.min, member.max = 0, 100
+        trigger.add_member(member)
+
+    status_index = recorder.index_of(RecorderObject.STATUS)
+    status = ODRecord(RecorderObject.STATUS.object_name, status_index)
+    status.add_member(
+        _variable(
+            "Highest sub-index supported", status_index, 0, DataType.UNSIGNED8, "ro", max(RecorderStatusSub)
+        )
+    )
+    for status_sub in RecorderStatusSub:
+        status.add_member(
+            _variable(status_sub.name.lower(), status_index, status_sub, DataType.UNSIGNED32, "ro", 0)
+        )
+
+    data = _variable(
+        RecorderObject.DATA.object_name,
+        recorder.index_of(RecorderObject.DATA),
+        0,
+        DataType.DOMAIN,
+        "ro",
+        None,
+    )
+    data.description = "The recording (boardproto.recording); readable when idle or done"
+    return [state, channels, divider, samples, trigger, status, data]
+
+
 def build_object_dictionary(table: BoardTable) -> ObjectDictionary:
     """The node's whole object dictionary, as the firmware implements it."""
     od = ObjectDictionary()
@@ -316,6 +434,9 @@ def build_object_dictionary(table: BoardTable) -> ObjectDictionary:
         od.add_object(_field_variable(field))
     for io_object in (*table.hil_inputs, *table.hil_outputs):
         od.add_object(_io_variable(io_object))
+    if table.recorder is not None:
+        for recorder_object in _recorder_objects(table, table.recorder):
+            od.add_object(recorder_object)
     return od
 
 

@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 from boardproto.cia301 import RPDO_FUNCTIONS, TPDO_FUNCTIONS, predefined_pdo_base
 from boardproto.table import (
     HIL_IO_TYPES,
+    RECORDER_ENUMS,
     Access,
     BitSet,
     BoardTable,
@@ -32,6 +33,8 @@ from boardproto.table import (
     Pdo,
     PdoDirection,
     PdoEntry,
+    Recorder,
+    RecorderObject,
     ValueEnum,
     unknown_name_message,
 )
@@ -155,7 +158,19 @@ _CPP_KEYWORDS = frozenset(
 _TRANSMISSION_TYPES = frozenset((*range(0, 241), 254, 255))
 
 _TOP_LEVEL_KEYS = frozenset(
-    {"node", "emcy", "field", "enum", "bitset", "hil_input", "hil_output", "pdo", "rpdo", "tpdo"}
+    {
+        "node",
+        "emcy",
+        "field",
+        "enum",
+        "bitset",
+        "hil_input",
+        "hil_output",
+        "pdo",
+        "rpdo",
+        "tpdo",
+        "recorder",
+    }
 )
 _NODE_KEYS = frozenset(
     {
@@ -183,6 +198,13 @@ _BIT_OPTIONAL_KEYS = frozenset({"emcy", "about"})
 _EMCY_KEYS = frozenset({"name", "code", "error_register", "description"})
 MAX_FLAG_BITS = 24  # a bitset travels in a REAL32 field: integers are exact up to 2**24
 _PDO_SLOT_KEYS = frozenset({"rpdo_slots", "tpdo_slots"})
+_RECORDER_KEYS = frozenset({"index", "channels", "buffer_values"})
+# Sub-indices 1..n of the channel array (UNSIGNED8 sub-index, the DOMAIN's UNSIGNED8 count).
+MAX_RECORDER_CHANNELS = 254
+# The sample memory's REAL32 values: 16 MiB at most, so sizes and offsets stay far inside 32 bits.
+MAX_RECORDER_VALUES = 1 << 22
+# Recorder objects carry enum values in UNSIGNED8 objects.
+_RECORDER_ENUM_RANGE = range(0, 0x100)
 _PDO_REQUIRED_KEYS = frozenset({"number", "transmission_type", "map"})
 _PDO_OPTIONAL_KEYS = frozenset({"enabled", "inhibit_time_100us", "event_timer_ms", "cob_id_base"})
 
@@ -512,6 +534,41 @@ def _check_unique(source: Path, entries: list[ObjectEntry]) -> None:
         by_index[entry.index] = entry
 
 
+def _load_recorder(source: Path, data: Any, entries: list[ObjectEntry], enums: list[ValueEnum]) -> Recorder:
+    entry = _Entry(source, "recorder", data)
+    entry.check_keys(_RECORDER_KEYS)
+    index = entry.integer("index", MANUFACTURER_RANGE.start, MANUFACTURER_RANGE.stop - len(RecorderObject))
+    channels = entry.integer("channels", 1, MAX_RECORDER_CHANNELS)
+    buffer_values = entry.integer("buffer_values", 1, MAX_RECORDER_VALUES)
+    if buffer_values < channels:
+        raise entry.error(f"buffer_values {buffer_values} holds not even one sample of {channels} channels")
+    recorder = Recorder(index=index, max_channels=channels, buffer_values=buffer_values)
+    for other in entries:
+        if other.index in recorder.indices:
+            offset = RecorderObject(other.index - index)
+            raise entry.error(
+                f"{offset.object_name} at 0x{other.index:04X} collides with {other.name!r} "
+                f"(the recorder takes 0x{index:04X}..0x{recorder.indices[-1]:04X})"
+            )
+    by_name = {e.name: e for e in enums}
+    for name, required in RECORDER_ENUMS.items():
+        if name not in by_name:
+            raise entry.error(f"needs an [[enum]] {name!r} with the values {', '.join(required)}")
+        values = by_name[name]
+        missing = [v for v in required if v not in {value.name for value in values.values}]
+        if missing:
+            raise entry.error(
+                f"[[enum]] {name!r} lacks the value{'s' if len(missing) > 1 else ''} {', '.join(missing)}"
+            )
+        outside = [v for v in values.values if v.value not in _RECORDER_ENUM_RANGE]
+        if outside:
+            value = outside[0]
+            raise entry.error(
+                f"[[enum]] {name!r} value {value.name!r} = {value.value} does not fit its UNSIGNED8 object"
+            )
+    return recorder
+
+
 def default_cob_id_base(direction: PdoDirection, number: int) -> int | None:
     """CiA 301 pre-defined connection set for PDO 1..4, and the same + 0x40 for 5..8
     (a common extension; there is no standard default beyond PDO 4)."""
@@ -693,6 +750,10 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
         entries_by_name,
     )
 
+    recorder = (
+        _load_recorder(source, document["recorder"], all_entries, enums) if "recorder" in document else None
+    )
+
     return BoardTable(
         source=source,
         node=node,
@@ -704,6 +765,7 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
         enums=tuple(enums),
         bitsets=tuple(bitsets),
         emcy_codes=tuple(emcy),
+        recorder=recorder,
     )
 
 

@@ -66,6 +66,7 @@ class DataType(enum.IntEnum):
     UNSIGNED32 = 0x0007
     REAL32 = 0x0008
     VISIBLE_STRING = 0x0009
+    DOMAIN = 0x000F  # application data of any length (the recorder's buffer)
 
     @property
     def toml_name(self) -> str:
@@ -103,6 +104,7 @@ _BITS = {
     DataType.UNSIGNED32: 32,
     DataType.REAL32: 32,
     DataType.VISIBLE_STRING: 0,
+    DataType.DOMAIN: 0,
 }
 
 # Integer types a HIL I/O object may have (what real hardware registers give).
@@ -172,6 +174,71 @@ class HilIo:
 
 
 ObjectEntry = Field | HilIo
+
+
+class RecorderObject(enum.IntEnum):
+    """The recorder's objects: each at the recorder's `index` plus this offset."""
+
+    STATE = 0  # UNSIGNED8 rw, a recorder_state value: write armed to (re-)arm, idle to stop
+    CHANNELS = 1  # ARRAY: sub 0 channels in use (UNSIGNED8 rw), sub n the n-th field's index
+    DIVIDER = 2  # UNSIGNED16 rw: one sample every n-th control cycle
+    SAMPLES = 3  # UNSIGNED32 rw: samples per recording
+    TRIGGER = 4  # RECORD rw, sub-indices in RecorderTriggerSub
+    STATUS = 5  # RECORD ro, sub-indices in RecorderStatusSub
+    DATA = 6  # DOMAIN ro: the recording (boardproto.recording describes its bytes)
+
+    @property
+    def object_name(self) -> str:
+        """recorder_state, recorder_channels...: the object's name in the EDS."""
+        return f"recorder_{self.name.lower()}"
+
+
+class RecorderTriggerSub(enum.IntEnum):
+    """Sub-indices of the recorder's trigger record."""
+
+    SOURCE = 1  # UNSIGNED8, a recorder_trigger value: immediate, level or flag
+    FIELD = 2  # UNSIGNED16, the watched field's object index (0 = none)
+    LEVEL = 3  # REAL32, the level a `level` trigger's field crosses
+    EDGE = 4  # UNSIGNED8, a recorder_edge value: rising, falling or either
+    MASK = 5  # UNSIGNED32, the bits a `flag` trigger watches in its field
+    PRE_TRIGGER_PERCENT = 6  # UNSIGNED8 0..100, share of the samples kept before the trigger
+
+
+class RecorderStatusSub(enum.IntEnum):
+    """Sub-indices of the recorder's status record (read-only)."""
+
+    SAMPLES_TAKEN = 1  # UNSIGNED32, samples taken since armed
+    SAMPLES_LEFT = 2  # UNSIGNED32, samples still to take before done (0 when idle or done)
+
+
+# The [[enum]]s the recorder's objects carry, with the value names the firmware acts on.
+RECORDER_ENUMS: dict[str, tuple[str, ...]] = {
+    "recorder_state": ("idle", "armed", "triggered", "done"),
+    "recorder_trigger": ("immediate", "level", "flag"),
+    "recorder_edge": ("rising", "falling", "either"),
+}
+
+
+@dataclass(frozen=True)
+class Recorder:
+    """The on-board field recorder ([recorder] in board.toml): samples chosen fields every
+    control cycle into static memory around a trigger; the host uploads the buffer."""
+
+    index: int  # the first object; the others follow (RecorderObject)
+    max_channels: int  # fields recorded at once, at most
+    buffer_values: int  # REAL32 values of sample memory: samples * channels at most
+
+    def index_of(self, recorder_object: RecorderObject) -> int:
+        return self.index + recorder_object
+
+    @property
+    def indices(self) -> range:
+        return range(self.index, self.index + len(RecorderObject))
+
+    @property
+    def default_samples(self) -> int:
+        """The samples a recording takes until told otherwise: as many as fit at max_channels."""
+        return self.buffer_values // self.max_channels
 
 
 class ErrorRegisterBit(enum.IntFlag):
@@ -446,6 +513,7 @@ class BoardTable:
     enums: tuple[ValueEnum, ...] = ()
     bitsets: tuple[BitSet, ...] = ()
     emcy_codes: tuple[EmcyCode, ...] = ()
+    recorder: Recorder | None = None
 
     @cached_property
     def _fields_by_name(self) -> dict[str, Field]:

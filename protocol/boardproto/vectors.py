@@ -20,9 +20,10 @@ from boardproto.table import BoardTable
 
 COLUMNS = ("name", "index", "unit", "kind", "access", "min", "max", "default", "stored")
 
-# kind:   enum | bit | emcy
-# set:    the [[enum]] or [[bitset]] (empty for emcy)
-# number: the enum value, the bit number, or the EMCY code (0xXXXX)
+# kind:   enum | bit | emcy | recorder
+# set:    the [[enum]] or [[bitset]] (empty for emcy and recorder)
+# number: the enum value, the bit number, the EMCY code (0xXXXX), or the [recorder] setting
+#         named (index 0xXXXX, channels, buffer_values, default_samples)
 # emcy:   a bit's EMCY (empty: none); register_bit: an EMCY's error register bit (0xXX)
 # about:  the object index a bit's EMCY names (0xXXXX; empty: named by the raiser at run time)
 VALUE_COLUMNS = ("kind", "set", "name", "number", "emcy", "register_bit", "about")
@@ -66,6 +67,15 @@ def generate_value_vectors(table: BoardTable) -> str:
         writer.writerow(
             ("emcy", "", code.name, f"0x{code.code:04X}", "", f"0x{code.error_register.value:02X}", "")
         )
+    if table.recorder is not None:
+        recorder = table.recorder
+        for name, number in (
+            ("index", f"0x{recorder.index:04X}"),
+            ("channels", recorder.max_channels),
+            ("buffer_values", recorder.buffer_values),
+            ("default_samples", recorder.default_samples),
+        ):
+            writer.writerow(("recorder", "", name, number, "", "", ""))
     return buffer.getvalue()
 
 

@@ -272,4 +272,17 @@ TEST(ValueTable, TypedBitsMatchTheirInfoLowestFirst) {
   EXPECT_EQ(board::kFaultFlagsMask, all);
 }
 
+TEST(ValueTable, RecorderMatchesThePythonTable) {
+  const auto rows = read_value_rows("recorder");
+  ASSERT_EQ(rows.size(), 4U);
+  std::map<std::string, std::uint32_t, std::less<>> settings;
+  for (const ValueRow& row : rows) settings[row.name] = static_cast<std::uint32_t>(std::stoul(row.number, nullptr, 0));
+  EXPECT_EQ(board::kRecorder.index, settings["index"]);
+  EXPECT_EQ(board::kRecorder.max_channels, settings["channels"]);
+  EXPECT_EQ(board::kRecorder.buffer_values, settings["buffer_values"]);
+  EXPECT_EQ(board::kRecorder.default_samples, settings["default_samples"]);
+  EXPECT_EQ(board::recorder::kState, board::kRecorder.index);
+  EXPECT_EQ(board::recorder::kData, board::kRecorder.index + 6);
+}
+
 }  // namespace

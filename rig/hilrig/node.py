@@ -68,6 +68,7 @@ class SdoAbortCode(enum.IntEnum):
     OBJECT_DOES_NOT_EXIST = 0x0602_0000
     OBJECT_CANNOT_BE_MAPPED = 0x0604_0041
     PDO_LENGTH_EXCEEDED = 0x0604_0042
+    PARAMETER_INCOMPATIBLE = 0x0604_0043
     LENGTH_MISMATCH = 0x0607_0010
     LENGTH_TOO_HIGH = 0x0607_0012
     LENGTH_TOO_LOW = 0x0607_0013
@@ -96,6 +97,7 @@ _ABORT_WORDS: dict[SdoAbortCode, str] = {
     SdoAbortCode.OBJECT_DOES_NOT_EXIST: "no such object in the node's dictionary",
     SdoAbortCode.OBJECT_CANNOT_BE_MAPPED: "object cannot be mapped to a PDO",
     SdoAbortCode.PDO_LENGTH_EXCEEDED: "mapping exceeds the 64 bits of a PDO",
+    SdoAbortCode.PARAMETER_INCOMPATIBLE: "settings that do not fit together (a recorder without channels...)",
     SdoAbortCode.LENGTH_MISMATCH: "data length does not match the object's type",
     SdoAbortCode.LENGTH_TOO_HIGH: "data longer than the object's type",
     SdoAbortCode.LENGTH_TOO_LOW: "data shorter than the object's type",
@@ -324,6 +326,15 @@ class BoardNode:
     def _entry_at(self, index: int, subindex: int) -> ObjectEntry | None:
         entry = self.table.entry_at(index)
         return entry if entry is not None and entry.subindex == subindex else None
+
+    def block_upload(self, index: int, subindex: int, what: str) -> bytes:
+        """Upload by SDO block transfer (CiA 301, with CRC): for large values (a DOMAIN)."""
+
+        def transfer() -> bytes:
+            with self.remote.sdo.open(index, subindex, "rb", block_transfer=True) as stream:
+                return bytes(stream.read())
+
+        return self._call_sdo(what, None, transfer)
 
     def _upload(self, index: int, subindex: int, what: str, entry: ObjectEntry | None = None) -> bytes:
         return self._call_sdo(what, entry, lambda: self.remote.sdo.upload(index, subindex))

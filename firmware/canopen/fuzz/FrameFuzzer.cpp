@@ -34,6 +34,9 @@
 //      heartbeat, TPDO and EMCY counters equal the frames seen on the port; nothing was dropped.
 //   4. Error register: non-zero implies the generic bit; every EMCY (not an error reset) carries
 //      a register with the generic bit set.
+//   5. The field recorder (its objects reachable over SDO, a sample after every SYNC's control
+//      cycle as on the platform): a recording that is done reads the same bytes until the
+//      recorder leaves done (checked for recordings up to kFrozenCheckBytes).
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -44,6 +47,7 @@
 #include <vector>
 
 #include "MemoryPort.hpp"
+#include "Recorder.hpp"
 #include "Node.hpp"
 
 namespace {
@@ -137,6 +141,7 @@ bool known_abort_code(std::uint32_t code) {
                      SdoAbort::UnsupportedAccess,
                      SdoAbort::WriteOnly, SdoAbort::ReadOnly, SdoAbort::ObjectDoesNotExist,
                      SdoAbort::ObjectCannotBeMapped, SdoAbort::PdoLengthExceeded,
+                     SdoAbort::ParameterIncompatible,
                      SdoAbort::LengthMismatch, SdoAbort::LengthTooHigh, SdoAbort::LengthTooLow,
                      SdoAbort::SubIndexDoesNotExist, SdoAbort::ValueRangeExceeded,
                      SdoAbort::ValueTooHigh, SdoAbort::ValueTooLow, SdoAbort::GeneralError,
@@ -215,6 +220,8 @@ class Harness {
       previous.start(0);
       (void)previous.store_parameters();
     }
+    recorder_.reset();  // static: what an earlier input left must not matter
+    node_.set_recorder(&recorder_);
     node_.start(now_us_);
     Sent sent = drain();
     check(sent.boot_ups == 1 && sent.sdo.empty() && sent.heartbeats == 0,
@@ -342,7 +349,11 @@ class Harness {
 
     const co::ProcessResult result = node_.process(frame, now_us_);
     ++frames_;
-    if (result.sync) node_.transmit_synchronous_pdos(now_us_);
+    if (result.sync) {
+      // The control cycle would run here; the recorder samples what it left on the board.
+      recorder_.sample(++cycle_, [this](board::FieldId id) { return board_.read(id); });
+      node_.transmit_synchronous_pdos(now_us_);
+    }
     Sent sent = drain();
 
     if (served && sdo_.open == SdoModel::Open::BlockDownload && frame.data[0] != 0x80) {
@@ -628,7 +639,28 @@ class Harness {
     sdo_.last_activity_us = now_us_;
   }
 
+  void check_recorder() {
+    if (recorder_.state() != board::RecorderState::Done) {
+      frozen_.known = false;
+      return;
+    }
+    std::array<std::uint8_t, 64> chunk{};
+    std::size_t length = 0;
+    std::size_t total = 0;
+    std::uint32_t sum = 0;
+    for (std::size_t offset = 0; offset < kFrozenCheckBytes; offset += chunk.size()) {
+      check(recorder_.read_data(offset, chunk, length, total) == co::SdoAbort::None,
+            "a done recording refused a read", offset);
+      if (total > kFrozenCheckBytes) return;
+      for (std::size_t i = 0; i < length; ++i) sum = sum * 31u + chunk[i];
+      if (offset + length >= total) break;
+    }
+    if (!frozen_.known) frozen_ = {true, sum};
+    check(sum == frozen_.sum, "a done recording changed", sum, frozen_.sum);
+  }
+
   void check_counters() {
+    check_recorder();
     const co::NodeCounters& c = node_.counters();
     check(c.frames_received == frames_, "frames_received", c.frames_received, frames_);
     const std::uint32_t outcomes = c.frames_ignored + c.frames_malformed + c.nmt_commands +
@@ -654,6 +686,14 @@ class Harness {
   RecordingHil hil_;
   VectorStorage storage_;
   co::Node node_{kNodeId, port_, board_, hil_, storage_, 0x1234'5678};
+  // Static, as on the platform (64 KiB of samples; not zeroed per input, reset() is enough).
+  static inline co::Recorder recorder_;
+  static constexpr std::size_t kFrozenCheckBytes = 4096;
+  struct {
+    bool known = false;
+    std::uint32_t sum = 0;
+  } frozen_;
+  std::uint32_t cycle_ = 0;
   std::uint32_t now_us_ = 0xFFF0'0000u;  // wraps early: the engine must handle it
   std::uint32_t frames_ = 0;
   std::uint32_t sdo_requests_ = 0;

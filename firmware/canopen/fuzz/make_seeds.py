@@ -55,6 +55,43 @@ def block_upload(index: int, blksize: int, acks: list[int], pst: int = 0) -> byt
     return records + sdo(0xA1)
 
 
+# The field recorder's objects (board.toml [recorder], index 0x3200): state, channels, samples,
+# trigger, data; and the values the seeds write.
+RECORDER_STATE, RECORDER_CHANNELS, RECORDER_SAMPLES, RECORDER_TRIGGER, RECORDER_DATA = (
+    0x3200,
+    0x3201,
+    0x3203,
+    0x3204,
+    0x3206,
+)
+ARMED, IDLE = 1, 0
+LEVEL, RISING = 1, 0
+
+
+def download(index: int, sub: int, value: int, size: int) -> bytes:
+    """Expedited download of `size` bytes."""
+    command = 0x23 | ((4 - size) << 2)
+    return sdo(command, index & 0xFF, index >> 8, sub, *value.to_bytes(size, "little").ljust(4, b"\0"))
+
+
+def recorder_recording(samples: int, trigger_level: float | None = None) -> bytes:
+    """Records motor_velocity and velocity_setpoint for `samples` samples, operational, one SYNC a
+    cycle; with a level, a rising trigger on velocity_setpoint (changed by SDO halfway)."""
+    records = download(RECORDER_CHANNELS, 1, 0x2100, 2) + download(RECORDER_CHANNELS, 2, 0x2401, 2)
+    records += download(RECORDER_CHANNELS, 0, 2, 1) + download(RECORDER_SAMPLES, 0, samples, 4)
+    if trigger_level is not None:
+        level = int.from_bytes(struct.pack("<f", trigger_level), "little")
+        records += download(RECORDER_TRIGGER, 1, LEVEL, 1) + download(RECORDER_TRIGGER, 2, 0x2401, 2)
+        records += download(RECORDER_TRIGGER, 3, level, 4) + download(RECORDER_TRIGGER, 4, RISING, 1)
+        records += download(RECORDER_TRIGGER, 6, 50, 1)
+    records += nmt_start() + download(RECORDER_STATE, 0, ARMED, 1)
+    for cycle in range(2 * samples):
+        if trigger_level is not None and cycle == samples:
+            records += sdo(0x23, 0x01, 0x24, 0x00, *struct.pack("<f", trigger_level + 1.0))
+        records += frame(SYNC, dt=125)
+    return records
+
+
 def seeds() -> dict[str, bytes]:
     upload_1008 = sdo(0x40, 0x08, 0x10, 0x00)
     segments = b"".join(sdo(0x60 | (0x10 * (n % 2))) for n in range(3))
@@ -97,6 +134,21 @@ def seeds() -> dict[str, bytes]:
         + sdo(0xA4, 0x08, 0x10, 0x00, 127)
         + sdo(0xA3)
         + sdo(0xA2, 3, 127, dt=0xFF),
+        # Field recorder: a recording, its upload by block, by segments, refused while armed.
+        "recorder_immediate_block_upload": bytes([NO_REFUSAL])
+        + recorder_recording(6)
+        + block_upload(RECORDER_DATA, 127, [12]),
+        "recorder_level_trigger_segmented_upload": bytes([NO_REFUSAL])
+        + recorder_recording(8, trigger_level=2.0)
+        + sdo(0x40, RECORDER_DATA & 0xFF, RECORDER_DATA >> 8, 0x00)
+        + b"".join(sdo(0x60 | (0x10 * (n % 2))) for n in range(14)),
+        "recorder_settings_refused_while_armed": bytes([NO_REFUSAL])
+        + download(RECORDER_CHANNELS, 1, 0x2100, 2)
+        + download(RECORDER_CHANNELS, 0, 1, 1)
+        + download(RECORDER_STATE, 0, ARMED, 1)
+        + download(RECORDER_CHANNELS, 1, 0x2101, 2)
+        + sdo(0x40, RECORDER_DATA & 0xFF, RECORDER_DATA >> 8, 0x00)
+        + download(RECORDER_STATE, 0, IDLE, 1),
         "store_then_reset_node": bytes([NO_REFUSAL | 0x40])
         + sdo(0x23, 0x00, 0x25, 0x00, *struct.pack("<f", 0.5))
         + sdo(0x23, 0x10, 0x10, 0x01, *b"save")

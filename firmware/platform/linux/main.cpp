@@ -27,6 +27,7 @@
 #include "board/fields.hpp"
 #include "canopen/FlagEmcy.hpp"
 #include "canopen/Node.hpp"
+#include "canopen/Recorder.hpp"
 #include "core/CycleCounter.hpp"
 #include "core/MessageBoard.hpp"
 #include "core/MessageBoardUser.hpp"
@@ -271,6 +272,9 @@ class ApplicationRebuild final : public co::ApplicationReset {
   bool failed_ = false;
 };
 
+// The field recorder's sample memory is static, as it would be on a microcontroller.
+co::Recorder g_recorder;
+
 void print_to_stdout(void*, std::string_view text) { std::fwrite(text.data(), 1, text.size(), stdout); }
 
 int run(const Options& options) {
@@ -303,6 +307,7 @@ int run(const Options& options) {
   ApplicationRebuild application_rebuild{app, options};
   application_rebuild.attach(node, fault_emcy);
   node.set_application_reset(&application_rebuild);
+  node.set_recorder(&g_recorder);
 
   // SIGINT/SIGTERM arrive as readable data on a file descriptor: the loop finishes the frame
   // or cycle at hand and exits cleanly, with nothing half-written.
@@ -342,8 +347,11 @@ int run(const Options& options) {
 
   core::CycleCounter cycles;
   auto run_cycle = [&](std::uint64_t periods) {
-    app->scheduler.run_cycle(cycles.advance(periods));
+    const std::uint32_t cycle = cycles.advance(periods);
+    app->scheduler.run_cycle(cycle);
     fault_emcy.update(static_cast<std::uint32_t>(app->board.get(board::FieldId::fault_flags)));
+    // What the cycle left on the board; idle, this is one comparison.
+    g_recorder.sample(cycle, [&](board::FieldId id) { return app->board.get(id); });
   };
 
   bool running = true;

@@ -7,6 +7,7 @@
     hilrig sdo read 0x1018:1                  # any object by index, value and hex
     hilrig nmt start --wait                   # NMT, and the state the heartbeat then shows
     hilrig watch --sync-period-ms 10          # live table of the TPDO fields
+    hilrig capture motor_velocity --samples 2000   # the board's recorder: every cycle, uploaded
     hilrig scan                               # which nodes are on the bus
     hilrig record bus.log / replay bus.log --decode
     hilrig bus-load --bitrate 500k            # will the PDO exchange fit a real bus?
@@ -48,6 +49,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "sdo_raw",
     "nmt",
     "watch",
+    "capture",
     "scan",
     "record",
     "sim",
