@@ -33,6 +33,7 @@ from hilrig.firmware import DEFAULT_EXECUTABLE
 from hilrig.netns import private_buses_supported
 from hilrig.node import EmcyRecord
 from hilrig.physics import JointParams
+from hilrig.resources import PYTHON_COMMAND
 from hilrig.rig import DEFAULT_EDS_PATH, Rig
 from hilrig.session import SessionConfig, hil_session
 from hilrig.table import BOARD_TABLE, ControlMode, RigTable
@@ -373,7 +374,7 @@ def format_summary(summary: DemoSummary) -> str:
     if summary.trace is not None:
         rows += [
             ("trace (Rerun)", str(summary.trace)),
-            ("open it with", f".venv/bin/python -m dashboards overview {summary.trace}   (--web: browser)"),
+            ("open it with", f"{PYTHON_COMMAND} -m dashboards overview {summary.trace}   (--web: browser)"),
         ]
     if summary.viewer_url is not None:
         rows.append(("live web viewer", summary.viewer_url))

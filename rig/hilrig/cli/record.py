@@ -20,16 +20,17 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hilrig import resources
 from hilrig.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 from hilrig.cli.common import (
     DBC_HINT,
-    DEFAULT_DBC,
     CanFilter,
     Command,
     SyncProducer,
     UsageError,
     add_bus_options,
     add_table_option,
+    dbc_path,
     describe_bus,
     existing_file,
     format_unit,
@@ -190,7 +191,7 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
         "--dbc",
         type=existing_file("DBC", DBC_HINT),
         default=None,
-        help="--decode and --trace: the DBC (default: build/protocol/board.dbc)",
+        help="--decode and --trace: the DBC (default: the table's: build/protocol/board.dbc in a checkout)",
     )
     parser.add_argument(
         "--field",
@@ -283,7 +284,7 @@ def _trace(args: argparse.Namespace) -> int:
     from hilrig.trace import Tracer, TraceSink
 
     table = load_table(args)
-    database = load_dbc(args.dbc or DEFAULT_DBC)
+    database = load_dbc(dbc_path(args))
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
     partial = partial_path(args.trace)
     with read_log(args.file) as logged:  # a format python-can does not read: said before rerun loads
@@ -312,7 +313,8 @@ def _trace(args: argparse.Namespace) -> int:
         f"({stats.undecodable} did not fit their DBC message), {stats.events} events -> {args.trace}"
     )
     print(
-        f".venv/bin/python -m dashboards overview {args.trace}   # add --web on a machine without a display"
+        f"{resources.PYTHON_COMMAND} -m dashboards overview {args.trace}"
+        "   # add --web on a machine without a display"
     )
     return 0
 
@@ -344,7 +346,7 @@ def _decode(args: argparse.Namespace) -> int:
         from hilrig.cli.common import check_names
 
         check_names(table, args.field)
-    database = load_dbc(args.dbc or DEFAULT_DBC)
+    database = load_dbc(dbc_path(args))
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
     decoder = _FrameDecoder(NodeDbc(database, table, node), table, node, set(args.field or ()))
     first: float | None = None
