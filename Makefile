@@ -77,6 +77,14 @@ bench: deps ## benchmarks, each a ratio measured side by side in one run
 	  tools/with-vcan -- $(CURDIR)/$(PY) tools/bench.py bus --out $(CURDIR)/$(BENCH_BUILD)
 	@$(PY) tools/bench.py report --out $(BENCH_BUILD)
 
+# The wheels people install for bring-up, no checkout needed (tools/dist.py: built from a staging
+# copy of the sources; the EDS and DBC in the wheel are generated from protocol/board.toml then).
+DIST ?= dist
+
+.PHONY: dist
+dist: deps ## build the wheels to install anywhere: dist/hilrig-*.whl, dist/boardproto-*.whl
+	@$(PY) tools/dist.py --out $(CURDIR)/$(DIST)
+
 # Soak (issue 11): SOAK_CYCLES lockstep cycles against the real firmware on a real bus, a seeded
 # fault now and then; fails if a cycle is lost or the firmware's memory grows. SOAK_ARGS are passed
 # on (hilrig soak --help). Report: build/soak/report.json. Ctrl-C stops cleanly.
@@ -102,6 +110,6 @@ vcan: ## create vcan0 natively (needs root and a kernel with vcan)
 	else echo "vcan: this kernel has no vcan module (or you are not root): make test and make run use the micro-VM instead (tools/with-vcan)" >&2; exit 1; fi
 
 .PHONY: clean
-clean: ## remove build/ and out/ (keeps .venv)
-	@echo "clean: removing $(BUILD)/ and $(OUT)/"
-	@rm -rf $(BUILD) $(OUT)
+clean: ## remove build/, out/ and dist/ (keeps .venv)
+	@echo "clean: removing $(BUILD)/, $(OUT)/ and $(DIST)/"
+	@rm -rf $(BUILD) $(OUT) $(DIST)

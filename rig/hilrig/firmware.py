@@ -20,9 +20,10 @@ from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, Protocol, Self
 
+from hilrig import resources
 from hilrig.errors import FirmwareError
 
-DEFAULT_EXECUTABLE = Path(__file__).resolve().parents[2] / "build" / "bin" / "joint-firmware"
+DEFAULT_EXECUTABLE = resources.DEFAULT_FIRMWARE
 LOG_TAIL_LINES = 20
 _STOP_LINE = re.compile(r"joint-firmware: stopped after (\d+) cycles; (.*)$", re.MULTILINE)
 

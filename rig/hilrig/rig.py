@@ -35,6 +35,7 @@ import numpy as np
 from canopen.emcy import EmcyError
 
 from boardproto.cia301 import NmtCommand, NmtState
+from hilrig import resources
 from hilrig.driver import Driver, resolve_truth_name, sdo_poll_layout
 from hilrig.errors import FieldAccessError, NoValueError, ScenarioTimeoutError, SdoAbortError
 from hilrig.lockstep import LockstepDriver, cycles_for
@@ -48,8 +49,8 @@ if TYPE_CHECKING:  # hilrig.trace imports rerun (slow) only when a Tracer is mad
     from hilrig.trace import Tracer
     from hilrig.transport import PdoLayout
 
-DEFAULT_EDS_PATH = Path(__file__).resolve().parents[2] / "build" / "protocol" / "board.eds"
-"""The EDS generated from protocol/board.toml in this checkout's build tree."""
+DEFAULT_EDS_PATH = resources.DEFAULT_EDS
+"""The EDS of the default table: the checkout's build/protocol/board.eds, or the wheel's copy."""
 
 Event = Callable[["Rig"], object]
 

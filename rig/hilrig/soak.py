@@ -89,6 +89,7 @@ from boardproto.cia301 import (
     sdo_response_cob_id,
 )
 from boardproto.table import ERROR_RESET_CODE
+from hilrig import resources
 from hilrig.driver import SETPOINT_STREAM
 from hilrig.errors import PdoMappingError, RigError
 from hilrig.faults import FaultKind
@@ -97,7 +98,7 @@ from hilrig.physics import JointParams, thermistor_adc
 from hilrig.table import BOARD_TABLE, ControlMode, EmcyCode, FaultFlags, RigTable
 from hilrig.transport import FrameLink, PdoDirection, PdoLayout, can_frame, compile_pdos
 
-DEFAULT_EDS_PATH = Path(__file__).resolve().parents[2] / "build" / "protocol" / "board.eds"
+DEFAULT_EDS_PATH = resources.DEFAULT_EDS
 DEFAULT_FAULT_INTERVAL = 10_000
 """About one fault per this many cycles (seeded jitter of +-1/4 interval)."""
 DEFAULT_SAMPLE_EVERY = 1000

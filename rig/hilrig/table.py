@@ -16,13 +16,14 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from boardproto import BoardTable, Field, HilIo, Kind, load_table
+from hilrig import resources
 from hilrig.errors import FieldNameError
 
-DEFAULT_TABLE_PATH = Path(__file__).resolve().parents[2] / "protocol" / "board.toml"
-"""protocol/board.toml of the checkout this package lives in."""
+DEFAULT_TABLE_PATH = resources.DEFAULT_TABLE
+"""protocol/board.toml of the checkout this package lives in, or the wheel's copy of it."""
 
 BOARD_TABLE = load_table(DEFAULT_TABLE_PATH)
-"""The table the firmware of this checkout is built from."""
+"""The table the firmware of this checkout (or of this wheel's build) is built from."""
 
 # The named values that travel in fields, built from board.toml at import: moving a fault bit or
 # adding a control mode there changes these with no other edit. Members are the table's names in
@@ -52,8 +53,8 @@ class RigTable:
 
     @classmethod
     def load(cls, path: str | Path = DEFAULT_TABLE_PATH) -> RigTable:
-        # The checkout's table is parsed once, at import (BOARD_TABLE); others on each call.
-        return cls(BOARD_TABLE if Path(path) == DEFAULT_TABLE_PATH else load_table(path))
+        # The default table is parsed once, at import (BOARD_TABLE); others on each call.
+        return cls(BOARD_TABLE if resources.is_default_table(Path(path)) else load_table(path))
 
     @property
     def names(self) -> tuple[str, ...]:

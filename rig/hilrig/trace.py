@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import contextlib
 import enum
-import importlib.util
 import itertools
 import operator
 import os
@@ -60,6 +59,7 @@ import numpy as np
 from boardproto import Field, IoDirection, Kind
 from boardproto.cia301 import NmtState
 from boardproto.table import BitSet, ValueEnum
+from hilrig import resources
 from hilrig.driver import CycleResult, History, HistoryMark
 from hilrig.errors import RigError
 from hilrig.node import EmcyRecord
@@ -765,40 +765,19 @@ def entity_paths(table: RigTable) -> dict[str, str]:
 
 
 # --- Blueprints and opening saved traces ----------------------------------------------------
-def _dashboards() -> Any:
-    """The repository's dashboards/ package (importable from the checkout even when the cwd is
-    elsewhere: it is not part of the installed hilrig package)."""
-    try:
-        import dashboards  # type: ignore[import-not-found]
-
-        return dashboards
-    except ImportError:
-        pass
-    root = Path(__file__).resolve().parents[2] / "dashboards"
-    spec = importlib.util.spec_from_file_location(
-        "dashboards", root / "__init__.py", submodule_search_locations=[str(root)]
-    )
-    if spec is None or spec.loader is None:
-        raise ImportError(f"no dashboards package at {root}")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["dashboards"] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 def load_blueprint(name: str) -> rrb.Blueprint:
     """The dashboards/ blueprint called `name` (FieldNameError with close matches otherwise)."""
-    return _dashboards().blueprint(name)
+    return resources.dashboards().blueprint(name)
 
 
 def dashboard_fields(table: RigTable) -> list[str]:
     """Every board field a dashboard plots by name (`dashboards.joint.named_fields`)."""
-    names: list[str] = _dashboards().named_fields(table)
+    names: list[str] = resources.dashboards().named_fields(table)
     return names
 
 
 def blueprint_names() -> tuple[str, ...]:
-    return tuple(_dashboards().BLUEPRINTS)
+    return tuple(resources.dashboards().BLUEPRINTS)
 
 
 def save_blueprint(name: str, path: str | Path) -> Path:

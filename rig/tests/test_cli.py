@@ -337,9 +337,7 @@ def test_record_then_replay_into_a_trace(
     assert code == 0, err
     code, out, err = run(capsys, "replay", str(log), "--trace", str(rrd))
     assert code == 0, err
-    assert (
-        out == f"hilrig view {rrd}   # add --web on a machine without a display\n"
-    )
+    assert out == f"hilrig view {rrd}   # add --web on a machine without a display\n"
     assert not list(tmp_path.glob(".*partial*"))
     # Which cycles (SYNC index) the log has a TPDO1 for: exactly those carry motor_duty.
     tpdo1 = RigTable.load().board.tpdo(1).cob_id(NODE_ID)

@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 
 from boardproto.cia301 import SYNC_COB_ID
-from hilrig.cli import EXIT_FAILED, EXIT_USAGE, common, main, record, version
+from hilrig import resources
+from hilrig.cli import EXIT_FAILED, EXIT_USAGE, main, version
 from hilrig.table import RigTable
 
 CANDUMP_SCREEN = "  vcan0  080   [1]  01\n  vcan0  080   [1]  02\n"  # candump without -L
@@ -45,12 +46,12 @@ def corrupt_dbc(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> list[str]:
 
 
 def missing_default_dbc(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    monkeypatch.setattr(record, "DEFAULT_DBC", tmp_path / "build" / "protocol" / "board.dbc")
+    monkeypatch.setattr(resources, "DEFAULT_DBC", tmp_path / "build" / "protocol" / "board.dbc")
     return ["replay", str(write("bus.log", CANDUMP_LOG)(tmp_path)), "--decode"]
 
 
 def missing_default_eds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    monkeypatch.setattr(common, "DEFAULT_EDS", tmp_path / "build" / "protocol" / "board.eds")
+    monkeypatch.setattr(resources, "DEFAULT_EDS", tmp_path / "build" / "protocol" / "board.eds")
     return ["get", "velocity_kp", "-i", "virtual", "-c", f"errors-{tmp_path.name}"]
 
 

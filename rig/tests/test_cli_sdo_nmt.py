@@ -11,7 +11,8 @@ import can
 import pytest
 
 from boardproto.cia301 import NMT_COB_ID, NmtCommand, NmtState
-from hilrig.cli import main, sdo_raw
+from hilrig import resources
+from hilrig.cli import main
 from hilrig.cli.common import UsageError
 from hilrig.cli.sdo_raw import VALUE_TYPES, object_address
 from hilrig.fake_node import FakeJointNode
@@ -170,7 +171,7 @@ def test_without_an_eds_a_read_guesses_by_length_and_a_write_needs_type(
     tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    monkeypatch.setattr(sdo_raw, "DEFAULT_EDS", tmp_path / "board.eds")  # not built
+    monkeypatch.setattr(resources, "DEFAULT_EDS", tmp_path / "board.eds")  # not built
     code, out, _ = run(capsys, "sdo", "read", f"{IDENTITY}:1", *on_bus(channel))
     assert (code, out) == (0, f"0x1018:01 = {NODE.vendor_id} (0x{NODE.vendor_id:08X}, u32 by its length)\n")
     code, _, err = run(capsys, "sdo", "write", HEARTBEAT_TIME, "100", *on_bus(channel))

@@ -31,14 +31,13 @@ import logging
 import os
 import signal
 import sys
-import tomllib
 import traceback
 from collections.abc import Sequence
-from pathlib import Path
 from types import FrameType
 from typing import NoReturn
 
 from boardproto import TableError
+from hilrig import resources
 from hilrig.cli.common import Command, UsageError, add_verbose_option, one_line
 from hilrig.errors import LogFormatError, RigError
 
@@ -86,7 +85,7 @@ def version() -> str:
     try:
         own = importlib.metadata.version("hilrig")
     except importlib.metadata.PackageNotFoundError:
-        own = _checkout_version()
+        own = resources.checkout_version()
     parts = []
     for name in ("python-can", "canopen", "cantools"):
         try:
@@ -106,14 +105,6 @@ class _VersionAction(argparse.Action):
     def __call__(self, parser: argparse.ArgumentParser, *_: object) -> NoReturn:
         print(version())
         parser.exit(EXIT_OK)
-
-
-def _checkout_version() -> str:
-    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
-    try:
-        return str(tomllib.loads(pyproject.read_text())["project"]["version"]) + " (not installed)"
-    except (OSError, KeyError, tomllib.TOMLDecodeError):
-        return "unknown (not installed)"
 
 
 class Parser(argparse.ArgumentParser):

@@ -20,7 +20,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self, TextIO
 
 from boardproto.table import BitSet, ValueEnum
+from hilrig import resources
 from hilrig.errors import BusUnavailableError, FieldNameError, RigError, one_line
+from hilrig.resources import DBC_HINT, EDS_HINT
 from hilrig.table import DEFAULT_TABLE_PATH, ObjectEntry, RigTable
 
 if TYPE_CHECKING:
@@ -31,15 +33,10 @@ if TYPE_CHECKING:
     from hilrig.node import BoardNode
     from hilrig.trace import TraceSink
 
-REPO = Path(__file__).resolve().parents[3]
-DEFAULT_EDS = REPO / "build" / "protocol" / "board.eds"
-DEFAULT_DBC = REPO / "build" / "protocol" / "board.dbc"
 DEFAULT_INTERFACE = "socketcan"
 DEFAULT_CHANNEL = "vcan0"
 """The bus when python-can's configuration names none: the rig's own virtual bus."""
 MAX_NODE_ID = 127
-EDS_HINT = "run `make build`, or give --eds FILE"
-DBC_HINT = "run `make build`, or give --dbc FILE"
 
 # The package an interface needs beyond python-can, and python-can's extra that pulls it in.
 # python-can raises "... not installed" for these; the line then says what to install.
@@ -231,7 +228,8 @@ def add_table_option(parser: argparse.ArgumentParser) -> None:
         type=existing_file("board table", "pass --table PATH/board.toml"),
         default=DEFAULT_TABLE_PATH,
         metavar="TOML",
-        help="the board field table (default: protocol/board.toml of this checkout)",
+        help="the board field table (default: protocol/board.toml of this checkout, or the installed "
+        "hilrig's copy); the EDS and DBC of another table are generated for it",
     )
 
 
@@ -322,7 +320,7 @@ def add_node_options(parser: argparse.ArgumentParser, *, sdo_timeout_s: float = 
         "--eds",
         type=existing_file("EDS", EDS_HINT),
         default=None,
-        help="the board's EDS (default: build/protocol/board.eds)",
+        help="the board's EDS (default: the table's: build/protocol/board.eds in a checkout)",
     )
     group.add_argument(
         "--sdo-timeout",
@@ -522,8 +520,17 @@ def _errno_of(error: BaseException | None) -> int | None:
 
 
 def eds_path(args: argparse.Namespace) -> Path:
-    """--eds, else build/protocol/board.eds; missing: a usage error saying how to get one."""
-    return args.eds if args.eds is not None else required_file(DEFAULT_EDS, "EDS", EDS_HINT)
+    """--eds, else the EDS of --table (`resources.board_files`); missing: a usage error saying how
+    to get one."""
+    if args.eds is not None:
+        return args.eds
+    return required_file(resources.eds_for(getattr(args, "table", None)), "EDS", EDS_HINT)
+
+
+def dbc_path(args: argparse.Namespace) -> Path:
+    """--dbc, else the DBC of --table; `load_dbc` says what to do when it is missing."""
+    given = getattr(args, "dbc", None)  # commands without --dbc take the table's
+    return given if given is not None else resources.dbc_for(getattr(args, "table", None))
 
 
 def load_eds(path: Path, node_id: int) -> canopen.ObjectDictionary:
@@ -540,7 +547,7 @@ def load_eds(path: Path, node_id: int) -> canopen.ObjectDictionary:
 
 
 def load_dbc(path: Path) -> cantools.database.can.Database:
-    """A DBC (--dbc, else build/protocol/board.dbc); missing or unreadable: a usage error."""
+    """A DBC (`dbc_path`); missing or unreadable: a usage error."""
     import cantools
 
     required_file(path, "DBC", DBC_HINT)

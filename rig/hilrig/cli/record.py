@@ -23,7 +23,6 @@ from typing import TYPE_CHECKING
 from hilrig.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 from hilrig.cli.common import (
     DBC_HINT,
-    DEFAULT_DBC,
     LIVE_VIEWER_HELP,
     CanFilter,
     Command,
@@ -31,6 +30,7 @@ from hilrig.cli.common import (
     UsageError,
     add_bus_options,
     add_table_option,
+    dbc_path,
     describe_bus,
     existing_file,
     format_unit,
@@ -167,7 +167,7 @@ def run_record(args: argparse.Namespace) -> int:
 
         table = load_table(args)
         node = args.node_id if args.node_id is not None else table.board.node.default_node_id
-        dbc = NodeDbc(load_dbc(args.dbc or DEFAULT_DBC), table, node)
+        dbc = NodeDbc(load_dbc(dbc_path(args)), table, node)
         progress("record: streaming live to " + ", ".join(map(str, args.viewer)) + " (importing rerun-sdk)")
         live = LiveBusTrace(args.viewer, dbc, table, node, name=path.stem)
         if live.tracer.web_url is not None:
@@ -234,7 +234,7 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
         "--dbc",
         type=existing_file("DBC", DBC_HINT),
         default=None,
-        help="--decode and --trace: the DBC (default: build/protocol/board.dbc)",
+        help="--decode and --trace: the DBC (default: the table's: build/protocol/board.dbc in a checkout)",
     )
     parser.add_argument(
         "--field",
@@ -327,7 +327,7 @@ def _trace(args: argparse.Namespace) -> int:
     from hilrig.trace import Tracer, TraceSink
 
     table = load_table(args)
-    database = load_dbc(args.dbc or DEFAULT_DBC)
+    database = load_dbc(dbc_path(args))
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
     partial = partial_path(args.trace)
     with read_log(args.file) as logged:  # a format python-can does not read: said before rerun loads
@@ -386,7 +386,7 @@ def _decode(args: argparse.Namespace) -> int:
         from hilrig.cli.common import check_names
 
         check_names(table, args.field)
-    database = load_dbc(args.dbc or DEFAULT_DBC)
+    database = load_dbc(dbc_path(args))
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
     decoder = _FrameDecoder(NodeDbc(database, table, node), table, node, set(args.field or ()))
     first: float | None = None

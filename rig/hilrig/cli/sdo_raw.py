@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hilrig import resources
 from hilrig.cli.common import (
-    DEFAULT_EDS,
     EDS_HINT,
     Command,
     UsageError,
@@ -234,15 +234,17 @@ def object_info(
 
 
 def _od_for(args: argparse.Namespace, table: RigTable) -> tuple[canopen.ObjectDictionary | None, Path | None]:
-    """The EDS of --eds, else build/protocol/board.eds if built: raw SDO works without one."""
-    path: Path | None = args.eds if args.eds is not None else (DEFAULT_EDS if DEFAULT_EDS.is_file() else None)
-    if path is None:
+    """The EDS of --eds, else the table's if there is one (build/protocol/board.eds in a checkout,
+    once built): raw SDO works without one."""
+    path: Path = args.eds if args.eds is not None else resources.eds_for(args.table)
+    if not path.is_file():
         return None, None
     return load_eds(path, resolved_node_id(args, table)), path
 
 
 def _unknown_type(info: ObjectInfo, eds: Path | None) -> str:
-    where = f"not in {eds}" if eds is not None else f"no EDS ({DEFAULT_EDS} is not built: {EDS_HINT})"
+    built = f"no EDS ({resources.DEFAULT_EDS} is not built: {EDS_HINT})"
+    where = f"not in {eds}" if eds is not None else built
     return f"{info.label}: its type is unknown ({where} nor in the table)"
 
 

@@ -20,6 +20,7 @@ from hilrig.cli.common import (
     positive_int,
     progress,
 )
+from hilrig.resources import FIRMWARE_HINT
 from hilrig.table import BOARD_TABLE
 
 if TYPE_CHECKING:
@@ -69,9 +70,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=1, help="sensor noise seed (default: 1)")
     parser.add_argument(
         "--firmware",
-        type=existing_file("firmware", "build it with `make build`"),
+        type=existing_file("firmware", FIRMWARE_HINT),
         default=None,
-        help="the joint-firmware executable (default: build/bin/joint-firmware)",
+        help="the joint-firmware executable (default: build/bin/joint-firmware of the checkout, or of the "
+        "working directory when hilrig is installed)",
     )
     parser.add_argument(
         "--fault",
@@ -135,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
 
     executable = args.firmware or DEFAULT_EXECUTABLE
     if not args.board and not executable.is_file():
-        raise UsageError(f"firmware {executable} does not exist: build it with `make build`")
+        raise UsageError(f"firmware {executable} does not exist: {FIRMWARE_HINT}")
     try:
         live = args.viewer if args.viewer is not None else live_sinks_from_environment()
     except ValueError as error:

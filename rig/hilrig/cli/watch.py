@@ -19,13 +19,13 @@ from typing import TYPE_CHECKING, TextIO
 
 from boardproto.table import BitSet, ValueEnum
 from hilrig.cli.common import (
-    DEFAULT_DBC,
     LIVE_VIEWER_HELP,
     Command,
     SyncProducer,
     add_node_options,
     board_node,
     check_names,
+    dbc_path,
     format_unit,
     format_value,
     live_sink,
@@ -260,7 +260,7 @@ def _live_trace(args: argparse.Namespace, node: BoardNode, table: RigTable) -> L
     from hilrig.buslog import NodeDbc
     from hilrig.log_trace import LiveBusTrace
 
-    dbc = NodeDbc(load_dbc(DEFAULT_DBC), table, node.node_id)
+    dbc = NodeDbc(load_dbc(dbc_path(args)), table, node.node_id)
     progress("watch: streaming live to " + ", ".join(map(str, args.viewer)) + " (importing rerun-sdk)")
     live = LiveBusTrace(args.viewer, dbc, table, node.node_id, name=f"watch-node-{node.node_id}")
     if live.tracer.web_url is not None:

@@ -1,0 +1,154 @@
+"""Where the board's files are: the field table, the EDS and DBC generated from it, the dashboards,
+the firmware. Every default path of hilrig comes from here; three cases:
+
+- a checkout (this file is rig/hilrig/resources.py beside protocol/board.toml): the checkout's
+  table, the EDS and DBC `make build` generates into build/protocol/, build/bin/joint-firmware;
+- an installed wheel: the table, EDS and DBC packaged in hilrig/data/ (generated from the table
+  when the wheel was built, `make dist`); the firmware is not in the wheel: build/bin/joint-firmware
+  under the working directory (the runtime image's /src);
+- another table (`--table FILE`, in either case): its EDS and DBC generated on first use with
+  boardproto's generators into a cache directory, by content ($XDG_CACHE_HOME/hilrig/tables/).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+_PACKAGE = Path(__file__).resolve().parent
+
+
+def _checkout_root() -> Path | None:
+    root = _PACKAGE.parents[1]
+    is_checkout = _PACKAGE.parent.name == "rig" and (root / "protocol" / "board.toml").is_file()
+    return root if is_checkout else None
+
+
+CHECKOUT: Path | None = _checkout_root()
+"""The repository root when hilrig runs from a checkout (editable install or PYTHONPATH), else None."""
+
+PACKAGED = _PACKAGE / "data"
+"""The wheel's copies of board.toml, board.eds and board.dbc (hilrig ships C extensions, so it is
+always installed as plain files, never imported from a zip: a path is enough)."""
+
+if CHECKOUT is not None:
+    DEFAULT_TABLE = CHECKOUT / "protocol" / "board.toml"
+    DEFAULT_EDS = CHECKOUT / "build" / "protocol" / "board.eds"
+    DEFAULT_DBC = CHECKOUT / "build" / "protocol" / "board.dbc"
+    DEFAULT_FIRMWARE = CHECKOUT / "build" / "bin" / "joint-firmware"
+    REBUILD_HINT = "run `make build`"
+    PYTHON_COMMAND = ".venv/bin/python"
+    """How the hints spell the project's Python (they are read at the checkout's root)."""
+else:
+    DEFAULT_TABLE = PACKAGED / "board.toml"
+    DEFAULT_EDS = PACKAGED / "board.eds"
+    DEFAULT_DBC = PACKAGED / "board.dbc"
+    DEFAULT_FIRMWARE = Path("build") / "bin" / "joint-firmware"
+    REBUILD_HINT = "reinstall hilrig"
+    PYTHON_COMMAND = sys.executable or "python3"
+
+EDS_HINT = f"{REBUILD_HINT}, or give --eds FILE"
+DBC_HINT = f"{REBUILD_HINT}, or give --dbc FILE"
+FIRMWARE_HINT = "build it with `make build`" if CHECKOUT is not None else "give --firmware FILE"
+
+
+@dataclass(frozen=True)
+class BoardFiles:
+    """A table and the EDS and DBC that belong to it."""
+
+    table: Path
+    eds: Path
+    dbc: Path
+
+
+def board_files(table: Path | None = None) -> BoardFiles:
+    """The files of `table` (None: the default table). The default table's are the checkout's
+    build/protocol/ or the packaged ones, which may be missing in a checkout before `make build`
+    (callers say EDS_HINT then); any other table's are generated now (a bad table: TableError)."""
+    if table is None or is_default_table(table):
+        return BoardFiles(DEFAULT_TABLE, DEFAULT_EDS, DEFAULT_DBC)
+    return generated_files(table)
+
+
+def eds_for(table: Path | None = None) -> Path:
+    return board_files(table).eds
+
+
+def dbc_for(table: Path | None = None) -> Path:
+    return board_files(table).dbc
+
+
+def is_default_table(table: Path) -> bool:
+    try:
+        return table.resolve() == DEFAULT_TABLE.resolve()
+    except OSError:
+        return False
+
+
+def generated_files(table: Path) -> BoardFiles:
+    """The EDS and DBC of `table`, generated into the cache as the build generates the default
+    table's. Regenerated on every call (a few milliseconds) but rewritten only when the text
+    changed, so a newer boardproto never leaves a stale file behind."""
+    from boardproto import load_table
+    from boardproto.dbc import generate_dbc
+    from boardproto.eds import generate_eds
+    from boardproto.outputs import write_if_changed
+
+    board = load_table(table)
+    out_dir = _cache_dir() / hashlib.sha256(table.read_bytes()).hexdigest()[:16]
+    files = BoardFiles(table, out_dir / "board.eds", out_dir / "board.dbc")
+    write_if_changed(files.eds, generate_eds(board))
+    write_if_changed(files.dbc, generate_dbc(board))
+    return files
+
+
+def _cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    path = Path(base) / "hilrig" / "tables"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:  # a read-only home (a container): the temporary directory instead
+        path = Path(tempfile.gettempdir()) / f"hilrig-{os.getuid()}" / "tables"
+        path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def dashboards() -> ModuleType:
+    """The `dashboards` package: installed beside hilrig by the wheel (and mapped by the editable
+    install); in a checkout run from PYTHONPATH alone, loaded from the checkout's dashboards/."""
+    try:
+        import dashboards  # type: ignore[import-not-found]
+
+        return dashboards
+    except ImportError:
+        if CHECKOUT is None:
+            raise ImportError("hilrig's dashboards package is not installed: reinstall hilrig") from None
+    root = CHECKOUT / "dashboards"
+    spec = importlib.util.spec_from_file_location(
+        "dashboards", root / "__init__.py", submodule_search_locations=[str(root)]
+    )
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no dashboards package at {root}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["dashboards"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def checkout_version() -> str:
+    """rig/pyproject.toml's version, for a checkout whose hilrig is not installed."""
+    import tomllib
+
+    if CHECKOUT is None:
+        return "unknown (not installed)"
+    try:
+        text = (CHECKOUT / "rig" / "pyproject.toml").read_text()
+        return str(tomllib.loads(text)["project"]["version"]) + " (not installed)"
+    except (OSError, KeyError, tomllib.TOMLDecodeError):
+        return "unknown (not installed)"
