@@ -203,10 +203,14 @@ void Node::handle_sdo(const CanFrame& frame, std::uint32_t now_us) {
 void Node::send_sdo_segments(std::uint32_t now_us) {
   const std::uint32_t aborts_before = sdo_.aborts_sent();
   std::array<std::uint8_t, 8> segment{};
+  segment_send_refused_ = false;
   for (std::size_t n = 0; n < kSdoSegmentsPerCall && sdo_.peek_segment(segment); ++n) {
     // Refused (transmit queue full): the server keeps it for the next poll rather than leave
     // a gap the client would have to ask for again.
-    if (!send(kSdoResponseCobIdBase + node_id_, segment)) break;
+    if (!send(kSdoResponseCobIdBase + node_id_, segment)) {
+      segment_send_refused_ = true;
+      break;
+    }
     sdo_.segment_sent(now_us);
   }
   counters_.sdo_aborts_sent += sdo_.aborts_sent() - aborts_before;

@@ -680,6 +680,38 @@ TEST_F(RecorderNodeTest, BlockUploadOfAFullRecordingFrameByFrame) {
   }
 }
 
+TEST_F(RecorderNodeTest, SegmentsDueTellsTheLoopNotToSleepMidSubBlock) {
+  ASSERT_EQ(set(object::kChannels, 1, index_of(kTorque), 2), SdoAbort::None);
+  ASSERT_EQ(set(object::kChannels, 0, 1, 1), SdoAbort::None);
+  ASSERT_EQ(set(object::kSamples, 0, 400, 4), SdoAbort::None);  // 1600+ bytes: over 127 segments
+  ASSERT_EQ(set(object::kState, 0, raw(RecorderState::Armed), 1), SdoAbort::None);
+  for (int k = 0; k < 400; ++k) cycle();
+  ASSERT_EQ(upload(object::kState, 0), raw(RecorderState::Done));
+  EXPECT_FALSE(node.sdo_segments_due());
+  const Frame initiate = sdo({0xA4, static_cast<std::uint8_t>(object::kData),
+                              static_cast<std::uint8_t>(object::kData >> 8), 0, 127, 0});
+  ASSERT_EQ(initiate[0], 0xC6);
+  EXPECT_FALSE(node.sdo_segments_due()) << "nothing to send before the client's start";
+
+  CanFrame start;
+  start.id = kSdoRx;
+  start.len = 8;
+  start.data = {0xA3};
+  node.process(start, now_us);
+  std::size_t sent = all_sent().size();
+  EXPECT_EQ(sent, Node::kSdoSegmentsPerCall);
+  EXPECT_TRUE(node.sdo_segments_due()) << "119 segments of the sub-block still to go";
+  int polls = 0;
+  while (node.sdo_segments_due() && polls < 100) {
+    node.poll(now_us);
+    sent += all_sent().size();
+    ++polls;
+  }
+  EXPECT_EQ(sent, 127u) << "the whole sub-block, then silence until the ack";
+  EXPECT_FALSE(node.sdo_segments_due());
+  EXPECT_TRUE(exchange({0xA2, 127, 127}).size() > 0) << "the next sub-block after the ack";
+}
+
 TEST_F(RecorderNodeTest, SegmentedUploadOfARecordingAlsoWorks) {
   ASSERT_EQ(set(object::kChannels, 1, index_of(kTorque), 2), SdoAbort::None);
   ASSERT_EQ(set(object::kChannels, 0, 1, 1), SdoAbort::None);

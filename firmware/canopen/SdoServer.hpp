@@ -93,6 +93,10 @@ class SdoServer {
   }
 
   bool transfer_in_progress() const { return state_ != State::Idle; }
+  // A block-upload segment (or the abort replacing it) is waiting for peek_segment().
+  bool segments_due() const {
+    return segment_ready_ || (state_ == State::BlockUploading && !sub_block_sent());
+  }
   std::uint32_t aborts_sent() const { return aborts_sent_; }
   SdoAbort last_abort() const { return last_abort_; }
 

@@ -358,8 +358,9 @@ int run(const Options& options) {
   while (running) {
     std::array<pollfd, 3> fds{{{port.fd(), POLLIN, 0}, {signal_fd, POLLIN, 0}, {timer_fd, POLLIN, 0}}};
     const nfds_t count = timer_fd >= 0 ? 3 : 2;
-    // 1 ms bounds the heartbeat and SDO-timeout jitter while idle.
-    const int ready = ::poll(fds.data(), count, 1);
+    // 1 ms bounds the heartbeat and SDO-timeout jitter while idle; no wait while a block
+    // upload has segments to send (each pass sends a bounded number, then serves frames).
+    const int ready = ::poll(fds.data(), count, node.sdo_segments_due() ? 0 : 1);
     if (ready < 0 && errno != EINTR) {
       std::fprintf(stderr, "joint-firmware: poll failed: %s\n", std::strerror(errno));
       return kExitStartupFailure;
