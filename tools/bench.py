@@ -233,14 +233,12 @@ class BusBench:
             yield fw
 
     # --- lockstep: the rig (untraced, traced) and the floors -----------------------------------
-    def rig_rate(self, cycles: int, warmup: int, budget_s: float, *, traced: bool) -> tuple[float, int]:
-        """(cycles per second, cycles measured) of the full `Rig` (physics, history, checks) in a
-        HIL session (`hilrig.session`, no bus log), with or without a Rerun trace (written to a
-        file; its close(), which sends what is pending, is inside the measurement)."""
+    def _session(self, what: str, *, traced: bool) -> Any:
+        """A HIL session of the firmware in lockstep on the bench's bus (`hilrig.session`), no
+        bus log; a trace.rrd when `traced`."""
         from hilrig.session import SessionConfig, open_session
 
         self._runs += 1
-        what = "rig-traced" if traced else "rig"
         config = SessionConfig(
             out_dir=self.logs / f"{self._runs:02d}-{what}",
             trace=traced,
@@ -250,7 +248,13 @@ class BusBench:
             node_id=FIRMWARE_NODE_ID,
             period_us=PERIOD_US,
         )
-        session = open_session(config, table=self.table)
+        return open_session(config, table=self.table)
+
+    def rig_rate(self, cycles: int, warmup: int, budget_s: float, *, traced: bool) -> tuple[float, int]:
+        """(cycles per second, cycles measured) of the full `Rig` (physics, history, checks) in a
+        HIL session (`hilrig.session`, no bus log), with or without a Rerun trace (written to a
+        file; its close(), which sends what is pending, is inside the measurement)."""
+        session = self._session("rig-traced" if traced else "rig", traced=traced)
         try:
             rig = session.rig
             rig.set("velocity_setpoint", 5.0)
@@ -275,19 +279,8 @@ class BusBench:
         alternating, from the firmware in lockstep; bytes per second of each, best of `rounds`."""
         from boardproto.table import RecorderObject
         from hilrig.capture import CaptureSettings, RecorderClient
-        from hilrig.session import SessionConfig, open_session
 
-        self._runs += 1
-        config = SessionConfig(
-            out_dir=self.logs / f"{self._runs:02d}-recorder",
-            trace=False,
-            record=False,
-            executable=self.firmware_exe,
-            eds=self.eds,
-            node_id=FIRMWARE_NODE_ID,
-            period_us=PERIOD_US,
-        )
-        session = open_session(config, table=self.table)
+        session = self._session("recorder", traced=False)
         try:
             rig = session.rig
             recorder = RecorderClient(rig.node, self.table)
@@ -773,10 +766,12 @@ def _recorder_rows(row: Callable[..., None], ipc: dict[str, float]) -> None:
     )
 
 
-def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> dict[str, Any]:
-    rows: list[dict[str, Any]] = []
+class ReportRows(list[dict[str, Any]]):
+    """The report's rows; calling it adds one: measure, ours, baseline, ratio, goal, whether
+    the goal is met, and the measurement's own data."""
 
-    def row(
+    def __call__(
+        self,
         what: str,
         ours: str,
         baseline: str,
@@ -785,7 +780,7 @@ def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> 
         met: bool | None = None,
         **data: Any,
     ) -> None:
-        rows.append(
+        self.append(
             {
                 "measure": what,
                 "ours": ours,
@@ -796,6 +791,10 @@ def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> 
                 "data": data,
             }
         )
+
+
+def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> dict[str, Any]:
+    rows = row = ReportRows()
 
     lockstep = bus["lockstep"]
     best = {

@@ -23,29 +23,8 @@ bench = load_tool("bench")
 
 
 def _rows(ipc: dict[str, float]) -> list[dict[str, Any]]:
-    rows: list[dict[str, Any]] = []
-
-    def row(
-        what: str,
-        ours: str,
-        baseline: str,
-        ratio: float | None,
-        goal: str = "",
-        met: bool | None = None,
-        **data: Any,
-    ) -> None:
-        rows.append(
-            {
-                "measure": what,
-                "ours": ours,
-                "baseline": baseline,
-                "ratio": ratio,
-                "goal": goal,
-                "goal_met": met,
-            }
-        )
-
-    bench._recorder_rows(row, ipc)
+    rows = bench.ReportRows()
+    bench._recorder_rows(rows, ipc)
     return rows
 
 
