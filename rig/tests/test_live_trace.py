@@ -213,6 +213,12 @@ def test_sim_streams_to_a_web_viewer_that_shows_the_recording_grow_while_it_runs
     assert web_viewer_url(web_port, grpc_port) in summary
 
 
+def _ctrl_c_ends_it() -> None:
+    """In the server's process: SIGINT ends it again. A shell starts background jobs (make test
+    under `&`, some CI runners) with SIGINT ignored, and children inherit that."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the server's file is a stream
 @pytest.mark.parametrize("command", ["record", "watch"])
 def test_a_boards_pdos_stream_live_to_a_viewer(command: str, tmp_path: Path) -> None:
@@ -231,6 +237,7 @@ def test_a_boards_pdos_stream_live_to_a_viewer(command: str, tmp_path: Path) -> 
         process_group=0,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        preexec_fn=_ctrl_c_ends_it,
     )
     channel = f"live-{command}-{os.getpid()}"
     fake_bus = can.Bus(interface="virtual", channel=channel)
