@@ -347,8 +347,7 @@ class BusBench:
 
     def floor_rate(self, cycles: int, warmup: int, budget_s: float) -> tuple[float, int]:
         """The floor: the same RPDO frames + SYNC out and the same TPDO frames back, over one raw
-        socket with kernel filters and the rig's batched I/O (`hilrig.transport`), no physics, no
-        checks, no trace."""
+        socket with kernel filters (`hilrig.transport`), no physics, no checks, no trace."""
         from boardproto.cia301 import (
             NMT_COB_ID,
             SYNC_COB_ID,
@@ -377,10 +376,7 @@ class BusBench:
                 link.send(can_frame(NMT_COB_ID, bytes([NmtCommand.START, FIRMWARE_NODE_ID])))
                 period = math.lcm(*(p.transmission_type for p in tpdos))
                 expected = [sum(1 for p in tpdos if p.due_at_sync(n + 1)) for n in range(period)]
-                # The rig's own batched I/O (one sendmmsg out, recvmmsg in), so the ratio
-                # measures the Rig's work and not a difference in system calls.
-                send_many, recv_many = link.send_many, link.recv_many
-                outgoing = [b"".join(out_frames) + sync for sync in syncs]
+                send, recv = link.send, link.recv
                 start = 0.0
                 done = 0
                 for n in range(warmup + cycles):
@@ -388,14 +384,13 @@ class BusBench:
                         start = time.perf_counter()
                     elif n > warmup and n % 50 == 0 and time.perf_counter() - start > budget_s:
                         break
-                    send_many(outgoing[n % SYNC_COUNTER_MAX])
-                    waiting = expected[n % period]
-                    while waiting > 0:
-                        got = len(recv_many(5.0))
-                        if not got:
+                    for frame in out_frames:
+                        send(frame)
+                    send(syncs[n % SYNC_COUNTER_MAX])
+                    for _ in range(expected[n % period]):
+                        if recv(5.0) is None:
                             fw.check()
                             raise RuntimeError(f"floor: cycle {n}: a TPDO did not come within 5 s")
-                        waiting -= got
                     if n >= warmup:
                         done += 1
                 elapsed = time.perf_counter() - start

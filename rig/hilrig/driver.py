@@ -471,7 +471,8 @@ class Driver:
         (to `BoardNode.on_emcy`), TPDOs are kept for the next cycle."""
         if self._link is None:
             return
-        for frame in self._link.recv_many(0.0):
+        recv = self._link.recv
+        while (frame := recv(0.0)) is not None:
             if frame[0] in self._tpdo_by_cob:
                 self._pending.append(frame)
             else:
@@ -481,11 +482,10 @@ class Driver:
         if cob_id == self._emcy_cob_id:
             self.node.emcy_received(data)
 
-    def _transmit_rpdos(self, raw: RawSensors | None, sync: bytes) -> tuple[PdoRow, ...]:
+    def _transmit_rpdos(self, raw: RawSensors | None) -> tuple[PdoRow, ...]:
         """Send one cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint
-        stream, any RPDO a scenario changed) and then the `sync` frame, all in one batch;
-        return the RPDOs sent."""
-        frames: list[bytes] = []
+        stream, any RPDO a scenario changed); return what was sent."""
+        send = self.link.send
         sent: list[PdoRow] = []
         paused = self.paused_rpdos
         if raw is not None:
@@ -493,7 +493,7 @@ class Driver:
                 if pdo.number in paused:
                     continue
                 values = values_of(raw)
-                frames.append(pdo.frame(values))
+                send(pdo.frame(values))
                 sent.append((pdo, values))
         dirty = self._dirty_rpdos
         for number, values in self._rpdo_values.items():
@@ -503,11 +503,9 @@ class Driver:
             pdo = self._rpdo_layouts[number]
             if frame is None:
                 frame = self._rpdo_frames[number] = pdo.frame(values)
-            frames.append(frame)
+            send(frame)
             sent.append((pdo, tuple(values)))
             dirty.discard(number)
-        frames.append(sync)
-        self.link.send_many(b"".join(frames))
         return tuple(sent)
 
     def _decode(self, pdo: PdoLayout, data: bytes) -> tuple[Value, ...] | None:

@@ -59,7 +59,8 @@ class LockstepDriver(Driver):
         else:
             sync_number = 0
             due = frozenset()
-        sent = self._transmit_rpdos(raw, sync_frame(counter))
+        sent = self._transmit_rpdos(raw)
+        self.link.send(sync_frame(counter))
         got = self._collect(n, t, due, sync_number)
 
         duty = 0.0
@@ -119,19 +120,19 @@ class LockstepDriver(Driver):
         pending, self._pending = self._pending, []
         for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
             take(cob_id, data, between_syncs=True)
-        recv_many = self.link.recv_many
+        recv = self.link.recv
         lengths = self._tpdo_lengths
         unpack = self._tpdo_unpack
         waited = 0.0
         while missing:
-            frames = recv_many(LIVENESS_SLICE_S)
-            for cob_id, data in frames:
+            frame = recv(LIVENESS_SLICE_S)
+            if frame is not None:
+                cob_id, data = frame
                 if cob_id in missing and len(data) == lengths[cob_id]:  # the usual frame
                     got[cob_id] = unpack[cob_id](data)
                     missing.discard(cob_id)
                 else:
                     take(cob_id, data)
-            if frames:
                 continue
             waited += LIVENESS_SLICE_S
             if self.liveness is not None:
@@ -145,8 +146,8 @@ class LockstepDriver(Driver):
                 heartbeat = self.node.last_heartbeat
                 hint = f"; last heartbeat: {heartbeat.name}" if heartbeat is not None else ""
                 raise self._error(n, t, f"{labels} {verb} not arrive within {self.tpdo_timeout_s:g} s{hint}")
-        for cob_id, data in recv_many(0.0):  # queued behind the due ones: this SYNC's too
-            take(cob_id, data)
+        while (frame := recv(0.0)) is not None:  # queued behind the due ones: this SYNC's too
+            take(*frame)
         return got
 
     @staticmethod

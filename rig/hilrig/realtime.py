@@ -138,8 +138,16 @@ class RealTimeDriver(Driver):
         """Every TPDO that arrived since the last tick, the latest of each (EMCYs dispatched)."""
         latest: dict[PdoLayout, tuple[Value, ...]] = {}
         pending, self._pending = self._pending, []
+        recv = self.link.recv
         by_cob = self._tpdo_by_cob
-        for cob_id, data in [*pending, *self.link.recv_many(0.0)]:
+        frames = iter(pending)
+        while True:
+            frame = next(frames, None)
+            if frame is None:
+                frame = recv(0.0)
+                if frame is None:
+                    break
+            cob_id, data = frame
             pdo = by_cob.get(cob_id)
             if pdo is None:
                 self._other_frame(cob_id, data)
@@ -184,8 +192,9 @@ class RealTimeDriver(Driver):
             if self.sensor_override is not None:
                 raw = self.sensor_override(raw)
         state = self.plant.state
+        sent = self._transmit_rpdos(raw)
         counter = sync_counter(n)
-        sent = self._transmit_rpdos(raw, sync_frame(counter))
+        self.link.send(sync_frame(counter))
         if self._operational:
             self._syncs_since_operational += 1
 

@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
 from boardproto.cia301 import LAST_SYNCHRONOUS_TYPE, STANDARD_ID_MASK, due_at_sync
-from hilrig import _rawcan
 from hilrig.errors import PdoMappingError
 
 if TYPE_CHECKING:
@@ -185,20 +184,11 @@ Frame = tuple[int, bytes]
 class FrameLink(Protocol):
     """Whole frames out and in. `send` takes a SocketCAN frame (`can_frame`, `PdoLayout.frame`);
     `recv(timeout_s)` returns the next received frame that passed the link's filter, or None
-    when none arrived within `timeout_s` (0: only what is already there).
-
-    The batched pair is what a lockstep cycle uses: `send_many` takes several SocketCAN frames
-    joined into one bytes object and sends them in order; `recv_many(timeout_s)` waits up to
-    `timeout_s` for the first frame (0: not at all) and returns it with every frame queued
-    behind it, in arrival order ([] when none came)."""
+    when none arrived within `timeout_s` (0: only what is already there)."""
 
     def send(self, frame: bytes, /) -> None: ...
 
     def recv(self, timeout_s: float, /) -> Frame | None: ...
-
-    def send_many(self, frames: bytes, /) -> None: ...
-
-    def recv_many(self, timeout_s: float, /) -> list[Frame]: ...
 
     def close(self) -> None: ...
 
@@ -208,8 +198,7 @@ class RawCanLink:
 
     The socket stays blocking and waits with the kernel's own receive timeout (SO_RCVTIMEO), so
     a receive is one system call (a Python-level timeout would poll first); `recv(0)` asks the
-    kernel not to wait (MSG_DONTWAIT). The batched pair goes through `hilrig._rawcan`
-    (sendmmsg/recvmmsg: a cycle's frames in one or two system calls)."""
+    kernel not to wait (MSG_DONTWAIT)."""
 
     def __init__(self, sock: socket.socket) -> None:
         self.socket = sock
@@ -243,16 +232,6 @@ class RawCanLink:
         cob_id, length = CAN_HEADER.unpack_from(frame)
         return cob_id, frame[8 : 8 + length]
 
-    def send_many(self, frames: bytes) -> None:
-        _rawcan.send_frames(self.socket, frames)
-
-    def recv_many(self, timeout_s: float) -> list[Frame]:
-        if timeout_s <= 0.0:
-            return _rawcan.recv_frames(self.socket, False)
-        if timeout_s != self._timeout:
-            self._set_timeout(timeout_s)
-        return _rawcan.recv_frames(self.socket, True)
-
     def enable_timestamps(self) -> None:
         """Have the kernel stamp every received frame (`recv_stamped`)."""
         self.socket.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMP, 1)
@@ -282,31 +261,7 @@ _TIMEVAL = struct.Struct("@ll")
 _TIMESTAMP_SPACE = socket.CMSG_SPACE(_TIMEVAL.size)
 
 
-class FrameByFrame:
-    """`send_many` and `recv_many` of a FrameLink in terms of its `send` and `recv`, for links
-    without a batched path of their own."""
-
-    def send(self, frame: bytes, /) -> None:
-        raise NotImplementedError
-
-    def recv(self, timeout_s: float, /) -> Frame | None:
-        raise NotImplementedError
-
-    def send_many(self, frames: bytes) -> None:
-        for start in range(0, len(frames), CAN_FRAME_SIZE):
-            self.send(frames[start : start + CAN_FRAME_SIZE])
-
-    def recv_many(self, timeout_s: float) -> list[Frame]:
-        first = self.recv(timeout_s)
-        if first is None:
-            return []
-        frames = [first]
-        while (frame := self.recv(0.0)) is not None:
-            frames.append(frame)
-        return frames
-
-
-class BusLink(FrameByFrame):
+class BusLink:
     """Frames over python-can's `Bus` (any interface), received through the `can.Notifier`
     that already reads that bus (canopen's), filtered by COB-ID into a queue."""
 
@@ -463,7 +418,6 @@ __all__ = [
     "RECEIVE_QUEUE_BYTES",
     "BusLink",
     "Frame",
-    "FrameByFrame",
     "FrameLink",
     "PdoDirection",
     "PdoLayout",

@@ -19,7 +19,7 @@ from hilrig.lockstep import LockstepDriver
 from hilrig.physics import JointParams, JointPlant, SensorModel
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.table import BOARD_TABLE, RigTable
-from hilrig.transport import FrameByFrame, PdoDirection, PdoLayout, compile_pdos, parse_frame
+from hilrig.transport import PdoDirection, PdoLayout, compile_pdos, parse_frame
 
 NODE_ID = 0x10
 EMCY = emcy_cob_id(NODE_ID)
@@ -27,7 +27,7 @@ SENSORS, SETPOINTS = (BOARD_TABLE.rpdo(n).cob_id(NODE_ID) for n in (1, 2))
 TPDO1, TPDO6, TPDO8 = (BOARD_TABLE.tpdo(n).cob_id(NODE_ID) for n in (1, 6, 8))
 
 
-class ScriptedLink(FrameByFrame):
+class ScriptedLink:
     """Answers each SYNC with the TPDOs due at it; `script(sync_number, frames)` may change the
     answer (drop, duplicate, shorten, add frames)."""
 

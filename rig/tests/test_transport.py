@@ -5,9 +5,7 @@ checked against the generated DBC with cantools, independently of the struct cod
 from __future__ import annotations
 
 import itertools
-import socket
 import struct
-from collections.abc import Iterator
 from typing import ClassVar
 
 import can
@@ -19,12 +17,10 @@ from boardproto.cia301 import FunctionCode, cob_id, due_at_sync, emcy_cob_id, sy
 from hilrig.errors import PdoMappingError
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.transport import (
-    CAN_FRAME,
     CAN_FRAME_SIZE,
     BusLink,
     PdoDirection,
     PdoLayout,
-    RawCanLink,
     can_frame,
     compile_pdos,
     parse_frame,
@@ -158,104 +154,6 @@ def test_bus_link_passes_only_the_wanted_standard_data_frames() -> None:
                 rpdo1,
                 b"\xaa\xbb",
             )
-        finally:
-            link.close()
-            notifier.stop()
-
-
-# --- The batched path (hilrig._rawcan) on a Unix datagram pair: the same 16-byte records a raw
-# CAN socket carries, without a kernel CAN bus (tests/test_bus_smoke.py runs it on vcan).
-@pytest.fixture
-def datagram_pair() -> Iterator[tuple[socket.socket, socket.socket]]:
-    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_DGRAM)
-    with ours, theirs:
-        yield ours, theirs
-
-
-def test_send_many_sends_every_frame_in_order_in_one_call(
-    datagram_pair: tuple[socket.socket, socket.socket],
-) -> None:
-    ours, theirs = datagram_pair
-    frames = [can_frame(TPDO1_ID + i, bytes([i]) * (i % 9)) for i in range(40)]  # more than a batch
-    RawCanLink(ours).send_many(b"".join(frames))
-    assert [theirs.recv(64) for _ in frames] == frames
-    theirs.setblocking(False)
-    with pytest.raises(BlockingIOError):
-        theirs.recv(64)
-
-
-def test_recv_many_takes_everything_queued_in_arrival_order(
-    datagram_pair: tuple[socket.socket, socket.socket],
-) -> None:
-    ours, theirs = datagram_pair
-    link = RawCanLink(ours)
-    assert link.recv_many(0.0) == []
-    sent = [(TPDO1_ID + i % 7, bytes(range(i % 9))) for i in range(75)]  # two full batches and some
-    for frame_id, data in sent:
-        theirs.send(can_frame(frame_id, data))
-    assert link.recv_many(5.0) == sent
-    assert link.recv_many(0.0) == []
-
-
-def test_recv_many_waits_only_as_long_as_asked(datagram_pair: tuple[socket.socket, socket.socket]) -> None:
-    ours, theirs = datagram_pair
-    link = RawCanLink(ours)
-    assert link.recv_many(0.01) == []  # the socket's receive timeout ran out: nothing, no error
-    theirs.send(can_frame(EMCY_ID, b"\x01"))
-    assert link.recv_many(0.01) == [(EMCY_ID, b"\x01")]
-
-
-def test_recv_many_keeps_flags_and_survives_odd_records(
-    datagram_pair: tuple[socket.socket, socket.socket],
-) -> None:
-    ours, theirs = datagram_pair
-    extended = 0x1234_5678 | socket.CAN_EFF_FLAG
-    theirs.send(CAN_FRAME.pack(extended, 2, b"\x05\x06"))
-    theirs.send(b"\x01\x02")  # too short for a can_frame header: dropped
-    theirs.send(CAN_FRAME.pack(0x123, 15, bytes(range(8))))  # a length over 8 reads as 8
-    assert RawCanLink(ours).recv_many(1.0) == [(extended, b"\x05\x06"), (0x123, bytes(range(8)))]
-
-
-def test_send_many_refuses_partial_frames(datagram_pair: tuple[socket.socket, socket.socket]) -> None:
-    ours, _ = datagram_pair
-    with pytest.raises(ValueError, match="no whole number of 16-byte frames"):
-        RawCanLink(ours).send_many(can_frame(TPDO1_ID, b"") + b"\x00")
-
-
-def test_a_closed_socket_is_an_os_error_not_a_crash() -> None:
-    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_DGRAM)
-    link = RawCanLink(ours)
-    theirs.close()
-    with pytest.raises(OSError):
-        link.send_many(can_frame(TPDO1_ID, b""))
-    ours.close()
-    with pytest.raises((OSError, ValueError)):
-        link.recv_many(0.0)
-
-
-def test_bus_link_batches_frame_by_frame() -> None:
-    channel = f"transport-{next(_channels)}"
-    with (
-        can.Bus(interface="virtual", channel=channel) as ours,
-        can.Bus(interface="virtual", channel=channel) as other,
-    ):
-        notifier = can.Notifier(ours, [], timeout=0.01)
-        link = BusLink(ours, notifier, [TPDO1_ID, EMCY_ID])
-        try:
-            assert link.recv_many(0.0) == []
-            for data in (b"\x01", b"\x02", b"\x03"):
-                other.send(can.Message(arbitration_id=TPDO1_ID, data=data, is_extended_id=False))
-            got: list[tuple[int, bytes]] = []
-            while len(got) < 3:  # the notifier's thread hands them over one by one
-                got += link.recv_many(5.0)
-            assert got == [(TPDO1_ID, b"\x01"), (TPDO1_ID, b"\x02"), (TPDO1_ID, b"\x03")]
-            rpdo1, rpdo2 = cob_id(FunctionCode.RPDO1, NODE_ID), cob_id(FunctionCode.RPDO2, NODE_ID)
-            link.send_many(can_frame(rpdo1, b"\xaa") + can_frame(rpdo2, b"\xbb\xcc"))
-            received = [other.recv(5.0) for _ in range(2)]
-            assert [(m.arbitration_id, bytes(m.data)) for m in received if m is not None] == [
-                (rpdo1, b"\xaa"),
-                (rpdo2, b"\xbb\xcc"),
-            ]
         finally:
             link.close()
             notifier.stop()
