@@ -48,6 +48,10 @@ SETTLE_S = 0.2
 """Tracking errors skip this long after each setpoint or mode change (the step response)."""
 BOOT_TIMEOUT_S = 60.0
 """Hang guard for the firmware's boot-up (ASan build in the software-emulated VM)."""
+DEFAULT_POLL_EVERY = 250
+"""Cycles between SDO reads of the fields a dashboard plots but no PDO carries (4 Hz at 1 kHz).
+Each read is a round trip between two cycles (about 17 ms in the micro-VM, six fields): every
+100 cycles made `make run` 3.5 s slower (10.4 s of cycling instead of 6.9)."""
 
 
 class ScenarioFileError(RigError, ValueError):
@@ -103,7 +107,7 @@ class DemoOptions:
     executable: Path = DEFAULT_EXECUTABLE
     eds: Path = DEFAULT_EDS_PATH
     faults: FaultPlan = field(default_factory=FaultPlan)
-    poll_every: int = 100
+    poll_every: int = DEFAULT_POLL_EVERY
     """With a trace: every how many cycles the fields a dashboard plots but no PDO carries are
     read over SDO into it (0: never)."""
     live: tuple[TraceSink, ...] = ()

@@ -29,6 +29,7 @@ from test_web_viewer import (
 )
 
 from hilrig.cli import main
+from hilrig.demo import DEFAULT_POLL_EVERY
 from hilrig.fake_node import FakeJointNode
 from hilrig.table import RigTable
 from hilrig.trace import (
@@ -204,11 +205,11 @@ def test_sim_streams_to_a_web_viewer_that_shows_the_recording_grow_while_it_runs
     from hilrig.trace_reader import Trace
 
     # The file is written beside the live sink, with what a dashboard plots but no PDO carries
-    # read over SDO (every 100 cycles by default, cycle 0 first).
+    # read over SDO (every DEFAULT_POLL_EVERY cycles, cycle 0 first).
     trace = Trace.read(tmp_path / "out" / "trace.rrd")
     estimate = entity_paths(table)["spring_constant_estimate"]
     assert trace.cycles[estimate][:1] == [0], sorted(trace.cycles)
-    assert trace.series_names[estimate].endswith("(SDO, every 100 cycles)")
+    assert trace.series_names[estimate].endswith(f"(SDO, every {DEFAULT_POLL_EVERY} cycles)")
     summary = (tmp_path / "out" / "summary.txt").read_text()
     assert web_viewer_url(web_port, grpc_port) in summary
 

@@ -37,6 +37,7 @@ def fault_spec(text: str) -> FaultSpec:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    from hilrig.demo import DEFAULT_POLL_EVERY
     from hilrig.faults import FAULT_SYNTAX_HELP  # the fault models need numpy: only for `sim`
 
     parser.add_argument(
@@ -111,10 +112,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     trace.add_argument(
         "--poll-every",
         type=int,
-        default=100,
+        default=DEFAULT_POLL_EVERY,
         metavar="N",
         help="read the fields a dashboard plots but no PDO carries (the spring constant estimate, "
-        "thermal limits...) over SDO every N cycles into the trace (default: 100; 0: never)",
+        "thermal limits...) over SDO every N cycles into the trace (default: "
+        f"{DEFAULT_POLL_EVERY}; each read is an SDO round trip between two cycles; 0: never)",
     )
     trace.add_argument(
         "--no-trace", action="store_true", help="no trace at all (faster start: no rerun import)"
