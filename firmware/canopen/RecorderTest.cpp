@@ -5,6 +5,7 @@
 #include <limits>
 #include <vector>
 
+#include "BlockCrcReference.hpp"
 #include "NodeTestSupport.hpp"
 #include "ObjectTables.hpp"
 #include "Recorder.hpp"
@@ -533,16 +534,6 @@ TEST_F(RecorderTest, ObjectsHaveTheTypesTheEdsLists) {
 
 using Frame = std::array<std::uint8_t, 8>;
 
-// CRC-16/CCITT of block transfers, byte-wise (as SdoBlockTest's reference).
-std::uint16_t reference_crc(std::span<const std::uint8_t> bytes) {
-  std::uint16_t crc = 0;
-  for (const std::uint8_t byte : bytes) {
-    auto x = static_cast<std::uint16_t>((crc >> 8) ^ byte);
-    x = static_cast<std::uint16_t>(x ^ (x >> 4));
-    crc = static_cast<std::uint16_t>((crc << 8) ^ (x << 12) ^ (x << 5) ^ x);
-  }
-  return crc;
-}
 
 class RecorderNodeTest : public NodeTest {
  protected:

@@ -7,6 +7,7 @@
 #include <string_view>
 #include <vector>
 
+#include "BlockCrcReference.hpp"
 #include "NodeTestSupport.hpp"
 #include "ObjectTables.hpp"
 
@@ -16,17 +17,7 @@ namespace {
 using board::FieldId;
 using Frame = std::array<std::uint8_t, 8>;
 
-// CRC-16/CCITT as CiA 301 defines it (polynomial 0x1021, initial value 0), written in the
-// byte-wise shift form so that it shares no code or shape with the server's bitwise loop.
-std::uint16_t reference_crc(std::span<const std::uint8_t> bytes) {
-  std::uint16_t crc = 0;
-  for (const std::uint8_t byte : bytes) {
-    auto x = static_cast<std::uint16_t>((crc >> 8) ^ byte);
-    x = static_cast<std::uint16_t>(x ^ (x >> 4));
-    crc = static_cast<std::uint16_t>((crc << 8) ^ (x << 12) ^ (x << 5) ^ x);
-  }
-  return crc;
-}
+using co::test::reference_crc;  // BlockCrcReference.hpp; the overload below takes text
 
 std::uint16_t reference_crc(std::string_view text) {
   return reference_crc(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));

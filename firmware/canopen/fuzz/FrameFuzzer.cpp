@@ -46,6 +46,7 @@
 #include <span>
 #include <vector>
 
+#include "BlockCrcReference.hpp"
 #include "MemoryPort.hpp"
 #include "Recorder.hpp"
 #include "Node.hpp"
@@ -151,17 +152,6 @@ bool known_abort_code(std::uint32_t code) {
   return false;
 }
 
-// CRC-16/CCITT (0x1021, initial 0) of SDO block transfers, in the byte-wise shift form (the
-// server computes it bit by bit).
-std::uint16_t crc16(std::span<const std::uint8_t> bytes) {
-  std::uint16_t crc = 0;
-  for (const std::uint8_t byte : bytes) {
-    auto x = static_cast<std::uint16_t>((crc >> 8) ^ byte);
-    x = static_cast<std::uint16_t>(x ^ (x >> 4));
-    crc = static_cast<std::uint16_t>((crc << 8) ^ (x << 12) ^ (x << 5) ^ x);
-  }
-  return crc;
-}
 
 std::uint32_t le32(const std::array<std::uint8_t, 8>& d, std::size_t at) {
   return d[at] | (d[at + 1] << 8) | (d[at + 2] << 16) | (std::uint32_t{d[at + 3]} << 24);
@@ -597,7 +587,8 @@ class Harness {
     const std::size_t size = sdo_.received.size() - unused;
     check(size == sdo_.announced_size, "block upload delivered another size than announced", size,
           sdo_.announced_size);
-    const std::uint16_t crc = sdo_.crc_requested ? crc16(std::span(sdo_.received).first(size)) : 0;
+    const std::uint16_t crc =
+        sdo_.crc_requested ? co::test::reference_crc(std::span(sdo_.received).first(size)) : 0;
     check((r[1] | (r[2] << 8)) == crc, "block upload end CRC does not match the data", r[1] | (r[2] << 8),
           crc);
   }
