@@ -43,15 +43,12 @@ if CHECKOUT is not None:
     DEFAULT_DBC = CHECKOUT / "build" / "protocol" / "board.dbc"
     DEFAULT_FIRMWARE = CHECKOUT / "build" / "bin" / "joint-firmware"
     REBUILD_HINT = "run `make build`"
-    PYTHON_COMMAND = ".venv/bin/python"
-    """How the hints spell the project's Python (they are read at the checkout's root)."""
 else:
     DEFAULT_TABLE = PACKAGED / "board.toml"
     DEFAULT_EDS = PACKAGED / "board.eds"
     DEFAULT_DBC = PACKAGED / "board.dbc"
     DEFAULT_FIRMWARE = Path("build") / "bin" / "joint-firmware"
     REBUILD_HINT = "reinstall hilrig"
-    PYTHON_COMMAND = sys.executable or "python3"
 
 EDS_HINT = f"{REBUILD_HINT}, or give --eds FILE"
 DBC_HINT = f"{REBUILD_HINT}, or give --dbc FILE"
