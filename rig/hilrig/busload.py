@@ -58,9 +58,18 @@ What one lockstep cycle puts on the bus (`lockstep_traffic`):
     inhibit time, and at least at the event-timer rate;
   * the node's heartbeat (1 byte) every heartbeat_ms, independent of the cycle.
 
+A robot (`lockstep_traffic(..., node_ids=[1, .., N], master_heartbeat_ms=20)`, `hilrig
+bus-load --modules N`): N identical modules on one bus, each with the frames above under its
+own COB-IDs (base + node id), but ONE SYNC per cycle for all, plus the master's heartbeat
+(1 byte on 0x700 + 0x7F) every master_heartbeat_ms. The report shows one row per kind with its
+count and COB-ID range (`RPDO1 x8  0x201..0x208`); the sums count every frame.
+
 Bus load = busy time per second, averaged over time. The peak cycle (every synchronous TPDO
 due at once) must also fit in one cycle period: that share is reported beside it. Above 70 %
 (worst case, or the busiest cycle) a WARNING line; above 100 % the exchange does not fit.
+
+`highest_rate_hz` turns that around: the highest cycle rate (0.1 Hz steps) at which both
+stay within 70 % (worst case), by bisection on the rate (both loads grow with it; see there).
 """
 
 from __future__ import annotations
@@ -85,6 +94,11 @@ DEFAULT_RATE_HZ = 1000.0
 SYNC_DATA_BYTES = 1  # the SYNC counter
 HEARTBEAT_DATA_BYTES = 1
 MAX_DATA_BYTES = 8
+DEFAULT_MASTER_NODE_ID = 0x7F
+"""The rig as the master of a robot: its heartbeat goes on 0x700 + this id."""
+DEFAULT_MASTER_HEARTBEAT_MS = 20
+RATE_STEPS_PER_HZ = 10
+"""`highest_rate_hz` answers to 0.1 Hz."""
 
 _FIXED_BITS = 47  # every bit of a 2.0A data frame except the data field
 _STUFFABLE_FIXED_BITS = 34  # SOF .. CRC without the data field
@@ -188,13 +202,23 @@ class BusRates:
 
 @dataclass(frozen=True)
 class Traffic:
-    """One periodic frame on the bus."""
+    """One periodic frame on the bus, or `count` frames of one kind from as many nodes (the
+    same PDO of every module of a robot): each of them `per_second`, COB-IDs `can_id` ..
+    `highest_can_id`."""
 
     name: str  # "RPDO1", "SYNC", "TPDO8", "heartbeat"
-    can_id: int
+    can_id: int  # the lowest COB-ID of the kind
     data_bytes: int
-    per_second: float  # average frames per second
+    per_second: float  # average frames per second, of each of the `count` frames
     in_peak_cycle: bool  # sent in the cycle where every synchronous TPDO is due
+    count: int = 1
+    highest_can_id: int | None = None  # None: every frame of the kind has `can_id`
+
+    def __post_init__(self) -> None:
+        if self.count < 1:
+            raise ValueError(f"{self.name}: a frame kind counts 1 frame or more, got {self.count}")
+        if self.highest_can_id is not None and self.highest_can_id < self.can_id:
+            raise ValueError(f"{self.name}: highest COB-ID below the lowest")
 
     @property
     def bits_nominal(self) -> int:
@@ -239,10 +263,18 @@ def bus_load(traffic: Iterable[Traffic], rate_hz: float, bitrate: int | BusRates
     _check_rate(rate_hz)
     rates = bitrate if isinstance(bitrate, BusRates) else BusRates(bitrate)
     items = list(traffic)
-    nominal = sum(t.per_second * rates.frame_seconds(t.data_bytes, worst_case=False) for t in items)
-    worst = sum(t.per_second * rates.frame_seconds(t.data_bytes, worst_case=True) for t in items)
-    peak = sum(rates.frame_seconds(t.data_bytes, worst_case=True) for t in items if t.in_peak_cycle)
+    nominal = sum(t.count * t.per_second * rates.frame_seconds(t.data_bytes, worst_case=False) for t in items)
+    worst = sum(t.count * t.per_second * rates.frame_seconds(t.data_bytes, worst_case=True) for t in items)
+    peak = _peak_cycle_seconds(items, rates)
     return BusLoad(rates=rates, nominal=nominal, worst_case=worst, peak_cycle_worst_case=peak * rate_hz)
+
+
+def _peak_cycle_seconds(traffic: Iterable[Traffic], rates: BusRates) -> float:
+    """Bus time of the busiest cycle (worst-case stuffing): every frame of `traffic` that can
+    fall into it, once each."""
+    return sum(
+        t.count * rates.frame_seconds(t.data_bytes, worst_case=True) for t in traffic if t.in_peak_cycle
+    )
 
 
 def _tpdo_per_second(pdo: Pdo, rate_hz: float) -> float:
@@ -261,24 +293,23 @@ def _tpdo_per_second(pdo: Pdo, rate_hz: float) -> float:
     raise ValueError(f"{pdo.name}: transmission type {kind} is not supported")
 
 
-def lockstep_traffic(table: BoardTable, rate_hz: float, node_id: int | None = None) -> list[Traffic]:
-    """The frames of the lockstep exchange for the table's default PDO layout (see the module
-    docstring for what counts and how often)."""
-    _check_rate(rate_hz)
-    node = table.node.default_node_id if node_id is None else node_id
-    traffic: list[Traffic] = []
-    for pdo in table.rpdos:
-        if pdo.enabled and pdo.entries:
-            traffic.append(Traffic(pdo.name, pdo.cob_id(node), pdo.length_bytes, rate_hz, True))
-    traffic.append(Traffic("SYNC", SYNC_COB_ID, SYNC_DATA_BYTES, rate_hz, True))
+def _node_traffic(table: BoardTable, rate_hz: float, node: int) -> tuple[list[Traffic], list[Traffic]]:
+    """The per-node rule, one node's frames: (what the master sends it: its RPDOs; what it
+    sends: its TPDOs and heartbeat)."""
+    received = [
+        Traffic(pdo.name, pdo.cob_id(node), pdo.length_bytes, rate_hz, True)
+        for pdo in table.rpdos
+        if pdo.enabled and pdo.entries
+    ]
+    sent: list[Traffic] = []
     for pdo in table.tpdos:
         if pdo.enabled and pdo.entries:
             # In the busiest cycle every synchronous TPDO is due at once (and an event-driven
             # one may fire too).
             per_second = _tpdo_per_second(pdo, rate_hz)
-            traffic.append(Traffic(pdo.name, pdo.cob_id(node), pdo.length_bytes, per_second, True))
+            sent.append(Traffic(pdo.name, pdo.cob_id(node), pdo.length_bytes, per_second, True))
     if table.node.heartbeat_ms:
-        traffic.append(
+        sent.append(
             Traffic(
                 "heartbeat",
                 heartbeat_cob_id(node),
@@ -287,7 +318,156 @@ def lockstep_traffic(table: BoardTable, rate_hz: float, node_id: int | None = No
                 True,  # it can fall into the busiest cycle too
             )
         )
+    return received, sent
+
+
+def _grouped(per_node: Sequence[Sequence[Traffic]]) -> list[Traffic]:
+    """One Traffic per frame kind out of the same kinds of several nodes (identical modules:
+    the same rows in the same order), counting them all."""
+    if len(per_node) == 1:
+        return list(per_node[0])
+    grouped = []
+    for kinds in zip(*per_node, strict=True):
+        first = kinds[0]
+        can_ids = [t.can_id for t in kinds]
+        grouped.append(
+            Traffic(
+                first.name,
+                min(can_ids),
+                first.data_bytes,
+                first.per_second,
+                first.in_peak_cycle,
+                count=len(kinds),
+                highest_can_id=max(can_ids),
+            )
+        )
+    return grouped
+
+
+def _check_distinct_cob_ids(per_node: dict[int, list[Traffic]], master_node_id: int | None) -> None:
+    """Two frames on one identifier cannot share a bus: PDO 5..8 of node N use the COB-IDs of
+    PDO 1..4 of node N + 64 in the default layout, and a table may set its own bases."""
+    owner: dict[int, str] = {SYNC_COB_ID: "SYNC"}
+    if master_node_id is not None:
+        owner[heartbeat_cob_id(master_node_id)] = "the master's heartbeat"
+    for node, frames in per_node.items():
+        for frame in frames:
+            name = f"{frame.name} of node {node}"
+            if frame.can_id in owner:
+                raise ValueError(
+                    f"COB-ID 0x{frame.can_id:03X} of {name} is also that of {owner[frame.can_id]}"
+                )
+            owner[frame.can_id] = name
+
+
+def lockstep_traffic(
+    table: BoardTable,
+    rate_hz: float,
+    node_id: int | None = None,
+    *,
+    node_ids: Sequence[int] | None = None,
+    master_heartbeat_ms: float | None = None,
+    master_node_id: int = DEFAULT_MASTER_NODE_ID,
+) -> list[Traffic]:
+    """The frames of the lockstep exchange for the table's default PDO layout (see the module
+    docstring for what counts and how often): of the node `node_id` (default: the table's), or
+    of a robot, identical modules with `node_ids` on one bus, one row per frame kind with its
+    count. `master_heartbeat_ms` adds the master's heartbeat (0 or None: it sends none)."""
+    _check_rate(rate_hz)
+    if node_ids is not None and node_id is not None:
+        raise ValueError("give node_id (one node) or node_ids (a robot), not both")
+    if node_ids is not None and (not node_ids or len(set(node_ids)) != len(node_ids)):
+        raise ValueError(f"a robot needs distinct node ids, got {list(node_ids)}")
+    if master_heartbeat_ms is not None and master_heartbeat_ms < 0:
+        raise ValueError(
+            f"the master's heartbeat period must be 0 (none) or positive, got {master_heartbeat_ms}"
+        )
+    nodes = (
+        list(node_ids)
+        if node_ids is not None
+        else [table.node.default_node_id if node_id is None else node_id]
+    )
+    if master_heartbeat_ms and master_node_id in nodes:
+        raise ValueError(f"node id 0x{master_node_id:02X} is the master's")
+    per_node = {node: _node_traffic(table, rate_hz, node) for node in nodes}
+    if len(nodes) > 1:
+        _check_distinct_cob_ids(
+            {node: [*received, *sent] for node, (received, sent) in per_node.items()},
+            master_node_id if master_heartbeat_ms else None,
+        )
+    traffic = _grouped([received for received, _ in per_node.values()])
+    traffic.append(Traffic("SYNC", SYNC_COB_ID, SYNC_DATA_BYTES, rate_hz, True))  # one for all nodes
+    traffic.extend(_grouped([sent for _, sent in per_node.values()]))
+    if master_heartbeat_ms:
+        traffic.append(
+            Traffic(
+                "master heartbeat",
+                heartbeat_cob_id(master_node_id),
+                HEARTBEAT_DATA_BYTES,
+                1000 / master_heartbeat_ms,
+                True,  # as the nodes' heartbeats: it can fall into the busiest cycle
+            )
+        )
     return traffic
+
+
+def _fits(load: BusLoad, max_load: float) -> bool:
+    """The `BusLoad.warning` rule with `max_load` for 70 %: average and busiest cycle, worst case."""
+    return load.worst_case <= max_load and load.peak_cycle_worst_case <= max_load
+
+
+def highest_rate_hz(
+    table: BoardTable,
+    bitrate: int | BusRates,
+    *,
+    max_load: float = WARNING_LOAD,
+    node_id: int | None = None,
+    node_ids: Sequence[int] | None = None,
+    master_heartbeat_ms: float | None = None,
+    master_node_id: int = DEFAULT_MASTER_NODE_ID,
+) -> float:
+    """The highest SYNC (cycle) rate, a multiple of 0.1 Hz, at which the lockstep exchange of
+    `lockstep_traffic(table, ..., node_id, node_ids=..., master_heartbeat_ms=...)` takes at most
+    `max_load` of the bus on average and in its busiest cycle, both with worst-case stuffing
+    (what `BusLoad.warning` judges); 0.0 when not even 0.1 Hz fits (heartbeats or event timers
+    alone take more).
+
+    Both loads are nondecreasing in the rate: the busiest cycle is rate x its (rate-independent)
+    frames; the average sums per-frame rates that are each constant (heartbeats, event timers),
+    proportional (RPDOs, SYNC, synchronous TPDOs) or min/max-clipped (inhibit time, event timer)
+    in the rate. So whether it fits flips once, and a bisection on the 0.1 Hz grid finds the
+    exact step, whichever of the two limits binds and wherever a clip sits.
+    """
+    rates = bitrate if isinstance(bitrate, BusRates) else BusRates(bitrate)
+
+    def traffic_at(rate: float) -> list[Traffic]:
+        return lockstep_traffic(
+            table,
+            rate,
+            node_id,
+            node_ids=node_ids,
+            master_heartbeat_ms=master_heartbeat_ms,
+            master_node_id=master_node_id,
+        )
+
+    def fits(tenths: int) -> bool:
+        rate = tenths / RATE_STEPS_PER_HZ
+        return _fits(bus_load(traffic_at(rate), rate, rates), max_load)
+
+    if not fits(1):
+        return 0.0
+    # The busiest cycle alone bounds the rate: max_load / its bus time (at least one SYNC).
+    peak_s = _peak_cycle_seconds(traffic_at(1.0), rates)
+    fitting, too_fast = 1, math.floor(max_load / peak_s * RATE_STEPS_PER_HZ) + 1
+    while fits(too_fast):  # only float rounding at the bound could get here
+        fitting, too_fast = too_fast, 2 * too_fast
+    while too_fast - fitting > 1:
+        middle = (fitting + too_fast) // 2
+        if fits(middle):
+            fitting = middle
+        else:
+            too_fast = middle
+    return fitting / RATE_STEPS_PER_HZ
 
 
 # --- report -----------------------------------------------------------------------------
@@ -320,6 +500,13 @@ def _table(rows: Sequence[Sequence[str]], out: TextIO) -> None:
         print("  ".join(cells).rstrip(), file=out)
 
 
+def _cob_ids(traffic: Traffic) -> str:
+    """'0x210', or for one kind of frame of several nodes '0x201..0x208'."""
+    if traffic.highest_can_id is None or traffic.highest_can_id == traffic.can_id:
+        return f"0x{traffic.can_id:03X}"
+    return f"0x{traffic.can_id:03X}..0x{traffic.highest_can_id:03X}"
+
+
 def _bits(rates: BusRates, data_bytes: int, *, worst_case: bool) -> str:
     """'111', or for CAN FD '30+96': bits at the nominal rate + bits at the data rate."""
     if not rates.is_fd:
@@ -331,8 +518,9 @@ def _bits(rates: BusRates, data_bytes: int, *, worst_case: bool) -> str:
 def report(
     traffic: Sequence[Traffic], rate_hz: float, bitrates: Sequence[int | BusRates], out: TextIO
 ) -> list[BusLoad]:
-    """Prints the frames of a cycle and the load per bit rate, with a WARNING line above 70 %
-    and an OVERLOAD line above 100 %; returns the loads."""
+    """Prints the frames of a cycle (a kind sent by several nodes in one row: 'RPDO1 x8',
+    its COB-IDs, how often each of them goes) and the load per bit rate, with a WARNING line
+    above 70 % and an OVERLOAD line above 100 %; returns the loads."""
     all_rates = [rate if isinstance(rate, BusRates) else BusRates(rate) for rate in bitrates]
     shown = all_rates[0]  # the frame kind whose bits the table shows (the command never mixes)
     bits_header = "bits" if not shown.is_fd else "bits (nominal+data rate)"
@@ -340,8 +528,8 @@ def report(
     for t in traffic:
         frame_rows.append(
             [
-                t.name,
-                f"0x{t.can_id:03X}",
+                t.name if t.count == 1 else f"{t.name} x{t.count}",
+                _cob_ids(t),
                 str(t.data_bytes),
                 _format_rate(t.per_second, rate_hz),
                 _bits(shown, t.data_bytes, worst_case=False),

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from boardproto import load_table
+from boardproto import BoardTable, load_table
 from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, heartbeat_cob_id
 from hilrig.busload import (
     STANDARD_BITRATES,
@@ -18,11 +18,13 @@ from hilrig.busload import (
     fd_frame_bits,
     frame_bits_nominal,
     frame_bits_worst_case,
+    highest_rate_hz,
     lockstep_traffic,
     report,
     stuff_bits_worst_case,
 )
 from hilrig.cli import main
+from hilrig.table import DEFAULT_TABLE_PATH
 
 # A node with two RPDOs (one disabled), three TPDOs of transmission types 1, 10 and 254, and a
 # 100 ms heartbeat. Every number in the tests below is computed by hand from it.
@@ -223,6 +225,131 @@ def test_report_warns_above_70_percent_and_flags_above_100(table_path: Path) -> 
     assert "115.3 %" in lines[0] and "73.3 %" in lines[1], text
 
 
+# --- a robot: identical modules on one bus -----------------------------------------------------
+MASTER_HEARTBEAT_COB_ID = 0x77F  # 0x700 + the master's default node id 0x7F
+
+
+def test_robot_traffic_has_one_row_per_kind_counting_every_module(table_path: Path) -> None:
+    traffic = lockstep_traffic(load_table(table_path), 1000, node_ids=[1, 2], master_heartbeat_ms=20)
+    rows = {t.name: (t.count, t.can_id, t.highest_can_id, t.per_second) for t in traffic}
+    assert rows == {
+        "RPDO1": (2, 0x201, 0x202, 1000),
+        "SYNC": (1, SYNC_COB_ID, None, 1000),  # one SYNC for every module
+        "TPDO1": (2, 0x181, 0x182, 1000),
+        "TPDO2": (2, 0x281, 0x282, 100),
+        "TPDO3": (2, 0x381, 0x382, 200),
+        "heartbeat": (2, 0x701, 0x702, 10),
+        "master heartbeat": (1, MASTER_HEARTBEAT_COB_ID, None, 50),  # every 20 ms
+    }
+    assert list(rows) == ["RPDO1", "SYNC", "TPDO1", "TPDO2", "TPDO3", "heartbeat", "master heartbeat"]
+
+
+def test_robot_load_of_two_modules_by_hand(table_path: Path) -> None:
+    traffic = lockstep_traffic(load_table(table_path), 1000, node_ids=[1, 2], master_heartbeat_ms=20)
+    load = bus_load(traffic, rate_hz=1000, bitrate=1_000_000)
+    # Per module as in test_lockstep_load_of_the_hand_computed_table without its SYNC:
+    #   nominal 95*1000 + 63*1000 + 111*100 + 79*200 + 55*10 = 185_450 bit/s
+    #   worst   115*1000 + 75*1000 + 135*100 + 95*200 + 65*10 = 223_150 bit/s
+    # two modules, one SYNC (55 / 65 bits x 1000) and the master heartbeat (55 / 65 bits x 50):
+    #   nominal 2*185_450 + 55_000 + 2_750 = 428_650; worst 2*223_150 + 65_000 + 3_250 = 514_550
+    assert load.nominal == pytest.approx(0.428_650)
+    assert load.worst_case == pytest.approx(0.514_550)
+    # busiest cycle: per module 115 + 75 + 135 + 95 + 65 = 485 bits; 2*485 + SYNC 65 + master 65
+    # = 1100 bits in 1 ms
+    assert load.peak_cycle_worst_case == pytest.approx(1.1)
+    no_master = lockstep_traffic(load_table(table_path), 1000, node_ids=[1, 2], master_heartbeat_ms=0)
+    assert "master heartbeat" not in [t.name for t in no_master]
+    assert bus_load(no_master, 1000, 1_000_000).worst_case == pytest.approx(0.511_300)  # - 3_250
+
+
+def test_one_module_robot_is_the_single_node_plus_the_master_heartbeat(table_path: Path) -> None:
+    table = load_table(table_path)
+    robot = lockstep_traffic(table, 1000, node_ids=[NODE_ID], master_heartbeat_ms=20)
+    assert robot[:-1] == lockstep_traffic(table, 1000)
+    assert (robot[-1].name, robot[-1].can_id) == ("master heartbeat", MASTER_HEARTBEAT_COB_ID)
+
+
+def test_report_prints_a_row_per_kind_with_its_count_and_cob_id_range(table_path: Path) -> None:
+    traffic = lockstep_traffic(load_table(table_path), 1000, node_ids=[1, 2], master_heartbeat_ms=20)
+    out = io.StringIO()
+    report(traffic, 1000, [1_000_000], out)
+    frame_rows = [line.split() for line in out.getvalue().split("\n\n")[0].splitlines()[1:]]
+    assert [row[:3] for row in frame_rows] == [
+        ["RPDO1", "x2", "0x201..0x202"],
+        ["SYNC", "0x080", "1"],
+        ["TPDO1", "x2", "0x181..0x182"],
+        ["TPDO2", "x2", "0x281..0x282"],
+        ["TPDO3", "x2", "0x381..0x382"],
+        ["heartbeat", "x2", "0x701..0x702"],
+        ["master", "heartbeat", "0x77F"],
+    ]
+    load_row = next(line for line in out.getvalue().splitlines() if line.startswith("1 Mbit/s"))
+    assert load_row.split() == [
+        "1",
+        "Mbit/s",
+        "42.9",
+        "%",
+        "51.5",
+        "%",
+        "110.0",
+        "%",
+    ]  # test_robot_load_of_two_modules_by_hand
+
+
+def test_robot_refuses_colliding_cob_ids() -> None:
+    table = load_table(DEFAULT_TABLE_PATH)
+    # The default layout puts TPDO5 of node 1 on 0x1C1 = 0x180 + 65: TPDO1 of node 65.
+    with pytest.raises(ValueError, match="COB-ID 0x1C1 of TPDO1 of node 65 is also that of TPDO5 of node 1"):
+        lockstep_traffic(table, 100, node_ids=[1, 65])
+    with pytest.raises(ValueError, match="master's"):
+        lockstep_traffic(table, 100, node_ids=[1, 0x7F], master_heartbeat_ms=20)
+    with pytest.raises(ValueError, match="not both"):
+        lockstep_traffic(table, 100, 1, node_ids=[1, 2])
+
+
+# --- highest_rate_hz ---------------------------------------------------------------------------
+def warning_at(
+    table: BoardTable,
+    rate_hz: float,
+    bitrate: int,
+    node_ids: list[int] | None = None,
+    master_heartbeat_ms: int = 0,
+) -> bool:
+    traffic = lockstep_traffic(table, rate_hz, node_ids=node_ids, master_heartbeat_ms=master_heartbeat_ms)
+    return bus_load(traffic, rate_hz, bitrate).warning
+
+
+def test_highest_rate_when_the_busiest_cycle_binds(table_path: Path) -> None:
+    table = load_table(table_path)
+    # busiest cycle 550 bits (see above): 0.7 * 500_000 / 550 = 636.36 Hz; the average there is
+    # 268.5 * 636 + 95 * 200 + 650 = 190_416 bit/s, 38 %: not the limit.
+    assert highest_rate_hz(table, 500_000) == 636.3
+    # two modules and the master: 1100 bits, 0.7 * 500_000 / 1100 = 318.18 Hz
+    modules = [1, 2]
+    assert highest_rate_hz(table, 500_000, node_ids=modules, master_heartbeat_ms=20) == 318.1
+    for bitrate in STANDARD_BITRATES:
+        rate = highest_rate_hz(table, bitrate, node_ids=modules, master_heartbeat_ms=20)
+        assert not warning_at(table, rate, bitrate, modules, 20)
+        assert warning_at(table, rate + 0.1, bitrate, modules, 20)
+        assert warning_at(table, rate + 1, bitrate, modules, 20)
+
+
+def test_highest_rate_when_the_average_binds(table_path: Path) -> None:
+    # A 1 ms event timer sends TPDO3 (4 bytes, 95 bits) 1000 times a second whatever the rate:
+    # average 115r + 65r + 75r + 13.5r + 95_000 + 650 = 268.5r + 95_650 <= 175_000 at 250 kbit/s
+    # -> r <= 295.53 Hz, below the busiest cycle's 0.7 * 250_000 / 550 = 318.18 Hz.
+    table_path.write_text(
+        TABLE.replace("inhibit_time_100us = 50", "inhibit_time_100us = 50\nevent_timer_ms = 1")
+    )
+    table = load_table(table_path)
+    rate = highest_rate_hz(table, 250_000)
+    assert rate == 295.5
+    assert not warning_at(table, rate, 250_000) and warning_at(table, rate + 0.1, 250_000)
+    # At 125 kbit/s that TPDO alone takes 95_650 / 125_000 = 76.5 %: no rate fits.
+    assert highest_rate_hz(table, 125_000) == 0.0
+    assert highest_rate_hz(table, 125_000, max_load=0.9) > 0
+
+
 # --- CAN FD: every number below by hand from the formulas in hilrig.busload's docstring ----------
 @pytest.mark.parametrize(
     ("data_bytes", "nominal", "worst"),
@@ -316,7 +443,8 @@ def test_command_fails_above_100_percent_with_one_error_line(
 ) -> None:
     code, out, err = bus_load_command(capsys, "--table", str(table_path), "-b", "250k", "-b", "1M")
     assert code == 1
-    assert "OVERLOAD: 250 kbit/s: 115.3 % of the bus" in out and "1 Mbit/s:" not in out.split("OVERLOAD")[1]
+    verdicts = [line for line in out.splitlines() if line.startswith(("OVERLOAD", "WARNING"))]
+    assert [line.split(" of the bus")[0] for line in verdicts] == ["OVERLOAD: 250 kbit/s: 115.3 %"]
     assert err == (
         "hilrig bus-load: error: at 1000 Hz the exchange does not fit 250 kbit/s (above 100 % of the bus)\n"
     )
@@ -353,6 +481,15 @@ def test_command_counts_fd_frames_with_the_data_bitrate(
         (["--node-id", "200"], "expected a node id 1..127"),
         (["--table", "nowhere.toml"], "board table nowhere.toml does not exist"),
         (["-b", "1M", "--data-bitrate", "500k"], "--data-bitrate 500000 is below a --bitrate (1000000)"),
+        (["--modules", "0"], "expected a number of modules 1..63 (node ids 1..N), got '0'"),
+        (["--modules", "64"], "expected a number of modules 1..63"),
+        (["--modules", "eight"], "expected a number of modules 1..63"),
+        (
+            ["--master-heartbeat-ms", "10"],
+            "--master-heartbeat-ms is the robot master's: give it with --modules",
+        ),
+        (["--modules", "2", "--master-heartbeat-ms", "-5"], "expected a heartbeat period 0..65535 in ms"),
+        (["--modules", "2", "--node-id", "3"], "with --modules N the node ids are 1..N"),
     ],
 )
 def test_command_refuses_bad_options(
@@ -361,6 +498,41 @@ def test_command_refuses_bad_options(
     code, out, err = bus_load_command(capsys, *argv)
     assert (code, out) == (2, "")
     assert expected in err and err.count("\n") == 1, err
+
+
+def test_command_modules_prints_the_robot_and_its_highest_rates(
+    table_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, err = bus_load_command(
+        capsys, "--table", str(table_path), "--modules", "2", "-b", "500k", "-b", "1M"
+    )
+    # at 1000 Hz: busiest cycle 1100 bits (test_robot_load_of_two_modules_by_hand): 220 % of
+    # 500 kbit/s, 110 % of 1 Mbit/s
+    assert code == 1 and "exchange does not fit 500 kbit/s, 1 Mbit/s" in err
+    lines = out.splitlines()
+    assert lines[0].startswith(
+        "bus load of a robot of 2 modules (node ids 1..2, one SYNC, master heartbeat every 20 ms)"
+    )
+    assert "RPDO1 x2          0x201..0x202" in out
+    # 0.7 * 500_000 / 1100 = 318.18 Hz, 0.7 * 1_000_000 / 1100 = 636.36 Hz
+    assert lines[-1] == "highest SYNC rate within 70 % (worst case): 500 kbit/s: 318.1 Hz, 1 Mbit/s: 636.3 Hz"
+    code, out, _ = bus_load_command(
+        capsys, "--table", str(table_path), "--modules", "2", "--master-heartbeat-ms", "0", "-b", "1M"
+    )
+    # without the master's heartbeat 1035 bits: 0.7 * 1_000_000 / 1035 = 676.33 Hz
+    assert "master heartbeat" not in out.splitlines()[2:] and "no master heartbeat" in out.splitlines()[0]
+    assert out.splitlines()[-1].endswith("1 Mbit/s: 676.3 Hz")
+
+
+def test_command_prints_the_highest_rate_for_one_node_too(
+    table_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, _ = bus_load_command(capsys, "--table", str(table_path), "--rate-hz", "100", "-b", "125k")
+    # 0.7 * 125_000 / 550 = 159.09 Hz
+    assert (
+        code == 0
+        and out.splitlines()[-1] == "highest SYNC rate within 70 % (worst case): 125 kbit/s: 159.0 Hz"
+    )
 
 
 def test_command_reports_a_bad_table_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -448,11 +448,27 @@ def test_bus_load_is_a_command_warns_above_70_and_fails_above_100_percent(
     assert rows == {"125", "1"}
     # 125 kbit/s at 100 Hz is about 91 % nominal and 111 % worst case: it does not fit; 1 Mbit/s
     # is about 14 %: fine.
-    assert "OVERLOAD: 125 kbit/s" in out and "1 Mbit/s:" not in out
+    verdicts = [line.split(":")[:2] for line in out.splitlines() if line.startswith(("OVERLOAD", "WARNING"))]
+    assert verdicts == [["OVERLOAD", " 125 kbit/s"]], out
+    # The busiest cycle of the default mapping: 3 RPDOs + 7 TPDOs of 8 bytes (135 bits each worst
+    # case), TPDO1 of 3 bytes (85), SYNC and heartbeat (65 each) = 1565 bits; within 70 %:
+    # 0.7 * 125_000 / 1565 = 55.9 Hz, 0.7 * 1_000_000 / 1565 = 447.28 Hz (both rounded down to 0.1 Hz)
+    assert (
+        out.splitlines()[-1]
+        == "highest SYNC rate within 70 % (worst case): 125 kbit/s: 55.9 Hz, 1 Mbit/s: 447.2 Hz"
+    )
     assert (
         err
         == "hilrig bus-load: error: at 100 Hz the exchange does not fit 125 kbit/s (above 100 % of the bus)\n"
     )
+    # A robot of 8 such modules (node ids 1..8), one shared SYNC and the master heartbeat:
+    # 8 * (1565 - 65) + 65 + 65 = 12_130 bits in the busiest cycle; at 25 Hz 303_250 bit/s, 60.65 %
+    # of 500 kbit/s; within 70 %: 0.7 * 500_000 / 12_130 = 28.85 Hz, 0.7 * 1_000_000 / 12_130 =
+    # 57.71 Hz (figures for the README: the default mapping on a robot)
+    code, out, err = run(capsys, "bus-load", "--modules", "8", "--rate-hz", "25", "-b", "500k", "-b", "1M")
+    assert (code, err) == (0, "")
+    assert "RPDO1 x8          0x201..0x208" in out and "60.6 %" in out  # 60.65 printed to 0.1
+    assert out.splitlines()[-1].endswith(": 500 kbit/s: 28.8 Hz, 1 Mbit/s: 57.7 Hz")
     code, out, err = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "200k")
     assert (code, err) == (0, "")
     assert "WARNING: 200 kbit/s" in out  # about 69 % worst case, 78 % in the busiest cycle
