@@ -33,6 +33,13 @@ decay rates within 0.5 % of the exact ones (1.00 /s held rotor, 1.41 /s free rot
 spring damping of the default joint), where holding tau_start with n > 1 would add
 omega^2 dt / 4 of growth and tau_end alone the same amount of false damping.
 
+Known limits of the model (MuJoCo's defaults, kept for cost): its soft friction lets a
+stalled chain creep (about 4 mrad/s at a joint holding 0.12 N*m; noslip_iterations = 2
+cuts that ~200-fold for ~+10 % step time), and round links roll: a near-straight snake is a
+cylinder, so under the gait its links tilt by up to ~15 degrees about their long axis.
+The rotor's own inertia is simulated in its housing's frame (the parent link's rotation
+does not reach it: J_rotor = 1e-5 against links of 1e-2 kg*m^2).
+
 MuJoCo is imported only here, and lazily: the single-joint rig does not need it.
 """
 
