@@ -8,6 +8,7 @@ determinism and its argument checks.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from types import ModuleType
 from typing import Any
@@ -337,6 +338,22 @@ def test_gait_poses_follow_the_joints(mujoco: ModuleType, module_count: int) -> 
         assert angle == pytest.approx(state.load_angle_rad, abs=1e-9)
     assert abs(positions[:, 2] - geometry.link_radius_m).max() < 0.01  # on the ground
     assert max(abs(state.load_angle_rad) for state in chain.states) > 0.05  # the gait moved them
+
+
+def test_initial_joint_angles_bend_the_chain_with_relaxed_springs(mujoco: ModuleType) -> None:
+    angles = [0.4, -0.3, 0.2]
+    chain = _chain_module().ChainPhysics(3, initial_joint_angles_rad=angles)
+    for state, angle, params in zip(chain.states, angles, chain.params, strict=True):
+        assert state.load_angle_rad == angle
+        assert state.motor_angle_rad == angle * params.gear_ratio
+        assert state.spring_torque_nm == 0.0
+    _, quaternions = chain.poses()
+    headings = [2.0 * math.atan2(q[3], q[0]) for q in quaternions]
+    assert [b - a for a, b in itertools.pairwise(headings)] == pytest.approx(angles, abs=1e-12)
+    for _ in range(300):  # nothing pushes: the bent snake stays as it is
+        chain.step(1e-3, [0.0] * 3)
+    # Settling into the soft ground contact nudges a bent chain by < 1e-6 rad.
+    assert [state.load_angle_rad for state in chain.states] == pytest.approx(angles, abs=1e-5)
 
 
 def test_argument_errors(mujoco: ModuleType) -> None:
