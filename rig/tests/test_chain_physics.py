@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+from pathlib import Path
 from types import ModuleType
 from typing import Any
 
@@ -380,13 +381,17 @@ def test_argument_errors(mujoco: ModuleType) -> None:
     assert chain.data.time == pytest.approx(3e-3, abs=1e-15)
 
 
-def test_a_diverging_chain_raises(mujoco: ModuleType) -> None:
+def test_a_diverging_chain_raises(
+    mujoco: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Links far too light for a 1 ms coupling (omega * dt ~ 20): an error, not a silent reset."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo's warning goes to ./MUJOCO_LOG.TXT too
     chain_module = _chain_module()
     chain = chain_module.ChainPhysics(2, geometry=chain_module.ChainGeometry(link_mass_kg=1e-5))
     with pytest.raises(FloatingPointError, match="diverged"):
         for _ in range(1000):
             chain.step(1e-3, [0.5, 0.0])
+    assert chain.time_s < 0.1  # caught at once, not after a reset
 
 
 def test_missing_mujoco_says_how_to_install_it(monkeypatch: pytest.MonkeyPatch) -> None:
