@@ -7,6 +7,9 @@ Typical use, one control cycle of the lockstep driver::
     sensors = SensorModel(params, seed=1)
     raw = sensors.read(plant.state)                  # -> RPDO1
     plant.step(1e-3, duty_from_motor_duty(motor_duty))  # motor_duty <- TPDO1
+
+A robot of N such modules (a snake; its links in MuJoCo, needs hilrig[robot]) is
+hilrig.physics.chain.ChainPhysics: import it from there, this package does not load MuJoCo.
 """
 
 try:

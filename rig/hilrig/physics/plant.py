@@ -68,9 +68,21 @@ class JointState:
     """Duty applied during the last step, after clamping to [-1, 1] [1]."""
 
 
-def _plant_coefficients(params: JointParams, substep_without_electrical_s: float) -> tuple[float, ...]:
-    """The constants _plant.c reads, in the order of its C_* enum (all floats)."""
+def _plant_coefficients(
+    params: JointParams, substep_without_electrical_s: float, *, external_load: bool = False
+) -> tuple[float, ...]:
+    """The constants _plant.c reads, in the order of its C_* enum (all floats).
+
+    external_load: the load side belongs to another simulator (MuJoCo's chain). The load
+    inertia becomes +inf, so _plant.c's load acceleration (finite torque) / inf is 0: over a
+    step the load keeps the velocity it was given (a prescribed motion) and the same C
+    arithmetic integrates the motor side. Load friction is zeroed: the other simulator owns
+    it (it would be divided by inf anyway).
+    """
     p = params
+    load_inertia = math.inf if external_load else p.load_inertia_kg_m2
+    load_viscous = 0.0 if external_load else p.load_viscous_friction_nm_s_per_rad
+    load_coulomb = 0.0 if external_load else p.load_coulomb_friction_nm
     coefficients = tuple(
         float(value)
         for value in (
@@ -85,9 +97,9 @@ def _plant_coefficients(params: JointParams, substep_without_electrical_s: float
             p.back_emf_constant_v_s_per_rad,
             p.rotor_inertia_kg_m2,
             p.motor_viscous_friction_nm_s_per_rad,
-            p.load_inertia_kg_m2,
-            p.load_viscous_friction_nm_s_per_rad,
-            p.load_coulomb_friction_nm,
+            load_inertia,
+            load_viscous,
+            load_coulomb,
             p.coulomb_smoothing_velocity_rad_s,
             1.0 / p.winding_thermal_resistance_k_per_w,  # conductance: 0 when adiabatic
             p.winding_thermal_capacity_j_per_k,
@@ -107,6 +119,13 @@ class JointPlant:
     test): its angle and speed then stay put while current and heat still flow.
     The state is the latest JointState itself: `step()` builds the next one (in C) and
     `state` hands out that same immutable snapshot, so reading it costs nothing.
+
+    With `external_load=True` the load side is another simulator's (a module of MuJoCo's
+    chain, physics/chain.py): before each `step()` it hands over the load's angle and speed
+    with `set_load_motion()`; during the step the load moves on at that constant speed
+    (infinite load inertia) while the motor, spring and heat evolve as usual; the new
+    state's `spring_torque_nm` is then the torque for the other simulator's joint. The
+    load's inertia and friction in JointParams are not used: they are the other side's.
     """
 
     def __init__(
@@ -120,6 +139,7 @@ class JointPlant:
         current_a: float = 0.0,
         winding_temperature_c: float | None = None,
         motor_held: bool = False,
+        external_load: bool = False,
     ) -> None:
         """Start at rest at angle 0 and ambient temperature unless told otherwise."""
         self._params = params if params is not None else JointParams()
@@ -136,8 +156,11 @@ class JointPlant:
         if not all(math.isfinite(value) for value in initial):
             raise ValueError(f"initial state: expected finite values, got {initial}")
         self._motor_held = motor_held
+        self._external_load = external_load
         self._ambient = p.ambient_temperature_c
-        self._coefficients = _plant_coefficients(p, self._mechanical_substep_limit_s())
+        self._coefficients = _plant_coefficients(
+            p, self._mechanical_substep_limit_s(), external_load=external_load
+        )
         self._state: JointState = _plant.joint_state(JointState, self._coefficients, 0.0, *initial, 0.0)
 
     @property
@@ -147,6 +170,11 @@ class JointPlant:
     @property
     def motor_held(self) -> bool:
         return self._motor_held
+
+    @property
+    def external_load(self) -> bool:
+        """True when the load side is another simulator's (see `set_load_motion`)."""
+        return self._external_load
 
     @property
     def ambient_temperature_c(self) -> float:
@@ -169,6 +197,23 @@ class JointPlant:
                 s.load_velocity_rad_s, s.current_a, s.winding_temperature_c, s.applied_duty,
             )  # fmt: skip
 
+    def set_load_motion(self, load_angle_rad: float, load_velocity_rad_s: float) -> JointState:
+        """Put the load where the other simulator has it (external_load plants only).
+
+        The rest of the state stays; the derived spring deflection and torque follow the new
+        load. Returns the new state. Raises ValueError for non-finite values.
+        """
+        if not self._external_load:
+            raise ValueError("set_load_motion: this plant integrates its own load (external_load=False)")
+        if not (math.isfinite(load_angle_rad) and math.isfinite(load_velocity_rad_s)):
+            raise ValueError(f"load motion: expected finite, got {load_angle_rad}, {load_velocity_rad_s}")
+        s = self._state
+        self._state = _plant.joint_state(
+            JointState, self._coefficients, s.time_s, s.motor_angle_rad, s.motor_velocity_rad_s,
+            load_angle_rad, load_velocity_rad_s, s.current_a, s.winding_temperature_c, s.applied_duty,
+        )  # fmt: skip
+        return self._state
+
     @property
     def state(self) -> JointState:
         """Snapshot of the present state."""
@@ -184,9 +229,12 @@ class JointPlant:
         duty: fraction of the bus voltage in [-1, 1]; values outside are clamped, as an
         H-bridge cannot exceed its supply (convert the firmware's raw I16 with
         `duty_from_motor_duty`). load_torque_nm: external torque on the load, e.g. a
-        scenario pushing on the joint [N*m]. Raises ValueError for non-finite inputs and
+        scenario pushing on the joint [N*m]; with an external load it must be 0 (push on the
+        other simulator's joint instead). Raises ValueError for non-finite inputs and
         FloatingPointError if the state diverges (parameters far outside a joint's range).
         """
+        if load_torque_nm and self._external_load:
+            raise ValueError("load_torque_nm: an external load takes its torques in its own simulator")
         self._state = _plant.advance(
             self._coefficients, self._state, dt_s, duty, load_torque_nm, self._motor_held, self._ambient
         )
@@ -195,9 +243,19 @@ class JointPlant:
     def _mechanical_substep_limit_s(self) -> float:
         """Sub-step limit from every time scale except L/R (which moves with heat)."""
         p = self._params
-        rates = [
+        # An external load is a prescribed motion: infinite inertia, no own friction; the
+        # rates below that divide by its inertia become 0 (never inf * 0: no NaN).
+        load_inertia = math.inf if self._external_load else p.load_inertia_kg_m2
+        load_viscous = 0.0 if self._external_load else p.load_viscous_friction_nm_s_per_rad
+        load_coulomb = 0.0 if self._external_load else p.load_coulomb_friction_nm
+        if self._external_load:
+            # The rotor alone on the spring against a prescribed load: sqrt(k / (N^2 J_rotor)).
+            spring_rate = math.sqrt(p.spring_stiffness_nm_per_rad / (p.gear_ratio**2 * p.rotor_inertia_kg_m2))
+        else:
             # Spring with a free rotor: the fastest of its modes (held rotor is slower).
-            p.spring_natural_frequency_rad_s(motor_held=False),
+            spring_rate = p.spring_natural_frequency_rad_s(motor_held=False)
+        rates = [
+            spring_rate,
             # Rotor exchanging energy with the winding's inductance (matters when R ~ 0).
             math.sqrt(
                 p.torque_constant_nm_per_a
@@ -207,9 +265,9 @@ class JointPlant:
             # Damping rates of the rotor and load, including the spring's damper.
             (p.motor_viscous_friction_nm_s_per_rad + p.spring_damping_nm_s_per_rad / p.gear_ratio**2)
             / p.rotor_inertia_kg_m2,
-            (p.load_viscous_friction_nm_s_per_rad + p.spring_damping_nm_s_per_rad) / p.load_inertia_kg_m2,
+            (load_viscous + p.spring_damping_nm_s_per_rad) / load_inertia,
             # Slope of tanh-smoothed Coulomb friction at zero speed.
-            p.load_coulomb_friction_nm / (p.coulomb_smoothing_velocity_rad_s * p.load_inertia_kg_m2),
+            load_coulomb / (p.coulomb_smoothing_velocity_rad_s * load_inertia),
             1.0 / p.thermal_time_constant_s,
         ]
         fastest = max(rates)
