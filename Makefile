@@ -26,7 +26,7 @@ endef
 help: ## list the targets (default)
 	@echo "Hardware-in-the-loop test rig over CAN. Targets:"
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/^([a-z-]+):.*## (.*)/  make \1\t\2/' | expand -t 20
-	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), VIEWER=web (make run), CMAKE_FLAGS=..."
+	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), VIEWER=web, ROBOT=8 (make run), CMAKE_FLAGS=..."
 
 .PHONY: deps
 deps: ## install missing Debian packages (root) and the pinned Python venv
@@ -64,9 +64,14 @@ durations: build ## run every bus-level scenario, then record their durations in
 # VIEWER=spawn | web[:PORT] | connect[:URL]: also stream the trace live (hilrig sim --viewer).
 VIEWER ?=
 
+# ROBOT=8: a modular robot instead of the one joint: 8 firmware modules on one bus, the chain's
+# mechanics from MuJoCo, a travelling-wave gait; the trace shows the chain in 3D (out/robot).
+ROBOT ?=
+
 .PHONY: run
-run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary, trace (VIEWER=web: live)
-	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/with-vcan -- $(PY) tools/run-demo.py --out $(CURDIR)/$(OUT)/demo \
+run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary, trace (VIEWER=web: live, ROBOT=8: a robot)
+	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/with-vcan -- $(PY) tools/run-demo.py \
+	  $(if $(ROBOT),--modules $(ROBOT) --out $(CURDIR)/$(OUT)/robot,--out $(CURDIR)/$(OUT)/demo) \
 	  $(if $(VIEWER),--viewer $(VIEWER))
 
 .PHONY: bench

@@ -15,6 +15,7 @@ from collections.abc import Callable
 import rerun.blueprint as rrb
 
 from boardproto import Kind
+from dashboards.robot import robot
 from hilrig.table import RigTable, unknown_name
 from hilrig.trace import (
     CYCLE_TIMELINE,
@@ -148,6 +149,7 @@ BLUEPRINTS: dict[str, Callable[[RigTable], rrb.Blueprint]] = {
     "tuning": tuning,
     "thermal": thermal,
     "faults": faults,
+    "robot": robot,
 }
 """Blueprint builders by name; `blueprint(name)` is the way to get one."""
 

@@ -22,6 +22,7 @@ from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
 from hilrig.netns import PrivateBus, private_buses_supported
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
+from hilrig.robot import MasterHeartbeat
 from hilrig.session import BoardInterface, HilSession, SessionConfig, open_session
 from hilrig.table import RigTable
 from hilrig.trace import TraceSink, live_sinks_from_environment, parse_live_sink
@@ -282,6 +283,51 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
             bus_log=session.bus_log,
             close=session.close,
         )
+
+    yield make
+    for session in reversed(sessions):
+        session.close()
+
+
+@pytest.fixture
+def make_robot(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterator:
+    """Factory: `make_robot(n=8)` opens a robot session (`hilrig.session`, `modules=`): the
+    firmware started n times on this test's private bus (node ids 1..n, or `node_ids`), one rig
+    per module, the chain's mechanics from MuJoCo, the master heartbeat, a candump recorder and
+    one Rerun trace (each module under /modules/<id>, the chain in 3D under /robot); returns the
+    `HilSession` (its `.robot`), torn down after the test."""
+    sessions: list[HilSession] = []
+
+    def make(
+        n: int = 8,
+        *,
+        node_ids: Sequence[int] | None = None,
+        params: JointParams | None = None,
+        seed: int = 1,
+        trace: bool = True,
+        master: MasterHeartbeat | None = MasterHeartbeat(),  # noqa: B008 (frozen: shared is fine)
+        start: bool = True,
+    ) -> HilSession:
+        config = SessionConfig(
+            out_dir=scenario_dir,
+            modules=tuple(node_ids) if node_ids is not None else n,
+            live=_live_sinks(request.config) if trace else (),
+            params=params,
+            seed=seed,
+            trace=trace,
+            eds=EDS,
+            master=master,
+            start=start,
+            boot_timeout_s=BOOT_TIMEOUT_S,
+            sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+        )
+        if not DEFAULT_EXECUTABLE.exists() or not EDS.exists():
+            pytest.fail(f"{DEFAULT_EXECUTABLE} or {EDS} missing: run `make build` first", pytrace=False)
+        logs = f", firmware logs: {scenario_dir}/firmware-*.log"
+        request.node.hil_evidence = _evidence(scenario_dir, trace) + logs
+        session = open_session(config, table=TABLE, private_bus=request.getfixturevalue("private_bus"))
+        sessions.append(session)
+        return session
 
     yield make
     for session in reversed(sessions):

@@ -60,6 +60,8 @@ FIRMWARE_NODE_ID = 0x10
 LOCAL_NODE_ID = 0x11
 SDO_OBJECT = "velocity_kp"  # a REAL32 board parameter: an expedited upload
 PERIOD_US = 1000
+ROBOT_SIZES = (1, 4, 8)
+"""Robots measured side by side: how the cost of a lockstep cycle grows with the modules."""
 
 # --- small helpers ------------------------------------------------------------------------------
 
@@ -267,6 +269,40 @@ class BusBench:
                 done += chunk
             if session.tracer is not None:
                 session.tracer.close()  # the trace is complete: its cost is part of the run
+            elapsed = time.perf_counter() - start
+        finally:
+            session.close()
+        return done / elapsed, done
+
+    def robot_rate(self, modules: int, cycles: int, budget_s: float) -> tuple[float, int]:
+        """(cycles per second, cycles measured) of a robot of `modules` modules on this bus (the
+        same engine: one SYNC, every module's PDOs, the MuJoCo chain) following the gait,
+        untraced, no bus log; start-up outside the measurement."""
+        from hilrig.robot import TravellingWave
+        from hilrig.session import SessionConfig, open_session
+
+        self._runs += 1
+        config = SessionConfig(
+            out_dir=self.logs / f"{self._runs:02d}-robot{modules}",
+            modules=modules,
+            trace=False,
+            record=False,
+            executable=self.firmware_exe,
+            eds=self.eds,
+            period_us=PERIOD_US,
+            sdo_timeout_s=5.0,
+        )
+        session = open_session(config, table=self.table)
+        try:
+            robot = session.robot
+            TravellingWave().drive(robot)
+            robot.run(cycles=20)  # warm-up
+            start = time.perf_counter()
+            done = 0
+            while done < cycles and time.perf_counter() - start < budget_s:
+                chunk = min(50, cycles - done)
+                robot.run(cycles=chunk)
+                done += chunk
             elapsed = time.perf_counter() - start
         finally:
             session.close()
@@ -682,6 +718,14 @@ def bus_main(args: argparse.Namespace) -> int:
                 "in": sum(1 / p.transmission_type for p in tpdos),
             },
         }
+        say(f"robot: {ROBOT_SIZES} modules, {args.robot_cycles} gait cycles each, two rounds alternating")
+        robot_rates: dict[str, list[float]] = {str(n): [] for n in ROBOT_SIZES}
+        for _ in range(2):
+            for n in ROBOT_SIZES:
+                rate, done = bench.robot_rate(n, args.robot_cycles, args.budget_s)
+                robot_rates[str(n)].append(rate)
+                say(f"  {n} modules: {rate:.0f} cycles/s ({done} cycles)")
+        result["robot"] = {"cycles": args.robot_cycles, "cycles_per_s": robot_rates}
         say(f"SDO: {args.sdo} expedited uploads each from the firmware and a canopen.LocalNode, alternating")
         result["sdo"] = bench.sdo_latency(args.sdo, 2 * args.budget_s)
         say("SDO: the recorder's whole buffer by block and by segmented upload, alternating")
@@ -827,6 +871,23 @@ def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> 
             "1.00x (real time)",
             best[kind] / 1000,
         )
+    robot = bus.get("robot")
+    if robot:
+        rates = {int(n): max(values) for n, values in robot["cycles_per_s"].items()}
+        one = rates.get(1)
+        for n, rate in sorted(rates.items()):
+            # Cost per cycle relative to one module: how it grows with N (N: linear in the modules).
+            growth = one / rate if one and rate else float("nan")
+            # ratio: the cycle's cost against one module's; / N: what each module adds
+            row(
+                f"robot lockstep cycles/s, {n} module{'s' if n > 1 else ''} vs 1 (cycle cost ratio)",
+                f"{rate:.0f}/s",
+                f"{one:.0f}/s" if one else "-",
+                growth,
+                "" if n == 1 else f"{growth / n:.2f}x per module",
+                None,
+                **({"cycles": robot["cycles"], "cycles_per_s": robot["cycles_per_s"]} if n == 1 else {}),
+            )
     upload = bus.get("recorder_upload")
     if upload:
         block, segmented = max(upload["block_bytes_per_s"]), max(upload["segmented_bytes_per_s"])
@@ -1000,6 +1061,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             command.add_argument("--rounds", type=int, default=3, help="rig/floor pairs; best of each")
             command.add_argument("--sdo", type=int, default=200, help="SDO uploads per server")
             command.add_argument("--free-cycles", type=int, default=10_000)
+            command.add_argument("--robot-cycles", type=int, default=500, help="gait cycles per robot size")
             command.add_argument(
                 "--budget-s",
                 type=float,

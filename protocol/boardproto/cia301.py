@@ -117,6 +117,26 @@ def heartbeat_cob_id(node_id: int) -> int:
     return cob_id(FunctionCode.HEARTBEAT, node_id)
 
 
+MASTER_NODE_ID = 0x7F
+"""The node id of the rig's own heartbeat as the bus master (CiA 301 leaves it to the system:
+127, the highest, stays clear of a robot's modules 1..63)."""
+MASTER_HEARTBEAT_MS = 20
+"""How often the rig as master sends its heartbeat by default (a robot's modules watch it)."""
+
+HEARTBEAT_CONSUMER_INDEX = 0x1016
+"""Consumer heartbeat time: one UNSIGNED32 per watched node (sub-index 1..n)."""
+
+
+def heartbeat_consumer_entry(node_id: int, time_ms: int) -> int:
+    """One 0x1016 entry: the node id to watch in bits 16..23, its consumer time [ms] in bits
+    0..15 (CiA 301 7.5.2.31); a heartbeat later than that from the node is a heartbeat event."""
+    if not 1 <= node_id <= NODE_ID_MASK:
+        raise ValueError(f"heartbeat consumer: node id 1..127 expected, got {node_id}")
+    if not 1 <= time_ms <= 0xFFFF:
+        raise ValueError(f"heartbeat consumer: time 1..65535 ms expected, got {time_ms}")
+    return node_id << 16 | time_ms
+
+
 def sdo_response_cob_id(node_id: int) -> int:
     return cob_id(FunctionCode.SDO_RESPONSE, node_id)
 
@@ -143,7 +163,10 @@ def due_at_sync(transmission_type: int, sync_number: int) -> bool:
 
 __all__ = [
     "FUNCTION_CODE_MASK",
+    "HEARTBEAT_CONSUMER_INDEX",
     "LAST_SYNCHRONOUS_TYPE",
+    "MASTER_HEARTBEAT_MS",
+    "MASTER_NODE_ID",
     "NMT_COB_ID",
     "NODE_ID_MASK",
     "PDO_EXTENSION_OFFSET",
@@ -162,6 +185,7 @@ __all__ = [
     "emcy_cob_id",
     "function_of",
     "heartbeat_cob_id",
+    "heartbeat_consumer_entry",
     "predefined_pdo_base",
     "sdo_request_cob_id",
     "sdo_response_cob_id",

@@ -80,7 +80,7 @@ from dataclasses import dataclass
 from typing import TextIO
 
 from boardproto import BoardTable, Pdo
-from boardproto.cia301 import SYNC_COB_ID, heartbeat_cob_id
+from boardproto.cia301 import MASTER_HEARTBEAT_MS, MASTER_NODE_ID, SYNC_COB_ID, heartbeat_cob_id
 
 STANDARD_BITRATES: tuple[int, ...] = (125_000, 250_000, 500_000, 1_000_000)
 """Classic CAN bit rates the command reports by default, in bit/s."""
@@ -94,9 +94,9 @@ DEFAULT_RATE_HZ = 1000.0
 SYNC_DATA_BYTES = 1  # the SYNC counter
 HEARTBEAT_DATA_BYTES = 1
 MAX_DATA_BYTES = 8
-DEFAULT_MASTER_NODE_ID = 0x7F
+DEFAULT_MASTER_NODE_ID = MASTER_NODE_ID
 """The rig as the master of a robot: its heartbeat goes on 0x700 + this id."""
-DEFAULT_MASTER_HEARTBEAT_MS = 20
+DEFAULT_MASTER_HEARTBEAT_MS = MASTER_HEARTBEAT_MS
 RATE_STEPS_PER_HZ = 10
 """`highest_rate_hz` answers to 0.1 Hz."""
 

@@ -16,6 +16,7 @@ Every cycle's received values, sent values and the plant's ground truth go into 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from hilrig.driver import (
     ACTUATOR_OUTPUT,
@@ -26,13 +27,29 @@ from hilrig.driver import (
     CycleResult,
     Driver,
     History,
+    PdoRow,
     Value,
     resolve_truth_name,
     sync_counter,
     sync_frame,
 )
 from hilrig.errors import FirmwareError, LockstepError
-from hilrig.physics import duty_from_motor_duty
+from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
+
+
+@dataclass(slots=True)
+class CycleStart:
+    """What the first phase of a lockstep cycle did: the sensor frame it sampled from `state`,
+    the RPDOs it sent, and the TPDOs (COB-IDs) due at its SYNC."""
+
+    cycle: int
+    t: float
+    counter: int
+    raw: RawSensors
+    state: JointState
+    due: frozenset[int]
+    sync_number: int
+    sent: tuple[PdoRow, ...]
 
 
 class LockstepDriver(Driver):
@@ -44,14 +61,23 @@ class LockstepDriver(Driver):
     """
 
     def step(self) -> CycleResult:
+        start = self.begin_cycle()
+        self.link.send(sync_frame(start.counter))
+        result = self.end_cycle(start, self.collect_cycle(start))
+        self.plant.step(self.period_s, result.duty)
+        self.cycle = start.cycle + 1
+        return result
+
+    # The three phases of a cycle, apart so that a robot (`hilrig.robot`) runs them for all its
+    # modules around one SYNC: every module's RPDOs, one SYNC, every module's TPDOs, one physics
+    # step. `step()` is the same sequence for one node.
+    def begin_cycle(self) -> CycleStart:
+        """Sample the plant and send this cycle's RPDOs (before the SYNC)."""
         n = self.cycle
-        t = self.history.time_of(n)
-        counter = sync_counter(n)
         state = self.plant.state
         raw = self.sensors.read(state)
         if self.sensor_override is not None:
             raw = self.sensor_override(raw)
-
         if self._operational:
             self._syncs_since_operational += 1
             sync_number = self._syncs_since_operational
@@ -60,9 +86,15 @@ class LockstepDriver(Driver):
             sync_number = 0
             due = frozenset()
         sent = self._transmit_rpdos(raw)
-        self.link.send(sync_frame(counter))
-        got = self._collect(n, t, due, sync_number)
+        return CycleStart(n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent)
 
+    def collect_cycle(self, start: CycleStart) -> dict[int, tuple[Value, ...]]:
+        """Wait for every TPDO due at this cycle's SYNC (after it was sent)."""
+        return self._collect(start.cycle, start.t, start.due, start.sync_number)
+
+    def end_cycle(self, start: CycleStart, got: dict[int, tuple[Value, ...]]) -> CycleResult:
+        """Record the cycle in the history; the result's duty is what the physics applies next
+        (the caller steps the plant and advances `cycle`)."""
         duty = 0.0
         actuator = self._actuator
         if actuator is not None:
@@ -73,11 +105,11 @@ class LockstepDriver(Driver):
                 duty = duty_from_motor_duty(int(values[actuator[1]]))
         by_cob = self._tpdo_by_cob
         received = tuple([(by_cob[cob_id], values) for cob_id, values in got.items()])
-        self.history.record_truth(state)
-        self.history.record_rows(n, received, sent)
-        self.plant.step(self.period_s, duty)
-        self.cycle = n + 1
-        return CycleResult(n, t, counter, raw, received, duty, sent, state)
+        self.history.record_truth(start.state)
+        self.history.record_rows(start.cycle, received, start.sent)
+        return CycleResult(
+            start.cycle, start.t, start.counter, start.raw, received, duty, start.sent, start.state
+        )
 
     def _collect(
         self, n: int, t: float, due: frozenset[int], sync_number: int
@@ -170,6 +202,7 @@ __all__ = [
     "TRUTH_ALIASES",
     "TRUTH_NAMES",
     "CycleResult",
+    "CycleStart",
     "History",
     "LockstepDriver",
     "cycles_for",

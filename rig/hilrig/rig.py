@@ -21,8 +21,6 @@ sensor frames; the rig only commands and observes.
 from __future__ import annotations
 
 import enum
-import heapq
-import itertools
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -36,14 +34,15 @@ from canopen.emcy import EmcyError
 
 from boardproto.cia301 import NmtCommand, NmtState
 from hilrig import resources
-from hilrig.driver import Driver, resolve_truth_name, sdo_poll_layout
-from hilrig.errors import FieldAccessError, NoValueError, ScenarioTimeoutError, SdoAbortError
-from hilrig.lockstep import LockstepDriver, cycles_for
+from hilrig.driver import CycleResult, Driver, resolve_truth_name, sdo_poll_layout
+from hilrig.errors import FieldAccessError, NoValueError, SdoAbortError
+from hilrig.lockstep import LockstepDriver
 from hilrig.node import BoardNode, EmcyRecord
 from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointPlant, JointState, RawSensors, SensorModel
 from hilrig.realtime import RealTimeDriver
 from hilrig.table import RigTable
+from hilrig.timeline import CycleRunner
 
 if TYPE_CHECKING:  # hilrig.trace imports rerun (slow) only when a Tracer is made
     from hilrig.trace import Tracer
@@ -51,8 +50,6 @@ if TYPE_CHECKING:  # hilrig.trace imports rerun (slow) only when a Tracer is mad
 
 DEFAULT_EDS_PATH = resources.DEFAULT_EDS
 """The EDS of the default table: the checkout's build/protocol/board.eds, or the wheel's copy."""
-
-Event = Callable[["Rig"], object]
 
 
 class TimingMode(enum.StrEnum):
@@ -64,7 +61,7 @@ class TimingMode(enum.StrEnum):
     """The rig keeps its own wall-clock period next to a free-running node."""
 
 
-class Rig:
+class Rig(CycleRunner):
     """Lockstep rig: the plant, the sensor models and one board node on the caller's bus.
 
     Construction connects to the bus (starts canopen's receive thread) but sends nothing;
@@ -81,6 +78,8 @@ class Rig:
     mode: "lockstep" or "realtime" (`TimingMode`); in real time `period_us` is the rig's own
     tick, which need not equal the node's period. physics: False only in real time (observe
     and command a real board; `truth()` and `state` then have nothing to show).
+    plant: the joint's plant when someone else owns it (a robot's chain, whose mechanics step
+    every joint together); default: a JointPlant of `params` of the rig's own.
     """
 
     def __init__(
@@ -100,6 +99,7 @@ class Rig:
         tracer: Tracer | None = None,
         mode: TimingMode | str = TimingMode.LOCKSTEP,
         physics: bool = True,
+        plant: JointPlant | None = None,
     ) -> None:
         self.mode = TimingMode(mode)  # a typo raises ValueError here, not mid-scenario
         self.physics = physics
@@ -108,11 +108,13 @@ class Rig:
                 "physics=False needs mode='realtime': in lockstep the node waits for the physics"
             )
         self.table = table if table is not None else RigTable.load()
-        self.params = params if params is not None else JointParams()
+        if params is None:
+            params = plant.params if plant is not None else JointParams()
+        self.params = params
         self.boot_timeout_s = boot_timeout_s
         node_id = node_id if node_id is not None else self.table.board.node.default_node_id
         self.node = BoardNode(bus, node_id, eds, self.table, sdo_timeout_s=sdo_timeout_s)
-        self.plant = JointPlant(self.params)
+        self.plant = plant if plant is not None else JointPlant(self.params)
         self.driver: Driver
         if self.mode is TimingMode.REALTIME:
             self.driver = RealTimeDriver(
@@ -135,9 +137,9 @@ class Rig:
             )
         self._emcy: list[EmcyRecord] = []
         self._emcy_lock = threading.Lock()
-        self._events: list[tuple[float, int, Event]] = []
-        self._event_order = itertools.count()
-        self._cycle_hooks: list[Event] = []
+        self._init_timeline()
+        self.robot: object | None = None
+        """The robot (`hilrig.robot.Robot`) this rig is a module of: it steps the rig's driver."""
         self.node.on_emcy(self._on_emcy)
         self.observers: list[RigObserver] = []
         self._polled: tuple[PdoLayout, int] | None = None  # Rig.poll_over_sdo: (names, every)
@@ -239,66 +241,28 @@ class Rig:
         return self.driver.t
 
     @property
-    def realtime(self) -> bool:
+    def realtime(self) -> bool:  # type: ignore[override]
         return self.mode is TimingMode.REALTIME
 
     @property
     def period_s(self) -> float:
         return self.driver.period_s
 
-    def run(self, *, seconds: float | None = None, cycles: int | None = None) -> None:
-        """Run for `seconds` (simulation time in lockstep, wall time in real time) or a number
-        of `cycles` (real time: ticks)."""
-        if (seconds is None) == (cycles is None):
-            raise TypeError("run() takes exactly one of seconds= or cycles=")
-        if self.realtime and seconds is not None:
-            end = self._wall_now() + _check_seconds(seconds)
-            while not self._reached(end):
-                self._fire_events()
-                self._step()
-            self._fire_events()
-            return
-        count = cycles if cycles is not None else cycles_for(seconds or 0.0, self.driver.period_us)
-        if count < 0:
-            raise ValueError(f"cycles: expected >= 0, got {count}")
-        for _ in range(count):
-            self._fire_events()
-            self._step()
-        self._fire_events()  # an event at exactly the end time has happened when run() returns
-
-    def run_until(
-        self, condition: Callable[[Rig], bool], *, within_s: float, what: str = "condition"
-    ) -> float:
-        """Run until `condition(rig)` holds (checked after each cycle); return rig.t then.
-
-        Raises ScenarioTimeoutError when it does not hold within `within_s` of simulation time
-        (wall time in real time).
-        """
-        if self.realtime:
-            end = self._wall_now() + _check_seconds(within_s)
-            while not self._reached(end):
-                self._fire_events()
-                self._step()
-                if condition(self):
-                    return self.t
-        for _ in range(0 if self.realtime else cycles_for(within_s, self.driver.period_us)):
-            self._fire_events()
-            self._step()
-            if condition(self):
-                return self.t
-        raise ScenarioTimeoutError(
-            f"expected {what} within {within_s:g} s, not met at t = {self.t:.6g} s (cycle {self.cycle})"
-        )
-
-    def before_each_cycle(self, callback: Event) -> None:
-        """Call `callback(rig)` before every later cycle (tick), after that cycle's events."""
-        self._cycle_hooks.append(callback)
+    @property
+    def period_us(self) -> int:
+        return self.driver.period_us
 
     def _step(self) -> None:
         """One cycle (tick); the observers get its result."""
-        for hook in self._cycle_hooks:
-            hook(self)
-        result = self.driver.step()
+        if self.robot is not None:
+            raise RuntimeError(
+                f"node 0x{self.node.node_id:02X} is a module of a robot: run the robot, which "
+                "steps all its modules around one SYNC"
+            )
+        self.after_cycle(self.driver.step())
+
+    def after_cycle(self, result: CycleResult) -> None:
+        """What follows every cycle: the SDO poll if due, then the observers."""
         if self._polled is not None:
             self._poll(result.cycle)
         for observer in self.observers:
@@ -308,26 +272,6 @@ class Rig:
         """Real time: the clock now, on rig.t's timeline (time outside run() counts too)."""
         assert isinstance(self.driver, RealTimeDriver)
         return self.driver.now()
-
-    def _reached(self, end_s: float) -> bool:
-        """Real time: has the last tick reached `end_s` (or a first tick yet to come)?"""
-        return self.cycle > 0 and self.t >= end_s - 1e-9
-
-    def at(self, seconds: float, callback: Event) -> None:
-        """Call `callback(rig)` when `rig.t` reaches `seconds` (before that cycle or tick)."""
-        key: float = seconds if self.realtime else cycles_for(seconds, self.driver.period_us)
-        if key < self._now_key():
-            raise ValueError(f"at({seconds}): already past, t = {self.t:.6g} s")
-        heapq.heappush(self._events, (key, next(self._event_order), callback))
-
-    def _now_key(self) -> float:
-        """Where events are on their key: the cycle (lockstep, exact) or rig.t (real time)."""
-        return self.t + 1e-9 if self.realtime else self.cycle
-
-    def _fire_events(self) -> None:
-        while self._events and self._events[0][0] <= self._now_key():
-            _, _, callback = heapq.heappop(self._events)
-            callback(self)
 
     # --- Fields -------------------------------------------------------------------------
     def check_names(self, *names: str) -> None:
@@ -483,6 +427,3 @@ class Rig:
             return list(self._emcy)
 
 
-def _check_seconds(seconds: float) -> float:
-    cycles_for(seconds, 1)  # the same finite, non-negative check
-    return seconds

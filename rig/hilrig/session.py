@@ -10,6 +10,11 @@ order and closed in reverse on one `contextlib.ExitStack`. Used by the pytest fi
     # out/run/trace.rrd whole
 
 A real board: `SessionConfig(out_dir=..., board=BoardInterface("socketcan", "can0"), mode="realtime")`.
+
+A robot: `SessionConfig(out_dir=..., modules=8)` starts the firmware 8 times (node ids 1..8, or a
+list), each with its own log (firmware-<id>.log) and parameter file (params-<id>.bin), and hands
+over `session.robot` (`hilrig.robot.Robot`): one bus, one SYNC, the chain's mechanics from MuJoCo,
+each module's trace under /modules/<id>.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from hilrig.netns import PrivateBus, private_buses_supported
 from hilrig.node import BoardNode
 from hilrig.physics import JointParams
 from hilrig.rig import DEFAULT_EDS_PATH, Rig, TimingMode
+from hilrig.robot import MasterHeartbeat, Robot, module_ids
 from hilrig.table import RigTable
 from hilrig.transport import socketcan_socket
 
@@ -99,6 +105,11 @@ class SessionConfig:
     host_channel: str | None = None
     """Run the firmware on this interface of the host as it is, instead of a private vcan0."""
     firmware_term_timeout_s: float = 5.0
+    modules: int | Sequence[int] | None = None
+    """A robot: this many modules (node ids 1..N) or these node ids, on one private bus (lockstep,
+    the firmware started by the session; `node_id`, `params_file` and `board` do not apply)."""
+    master: MasterHeartbeat | None = field(default_factory=MasterHeartbeat)
+    """A robot's master heartbeat (None: the rig sends none and the modules watch nothing)."""
 
 
 @dataclass
@@ -106,13 +117,14 @@ class HilSession:
     """What a running session holds; `close()` ends it early (the context manager does it too)."""
 
     config: SessionConfig
-    rig: Rig | None  # None: SessionConfig(rig=False)
-    node: BoardNode
-    firmware: Firmware | None
+    rig: Rig | None  # None: SessionConfig(rig=False), or a robot
+    node: BoardNode  # a robot's: its first module's
+    firmware: Firmware | None  # a robot's: its first module's (all in `robot.firmware`)
     tracer: Tracer | None
     private_bus: PrivateBus | None
     recorder: RecorderProcess | None
     _stack: contextlib.ExitStack = field(repr=False)
+    robot: Robot | None = None
 
     @property
     def out_dir(self) -> Path:
@@ -133,7 +145,10 @@ class HilSession:
             parts.append(f"trace: {self.trace_path}")
         if self.config.record:
             parts.append(f"bus log: {self.bus_log}")
-        if self.firmware is not None:
+        if self.robot is not None:
+            logs = [f.log_path.name for f in self.robot.firmware if f is not None]
+            parts.append(f"firmware logs: {self.out_dir}/{{{','.join(logs)}}}")
+        elif self.firmware is not None:
             parts.append(f"firmware log: {self.firmware.log_path}")
         return ", ".join(parts)
 
@@ -141,20 +156,23 @@ class HilSession:
         self._stack.close()
 
 
-def _tracer(config: SessionConfig, table: RigTable) -> Tracer | None:
+def _tracer(config: SessionConfig, table: RigTable, blueprint: str | None = "overview") -> Tracer | None:
     if config.trace is False:
         return None
     from hilrig.trace import Tracer  # rerun is slow to import: only when tracing
 
     clock = "wall" if TimingMode(config.mode) is TimingMode.REALTIME else "simulation"
+    sinks: list[TraceSink]
     if config.trace is True:
         if config.live:
             from hilrig.trace import TraceSink
 
             sinks = [TraceSink.rrd(config.out_dir / "trace.rrd"), *config.live]
-            return Tracer(sinks, table, clock=clock, recording_name=config.out_dir.name)
-        return Tracer.for_scenario(config.out_dir, table, clock=clock)
-    return Tracer(list(config.trace), table, clock=clock, recording_name=config.out_dir.name)
+        else:
+            return Tracer.for_scenario(config.out_dir, table, clock=clock, blueprint=blueprint)
+    else:
+        sinks = list(config.trace)
+    return Tracer(sinks, table, clock=clock, recording_name=config.out_dir.name, blueprint=blueprint)
 
 
 def open_session(
@@ -168,6 +186,8 @@ def open_session(
     `before_start` sees the rig before it talks to the node. `private_bus`: run on this private
     bus (the caller's, e.g. a test's that also sends frames of its own) instead of a new one."""
     table = table if table is not None else RigTable.load()
+    if config.modules is not None:
+        return _open_robot(config, table, private_bus)
     mode = TimingMode(config.mode)
     out = config.out_dir
     out.mkdir(parents=True, exist_ok=True)
@@ -250,6 +270,97 @@ def open_session(
         stack.close()
         raise
     return HilSession(config, rig, rig.node, firmware, tracer, private_bus, recorder, stack)
+
+
+def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus | None) -> HilSession:
+    """The robot variant of `open_session`: N firmware processes on one private bus, one bus
+    handle, node and rig per module, one chain, one tracer with a child per module."""
+    assert config.modules is not None
+    node_ids = module_ids(config.modules)  # refuses a repeated id before anything starts
+    if config.board is not None or TimingMode(config.mode) is not TimingMode.LOCKSTEP:
+        raise ValueError("a robot session runs its own firmware modules in lockstep (no board=, no realtime)")
+    from hilrig.physics.chain import ChainPhysics  # MuJoCo: only for robots
+
+    out = config.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    stack = contextlib.ExitStack()
+    try:
+        chain = ChainPhysics(len(node_ids), params=config.params)
+        chain.mujoco_steps_per_period(config.period_us / 1e6)  # a period MuJoCo cannot step: now
+        if private_bus is None and config.host_channel is None:
+            if not private_buses_supported():
+                raise BusUnavailableError(
+                    "a HIL session needs root and a kernel with vcan for its private bus: run "
+                    "through tools/with-vcan (make run, make test) or on a host with vcan"
+                )
+            private_bus = stack.enter_context(PrivateBus())
+        launcher = private_bus if private_bus is not None else _HostChannel(config.host_channel or "")
+        recorder: RecorderProcess | None = None
+        if config.record:
+            recorder = RecorderProcess(launcher, out / "bus.log")
+            stack.callback(recorder.close)
+        firmware: list[Firmware] = []
+        for node_id in node_ids:
+            process = Firmware(
+                launcher,
+                node_id=node_id,
+                log_path=out / f"firmware-{node_id}.log",
+                params_file=out / f"params-{node_id}.bin",
+                extra_args=config.extra_args,
+                executable=config.executable,
+                mode=FIRMWARE_MODE[TimingMode.LOCKSTEP],
+                period_us=config.firmware_period_us or config.period_us,
+                term_timeout_s=config.firmware_term_timeout_s,
+            )
+            process.start()
+            stack.callback(process.stop)
+            firmware.append(process)
+        tracer = _tracer(config, table, blueprint=None)
+        if tracer is not None:
+            stack.callback(tracer.close)
+            from dashboards.robot import robot as robot_blueprint
+
+            tracer.send_blueprint(robot_blueprint(table, node_ids))
+        modules: list[Rig] = []
+        for k, node_id in enumerate(node_ids):
+            if private_bus is not None:
+                bus = private_bus.open()
+            else:
+                bus = BoardInterface("socketcan", launcher.channel).open()
+            stack.callback(bus.shutdown)
+            module_tracer = None
+            if tracer is not None:
+                module_tracer = tracer.module_tracer(node_id)
+                stack.callback(module_tracer.close)
+            rig = Rig(
+                bus,
+                node_id=node_id,
+                eds=config.eds,
+                plant=chain.plants[k],
+                seed=config.seed * 1000 + k,  # each module's sensor noise of its own
+                period_us=config.period_us,
+                table=table,
+                liveness=firmware[k].check,
+                boot_timeout_s=config.boot_timeout_s,
+                tpdo_timeout_s=config.tpdo_timeout_s,
+                sdo_timeout_s=config.sdo_timeout_s,
+                tracer=module_tracer,
+            )
+            stack.callback(rig.close)
+            modules.append(rig)
+        robot = Robot(modules, chain, firmware=firmware, master=config.master)
+        if tracer is not None:
+            chain_trace = tracer.robot_observer(chain)
+            robot.add_observer(chain_trace)
+            stack.callback(chain_trace.flush)  # before the tracer closes (the stack unwinds)
+        if config.start:
+            robot.start()
+    except BaseException:
+        stack.close()
+        raise
+    return HilSession(
+        config, None, modules[0].node, firmware[0], tracer, private_bus, recorder, stack, robot=robot
+    )
 
 
 def _record_board(

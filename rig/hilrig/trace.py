@@ -48,7 +48,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, Self
@@ -65,11 +65,14 @@ from hilrig.errors import RigError
 from hilrig.node import EmcyRecord
 from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointState
+from hilrig.robot import ROBOT_EVENTS_PATH, RobotObserver
 from hilrig.table import RigTable, unknown_name
 
 if TYPE_CHECKING:
     import rerun as rr
     import rerun.blueprint as rrb
+
+    from hilrig.robot import ChainModel, Robot
 
 APPLICATION_ID = "hilrig"
 """Rerun application id of every trace; blueprints are saved for this id."""
@@ -98,6 +101,11 @@ NMT_PATH = f"{EVENTS_ROOT}/nmt"
 EMCY_PATH = f"{EVENTS_ROOT}/emcy"
 LABEL_CHILD = "label"
 SDO_PATH = f"{EVENTS_ROOT}/sdo"
+MODULES_ROOT = "/modules"
+"""A robot's modules each trace under /modules/<node id>: their fields, truth and events."""
+ROBOT_ROOT = "/robot"
+"""A robot's 3D view: /robot/links/<k> (a capsule moved by the chain's pose of link k),
+/robot/ground; its own events (a module lost...) at /events/robot."""
 TRUE_SPRING_STIFFNESS = "spring_stiffness_nm_per_rad"
 """Extra truth series: the plant's spring constant, to plot next to spring_constant_estimate."""
 
@@ -124,6 +132,16 @@ def kind_path(kind: Kind) -> str:
 def field_path(field: Field) -> str:
     """'/fields/sensors/motor_position'."""
     return f"{kind_path(field.kind)}/{field.name}"
+
+
+def module_root(node_id: int) -> str:
+    """'/modules/3': where module 3 of a robot traces (prefix of all its entity paths)."""
+    return f"{MODULES_ROOT}/{node_id}"
+
+
+def link_path(index: int) -> str:
+    """'/robot/links/0' for the chain's first link."""
+    return f"{ROBOT_ROOT}/links/{index}"
 
 
 def truth_path(quantity: str) -> str:
@@ -285,7 +303,7 @@ class _HistorySpan:
 
 _Part = tuple[Sequence[str], np.ndarray, np.ndarray, np.ndarray]
 """(names, cycles, times, values matrix with one column per name)."""
-_Batch = list[_CycleRow | CycleResult] | _HistorySpan
+_Batch = list[_CycleRow | CycleResult] | _HistorySpan | Callable[[], None]
 
 
 class Tracer(RigObserver):
@@ -317,6 +335,8 @@ class Tracer(RigObserver):
         background: bool = True,
         clock: Clock = "simulation",
         recording_name: str | None = None,
+        root: str = "",
+        share: Tracer | None = None,
     ) -> None:
         import rerun as rr  # slow (about 12 s in the emulated VM): only when tracing
 
@@ -325,8 +345,13 @@ class Tracer(RigObserver):
         self._rr = rr
         self.table = table
         self.sinks: tuple[TraceSink, ...] = (sink,) if isinstance(sink, TraceSink) else tuple(sink)
-        if not self.sinks:
+        if not self.sinks and share is None:
             raise ValueError("Tracer needs at least one sink")
+        if root and (not root.startswith("/") or root.endswith("/")):
+            raise ValueError(f"root: expected an entity path like /modules/3, got {root!r}")
+        self.root = root
+        """Prefix of every entity path this tracer writes ("" for one board; a robot's modules
+        each have their own, e.g. /modules/3, on one recording)."""
         self.batch_cycles = batch_cycles
         self.max_latency_s = max_latency_s if max_latency_s is not None else default_latency(self.sinks)
         self._next_hand_over = time.monotonic() + (self.max_latency_s or 0.0)
@@ -336,7 +361,7 @@ class Tracer(RigObserver):
         """The page of the served web viewer (with the data's address), when a web sink is used."""
         self.cycles_logged = 0
         self._params: JointParams | None = None
-        self._paths = self._entity_paths(table)
+        self._paths = {name: root + path for name, path in self._entity_paths(table).items()}
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
         self._polled: dict[str, int] = {}  # field -> every how many cycles it is read over SDO
         # Entities whose values have names (board.toml enums and bitsets): each change of value
@@ -355,10 +380,15 @@ class Tracer(RigObserver):
         self._closed = False
         self._error: BaseException | None = None
 
-        self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
-        self._attach_sinks()
+        self._owns_recording = share is None
+        if share is not None:  # another tracer's recording and sinks (a robot's module)
+            self.recording = share.recording
+            self.sinks = share.sinks
+        else:
+            self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
+            self._attach_sinks()
         if blueprint is not None:
-            self.recording.send_blueprint(load_blueprint(blueprint), make_active=True, make_default=True)
+            self.send_blueprint(load_blueprint(blueprint))
 
         self._queue: queue.SimpleQueue[_Batch | None] | None = None
         self._worker: threading.Thread | None = None
@@ -480,7 +510,7 @@ class Tracer(RigObserver):
         self.log_sdo_abort(what, code, cycle=cycle, t=t)
 
     def on_event(self, path: str, text: str, *, warning: bool, cycle: int, t: float) -> None:
-        self.log_text(path, text, Severity.WARN if warning else Severity.INFO, t=t, cycle=cycle)
+        self.log_text(self.root + path, text, Severity.WARN if warning else Severity.INFO, t=t, cycle=cycle)
 
     def log_sdo_write(self, name: str, value: Value, *, cycle: int, t: float) -> None:
         """A value the rig wrote by SDO (a parameter, or a command no RPDO carries)."""
@@ -494,17 +524,18 @@ class Tracer(RigObserver):
         """An NMT state change (by a command the rig sent, or seen in a heartbeat/boot-up)."""
         level = Severity.WARN if state in (NmtState.STOPPED, NmtState.INITIALISING) else Severity.INFO
         where = "boot-up" if state is NmtState.INITIALISING else state.name
-        self.log_text(NMT_PATH, f"NMT {where} ({source}) at t = {t:.6g} s", level, t=t, cycle=cycle)
+        text = f"NMT {where} ({source}) at t = {t:.6g} s"
+        self.log_text(self.root + NMT_PATH, text, level, t=t, cycle=cycle)
 
     def log_emcy(self, record: EmcyRecord) -> None:
         """An EMCY; code 0x0000 (error reset) is INFO, anything else ERROR."""
         level = Severity.INFO if record.code == 0 else Severity.ERROR
-        self.log_text(EMCY_PATH, str(record), level, t=record.time_s, cycle=record.cycle)
+        self.log_text(self.root + EMCY_PATH, str(record), level, t=record.time_s, cycle=record.cycle)
 
     def log_sdo_abort(self, what: str, code: int, *, cycle: int, t: float) -> None:
         """An SDO transfer the node refused (`what` is the rig's message, with the code in words)."""
         self.log_text(
-            SDO_PATH,
+            self.root + SDO_PATH,
             f"SDO abort 0x{code:08X}: {what} at t = {t:.6g} s (cycle {cycle})",
             Severity.WARN,
             t=t,
@@ -535,7 +566,7 @@ class Tracer(RigObserver):
             self._queue.put(None)
             self._worker.join()
         self.recording.flush()
-        if not any(s.kind is SinkKind.WEB for s in self.sinks):
+        if self._owns_recording and not any(s.kind is SinkKind.WEB for s in self.sinks):
             self.recording.disconnect()
         if self._error is not None:
             raise RuntimeError(f"tracing failed in the sender thread: {self._error}") from self._error
@@ -578,8 +609,42 @@ class Tracer(RigObserver):
             except BaseException as error:  # reported by close(); the lockstep loop never waits
                 self._error = error
 
+    def send_blueprint(self, blueprint: rrb.Blueprint) -> None:
+        """The layout a viewer opens this recording with (a dashboard's)."""
+        self.recording.send_blueprint(blueprint, make_active=True, make_default=True)
+
+    def submit(self, work: Callable[[], None]) -> None:
+        """Run `work` (sending something to the recording) on the sender thread, in order with
+        the batches (inline without one)."""
+        self._check_open()
+        if self._queue is not None:
+            self._queue.put(work)
+        else:
+            work()
+
+    def module_tracer(self, node_id: int) -> Tracer:
+        """A tracer for module `node_id` of a robot: its paths under /modules/<id>, on this
+        tracer's recording and sinks (close it before this one)."""
+        return Tracer(
+            (),
+            self.table,
+            blueprint=None,
+            batch_cycles=self.batch_cycles,
+            max_latency_s=self.max_latency_s,
+            background=self._worker is not None,
+            clock=self.clock,
+            root=module_root(node_id),
+            share=self,
+        )
+
+    def robot_observer(self, chain: ChainModel) -> ChainTrace:
+        """The robot's own trace on this recording: its 3D view and its events."""
+        return ChainTrace(self, chain)
+
     def _send(self, batch: _Batch) -> None:
-        if isinstance(batch, _HistorySpan):
+        if callable(batch):
+            batch()
+        elif isinstance(batch, _HistorySpan):
             self._send_span(batch)
         else:
             self._send_batch(batch)
@@ -657,12 +722,12 @@ class Tracer(RigObserver):
         truth_of = operator.attrgetter(*quantities)
         matrix = _matrix(map(truth_of, states), len(quantities), len(states))
         for i, quantity in enumerate(quantities):
-            self._send_scalars(truth_path(quantity), cycles, times, matrix[:, i])
+            self._send_scalars(self.root + truth_path(quantity), cycles, times, matrix[:, i])
         with self._lock:
             params = self._params
         if params is not None:
             self._send_scalars(
-                truth_path(TRUE_SPRING_STIFFNESS),
+                self.root + truth_path(TRUE_SPRING_STIFFNESS),
                 cycles,
                 times,
                 np.full(len(states), params.spring_stiffness_nm_per_rad),
@@ -731,11 +796,96 @@ class Tracer(RigObserver):
 
     def _series_name(self, path: str) -> str:
         name = path.rsplit("/", 1)[-1]
-        if path.startswith(TRUTH_ROOT):
+        if path.removeprefix(self.root).startswith(TRUTH_ROOT):
             return f"true {name} [{truth_unit(name)}]"
         every = self._polled.get(name)
         polled = f" (SDO, every {every} cycles)" if every is not None else ""
         return f"{name} [{self.table.entry(name).unit}]{polled}"
+
+
+class ChainTrace(RobotObserver):
+    """A robot's 3D view and events on its tracer's recording: each link a capsule at
+    /robot/links/<k>, moved by the chain's pose every cycle (batched like the fields: one
+    `send_columns` per link and batch, on the tracer's sender thread)."""
+
+    def __init__(self, tracer: Tracer, chain: ChainModel) -> None:
+        self._tracer = tracer
+        self._chain = chain
+        self._cycles: list[int] = []
+        self._times: list[float] = []
+        self._positions: list[np.ndarray] = []
+        self._quaternions: list[np.ndarray] = []
+        self._next_hand_over = time.monotonic() + (tracer.max_latency_s or 0.0)
+        self._log_geometry()
+
+    def _log_geometry(self) -> None:
+        rr = self._tracer._rr
+        recording = self._tracer.recording
+        geometry = self._chain.geometry
+        length, radius = geometry.link_length_m, geometry.link_radius_m
+        # A capsule lies along +z from its origin; each link runs back along its frame's -x.
+        along_minus_x = rr.RotationAxisAngle(axis=[0.0, 1.0, 0.0], degrees=-90.0)
+        for k in range(self._chain.link_count):
+            recording.log(
+                link_path(k),
+                rr.Capsules3D(
+                    lengths=[length],
+                    radii=[radius],
+                    rotation_axis_angles=[along_minus_x],
+                    colors=[(70, 130, 180) if k else (220, 120, 40)],  # the head stands out
+                    labels=["head" if k == 0 else f"link {k}"],
+                ),
+                static=True,
+            )
+        extent = 2.0 * length * self._chain.link_count + 0.5
+        recording.log(
+            f"{ROBOT_ROOT}/ground",
+            rr.Boxes3D(
+                half_sizes=[[extent, extent, 0.001]], centers=[[0.0, 0.0, -0.001]], colors=[(200, 200, 190)]
+            ),
+            static=True,
+        )
+
+    def on_robot_cycle(self, robot: Robot, cycle: int, t: float) -> None:
+        positions, quaternions = self._chain.poses()
+        self._cycles.append(cycle)
+        self._times.append(t)
+        self._positions.append(positions)
+        self._quaternions.append(quaternions)
+        tracer = self._tracer
+        if len(self._cycles) >= tracer.batch_cycles or (
+            tracer.max_latency_s is not None and time.monotonic() >= self._next_hand_over
+        ):
+            self.flush()
+
+    def on_robot_event(self, text: str, *, warning: bool, cycle: int, t: float) -> None:
+        level = Severity.WARN if warning else Severity.INFO
+        self._tracer.log_text(ROBOT_EVENTS_PATH, text, level, t=t, cycle=cycle)
+
+    def flush(self) -> None:
+        """Hand the poses collected so far to the sender (close() of the robot's session)."""
+        if self._tracer.max_latency_s is not None:
+            self._next_hand_over = time.monotonic() + self._tracer.max_latency_s
+        if not self._cycles:
+            return
+        cycles = np.asarray(self._cycles, dtype=np.int64)
+        times = np.asarray(self._times, dtype=np.float64)
+        positions = np.stack(self._positions)  # cycles x links x 3
+        quaternions = np.stack(self._quaternions)[:, :, [1, 2, 3, 0]]  # MuJoCo wxyz -> Rerun xyzw
+        self._cycles, self._times, self._positions, self._quaternions = [], [], [], []
+        tracer = self._tracer
+
+        def send() -> None:
+            rr = tracer._rr
+            indexes = [rr.TimeColumn(CYCLE_TIMELINE, sequence=cycles), tracer._time_column(times)]
+            for k in range(positions.shape[1]):
+                tracer.recording.send_columns(
+                    link_path(k),
+                    indexes=indexes,
+                    columns=rr.Transform3D.columns(translation=positions[:, k], quaternion=quaternions[:, k]),
+                )
+
+        tracer.submit(send)
 
 
 def _matrix(rows: Iterable[Sequence[Value]], width: int, count: int | None = None) -> np.ndarray:
@@ -875,11 +1025,14 @@ __all__ = [
     "APPLICATION_ID",
     "CYCLE_TIMELINE",
     "EMCY_PATH",
+    "MODULES_ROOT",
     "NMT_PATH",
+    "ROBOT_ROOT",
     "SDO_PATH",
     "SIM_TIME_TIMELINE",
     "TRUTH_QUANTITIES",
     "WALL_TIME_TIMELINE",
+    "ChainTrace",
     "Severity",
     "SinkKind",
     "TraceSink",
@@ -890,7 +1043,9 @@ __all__ = [
     "entity_paths",
     "field_path",
     "kind_path",
+    "link_path",
     "load_blueprint",
+    "module_root",
     "open_trace",
     "save_blueprint",
     "truth_path",

@@ -226,19 +226,19 @@ def test_report_warns_above_70_percent_and_flags_above_100(table_path: Path) -> 
 
 
 # --- a robot: identical modules on one bus -----------------------------------------------------
-MASTER_HEARTBEAT_COB_ID = 0x77F  # 0x700 + the master's default node id 0x7F
+MASTER_HEARTBEAT_COB_ID = 0x77F  # protocol-literal: by hand, 0x700 + the master's default node id 0x7F
 
 
 def test_robot_traffic_has_one_row_per_kind_counting_every_module(table_path: Path) -> None:
     traffic = lockstep_traffic(load_table(table_path), 1000, node_ids=[1, 2], master_heartbeat_ms=20)
     rows = {t.name: (t.count, t.can_id, t.highest_can_id, t.per_second) for t in traffic}
     assert rows == {
-        "RPDO1": (2, 0x201, 0x202, 1000),
+        "RPDO1": (2, 0x201, 0x202, 1000),  # protocol-literal: by hand
         "SYNC": (1, SYNC_COB_ID, None, 1000),  # one SYNC for every module
-        "TPDO1": (2, 0x181, 0x182, 1000),
-        "TPDO2": (2, 0x281, 0x282, 100),
-        "TPDO3": (2, 0x381, 0x382, 200),
-        "heartbeat": (2, 0x701, 0x702, 10),
+        "TPDO1": (2, 0x181, 0x182, 1000),  # protocol-literal: by hand
+        "TPDO2": (2, 0x281, 0x282, 100),  # protocol-literal: by hand
+        "TPDO3": (2, 0x381, 0x382, 200),  # protocol-literal: by hand
+        "heartbeat": (2, 0x701, 0x702, 10),  # protocol-literal: by hand
         "master heartbeat": (1, MASTER_HEARTBEAT_COB_ID, None, 50),  # every 20 ms
     }
     assert list(rows) == ["RPDO1", "SYNC", "TPDO1", "TPDO2", "TPDO3", "heartbeat", "master heartbeat"]

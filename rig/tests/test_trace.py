@@ -30,7 +30,9 @@ from hilrig.trace import (
     TraceSink,
     blueprint_names,
     entity_paths,
+    link_path,
     load_blueprint,
+    module_root,
     open_trace,
     truth_path,
 )
@@ -169,16 +171,21 @@ def test_the_trace_carries_the_chosen_blueprint(traced: Run) -> None:
 
 def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
     from dashboards import BLUEPRINTS, blueprint
+    from dashboards.robot import DEFAULT_NODE_IDS
 
-    logged = {*entity_paths(table).values(), *(truth_path(q) for q in TRUTH_QUANTITIES)}
-    assert set(blueprint_names()) == {"overview", "tuning", "thermal", "faults"} == set(BLUEPRINTS)
+    one_board = {*entity_paths(table).values(), *(truth_path(q) for q in TRUTH_QUANTITIES)}
+    # A robot's: every module's fields under its root, and the links of its 3D view.
+    robot = {module_root(n) + path for n in DEFAULT_NODE_IDS for path in one_board}
+    robot |= {link_path(k) for k in range(len(DEFAULT_NODE_IDS) + 1)}
+    logged = one_board | robot
+    assert set(blueprint_names()) == {"overview", "tuning", "thermal", "faults", "robot"} == set(BLUEPRINTS)
     for name in BLUEPRINTS:
         views = list(_views(blueprint(name, table).root_container))
         assert views, name
         for view in views:
             contents = view.contents if isinstance(view.contents, list) else [view.contents]
             for path in contents:
-                if "$origin" not in path:
+                if "$origin" not in path and not path.startswith("+ "):  # "+ /events/**": a query
                     assert path in logged, f"{name}: {view.name} shows {path}, which is never logged"
             assert any(p.startswith(str(view.origin)) for p in logged) or view.origin == "/events", name
 

@@ -6,6 +6,7 @@ import argparse
 import math
 import sys
 
+from boardproto.cia301 import heartbeat_cob_id
 from hilrig.busload import (
     DEFAULT_MASTER_HEARTBEAT_MS,
     DEFAULT_MASTER_NODE_ID,
@@ -107,7 +108,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         type=_heartbeat_ms,
         default=None,
         metavar="MS",
-        help=f"the master's heartbeat period (1 byte on 0x{0x700 + DEFAULT_MASTER_NODE_ID:03X}), "
+        help=f"the master's heartbeat period (1 byte on 0x{heartbeat_cob_id(DEFAULT_MASTER_NODE_ID):03X}), "
         f"with --modules; 0: none (default {DEFAULT_MASTER_HEARTBEAT_MS})",
     )
 

@@ -36,6 +36,24 @@ def fault_spec(text: str) -> FaultSpec:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+def modules_spec(text: str) -> int | tuple[int, ...]:
+    """--modules: a count (8: node ids 1..8) or node ids (1,2,5 or 0x01,0x02)."""
+    from hilrig.robot import module_ids
+
+    try:
+        spec: int | tuple[int, ...] = (
+            int(text) if "," not in text else tuple(int(part, 0) for part in text.split(","))
+        )
+        if isinstance(spec, int) and spec < 1:
+            raise ValueError(f"expected at least 1 module, got {spec}")
+        module_ids(spec)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(
+            f"{error} (expected a count like 8, or node ids like 1,2,5)"
+        ) from None
+    return spec
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     from hilrig.demo import DEFAULT_POLL_EVERY
     from hilrig.faults import FAULT_SYNTAX_HELP  # the fault models need numpy: only for `sim`
@@ -51,14 +69,33 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--scenario",
         type=existing_file("scenario", "pass a .py file that defines `def scenario(rig): ...`"),
         metavar="FILE.py",
-        help="run `scenario(rig)` from this file instead of the velocity and torque profiles",
+        help="run `scenario(rig)` from this file instead of the velocity and torque profiles "
+        "(with --modules: `scenario(robot)` instead of the gait)",
+    )
+    robot = parser.add_argument_group("a modular robot (several modules on one bus)")
+    robot.add_argument(
+        "--modules",
+        type=modules_spec,
+        default=None,
+        metavar="N|IDS",
+        help="run a robot: the firmware started N times (node ids 1..N) or with these node ids "
+        "(1,2,5) on one private bus, one SYNC for all, the chain's mechanics from MuJoCo (a snake "
+        "on the ground), a travelling-wave gait; the trace shows each module under "
+        "/modules/<id> and the chain in 3D",
+    )
+    robot.add_argument(
+        "--seconds",
+        type=float,
+        default=None,
+        metavar="S",
+        help="with --modules: how long the gait runs, in simulation time (default: 4)",
     )
     default_node = BOARD_TABLE.node.default_node_id
     parser.add_argument(
         "-n",
         "--node-id",
         type=node_id,
-        default=default_node,
+        default=None,
         help=f"node id (default: 0x{default_node:02X}, board.toml's)",
     )
     parser.add_argument(
@@ -131,6 +168,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.modules is not None:
+        return run_robot_command(args)
+    if args.seconds is not None:
+        raise UsageError("--seconds is the gait's length: it goes with --modules")
     from hilrig.demo import DemoOptions, format_summary, run_demo
     from hilrig.faults import FaultPlan
     from hilrig.firmware import DEFAULT_EXECUTABLE
@@ -159,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
     options = DemoOptions(
         out_dir=args.out,
         scenario_file=args.scenario,
-        node_id=args.node_id,
+        node_id=args.node_id if args.node_id is not None else BOARD_TABLE.node.default_node_id,
         period_us=args.period_us,
         seed=args.seed,
         executable=executable,
@@ -177,6 +218,58 @@ def run(args: argparse.Namespace) -> int:
     print(text, flush=True)
     if args.keep_serving and summary.viewer_url is not None and any(s.kind is SinkKind.WEB for s in live):
         # The web viewer's data lives in this process: keep it until the person is done.
+        progress(f"sim: the web viewer keeps serving this run at {summary.viewer_url}; Ctrl-C to stop")
+        try:
+            while True:
+                signal.pause()
+        except KeyboardInterrupt:
+            progress("sim: stopped serving")
+    return 0
+
+
+def run_robot_command(args: argparse.Namespace) -> int:
+    """`hilrig sim --modules N`: the robot demo (hilrig.robot_demo)."""
+    from hilrig.firmware import DEFAULT_EXECUTABLE
+    from hilrig.robot_demo import GAIT_SECONDS, RobotOptions, format_robot_summary, run_robot
+    from hilrig.trace import SinkKind, live_sinks_from_environment
+
+    given = {"--board": args.board, "--fault": bool(args.fault), "--node-id": args.node_id is not None}
+    refused = [flag for flag, present in given.items() if present]
+    if refused:
+        raise UsageError(
+            f"{', '.join(refused)}: not with --modules (a robot runs its own firmware modules in "
+            "lockstep; give their node ids to --modules)"
+        )
+    seconds = args.seconds if args.seconds is not None else GAIT_SECONDS
+    if not (seconds >= 0 and seconds < float("inf")):
+        raise UsageError(f"--seconds: expected a finite duration >= 0, got {args.seconds}")
+    executable = args.firmware or DEFAULT_EXECUTABLE
+    if not executable.is_file():
+        raise UsageError(f"firmware {executable} does not exist: {FIRMWARE_HINT}")
+    try:
+        live = args.viewer if args.viewer is not None else live_sinks_from_environment()
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.no_trace and args.viewer:
+        raise UsageError("--viewer streams the trace, --no-trace makes none: choose one")
+    options = RobotOptions(
+        out_dir=args.out,
+        modules=args.modules,
+        seconds=seconds,
+        scenario_file=args.scenario,
+        period_us=args.period_us,
+        seed=args.seed,
+        executable=executable,
+        eds=eds_path(args),
+        trace=not args.no_trace,
+        live=() if args.no_trace else tuple(live),
+    )
+    summary = run_robot(options, progress=progress)
+    text = format_robot_summary(summary)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "summary.txt").write_text(text + "\n")
+    print(text, flush=True)
+    if args.keep_serving and summary.viewer_url is not None and any(s.kind is SinkKind.WEB for s in live):
         progress(f"sim: the web viewer keeps serving this run at {summary.viewer_url}; Ctrl-C to stop")
         try:
             while True:
@@ -210,7 +303,12 @@ COMMANDS = (
         "  ... sim --fault delay:motor_encoder_counts=20@0.3+0.4 --fault restart@1.5\n"
         "  sudo .venv/bin/hilrig sim --scenario my_scenario.py   # def scenario(rig): ...\n"
         "  hilrig sim --viewer web          # then open http://localhost:9090\n"
-        "  hilrig sim --board -c vcan0 --period-us 10000 --viewer connect",
+        "  hilrig sim --board -c vcan0 --period-us 10000 --viewer connect\n\n"
+        "A robot: --modules 8 starts the firmware 8 times on one bus (node ids 1..8),\n"
+        "one SYNC for all, the chain's mechanics from MuJoCo (pip install 'hilrig[robot]'),\n"
+        "the rig as master with its heartbeat, and runs a travelling-wave gait (`make run\n"
+        "ROBOT=8`): per-joint tracking in the summary, the chain in 3D in the trace.\n\n"
+        "  tools/with-vcan -- .venv/bin/hilrig sim --modules 8 --out out/robot",
         configure=configure,
         run=run,
     ),
