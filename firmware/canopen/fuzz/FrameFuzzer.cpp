@@ -656,7 +656,7 @@ class Harness {
     check(c.frames_received == frames_, "frames_received", c.frames_received, frames_);
     const std::uint32_t outcomes = c.frames_ignored + c.frames_malformed + c.nmt_commands +
                                    c.syncs_received + c.sdo_requests + c.rpdos_received +
-                                   c.rpdo_length_errors;
+                                   c.rpdo_length_errors + c.heartbeats_consumed;
     check(outcomes == c.frames_received, "a frame counted in no or in two outcome counters",
           outcomes, c.frames_received);
     check(c.sdo_requests == sdo_requests_, "sdo_requests", c.sdo_requests, sdo_requests_);
