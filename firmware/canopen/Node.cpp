@@ -1,4 +1,5 @@
-// NMT slave, heartbeat producer and consumer, SYNC consumer, frame dispatch, EMCY producer, store/restore.
+// NMT slave, heartbeat producer and consumer, SYNC consumer, frame dispatch, EMCY producer,
+// store/restore.
 #include "Node.hpp"
 
 #include <algorithm>
@@ -432,7 +433,9 @@ std::size_t Node::collect_communication(std::span<StoredValue> out) const {
     if (n < out.size()) out[n++] = {index, sub, read_communication(index, sub)};
   };
   add(0x1005, 0);
-  for (std::uint8_t sub = 1; sub <= HeartbeatConsumer::kEntries; ++sub) add(HeartbeatConsumer::kIndex, sub);
+  for (std::uint8_t sub = 1; sub <= HeartbeatConsumer::kEntries; ++sub) {
+    add(HeartbeatConsumer::kIndex, sub);
+  }
   add(0x1017, 0);
   add(0x1019, 0);
   add(0x1020, 1);

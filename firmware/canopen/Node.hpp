@@ -4,7 +4,8 @@
 // Hardware-agnostic and single-threaded: the caller feeds received frames to process(), calls
 // poll() often (timers), and after each SYNC runs one control cycle and calls
 // transmit_synchronous_pdos(). Time enters only as `now_us` (a free-running microsecond clock
-// that may wrap), so tests drive it. All state is fixed-size; no heap, exceptions or RTTI.
+// that may wrap) and, for a lockstep heartbeat consumer, advance_control_time(), so tests drive
+// it. All state is fixed-size; no heap, exceptions or RTTI.
 #pragma once
 
 #include <array>
@@ -138,9 +139,10 @@ class Node final {
   // One received frame. Never blocks; answers (SDO, ...) are sent from inside.
   ProcessResult process(const CanFrame& frame, std::uint32_t now_us);
 
-  // Timers: heartbeat (producer; the consumer too on ConsumerClock::WallTime), SDO server timeout, event-driven TPDOs (event timer, change of value
-  // limited by the inhibit time), RPDO deadlines (EMCY rpdo_timeout); and the next segments of
-  // an SDO block upload. Call at least once per millisecond for exact timing.
+  // Timers: heartbeat producer (and consumer on ConsumerClock::WallTime), SDO server timeout,
+  // event-driven TPDOs (event timer, change of value limited by the inhibit time), RPDO
+  // deadlines (EMCY rpdo_timeout); and the next segments of an SDO block upload. Call at least
+  // once per millisecond for exact timing.
   void poll(std::uint32_t now_us);
 
   // True while block-upload segments wait to be sent and the transmit queue took the last one:

@@ -37,7 +37,9 @@ class HilRegisters {
   void write_motor_current(std::int16_t milliamps) { motor_current_.register_.write(milliamps); }
   // The node's heartbeat consumer (co::HeartbeatListener): `lost_entries` watched heartbeats
   // lost now; `event`: one was just lost.
-  void write_heartbeat_status(std::uint8_t lost_entries, bool event) { heartbeat_.write(lost_entries, event); }
+  void write_heartbeat_status(std::uint8_t lost_entries, bool event) {
+    heartbeat_.write(lost_entries, event);
+  }
 
   // --- transmit path: what the actuators last commanded -------------------
   // -10000..10000 (0.01 % of bus voltage); 0 before the first cycle.
