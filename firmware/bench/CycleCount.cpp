@@ -1,7 +1,7 @@
 // Instruction count of one control cycle, for `valgrind --tool=callgrind` (repeatable on a
 // noisy machine, unlike a timing). Three loops of N cycles, one per run:
 //
-//   fw_cycle_count demo   N   the real joint::DemoJoint (19 components) on core::Scheduler,
+//   fw_cycle_count demo   N   the real joint::DemoJoint (20 components) on core::Scheduler,
 //                             its HIL registers fed every cycle as the receive path would
 //   fw_cycle_count core   N   the benchmark's 17 joint-like stand-ins on the core board
 //   fw_cycle_count naive  N   the same stand-ins on the naive unordered_map<string> board

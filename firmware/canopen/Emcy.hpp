@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 
+#include "HeartbeatConsumer.hpp"
 #include "board/fields.hpp"
 
 namespace co {
@@ -62,6 +63,13 @@ constexpr EmcyReport pdo_length_error(std::uint16_t rpdo_comm_index) {
 // An RPDO with an event timer (deadline) was not received in time; `rpdo_comm_index` is 0x1400+n.
 constexpr EmcyReport rpdo_timeout(std::uint16_t rpdo_comm_index) {
   return report(board::EmcyId::rpdo_timeout, rpdo_comm_index);
+}
+
+// A heartbeat the node consumes timed out (0x1016); manufacturer byte 2 names the lost node.
+constexpr EmcyReport heartbeat_error(std::uint8_t lost_node_id) {
+  EmcyReport error = report(board::EmcyId::heartbeat_error, HeartbeatConsumer::kIndex);
+  error.manufacturer[2] = lost_node_id;
+  return error;
 }
 
 }  // namespace emcy

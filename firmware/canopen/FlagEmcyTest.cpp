@@ -83,6 +83,21 @@ TEST_F(FlagEmcyTest, ABitWhoseRaiserNamesTheObjectSendsNothingButClearsEveryErro
   EXPECT_EQ(node.error_register(), 0);
 }
 
+// The node reports a heartbeat event itself (it alone knows the lost node id); the fault bit the
+// application latches for it sends nothing more, and clearing the bit clears the error.
+TEST_F(FlagEmcyTest, TheHeartbeatBitLeavesTheReportToTheNodeAndClearsIt) {
+  const board::FlagInfo& heartbeat = fault("master_heartbeat_lost");
+  ASSERT_EQ(heartbeat.emcy, board::EmcyId::heartbeat_error);
+  ASSERT_FALSE(heartbeat.about_index.has_value());
+  node.report_emcy(emcy::heartbeat_error(0x01));
+  EXPECT_EQ(next_sent(), make_frame(kEmcy, {0x30, 0x81, 0x11, 0x16, 0x10, 0x01, 0, 0}));
+  reporter.update(heartbeat.mask());
+  EXPECT_TRUE(all_sent().empty()) << "one EMCY per heartbeat event";
+  reporter.update(0);
+  EXPECT_EQ(next_sent(), make_frame(kEmcy, {0, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(node.error_register(), 0);
+}
+
 TEST_F(FlagEmcyTest, ReportsEachChangeOnceAndLeavesOtherBitsAlone) {
   const board::FlagInfo& motor = fault("motor_encoder_stale");
   const board::FlagInfo& output = fault("output_encoder_stale");

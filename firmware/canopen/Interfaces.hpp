@@ -44,6 +44,21 @@ class HilIo {
   HilIo& operator=(const HilIo&) = default;
 };
 
+// The heartbeat consumer's (0x1016) news for the application. Like HilIo inputs it goes to an
+// intermediate register (never the board): a component drains it in its update().
+class HeartbeatListener {
+ public:
+  virtual ~HeartbeatListener() = default;
+  // Called when something changed. `lost_entries`: entries whose heartbeat timed out and has not
+  // come back; `event`: this call reports a new heartbeat event (an entry just timed out).
+  virtual void heartbeat_status(std::uint8_t lost_entries, bool event) = 0;
+
+ protected:
+  HeartbeatListener() = default;
+  HeartbeatListener(const HeartbeatListener&) = default;
+  HeartbeatListener& operator=(const HeartbeatListener&) = default;
+};
+
 // Persistent bytes for "store parameters" (0x1010). The engine frames the image with a magic,
 // version and CRC, so implementations just keep bytes.
 class ParameterStorage {

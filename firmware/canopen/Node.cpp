@@ -1,4 +1,5 @@
-// NMT slave, heartbeat producer, SYNC consumer, frame dispatch, EMCY producer, store/restore.
+// NMT slave, heartbeat producer and consumer, SYNC consumer, frame dispatch, EMCY producer,
+// store/restore.
 #include "Node.hpp"
 
 #include <algorithm>
@@ -79,6 +80,8 @@ ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
     handle_sync(frame, result);
     return result;
   }
+  // Error control, like NMT, works in every state but initialising (stopped too).
+  if (handle_heartbeat(frame, now_us)) return result;
   if (state_ == NmtState::Stopped) {  // stopped: NMT only (heartbeat still goes out)
     ++counters_.frames_ignored;
     return result;
@@ -139,10 +142,12 @@ void Node::reset_communication(std::uint32_t now_us) {
   configuration_date_ = 0;
   configuration_time_ = 0;
   heartbeat_ms_ = board::kNode.heartbeat_ms;
+  heartbeat_consumer_.reset();
   load_default_pdos();
   state_ = NmtState::PreOperational;  // stored PDO mappings replay under pre-operational rules
   load_stored_communication();
   last_heartbeat_us_ = now_us;
+  tell_heartbeat_listener(false);
   const std::array<std::uint8_t, 1> boot_up = {static_cast<std::uint8_t>(NmtState::Initialising)};
   send(kErrorControlCobIdBase + node_id_, boot_up);
 }
@@ -185,6 +190,50 @@ void Node::handle_sync(const CanFrame& frame, ProcessResult& result) {
   }
 }
 
+bool Node::handle_heartbeat(const CanFrame& frame, std::uint32_t now_us) {
+  // 0x701..0x77F: the heartbeat (or boot-up) of node id 1..127; only watched nodes are served.
+  const std::uint32_t node_id = frame.id - kErrorControlCobIdBase;
+  if (frame.id <= kErrorControlCobIdBase || node_id > HeartbeatConsumer::kMaxNodeId ||
+      !heartbeat_consumer_.watches(static_cast<std::uint8_t>(node_id))) {
+    return false;
+  }
+  if (frame.len != 1) {  // the state byte, nothing else (CiA 301, 7.2.8.3.2.2)
+    ++counters_.frames_malformed;
+    return true;
+  }
+  ++counters_.heartbeats_consumed;
+  heartbeat_consumer_.heartbeat(static_cast<std::uint8_t>(node_id), consumer_now(now_us));
+  tell_heartbeat_listener(false);  // a lost heartbeat may be back
+  return true;
+}
+
+std::uint32_t Node::consumer_now(std::uint32_t now_us) const {
+  return consumer_clock_ == ConsumerClock::WallTime ? now_us : control_time_us_;
+}
+
+void Node::advance_control_time(std::uint32_t elapsed_us) {
+  control_time_us_ += elapsed_us;
+  if (state_ == NmtState::Initialising || consumer_clock_ != ConsumerClock::ControlCycles) return;
+  check_heartbeat_timeouts(control_time_us_);
+}
+
+void Node::check_heartbeat_timeouts(std::uint32_t consumer_now_us) {
+  bool event = false;
+  heartbeat_consumer_.check_timeouts(consumer_now_us, [&](std::uint8_t lost_node_id) {
+    event = true;
+    ++counters_.heartbeat_events;
+    report_emcy(emcy::heartbeat_error(lost_node_id));
+  });
+  if (event) tell_heartbeat_listener(true);
+}
+
+void Node::tell_heartbeat_listener(bool event) {
+  const std::uint8_t lost = heartbeat_consumer_.lost_entries();
+  if (!event && lost == told_lost_heartbeats_) return;
+  told_lost_heartbeats_ = lost;
+  if (heartbeat_listener_ != nullptr) heartbeat_listener_->heartbeat_status(lost, event);
+}
+
 void Node::handle_sdo(const CanFrame& frame, std::uint32_t now_us) {
   if (frame.len != 8) {  // SDO frames always carry 8 bytes (CiA 301, 7.2.4.3)
     ++counters_.frames_malformed;
@@ -218,6 +267,7 @@ void Node::send_sdo_segments(std::uint32_t now_us) {
 
 void Node::poll(std::uint32_t now_us) {
   if (state_ == NmtState::Initialising) return;
+  if (consumer_clock_ == ConsumerClock::WallTime) check_heartbeat_timeouts(now_us);
   const std::uint32_t period_us = std::uint32_t{heartbeat_ms_} * 1000u;
   if (period_us != 0 && now_us - last_heartbeat_us_ >= period_us) {
     // Keep the cadence when poll() is a little late; restart it after a long gap.
@@ -314,6 +364,12 @@ void Node::load_stored_communication() {
       case 0x1017:
       case 0x1019:
       case 0x1020: (void)write_communication(stored.index, stored.sub, stored.raw, 0); break;
+      case HeartbeatConsumer::kIndex:
+        // An image from a firmware with more entries: the ones this one has are kept.
+        if (stored.sub >= 1 && stored.sub <= HeartbeatConsumer::kEntries) {
+          (void)write_communication(stored.index, stored.sub, stored.raw, 0);
+        }
+        break;
       default: break;
     }
   }
@@ -377,6 +433,9 @@ std::size_t Node::collect_communication(std::span<StoredValue> out) const {
     if (n < out.size()) out[n++] = {index, sub, read_communication(index, sub)};
   };
   add(0x1005, 0);
+  for (std::uint8_t sub = 1; sub <= HeartbeatConsumer::kEntries; ++sub) {
+    add(HeartbeatConsumer::kIndex, sub);
+  }
   add(0x1017, 0);
   add(0x1019, 0);
   add(0x1020, 1);

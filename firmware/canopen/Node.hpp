@@ -1,10 +1,11 @@
-// The CANopen (CiA 301) slave engine: NMT slave, heartbeat producer, SYNC consumer, SDO server,
-// RPDOs/TPDOs with run-time mapping, EMCY producer, store/restore of parameters.
+// The CANopen (CiA 301) slave engine: NMT slave, heartbeat producer and consumer, SYNC consumer,
+// SDO server, RPDOs/TPDOs with run-time mapping, EMCY producer, store/restore of parameters.
 //
 // Hardware-agnostic and single-threaded: the caller feeds received frames to process(), calls
 // poll() often (timers), and after each SYNC runs one control cycle and calls
 // transmit_synchronous_pdos(). Time enters only as `now_us` (a free-running microsecond clock
-// that may wrap), so tests drive it. All state is fixed-size; no heap, exceptions or RTTI.
+// that may wrap) and, for a lockstep heartbeat consumer, advance_control_time(), so tests drive
+// it. All state is fixed-size; no heap, exceptions or RTTI.
 #pragma once
 
 #include <array>
@@ -15,6 +16,7 @@
 
 #include "CanPort.hpp"
 #include "Emcy.hpp"
+#include "HeartbeatConsumer.hpp"
 #include "Interfaces.hpp"
 #include "ParameterImage.hpp"
 #include "Recorder.hpp"
@@ -55,7 +57,7 @@ struct ProcessResult {
 // sub-index (CiA 301, 7.5.2.13/14).
 enum class ParameterGroup : std::uint8_t {
   All = 1,            // everything below
-  Communication = 2,  // 0x1005, 0x1017, 0x1019, 0x1020, PDO communication and mapping records
+  Communication = 2,  // 0x1005, 0x1016, 0x1017, 0x1019, 0x1020, PDO communication and mapping
   Application = 3,    // board fields marked `stored` in board.toml
 };
 
@@ -93,11 +95,22 @@ struct NodeCounters {
   std::uint32_t rpdo_values_rejected = 0; // mapped value out of range or refused by the board
   std::uint32_t tpdos_sent = 0;
   std::uint32_t heartbeats_sent = 0;
+  std::uint32_t heartbeats_consumed = 0;  // heartbeats (and boot-ups) of nodes 0x1016 watches
+  std::uint32_t heartbeat_events = 0;     // a watched heartbeat timed out (0x1016)
   std::uint32_t emcy_sent = 0;            // includes error reset messages
   std::uint32_t send_failures = 0;        // port refused a frame (queue full / error): dropped,
                                           // except a block-upload segment, offered again later
   std::uint32_t field_writes_refused = 0; // FieldAccess::write refused (SDO, RPDO, defaults)
   std::uint32_t default_pdo_errors = 0;   // default PDO mappings the OD could not resolve
+};
+
+// The heartbeat consumer's (0x1016) clock. The choice is the platform's: the node cannot tell
+// whether its SYNCs are real time or simulation time.
+enum class ConsumerClock : std::uint8_t {
+  WallTime,       // the now_us of process() and poll(): a board that keeps its own period
+  ControlCycles,  // only advance_control_time() moves it, by the control period per cycle: in
+                  // lockstep every SYNC is one period of simulation time, so a slow or paused
+                  // host never trips it and a rig can predict the trip cycle exactly
 };
 
 class Node final {
@@ -126,9 +139,10 @@ class Node final {
   // One received frame. Never blocks; answers (SDO, ...) are sent from inside.
   ProcessResult process(const CanFrame& frame, std::uint32_t now_us);
 
-  // Timers: heartbeat, SDO server timeout, event-driven TPDOs (event timer, change of value
-  // limited by the inhibit time), RPDO deadlines (EMCY rpdo_timeout); and the next segments of
-  // an SDO block upload. Call at least once per millisecond for exact timing.
+  // Timers: heartbeat producer (and consumer on ConsumerClock::WallTime), SDO server timeout,
+  // event-driven TPDOs (event timer, change of value limited by the inhibit time), RPDO
+  // deadlines (EMCY rpdo_timeout); and the next segments of an SDO block upload. Call at least
+  // once per millisecond for exact timing.
   void poll(std::uint32_t now_us);
 
   // True while block-upload segments wait to be sent and the transmit queue took the last one:
@@ -139,6 +153,12 @@ class Node final {
   // Sends the synchronous TPDOs due at the last SYNC (type n: every n-th SYNC; type 0: when
   // the mapped values changed). Call once per SYNC, after the control cycle.
   void transmit_synchronous_pdos(std::uint32_t now_us);
+
+  // The heartbeat consumer's clock (default WallTime). With ControlCycles, call
+  // advance_control_time(period) once per control cycle, before running it: a heartbeat that
+  // timed out then reaches the application in that same cycle.
+  void set_consumer_clock(ConsumerClock clock) { consumer_clock_ = clock; }
+  void advance_control_time(std::uint32_t elapsed_us);
 
   // EMCY producer. An error stays active until cleared; reporting an active error again (same
   // code and manufacturer bytes) sends nothing and returns false. Otherwise: error register
@@ -168,12 +188,20 @@ class Node final {
   // objects do not exist. Reset node resets it. Must outlive the node.
   void set_recorder(Recorder* recorder) { recorder_ = recorder; }
 
+  // Told whenever the heartbeat consumer's state changes (a heartbeat event, a heartbeat back,
+  // 0x1016 rewritten, a reset). Optional; must outlive the node. A heartbeat event also reports
+  // EMCY heartbeat_error naming the lost node; the node never clears it itself: whoever acts on
+  // the event (the application's fault latch) clears it. The NMT state stays as it is (no
+  // 0x1029 error behaviour).
+  void set_heartbeat_listener(HeartbeatListener* listener) { heartbeat_listener_ = listener; }
+
   NmtState state() const { return state_; }
   std::uint8_t node_id() const { return node_id_; }
   std::uint8_t error_register() const { return error_register_; }
   ParameterLoad parameter_load() const { return parameter_load_; }
   const NodeCounters& counters() const { return counters_; }
   std::uint16_t heartbeat_period_ms() const { return heartbeat_ms_; }
+  std::uint8_t lost_heartbeats() const { return heartbeat_consumer_.lost_entries(); }
 
  private:
   enum class Target : std::uint8_t { Communication, Field, HilInput, HilOutput, Recorder };
@@ -264,6 +292,10 @@ class Node final {
   // NMT, storage, EMCY (Node.cpp).
   void handle_nmt(const CanFrame& frame, std::uint32_t now_us, ProcessResult& result);
   void handle_sync(const CanFrame& frame, ProcessResult& result);
+  bool handle_heartbeat(const CanFrame& frame, std::uint32_t now_us);
+  std::uint32_t consumer_now(std::uint32_t now_us) const;
+  void check_heartbeat_timeouts(std::uint32_t consumer_now_us);
+  void tell_heartbeat_listener(bool event);
   void handle_sdo(const CanFrame& frame, std::uint32_t now_us);
   void send_sdo_segments(std::uint32_t now_us);
   bool segment_send_refused_ = false;  // the last segment the port was given, it refused
@@ -299,6 +331,11 @@ class Node final {
   std::uint32_t configuration_time_ = 0;  // 0x1020:02, ms after midnight
   std::uint16_t heartbeat_ms_ = 0;
   std::uint32_t last_heartbeat_us_ = 0;
+  HeartbeatConsumer heartbeat_consumer_;
+  ConsumerClock consumer_clock_ = ConsumerClock::WallTime;
+  std::uint32_t control_time_us_ = 0;  // ConsumerClock::ControlCycles; wraps
+  std::uint8_t told_lost_heartbeats_ = 0;  // what the listener last heard
+  HeartbeatListener* heartbeat_listener_ = nullptr;
   std::array<Pdo, board::kRpdoCount> rpdos_{};
   std::array<Pdo, board::kTpdoCount> tpdos_{};
   std::array<std::int32_t, board::kHilInputCount> hil_inputs_{};  // last values written

@@ -63,6 +63,10 @@ SdoAbort Node::find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) c
       if (sub <= kStoreHighestSub) return record(DataType::Unsigned32, true);
       return SdoAbort::SubIndexDoesNotExist;
     case 0x1014: return simple(DataType::Unsigned32, false);
+    case HeartbeatConsumer::kIndex:
+      if (sub == 0) return record(DataType::Unsigned8, false);
+      if (sub <= HeartbeatConsumer::kEntries) return record(DataType::Unsigned32, true);
+      return SdoAbort::SubIndexDoesNotExist;
     case 0x1017: return simple(DataType::Unsigned16, true);
     case 0x1019: return simple(DataType::Unsigned8, true);
     case 0x1020:
@@ -144,6 +148,8 @@ std::uint32_t Node::read_communication(std::uint16_t index, std::uint8_t sub) co
     case 0x1010:
     case 0x1011: return sub == 0 ? kStoreHighestSub : kSavesOnCommand;
     case 0x1014: return 0x80u + node_id_;
+    case HeartbeatConsumer::kIndex:
+      return sub == 0 ? HeartbeatConsumer::kEntries : heartbeat_consumer_.entry(sub);
     case 0x1017: return heartbeat_ms_;
     case 0x1019: return sync_overflow_;
     case 0x1020:
@@ -343,6 +349,11 @@ SdoAbort Node::write_communication(std::uint16_t index, std::uint8_t sub, std::u
       return restore_default_parameters(static_cast<ParameterGroup>(sub))
                  ? SdoAbort::None
                  : SdoAbort::DataCannotBeStored;
+    case HeartbeatConsumer::kIndex: {
+      const SdoAbort result = heartbeat_consumer_.configure(sub, value);
+      tell_heartbeat_listener(false);  // an entry that was lost waits afresh
+      return result;
+    }
     case 0x1017:
       heartbeat_ms_ = static_cast<std::uint16_t>(value);
       last_heartbeat_us_ = now_us;  // the new period counts from now

@@ -176,6 +176,7 @@ TEST_F(ObjectDictionaryTest, EveryObjectReadsItsEdsDefaultAfterResetNode) {
   // One object of each kind away from its default: communication, PDO, command, HIL input.
   ASSERT_EQ(download(0x1005, 0, 0x81, 4), SdoAbort::None);
   ASSERT_EQ(download(0x1019, 0, 8, 1), SdoAbort::None);
+  ASSERT_EQ(download(HeartbeatConsumer::kIndex, 1, 0x0001'0096, 4), SdoAbort::None);
   ASSERT_EQ(download(0x1020, 1, 1234, 4), SdoAbort::None);
   ASSERT_EQ(download(0x1800, 2, 7, 1), SdoAbort::None);
   ASSERT_EQ(download_float(index_of(board::FieldId::velocity_setpoint), 2.5f), SdoAbort::None);

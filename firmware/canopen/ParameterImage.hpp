@@ -1,7 +1,7 @@
 // The byte image "store parameters" (0x1010) writes: one entry per stored object (index,
 // sub-index, raw value), behind a header with magic, format version and CRC-32, so a torn,
 // foreign or corrupt image is rejected instead of loaded. Board fields carry their REAL32 bits;
-// communication objects (0x1005, 0x1017, 0x1019, 0x1020, PDO records) their integer value.
+// communication objects (0x1005, 0x1016, 0x1017, 0x1019, 0x1020, PDO records) their integer value.
 //
 // Layout, little endian:
 //   0: u32 magic "HILP"   4: u16 format version   6: u16 entry count   8: u32 CRC-32 (IEEE) of
@@ -25,10 +25,10 @@ inline constexpr std::uint16_t kFieldsOnlyFormatVersion = 1;
 inline constexpr std::size_t kHeaderBytes = 12;
 inline constexpr std::size_t kEntryBytes = 7;
 inline constexpr std::size_t kFieldsOnlyEntryBytes = 6;
-// 0x1005, 0x1017, 0x1019, 0x1020:01/02; per RPDO sub 1/2/3/5 + mapping sub 0..8; per TPDO
-// also sub 6.
+// 0x1005, 0x1017, 0x1019, 0x1020:01/02; 0x1016:01..n; per RPDO sub 1/2/3/5 + mapping sub
+// 0..8; per TPDO also sub 6.
 inline constexpr std::size_t kMaxCommunicationEntries =
-    5 + board::kRpdoCount * (4 + 9) + board::kTpdoCount * (5 + 9);
+    5 + board::kHeartbeatConsumers + board::kRpdoCount * (4 + 9) + board::kTpdoCount * (5 + 9);
 inline constexpr std::size_t kMaxEntries = board::kFieldCount + kMaxCommunicationEntries;
 inline constexpr std::size_t kCapacity = kHeaderBytes + kEntryBytes * kMaxEntries;
 

@@ -13,6 +13,7 @@ DemoJoint::DemoJoint(core::MessageBoard& board, const JointDrivers& drivers, flo
                       FieldId::output_encoder_raw, FieldId::output_encoder_counts_per_rev},
       thermistor_{board, drivers.thermistor_adc},
       motor_current_{board, drivers.motor_current},
+      heartbeat_{board, drivers.heartbeat},
       motor_velocity_{board, "motor_velocity", FieldId::motor_encoder_raw, FieldId::encoder_counts_per_rev,
                       FieldId::motor_velocity, dt_s},
       output_velocity_{board, "output_velocity", FieldId::output_encoder_raw, FieldId::output_encoder_counts_per_rev,
@@ -33,7 +34,7 @@ DemoJoint::DemoJoint(core::MessageBoard& board, const JointDrivers& drivers, flo
 
 bool DemoJoint::add_to(core::Scheduler& scheduler) {
   for (core::MessageBoardUser* component : std::initializer_list<core::MessageBoardUser*>{
-           &motor_encoder_, &output_encoder_, &thermistor_, &motor_current_, &motor_velocity_, &output_velocity_,
+           &motor_encoder_, &output_encoder_, &thermistor_, &motor_current_, &heartbeat_, &motor_velocity_, &output_velocity_,
            &spring_deflection_, &joint_torque_, &winding_temperature_, &thermal_protection_, &command_watchdog_,
            &fault_manager_, &velocity_controller_, &torque_controller_, &drive_arbiter_,
            &spring_constant_estimator_, &led_pattern_, &motor_, &status_led_}) {

@@ -25,6 +25,7 @@
 #include "joint/modules/TorqueController.hpp"
 #include "joint/modules/VelocityController.hpp"
 #include "joint/sensors/EncoderSensor.hpp"
+#include "joint/sensors/HeartbeatSensor.hpp"
 #include "joint/sensors/MotorCurrentSensor.hpp"
 #include "joint/sensors/ThermistorSensor.hpp"
 #include "joint/virtual_sensors/JointTorque.hpp"
@@ -52,6 +53,7 @@ class DemoJoint {
   EncoderSensor output_encoder_;
   ThermistorSensor thermistor_;
   MotorCurrentSensor motor_current_;
+  HeartbeatSensor heartbeat_;
   // Virtual sensors
   VelocitySensor motor_velocity_;
   VelocitySensor output_velocity_;

@@ -88,7 +88,7 @@ std::uint16_t thermistor_adc_at(double temperature_c) {
 TEST_F(DemoJointTest, SchedulesAllComponentsWithoutError) {
   const core::StartupStatus status = start();
   ASSERT_TRUE(status) << status.message();
-  EXPECT_EQ(scheduler.order().size(), 19U);
+  EXPECT_EQ(scheduler.order().size(), 20U);
   EXPECT_FALSE(joint.add_to(scheduler));  // too late once started
 }
 
@@ -113,7 +113,7 @@ TEST_F(DemoJointTest, PrintedScheduleRunsSensorsThenVirtualSensorsThenModulesThe
     ranks.push_back(rank.at(kind));
     names.push_back(line.substr(quote + 2, line.size() - quote - 3));
   }
-  ASSERT_EQ(ranks.size(), 19U) << text;
+  ASSERT_EQ(ranks.size(), 20U) << text;
   EXPECT_TRUE(std::is_sorted(ranks.begin(), ranks.end())) << text;
   for (int kind = 0; kind < 4; ++kind) {
     EXPECT_NE(std::find(ranks.begin(), ranks.end(), kind), ranks.end()) << "kind rank " << kind << " missing";
@@ -125,6 +125,7 @@ TEST_F(DemoJointTest, PrintedScheduleRunsSensorsThenVirtualSensorsThenModulesThe
   EXPECT_LT(position("spring_deflection"), position("joint_torque")) << text;
   EXPECT_LT(position("thermal_protection"), position("fault_manager")) << text;
   EXPECT_LT(position("command_watchdog"), position("fault_manager")) << text;
+  EXPECT_LT(position("heartbeat"), position("fault_manager")) << text;
   EXPECT_LT(position("fault_manager"), position("velocity_controller")) << text;
   EXPECT_LT(position("velocity_controller"), position("drive_arbiter")) << text;
   EXPECT_LT(position("torque_controller"), position("drive_arbiter")) << text;
@@ -164,6 +165,34 @@ TEST_F(DemoJointTest, SilentSetpointStreamStopsTheMotorAndShowsTheFault) {
   EXPECT_EQ(static_cast<std::uint32_t>(board.get(FieldId::fault_flags)), fault_mask(FaultBit::CommandWatchdog));
   EXPECT_EQ(registers.motor_duty_raw(), 0);
   EXPECT_EQ(registers.led_pattern_raw(), 3);
+}
+
+// The node's heartbeat consumer reports the master lost: safe state, zero duty, in that cycle.
+TEST_F(DemoJointTest, LostMasterHeartbeatStopsTheMotorUntilItIsBackAndCleared) {
+  const core::StartupStatus status = start();
+  ASSERT_TRUE(status) << status.message();
+  ASSERT_EQ(bus.write(FieldId::control_mode, 1.0F), core::SetResult::Ok);
+  velocity_setpoint_rad_s = 2.0F;
+  for (int i = 0; i < 500; ++i) {
+    run_cycle();
+  }
+  ASSERT_NE(registers.motor_duty_raw(), 0);
+  registers.write_heartbeat_status(1, true);
+  run_cycle();
+  EXPECT_EQ(board.get(FieldId::heartbeat_lost), 1.0F);
+  EXPECT_EQ(board.get(FieldId::safe_state), 1.0F);
+  EXPECT_EQ(static_cast<std::uint32_t>(board.get(FieldId::fault_flags)), fault_mask(FaultBit::MasterHeartbeatLost));
+  EXPECT_EQ(registers.motor_duty_raw(), 0);
+
+  registers.write_heartbeat_status(0, false);  // the master's heartbeat is back
+  run_cycle();
+  EXPECT_EQ(board.get(FieldId::heartbeat_lost), 0.0F);
+  EXPECT_EQ(registers.motor_duty_raw(), 0) << "latched until cleared";
+  ASSERT_EQ(bus.write(FieldId::fault_clear, 1.0F), core::SetResult::Ok);
+  run_cycle();
+  EXPECT_EQ(board.get(FieldId::fault_flags), 0.0F);
+  run_cycle();
+  EXPECT_NE(registers.motor_duty_raw(), 0);
 }
 
 TEST_F(DemoJointTest, ReachesAPositionSetpointInPositionMode) {

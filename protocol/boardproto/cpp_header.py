@@ -588,7 +588,7 @@ constexpr const IoInfo& info(HilInputId id) {{ return kHilInputs[static_cast<std
 constexpr const IoInfo& info(HilOutputId id) {{ return kHilOutputs[static_cast<std::size_t>(id)]; }}
 
 // ---------------------------------------------------------------------------
-// Node identity (0x1000, 0x1008..0x100A, 0x1017, 0x1018).
+// Node identity (0x1000, 0x1008..0x100A, 0x1017, 0x1018) and the sizes of 0x1003 and 0x1016.
 // ---------------------------------------------------------------------------
 struct NodeIdentity {{
   std::uint32_t device_type;
@@ -616,6 +616,10 @@ inline constexpr NodeIdentity kNode = {{
 
 // Number of entries of 0x1003 "pre-defined error field" (sub-indices 1..n).
 inline constexpr std::size_t kErrorHistoryLength = {node.error_history_length};
+
+// Number of entries of 0x1016 "consumer heartbeat time" (sub-indices 1..n): the heartbeats of up
+// to n other nodes the node watches. Each entry: bits 16..23 node id, bits 0..15 time in ms.
+inline constexpr std::size_t kHeartbeatConsumers = {node.heartbeat_consumers};
 
 // ---------------------------------------------------------------------------
 // Default PDO configuration (what the node starts with and restores to).

@@ -55,6 +55,9 @@ SAVES_ON_COMMAND = 0x0000_0001
 STORE_GROUPS = ((1, "all"), (2, "communication"), (3, "application"))
 SYNC_COB_ID = 0x80
 EMCY_COB_ID_BASE = 0x80
+# 0x1016 sub n: bits 16..23 the monitored node id, bits 0..15 the consumer time in ms (CiA 301,
+# 7.5.2.31); 0 = entry unused.
+CONSUMER_HEARTBEAT_UNUSED = 0
 # sub 1 COB-ID, 2 type, 3 inhibit, (4 reserved), 5 event timer; TPDOs also 6 SYNC start value.
 RPDO_COMMUNICATION_SUBINDICES = 5
 TPDO_COMMUNICATION_SUBINDICES = 6
@@ -64,8 +67,8 @@ NOT_SUPPORTED = (
     "Not supported: node guarding and life guarding (0x100C/0x100D; optional, deprecated by",
     "CiA 301 in favour of the heartbeat, which the node produces). Remote frames (RTR): every",
     "TPDO COB-ID has bit 30 set; transmission types 252/253 are refused. SYNC producer, TIME,",
-    "multiple SDO servers, SDO client, LSS.",
-    "Not yet supported: heartbeat consumer 0x1016 (issue: modular robot).",
+    "multiple SDO servers, SDO client, LSS. Error behaviour 0x1029: a heartbeat event (0x1016)",
+    "leaves the NMT state as it is; the node sends an EMCY and the application goes safe.",
 )
 SUPPORTED_BITRATES = frozenset({125_000, 250_000, 500_000, 1_000_000})
 
@@ -265,6 +268,26 @@ def _add_communication_objects(od: ObjectDictionary, table: BoardTable) -> None:
     emcy_cob_id.default_raw = f"$NODEID+0x{EMCY_COB_ID_BASE:X}"
     emcy_cob_id.relative = True
     od.add_object(emcy_cob_id)
+    od.add_object(
+        _array(
+            "Consumer heartbeat time",
+            0x1016,
+            "Highest sub-index supported",
+            node.heartbeat_consumers,
+            "ro",
+            [
+                _variable(
+                    f"Consumer heartbeat time {n}",
+                    0x1016,
+                    n,
+                    DataType.UNSIGNED32,
+                    "rw",
+                    CONSUMER_HEARTBEAT_UNUSED,
+                )
+                for n in range(1, node.heartbeat_consumers + 1)
+            ],
+        )
+    )
     od.add_object(
         _variable("Producer heartbeat time", 0x1017, 0, DataType.UNSIGNED16, "rw", node.heartbeat_ms)
     )

@@ -184,6 +184,7 @@ _NODE_KEYS = frozenset(
         "default_node_id",
         "heartbeat_ms",
         "error_history_length",
+        "heartbeat_consumers",
     }
 )
 _FIELD_KEYS = frozenset(
@@ -196,6 +197,9 @@ _ENUM_VALUE_KEYS = frozenset({"name", "value", "description"})
 _BIT_REQUIRED_KEYS = frozenset({"name", "bit", "description"})
 _BIT_OPTIONAL_KEYS = frozenset({"emcy", "about"})
 _EMCY_KEYS = frozenset({"name", "code", "error_register", "description"})
+# 0x1016 consumer heartbeat time entries: each is fixed RAM in the node and a stored value; a
+# joint watches one master. Raise it when a board has to watch more nodes.
+MAX_HEARTBEAT_CONSUMERS = 4
 MAX_FLAG_BITS = 24  # a bitset travels in a REAL32 field: integers are exact up to 2**24
 _PDO_SLOT_KEYS = frozenset({"rpdo_slots", "tpdo_slots"})
 _RECORDER_KEYS = frozenset({"index", "channels", "buffer_values"})
@@ -325,6 +329,7 @@ def _load_node(source: Path, data: Any) -> NodeIdentity:
         heartbeat_ms=entry.integer("heartbeat_ms", 0, 0xFFFF),
         # 0x1003 sub 0 is an UNSIGNED8 count; 254 is the largest useful sub-index.
         error_history_length=entry.integer("error_history_length", 1, 254),
+        heartbeat_consumers=entry.integer("heartbeat_consumers", 1, MAX_HEARTBEAT_CONSUMERS),
     )
 
 

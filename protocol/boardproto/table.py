@@ -384,6 +384,7 @@ class NodeIdentity:
     default_node_id: int
     heartbeat_ms: int
     error_history_length: int
+    heartbeat_consumers: int
 
 
 class PdoDirection(enum.StrEnum):

@@ -27,6 +27,7 @@ software_version = "sw"
 default_node_id = 0x10
 heartbeat_ms = 100
 error_history_length = 4
+heartbeat_consumers = 1
 
 [[field]]
 name = "motor_position"

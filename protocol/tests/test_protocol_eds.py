@@ -98,6 +98,15 @@ def test_communication_objects(od: canopen.ObjectDictionary, table: BoardTable) 
     assert isinstance(verify, ODArray)
     assert sorted(verify.subindices) == [0, 1, 2]
     assert _variable(od, 0x1017).default == node.heartbeat_ms == 100
+    consumers = od[0x1016]
+    assert isinstance(consumers, ODArray)
+    assert sorted(consumers.subindices) == list(range(node.heartbeat_consumers + 1))
+    assert _variable(od, 0x1016, 0).default == node.heartbeat_consumers
+    assert _variable(od, 0x1016, 0).access_type == "ro"
+    assert _variable(od, 0x1016, 0).data_type == datatypes.UNSIGNED8
+    for sub in range(1, node.heartbeat_consumers + 1):
+        entry = _variable(od, 0x1016, sub)
+        assert (entry.data_type, entry.access_type, entry.default) == (datatypes.UNSIGNED32, "rw", 0)
     identity = od[0x1018]
     assert isinstance(identity, ODRecord)
     assert [identity[s].default for s in (1, 2, 3)] == [
@@ -145,6 +154,18 @@ def test_remote_node_sees_default_pdos_for_any_node_id(
     assert not any(pdo_map.rtr_allowed for pdo_map in node.tpdo.map.values())
 
 
+def test_remote_node_addresses_the_heartbeat_consumer_by_index(eds_path: Path, table: BoardTable) -> None:
+    # What a master does to make a module watch it: 0x1016 sub 1 = (its node id << 16) | time in ms.
+    node = canopen.RemoteNode(0x05, str(eds_path))
+    entry = node.sdo[0x1016][1]
+    assert entry.od.data_type == datatypes.UNSIGNED32
+    assert entry.od.writable and entry.od.readable
+    assert entry.od.encode_raw((0x01 << 16) | 150) == bytes([150, 0, 0x01, 0])
+    count = node.sdo[0x1016][0]
+    assert count.od.readable and not count.od.writable
+    assert count.od.default == table.node.heartbeat_consumers
+
+
 def test_cob_ids_are_node_relative_in_the_file(eds_sections: configparser.RawConfigParser) -> None:
     assert eds_sections["1800sub1"]["DefaultValue"] == "$NODEID+0x40000180"  # bit 30: no RTR
     assert eds_sections["1403sub1"]["DefaultValue"] == "$NODEID+0x80000500"  # RPDO4 disabled
@@ -170,7 +191,7 @@ def test_eds_states_what_is_not_supported(eds_sections: configparser.RawConfigPa
     comments = " ".join(
         eds_sections["Comments"][f"Line{n}"] for n in range(1, int(eds_sections["Comments"]["Lines"]) + 1)
     )
-    for topic in ("node guarding", "0x1016", "RTR"):
+    for topic in ("node guarding", "0x1029", "RTR"):
         assert topic in comments, topic
 
 

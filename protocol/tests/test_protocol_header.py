@@ -97,6 +97,11 @@ static_assert(kHilInputs[static_cast<std::size_t>(HilInputId::motor_current_adc)
               == DataType::Integer16);
 static_assert(kHilOutputs[static_cast<std::size_t>(HilOutputId::led_pattern)].max == 3);
 static_assert(kNode.default_node_id == 0x10 && kNode.heartbeat_ms == 100);
+static_assert(kHeartbeatConsumers == {heartbeat_consumers});
+static_assert(emcy_code::kHeartbeatError == 0x8130);
+static_assert(info(EmcyId::heartbeat_error).register_bit == error_register::kCommunication);
+static_assert(*kFaultFlagsInfo[static_cast<std::size_t>(FaultFlagsBit::MasterHeartbeatLost)].emcy
+              == EmcyId::heartbeat_error);
 static_assert(kDefaultTpdos[0].cob_id_base == 0x180 && kDefaultTpdos[0].count == 2);
 static_assert(kDefaultTpdos[0].entries[0].index == 0x3100);
 static_assert(kDefaultTpdos[0].entries[0].bits == 16);
@@ -109,7 +114,11 @@ int main() {{ return 0; }}
 @pytest.mark.skipif(shutil.which("g++") is None, reason="needs g++")
 def test_compiles_with_project_warnings(generated_dir: Path, table: BoardTable, tmp_path: Path) -> None:
     source = tmp_path / "check.cpp"
-    source.write_text(COMPILE_CHECK.format(field_count=len(table.fields)))
+    source.write_text(
+        COMPILE_CHECK.format(
+            field_count=len(table.fields), heartbeat_consumers=table.node.heartbeat_consumers
+        )
+    )
     flags = "-std=c++20 -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Werror -fsyntax-only"
     result = subprocess.run(
         ["g++", *flags.split(), f"-I{generated_dir / 'include'}", str(source)],
@@ -145,11 +154,11 @@ def test_declares_the_value_api(header: str) -> None:
         "constexpr std::optional<ControlMode> control_mode_from_value(float value)",
         "enum class LedPattern : std::uint8_t {",
         "enum class FaultFlagsBit : std::uint8_t {",
-        "inline constexpr std::array<FaultFlagsBit, 6> kFaultFlagsBits",
-        "inline constexpr std::uint32_t kFaultFlagsMask = 0x0000003F;",
+        "inline constexpr std::array<FaultFlagsBit, 7> kFaultFlagsBits",
+        "inline constexpr std::uint32_t kFaultFlagsMask = 0x0000007F;",
         "constexpr std::uint32_t mask(FaultFlagsBit bit)",
         "constexpr std::string_view to_string(FaultFlagsBit bit)",
-        "inline constexpr std::array<FlagInfo, 6> kFaultFlagsInfo",
+        "inline constexpr std::array<FlagInfo, 7> kFaultFlagsInfo",
         "inline constexpr std::array<EmcyInfo, kEmcyCount> kEmcyCodes",
         "constexpr const EmcyInfo& info(EmcyId id)",
         "inline constexpr std::uint8_t kGeneric = 0x01;",

@@ -14,6 +14,7 @@ CONTRACT_FIELDS = {
         "motor_current",
         "motor_encoder_raw",
         "output_encoder_raw",
+        "heartbeat_lost",
     ],
     Kind.VIRTUAL_SENSOR: [
         "motor_velocity",

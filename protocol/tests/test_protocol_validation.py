@@ -196,6 +196,19 @@ def test_refuses_missing_key(edit_table: TableEditor) -> None:
     refused(edit_table("stored = false\n", ""), "field 'motor_position'", "missing key stored")
 
 
+@pytest.mark.parametrize("count", [0, 5])
+def test_refuses_heartbeat_consumer_count_outside_its_range(edit_table: TableEditor, count: int) -> None:
+    refused(
+        edit_table("heartbeat_consumers = 1\n", f"heartbeat_consumers = {count}\n"),
+        "node: ",
+        f"heartbeat_consumers {count} outside 1..4",
+    )
+
+
+def test_refuses_node_without_heartbeat_consumer_count(edit_table: TableEditor) -> None:
+    refused(edit_table("heartbeat_consumers = 1\n", ""), "node: ", "missing key heartbeat_consumers")
+
+
 def test_refuses_unknown_top_level_table(minimal_table: str, write_table: TableWriter) -> None:
     text = minimal_table.replace("[[field]]", "[[fields]]", 1)
     refused(write_table(text), "unknown top-level table 'fields'", "did you mean 'field'")

@@ -41,6 +41,7 @@ software_version = "s"
 default_node_id = 0x{NODE_ID:02X}
 heartbeat_ms = 100
 error_history_length = 4
+heartbeat_consumers = 1
 
 [[field]]
 name = "position"

@@ -7,7 +7,8 @@
 // Input layout (firmware/canopen/fuzz/make_seeds.py writes seeds in it):
 //   byte 0           board config: (b % 64) < field count -> the board refuses writes to that
 //                    field (the FieldAccess "not owner" path); bit 6 -> storage starts with an
-//                    image stored by a previous node
+//                    image stored by a previous node; bit 7 -> the heartbeat consumer runs on
+//                    control time (lockstep: each SYNC's cycle advances it by kCyclePeriodUs)
 //   then records     [head][dt][raw id: 2 bytes, classes 10..15 only][data: min(len, 8) bytes]
 //     head & 0x0F    frame length 0..15 (9..15 are invalid lengths the engine must drop)
 //     head >> 4      identifier class: 0 NMT, 1 SYNC 0x080, 2 SDO request 0x600+id,
@@ -37,6 +38,8 @@
 //   5. The field recorder (its objects reachable over SDO, a sample after every SYNC's control
 //      cycle as on the platform): a recording that is done reads the same bytes until the
 //      recorder leaves done (checked for recordings up to kFrozenCheckBytes).
+//   6. Heartbeat consumer (0x1016): no more heartbeat events than heartbeats consumed (an entry
+//      times out only after a heartbeat armed it, and once per heartbeat at most).
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -210,6 +213,10 @@ class Harness {
       previous.start(0);
       (void)previous.store_parameters();
     }
+    if ((config & 0x80) != 0) {
+      control_clock_ = true;
+      node_.set_consumer_clock(co::ConsumerClock::ControlCycles);
+    }
     recorder_.reset();  // static: what an earlier input left must not matter
     node_.set_recorder(&recorder_);
     node_.start(now_us_);
@@ -340,7 +347,9 @@ class Harness {
     const co::ProcessResult result = node_.process(frame, now_us_);
     ++frames_;
     if (result.sync) {
-      // The control cycle would run here; the recorder samples what it left on the board.
+      // The control cycle would run here (after the consumer's control time moved on, as on the
+      // platform); the recorder samples what it left on the board.
+      if (control_clock_) node_.advance_control_time(kCyclePeriodUs);
       recorder_.sample(++cycle_, [this](board::FieldId id) { return board_.read(id); });
       node_.transmit_synchronous_pdos(now_us_);
     }
@@ -656,7 +665,7 @@ class Harness {
     check(c.frames_received == frames_, "frames_received", c.frames_received, frames_);
     const std::uint32_t outcomes = c.frames_ignored + c.frames_malformed + c.nmt_commands +
                                    c.syncs_received + c.sdo_requests + c.rpdos_received +
-                                   c.rpdo_length_errors;
+                                   c.rpdo_length_errors + c.heartbeats_consumed;
     check(outcomes == c.frames_received, "a frame counted in no or in two outcome counters",
           outcomes, c.frames_received);
     check(c.sdo_requests == sdo_requests_, "sdo_requests", c.sdo_requests, sdo_requests_);
@@ -667,6 +676,8 @@ class Harness {
     check(c.tpdos_sent + c.emcy_sent == totals_.other, "tpdos_sent + emcy_sent",
           c.tpdos_sent + c.emcy_sent, totals_.other);
     check(c.send_failures == 0, "send failures on a port that never refuses", c.send_failures);
+    check(c.heartbeat_events <= c.heartbeats_consumed, "a heartbeat event no heartbeat armed",
+          c.heartbeat_events, c.heartbeats_consumed);
     const std::uint8_t reg = node_.error_register();
     check(reg == 0 || (reg & co::error_register::kGeneric) != 0,
           "error register without the generic bit", reg);
@@ -685,6 +696,8 @@ class Harness {
     std::uint32_t sum = 0;
   } frozen_;
   std::uint32_t cycle_ = 0;
+  static constexpr std::uint32_t kCyclePeriodUs = 1'000;
+  bool control_clock_ = false;
   std::uint32_t now_us_ = 0xFFF0'0000u;  // wraps early: the engine must handle it
   std::uint32_t frames_ = 0;
   std::uint32_t sdo_requests_ = 0;

@@ -12,9 +12,12 @@ from pathlib import Path
 
 NODE_ID = 0x10
 NO_REFUSAL = 63  # config byte: refuse no field, storage empty
+CONTROL_CLOCK = 0x80  # config bit: the heartbeat consumer counts control cycles (lockstep)
 
 # Identifier classes of FrameFuzzer.cpp.
-NMT, SYNC, SDO, RPDO1, RPDO2, RPDO3 = 0, 1, 2, 4, 5, 6
+NMT, SYNC, SDO, RPDO1, RPDO2, RPDO3, RAW_ID = 0, 1, 2, 4, 5, 6, 10
+MASTER_ID = 0x01
+CONSUMER_HEARTBEAT = 0x1016
 
 
 def frame(cls: int, data: bytes = b"", dt: int = 0) -> bytes:
@@ -25,6 +28,16 @@ def frame(cls: int, data: bytes = b"", dt: int = 0) -> bytes:
 
 def sdo(*data: int, dt: int = 0) -> bytes:
     return frame(SDO, bytes(data).ljust(8, b"\0"), dt)
+
+
+def raw(can_id: int, data: bytes = b"", dt: int = 0) -> bytes:
+    """A frame on any 11-bit identifier (class 10: the id follows the time step, LE)."""
+    assert len(data) <= 8
+    return bytes([(RAW_ID << 4) | len(data), dt]) + struct.pack("<H", can_id) + data
+
+
+def master_heartbeat(dt: int = 0) -> bytes:
+    return raw(0x700 + MASTER_ID, bytes([0x05]), dt)
 
 
 def nmt_start() -> bytes:
@@ -149,6 +162,25 @@ def seeds() -> dict[str, bytes]:
         + download(RECORDER_CHANNELS, 1, 0x2101, 2)
         + sdo(0x40, RECORDER_DATA & 0xFF, RECORDER_DATA >> 8, 0x00)
         + download(RECORDER_STATE, 0, IDLE, 1),
+        # Heartbeat consumer: watch the master (10 ms), hear it, lose it (1.6 s of silence), hear it
+        # again; a second entry for the same node is refused; stored and reset.
+        "heartbeat_consumer_timeout": bytes([NO_REFUSAL])
+        + download(CONSUMER_HEARTBEAT, 1, (MASTER_ID << 16) | 10, 4)
+        + master_heartbeat()
+        + master_heartbeat(dt=100)
+        + master_heartbeat(dt=0xFF)
+        + download(CONSUMER_HEARTBEAT, 1, (MASTER_ID << 16) | 20, 4)
+        + sdo(0x23, 0x10, 0x10, 0x02, *b"save")
+        + frame(NMT, bytes([0x82, NODE_ID])),
+        # The same on control time: SYNCs are the clock.
+        "heartbeat_consumer_control_clock": bytes([NO_REFUSAL | CONTROL_CLOCK])
+        + nmt_start()
+        + download(CONSUMER_HEARTBEAT, 1, (MASTER_ID << 16) | 2, 4)
+        + master_heartbeat()
+        + frame(SYNC, dt=125)
+        + frame(SYNC, dt=125)
+        + master_heartbeat()
+        + b"".join(frame(SYNC, dt=125) for _ in range(3)),
         "store_then_reset_node": bytes([NO_REFUSAL | 0x40])
         + sdo(0x23, 0x00, 0x25, 0x00, *struct.pack("<f", 0.5))
         + sdo(0x23, 0x10, 0x10, 0x01, *b"save")

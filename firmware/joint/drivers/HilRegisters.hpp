@@ -35,6 +35,11 @@ class HilRegisters {
   // false: the buffer held kThermistorSampleCapacity undrained samples, this one was dropped.
   bool write_thermistor_adc(std::uint16_t adc_counts) { return thermistor_.buffer_.push(adc_counts); }
   void write_motor_current(std::int16_t milliamps) { motor_current_.register_.write(milliamps); }
+  // The node's heartbeat consumer (co::HeartbeatListener): `lost_entries` watched heartbeats
+  // lost now; `event`: one was just lost.
+  void write_heartbeat_status(std::uint8_t lost_entries, bool event) {
+    heartbeat_.write(lost_entries, event);
+  }
 
   // --- transmit path: what the actuators last commanded -------------------
   // -10000..10000 (0.01 % of bus voltage); 0 before the first cycle.
@@ -47,7 +52,8 @@ class HilRegisters {
 
   // The driver interfaces the components use, all backed by this object.
   JointDrivers drivers() {
-    return JointDrivers{motor_encoder_, output_encoder_, thermistor_, motor_current_, motor_duty_, status_led_};
+    return JointDrivers{motor_encoder_, output_encoder_, thermistor_, motor_current_,
+                        motor_duty_,    status_led_,     heartbeat_};
   }
 
  private:
@@ -75,6 +81,31 @@ class HilRegisters {
     core::LatestValueRegister<std::int16_t> register_;
   };
 
+  // Events are counted on the producer side, so the sensor sees a loss that ended before it
+  // looked: the count moved.
+  class Heartbeat final : public HeartbeatInput {
+   public:
+    struct Status {
+      std::uint32_t events;  // heartbeat events since construction (wraps)
+      std::uint32_t lost_entries;
+    };
+    void write(std::uint8_t lost_entries, bool event) {
+      if (event) ++events_;
+      register_.write(Status{events_, lost_entries});
+    }
+    HeartbeatSample read() override {
+      const Status status = register_.read().value;
+      const bool new_event = status.events != seen_events_;
+      seen_events_ = status.events;
+      return HeartbeatSample{status.lost_entries != 0, new_event};
+    }
+
+   private:
+    core::LatestValueRegister<Status> register_;
+    std::uint32_t events_ = 0;       // producer-only
+    std::uint32_t seen_events_ = 0;  // consumer-only
+  };
+
   class Duty final : public DutyOutput {
    public:
     void write(std::int16_t duty_raw) override { value_.store(duty_raw, std::memory_order_release); }
@@ -95,6 +126,7 @@ class HilRegisters {
   Current motor_current_;
   Duty motor_duty_;
   Led status_led_;
+  Heartbeat heartbeat_;
 };
 
 }  // namespace joint

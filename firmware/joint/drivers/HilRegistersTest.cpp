@@ -46,5 +46,25 @@ TEST(HilRegisters, PassesCurrentAndOutputsThrough) {
   EXPECT_EQ(registers.led_pattern_raw(), 3);
 }
 
+TEST(HilRegisters, ReportsAHeartbeatLossUntilItEndsAndAnEventOnceEvenIfItEndedUnread) {
+  HilRegisters registers;
+  HeartbeatInput& heartbeat = registers.drivers().heartbeat;
+  EXPECT_FALSE(heartbeat.read().lost_now);
+  registers.write_heartbeat_status(1, true);
+  HeartbeatSample sample = heartbeat.read();
+  EXPECT_TRUE(sample.lost_now && sample.lost_since_last_read);
+  sample = heartbeat.read();
+  EXPECT_TRUE(sample.lost_now) << "still lost";
+  EXPECT_FALSE(sample.lost_since_last_read) << "the event was consumed";
+  // Lost and back between two reads: no longer lost, but the event still shows.
+  registers.write_heartbeat_status(0, false);
+  registers.write_heartbeat_status(1, true);
+  registers.write_heartbeat_status(0, false);
+  sample = heartbeat.read();
+  EXPECT_FALSE(sample.lost_now);
+  EXPECT_TRUE(sample.lost_since_last_read);
+  EXPECT_FALSE(heartbeat.read().lost_since_last_read);
+}
+
 }  // namespace
 }  // namespace joint

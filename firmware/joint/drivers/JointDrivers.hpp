@@ -6,6 +6,7 @@
 #include "joint/drivers/CounterInput.hpp"
 #include "joint/drivers/CurrentInput.hpp"
 #include "joint/drivers/DutyOutput.hpp"
+#include "joint/drivers/HeartbeatInput.hpp"
 #include "joint/drivers/LedOutput.hpp"
 
 namespace joint {
@@ -18,6 +19,7 @@ struct JointDrivers {
   CurrentInput& motor_current;
   DutyOutput& motor_duty;
   LedOutput& status_led;
+  HeartbeatInput& heartbeat;
 };
 
 }  // namespace joint

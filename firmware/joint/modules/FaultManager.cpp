@@ -14,7 +14,7 @@ FaultManager::FaultManager(core::MessageBoard& board)
              {.writes = {FieldId::fault_flags, FieldId::safe_state},
               .reads = {FieldId::motor_position, FieldId::output_position, FieldId::thermistor_resistance,
                         FieldId::encoder_stale_cycles, FieldId::thermistor_stale_cycles, FieldId::thermal_derate, FieldId::watchdog_tripped,
-                        FieldId::fault_clear}}) {}
+                        FieldId::heartbeat_lost, FieldId::fault_clear}}) {}
 
 std::uint32_t FaultManager::active_causes(std::uint32_t elapsed_cycles) {
   const std::uint32_t encoder_limit = count_parameter(boardGet(FieldId::encoder_stale_cycles), 1);
@@ -34,6 +34,7 @@ std::uint32_t FaultManager::active_causes(std::uint32_t elapsed_cycles) {
            FaultBit::ThermistorStale);
   raise_if(boardGet(FieldId::thermal_derate) == 0.0F, FaultBit::OverTemperature);
   raise_if(boardGet(FieldId::watchdog_tripped) != 0.0F, FaultBit::CommandWatchdog);
+  raise_if(boardGet(FieldId::heartbeat_lost) != 0.0F, FaultBit::MasterHeartbeatLost);
 
   const std::uint32_t refused = board().total_refused_writes();
   raise_if(refused != previous_refused_writes_, FaultBit::OwnershipViolation);

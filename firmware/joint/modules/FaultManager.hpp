@@ -10,6 +10,8 @@
 //   OverTemperature: thermal_derate == 0, the thermal protection's
 //     over-temperature state (with its hysteresis);
 //   CommandWatchdog: watchdog_tripped == 1;
+//   MasterHeartbeatLost: heartbeat_lost == 1 (a heartbeat the CANopen node consumes, 0x1016,
+//     timed out; the node reported its EMCY, naming the lost node);
 //   OwnershipViolation: the board's count of refused writes rose since the
 //     previous cycle (a one-cycle event: it stays latched until cleared).
 // A sensor field never written counts as silent since the manager's first

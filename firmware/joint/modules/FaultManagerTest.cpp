@@ -15,7 +15,7 @@ class FaultManagerTest : public ::testing::Test {
  protected:
   void SetUp() override {
     for (core::MessageBoardUser* component :
-         std::initializer_list<core::MessageBoardUser*>{&manager, &sensors, &thermal, &watchdog, &bus}) {
+         std::initializer_list<core::MessageBoardUser*>{&manager, &sensors, &heartbeat, &thermal, &watchdog, &bus}) {
       ASSERT_TRUE(scheduler.add(*component));
     }
     const core::StartupStatus status = scheduler.start();
@@ -23,6 +23,7 @@ class FaultManagerTest : public ::testing::Test {
     sensors.hold(FieldId::motor_position, 0.0F);
     sensors.hold(FieldId::output_position, 0.0F);
     sensors.hold(FieldId::thermistor_resistance, 10000.0F);
+    heartbeat.hold(FieldId::heartbeat_lost, 0.0F);
     thermal.hold(FieldId::thermal_derate, 1.0F);
     watchdog.hold(FieldId::watchdog_tripped, 0.0F);
   }
@@ -48,6 +49,7 @@ class FaultManagerTest : public ::testing::Test {
   FaultManager manager{board};
   testing::FieldSource<core::Sensor> sensors{
       board, "sensors", {FieldId::motor_position, FieldId::output_position, FieldId::thermistor_resistance}};
+  testing::FieldSource<core::Sensor> heartbeat{board, "heartbeat", {FieldId::heartbeat_lost}};
   testing::FieldSource<core::Module> thermal{board, "thermal", {FieldId::thermal_derate}};
   testing::FieldSource<core::Module> watchdog{board, "watchdog", {FieldId::watchdog_tripped}};
   testing::BusStandIn bus{board};
@@ -125,6 +127,24 @@ TEST_F(FaultManagerTest, LatchesAnOwnershipViolation) {
   clear_faults();
   run_cycles(1);
   EXPECT_EQ(flags(), 0U);  // an event, not a lasting cause
+}
+
+TEST_F(FaultManagerTest, LatchesALostMasterHeartbeatUntilItIsBackAndCleared) {
+  run_cycles(5);
+  heartbeat.hold(FieldId::heartbeat_lost, 1.0F);
+  run_cycles(1);
+  EXPECT_EQ(flags(), fault_mask(FaultBit::MasterHeartbeatLost));
+  EXPECT_TRUE(safe());
+  clear_faults();
+  run_cycles(1);
+  EXPECT_EQ(flags(), fault_mask(FaultBit::MasterHeartbeatLost)) << "still lost: latched again";
+  heartbeat.hold(FieldId::heartbeat_lost, 0.0F);
+  run_cycles(10);
+  EXPECT_TRUE(safe()) << "back, but latched until cleared";
+  clear_faults();
+  run_cycles(1);
+  EXPECT_EQ(flags(), 0U);
+  EXPECT_FALSE(safe());
 }
 
 TEST_F(FaultManagerTest, GivesSensorsEncoderStaleCyclesToStart) {

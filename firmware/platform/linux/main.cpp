@@ -245,6 +245,19 @@ class HilIoOnRegisters final : public co::HilIo {
   std::optional<Application>& app_;
 };
 
+// The node's heartbeat consumer (0x1016) news into the joint's register; the HeartbeatSensor
+// drains it in its update() (the node never writes the board).
+class HeartbeatOnRegisters final : public co::HeartbeatListener {
+ public:
+  explicit HeartbeatOnRegisters(std::optional<Application>& app) : app_{app} {}
+  void heartbeat_status(std::uint8_t lost_entries, bool event) override {
+    app_->registers.write_heartbeat_status(lost_entries, event);
+  }
+
+ private:
+  std::optional<Application>& app_;
+};
+
 // NMT reset node: a fresh application in place of the old one, wired to the node again.
 class ApplicationRebuild final : public co::ApplicationReset {
  public:
@@ -308,6 +321,13 @@ int run(const Options& options) {
   application_rebuild.attach(node, fault_emcy);
   node.set_application_reset(&application_rebuild);
   node.set_recorder(&g_recorder);
+  HeartbeatOnRegisters heartbeat_on_registers{app};
+  node.set_heartbeat_listener(&heartbeat_on_registers);
+  // The heartbeat consumer's clock: in lockstep, simulation time (each SYNC's cycle advances it
+  // by the period, so a rig sending the master's heartbeat every k cycles sees a trip at an exact
+  // cycle whatever the host's speed); free-running, the wall clock.
+  node.set_consumer_clock(options.mode == Mode::Lockstep ? co::ConsumerClock::ControlCycles
+                                                         : co::ConsumerClock::WallTime);
 
   // SIGINT/SIGTERM arrive as readable data on a file descriptor: the loop finishes the frame
   // or cycle at hand and exits cleanly, with nothing half-written.
@@ -382,7 +402,10 @@ int run(const Options& options) {
         return kExitStartupFailure;
       }
       if (result.sync) {
-        if (options.mode == Mode::Lockstep) run_cycle(1);
+        if (options.mode == Mode::Lockstep) {
+          node.advance_control_time(options.period_us);  // a lost heartbeat reaches this cycle
+          run_cycle(1);
+        }
         node.transmit_synchronous_pdos(now_us());
       }
     }
