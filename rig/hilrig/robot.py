@@ -26,6 +26,7 @@ not depend on its neighbours, only on the master, which decides what the robot d
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -138,7 +139,9 @@ amplitude: at 0.5 Hz, 40 gives some 8 % of it, before the velocity loop's own la
 
 @dataclass(frozen=True)
 class TravellingWave:
-    """The snake's lateral undulation: joint i follows amplitude * sin(2 pi f t + i * phase) [rad].
+    """The snake's lateral undulation: joint i follows amplitude * sin(2 pi f t + i * phase) [rad],
+    the amplitude eased in from 0 over `ramp_s` (a wave started at full amplitude would be a step
+    of up to the amplitude on most joints at t = 0).
 
     The defaults make one whole wave along 8 modules (phase 2 pi / 8 each) at 0.5 Hz, 0.5 rad: a
     slow gait a 1 kHz position loop tracks closely, fast enough that 2 s of simulation show it."""
@@ -146,20 +149,31 @@ class TravellingWave:
     amplitude_rad: float = 0.5
     frequency_hz: float = 0.5
     phase_per_joint_rad: float = 2 * math.pi / 8
+    ramp_s: float = 0.5
+    start_s: float = 0.0
+    """When the wave starts (`drive` sets it to the robot's time)."""
 
     def angles(self, t: float, joints: int) -> list[float]:
         """Every joint's commanded angle at `t` [s]."""
-        base = 2 * math.pi * self.frequency_hz * t
-        return [self.amplitude_rad * math.sin(base + i * self.phase_per_joint_rad) for i in range(joints)]
+        since = t - self.start_s
+        if since <= 0.0:
+            return [0.0] * joints
+        ease = 1.0 if since >= self.ramp_s else 0.5 - 0.5 * math.cos(math.pi * since / self.ramp_s)
+        amplitude = self.amplitude_rad * ease
+        base = 2 * math.pi * self.frequency_hz * since
+        return [amplitude * math.sin(base + i * self.phase_per_joint_rad) for i in range(joints)]
 
-    def drive(self, robot: Robot, *, position_kp: float = GAIT_POSITION_KP) -> None:
+    def drive(self, robot: Robot, *, position_kp: float = GAIT_POSITION_KP) -> TravellingWave:
         """Make `robot` follow the wave from now on: position mode with a loop gain fit for it,
-        and before every cycle each module's position_setpoint for that cycle's time."""
-        robot.set_all("position_kp", position_kp)
-        robot.set_each("position_setpoint", self.angles(robot.t, len(robot.modules)))
-        robot.set_all("control_mode", ControlMode.POSITION)
+        and before every cycle each module's position_setpoint for that cycle's time. Returns
+        the wave as driven (its `start_s` is the robot's time now)."""
+        wave = dataclasses.replace(self, start_s=robot.t)
         joints = len(robot.modules)
-        robot.before_each_cycle(lambda r: r.set_each("position_setpoint", self.angles(r.t, joints)))
+        robot.set_all("position_kp", position_kp)
+        robot.set_each("position_setpoint", wave.angles(robot.t, joints))
+        robot.set_all("control_mode", ControlMode.POSITION)
+        robot.before_each_cycle(lambda r: r.set_each("position_setpoint", wave.angles(r.t, joints)))
+        return wave
 
 
 def module_ids(modules: int | Sequence[int]) -> tuple[int, ...]:

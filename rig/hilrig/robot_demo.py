@@ -34,8 +34,8 @@ if TYPE_CHECKING:
 RobotScenario = Callable[[Robot], object]
 GAIT_SECONDS = 4.0
 """Default length of the gait: two periods of the 0.5 Hz wave."""
-SETTLE_S = 0.5
-"""Tracking errors skip the first half second (the modules start at rest)."""
+SETTLE_S = TravellingWave().ramp_s + 0.5
+"""Tracking errors skip the wave's ramp and the half second after it (the chain catches up)."""
 
 
 @dataclass(frozen=True)
