@@ -59,6 +59,24 @@ class HeartbeatListener {
   HeartbeatListener& operator=(const HeartbeatListener&) = default;
 };
 
+// The receive filter in front of the node: a CAN controller's acceptance filter, SocketCAN's
+// CAN_RAW_FILTER. A frame on any COB-ID outside the node's accepted set (Node::accepted_ids),
+// and every remote or 29-bit frame, the node would only count as ignored, so the filter may
+// drop it before it wakes the firmware.
+class AcceptanceListener {
+ public:
+  virtual ~AcceptanceListener() = default;
+  // Called from inside Node::start() and Node::process() when the set changed, before the node
+  // sends the frame after which a master may use a new id (the boot-up, the SDO answer): apply
+  // it before returning. `cob_ids`: 11-bit identifiers, ascending, each once.
+  virtual void accepted_ids_changed(std::span<const std::uint32_t> cob_ids) = 0;
+
+ protected:
+  AcceptanceListener() = default;
+  AcceptanceListener(const AcceptanceListener&) = default;
+  AcceptanceListener& operator=(const AcceptanceListener&) = default;
+};
+
 // Persistent bytes for "store parameters" (0x1010). The engine frames the image with a magic,
 // version and CRC, so implementations just keep bytes.
 class ParameterStorage {

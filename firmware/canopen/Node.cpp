@@ -102,6 +102,45 @@ ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
   return result;
 }
 
+std::size_t Node::accepted_ids(std::span<std::uint32_t, kMaxAcceptedIds> out) const {
+  // The same rules process() and handle_heartbeat() apply, read from the same state.
+  std::size_t count = 0;
+  out[count++] = kNmtCobId;
+  out[count++] = sync_cob_id_ & 0x7FFu;
+  out[count++] = kSdoRequestCobIdBase + node_id_;
+  for (const Pdo& rpdo : rpdos_) {
+    if (rpdo.valid()) out[count++] = rpdo.can_id();
+  }
+  for (std::uint8_t sub = 1; sub <= HeartbeatConsumer::kEntries; ++sub) {
+    const std::uint32_t entry = heartbeat_consumer_.entry(sub);
+    if (HeartbeatConsumer::is_used(entry)) {
+      out[count++] = kErrorControlCobIdBase + HeartbeatConsumer::node_id_of(entry);
+    }
+  }
+  std::sort(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count));
+  return static_cast<std::size_t>(std::unique(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count)) -
+                                  out.begin());
+}
+
+void Node::set_acceptance_listener(AcceptanceListener* listener) {
+  acceptance_listener_ = listener;
+  told_accepted_count_ = 0;  // a new listener hears the set whatever the last one heard
+  if (state_ != NmtState::Initialising) tell_acceptance_listener();
+}
+
+void Node::tell_acceptance_listener() {
+  if (acceptance_listener_ == nullptr) return;
+  std::array<std::uint32_t, kMaxAcceptedIds> ids{};
+  const std::size_t count = accepted_ids(ids);
+  if (count == told_accepted_count_ &&
+      std::equal(ids.begin(), ids.begin() + static_cast<std::ptrdiff_t>(count), told_accepted_ids_.begin())) {
+    return;
+  }
+  told_accepted_ids_ = ids;
+  told_accepted_count_ = count;
+  acceptance_listener_->accepted_ids_changed(std::span<const std::uint32_t>(ids.data(), count));
+}
+
 void Node::handle_nmt(const CanFrame& frame, std::uint32_t now_us, ProcessResult& result) {
   if (frame.len != 2) {
     ++counters_.frames_malformed;
@@ -148,6 +187,8 @@ void Node::reset_communication(std::uint32_t now_us) {
   load_stored_communication();
   last_heartbeat_us_ = now_us;
   tell_heartbeat_listener(false);
+  // Stored COB-IDs are back: the filter takes them before the boot-up invites the master.
+  tell_acceptance_listener();
   const std::array<std::uint8_t, 1> boot_up = {static_cast<std::uint8_t>(NmtState::Initialising)};
   send(kErrorControlCobIdBase + node_id_, boot_up);
 }
@@ -242,9 +283,11 @@ void Node::handle_sdo(const CanFrame& frame, std::uint32_t now_us) {
   ++counters_.sdo_requests;
   std::array<std::uint8_t, 8> response{};
   const std::uint32_t aborts_before = sdo_.aborts_sent();
-  if (sdo_.handle(std::span<const std::uint8_t, 8>(frame.data), now_us, response)) {
-    send(kSdoResponseCobIdBase + node_id_, response);
-  }
+  const bool answered = sdo_.handle(std::span<const std::uint8_t, 8>(frame.data), now_us, response);
+  // A write may have changed the accepted set (0x1005, 0x1016, an RPDO's COB-ID). Once the
+  // master has the answer it may send on the new id at once, so the filter changes first.
+  tell_acceptance_listener();
+  if (answered) send(kSdoResponseCobIdBase + node_id_, response);
   counters_.sdo_aborts_sent += sdo_.aborts_sent() - aborts_before;
   send_sdo_segments(now_us);
 }

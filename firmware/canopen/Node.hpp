@@ -125,6 +125,8 @@ class Node final {
   // (8-byte frames take 111..135 us), and below SocketCAN's default transmit queue of 10
   // frames: a 127-segment sub-block neither holds up the control loop nor overflows the driver.
   static constexpr std::size_t kSdoSegmentsPerCall = 8;
+  // accepted_ids() at most: NMT, SYNC, the SDO request, every RPDO, every 0x1016 entry.
+  static constexpr std::size_t kMaxAcceptedIds = 3 + board::kRpdoCount + board::kHeartbeatConsumers;
 
   // `node_id` 1..127. All references must outlive the node; it owns none of them. Nothing is
   // sent or written before start().
@@ -138,6 +140,20 @@ class Node final {
 
   // One received frame. Never blocks; answers (SDO, ...) are sent from inside.
   ProcessResult process(const CanFrame& frame, std::uint32_t now_us);
+
+  // The 11-bit COB-IDs process() acts on in the present configuration, ascending, each once:
+  // NMT, SYNC (0x1005), the SDO request, every valid RPDO (0x1400+n:01), the heartbeat of every
+  // node a used 0x1016 entry watches. Any other frame, and every remote or 29-bit one, process()
+  // only counts as ignored. The set follows the configuration, not the NMT state: an NMT
+  // command takes effect at once and the frames after it must not wait for a filter. Returns
+  // how many ids `out` holds.
+  std::size_t accepted_ids(std::span<std::uint32_t, kMaxAcceptedIds> out) const;
+
+  // Told the accepted set at start() and whenever it changes (0x1005, 0x1016 or an RPDO COB-ID
+  // written, reset communication / node reloading stored values), from inside the call that
+  // changed it and before the answer goes out (see AcceptanceListener). Optional; must outlive
+  // the node. Set after start(), it hears the present set at once.
+  void set_acceptance_listener(AcceptanceListener* listener);
 
   // Timers: heartbeat producer (and consumer on ConsumerClock::WallTime), SDO server timeout,
   // event-driven TPDOs (event timer, change of value limited by the inhibit time), RPDO
@@ -297,6 +313,7 @@ class Node final {
   void check_heartbeat_timeouts(std::uint32_t consumer_now_us);
   void tell_heartbeat_listener(bool event);
   void handle_sdo(const CanFrame& frame, std::uint32_t now_us);
+  void tell_acceptance_listener();
   void send_sdo_segments(std::uint32_t now_us);
   bool segment_send_refused_ = false;  // the last segment the port was given, it refused
   void enter(NmtState state);
@@ -336,6 +353,9 @@ class Node final {
   std::uint32_t control_time_us_ = 0;  // ConsumerClock::ControlCycles; wraps
   std::uint8_t told_lost_heartbeats_ = 0;  // what the listener last heard
   HeartbeatListener* heartbeat_listener_ = nullptr;
+  AcceptanceListener* acceptance_listener_ = nullptr;
+  std::array<std::uint32_t, kMaxAcceptedIds> told_accepted_ids_{};  // what the listener last heard
+  std::size_t told_accepted_count_ = 0;  // 0: nothing told yet (the set always holds NMT)
   std::array<Pdo, board::kRpdoCount> rpdos_{};
   std::array<Pdo, board::kTpdoCount> tpdos_{};
   std::array<std::int32_t, board::kHilInputCount> hil_inputs_{};  // last values written

@@ -22,14 +22,16 @@ constant rotation the checks can predict exactly):
   fault explains is a problem.
 * Faults (`plan_faults`, seeded, about one per `fault_interval` cycles, every kind once during
   warm-up): a too-short sensor RPDO (EMCY 0x8210, then the error reset the next good frame
-  brings), a frame on a COB-ID nobody uses (ignored), an SDO upload answered with the right
+  brings), a frame on a COB-ID nobody uses (dropped by the firmware's acceptance filter, so
+  the node never receives it), an SDO upload answered with the right
   value, the sensor RPDO withheld until the encoder-stale faults latch at exactly the
   encoder_stale_cycles-th silent cycle, then cleared by writing fault_clear = 1, and an NMT
   stop with SYNCs that must go unanswered, then start (an SDO round trip is the barrier that
   proves nothing was answered while stopped).
 * At the end the firmware's own stop line (SIGTERM) must agree with the driver's tally: control
-  cycles = SYNCs sent while operational, frames received = frames sent, frames ignored =
-  unknown COB-IDs + frames sent while stopped, RPDO length errors = malformed frames, TPDOs and
+  cycles = SYNCs sent while operational, frames received = frames sent on COB-IDs the node
+  accepts (the kernel filter drops the unknown ones before they reach it), frames ignored =
+  frames sent while stopped, RPDO length errors = malformed frames, TPDOs and
   EMCYs sent = received, no malformed frames, SDO aborts, send failures or refused writes.
 * Memory: VmRSS (and the exact page-table Rss of smaps_rollup) and the open fd count of the
   firmware process every `sample_every` cycles; after warm-up the RSS may grow by at most
@@ -162,7 +164,7 @@ class SoakFault(enum.StrEnum):
     MALFORMED_RPDO = f"{FaultKind.MALFORMED}:length"
     """The sensor RPDO a few bytes short: EMCY 0x8210, then the error reset."""
     UNKNOWN_COB_ID = f"{FaultKind.MALFORMED}:cob-id"
-    """A frame on a COB-ID the node does not use: ignored."""
+    """A frame on a COB-ID the node does not use: its acceptance filter drops it (never received)."""
     SDO_UPLOAD = f"{FaultKind.SDO_READ}"
     """An SDO upload between two cycles, answered with the right value."""
     STALE_SENSOR = f"{FaultKind.DROP}:sensors"
@@ -563,7 +565,10 @@ class Tally:
     syncs_operational: int = 0
     syncs_stopped: int = 0
     frames_sent: int = 0
+    """Frames on COB-IDs the node accepts: the firmware's 'frames received'."""
     ignored_expected: int = 0
+    frames_filtered: int = 0
+    """Frames on COB-IDs outside the node's acceptance filter: on the bus, never received."""
     length_errors: int = 0
     tpdos_received: int = 0
     emcy_received: int = 0
@@ -729,11 +734,13 @@ class SoakDriver:
         self._last_progress = (0, 0.0)
 
     # --- Raw frames -----------------------------------------------------------------------
-    def _send_counted(self, cob_id: int, data: bytes, *, ignored: bool = False) -> None:
+    def _send_counted(self, cob_id: int, data: bytes, *, filtered: bool = False) -> None:
+        """`filtered`: a COB-ID outside the node's acceptance filter (the kernel drops it)."""
         self._send(can_frame(cob_id, data))
-        self.tally.frames_sent += 1
-        if ignored:
-            self.tally.ignored_expected += 1
+        if filtered:
+            self.tally.frames_filtered += 1
+        else:
+            self.tally.frames_sent += 1
 
     def _problem(self, text: str) -> None:
         self.problem_count += 1
@@ -1039,10 +1046,11 @@ class SoakDriver:
         self._cycle(emcy=((EMCY_PDO_LENGTH, about), (EMCY_ERROR_RESET, 0)))
 
     def _unknown_cob_id(self, fault: PlannedFault) -> None:
-        """A frame on a COB-ID this node does not use: ignored, no answer, the cycle runs normally."""
+        """A frame on a COB-ID this node does not use: its acceptance filter drops it (neither
+        received nor ignored in the stop line), no answer, the cycle runs normally."""
         length = fault.cycle % 9
         self._send_counted(
-            fault.arg, bytes((fault.cycle * 7 + i) & 0xFF for i in range(length)), ignored=True
+            fault.arg, bytes((fault.cycle * 7 + i) & 0xFF for i in range(length)), filtered=True
         )
         self._cycle()
 
@@ -1263,6 +1271,7 @@ def build_report(
             "operational": tally.syncs_operational,
             "while_stopped": tally.syncs_stopped,
         },
+        "frames_filtered": tally.frames_filtered,
         "memory": {
             **asdict(verdict),
             "samples": len(samples),

@@ -300,6 +300,9 @@ class FakeFirmware:
         self.clear_requested = False
         self.length_error = False
         self.objects = {(o.index, o.subindex): o.expected for o in layout.sdo_reads}
+        # What Node::accepted_ids gives the default configuration (the SDO request goes through
+        # upload/download below); no 0x1016 entry is used in the soak.
+        self.accepted = {NMT_COB_ID, SYNC_COB_ID, *(cob_id(rpdo, layout.node_id) for rpdo in RPDO_FUNCTIONS)}
         pattern = SensorPattern(layout, period_us=1000)
         self.velocities = {
             "motor_velocity": pattern.motor_velocity_rad_s,
@@ -308,8 +311,11 @@ class FakeFirmware:
 
     # The FrameLink the driver talks to (hilrig.transport).
     def send(self, frame: bytes) -> None:
+        cob_id, data = parse_frame(frame)
+        if cob_id not in self.accepted:  # the firmware's acceptance filter: never received
+            return
         self.counters["frames received"] += 1
-        self._process(*parse_frame(frame))
+        self._process(cob_id, data)
 
     def recv(self, timeout_s: float) -> tuple[int, bytes] | None:
         return parse_frame(self.out.popleft()) if self.out else None

@@ -40,6 +40,12 @@
 //      recorder leaves done (checked for recordings up to kFrozenCheckBytes).
 //   6. Heartbeat consumer (0x1016): no more heartbeat events than heartbeats consumed (an entry
 //      times out only after a heartbeat armed it, and once per heartbeat at most).
+//   7. Acceptance filter (Node::accepted_ids, the platform's CAN_RAW_FILTER): the set the
+//      listener last heard equals accepted_ids() whenever the node sends a frame and after
+//      every step (no answer ever leaves while the filter lags), and a frame the filter would
+//      drop (outside the set, or remote, or 29-bit) only counts as received and ignored: no
+//      other counter, no state change, nothing sent. So the filter changes nothing on the bus.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -123,6 +129,41 @@ class VectorStorage final : public co::ParameterStorage {
     return bytes.size();
   }
   std::vector<std::byte> bytes;
+};
+
+// The platform's side of the acceptance filter (invariant 7): a port whose filter is what the
+// node's listener last heard, and which checks on every send that it matches the node.
+class FilteredPort final : public co::CanPort, public co::AcceptanceListener {
+ public:
+  void watch(const co::Node& node) { node_ = &node; }
+  co::SendResult send(const co::CanFrame& frame) override {
+    check(matches_node(), "a frame went out while the filter lagged the accepted set", frame.id);
+    return frames.send(frame);
+  }
+  co::ReceiveResult receive(co::CanFrame& frame) override { return frames.receive(frame); }
+  void accepted_ids_changed(std::span<const std::uint32_t> cob_ids) override {
+    check(!cob_ids.empty() && std::is_sorted(cob_ids.begin(), cob_ids.end()) &&
+              std::adjacent_find(cob_ids.begin(), cob_ids.end()) == cob_ids.end(),
+          "accepted set not ascending and unique", cob_ids.size());
+    filter_.assign(cob_ids.begin(), cob_ids.end());
+  }
+  // What CAN_RAW_FILTER with mask CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG lets through.
+  bool passes(const co::CanFrame& frame) const {
+    return (frame.id & ~0x7FFu) == 0 && std::find(filter_.begin(), filter_.end(), frame.id) != filter_.end();
+  }
+  bool matches_node() const {
+    if (node_ == nullptr) return true;
+    std::array<std::uint32_t, co::Node::kMaxAcceptedIds> ids{};
+    const std::size_t count = node_->accepted_ids(ids);
+    return std::equal(ids.begin(), ids.begin() + static_cast<std::ptrdiff_t>(count), filter_.begin(),
+                      filter_.end());
+  }
+
+  co::MemoryPort frames;
+
+ private:
+  const co::Node* node_ = nullptr;
+  std::vector<std::uint32_t> filter_;
 };
 
 class Input {
@@ -219,6 +260,8 @@ class Harness {
     }
     recorder_.reset();  // static: what an earlier input left must not matter
     node_.set_recorder(&recorder_);
+    port_.watch(node_);
+    node_.set_acceptance_listener(&port_);
     node_.start(now_us_);
     Sent sent = drain();
     check(sent.boot_ups == 1 && sent.sdo.empty() && sent.heartbeats == 0,
@@ -269,7 +312,7 @@ class Harness {
   Sent drain() {
     Sent sent;
     co::CanFrame f;
-    while (port_.pop_sent(f)) {
+    while (port_.frames.pop_sent(f)) {
       check(f.len <= 8, "sent a frame longer than 8 bytes", f.id, f.len);
       check((f.id & ~0x7FFu) == 0, "sent a frame with flags or a non 11-bit id", f.id);
       if (f.id == kSdoTx) {
@@ -344,6 +387,9 @@ class Harness {
     const std::uint8_t cs = frame.data[0] >> 5;
     if (served) ++sdo_requests_;
 
+    const bool filtered_out = !port_.passes(frame);
+    const co::NodeCounters counters_before = node_.counters();
+
     const co::ProcessResult result = node_.process(frame, now_us_);
     ++frames_;
     if (result.sync) {
@@ -354,6 +400,7 @@ class Harness {
       node_.transmit_synchronous_pdos(now_us_);
     }
     Sent sent = drain();
+    if (filtered_out) check_filtered_out(frame, before, counters_before, sent);
 
     if (served && sdo_.open == SdoModel::Open::BlockDownload && frame.data[0] != 0x80) {
       check_block_download_segment(frame.data, sent.sdo);
@@ -375,6 +422,23 @@ class Harness {
       sdo_.open = SdoModel::Open::None;
     }
     check_counters();
+  }
+
+  // Invariant 7: a frame the acceptance filter would have dropped made no difference.
+  void check_filtered_out(const co::CanFrame& frame, co::NmtState state_before,
+                          const co::NodeCounters& before, const Sent& sent) {
+    const co::NodeCounters& after = node_.counters();
+    check(after.frames_ignored == before.frames_ignored + 1,
+          "a frame outside the accepted set was not just ignored", frame.id, frame.len);
+    check(after.frames_malformed == before.frames_malformed && after.nmt_commands == before.nmt_commands &&
+              after.syncs_received == before.syncs_received && after.sdo_requests == before.sdo_requests &&
+              after.rpdos_received == before.rpdos_received &&
+              after.rpdo_length_errors == before.rpdo_length_errors &&
+              after.heartbeats_consumed == before.heartbeats_consumed,
+          "the node acted on a frame outside its accepted set", frame.id, frame.len);
+    check(node_.state() == state_before, "a frame outside the accepted set changed the NMT state", frame.id);
+    check(sent.sdo.empty() && sent.boot_ups == 0 && sent.heartbeats == 0 && sent.other == 0,
+          "a frame outside the accepted set was answered", frame.id);
   }
 
   void check_response(const co::CanFrame& request, const co::CanFrame& response) {
@@ -661,6 +725,7 @@ class Harness {
 
   void check_counters() {
     check_recorder();
+    check(port_.matches_node(), "the acceptance filter lags the node's accepted set");
     const co::NodeCounters& c = node_.counters();
     check(c.frames_received == frames_, "frames_received", c.frames_received, frames_);
     const std::uint32_t outcomes = c.frames_ignored + c.frames_malformed + c.nmt_commands +
@@ -683,7 +748,7 @@ class Harness {
           "error register without the generic bit", reg);
   }
 
-  co::MemoryPort port_;
+  FilteredPort port_;
   RecordingBoard board_;
   RecordingHil hil_;
   VectorStorage storage_;

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstring>
 
@@ -54,6 +55,35 @@ bool SocketCanPort::open(const std::string& interface, std::string& error) {
     return false;
   }
   return true;
+}
+
+bool SocketCanPort::accept_only(std::span<const std::uint32_t> cob_ids) {
+  // Exact 11-bit matches; the flag bits in the mask make remote and 29-bit frames on those ids
+  // miss too (the node ignores them anyway).
+  std::array<can_filter, kMaxAcceptedIds> filters{};
+  if (cob_ids.empty() || cob_ids.size() > filters.size()) {
+    ++counters_.filter_failures;
+    (void)accept_all();
+    return false;
+  }
+  for (std::size_t i = 0; i < cob_ids.size(); ++i) {
+    filters[i].can_id = cob_ids[i] & CAN_SFF_MASK;
+    filters[i].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
+  }
+  // The kernel registers the new filters before it drops the old ones, so an id in both sets
+  // never misses a frame.
+  if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
+                   static_cast<socklen_t>(cob_ids.size() * sizeof(can_filter))) == 0) {
+    return true;
+  }
+  ++counters_.filter_failures;
+  (void)accept_all();
+  return false;
+}
+
+bool SocketCanPort::accept_all() {
+  const can_filter everything{.can_id = 0, .can_mask = 0};
+  return ::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FILTER, &everything, sizeof(everything)) == 0;
 }
 
 co::SendResult SocketCanPort::send(const co::CanFrame& frame) {

@@ -47,6 +47,7 @@ struct Options {
   std::string params_file;
   bool print_schedule = false;
   std::uint32_t rogue_write_cycle = 0;  // test-only fault injection; 0 = off
+  bool acceptance_filter = true;
 };
 
 // Exit codes: 0 clean stop, 1 start-up failure (bus, schedule), 2 bad command line.
@@ -94,6 +95,14 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
                  "file for stored parameters (0x1010 store / 0x1011 restore); loaded at start-up");
   app.add_flag("--print-schedule", options.print_schedule,
                "print the control cycle's update order with each component's reads and writes, and exit");
+  bool accept_all = false;
+  app.add_flag("--no-acceptance-filter", accept_all,
+               "receive every frame on the bus. By default the socket's kernel filter\n"
+               "(CAN_RAW_FILTER) passes only the COB-IDs the node consumes (NMT, SYNC, its SDO\n"
+               "requests, its valid RPDOs, the heartbeats 0x1016 watches), as a CAN controller's\n"
+               "hardware filter would: with N modules on one bus, a frame then wakes only the\n"
+               "firmware that uses it. This option is for debugging (see every frame arrive)\n"
+               "and for tests that count how the node ignores frames not meant for it");
   app.add_option("--inject-rogue-write-at-cycle", options.rogue_write_cycle, rogue_write_help())
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
@@ -107,6 +116,7 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
     return kExitUsage;
   }
   options.mode = mode == "free" ? Mode::Free : Mode::Lockstep;
+  options.acceptance_filter = !accept_all;
   return std::nullopt;
 }
 
@@ -323,6 +333,10 @@ int run(const Options& options) {
   node.set_recorder(&g_recorder);
   HeartbeatOnRegisters heartbeat_on_registers{app};
   node.set_heartbeat_listener(&heartbeat_on_registers);
+  // The socket takes the node's accepted set at start() and whenever the bus changes it; the
+  // node tells it before it answers, so a master never talks to a filter that lags.
+  static_assert(co::Node::kMaxAcceptedIds <= linuxhw::SocketCanPort::kMaxAcceptedIds);
+  if (options.acceptance_filter) node.set_acceptance_listener(&port);
   // The heartbeat consumer's clock: in lockstep, simulation time (each SYNC's cycle advances it
   // by the period, so a rig sending the master's heartbeat every k cycles sees a trip at an exact
   // cycle whatever the host's speed); free-running, the wall clock.
@@ -357,8 +371,9 @@ int run(const Options& options) {
     std::fprintf(stderr, "joint-firmware: FAULT INJECTION: rogue write of motor_duty_command at cycle %u\n",
                  options.rogue_write_cycle);
   }
-  std::fprintf(stderr, "joint-firmware: node %d on %s, %s mode, period %u us, parameters %s (%s)\n",
+  std::fprintf(stderr, "joint-firmware: node %d on %s%s, %s mode, period %u us, parameters %s (%s)\n",
                options.node_id, options.can_interface.c_str(),
+               options.acceptance_filter ? "" : " (no acceptance filter: every frame)",
                options.mode == Mode::Lockstep ? "lockstep" : "free-running", options.period_us,
                options.params_file.empty() ? "not stored" : options.params_file.c_str(),
                node.parameter_load() == co::ParameterLoad::Loaded        ? "loaded"
@@ -416,12 +431,13 @@ int run(const Options& options) {
   std::fprintf(stderr,
                "joint-firmware: stopped after %llu cycles; overruns %llu; frames received %u, ignored %u, "
                "malformed %u, SDO aborts %u, RPDO length errors %u, TPDOs sent %u, EMCY %u, send failures %u, "
-               "bus error frames %u, receive overruns %u, board refused writes %u\n",
+               "bus error frames %u, receive overruns %u, board refused writes %u, acceptance filter failures %u\n",
                static_cast<unsigned long long>(cycles.run()), static_cast<unsigned long long>(cycles.skipped()),
                counters.frames_received,
                counters.frames_ignored, counters.frames_malformed, counters.sdo_aborts_sent,
                counters.rpdo_length_errors, counters.tpdos_sent, counters.emcy_sent, counters.send_failures,
-               port.counters().error_frames, port.counters().receive_overruns, app->board.total_refused_writes());
+               port.counters().error_frames, port.counters().receive_overruns, app->board.total_refused_writes(),
+               port.counters().filter_failures);
   return 0;
 }
 
