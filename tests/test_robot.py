@@ -23,8 +23,10 @@ GAIT = TravellingWave()
 SETTLE_S = GAIT.ramp_s + 0.5
 """The wave eases in over its ramp, and the chain takes a moment to follow: tracking is judged
 from here on."""
-TRACKING_TOLERANCE_RAD = 0.1
-"""Largest |commanded - measured| joint angle once settled: a fifth of the wave's amplitude."""
+TRACKING_TOLERANCE_RAD = 0.12
+"""Largest |commanded - measured| joint angle once settled, about a quarter of the wave's
+amplitude: the firmware's position loop is proportional only, so a sine lags (GAIT_POSITION_KP);
+the middle joints of 8, which move the most mass, come closest (0.094 rad measured)."""
 
 
 class EventLog(RobotObserver):
