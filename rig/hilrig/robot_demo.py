@@ -34,6 +34,8 @@ if TYPE_CHECKING:
 RobotScenario = Callable[[Robot], object]
 GAIT_SECONDS = 4.0
 """Default length of the gait: two periods of the 0.5 Hz wave."""
+PROGRESS_EVERY_S = 0.5
+"""A progress line per this much simulated time."""
 SETTLE_S = TravellingWave().ramp_s + 0.5
 """Tracking errors skip the wave's ramp and the half second after it (the chain catches up)."""
 
@@ -92,7 +94,13 @@ def gait_scenario(seconds: float, progress: Progress) -> RobotScenario:
             f"{gait.phase_per_joint_rad:.3f} rad between joints, for {seconds:g} s"
         )
         gait.drive(robot)
-        robot.run(seconds=seconds)
+        end = robot.t + seconds
+        while robot.t < end - 1e-9:  # in chunks, to show progress: a robot is slow in the VM
+            chunk = min(PROGRESS_EVERY_S, end - robot.t)
+            started = time.monotonic()
+            robot.run(seconds=chunk)
+            rate = chunk / robot.period_s / max(time.monotonic() - started, 1e-9)
+            progress(f"sim: t = {robot.t:.2f} s of {end:g} s ({rate:.0f} cycles/s)")
 
     return scenario
 

@@ -837,7 +837,8 @@ class ChainTrace(RobotObserver):
                 ),
                 static=True,
             )
-        extent = 2.0 * length * self._chain.link_count + 0.5
+        # A patch of ground about the chain's length across: the 3D view frames it and the chain.
+        extent = 0.6 * length * self._chain.link_count
         recording.log(
             f"{ROBOT_ROOT}/ground",
             rr.Boxes3D(

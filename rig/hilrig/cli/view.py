@@ -99,12 +99,15 @@ COMMANDS = (
         name="view",
         help="open a trace (.rrd) in the Rerun viewer with one of the dashboards",
         description="Open a trace the rig wrote (hilrig sim, a scenario, hilrig replay --trace)\n"
-        "in the Rerun viewer with a dashboard: overview, tuning, thermal, faults\n"
-        "(--list). --web serves the web viewer instead of a window, for a machine\n"
-        "without a display; open the page it prints (from another machine, forward\n"
-        "both ports: ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 host).\n\n"
+        "in the Rerun viewer with a dashboard: overview, tuning, thermal, faults, and\n"
+        "robot for a robot's trace (hilrig sim --modules: the chain in 3D, every\n"
+        "joint's commanded vs measured angle) (--list). --web serves the web viewer\n"
+        "instead of a window, for a machine without a display; open the page it\n"
+        "prints (from another machine, forward both ports:\n"
+        "ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 host).\n\n"
         "  hilrig view out/demo/trace.rrd\n"
-        "  hilrig view out/demo/trace.rrd --dashboard tuning --web",
+        "  hilrig view out/demo/trace.rrd --dashboard tuning --web\n"
+        "  hilrig view out/robot/trace.rrd --dashboard robot",
         configure=configure,
         run=run,
     ),
