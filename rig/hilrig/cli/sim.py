@@ -24,7 +24,10 @@ from hilrig.resources import FIRMWARE_HINT
 from hilrig.table import BOARD_TABLE
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from hilrig.faults import FaultSpec
+    from hilrig.trace import TraceSink
 
 
 def fault_spec(text: str) -> FaultSpec:
@@ -176,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
     from hilrig.faults import FaultPlan
     from hilrig.firmware import DEFAULT_EXECUTABLE
     from hilrig.session import BoardInterface
-    from hilrig.trace import SinkKind, live_sinks_from_environment
+    from hilrig.trace import live_sinks_from_environment
 
     executable = args.firmware or DEFAULT_EXECUTABLE
     if not args.board and not executable.is_file():
@@ -212,13 +215,19 @@ def run(args: argparse.Namespace) -> int:
         poll_every=args.poll_every,
     )
     summary = run_demo(options, progress=progress)
-    text = format_summary(summary)
+    return _report(args, format_summary(summary), summary.viewer_url, live)
+
+
+def _report(args: argparse.Namespace, text: str, viewer_url: str | None, live: Sequence[TraceSink]) -> int:
+    """The summary on stdout and in summary.txt; then, with a web viewer, keep serving."""
+    from hilrig.trace import SinkKind
+
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "summary.txt").write_text(text + "\n")
     print(text, flush=True)
-    if args.keep_serving and summary.viewer_url is not None and any(s.kind is SinkKind.WEB for s in live):
+    if args.keep_serving and viewer_url is not None and any(s.kind is SinkKind.WEB for s in live):
         # The web viewer's data lives in this process: keep it until the person is done.
-        progress(f"sim: the web viewer keeps serving this run at {summary.viewer_url}; Ctrl-C to stop")
+        progress(f"sim: the web viewer keeps serving this run at {viewer_url}; Ctrl-C to stop")
         try:
             while True:
                 signal.pause()
@@ -231,7 +240,7 @@ def run_robot_command(args: argparse.Namespace) -> int:
     """`hilrig sim --modules N`: the robot demo (hilrig.robot_demo)."""
     from hilrig.firmware import DEFAULT_EXECUTABLE
     from hilrig.robot_demo import GAIT_SECONDS, RobotOptions, format_robot_summary, run_robot
-    from hilrig.trace import SinkKind, live_sinks_from_environment
+    from hilrig.trace import live_sinks_from_environment
 
     given = {"--board": args.board, "--fault": bool(args.fault), "--node-id": args.node_id is not None}
     refused = [flag for flag, present in given.items() if present]
@@ -265,18 +274,7 @@ def run_robot_command(args: argparse.Namespace) -> int:
         live=() if args.no_trace else tuple(live),
     )
     summary = run_robot(options, progress=progress)
-    text = format_robot_summary(summary)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "summary.txt").write_text(text + "\n")
-    print(text, flush=True)
-    if args.keep_serving and summary.viewer_url is not None and any(s.kind is SinkKind.WEB for s in live):
-        progress(f"sim: the web viewer keeps serving this run at {summary.viewer_url}; Ctrl-C to stop")
-        try:
-            while True:
-                signal.pause()
-        except KeyboardInterrupt:
-            progress("sim: stopped serving")
-    return 0
+    return _report(args, format_robot_summary(summary), summary.viewer_url, live)
 
 
 COMMANDS = (
