@@ -837,12 +837,16 @@ class ChainTrace(RobotObserver):
                 ),
                 static=True,
             )
-        # A patch of ground about the chain's length across: the 3D view frames it and the chain.
-        extent = 0.6 * length * self._chain.link_count
+        # A patch of ground about the chain's length across, under the chain as it starts (from
+        # the head at the origin back along -x): the 3D view frames it and the chain.
+        chain_length = length * self._chain.link_count
+        extent = 0.6 * chain_length
         recording.log(
             f"{ROBOT_ROOT}/ground",
             rr.Boxes3D(
-                half_sizes=[[extent, extent, 0.001]], centers=[[0.0, 0.0, -0.001]], colors=[(200, 200, 190)]
+                half_sizes=[[extent, extent, 0.001]],
+                centers=[[-0.5 * chain_length, 0.0, -0.001]],
+                colors=[(200, 200, 190)],
             ),
             static=True,
         )
