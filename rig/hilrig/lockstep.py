@@ -63,7 +63,8 @@ class LockstepDriver(Driver):
     def step(self) -> CycleResult:
         start = self.begin_cycle()
         self.link.send(sync_frame(start.counter))
-        result = self.end_cycle(start, self.collect_cycle(start))
+        got = self._collect(start.cycle, start.t, start.due, start.sync_number)  # collect_cycle, inline
+        result = self.end_cycle(start, got)
         self.plant.step(self.period_s, result.duty)
         self.cycle = start.cycle + 1
         return result
