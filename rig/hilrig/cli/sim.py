@@ -179,19 +179,11 @@ def run(args: argparse.Namespace) -> int:
     from hilrig.faults import FaultPlan
     from hilrig.firmware import DEFAULT_EXECUTABLE
     from hilrig.session import BoardInterface
-    from hilrig.trace import live_sinks_from_environment
 
     executable = args.firmware or DEFAULT_EXECUTABLE
     if not args.board and not executable.is_file():
         raise UsageError(f"firmware {executable} does not exist: {FIRMWARE_HINT}")
-    try:
-        live = args.viewer if args.viewer is not None else live_sinks_from_environment()
-    except ValueError as error:
-        raise UsageError(str(error)) from None
-    if args.no_trace and args.viewer:
-        raise UsageError("--viewer streams the trace, --no-trace makes none: choose one")
-    if args.no_trace:
-        live = []
+    live = _live_sinks(args)
     if args.poll_every < 0:
         raise UsageError(f"--poll-every: expected a number of cycles >= 0, got {args.poll_every}")
     board = None
@@ -218,6 +210,20 @@ def run(args: argparse.Namespace) -> int:
     return _report(args, format_summary(summary), summary.viewer_url, live)
 
 
+def _live_sinks(args: argparse.Namespace) -> list[TraceSink]:
+    """--viewer, else $HIL_TRACE; none with --no-trace (and both given: a usage error)."""
+    from hilrig.trace import live_sinks_from_environment
+
+
+    try:
+        live = list(args.viewer) if args.viewer is not None else live_sinks_from_environment()
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.no_trace and args.viewer:
+        raise UsageError("--viewer streams the trace, --no-trace makes none: choose one")
+    return [] if args.no_trace else live
+
+
 def _report(args: argparse.Namespace, text: str, viewer_url: str | None, live: Sequence[TraceSink]) -> int:
     """The summary on stdout and in summary.txt; then, with a web viewer, keep serving."""
     from hilrig.trace import SinkKind
@@ -240,7 +246,6 @@ def run_robot_command(args: argparse.Namespace) -> int:
     """`hilrig sim --modules N`: the robot demo (hilrig.robot_demo)."""
     from hilrig.firmware import DEFAULT_EXECUTABLE
     from hilrig.robot_demo import GAIT_SECONDS, RobotOptions, format_robot_summary, run_robot
-    from hilrig.trace import live_sinks_from_environment
 
     given = {"--board": args.board, "--fault": bool(args.fault), "--node-id": args.node_id is not None}
     refused = [flag for flag, present in given.items() if present]
@@ -255,12 +260,7 @@ def run_robot_command(args: argparse.Namespace) -> int:
     executable = args.firmware or DEFAULT_EXECUTABLE
     if not executable.is_file():
         raise UsageError(f"firmware {executable} does not exist: {FIRMWARE_HINT}")
-    try:
-        live = args.viewer if args.viewer is not None else live_sinks_from_environment()
-    except ValueError as error:
-        raise UsageError(str(error)) from None
-    if args.no_trace and args.viewer:
-        raise UsageError("--viewer streams the trace, --no-trace makes none: choose one")
+    live = _live_sinks(args)
     options = RobotOptions(
         out_dir=args.out,
         modules=args.modules,
@@ -271,7 +271,7 @@ def run_robot_command(args: argparse.Namespace) -> int:
         executable=executable,
         eds=eds_path(args),
         trace=not args.no_trace,
-        live=() if args.no_trace else tuple(live),
+        live=tuple(live),
     )
     summary = run_robot(options, progress=progress)
     return _report(args, format_robot_summary(summary), summary.viewer_url, live)
