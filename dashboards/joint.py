@@ -14,18 +14,21 @@ from collections.abc import Callable
 
 import rerun.blueprint as rrb
 
-from boardproto import Kind
 from dashboards.robot import robot
 from hilrig.table import RigTable, unknown_name
 from hilrig.trace import (
+    BUS_EVENTS_PATH,
+    BUS_FRAMES_ROOT,
+    BUS_RPDOS_PER_CYCLE,
+    BUS_TPDOS_PER_CYCLE,
     CYCLE_TIMELINE,
+    EMCY_PATH,
     EVENTS_ROOT,
-    HIL_INPUTS_ROOT,
-    HIL_OUTPUTS_ROOT,
+    NMT_PATH,
+    SDO_PATH,
     SIM_TIME_TIMELINE,
     TRUE_SPRING_STIFFNESS,
     entity_paths,
-    kind_path,
     truth_path,
 )
 
@@ -46,7 +49,7 @@ def _plot(name: str, contents: list[str]) -> rrb.TimeSeriesView:
     return rrb.TimeSeriesView(name=name, origin="/", contents=contents)
 
 
-def _events(name: str = "Events (NMT, EMCY, SDO aborts)") -> rrb.TextLogView:
+def _events(name: str = "Events (NMT, EMCY, SDO, bus, faults)") -> rrb.TextLogView:
     return rrb.TextLogView(name=name, origin=EVENTS_ROOT)
 
 
@@ -55,15 +58,23 @@ def _blueprint(*parts: rrb.Container | rrb.View, timeline: str = SIM_TIME_TIMELI
 
 
 def overview(table: RigTable) -> rrb.Blueprint:
-    """Every group of fields in its own plot, truth beside them, the event log below."""
-    kinds = [rrb.TimeSeriesView(name=kind.value.replace("_", " ") + "s", origin=kind_path(kind))
-             for kind in (Kind.SENSOR, Kind.VIRTUAL_SENSOR, Kind.MODULE, Kind.COMMAND, Kind.PARAMETER)]
+    """Is the joint doing what it is told? Per controlled quantity the setpoint, the firmware's
+    belief and the truth on one plot (one unit per plot); the motor command it turned into; the
+    mode and the fault state; the event log."""
+    p = _Paths(table)
     return _blueprint(rrb.Vertical(
         rrb.Grid(
-            *kinds,
-            rrb.TimeSeriesView(name="HIL inputs (raw, sent)", origin=HIL_INPUTS_ROOT),
-            rrb.TimeSeriesView(name="HIL outputs (raw, received)", origin=HIL_OUTPUTS_ROOT),
-            rrb.TimeSeriesView(name="ground truth", origin="/truth"),
+            _plot("velocity [rad/s]: setpoint, firmware estimate, true",
+                  [*p("velocity_setpoint", "output_velocity"), truth_path("load_velocity_rad_s")]),
+            _plot("torque [N*m]: setpoint, firmware estimate, true",
+                  [*p("torque_setpoint", "joint_torque"), truth_path("spring_torque_nm")]),
+            _plot("position [rad]: setpoint, firmware estimate, true",
+                  [*p("position_setpoint", "output_position"), truth_path("load_angle_rad")]),
+            _plot("motor duty [1]: commanded by the firmware, applied by the plant",
+                  [*p("motor_duty_command"), truth_path("applied_duty")]),
+            _plot("control mode (velocity, torque, position...)", p("control_mode")),
+            _plot("fault state: fault flags, safe state, watchdog",
+                  p("fault_flags", "safe_state", "watchdog_tripped")),
         ),
         _events(),
         row_shares=[4, 1],
@@ -71,23 +82,30 @@ def overview(table: RigTable) -> rrb.Blueprint:
 
 
 def tuning(table: RigTable) -> rrb.Blueprint:
-    """Controller tuning: setpoint, measurement (and its truth) and command on one plot per loop."""
+    """Controller tuning: per loop, setpoint vs measurement vs truth, and the controller's
+    effort (one unit per plot)."""
     p = _Paths(table)
     return _blueprint(rrb.Vertical(
-        _plot("velocity loop: setpoint, measurement, truth, command",
-              [*p("velocity_setpoint", "output_velocity", "velocity_controller_output", "motor_duty_command"),
-               truth_path("load_velocity_rad_s")]),
-        _plot("torque loop: setpoint, measurement, truth, command",
-              [*p("torque_setpoint", "joint_torque", "torque_controller_output", "motor_duty_command"),
-               truth_path("spring_torque_nm")]),
         rrb.Horizontal(
-            _plot("motor velocity: measured vs true",
-                  [*p("motor_velocity"), truth_path("motor_velocity_rad_s")]),
-            _plot("spring constant: estimate vs true",
-                  [*p("spring_constant_estimate", "spring_constant_confidence"),
-                   truth_path(TRUE_SPRING_STIFFNESS)]),
+            _plot("velocity loop [rad/s]: setpoint, measurement, true",
+                  [*p("velocity_setpoint", "output_velocity"), truth_path("load_velocity_rad_s")]),
+            _plot("velocity loop effort [1]: controller output, duty",
+                  p("velocity_controller_output", "motor_duty_command")),
         ),
-        _plot("duty: applied by the plant vs sent by the node",
+        rrb.Horizontal(
+            _plot("torque loop [N*m]: setpoint, measurement, true",
+                  [*p("torque_setpoint", "joint_torque"), truth_path("spring_torque_nm")]),
+            _plot("torque loop effort [1]: controller output, duty",
+                  p("torque_controller_output", "motor_duty_command")),
+        ),
+        rrb.Horizontal(
+            _plot("motor velocity [rad/s]: measured vs true",
+                  [*p("motor_velocity"), truth_path("motor_velocity_rad_s")]),
+            _plot("spring constant [N*m/rad]: estimate vs true",
+                  [*p("spring_constant_estimate"), truth_path(TRUE_SPRING_STIFFNESS)]),
+            _plot("spring constant estimate: confidence [1]", p("spring_constant_confidence")),
+        ),
+        _plot("duty [1]: sent by the node, derate, applied by the plant",
               [*p("motor_duty_command", "thermal_derate"), truth_path("applied_duty")]),
     ))
 
@@ -96,15 +114,15 @@ def thermal(table: RigTable) -> rrb.Blueprint:
     """Winding temperature (measured vs true), derating, resistance and current."""
     p = _Paths(table)
     return _blueprint(rrb.Vertical(
-        _plot("winding temperature: measured vs true",
+        _plot("winding temperature [degC]: measured vs true, warning and limit",
               [*p("winding_temperature", "thermal_warning_c", "thermal_limit_c"),
                truth_path("winding_temperature_c")]),
         rrb.Horizontal(
-            _plot("thermal derate", p("thermal_derate", "motor_duty_command")),
-            _plot("thermistor / winding resistance",
+            _plot("thermal derate and duty [1]", p("thermal_derate", "motor_duty_command")),
+            _plot("thermistor / winding resistance [ohm]",
                   [*p("thermistor_resistance"), truth_path("winding_resistance_ohm")]),
         ),
-        _plot("motor current: measured vs true", [*p("motor_current"), truth_path("current_a")]),
+        _plot("motor current [A]: measured vs true", [*p("motor_current"), truth_path("current_a")]),
         _events("Events"),
     ))
 
@@ -114,12 +132,32 @@ def faults(table: RigTable) -> rrb.Blueprint:
     p = _Paths(table)
     return _blueprint(rrb.Horizontal(
         rrb.Vertical(
-            _plot("fault flags", p("fault_flags", "fault_clear")),
+            _plot("fault flags and fault clear", p("fault_flags", "fault_clear")),
             _plot("safe state, watchdog, LED", p("safe_state", "watchdog_tripped", "led_pattern")),
-            _plot("commands", p("control_mode", "velocity_setpoint", "torque_setpoint")),
+            _plot("control mode", p("control_mode")),
         ),
         _events(),
         column_shares=[3, 2],
+    ), timeline=CYCLE_TIMELINE)
+
+
+def bus(table: RigTable) -> rrb.Blueprint:
+    """What went over the bus each cycle: frames per PDO (COB-ID) and per direction, which PDOs
+    the node uses and any TPDO late, missing or malformed, SDO aborts, EMCY and NMT."""
+    return _blueprint(rrb.Vertical(
+        rrb.Horizontal(
+            rrb.TimeSeriesView(name="frames per cycle, by PDO (COB-ID); one SYNC each cycle besides",
+                               origin=BUS_FRAMES_ROOT),
+            _plot("frames per cycle: TPDOs (node to rig), RPDOs (rig to node)",
+                  [BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE]),
+        ),
+        rrb.Horizontal(
+            rrb.TextLogView(name="PDOs in use; late, missing or malformed TPDOs", origin=BUS_EVENTS_PATH),
+            rrb.TextLogView(name="SDO aborts", origin=SDO_PATH),
+            rrb.TextLogView(name="EMCY and NMT",
+                            origin="/", contents=[f"+ {EMCY_PATH}/**", f"+ {NMT_PATH}/**"]),
+        ),
+        row_shares=[3, 2],
     ), timeline=CYCLE_TIMELINE)
 
 
@@ -149,6 +187,7 @@ BLUEPRINTS: dict[str, Callable[[RigTable], rrb.Blueprint]] = {
     "tuning": tuning,
     "thermal": thermal,
     "faults": faults,
+    "bus": bus,
     "robot": robot,
 }
 """Blueprint builders by name; `blueprint(name)` is the way to get one."""

@@ -43,6 +43,8 @@ SYNC_COUNTER_MAX = 240
 LAST_SYNCHRONOUS_TYPE = 240
 """PDO transmission types 1..240: synchronous, every n-th SYNC; 0: acyclic synchronous;
 254/255: event-driven."""
+EVENT_DRIVEN_TYPES = (254, 255)
+"""Event-driven transmission types: 254 manufacturer-specific, 255 device profile."""
 
 
 class NmtState(enum.IntEnum):
@@ -161,7 +163,23 @@ def due_at_sync(transmission_type: int, sync_number: int) -> bool:
     return 1 <= n <= LAST_SYNCHRONOUS_TYPE and sync_number % n == 0
 
 
+def transmission_text(transmission_type: int) -> str:
+    """When a PDO of this transmission type goes out, in words: 'every SYNC', 'every 10th SYNC',
+    'acyclic synchronous', 'event-driven', 'reserved type 245'."""
+    n = transmission_type
+    if n == 1:
+        return "every SYNC"
+    if 2 <= n <= LAST_SYNCHRONOUS_TYPE:
+        return f"every {n}th SYNC"
+    if n == 0:
+        return "acyclic synchronous"
+    if n in EVENT_DRIVEN_TYPES:
+        return "event-driven"
+    return f"reserved type {n}"
+
+
 __all__ = [
+    "EVENT_DRIVEN_TYPES",
     "FUNCTION_CODE_MASK",
     "HEARTBEAT_CONSUMER_INDEX",
     "LAST_SYNCHRONOUS_TYPE",
@@ -190,4 +208,5 @@ __all__ = [
     "sdo_request_cob_id",
     "sdo_response_cob_id",
     "sync_counter",
+    "transmission_text",
 ]

@@ -80,7 +80,13 @@ from dataclasses import dataclass
 from typing import TextIO
 
 from boardproto import BoardTable, Pdo
-from boardproto.cia301 import MASTER_HEARTBEAT_MS, MASTER_NODE_ID, SYNC_COB_ID, heartbeat_cob_id
+from boardproto.cia301 import (
+    EVENT_DRIVEN_TYPES,
+    MASTER_HEARTBEAT_MS,
+    MASTER_NODE_ID,
+    SYNC_COB_ID,
+    heartbeat_cob_id,
+)
 
 STANDARD_BITRATES: tuple[int, ...] = (125_000, 250_000, 500_000, 1_000_000)
 """Classic CAN bit rates the command reports by default, in bit/s."""
@@ -102,7 +108,6 @@ RATE_STEPS_PER_HZ = 10
 
 _FIXED_BITS = 47  # every bit of a 2.0A data frame except the data field
 _STUFFABLE_FIXED_BITS = 34  # SOF .. CRC without the data field
-_EVENT_DRIVEN_TYPES = (254, 255)
 
 
 def _check_data_bytes(data_bytes: int) -> None:
@@ -283,7 +288,7 @@ def _tpdo_per_second(pdo: Pdo, rate_hz: float) -> float:
         return rate_hz  # acyclic synchronous: worst case, a change every cycle
     if kind <= 240:
         return rate_hz / kind
-    if kind in _EVENT_DRIVEN_TYPES:
+    if kind in EVENT_DRIVEN_TYPES:
         per_second = rate_hz  # a change at most once per control cycle
         if pdo.inhibit_time_100us:
             per_second = min(per_second, 10_000 / pdo.inhibit_time_100us)

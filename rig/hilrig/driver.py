@@ -26,6 +26,9 @@ from hilrig.transport import FrameLink, PdoDirection, PdoLayout, can_frame
 
 Value = float | int
 PdoRow = tuple[PdoLayout, tuple[Value, ...]]
+BUS_EVENTS_PATH = "/events/bus"
+"""Where a rig's observers get the bus's own events: which PDOs the node uses, and the TPDO that
+was late, missing, twice or of the wrong length (the error that stopped a lockstep run)."""
 """One PDO of one cycle: its layout and the values it carried, in mapping order."""
 
 ACTUATOR_OUTPUT = "motor_duty"
@@ -79,10 +82,11 @@ class _PdoRows:
     """Every cycle one PDO was exchanged in, with the values it carried. Cheap to append; only
     ever appended to, so a length is a mark that stays valid (`History.mark`)."""
 
-    __slots__ = ("cycles", "names", "values")
+    __slots__ = ("cycles", "layout", "names", "values")
 
-    def __init__(self, names: tuple[str, ...]) -> None:
-        self.names = names
+    def __init__(self, layout: PdoLayout) -> None:
+        self.layout = layout
+        self.names = layout.names
         self.cycles: list[int] = []
         self.values: list[tuple[Value, ...]] = []
 
@@ -102,7 +106,7 @@ class _Direction:
             return known[1]
         rows = self.rows.get(pdo)
         if rows is None:
-            rows = self.rows[pdo] = _PdoRows(pdo.names)
+            rows = self.rows[pdo] = _PdoRows(pdo)
             for position, name in enumerate(pdo.names):
                 self.where.setdefault(name, []).append((rows, position))
         self._by_identity[id(pdo)] = (pdo, rows)
@@ -139,8 +143,8 @@ class HistoryMark:
     truth: int
 
 
-HistoryBlock = tuple[tuple[str, ...], list[int], list[tuple[Value, ...]]]
-"""(names, cycles, values): one PDO's rows between two marks."""
+HistoryBlock = tuple[PdoLayout, list[int], list[tuple[Value, ...]]]
+"""(layout, cycles, values): one PDO's rows between two marks (`layout.names` name the values)."""
 
 
 class History:
@@ -181,7 +185,7 @@ class History:
         for rows, stop in end.rows.items():
             begin = start.rows.get(rows, 0)
             if stop > begin:
-                blocks.append((rows.names, rows.cycles[begin:stop], rows.values[begin:stop]))
+                blocks.append((rows.layout, rows.cycles[begin:stop], rows.values[begin:stop]))
         return blocks
 
     def truth_between(self, start: HistoryMark, end: HistoryMark) -> tuple[range, list[JointState]]:
@@ -526,6 +530,7 @@ def _getter(names: tuple[str, ...]) -> Callable[[RawSensors], tuple[Value, ...]]
 
 __all__ = [
     "ACTUATOR_OUTPUT",
+    "BUS_EVENTS_PATH",
     "SETPOINT_STREAM",
     "TRUTH_ALIASES",
     "TRUTH_NAMES",

@@ -32,10 +32,10 @@ import can
 import numpy as np
 from canopen.emcy import EmcyError
 
-from boardproto.cia301 import NmtCommand, NmtState
+from boardproto.cia301 import NmtCommand, NmtState, transmission_text
 from hilrig import resources
-from hilrig.driver import CycleResult, Driver, resolve_truth_name, sdo_poll_layout
-from hilrig.errors import FieldAccessError, NoValueError, SdoAbortError
+from hilrig.driver import BUS_EVENTS_PATH, CycleResult, Driver, resolve_truth_name, sdo_poll_layout
+from hilrig.errors import FieldAccessError, LockstepError, NoValueError, RealTimeError, SdoAbortError
 from hilrig.lockstep import LockstepDriver
 from hilrig.node import BoardNode, EmcyRecord
 from hilrig.observers import RigObserver
@@ -197,7 +197,17 @@ class Rig(CycleRunner):
         self.node.check_identity()
         self.node.read_pdo_configuration(from_node=True)
         self.driver.configure()
+        self._log_pdo_configuration()
         self.nmt(NmtCommand.START)
+
+    def _log_pdo_configuration(self) -> None:
+        """Which PDOs the node uses and when they go out, as read from it: the first lines of
+        the bus's events (a PDO missing later is then read against them)."""
+        node = self.node
+        for pdo in (*node.tpdos.values(), *node.rpdos.values()):
+            if pdo.enabled and pdo.names:
+                when = transmission_text(pdo.transmission_type)
+                self.log_event(BUS_EVENTS_PATH, f"{pdo.label}, {when}: {', '.join(pdo.names)}", warning=False)
 
     def restart_node(self, restart: Callable[[], object], *, boot_timeout_s: float | None = None) -> None:
         """Restart the node with `restart()` (e.g. `Firmware.restart`: kill and start the
@@ -259,7 +269,12 @@ class Rig(CycleRunner):
                 f"node 0x{self.node.node_id:02X} is a module of a robot: run the robot, which "
                 "steps all its modules around one SYNC"
             )
-        self.after_cycle(self.driver.step())
+        try:
+            result = self.driver.step()
+        except (LockstepError, RealTimeError) as error:  # a TPDO late, missing or malformed
+            self.log_event(BUS_EVENTS_PATH, str(error))
+            raise
+        self.after_cycle(result)
 
     def after_cycle(self, result: CycleResult) -> None:
         """What follows every cycle: the SDO poll if due, then the observers."""

@@ -43,8 +43,8 @@ from boardproto.cia301 import (
     heartbeat_cob_id,
     heartbeat_consumer_entry,
 )
-from hilrig.driver import CycleResult, sync_counter, sync_frame
-from hilrig.errors import FirmwareError
+from hilrig.driver import BUS_EVENTS_PATH, CycleResult, sync_counter, sync_frame
+from hilrig.errors import FirmwareError, LockstepError
 from hilrig.lockstep import CycleStart, LockstepDriver
 from hilrig.physics import JointPlant
 from hilrig.rig import Rig
@@ -373,6 +373,9 @@ class Robot(CycleRunner):
             except FirmwareError as error:
                 self._lose(k, start, error)
                 continue
+            except LockstepError as error:  # alive, but a TPDO late, missing or malformed
+                self.modules[k].log_event(BUS_EVENTS_PATH, str(error))
+                raise
             results[k] = driver.end_cycle(start, got)
         duties = [result.duty if result is not None else 0.0 for result in results]
         for k, driver in enumerate(drivers):

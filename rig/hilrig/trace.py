@@ -15,7 +15,9 @@ Entity paths mirror the data (dashboards/ builds its views on exactly these):
                              actuator values the node sent (motor_duty, led_pattern)
     /truth/<quantity>        the plant's ground truth (JointState attributes, unit in the name),
                              plus spring_stiffness_nm_per_rad from the plant parameters
-    /events/nmt, /events/emcy, /events/sdo    text log entries with a level
+    /bus/frames/<PDO>        frames of that PDO's COB-ID in each cycle (TPDO5: 1 every 10th),
+                             /bus/per_cycle/{tpdos,rpdos} their sums per direction
+    /events/nmt, /events/emcy, /events/sdo, /events/bus    text log entries with a level
     <field or HIL path>/label  for a field whose values have names in board.toml (control_mode,
                              fault_flags, led_pattern): a text entry at each change of value,
                              "control_mode = velocity", "fault_flags = motor_encoder_stale|..."
@@ -60,13 +62,14 @@ from boardproto import Field, IoDirection, Kind
 from boardproto.cia301 import NmtState
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
-from hilrig.driver import CycleResult, History, HistoryMark
+from hilrig.driver import BUS_EVENTS_PATH, CycleResult, History, HistoryMark
 from hilrig.errors import RigError
 from hilrig.node import EmcyRecord
 from hilrig.observers import RigObserver
 from hilrig.physics import JointParams, JointState
 from hilrig.robot import ROBOT_EVENTS_PATH, RobotObserver
 from hilrig.table import RigTable, unknown_name
+from hilrig.transport import PdoDirection, PdoLayout
 
 if TYPE_CHECKING:
     import rerun as rr
@@ -103,16 +106,23 @@ LABEL_CHILD = "label"
 SDO_PATH = f"{EVENTS_ROOT}/sdo"
 MODULES_ROOT = "/modules"
 """A robot's modules each trace under /modules/<node id>: their fields, truth and events."""
+BUS_ROOT = "/bus"
+"""What the driver exchanged per cycle: /bus/frames/<PDO> (frames of that COB-ID in the cycle),
+/bus/per_cycle/{tpdos,rpdos} (their sums per direction); /events/bus says which PDOs the node
+uses and when a TPDO is late, missing or malformed."""
+BUS_FRAMES_ROOT = f"{BUS_ROOT}/frames"
+BUS_TPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/tpdos"
+BUS_RPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/rpdos"
 ROBOT_ROOT = "/robot"
 """A robot's 3D view: /robot/links/<k> (a capsule moved by the chain's pose of link k),
 /robot/ground; its own events (a module lost...) at /events/robot."""
 TRUE_SPRING_STIFFNESS = "spring_stiffness_nm_per_rad"
 """Extra truth series: the plant's spring constant, to plot next to spring_constant_estimate."""
 
-_TRUTH_UNITS = (
+_TRUTH_UNITS = (  # the longest suffix first: "_nm_per_rad" also ends in "_rad"
     ("_rad_s", "rad/s"),
-    ("_rad", "rad"),
     ("_nm_per_rad", "N*m/rad"),
+    ("_rad", "rad"),
     ("_nm", "N*m"),
     ("_a", "A"),
     ("_c", "degC"),
@@ -132,6 +142,11 @@ def kind_path(kind: Kind) -> str:
 def field_path(field: Field) -> str:
     """'/fields/sensors/motor_position'."""
     return f"{kind_path(field.kind)}/{field.name}"
+
+
+def frames_path(pdo: PdoLayout) -> str:
+    """'/bus/frames/TPDO3': frames of this PDO's COB-ID per cycle."""
+    return f"{BUS_FRAMES_ROOT}/{pdo.direction.value}{pdo.number}"
 
 
 def module_root(node_id: int) -> str:
@@ -370,6 +385,9 @@ class Tracer(RigObserver):
             self._paths[name]: values for name, values in table.board.named_values.items()
         }
         self._last_named_value: dict[str, float] = {}
+        # PDOs seen on the bus (label -> layout): each gets a frames-per-cycle series, with zeros
+        # in the cycles it did not come (a TPDO due every 10th SYNC, one that went missing).
+        self._framed: dict[str, PdoLayout] = {}
         self._pending: list[_CycleRow | CycleResult] = []
         # Following a Rig's History (on_history): a cycle costs a count; a batch is the span
         # between two marks, taken from the history's own per-PDO rows as columns.
@@ -654,14 +672,19 @@ class Tracer(RigObserver):
         PDO and batch, no per-cycle work here)."""
         history = span.history
         parts: list[_Part] = []
-        for names, cycles, rows in history.blocks_between(span.start, span.end):
+        frames: list[tuple[PdoLayout, np.ndarray]] = []
+        for layout, cycles, rows in history.blocks_between(span.start, span.end):
             cycle_column = np.asarray(cycles, dtype=np.int64)
-            matrix = _matrix(rows, len(names))
-            parts.append((names, cycle_column, history.times_of(cycles), matrix))
+            matrix = _matrix(rows, len(layout.names))
+            parts.append((layout.names, cycle_column, history.times_of(cycles), matrix))
+            frames.append((layout, cycle_column))
         self._send_parts(parts)
         cycles, states = history.truth_between(span.start, span.end)
         if states:
-            self._send_truth(np.asarray(cycles, dtype=np.int64), history.times_of(cycles), states)
+            every_cycle = np.asarray(cycles, dtype=np.int64)
+            times = history.times_of(cycles)
+            self._send_truth(every_cycle, times, states)
+            self._send_frames(frames, every_cycle, times)
 
     def _send_batch(self, batch: list[_CycleRow | CycleResult]) -> None:
         """Rows (log_cycle, or cycles of a Rig not followed through its History): pivoted into
@@ -693,6 +716,16 @@ class Tracer(RigObserver):
             parts.append((names, all_cycles[indexes], all_times[indexes], matrix))
         self._send_parts(parts)
 
+        results = [row for row in batch if isinstance(row, CycleResult)]
+        if results:
+            cycles_of: dict[PdoLayout, list[int]] = {}
+            for result in results:
+                for pdo, _ in (*result.received_rows, *result.sent_rows):
+                    cycles_of.setdefault(pdo, []).append(result.cycle)
+            frames = [(pdo, np.asarray(c, dtype=np.int64)) for pdo, c in cycles_of.items()]
+            every_cycle = np.asarray([r.cycle for r in results], dtype=np.int64)
+            self._send_frames(frames, every_cycle, np.asarray([r.time_s for r in results]))
+
         with_truth = [i for i, row in enumerate(batch) if row.truth is not None]
         if with_truth:
             states = [batch[i].truth for i in with_truth]
@@ -717,6 +750,37 @@ class Tracer(RigObserver):
                 values = np.concatenate([c[2] for c in columns])[order]
             self._send_scalars(path, cycle_column, time_column, values)
 
+    def _send_frames(
+        self, frames: Sequence[tuple[PdoLayout, np.ndarray]], every_cycle: np.ndarray, times: np.ndarray
+    ) -> None:
+        """Frames per cycle of every PDO seen so far (a row of a PDO is one frame on the bus),
+        and their sums per direction, over `every_cycle` (consecutive cycles, one row each)."""
+        if not len(every_cycle):
+            return
+        first, count = int(every_cycle[0]), len(every_cycle)
+        for pdo, _ in frames:
+            if pdo.enabled and pdo.cob_id:  # not the rows of fields read over SDO
+                self._framed.setdefault(pdo.label, pdo)
+        counts = {label: np.zeros(count) for label in self._framed}
+        for pdo, cycles in frames:
+            if pdo.label in counts:
+                offsets = cycles - first
+                offsets = offsets[(offsets >= 0) & (offsets < count)]
+                counts[pdo.label] += np.bincount(offsets, minlength=count)
+        totals = {PdoDirection.TPDO: np.zeros(count), PdoDirection.RPDO: np.zeros(count)}
+        for label, per_cycle in counts.items():
+            pdo = self._framed[label]
+            totals[pdo.direction] += per_cycle
+            path = self.root + frames_path(pdo)
+            self._send_scalars(path, every_cycle, times, per_cycle, name=f"{label} [frames]")
+        if counts:
+            for path, direction in (
+                (BUS_TPDOS_PER_CYCLE, PdoDirection.TPDO),
+                (BUS_RPDOS_PER_CYCLE, PdoDirection.RPDO),
+            ):
+                name = f"{direction.value}s per cycle [frames]"
+                self._send_scalars(self.root + path, every_cycle, times, totals[direction], name=name)
+
     def _send_truth(self, cycles: np.ndarray, times: np.ndarray, states: Sequence[JointState]) -> None:
         quantities = TRUTH_QUANTITIES[:-1]
         truth_of = operator.attrgetter(*quantities)
@@ -734,12 +798,20 @@ class Tracer(RigObserver):
             )
 
     def _send_scalars(
-        self, path: str, cycles: Sequence[int], times: Sequence[float], values: np.ndarray
+        self,
+        path: str,
+        cycles: Sequence[int],
+        times: Sequence[float],
+        values: np.ndarray,
+        *,
+        name: str | None = None,
     ) -> None:
+        """One entity's column; `name` is its series name (default: from the field or truth)."""
         rr = self._rr
         if path not in self._named:
             self._named.add(path)
-            self.recording.log(path, rr.SeriesLines(names=self._series_name(path)), static=True)
+            series = name if name is not None else self._series_name(path)
+            self.recording.log(path, rr.SeriesLines(names=series), static=True)
         indexes = [
             rr.TimeColumn(CYCLE_TIMELINE, sequence=np.asarray(cycles, dtype=np.int64)),
             self._time_column(times),
@@ -1028,6 +1100,11 @@ def wall_clock() -> float:
 
 __all__ = [
     "APPLICATION_ID",
+    "BUS_EVENTS_PATH",
+    "BUS_FRAMES_ROOT",
+    "BUS_ROOT",
+    "BUS_RPDOS_PER_CYCLE",
+    "BUS_TPDOS_PER_CYCLE",
     "CYCLE_TIMELINE",
     "EMCY_PATH",
     "MODULES_ROOT",
@@ -1047,6 +1124,7 @@ __all__ = [
     "dashboard_fields",
     "entity_paths",
     "field_path",
+    "frames_path",
     "kind_path",
     "link_path",
     "load_blueprint",

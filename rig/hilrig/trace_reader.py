@@ -25,6 +25,8 @@ class Trace:
     scalars: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
     texts: dict[str, list[tuple[str, str]]] = field(default_factory=lambda: defaultdict(list))
     series_names: dict[str, str] = field(default_factory=dict)
+    rows: dict[str, int] = field(default_factory=lambda: defaultdict(int))
+    """Rows on a timeline per entity, whatever they hold (scalars, texts, 3D transforms)."""
     blueprints: int = 0
 
     @classmethod
@@ -40,6 +42,7 @@ class Trace:
                 if "SeriesLines:names" in columns:
                     trace.series_names[path_] = columns["SeriesLines:names"][0][0]
                 continue
+            trace.rows[path_] += chunk.num_rows
             trace.cycles[path_] += columns.get("cycle", [])
             trace.times[path_] += [ns / 1e9 for ns in columns.get("sim_time", [])]
             trace.times[path_] += [ns / 1e9 for ns in columns.get("wall_time", [])]  # Unix seconds

@@ -48,3 +48,48 @@ def test_the_older_spelling_still_works() -> None:
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == list(blueprint_names())
+
+
+def _fake_node_trace(path: Path) -> None:
+    """A few cycles of a Rig against the in-process fake node, traced to `path`."""
+    import can
+
+    from hilrig.fake_node import FakeJointNode
+    from hilrig.physics import JointParams
+    from hilrig.rig import Rig
+    from hilrig.table import ControlMode, RigTable
+    from hilrig.trace import Tracer, TraceSink
+
+    table = RigTable.load()
+    rig_bus, fake_bus = (can.Bus(interface="virtual", channel=f"view-check-{path.name}") for _ in range(2))
+    fake = FakeJointNode(fake_bus, table=table)
+    tracer = Tracer(TraceSink.rrd(path), table, blueprint=None)
+    params = JointParams.fast_thermal()
+    rig = Rig(rig_bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
+    fake.boot()
+    try:
+        rig.start()
+        rig.set("control_mode", ControlMode.VELOCITY)
+        rig.run(cycles=20)
+    finally:
+        rig.close()
+        fake.close()
+        tracer.close()
+        rig_bus.shutdown()
+        fake_bus.shutdown()
+
+
+def test_check_lists_the_series_a_dashboard_names_that_the_trace_lacks(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    trace = tmp_path / "trace.rrd"
+    _fake_node_trace(trace)
+    # No SDO poll, no EMCY, no abort in this run: those views are empty, and said so.
+    assert main(["view", str(trace), "--check"]) == 1
+    gaps = capsys.readouterr().out.splitlines()
+    estimate = "/fields/modules/spring_constant_estimate"
+    assert f"tuning / spring constant [N*m/rad]: estimate vs true: {estimate} has no data" in gaps
+    assert "bus / SDO aborts: nothing under /events/sdo" in gaps
+    assert not [gap for gap in gaps if gap.startswith("overview / ")], gaps  # it is all in PDOs
+    assert main(["view", str(trace), "--check", "--dashboard", "overview"]) == 0
+    assert capsys.readouterr().out == f"{trace}: every series overview name has data\n"

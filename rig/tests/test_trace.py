@@ -4,6 +4,7 @@ Rerun's own reader (`rerun.chunk.RrdReader`) and compared with the rig's own per
 from __future__ import annotations
 
 import itertools
+import re
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -14,12 +15,16 @@ import can
 import pytest
 
 from boardproto.cia301 import NmtCommand
-from hilrig.errors import FieldNameError, SdoAbortError
+from hilrig.errors import FieldNameError, LockstepError, SdoAbortError
 from hilrig.fake_node import FakeJointNode
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
 from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
 from hilrig.trace import (
+    BUS_EVENTS_PATH,
+    BUS_FRAMES_ROOT,
+    BUS_RPDOS_PER_CYCLE,
+    BUS_TPDOS_PER_CYCLE,
     EMCY_PATH,
     NMT_PATH,
     SDO_PATH,
@@ -30,11 +35,13 @@ from hilrig.trace import (
     TraceSink,
     blueprint_names,
     entity_paths,
+    frames_path,
     link_path,
     load_blueprint,
     module_root,
     open_trace,
     truth_path,
+    truth_unit,
 )
 from hilrig.trace_reader import Trace
 
@@ -150,6 +157,61 @@ def test_faults_and_nmt_changes_are_text_log_entries_with_severity(traced: Run) 
     assert ("NMT OPERATIONAL (command START) at t = 0 s", "INFO") in nmt
 
 
+def test_frames_per_cycle_of_every_pdo_and_the_pdo_configuration_are_in_the_trace(traced: Run) -> None:
+    _scenario(traced)
+    trace = Trace.read(traced.path)
+    node = traced.rig.node
+    tpdos = [p for p in node.tpdos.values() if p.enabled and p.names]
+    rpdos = [p for p in node.rpdos.values() if p.enabled and p.names]
+    every_cycle = list(range(CYCLES))
+    # Sensor inputs and the setpoint stream every cycle; RPDO3 (control mode) only when it
+    # changes, which this scenario never does: a PDO never seen on the bus has no series.
+    streamed = [p for p in rpdos if p.number in (1, 2)]
+    for pdo in (*tpdos, *streamed):
+        path = frames_path(pdo)
+        assert trace.cycles[path] == every_cycle, pdo.label  # zeros where it did not come
+        expected = [float(pdo in streamed or pdo.due_at_sync(c + 1)) for c in every_cycle]
+        assert trace.scalars[path] == expected, pdo.label
+        assert trace.series_names[path] == f"{pdo.label} [frames]"
+    framed = {p for p in trace.scalars if p.startswith(BUS_FRAMES_ROOT)}
+    assert framed == {frames_path(p) for p in (*tpdos, *streamed)}
+    # TPDO8 (winding temperature) every 10th SYNC: the sum per cycle shows it.
+    sums = trace.scalars[BUS_TPDOS_PER_CYCLE]
+    assert sums[9] == sums[0] + 1 and len(set(sums)) == 2
+    assert set(trace.scalars[BUS_RPDOS_PER_CYCLE]) == {len(streamed)}
+    lines = [text for text, level in trace.texts[BUS_EVENTS_PATH] if level == "INFO"]
+    assert len(lines) == len(tpdos) + len(rpdos)
+    assert any(line.startswith("TPDO8 (0x") and "every 10th SYNC: " in line for line in lines), lines
+
+
+def test_a_missing_tpdo_is_a_warning_on_the_bus_events(traced: Run) -> None:
+    traced.rig.start()
+    traced.rig.run(cycles=3)
+    traced.fake.drop = lambda sync_number, tpdo_number: tpdo_number == 1
+    with pytest.raises(LockstepError, match="TPDO1"):
+        traced.rig.run(cycles=1)
+    traced.tracer.close()
+    trace = Trace.read(traced.path)
+    warnings = [text for text, level in trace.texts[BUS_EVENTS_PATH] if level == "WARN"]
+    assert len(warnings) == 1 and "cycle 3" in warnings[0] and "did not arrive" in warnings[0], warnings
+
+
+def test_every_plot_of_every_dashboard_has_one_unit(table: RigTable) -> None:
+    """One unit per axis: a plot never mixes rad/s with N*m, or a duty with degrees."""
+    from dashboards import BLUEPRINTS, blueprint
+
+    unit_of = {path: table.entry(name).unit for name, path in entity_paths(table).items()}
+    unit_of |= {truth_path(q): truth_unit(q) for q in TRUTH_QUANTITIES}
+    unit_of |= {BUS_TPDOS_PER_CYCLE: "frames", BUS_RPDOS_PER_CYCLE: "frames"}
+    for name in BLUEPRINTS:
+        for view in _views(blueprint(name, table).root_container):
+            contents = view.contents if isinstance(view.contents, list) else []
+            # A robot module's fields are one board's under /modules/<id>.
+            paths = [re.sub(r"^/modules/\d+", "", path) for path in contents if not path.startswith("+ ")]
+            units = {unit_of[path] for path in paths}
+            assert len(units) <= 1, f"{name}: {view.name} mixes {sorted(units)}"
+
+
 def test_nmt_stop_is_a_warning_at_its_cycle(traced: Run) -> None:
     traced.rig.start()
     traced.rig.run(cycles=3)
@@ -177,8 +239,9 @@ def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
     # A robot's: every module's fields under its root, and the links of its 3D view.
     robot = {module_root(n) + path for n in DEFAULT_NODE_IDS for path in one_board}
     robot |= {link_path(k) for k in range(len(DEFAULT_NODE_IDS) + 1)}
-    logged = one_board | robot
-    assert set(blueprint_names()) == {"overview", "tuning", "thermal", "faults", "robot"} == set(BLUEPRINTS)
+    logged = one_board | robot | {BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE, f"{BUS_FRAMES_ROOT}/TPDO1"}
+    dashboards = {"overview", "tuning", "thermal", "faults", "bus", "robot"}
+    assert set(blueprint_names()) == dashboards == set(BLUEPRINTS)
     for name in BLUEPRINTS:
         views = list(_views(blueprint(name, table).root_container))
         assert views, name
@@ -187,7 +250,8 @@ def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
             for path in contents:
                 if "$origin" not in path and not path.startswith("+ "):  # "+ /events/**": a query
                     assert path in logged, f"{name}: {view.name} shows {path}, which is never logged"
-            assert any(p.startswith(str(view.origin)) for p in logged) or view.origin == "/events", name
+            origin = str(view.origin)
+            assert any(p.startswith(origin) for p in logged) or origin.startswith("/events"), name
 
 
 def test_a_blueprint_name_typo_lists_close_matches() -> None:
@@ -279,3 +343,23 @@ def test_a_live_sink_gets_a_latency_bound_by_default(tmp_path: Path) -> None:
     assert default_latency([rrd, TraceSink.spawn()]) == LIVE_LATENCY_S
     assert default_latency([TraceSink.connect()]) == LIVE_LATENCY_S
     assert default_latency([TraceSink.serve_web()]) == LIVE_LATENCY_S
+
+
+def test_a_dashboard_check_names_every_series_without_data(traced: Run, table: RigTable) -> None:
+    """`dashboards.check.missing_series`: what a view names but the trace lacks, line by line."""
+    from dashboards import blueprint
+    from dashboards.check import missing_series
+
+    _scenario(traced)
+    trace = Trace.read(traced.path)
+    assert trace.rows[NMT_PATH] == len(trace.texts[NMT_PATH])
+    faults = missing_series(blueprint("faults", table), trace, name="faults")
+    # fault_clear goes out only when written (`hilrig sim` polls it), control_mode (RPDO3) only
+    # when it changes, which this scenario never does; the rest is there.
+    paths = entity_paths(table)
+    assert faults == [
+        f"faults / fault flags and fault clear: {paths['fault_clear']} has no data",
+        f"faults / control mode: {paths['control_mode']} has no data",
+    ]
+    bus = missing_series(blueprint("bus", table), trace, name="bus")
+    assert bus == [], bus

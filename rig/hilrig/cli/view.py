@@ -25,11 +25,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "-d",
         "--dashboard",
-        default=DEFAULT_DASHBOARD,
+        default=None,
         metavar="NAME",
         help=f"the layout to show (default: {DEFAULT_DASHBOARD}; --list names them all)",
     )
     parser.add_argument("--list", action="store_true", help="print the dashboards' names and exit")
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="open nothing: say which series the dashboards name that the trace has no data for "
+        "(every dashboard made for the trace, or the one given with --dashboard); exit 1 if any",
+    )
     parser.add_argument(
         "--web",
         nargs="?",
@@ -56,19 +62,22 @@ def run(args: argparse.Namespace) -> int:
     if args.list:
         print("\n".join(names))
         return 0
-    if args.dashboard not in names:
+    dashboard: str = args.dashboard or DEFAULT_DASHBOARD
+    if dashboard not in names:
         from hilrig.table import unknown_name
 
-        raise UsageError(str(unknown_name("dashboard", args.dashboard, names)))
+        raise UsageError(str(unknown_name("dashboard", dashboard, names)))
     trace: Path | None = args.trace
     if trace is None:
         raise UsageError("name the trace to open: hilrig view TRACE.rrd (or --list the dashboards)")
     if trace.suffix != ".rrd":
         raise UsageError(f"{trace}: expected a Rerun recording (.rrd)")
+    if args.check:
+        return _check(trace, args.dashboard)
     try:
         process = open_trace(
             trace,
-            args.dashboard,
+            dashboard,
             web=args.web is not None,
             web_port=args.web or DEFAULT_WEB_PORT,
             grpc_port=args.grpc_port,
@@ -77,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         raise RigError(str(error)) from None
     assert not isinstance(process, list)
     if args.web is None:
-        progress(f"view: {trace} in a native viewer ({args.dashboard}); close its window to end")
+        progress(f"view: {trace} in a native viewer ({dashboard}); close its window to end")
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         return process.wait()
@@ -90,6 +99,26 @@ def run(args: argparse.Namespace) -> int:
         process.wait()
 
 
+def _check(trace: Path, dashboard: str | None) -> int:
+    """Every series the dashboards name, looked up in the trace; the gaps on stdout."""
+    from dashboards.check import fitting_dashboards, missing_series
+    from hilrig.trace import load_blueprint
+    from hilrig.trace_reader import Trace
+
+    progress(f"view: reading {trace}")
+    recording = Trace.read(trace)
+    dashboards = {dashboard: load_blueprint(dashboard)} if dashboard else fitting_dashboards(recording)
+    gaps = [gap for name, shown in dashboards.items() for gap in missing_series(shown, recording, name=name)]
+    for gap in gaps:
+        print(gap)
+    checked = ", ".join(dashboards)
+    if gaps:
+        progress(f"view: {trace}: {len(gaps)} series named by {checked} without data")
+        return 1
+    print(f"{trace}: every series {checked} name has data")
+    return 0
+
+
 def _interrupt(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
@@ -99,7 +128,7 @@ COMMANDS = (
         name="view",
         help="open a trace (.rrd) in the Rerun viewer with one of the dashboards",
         description="Open a trace the rig wrote (hilrig sim, a scenario, hilrig replay --trace)\n"
-        "in the Rerun viewer with a dashboard: overview, tuning, thermal, faults, and\n"
+        "in the Rerun viewer with a dashboard: overview, tuning, thermal, faults, bus, and\n"
         "robot for a robot's trace (hilrig sim --modules: the chain in 3D, every\n"
         "joint's commanded vs measured angle) (--list). --web serves the web viewer\n"
         "instead of a window, for a machine without a display; open the page it\n"
@@ -107,7 +136,8 @@ COMMANDS = (
         "ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 host).\n\n"
         "  hilrig view out/demo/trace.rrd\n"
         "  hilrig view out/demo/trace.rrd --dashboard tuning --web\n"
-        "  hilrig view out/robot/trace.rrd --dashboard robot",
+        "  hilrig view out/robot/trace.rrd --dashboard robot\n"
+        "  hilrig view out/demo/trace.rrd --check   # which plotted series have no data",
         configure=configure,
         run=run,
     ),
