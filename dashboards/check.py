@@ -7,7 +7,7 @@ must have data in the recording (`hilrig view TRACE --check`, and the dashboard 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 
 import rerun.blueprint as rrb
 
@@ -79,4 +79,11 @@ def fitting_dashboards(trace: Trace) -> dict[str, rrb.Blueprint]:
     return {name: build(table) for name, build in BLUEPRINTS.items() if name != "robot"}
 
 
-__all__ = ["ORIGIN_SUBTREE", "fitting_dashboards", "missing_series", "robot_node_ids", "views"]
+def trace_gaps(trace: Trace, dashboards: Mapping[str, rrb.Blueprint] | None = None) -> list[str]:
+    """`missing_series` of every dashboard given (default: every one made for the trace)."""
+    if dashboards is None:
+        dashboards = fitting_dashboards(trace)
+    return [gap for name, layout in dashboards.items() for gap in missing_series(layout, trace, name=name)]
+
+
+__all__ = ["ORIGIN_SUBTREE", "fitting_dashboards", "missing_series", "robot_node_ids", "trace_gaps", "views"]

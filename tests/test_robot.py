@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dashboards.check import fitting_dashboards, trace_gaps
 from hilrig.robot import MasterHeartbeat, Robot, RobotObserver, TravellingWave
 from hilrig.table import EmcyCode, FaultFlags, RigTable
 from hilrig.trace_reader import Trace
@@ -77,6 +78,10 @@ def test_travelling_wave_tracked_by_all_eight_modules(make_robot) -> None:
     for node_id in robot.node_ids:
         assert trace.scalars[f"/modules/{node_id}/fields/sensors/output_position"], node_id
     assert len(trace.cycles["/robot/links/0"]) == robot.cycle, "one pose of the head per cycle"
+    # Every series the robot dashboard names for these modules has data (the browser stage shows
+    # this trace in it).
+    assert list(fitting_dashboards(trace)) == ["robot"]
+    assert trace_gaps(trace) == []
 
 
 def test_one_module_killed_mid_gait(make_robot) -> None:

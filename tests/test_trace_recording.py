@@ -1,15 +1,21 @@
 """A scenario's Rerun recording, read back with Rerun's own reader: every field the firmware
-streamed has one sample per cycle it arrived in, and the faults the scenario triggered are text
-log entries. (The web viewer itself is checked by `make check-viewer`, not here.)"""
+streamed has one sample per cycle it arrived in, the faults the scenario triggered are text log
+entries, and every series every dashboard names has data. (The dashboards in the web viewer are
+shown in headless Chromium on this scenario's trace after this stage: tools/run-tests, stage 4.)"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from dashboards.check import fitting_dashboards, trace_gaps
+from hilrig.errors import SdoAbortError
 from hilrig.table import ControlMode
-from hilrig.trace import EMCY_PATH, entity_paths
+from hilrig.trace import EMCY_PATH, SDO_PATH, dashboard_fields, entity_paths
 from hilrig.trace_reader import Trace
+
+POLL_EVERY = 100
+"""Cycles between SDO reads of what a dashboard plots but no PDO carries (as `hilrig sim`)."""
 
 pytestmark = pytest.mark.bus
 
@@ -47,3 +53,32 @@ def test_a_scenario_trace_holds_every_streamed_field_and_its_faults(make_scenari
     assert checked == 9
     emcy_texts = [text for text, _level in trace.texts[EMCY_PATH]]
     assert any("0x8100" in text for text in emcy_texts), f"expected the watchdog EMCY in {emcy_texts}"
+
+
+def test_every_series_every_dashboard_names_has_data_on_a_firmware_trace(make_scenario) -> None:
+    """Each control mode in turn, a parameter write the node refuses, the setpoint stream
+    stopped (EMCY): the trace of the real firmware gives every view of every joint dashboard
+    data. Its trace.rrd is what the browser stage shows in every dashboard."""
+    s = make_scenario()
+    rig = s.rig
+    rig.poll_over_sdo(rig.in_no_pdo(dashboard_fields(rig.table)), every_cycles=POLL_EVERY)
+    for mode, setpoint, value in (
+        (ControlMode.VELOCITY, "velocity_setpoint", 4.0),
+        (ControlMode.TORQUE, "torque_setpoint", 0.3),
+        (ControlMode.POSITION, "position_setpoint", 0.5),
+    ):
+        rig.set("control_mode", mode)
+        rig.set(setpoint, value)
+        rig.run(seconds=0.2)
+    with pytest.raises(SdoAbortError):
+        rig.set("velocity_kp", 99.0)  # above its range in board.toml
+    rig.pause_rpdo(2)  # the setpoint stream stops: the watchdog trips, EMCY 0x8100
+    rig.run(seconds=0.1)
+    assert rig.tracer is not None and s.trace is not None
+    rig.tracer.close()
+    trace = Trace.read(s.trace)
+    dashboards = fitting_dashboards(trace)
+    assert set(dashboards) == {"overview", "tuning", "thermal", "faults", "bus"}
+    gaps = trace_gaps(trace, dashboards)
+    assert gaps == [], f"{s.trace}: series without data:\n" + "\n".join(gaps)
+    assert trace.texts[SDO_PATH] and trace.texts[EMCY_PATH]

@@ -235,12 +235,7 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         if options.trace and options.poll_every > 0:
             from hilrig.trace import dashboard_fields
 
-            driver = rig.driver
-            slow = [
-                name
-                for name in dashboard_fields(table)
-                if name not in driver.tpdo_names() and driver.rpdo_of(name) is None
-            ]
+            slow = rig.in_no_pdo(dashboard_fields(table))
             if slow:
                 rig.poll_over_sdo(slow, every_cycles=options.poll_every)
                 every = options.poll_every

@@ -157,6 +157,13 @@ class Rig(CycleRunner):
             observer.on_polled(self._polled[0].names, self._polled[1])
         self.observers.append(observer)
 
+    def in_no_pdo(self, names: Sequence[str]) -> list[str]:
+        """Those of `names` that no TPDO or RPDO of the node's mapping carries (what a trace
+        has only when read over SDO: `poll_over_sdo`)."""
+        driver = self.driver
+        tpdo_names = driver.tpdo_names()
+        return [name for name in names if name not in tpdo_names and driver.rpdo_of(name) is None]
+
     def poll_over_sdo(self, names: Sequence[str], every_cycles: int) -> None:
         """Read these fields (which travel in no PDO) over SDO after every `every_cycles`-th
         cycle, into the history (`rig.history(name)`) and so into the trace, marked as polled.

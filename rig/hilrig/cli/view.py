@@ -101,14 +101,14 @@ def run(args: argparse.Namespace) -> int:
 
 def _check(trace: Path, dashboard: str | None) -> int:
     """Every series the dashboards name, looked up in the trace; the gaps on stdout."""
-    from dashboards.check import fitting_dashboards, missing_series
+    from dashboards.check import fitting_dashboards, trace_gaps
     from hilrig.trace import load_blueprint
     from hilrig.trace_reader import Trace
 
     progress(f"view: reading {trace}")
     recording = Trace.read(trace)
     dashboards = {dashboard: load_blueprint(dashboard)} if dashboard else fitting_dashboards(recording)
-    gaps = [gap for name, shown in dashboards.items() for gap in missing_series(shown, recording, name=name)]
+    gaps = trace_gaps(recording, dashboards)
     for gap in gaps:
         print(gap)
     checked = ", ".join(dashboards)
