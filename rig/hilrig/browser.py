@@ -626,7 +626,7 @@ def time_to_first_frame(trace: Path, dashboard: str = "overview", screenshot: Pa
     with served_trace(trace, dashboard) as served, contextlib.ExitStack() as stack:
         viewer = stack.enter_context(ViewerPage(served))
         viewer.wait_for(
-            lambda s: s.timeline_ends.get(CYCLE_TIMELINE) == end and bool(s.views),
+            lambda s: s.timeline_ends.get(CYCLE_TIMELINE) == end and bool(s.views) and not s.loading,
             f"the recording up to cycle {end} in {dashboard!r}",
             poll_s=0.05,
         )
