@@ -876,6 +876,64 @@ def _recorder_rows(row: Callable[..., None], ipc: dict[str, float]) -> None:
     )
 
 
+NO_LONG_TRACE = "no long run in bus.json (a bus step from before it, or --long-trace-cycles 0)"
+
+
+def measure_first_frame(out: Path, long_trace: dict[str, Any] | None) -> dict[str, Any]:
+    """The web viewer's time to a first drawn frame of the bus step's long trace, here on the
+    host where Chromium is: {"seconds": ...} or, when it cannot be measured, {"error": why}."""
+    if long_trace is None:
+        return {"error": NO_LONG_TRACE}
+    trace = out / long_trace["trace"]
+    if not trace.is_file():
+        return {"error": f"no trace at {trace}"}
+    from hilrig.browser import ViewerCheckError, browser_missing, time_to_first_frame
+
+    missing = browser_missing()
+    if missing is not None:
+        return {"error": missing}
+    screenshot = trace.parent / "first-frame.png"
+    say(f"web viewer: time to the first drawn frame of {trace} ({LONG_TRACE_DASHBOARD})")
+    try:
+        seconds = time_to_first_frame(trace, LONG_TRACE_DASHBOARD, screenshot=screenshot)
+    except ViewerCheckError as error:
+        return {"error": str(error).splitlines()[0], "screenshot": str(screenshot)}
+    say(f"  {seconds:.1f} s")
+    return {"seconds": seconds, "dashboard": LONG_TRACE_DASHBOARD, "screenshot": str(screenshot)}
+
+
+def _long_trace_rows(
+    row: Callable[..., None], long_trace: dict[str, Any] | None, first_frame: dict[str, Any]
+) -> None:
+    """The long run's .rrd size and the web viewer's time to draw it; each row says why when
+    it was not measured (no long run in bus.json, no Chromium, a viewer that never drew)."""
+    if long_trace is None:
+        size_what = f"{LONG_TRACE_CYCLES * PERIOD_US / 1e6:g} s run at 1 kHz"
+        row(f".rrd size of a {size_what} (ratio: bytes per cycle)", "not measured", NO_LONG_TRACE, None)
+    else:
+        cycles, size = long_trace["cycles"], long_trace["bytes"]
+        seconds_run = cycles * PERIOD_US / 1e6
+        row(
+            f".rrd size of a {seconds_run:g} s run at 1 kHz (ratio: bytes per cycle)",
+            f"{size / 1e6:.1f} MB",
+            f"{cycles} cycles",
+            _ratio(size, cycles),
+            **long_trace,
+        )
+    what = "time to first drawn frame (web viewer, headless Chromium, software WebGL)"
+    if "seconds" in first_frame:
+        cycles_shown = f"{long_trace['cycles']} cycles" if long_trace else "the long trace"
+        row(
+            what,
+            f"{first_frame['seconds']:.1f} s",
+            f"{cycles_shown}, {first_frame['dashboard']}",
+            None,
+            **first_frame,
+        )
+    else:
+        row(what, "not measured", first_frame["error"], None, **first_frame)
+
+
 class ReportRows(list[dict[str, Any]]):
     """The report's rows; calling it adds one: measure, ours, baseline, ratio, goal, whether
     the goal is met, and the measurement's own data."""
@@ -903,7 +961,11 @@ class ReportRows(list[dict[str, Any]]):
         )
 
 
-def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> dict[str, Any]:
+def build_report(
+    native: dict[str, Any], bus: dict[str, Any], bus_path: str, first_frame: dict[str, Any]
+) -> dict[str, Any]:
+    """The report's rows from the native and bus parts' JSON and the web viewer's time to a
+    first frame of the long trace (`measure_first_frame`)."""
     rows = row = ReportRows()
 
     lockstep = bus["lockstep"]
@@ -1026,6 +1088,7 @@ def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> 
             _ratio(ipc["core"], ipc["naive"]),
         )
         _recorder_rows(row, ipc)
+    _long_trace_rows(row, bus.get("long_trace"), first_frame)
     load = bus["bus_load"]
     for item in load["loads"]:
         mbit = item["bitrate"] / 1e6
@@ -1086,7 +1149,8 @@ def format_report(report: dict[str, Any]) -> str:
     lines += [
         "",
         "ratios: lockstep = ours/baseline rate and SDO = LocalNode/firmware latency (higher is better);",
-        "        board and instructions = ours/baseline (lower is better); free-running = p99 error/period.",
+        "        board and instructions = ours/baseline (lower is better); free-running = p99 error/period;",
+        "        .rrd size = bytes per cycle.",
         f"free-running: {free['method']};",
         f"        {free['cycles']} periods, mean {free['mean_period_us']:.1f} us, "
         f"{free['late_by_half_a_period']} late by > half a period, "
@@ -1111,7 +1175,7 @@ def report_main(args: argparse.Namespace) -> int:
     bus_path = bus["bus_path"]
     with contextlib.suppress(OSError):
         bus_path = (out / "bus-path.txt").read_text().strip() or bus_path
-    report = build_report(native, bus, bus_path)
+    report = build_report(native, bus, bus_path, measure_first_frame(out, bus.get("long_trace")))
     print(format_report(report))
     write_json_atomically(out / "report.json", report)
     say(f"report written to {out / 'report.json'}")
