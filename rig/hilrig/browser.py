@@ -88,8 +88,10 @@ def browser_missing() -> str | None:
         import PIL  # noqa: F401
         import playwright.sync_api  # noqa: F401
     except ImportError as error:
+        top = (error.name or "playwright").split(".")[0]
+        package = {"PIL": "pillow"}.get(top, top)
         return (
-            f"{error.name} is not installed: it is in the dev lock "
+            f"{package} is not installed: it is in the dev lock "
             "(.venv/bin/pip install -r requirements.lock, or tools/deps)"
         )
     if not CHROMIUM.exists():
@@ -592,22 +594,21 @@ def check_dashboards(
         shown: dict[str, DashboardShown] = {}
         for number, name in enumerate(names):
             console_from, errors_from = len(viewer.console), len(viewer.page_errors)
+            expected = dashboard_views(name)
             if number == 0:
-                expected = dashboard_views(name)
-                state = viewer.wait_for(
+                viewer.wait_for(
                     lambda s, expected=expected: s.shown_views() == expected and _reaches(s, whole),
                     f"the views of {name!r} over the whole recording",
                 )
                 console_from = errors_from = 0  # the page's start is the first dashboard's
             else:
-                state = viewer.show_dashboard(name, whole)
+                viewer.show_dashboard(name, whole)
             screenshot = out_dir / f"{name}.png"
             _, plotted = viewer.screenshot_until_plotted(screenshot)
-            state = viewer.state()  # after the frame the screenshot shows
             shown[name] = DashboardShown(
                 name=name,
-                state=state,
-                expected_views=frozenset(dashboard_views(name)),
+                state=viewer.state(),  # as of the frame the screenshot shows, or after it
+                expected_views=frozenset(expected),
                 fatal_console=tuple(viewer.fatal_console(console_from)),
                 page_errors=tuple(viewer.page_errors[errors_from:]),
                 plotted_pixels=plotted,
@@ -618,8 +619,9 @@ def check_dashboards(
 
 def time_to_first_frame(trace: Path, dashboard: str = "overview", screenshot: Path | None = None) -> float:
     """Seconds from asking Chromium for the viewer page (browser already started, trace served)
-    to the first screenshot of the recording whole (every timeline at its end: the last cycle
-    logged) with something plotted. Raises ViewerCheckError if that does not come in WAIT_S."""
+    to the first screenshot of the recording whole (the cycle timeline at the last cycle logged,
+    nothing left loading) with something plotted. Raises ViewerCheckError if that does not come
+    within WAIT_S per wait."""
     end = last_cycle(trace)
     if end is None:
         raise ValueError(f"{trace}: no {CYCLE_TIMELINE!r} timeline to know the recording's end by")
