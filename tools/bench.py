@@ -24,6 +24,11 @@ What is measured, and against what:
 * Field recorder cost: the instructions of its end-of-cycle call under callgrind, armed with 8
   channels (a sample every cycle and a level trigger looked at, its dearest state) next to
   idle, and the armed cost as a share of the demo joint's cycle.
+* Long runs stay viewable: one traced 60 s lockstep run at 1 kHz (60000 cycles) of the full
+  `Rig` against the firmware, the session as in (b); its trace.rrd stays in <out>/long-trace/.
+  Reported: the .rrd's size (and bytes per cycle), and, on the host, the time from asking
+  headless Chromium (software WebGL) for the served web viewer to the first screenshot of the
+  whole recording with the overview's plots drawn (`hilrig.browser.time_to_first_frame`).
 * Bus load: `hilrig.busload` for the default PDO mapping at 1 kHz.
 * Free-running timing: the firmware in `--mode free`, no SYNC on the bus. Over SDO the rig
   turns the TPDO carrying velocity_controller_output into an event-driven one (type 255,
@@ -62,6 +67,12 @@ SDO_OBJECT = "velocity_kp"  # a REAL32 board parameter: an expedited upload
 PERIOD_US = 1000
 ROBOT_SIZES = (1, 4, 8)
 """Robots measured side by side: how the cost of a lockstep cycle grows with the modules."""
+LONG_TRACE_CYCLES = 60_000
+"""The long traced run: 60 s at 1 kHz, a trace that must stay viewable."""
+LONG_TRACE_DIR = "long-trace"
+LONG_TRACE_DASHBOARD = "overview"
+LONG_TRACE_STEP_S = 2.0
+"""The long run's velocity setpoint flips sign this often: plots with edges, not flat lines."""
 
 # --- small helpers ------------------------------------------------------------------------------
 
@@ -200,6 +211,41 @@ def native_main(args: argparse.Namespace) -> int:
 # --- bus part -----------------------------------------------------------------------------------
 
 
+def traced_run(config: Any, cycles: int, table: Any) -> dict[str, Any]:
+    """`cycles` lockstep cycles of the full `Rig` in a session of `config` (a `SessionConfig`
+    with trace=True: trace.rrd in its out_dir, as rig_rate(traced=True) writes it), the velocity
+    setpoint flipping sign every LONG_TRACE_STEP_S. Returns the trace's path, size and last
+    logged cycle, and the run's wall-clock seconds (the trace's close() included)."""
+    from hilrig.session import open_session
+    from hilrig.trace import CYCLE_TIMELINE
+    from hilrig.trace_reader import timeline_end
+
+    session = open_session(config, table=table)
+    try:
+        rig, tracer, path = session.rig, session.tracer, session.trace_path
+        if rig is None or tracer is None or path is None:
+            raise ValueError("traced_run needs a session with a rig and trace=True")
+        step = max(1, round(LONG_TRACE_STEP_S * 1e6 / config.period_us))
+        start = time.perf_counter()
+        done, sign = 0, 1.0
+        while done < cycles:
+            rig.set("velocity_setpoint", 5.0 * sign)
+            chunk = min(step, cycles - done)
+            rig.run(cycles=chunk)
+            done, sign = done + chunk, -sign
+        tracer.close()  # the trace is complete: its cost is part of the run
+        elapsed = time.perf_counter() - start
+    finally:
+        session.close()
+    return {
+        "trace": str(path),
+        "bytes": path.stat().st_size,
+        "cycles": done,
+        "last_cycle": timeline_end(path, CYCLE_TIMELINE),
+        "seconds": elapsed,
+    }
+
+
 class BusBench:
     """The bus benchmarks on one private bus (a network namespace with its own vcan0)."""
 
@@ -273,6 +319,25 @@ class BusBench:
         finally:
             session.close()
         return done / elapsed, done
+
+    def long_trace(self, cycles: int) -> dict[str, Any]:
+        """`traced_run` against the firmware through the session rig_rate(traced=True) uses,
+        its trace kept in <out>/long-trace/trace.rrd (the path recorded relative to <out>)."""
+        from hilrig.session import SessionConfig
+
+        folder = self.out / LONG_TRACE_DIR
+        shutil.rmtree(folder, ignore_errors=True)  # never an earlier run's trace in its place
+        config = SessionConfig(
+            out_dir=folder,
+            trace=True,
+            record=False,
+            executable=self.firmware_exe,
+            eds=self.eds,
+            node_id=FIRMWARE_NODE_ID,
+            period_us=PERIOD_US,
+        )
+        run = traced_run(config, cycles, self.table)
+        return run | {"trace": str(Path(run["trace"]).relative_to(self.out))}
 
     def robot_rate(self, modules: int, cycles: int, budget_s: float) -> tuple[float, int]:
         """(cycles per second, cycles measured) of a robot of `modules` modules on this bus (the
@@ -726,6 +791,12 @@ def bus_main(args: argparse.Namespace) -> int:
                 robot_rates[str(n)].append(rate)
                 say(f"  {n} modules: {rate:.0f} cycles/s ({done} cycles)")
         result["robot"] = {"cycles": args.robot_cycles, "cycles_per_s": robot_rates}
+        if args.long_trace_cycles > 0:
+            say(f"long run: {args.long_trace_cycles} traced lockstep cycles of the Rig, its trace kept")
+            result["long_trace"] = bench.long_trace(args.long_trace_cycles)
+            run = result["long_trace"]
+            per_s = run["cycles"] / run["seconds"]
+            say(f"  {run['trace']}: {run['bytes'] / 1e6:.1f} MB, {per_s:.0f} cycles/s")
         say(f"SDO: {args.sdo} expedited uploads each from the firmware and a canopen.LocalNode, alternating")
         result["sdo"] = bench.sdo_latency(args.sdo, 2 * args.budget_s)
         say("SDO: the recorder's whole buffer by block and by segmented upload, alternating")
@@ -805,6 +876,64 @@ def _recorder_rows(row: Callable[..., None], ipc: dict[str, float]) -> None:
     )
 
 
+NO_LONG_TRACE = "no long run in bus.json (a bus step from before it, or --long-trace-cycles 0)"
+
+
+def measure_first_frame(out: Path, long_trace: dict[str, Any] | None) -> dict[str, Any]:
+    """The web viewer's time to a first drawn frame of the bus step's long trace, here on the
+    host where Chromium is: {"seconds": ...} or, when it cannot be measured, {"error": why}."""
+    if long_trace is None:
+        return {"error": NO_LONG_TRACE}
+    trace = out / long_trace["trace"]
+    if not trace.is_file():
+        return {"error": f"no trace at {trace}"}
+    from hilrig.browser import ViewerCheckError, browser_missing, time_to_first_frame
+
+    missing = browser_missing()
+    if missing is not None:
+        return {"error": missing}
+    screenshot = trace.parent / "first-frame.png"
+    say(f"web viewer: time to the first drawn frame of {trace} ({LONG_TRACE_DASHBOARD})")
+    try:
+        seconds = time_to_first_frame(trace, LONG_TRACE_DASHBOARD, screenshot=screenshot)
+    except ViewerCheckError as error:
+        return {"error": str(error).splitlines()[0], "screenshot": str(screenshot)}
+    say(f"  {seconds:.1f} s")
+    return {"seconds": seconds, "dashboard": LONG_TRACE_DASHBOARD, "screenshot": str(screenshot)}
+
+
+def _long_trace_rows(
+    row: Callable[..., None], long_trace: dict[str, Any] | None, first_frame: dict[str, Any]
+) -> None:
+    """The long run's .rrd size and the web viewer's time to draw it; each row says why when
+    it was not measured (no long run in bus.json, no Chromium, a viewer that never drew)."""
+    if long_trace is None:
+        size_what = f"{LONG_TRACE_CYCLES * PERIOD_US / 1e6:g} s run at 1 kHz"
+        row(f".rrd size of a {size_what} (ratio: bytes per cycle)", "not measured", NO_LONG_TRACE, None)
+    else:
+        cycles, size = long_trace["cycles"], long_trace["bytes"]
+        seconds_run = cycles * PERIOD_US / 1e6
+        row(
+            f".rrd size of a {seconds_run:g} s run at 1 kHz (ratio: bytes per cycle)",
+            f"{size / 1e6:.1f} MB",
+            f"{cycles} cycles",
+            _ratio(size, cycles),
+            **long_trace,
+        )
+    what = "time to first drawn frame (web viewer, headless Chromium, software WebGL)"
+    if "seconds" in first_frame:
+        cycles_shown = f"{long_trace['cycles']} cycles" if long_trace else "the long trace"
+        row(
+            what,
+            f"{first_frame['seconds']:.1f} s",
+            f"{cycles_shown}, {first_frame['dashboard']}",
+            None,
+            **first_frame,
+        )
+    else:
+        row(what, "not measured", first_frame["error"], None, **first_frame)
+
+
 class ReportRows(list[dict[str, Any]]):
     """The report's rows; calling it adds one: measure, ours, baseline, ratio, goal, whether
     the goal is met, and the measurement's own data."""
@@ -832,7 +961,11 @@ class ReportRows(list[dict[str, Any]]):
         )
 
 
-def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> dict[str, Any]:
+def build_report(
+    native: dict[str, Any], bus: dict[str, Any], bus_path: str, first_frame: dict[str, Any]
+) -> dict[str, Any]:
+    """The report's rows from the native and bus parts' JSON and the web viewer's time to a
+    first frame of the long trace (`measure_first_frame`)."""
     rows = row = ReportRows()
 
     lockstep = bus["lockstep"]
@@ -955,6 +1088,7 @@ def build_report(native: dict[str, Any], bus: dict[str, Any], bus_path: str) -> 
             _ratio(ipc["core"], ipc["naive"]),
         )
         _recorder_rows(row, ipc)
+    _long_trace_rows(row, bus.get("long_trace"), first_frame)
     load = bus["bus_load"]
     for item in load["loads"]:
         mbit = item["bitrate"] / 1e6
@@ -1015,7 +1149,8 @@ def format_report(report: dict[str, Any]) -> str:
     lines += [
         "",
         "ratios: lockstep = ours/baseline rate and SDO = LocalNode/firmware latency (higher is better);",
-        "        board and instructions = ours/baseline (lower is better); free-running = p99 error/period.",
+        "        board and instructions = ours/baseline (lower is better); free-running = p99 error/period;",
+        "        .rrd size = bytes per cycle.",
         f"free-running: {free['method']};",
         f"        {free['cycles']} periods, mean {free['mean_period_us']:.1f} us, "
         f"{free['late_by_half_a_period']} late by > half a period, "
@@ -1040,7 +1175,7 @@ def report_main(args: argparse.Namespace) -> int:
     bus_path = bus["bus_path"]
     with contextlib.suppress(OSError):
         bus_path = (out / "bus-path.txt").read_text().strip() or bus_path
-    report = build_report(native, bus, bus_path)
+    report = build_report(native, bus, bus_path, measure_first_frame(out, bus.get("long_trace")))
     print(format_report(report))
     write_json_atomically(out / "report.json", report)
     say(f"report written to {out / 'report.json'}")
@@ -1062,6 +1197,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             command.add_argument("--sdo", type=int, default=200, help="SDO uploads per server")
             command.add_argument("--free-cycles", type=int, default=10_000)
             command.add_argument("--robot-cycles", type=int, default=500, help="gait cycles per robot size")
+            command.add_argument(
+                "--long-trace-cycles",
+                type=int,
+                default=LONG_TRACE_CYCLES,
+                help="cycles of the traced run whose trace the report opens in the web viewer (0: none)",
+            )
             command.add_argument(
                 "--budget-s",
                 type=float,

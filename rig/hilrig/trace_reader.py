@@ -78,3 +78,26 @@ def _columns(batch: Any) -> dict[str, list[Any]]:
         name: nanoseconds(column).to_pylist()
         for name, column in zip(batch.schema.names, batch.columns, strict=True)
     }
+
+
+def timeline_end(path: Path, timeline: str) -> int | None:
+    """The last time a trace logged on `timeline` (cycles for "cycle", nanoseconds for the
+    time timelines); None when nothing was logged on it. Reads only that column of each chunk."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import rerun as rr
+
+    end: int | None = None
+    for chunk in rr.chunk.RrdReader(path).stream():
+        if chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        if timeline not in batch.schema.names:
+            continue
+        column = batch.column(timeline)
+        if pa.types.is_timestamp(column.type) or pa.types.is_duration(column.type):
+            column = column.cast(pa.int64())  # the chunk's own unit: nanoseconds in the tracer's
+        latest = pc.max(column).as_py()
+        if latest is not None and (end is None or latest > end):
+            end = int(latest)
+    return end

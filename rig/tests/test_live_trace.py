@@ -17,17 +17,8 @@ from pathlib import Path
 
 import can
 import pytest
-from test_web_viewer import (
-    CAPTURE_HANDLE,
-    CHROMIUM,
-    CHROMIUM_FLAGS,
-    VIEWPORT,
-    WAIT_S,
-    free_port,
-    wait_for_state,
-    wait_until_listening,
-)
 
+from hilrig.browser import WAIT_S, ViewerPage, browser_missing, free_port, wait_until_listening
 from hilrig.cli import main
 from hilrig.demo import DEFAULT_POLL_EVERY
 from hilrig.fake_node import FakeJointNode
@@ -42,6 +33,8 @@ from hilrig.trace import (
     parse_live_sink,
     web_viewer_url,
 )
+
+NO_BROWSER = browser_missing()
 
 
 # --- Spelling --------------------------------------------------------------------------------
@@ -123,11 +116,9 @@ def scenario(rig):
 """
 
 
-@pytest.mark.skipif(not CHROMIUM.exists(), reason=f"no {CHROMIUM}: apt-get install chromium (tools/deps)")
+@pytest.mark.skipif(NO_BROWSER is not None, reason=str(NO_BROWSER))
 @pytest.mark.timeout(600)
 def test_sim_streams_to_a_web_viewer_that_shows_the_recording_grow_while_it_runs(tmp_path: Path) -> None:
-    from playwright.sync_api import sync_playwright
-
     table = RigTable.load()
     channel = f"live-{os.getpid()}"
     stop = tmp_path / "stop"
@@ -157,42 +148,24 @@ def test_sim_streams_to_a_web_viewer_that_shows_the_recording_grow_while_it_runs
     result: list[int] = []
     run = threading.Thread(target=lambda: result.append(main(argv)), name="hilrig-sim")
     run.start()
+    url = web_viewer_url(web_port, grpc_port)
+
+    def still_running() -> None:  # the web server comes up once the session has imported rerun
+        assert run.is_alive(), f"hilrig sim ended with {result} before serving {url}"
+
     try:
-        with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(
-                executable_path=str(CHROMIUM), args=CHROMIUM_FLAGS, timeout=WAIT_S * 1000
+        with ViewerPage(url, server_check=still_running) as viewer:
+            first = viewer.wait_for(
+                lambda s: s.timeline_ends.get(WALL_TIME_TIMELINE, 0) > 0 or not run.is_alive(),
+                "the live recording on the wall-clock timeline",
             )
-            try:
-                page = browser.new_page(viewport=VIEWPORT)
-                page.set_default_timeout(WAIT_S * 1000)
-                url = f"{web_viewer_url(web_port, grpc_port)}&renderer=webgl"
-                deadline_pages = 0
-                while True:  # the web server comes up once the session has imported rerun
-                    try:
-                        page.goto(url, wait_until="domcontentloaded")
-                        break
-                    except Exception:
-                        assert run.is_alive(), f"hilrig sim ended with {result} before serving {url}"
-                        deadline_pages += 1
-                        assert deadline_pages < 120, f"nothing served at {url}"
-                        page.wait_for_timeout(1000)
-                page.evaluate(CAPTURE_HANDLE)
-                page.wait_for_function("() => window.hilrigViewer !== undefined")
-                first = wait_for_state(
-                    page,
-                    lambda s: s.timeline_ends.get(WALL_TIME_TIMELINE, 0) > 0 or not run.is_alive(),
-                    "the live recording on the wall-clock timeline",
-                )
-                assert run.is_alive(), "the run ended before the viewer showed anything"
-                started = first.timeline_ends[WALL_TIME_TIMELINE]
-                later = wait_for_state(
-                    page,
-                    lambda s: s.timeline_ends.get(WALL_TIME_TIMELINE, 0) > started,
-                    "the recording to grow",
-                )
-                assert run.is_alive(), "the recording grew only after the run had ended"
-            finally:
-                browser.close()
+            assert run.is_alive(), "the run ended before the viewer showed anything"
+            started = first.timeline_ends[WALL_TIME_TIMELINE]
+            later = viewer.wait_for(
+                lambda s: s.timeline_ends.get(WALL_TIME_TIMELINE, 0) > started,
+                "the recording to grow",
+            )
+            assert run.is_alive(), "the recording grew only after the run had ended"
     finally:
         stop.touch()
         run.join(timeout=WAIT_S)

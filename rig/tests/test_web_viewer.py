@@ -1,71 +1,48 @@
-"""The web viewer, served by `open_trace(..., web=True)`, shows a recording with its blueprint in
-headless Chromium (Debian's `chromium`, driven by Playwright; no browser is downloaded).
+"""The web viewer, served by `open_trace(..., web=True)`, shows a recording with each of the
+project's dashboards in headless Chromium (Debian's `chromium`, driven by Playwright; no browser
+is downloaded). The machinery is `hilrig.browser`; see there how the viewer is read.
 
-The viewer draws everything on one WebGL canvas, so the DOM says nothing. What it shows is read
-from the viewer itself: the page's `WebHandle.viewer_state()` is the Viewer Control API's
-`GetViewerStateResponse` (rerun/v1alpha1/viewer_control.proto): the active recording, its
-timelines with their ranges, and every view of the blueprint with its warnings and errors. The
-test waits on that, then takes a screenshot to $HIL_OUT_DIR/viewer/screenshot.png (default
-out/viewer/) beside the browser's console log, and checks the pixels are a drawn viewer.
+One viewer process and one page: the first dashboard is the one `open_trace` serves, every
+other one is sent to the running viewer and checked in turn. A screenshot of each goes to
+$HIL_OUT_DIR/viewer/<dashboard>.png (default out/viewer/), beside the browser's console log.
 
     .venv/bin/python -m pytest rig/tests/test_web_viewer.py -p no:cacheprovider
 """
 
 from __future__ import annotations
 
-import colorsys
 import os
-import socket
-import subprocess
-import time
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import can
 import pytest
 from PIL import Image
-from playwright.sync_api import ConsoleMessage, Error, Page, ViewportSize, sync_playwright
 
+from hilrig.browser import (
+    BLUEPRINT_AREA,
+    PLOTTED_PIXELS,
+    RERUN_VERSION,
+    VIEWPORT,
+    ConsoleLine,
+    ViewerPage,
+    ViewerState,
+    browser_missing,
+    check_dashboards,
+    dashboard_views,
+    is_fatal,
+    plotted_pixels,
+    served_trace,
+)
 from hilrig.fake_node import FakeJointNode
 from hilrig.physics import JointParams
 from hilrig.rig import Rig
 from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
-from hilrig.trace import (
-    APPLICATION_ID,
-    CYCLE_TIMELINE,
-    SIM_TIME_TIMELINE,
-    Tracer,
-    TraceSink,
-    ViewerProcess,
-    load_blueprint,
-    open_trace,
-)
+from hilrig.trace import APPLICATION_ID, CYCLE_TIMELINE, SIM_TIME_TIMELINE, Tracer, TraceSink, blueprint_names
 
 REPO = Path(__file__).resolve().parents[2]
-CHROMIUM = Path("/usr/bin/chromium")
-# Software rendering, no GPU and no display: WebGL through ANGLE on SwiftShader, asked for by name
-# (Chromium is retiring its silent fallback to it). Root needs --no-sandbox; /dev/shm may be tiny.
-CHROMIUM_FLAGS = [
-    "--headless=new",
-    "--no-sandbox",
-    "--disable-dev-shm-usage",
-    "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader",
-]
-VIEWPORT: ViewportSize = {"width": 1600, "height": 1000}
-BLUEPRINT = "overview"
 CYCLES = 400  # 0.4 s at 1 kHz: every plot has a step and a transient in it
-WAIT_S = 120.0  # per wait; generous, the viewer renders in software on a busy machine
-
-# The viewer's page keeps its WebHandle in a local variable. index.html calls has_panicked() on
-# it every second, so wrapping that method hands us the instance, however late we wrap it.
-CAPTURE_HANDLE = """() => {
-    const proto = wasm_bindgen.WebHandle.prototype;
-    const hasPanicked = proto.has_panicked;
-    proto.has_panicked = function () { window.hilrigViewer = this; return hasPanicked.call(this); };
-}"""
-PLOTTED_PIXELS = 1000  # coloured pixels in the grid of plots: about 3000 when they are drawn
+DASHBOARDS = [name for name in blueprint_names() if name != "robot"]  # robot: needs a robot's trace
+NO_BROWSER = browser_missing()
 
 
 def output_dir() -> Path:
@@ -74,149 +51,10 @@ def output_dir() -> Path:
     return path
 
 
-# --- The viewer's state (protobuf wire format, decoded without a schema library) --------------
-def _fields(data: bytes) -> dict[int, list[int | bytes]]:
-    """One protobuf message: field number -> its values (varints as int, the rest as bytes)."""
-    fields: dict[int, list[int | bytes]] = {}
-    at = 0
-
-    def varint() -> int:
-        nonlocal at
-        value = shift = 0
-        while True:
-            byte = data[at]
-            at += 1
-            value |= (byte & 0x7F) << shift
-            shift += 7
-            if byte < 0x80:  # protocol-literal: protobuf varint continuation bit, not a COB-ID
-                return value
-
-    while at < len(data):
-        key = varint()
-        wire_type = key & 7
-        value: int | bytes
-        if wire_type == 0:
-            value = varint()
-        elif wire_type == 2:
-            size = varint()
-            value, at = data[at : at + size], at + size
-        elif wire_type in (1, 5):
-            size = 8 if wire_type == 1 else 4
-            value, at = data[at : at + size], at + size
-        else:
-            raise ValueError(f"protobuf wire type {wire_type} at byte {at}")
-        fields.setdefault(key >> 3, []).append(value)
-    return fields
-
-
-def _messages(fields: dict[int, list[int | bytes]], number: int) -> list[dict[int, list[int | bytes]]]:
-    return [_fields(value) for value in fields.get(number, []) if isinstance(value, bytes)]
-
-
-def _text(fields: dict[int, list[int | bytes]], number: int) -> str:
-    values = fields.get(number, [b""])
-    return values[-1].decode() if isinstance(values[-1], bytes) else str(values[-1])
-
-
-def _int(fields: dict[int, list[int | bytes]], number: int) -> int:
-    value = fields.get(number, [0])[-1]
-    return value if isinstance(value, int) else 0
-
-
-@dataclass(frozen=True)
-class ShownView:
-    kind: str
-    name: str
-    origin: str
-    visible: bool
-    reports: tuple[tuple[str, str], ...]  # (severity, summary)
-
-
-@dataclass(frozen=True)
-class ViewerState:
-    """The parts of `GetViewerStateResponse` the test looks at."""
-
-    active_recording: str
-    timeline_ends: dict[str, int]  # of the active recording: last time on each timeline
-    views: tuple[ShownView, ...]
-    loading: tuple[str, ...]
-    version: str
-
-    @classmethod
-    def decode(cls, data: bytes) -> ViewerState:
-        top = _fields(data)
-        active = _text(top, 2)
-        ends: dict[str, int] = {}
-        for recording in _messages(top, 3):
-            if _text(recording, 1) != active:
-                continue
-            for timeline in _messages(recording, 2):
-                (name,) = [_text(t, 1) for t in _messages(timeline, 1)]
-                for time_range in _messages(timeline, 3):
-                    ends[name] = _int(time_range, 2)
-        views = tuple(
-            ShownView(
-                kind=_text(view, 2),
-                name=_text(view, 3),
-                origin=_text(view, 4),
-                visible=bool(_int(view, 5)),
-                reports=tuple((_text(r, 1), _text(r, 2)) for r in _messages(view, 6)),
-            )
-            for view in _messages(top, 5)
-        )
-        loading = tuple(_text(source, 1) for source in _messages(top, 7))
-        return cls(active, ends, views, loading, _text(top, 6))
-
-
-def read_state(page: Page) -> ViewerState:
-    return ViewerState.decode(bytes(page.evaluate("() => Array.from(window.hilrigViewer.viewer_state())")))
-
-
-def wait_for_state(page: Page, ready: Callable[[ViewerState], bool], what: str) -> ViewerState:
-    """Poll the viewer's state until `ready` holds (Expected ..., but got the last answer)."""
-    deadline = time.monotonic() + WAIT_S
-    while True:
-        try:
-            state: ViewerState | str = read_state(page)
-        except Error as error:
-            if "ViewerControlError" not in error.message:
-                raise
-            state = error.message.splitlines()[0]  # "not running, or is busy painting a frame": retry
-        if isinstance(state, ViewerState) and ready(state):
-            return state
-        if time.monotonic() > deadline:
-            raise AssertionError(f"Expected {what} within {WAIT_S:.0f} s, but the viewer answers {state}")
-        page.wait_for_timeout(250)  # lets Playwright deliver console events meanwhile
-
-
-# --- Fixtures ---------------------------------------------------------------------------------
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
-def wait_until_listening(port: int, process: ViewerProcess) -> None:
-    deadline = time.monotonic() + WAIT_S
-    while True:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=1).close()
-            return
-        except OSError:
-            # Between attempts, wait on the viewer process itself: a viewer that dies ends the
-            # wait at once instead of after a blind pause.
-            try:
-                returncode: int | None = process.wait(timeout=0.1)
-            except subprocess.TimeoutExpired:
-                returncode = None
-            assert returncode is None, f"the viewer exited with {returncode} before serving port {port}"
-            assert time.monotonic() < deadline, f"Expected the viewer on port {port} within {WAIT_S:.0f} s"
-
-
 @pytest.fixture
 def trace(tmp_path: Path) -> Path:
     """A 0.4 s run against the in-process fake node, with an SDO write and an EMCY. Recorded with no
-    blueprint, so the views the viewer shows can only come from the one open_trace serves."""
+    blueprint, so the views the viewer shows can only come from the ones it is given."""
     table = RigTable.load()
     path = tmp_path / "trace.rrd"
     rig_bus, fake_bus = (can.Bus(interface="virtual", channel="hilrig-web-viewer") for _ in range(2))
@@ -245,136 +83,117 @@ def trace(tmp_path: Path) -> Path:
     return path
 
 
-@pytest.fixture
-def served(trace: Path) -> Iterator[str]:
-    """The trace served by the project's own code path; yields the URL it prints."""
-    web_port, grpc_port = free_port(), free_port()
-    process = open_trace(trace, BLUEPRINT, web=True, web_port=web_port, grpc_port=grpc_port)
-    assert not isinstance(process, list) and process.url is not None
-    try:
-        wait_until_listening(web_port, process)
-        wait_until_listening(grpc_port, process)
-        yield process.url
-    finally:
-        process.terminate()  # the whole process group: the wrapper and the rerun binary
-        try:
-            process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-
-
-# --- Console ----------------------------------------------------------------------------------
-def _is_fatal(message: ConsoleMessage) -> bool:
-    """An error that means the viewer failed, as opposed to this machine being offline (the page
-    asks the internet for fonts and for the welcome screen's example list)."""
-    text = message.text
-    if "ERROR " in text or "panicked" in text or "Rerun has crashed" in text:
-        return True  # the viewer's own error log, a Rust panic
-    if message.type != "error":
-        return False
-    if text.startswith("Failed to load resource"):
-        return message.location.get("url", "").startswith("http://127.0.0.1")
-    return not text.startswith("TypeError: Failed to fetch")
-
-
-def _expected_views() -> set[tuple[str, str]]:
-    import rerun.blueprint as rrb  # slow: only when the test runs
-
-    def walk(part: rrb.Container | rrb.View) -> Iterator[rrb.View]:
-        if isinstance(part, rrb.View):
-            yield part
-        else:
-            for child in part.contents:
-                yield from walk(child)
-
-    root = load_blueprint(BLUEPRINT).root_container
-    assert root is not None
-    return {(view.name, str(view.origin)) for view in walk(root)}
-
-
-# --- The test ---------------------------------------------------------------------------------
-@pytest.mark.skipif(not CHROMIUM.exists(), reason=f"no {CHROMIUM}: apt-get install chromium (tools/deps)")
-@pytest.mark.timeout(300)
-def test_web_viewer_shows_the_recording_with_its_blueprint(served: str) -> None:
+# --- In the browser ---------------------------------------------------------------------------
+@pytest.mark.skipif(NO_BROWSER is not None, reason=str(NO_BROWSER))
+@pytest.mark.timeout(600)
+def test_web_viewer_shows_the_recording_with_every_dashboard(trace: Path) -> None:
     out = output_dir()
-    screenshot = out / "screenshot.png"
-    screenshot.unlink(missing_ok=True)
-    console: list[ConsoleMessage] = []
-    page_errors: list[Error] = []
-    # renderer=webgl: headless Chromium has no WebGPU adapter here; asking skips the probe.
-    url = f"{served}&renderer=webgl"
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(
-            executable_path=str(CHROMIUM), args=CHROMIUM_FLAGS, timeout=WAIT_S * 1000
-        )
+    for name in DASHBOARDS:
+        (out / f"{name}.png").unlink(missing_ok=True)
+    # Told apart by their views: a dashboard with the views of the one before would prove nothing.
+    assert len({frozenset(dashboard_views(name)) for name in DASHBOARDS}) == len(DASHBOARDS)
+    last_cycle = CYCLES - 1
+    with served_trace(trace, DASHBOARDS[0]) as served, ViewerPage(served) as viewer:
         try:
-            page = browser.new_page(viewport=VIEWPORT)
-            page.set_default_timeout(WAIT_S * 1000)
-            page.on("console", lambda message: console.append(message))
-            page.on("pageerror", lambda error: page_errors.append(error))
-            # Not "load": that waits for the web fonts, which an offline machine never gets.
-            page.goto(url, wait_until="domcontentloaded")
-            page.evaluate(CAPTURE_HANDLE)
-            page.wait_for_function("() => window.hilrigViewer !== undefined")
-
-            last_cycle = CYCLES - 1
-            state = wait_for_state(
-                page,
-                lambda s: s.timeline_ends.get(CYCLE_TIMELINE) == last_cycle and len(s.views) > 0,
-                f"recording {APPLICATION_ID} up to cycle {last_cycle} with the {BLUEPRINT!r} views",
-            )
-            coloured = screenshot_until_plotted(page, screenshot)
-            assert not page.evaluate("() => window.hilrigViewer.has_panicked()")
+            shown = check_dashboards(trace, DASHBOARDS, out, viewer=viewer)
+            panicked = viewer.has_panicked()
         finally:
-            # Without the debug level (shader sources, tens of thousands of lines).
-            log = "".join(f"{m.type}: {m.text}\n" for m in console if m.type != "debug")
-            (out / "console.log").write_text(log)
-            browser.close()
+            viewer.write_console_log(out / "console.log")
+    assert not panicked
+    assert any("wgpu adapter backend: Gl" in line.text for line in viewer.console), "WebGL never came up"
 
-    # The viewer shows the recording, whole, on the timeline the blueprint chose...
-    assert state.active_recording.startswith(f"Recording:{APPLICATION_ID}:"), state
-    assert state.version == "0.41.0", "the state decoding follows rerun 0.41's viewer_control.proto"
-    assert state.timeline_ends[SIM_TIME_TIMELINE] == last_cycle * 1_000_000  # ns
-    assert not state.loading, state.loading
-    # ...with exactly the blueprint's views, all visible, none reporting an error.
-    assert {(v.name, v.origin) for v in state.views} == _expected_views()
-    assert all(v.visible for v in state.views), state.views
-    errors = [(v.name, r) for v in state.views for r in v.reports if r[0] == "error"]
-    assert not errors, errors
-    assert not page_errors, page_errors
-    fatal = [m.text for m in console if _is_fatal(m)]
-    assert not fatal, f"console errors (all in {out / 'console.log'}): {fatal}"
-    assert any("wgpu adapter backend: Gl" in m.text for m in console), "WebGL never came up"
+    assert list(shown) == DASHBOARDS
+    for name, dashboard in shown.items():
+        state = dashboard.state
+        # The viewer shows the recording, whole, on the timeline the blueprint chose...
+        assert state.active_recording.startswith(f"Recording:{APPLICATION_ID}:"), (name, state)
+        assert state.version == RERUN_VERSION, "the state decoding follows rerun 0.41's viewer_control.proto"
+        assert state.timeline_ends[CYCLE_TIMELINE] == last_cycle, (name, state.timeline_ends)
+        assert state.timeline_ends[SIM_TIME_TIMELINE] == last_cycle * 1_000_000, name  # ns
+        # ...with exactly the dashboard's views, all visible, none reporting an error, nothing
+        # fatal on the console since it was sent, and plots drawn (`DashboardShown.problems`).
+        assert state.shown_views() == dashboard_views(name), name
+        assert dashboard.problems() == [], f"{name} (console: {out / 'console.log'})"
+        # The screenshot is a drawn viewer, not a blank canvas: the UI's text and the plots'
+        # coloured lines give thousands of colours (a failed WebGL context gives one).
+        assert dashboard.screenshot == out / f"{name}.png"
+        with Image.open(dashboard.screenshot) as image:
+            assert image.size == (VIEWPORT["width"], VIEWPORT["height"])
+            colours = image.convert("RGB").getcolors(maxcolors=1 << 24) or []
+        assert len(colours) > 1000, f"{dashboard.screenshot}: only {len(colours)} colours"
+        assert dashboard.plotted_pixels > PLOTTED_PIXELS, (
+            f"{dashboard.screenshot}: {dashboard.plotted_pixels}"
+        )
 
-    # The screenshot is a drawn viewer, not a blank canvas: the UI's text and the plots' coloured
-    # lines give thousands of colours (a failed WebGL context gives one).
-    image = Image.open(screenshot).convert("RGB")
-    assert image.size == (VIEWPORT["width"], VIEWPORT["height"])
-    colours = image.getcolors(maxcolors=1 << 24) or []
-    assert len(colours) > 1000, f"{screenshot}: only {len(colours)} colours"
-    assert coloured > PLOTTED_PIXELS, f"{screenshot}: the plots have only {coloured} coloured pixels"
 
-
-def screenshot_until_plotted(page: Page, path: Path) -> int:
-    """Screenshots until the plots show (the state can be a frame ahead of the canvas); returns
-    the number of coloured pixels in the grid of plots of the last one."""
-    deadline = time.monotonic() + WAIT_S
+# --- Without a browser ------------------------------------------------------------------------
+def _varint(value: int) -> bytes:
+    out = bytearray()
     while True:
-        page.screenshot(path=str(path))
-        coloured = plotted_pixels(Image.open(path).convert("RGB"))
-        if coloured > PLOTTED_PIXELS or time.monotonic() > deadline:
-            return coloured
+        low, value = value & 0x7F, value >> 7
+        out.append(low | (0x80 if value else 0))  # protocol-literal: protobuf continuation bit
+        if not value:
+            return bytes(out)
 
 
-def plotted_pixels(image: Image.Image) -> int:
-    """Saturated pixels in the grid of plots (the blueprint's grid, left of the selection panel):
-    the series lines and legend dots. With the views laid out and nothing drawn, fewer than 10."""
-    width, height = image.size
-    grid = image.crop((int(0.13 * width), int(0.05 * height), int(0.80 * width), int(0.68 * height)))
-    return sum(count for count, rgb in grid.getcolors(1 << 24) or [] if _saturated(rgb))
+def _field(number: int, value: int | bytes | str) -> bytes:
+    if isinstance(value, int):
+        return _varint(number << 3) + _varint(value)
+    data = value.encode() if isinstance(value, str) else value
+    return _varint(number << 3 | 2) + _varint(len(data)) + data
 
 
-def _saturated(rgb: tuple[int, int, int]) -> bool:
-    _, saturation, value = colorsys.rgb_to_hsv(*(c / 255 for c in rgb))
-    return saturation > 0.4 and value > 0.3
+def test_the_viewer_state_is_decoded_from_the_protobuf_the_viewer_answers() -> None:
+    """A GetViewerStateResponse spelled by hand, field numbers as in rerun 0.41's proto."""
+    active = "Recording:hilrig:run-1"
+    timeline = _field(1, _field(1, "cycle")) + _field(3, _field(1, 0) + _field(2, 59_999))
+    other = _field(1, "Recording:hilrig:other") + _field(
+        2, _field(1, _field(1, "cycle")) + _field(3, _field(2, 7))
+    )
+    view = _field(2, "TimeSeries") + _field(3, "sensors") + _field(4, "/fields/sensors") + _field(5, 1)
+    view += _field(6, _field(1, "error") + _field(2, "no data"))
+    data = (
+        _field(2, active)
+        + _field(3, other)
+        + _field(3, _field(1, active) + _field(2, timeline))
+        + _field(5, view)
+        + _field(6, RERUN_VERSION)
+        + _field(7, _field(1, "trace.rrd"))
+    )
+    state = ViewerState.decode(data)
+    assert (state.active_recording, state.recording_id) == (active, "run-1")
+    assert state.timeline_ends == {"cycle": 59_999}  # of the active recording only
+    assert state.shown_views() == {("sensors", "/fields/sensors")}
+    assert state.view_errors() == [("sensors", ("error", "no data"))]
+    assert (state.loading, state.version) == (("trace.rrd",), RERUN_VERSION)
+    assert ViewerState.decode(b"").recording_id is None
+
+
+@pytest.mark.parametrize(
+    ("line", "fatal"),
+    [
+        (ConsoleLine("log", "ERROR re_viewer: a view failed", ""), True),
+        (ConsoleLine("error", "thread 'main' panicked at ...", ""), True),
+        (ConsoleLine("error", "Failed to load resource: 404", "http://127.0.0.1:9090/app.wasm"), True),
+        (ConsoleLine("error", "Failed to load resource: net::ERR", "https://fonts.example/x.woff2"), False),
+        (ConsoleLine("error", "TypeError: Failed to fetch", ""), False),
+        (ConsoleLine("warning", "WebGPU is not available", ""), False),
+        (ConsoleLine("error", "Uncaught RangeError", ""), True),
+    ],
+)
+def test_only_the_viewers_own_failures_are_fatal_not_an_offline_machine(
+    line: ConsoleLine, fatal: bool
+) -> None:
+    assert is_fatal(line) is fatal
+
+
+def test_plotted_pixels_count_colour_among_the_views_not_in_the_panels() -> None:
+    image = Image.new("RGB", (VIEWPORT["width"], VIEWPORT["height"]), (250, 250, 250))
+    left, top, right, bottom = BLUEPRINT_AREA
+    image.paste((220, 40, 40), (0, top, left, bottom))  # a selected row in the blueprint tree
+    image.paste((40, 90, 220), (left, bottom, right, VIEWPORT["height"]))  # the time panel
+    image.paste((128, 128, 128), (left, top, right, top + 100))  # grey: UI, not a plot
+    image.paste((24, 106, 221), (left, top + 100, left + 60, top + 115))  # a text log's timeline column
+    assert plotted_pixels(image) == 0
+    image.paste((40, 160, 60), (left + 10, top + 200, left + 410, top + 203))  # a series line
+    assert plotted_pixels(image) == 400 * 3

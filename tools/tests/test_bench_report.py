@@ -1,12 +1,19 @@
-"""tools/bench.py's report: the field recorder's rows (armed vs idle, armed vs a demo cycle)."""
+"""tools/bench.py's report: the field recorder's rows (armed vs idle, armed vs a demo cycle), the
+long run's rows (.rrd size, the web viewer's time to a first drawn frame), and the long run
+itself against the in-process fake node (the bus step runs it against the firmware)."""
 
 from __future__ import annotations
 
 import importlib.util
+import itertools
+import json
+import os
 import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
+
+import pytest
 
 
 def load_tool(name: str) -> ModuleType:
@@ -47,3 +54,157 @@ def test_recorder_rows_say_when_a_goal_is_missed_and_skip_an_old_run() -> None:
     rows = _rows({"demo": 1000.0, "recorder_idle": 50.0, "recorder_armed": 500.0})
     assert [r["goal_met"] for r in rows] == [False, False]
     assert _rows({"demo": 1000.0, "core": 1.0, "naive": 1.0}) == []
+
+
+# --- The long run: .rrd size and time to a first drawn frame -----------------------------------
+LONG_TRACE = {"trace": "long-trace/trace.rrd", "bytes": 39_783_276, "cycles": 60_000, "last_cycle": 59_999}
+
+
+def _long_rows(long_trace: dict[str, Any] | None, first_frame: dict[str, Any]) -> list[dict[str, Any]]:
+    rows = bench.ReportRows()
+    bench._long_trace_rows(rows, long_trace, first_frame)
+    return rows
+
+
+def test_long_run_rows_give_the_size_per_cycle_and_the_time_to_a_first_frame() -> None:
+    first_frame = {"seconds": 30.07, "dashboard": "overview", "screenshot": "x.png"}
+    size, frame = _long_rows(LONG_TRACE, first_frame)
+    assert size["measure"] == ".rrd size of a 60 s run at 1 kHz (ratio: bytes per cycle)"
+    assert (size["ours"], size["baseline"]) == ("39.8 MB", "60000 cycles")
+    assert size["ratio"] == pytest.approx(663.05, abs=0.01)
+    assert size["data"]["trace"] == "long-trace/trace.rrd"
+    assert frame["measure"] == "time to first drawn frame (web viewer, headless Chromium, software WebGL)"
+    assert (frame["ours"], frame["baseline"], frame["ratio"]) == ("30.1 s", "60000 cycles, overview", None)
+
+
+def test_long_run_rows_say_why_when_there_is_no_browser_or_no_long_run() -> None:
+    no_chromium = {"error": "no /usr/bin/chromium: apt-get install chromium (tools/deps)"}
+    size, frame = _long_rows(LONG_TRACE, no_chromium)
+    assert size["ours"] == "39.8 MB"
+    assert (frame["ours"], frame["baseline"]) == ("not measured", no_chromium["error"])
+    size, frame = _long_rows(None, bench.measure_first_frame(Path("/nonexistent"), None))
+    assert (size["ours"], size["baseline"]) == ("not measured", bench.NO_LONG_TRACE)
+    assert (frame["ours"], frame["baseline"]) == ("not measured", bench.NO_LONG_TRACE)
+
+
+def test_the_first_frame_is_not_measured_without_the_trace(tmp_path: Path) -> None:
+    assert bench.measure_first_frame(tmp_path, LONG_TRACE) == {
+        "error": f"no trace at {tmp_path / 'long-trace' / 'trace.rrd'}"
+    }
+
+
+def _bus_json(**extra: Any) -> dict[str, Any]:
+    """A bus.json with what every other row needs, and `extra`."""
+    rates = {f"{kind}_cycles_per_s": [900.0] for kind in ("rig", "rig_traced", "floor", "python_can")}
+    return {
+        "bus_path": "native vcan",
+        "lockstep": rates,
+        "sdo": {"firmware": {"median_us": 100.0}, "local_node": {"median_us": 400.0}},
+        "bus_load": {
+            "frames_per_cycle": 6.0,
+            "loads": [{"bitrate": 1_000_000, "nominal": 0.5, "worst_case": 0.6, "busiest_cycle": 0.6}],
+        },
+        "free_running": {
+            "period_us": 1000,
+            "abs_error_us": {"50": 5.0, "99": 50.0, "max": 90.0},
+            "method": "fixed",
+            "cycles": 10,
+            "mean_period_us": 1000.0,
+            "late_by_half_a_period": 0,
+            "firmware_overruns": 0,
+        },
+        **extra,
+    }
+
+
+def _report(out: Path, bus: dict[str, Any]) -> list[dict[str, Any]]:
+    """`tools/bench.py report` on a fixed native.json and this bus.json: the long run's rows."""
+    machine = {"cpu": "cpu", "cores": 2, "kernel": "6"}
+    native = {"date": "today", "machine": machine, "board_bench_ns": {}, "callgrind": None}
+    (out / "native.json").write_text(json.dumps(native))
+    (out / "bus.json").write_text(json.dumps(bus))
+    assert bench.main(["report", "--out", str(out)]) == 0
+    report = json.loads((out / "report.json").read_text())
+    return [r for r in report["rows"] if "rrd size" in r["measure"] or "first drawn frame" in r["measure"]]
+
+
+def test_the_report_without_a_long_run_still_comes_whole(tmp_path: Path) -> None:
+    """A bus.json from before the long run: the report is written, its rows say so."""
+    rows = _report(tmp_path, _bus_json())
+    assert [(r["ours"], r["baseline"]) for r in rows] == [("not measured", bench.NO_LONG_TRACE)] * 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bus.json", "native.json", "report.json"]
+
+
+def test_the_report_without_chromium_gives_the_size_and_says_what_to_install(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import hilrig.browser
+
+    monkeypatch.setattr(hilrig.browser, "CHROMIUM", tmp_path / "no-chromium")
+    (tmp_path / "long-trace").mkdir()
+    (tmp_path / "long-trace" / "trace.rrd").write_bytes(bytes(100))  # never opened: no browser
+    size, frame = _report(tmp_path, _bus_json(long_trace=LONG_TRACE))
+    assert size["ours"] == "39.8 MB"
+    assert frame["ours"] == "not measured"
+    assert frame["baseline"] == f"no {tmp_path / 'no-chromium'}: apt-get install chromium (tools/deps)"
+
+
+def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
+    """traced_run through the session's real-board path: the rig on a python-can virtual bus,
+    the in-process fake node answering each SYNC; the trace in out/long-trace/."""
+    import can
+
+    from hilrig.fake_node import FakeJointNode
+    from hilrig.session import BoardInterface, SessionConfig
+    from hilrig.table import RigTable
+
+    table = RigTable.load()
+    channel = f"bench-long-{os.getpid()}"
+    fake_bus = can.Bus(interface="virtual", channel=channel)
+    fake = FakeJointNode(fake_bus, table=table)
+    fake.boot()
+    try:
+        config = SessionConfig(
+            out_dir=out / bench.LONG_TRACE_DIR,
+            trace=True,
+            record=False,
+            board=BoardInterface("virtual", channel),
+            node_id=table.board.node.default_node_id,
+            period_us=bench.PERIOD_US,
+        )
+        return bench.traced_run(config, cycles, table)
+    finally:
+        fake.close()
+        fake_bus.shutdown()
+
+
+def test_the_long_run_writes_a_whole_trace_against_the_fake_node(tmp_path: Path) -> None:
+    from hilrig.trace_reader import Trace
+
+    cycles = 2 * round(bench.LONG_TRACE_STEP_S * 1000) + 100  # two setpoint flips
+    run = _fake_node_run(tmp_path, cycles)
+    trace = tmp_path / bench.LONG_TRACE_DIR / "trace.rrd"
+    assert (run["trace"], run["cycles"], run["last_cycle"]) == (str(trace), cycles, cycles - 1)
+    assert run["bytes"] == trace.stat().st_size
+    setpoints = Trace.read(trace).scalars["/fields/commands/velocity_setpoint"]
+    assert len(setpoints) == cycles
+    flips = sum(1 for a, b in itertools.pairwise(setpoints) if a != b)
+    assert flips == 2, "the setpoint flips sign every LONG_TRACE_STEP_S"
+
+
+@pytest.mark.timeout(600)
+def test_the_report_step_measures_the_first_frame_of_the_long_runs_trace(tmp_path: Path) -> None:
+    """measure_first_frame as the report step calls it (the path relative to the bench folder),
+    on a short run: a time, and the screenshot it stopped at has the overview's plots drawn."""
+    from PIL import Image
+
+    from hilrig.browser import PLOTTED_PIXELS, browser_missing, plotted_pixels
+
+    if browser_missing() is not None:
+        pytest.skip(str(browser_missing()))
+    run = _fake_node_run(tmp_path, 300)
+    long_trace = run | {"trace": str(Path(run["trace"]).relative_to(tmp_path))}
+    first_frame = bench.measure_first_frame(tmp_path, long_trace)
+    assert first_frame.get("seconds", 0) > 0, first_frame
+    with Image.open(first_frame["screenshot"]) as screenshot:
+        assert plotted_pixels(screenshot) > PLOTTED_PIXELS
