@@ -39,23 +39,23 @@ def _under(prefix: str, entities: set[str]) -> bool:
 
 
 def missing_series(blueprint: rrb.Blueprint, trace: Trace, *, name: str = "") -> list[str]:
-    """One line per series (or subtree) a view names that has no row in the trace."""
+    """One line per series a view names that has no row in the trace, and one per view whose
+    queries (its origin's subtree, "+ /events/**"...) match nothing with data."""
     with_data = {entity for entity, rows in trace.rows.items() if rows}
     gaps: list[str] = []
     for view in views(blueprint):
         what = f"{name} / {view.name}" if name else str(view.name)
         contents = view.contents if isinstance(view.contents, list) else [str(view.contents)]
+        subtrees: list[str] = []
         for content in contents:
             if content == ORIGIN_SUBTREE:
-                subtree = str(view.origin)
+                subtrees.append(str(view.origin))
             elif content.startswith("+ "):  # a query: "+ /events/emcy/**"
-                subtree = content[2:].removesuffix("/**")
-            else:
-                if content not in with_data:
-                    gaps.append(f"{what}: {content} has no data")
-                continue
-            if not _under(subtree, with_data):
-                gaps.append(f"{what}: nothing under {subtree}")
+                subtrees.append(content[2:].removesuffix("/**"))
+            elif content not in with_data:
+                gaps.append(f"{what}: {content} has no data")
+        if subtrees and not any(_under(subtree, with_data) for subtree in subtrees):
+            gaps.append(f"{what}: nothing under {' or '.join(subtrees)}")
     return gaps
 
 

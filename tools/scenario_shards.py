@@ -40,6 +40,9 @@ SELECTIONS: dict[str, str] = {"lockstep": "not realtime", "realtime": "realtime"
 # Relative to the repository (run-tests and the VM both run there): pytest-split's JSON format,
 # {"nodeid": seconds}, measured by `make durations`.
 DURATIONS = Path("tests/.test_durations")
+# Not scenarios: the browser checks of the scenarios' traces, run natively after the bus stage
+# (tools/run-tests stage 4), where Chromium runs at full speed.
+BROWSER_TESTS = Path("tests/browser")
 # least_duration: longest scenario first onto the least loaded shard, ties broken by name, so the
 # shards come out even whatever the collection order. duration_based_chunks cuts the collection
 # order into runs and can leave the last shards empty while the first carries the long tests.
@@ -70,7 +73,7 @@ def parse_shard(text: str) -> Shard:
 def selection_args(selection: str, shard: Shard | None = None, durations: Path = DURATIONS) -> list[str]:
     """What one bus-stage invocation passes to pytest to select its scenarios (run-tests adds
     the output and parallelism options)."""
-    args = ["tests", "-m", SELECTIONS[selection]]
+    args = ["tests", f"--ignore={BROWSER_TESTS}", "-m", SELECTIONS[selection]]
     if shard is not None:
         args += [f"--splits={shard.count}", f"--group={shard.index}", *split_options(durations)]
     return args

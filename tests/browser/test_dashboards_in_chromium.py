@@ -1,0 +1,58 @@
+"""Every dashboard in the web viewer, in headless Chromium, on traces of the real firmware: the
+ones two scenarios of the bus stage wrote (tools/run-tests runs this after that stage, natively).
+
+For each trace, every dashboard made for it (`dashboards.check.fitting_dashboards`: the five of
+one joint, or `robot`) is shown one after another in one page (`hilrig.browser.check_dashboards`):
+the viewer shows exactly the dashboard's views, none hidden or reporting an error, the recording
+whole, something plotted, no console error; and every series each view names has data in the
+trace. Screenshots: $HIL_OUT_DIR/viewer/<trace>/<dashboard>.png.
+
+    .venv/bin/python -m pytest tests/browser        # after the bus stage (make test) wrote them
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from dashboards.check import fitting_dashboards, trace_gaps
+from hilrig.browser import browser_missing, check_dashboards
+from hilrig.trace_reader import Trace
+
+REPO = Path(__file__).resolve().parents[2]
+FIRMWARE_TRACES = {
+    # tests/test_trace_recording.py: each control mode, an SDO abort, an EMCY, fields polled.
+    "joint": "test_every_series_every_dashboard_names_has_data_on_a_firmware_trace",
+    # tests/test_robot.py: 8 modules in a travelling wave, the chain in 3D.
+    "robot": "test_travelling_wave_tracked_by_all_eight_modules",
+}
+"""Trace name -> the scenario of the bus stage whose trace.rrd it is."""
+
+
+def output_root() -> Path:
+    return Path(os.environ.get("HIL_OUT_DIR", REPO / "out"))
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("name", FIRMWARE_TRACES)
+def test_every_dashboard_shows_the_firmware_trace_whole(name: str) -> None:
+    scenario = FIRMWARE_TRACES[name]
+    trace_path = output_root() / "scenarios" / scenario / "trace.rrd"
+    if not trace_path.exists():
+        if os.environ.get("HIL_SHARD"):
+            pytest.skip(f"{scenario} ran in another shard (HIL_SHARD={os.environ['HIL_SHARD']})")
+        pytest.fail(f"no {trace_path}: the bus stage writes it (make test, or: tools/with-vcan -- "
+                    f".venv/bin/python -m pytest tests -k {scenario})", pytrace=False)
+    missing = browser_missing()
+    assert missing is None, missing
+    trace = Trace.read(trace_path)
+    dashboards = fitting_dashboards(trace)
+    gaps = trace_gaps(trace, dashboards)
+    assert gaps == [], f"{trace_path}: series without data:\n" + "\n".join(gaps)
+
+    shown = check_dashboards(trace_path, dashboards, output_root() / "viewer" / name)
+    assert list(shown) == list(dashboards)
+    problems = {dashboard: result.problems() for dashboard, result in shown.items() if result.problems()}
+    assert not problems, problems
