@@ -377,6 +377,7 @@ class Tracer(RigObserver):
         self.cycles_logged = 0
         self._params: JointParams | None = None
         self._paths = {name: root + path for name, path in self._entity_paths(table).items()}
+        self._paths_set = set(self._paths.values())
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
         self._polled: dict[str, int] = {}  # field -> every how many cycles it is read over SDO
         # Entities whose values have names (board.toml enums and bitsets): each change of value
@@ -385,6 +386,14 @@ class Tracer(RigObserver):
             self._paths[name]: values for name, values in table.board.named_values.items()
         }
         self._last_named_value: dict[str, float] = {}
+        # Values that hold until changed are drawn as steps, not as slopes between samples: a
+        # command or parameter (sent when it changes, or read over SDO now and then) and a
+        # state with named values (control_mode, fault_flags); a measured signal stays linear.
+        self._held: set[str] = {
+            self._paths[entry.name]
+            for entry in table.board.entries
+            if isinstance(entry, Field) and entry.kind in (Kind.COMMAND, Kind.PARAMETER)
+        } | set(self._value_names)
         # PDOs seen on the bus (label -> layout): each gets a frames-per-cycle series, with zeros
         # in the cycles it did not come (a TPDO due every 10th SYNC, one that went missing).
         self._framed: dict[str, PdoLayout] = {}
@@ -772,14 +781,15 @@ class Tracer(RigObserver):
             pdo = self._framed[label]
             totals[pdo.direction] += per_cycle
             path = self.root + frames_path(pdo)
-            self._send_scalars(path, every_cycle, times, per_cycle, name=f"{label} [frames]")
+            self._send_scalars(path, every_cycle, times, per_cycle, name=f"{label} [frames]", held=True)
         if counts:
             for path, direction in (
                 (BUS_TPDOS_PER_CYCLE, PdoDirection.TPDO),
                 (BUS_RPDOS_PER_CYCLE, PdoDirection.RPDO),
             ):
                 name = f"{direction.value}s per cycle [frames]"
-                self._send_scalars(self.root + path, every_cycle, times, totals[direction], name=name)
+                per_cycle = totals[direction]
+                self._send_scalars(self.root + path, every_cycle, times, per_cycle, name=name, held=True)
 
     def _send_truth(self, cycles: np.ndarray, times: np.ndarray, states: Sequence[JointState]) -> None:
         quantities = TRUTH_QUANTITIES[:-1]
@@ -805,13 +815,18 @@ class Tracer(RigObserver):
         values: np.ndarray,
         *,
         name: str | None = None,
+        held: bool = False,
     ) -> None:
-        """One entity's column; `name` is its series name (default: from the field or truth)."""
+        """One entity's column; `name` is its series name (default: from the field or truth);
+        `held`: a count or state that holds between samples (drawn as steps)."""
         rr = self._rr
         if path not in self._named:
             self._named.add(path)
             series = name if name is not None else self._series_name(path)
-            self.recording.log(path, rr.SeriesLines(names=series), static=True)
+            polled = path.rsplit("/", 1)[-1] in self._polled and path in self._paths_set
+            step = held or path in self._held or polled
+            mode = rr.components.InterpolationMode.StepAfter if step else None
+            self.recording.log(path, rr.SeriesLines(names=series, interpolation_mode=mode), static=True)
         indexes = [
             rr.TimeColumn(CYCLE_TIMELINE, sequence=np.asarray(cycles, dtype=np.int64)),
             self._time_column(times),

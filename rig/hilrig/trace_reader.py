@@ -15,6 +15,9 @@ from typing import Any
 
 import numpy as np
 
+LINEAR_INTERPOLATION = 1
+"""rerun.components.InterpolationMode.Linear: a series' default."""
+
 
 @dataclass
 class Trace:
@@ -25,6 +28,8 @@ class Trace:
     scalars: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
     texts: dict[str, list[tuple[str, str]]] = field(default_factory=lambda: defaultdict(list))
     series_names: dict[str, str] = field(default_factory=dict)
+    stepped: set[str] = field(default_factory=set)
+    """Series drawn as steps (a value held until the next sample), not as straight lines."""
     rows: dict[str, int] = field(default_factory=lambda: defaultdict(int))
     """Rows on a timeline per entity, whatever they hold (scalars, texts, 3D transforms)."""
     blueprints: int = 0
@@ -41,6 +46,9 @@ class Trace:
             if chunk.is_static:
                 if "SeriesLines:names" in columns:
                     trace.series_names[path_] = columns["SeriesLines:names"][0][0]
+                modes = columns.get("SeriesLines:interpolation_mode")
+                if modes and modes[0] and modes[0][0] != LINEAR_INTERPOLATION:
+                    trace.stepped.add(path_)
                 continue
             trace.rows[path_] += chunk.num_rows
             trace.cycles[path_] += columns.get("cycle", [])

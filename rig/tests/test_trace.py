@@ -184,6 +184,20 @@ def test_frames_per_cycle_of_every_pdo_and_the_pdo_configuration_are_in_the_trac
     assert any(line.startswith("TPDO8 (0x") and "every 10th SYNC: " in line for line in lines), lines
 
 
+def test_held_values_are_drawn_as_steps_measured_ones_as_lines(traced: Run, table: RigTable) -> None:
+    _scenario(traced)
+    trace = Trace.read(traced.path)
+    paths = entity_paths(table)
+    # A setpoint, a parameter and a state with named values hold until they change: steps (a
+    # command sent only when it changes would otherwise be drawn as a slope between two sends).
+    for name in ("velocity_setpoint", "velocity_kp", "fault_flags", "led_pattern"):
+        assert paths[name] in trace.stepped, name
+    assert BUS_TPDOS_PER_CYCLE in trace.stepped
+    for name in ("motor_velocity", "joint_torque", "motor_duty"):
+        assert paths[name] not in trace.stepped, name
+    assert truth_path("load_velocity_rad_s") not in trace.stepped
+
+
 def test_a_missing_tpdo_is_a_warning_on_the_bus_events(traced: Run) -> None:
     traced.rig.start()
     traced.rig.run(cycles=3)
