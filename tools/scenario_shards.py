@@ -43,6 +43,8 @@ DURATIONS = Path("tests/.test_durations")
 # Not scenarios: the browser checks of the scenarios' traces, run natively after the bus stage
 # (tools/run-tests stage 4), where Chromium runs at full speed.
 BROWSER_TESTS = Path("tests/browser")
+SCENARIOS = ["tests", f"--ignore={BROWSER_TESTS}"]
+"""Every scenario of the bus stage, before a selection or a shard narrows it."""
 # least_duration: longest scenario first onto the least loaded shard, ties broken by name, so the
 # shards come out even whatever the collection order. duration_based_chunks cuts the collection
 # order into runs and can leave the last shards empty while the first carries the long tests.
@@ -73,7 +75,7 @@ def parse_shard(text: str) -> Shard:
 def selection_args(selection: str, shard: Shard | None = None, durations: Path = DURATIONS) -> list[str]:
     """What one bus-stage invocation passes to pytest to select its scenarios (run-tests adds
     the output and parallelism options)."""
-    args = ["tests", f"--ignore={BROWSER_TESTS}", "-m", SELECTIONS[selection]]
+    args = [*SCENARIOS, "-m", SELECTIONS[selection]]
     if shard is not None:
         args += [f"--splits={shard.count}", f"--group={shard.index}", *split_options(durations)]
     return args
@@ -203,7 +205,7 @@ def main(argv: list[str]) -> int:
             extra = shlex.split(os.environ.get("HIL_PYTEST_ARGS", ""))
             print(len(collect(selection_args(rest[0], parse_shard(rest[1])) + extra).selected))
         elif command == "durations" and len(rest) >= 2:
-            scenario_ids = collect(["tests"]).selected
+            scenario_ids = collect(SCENARIOS).selected
             durations = durations_from_junit([Path(p) for p in rest[1:]], scenario_ids)
             write_atomically(Path(rest[0]), durations)
             print(

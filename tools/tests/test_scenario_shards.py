@@ -57,7 +57,7 @@ def durations_missing_some(tmp_path_factory: pytest.TempPathFactory) -> tuple[Pa
 def collected(durations_missing_some: tuple[Path, list[str]]) -> dict[object, shards.Collected]:
     """Every collection the tests compare, side by side (each is a pytest start-up)."""
     without_some, _ = durations_missing_some
-    jobs: dict[object, tuple[list[str], list[int] | None]] = {"suite": (["tests"], None)}
+    jobs: dict[object, tuple[list[str], list[int] | None]] = {"suite": (shards.SCENARIOS, None)}
     for selection in shards.SELECTIONS:
         for variant, durations in (("recorded", shards.DURATIONS), ("missing", without_some)):
             args = shards.selection_args(selection) + shards.split_options(durations)
