@@ -45,8 +45,17 @@ class _Paths:
         return [self._paths[name] for name in names]
 
 
-def _plot(name: str, contents: list[str]) -> rrb.TimeSeriesView:
-    return rrb.TimeSeriesView(name=name, origin="/", contents=contents)
+WHOLE_RUN = rrb.archetypes.TimeAxis(
+    view_range=rrb.TimeRange(start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite())
+)
+"""A plot's x axis over the whole recording (on the cycle timeline the viewer would otherwise
+show a window of some thousand cycles around the time cursor)."""
+
+
+def _plot(name: str, contents: list[str] | None = None, *, origin: str = "/") -> rrb.TimeSeriesView:
+    """A time series plot of `contents` (default: everything under `origin`), the whole run."""
+    shown = contents if contents is not None else "$origin/**"
+    return rrb.TimeSeriesView(name=name, origin=origin, contents=shown, axis_x=WHOLE_RUN)
 
 
 def _events(name: str = "Events (NMT, EMCY, SDO, bus, faults)") -> rrb.TextLogView:
@@ -146,8 +155,7 @@ def bus(table: RigTable) -> rrb.Blueprint:
     the node uses and any TPDO late, missing or malformed, SDO aborts, EMCY and NMT."""
     return _blueprint(rrb.Vertical(
         rrb.Horizontal(
-            rrb.TimeSeriesView(name="frames per cycle, by PDO (COB-ID); one SYNC each cycle besides",
-                               origin=BUS_FRAMES_ROOT),
+            _plot("frames per cycle, by PDO (COB-ID); one SYNC each cycle besides", origin=BUS_FRAMES_ROOT),
             _plot("frames per cycle: TPDOs (node to rig), RPDOs (rig to node)",
                   [BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE]),
         ),

@@ -3,6 +3,7 @@ process on it, and a CANopen master (the `canopen` library) built from the gener
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import threading
@@ -44,6 +45,23 @@ SCENARIO_SDO_TIMEOUT_S = 5.0
 REALTIME_FIRMWARE_PERIOD_US = 10_000
 REALTIME_RIG_PERIOD_US = 50_000
 TABLE = RigTable.load()
+
+
+DURATIONS = REPO / "tests" / ".test_durations"
+"""Each scenario's recorded duration (`make durations`), for pytest-split and the order below."""
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The longest scenarios first: pytest-xdist hands tests out in collection order, and the
+    8-module gait (over 3 minutes in the VM) started last would run alone at the end while the
+    other worker idles. A scenario without a recorded duration counts as an average one."""
+    try:
+        durations: dict[str, float] = json.loads(DURATIONS.read_text())
+    except (OSError, ValueError):
+        return  # no order to go by: collection order
+    average = sum(durations.values()) / len(durations) if durations else 0.0
+    items.sort(key=lambda item: -durations.get(item.nodeid, average))  # stable: ties keep their order
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -408,9 +408,11 @@ class Tracer(RigObserver):
         self._error: BaseException | None = None
 
         self._owns_recording = share is None
+        self._live_urls: list[str] = []  # the gRPC addresses of the live sinks (send_blueprint)
         if share is not None:  # another tracer's recording and sinks (a robot's module)
             self.recording = share.recording
             self.sinks = share.sinks
+            self._live_urls = share._live_urls
         else:
             self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
             self._attach_sinks()
@@ -443,12 +445,16 @@ class Tracer(RigObserver):
             elif sink.kind is SinkKind.SPAWN:
                 port = sink.port or DEFAULT_GRPC_PORT
                 rr.spawn(port=port, connect=False)
-                native.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{port}/proxy"))
+                url = f"rerun+http://127.0.0.1:{port}/proxy"
+                native.append(rr.GrpcSink(url))
+                self._live_urls.append(url)
             elif sink.kind is SinkKind.CONNECT:
                 native.append(rr.GrpcSink(sink.url))
+                self._live_urls.append(sink.url)
             else:
                 server = rr.GrpcServerSink(port=int(sink.url or DEFAULT_GRPC_PORT))
                 native.append(server)
+                self._live_urls.append(server.uri)
                 port = sink.port or DEFAULT_WEB_PORT
                 rr.serve_web_viewer(web_port=port, open_browser=False, connect_to=server.uri)
                 self.web_url = web_viewer_url(port, int(sink.url or DEFAULT_GRPC_PORT))
@@ -637,8 +643,24 @@ class Tracer(RigObserver):
                 self._error = error
 
     def send_blueprint(self, blueprint: rrb.Blueprint) -> None:
-        """The layout a viewer opens this recording with (a dashboard's)."""
-        self.recording.send_blueprint(blueprint, make_active=True, make_default=True)
+        """The layout a viewer opens this recording with (a dashboard's).
+
+        In the recording, and so in its .rrd, only as the default: a blueprint that is also the
+        active one in the file wins over the dashboard `hilrig view --dashboard` loads beside it
+        (measured: the viewer showed the file's). A live viewer is told to show it at once, over
+        a stream of its own to the live sinks alone."""
+        self.recording.send_blueprint(blueprint, make_active=False, make_default=True)
+        rr = self._rr
+        for url in self._live_urls:
+            stream = rr.RecordingStream(
+                APPLICATION_ID, recording_id=self.recording.get_recording_id(), send_properties=False
+            )
+            stream.connect_grpc(url)
+            try:
+                stream.send_blueprint(blueprint, make_active=True, make_default=True)
+                stream.flush()
+            finally:
+                stream.disconnect()
 
     def submit(self, work: Callable[[], None]) -> None:
         """Run `work` (sending something to the recording) on the sender thread, in order with

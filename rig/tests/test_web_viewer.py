@@ -41,9 +41,10 @@ from hilrig.trace import APPLICATION_ID, CYCLE_TIMELINE, SIM_TIME_TIMELINE, Trac
 
 REPO = Path(__file__).resolve().parents[2]
 CYCLES = 400  # 0.4 s at 1 kHz: every plot has a step and a transient in it
-DASHBOARDS = ["overview", "tuning"]
-"""The first as served, the second sent to the running viewer; every dashboard on firmware traces
-is shown by tests/browser after the bus stage (tools/run-tests stage 4)."""
+DASHBOARDS = ["faults", "overview"]
+"""The first as served (not the trace's own overview: the served one must win), the second sent
+to the running viewer; every dashboard on firmware traces is shown by tests/browser after the
+bus stage (tools/run-tests stage 4)."""
 NO_BROWSER = browser_missing()
 
 
@@ -55,13 +56,14 @@ def output_dir() -> Path:
 
 @pytest.fixture
 def trace(tmp_path: Path) -> Path:
-    """A 0.4 s run against the in-process fake node, with an SDO write and an EMCY. Recorded with no
-    blueprint, so the views the viewer shows can only come from the ones it is given."""
+    """A 0.4 s run against the in-process fake node, with an SDO write and an EMCY. Recorded with
+    overview as its default blueprint, as `hilrig sim` records: the dashboard the viewer is
+    given must still be the one it shows."""
     table = RigTable.load()
     path = tmp_path / "trace.rrd"
     rig_bus, fake_bus = (can.Bus(interface="virtual", channel="hilrig-web-viewer") for _ in range(2))
     fake = FakeJointNode(fake_bus, table=table)
-    tracer = Tracer(TraceSink.rrd(path), table, blueprint=None, recording_name="web-viewer")
+    tracer = Tracer(TraceSink.rrd(path), table, blueprint="overview")
     rig = Rig(
         rig_bus, table=table, params=JointParams.fast_thermal(), seed=3, tpdo_timeout_s=0.5, tracer=tracer
     )
