@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
+from hilrig import resources
 from hilrig.trace import APPLICATION_ID, CYCLE_TIMELINE, ViewerProcess, load_blueprint, open_trace
 
 if TYPE_CHECKING:
@@ -214,17 +215,11 @@ class ViewerState:
 
 def dashboard_views(blueprint: str | rrb.Blueprint) -> set[tuple[str, str]]:
     """(name, origin) of every view of a blueprint (a dashboard's name, or a blueprint)."""
-    import rerun.blueprint as rrb  # slow: only when asked
+    resources.dashboards()  # importable from a checkout on PYTHONPATH alone too
+    from dashboards.check import views
 
-    def walk(part: rrb.Container | rrb.View) -> Iterator[rrb.View]:
-        if isinstance(part, rrb.View):
-            yield part
-        else:
-            for child in part.contents:
-                yield from walk(child)
-
-    root = (load_blueprint(blueprint) if isinstance(blueprint, str) else blueprint).root_container
-    return set() if root is None else {(view.name, str(view.origin)) for view in walk(root)}
+    shown = load_blueprint(blueprint) if isinstance(blueprint, str) else blueprint
+    return {(view.name, str(view.origin)) for view in views(shown)}
 
 
 # --- Ports and the viewer process --------------------------------------------------------------

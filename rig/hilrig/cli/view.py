@@ -101,6 +101,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _check(trace: Path, dashboard: str | None) -> int:
     """Every series the dashboards name, looked up in the trace; the gaps on stdout."""
+    from hilrig import resources
+
+    resources.dashboards()  # importable from a checkout on PYTHONPATH alone too
     from dashboards.check import fitting_dashboards, trace_gaps
     from hilrig.trace import load_blueprint
     from hilrig.trace_reader import Trace
