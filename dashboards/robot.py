@@ -23,7 +23,7 @@ DEFAULT_NODE_IDS = tuple(range(1, 9))
 
 def robot(table: RigTable, node_ids: Sequence[int] = DEFAULT_NODE_IDS) -> rrb.Blueprint:
     """The chain in 3D and, per joint on one plot, the angle commanded vs measured."""
-    table.check(("position_setpoint", "output_position", "motor_duty", "joint_torque"))
+    table.check(("position_setpoint", "output_position", "motor_duty_command", "joint_torque"))
     paths = entity_paths(table)
 
     def each(name: str) -> list[str]:
@@ -35,16 +35,20 @@ def robot(table: RigTable, node_ids: Sequence[int] = DEFAULT_NODE_IDS) -> rrb.Bl
             rrb.Horizontal(
                 rrb.Spatial3DView(name="robot (MuJoCo body poses)", origin=ROBOT_ROOT),
                 rrb.TimeSeriesView(
-                    name="joint angles: commanded (position_setpoint) vs measured (output_position)",
+                    name="joint angles [rad]: commanded (position_setpoint) vs measured (output_position)",
                     origin="/",
                     contents=[*each("position_setpoint"), *each("output_position")],
                 ),
                 column_shares=[1, 1],
             ),
             rrb.Horizontal(
-                rrb.TimeSeriesView(name="motor duty (raw)", origin="/", contents=each("motor_duty")),
                 rrb.TimeSeriesView(
-                    name="joint torque: measured vs true spring torque",
+                    name="motor duty [1]: commanded by each module's firmware",
+                    origin="/",
+                    contents=each("motor_duty_command"),
+                ),
+                rrb.TimeSeriesView(
+                    name="joint torque [N*m]: measured vs true spring torque",
                     origin="/",
                     contents=[
                         *each("joint_torque"),
