@@ -128,8 +128,11 @@ def thermal(table: RigTable) -> rrb.Blueprint:
                truth_path("winding_temperature_c")]),
         rrb.Horizontal(
             _plot("thermal derate and duty [1]", p("thermal_derate", "motor_duty_command")),
-            _plot("thermistor / winding resistance [ohm]",
-                  [*p("thermistor_resistance"), truth_path("winding_resistance_ohm")]),
+            # Apart: the NTC's kilo-ohms would flatten the winding's ohm on one axis.
+            _plot("thermistor resistance [ohm] (what the firmware reads the temperature from)",
+                  p("thermistor_resistance")),
+            _plot("winding resistance [ohm], true (rises with its temperature)",
+                  [truth_path("winding_resistance_ohm")]),
         ),
         _plot("motor current [A]: measured vs true", [*p("motor_current"), truth_path("current_a")]),
         _events("Events"),

@@ -803,7 +803,7 @@ class Tracer(RigObserver):
             pdo = self._framed[label]
             totals[pdo.direction] += per_cycle
             path = self.root + frames_path(pdo)
-            self._send_scalars(path, every_cycle, times, per_cycle, name=f"{label} [frames]", held=True)
+            self._send_scalars(path, every_cycle, times, per_cycle, name=f"{label} [frames]", counts=True)
         if counts:
             for path, direction in (
                 (BUS_TPDOS_PER_CYCLE, PdoDirection.TPDO),
@@ -811,7 +811,7 @@ class Tracer(RigObserver):
             ):
                 name = f"{direction.value}s per cycle [frames]"
                 per_cycle = totals[direction]
-                self._send_scalars(self.root + path, every_cycle, times, per_cycle, name=name, held=True)
+                self._send_scalars(self.root + path, every_cycle, times, per_cycle, name=name, counts=True)
 
     def _send_truth(self, cycles: np.ndarray, times: np.ndarray, states: Sequence[JointState]) -> None:
         quantities = TRUTH_QUANTITIES[:-1]
@@ -837,18 +837,21 @@ class Tracer(RigObserver):
         values: np.ndarray,
         *,
         name: str | None = None,
-        held: bool = False,
+        counts: bool = False,
     ) -> None:
-        """One entity's column; `name` is its series name (default: from the field or truth);
-        `held`: a count or state that holds between samples (drawn as steps)."""
+        """One entity's column; `name` is its series name (default: from the field or truth).
+        `counts`: frames per cycle, drawn as steps and, zoomed out, as the band between the
+        fewest and the most (the viewer's average would hide one missing frame among a thousand)."""
         rr = self._rr
         if path not in self._named:
             self._named.add(path)
             series = name if name is not None else self._series_name(path)
             polled = path.rsplit("/", 1)[-1] in self._polled and path in self._paths_set
-            step = held or path in self._held or polled
+            step = counts or path in self._held or polled
             mode = rr.components.InterpolationMode.StepAfter if step else None
-            self.recording.log(path, rr.SeriesLines(names=series, interpolation_mode=mode), static=True)
+            band = rr.components.AggregationPolicy.MinMax if counts else None
+            lines = rr.SeriesLines(names=series, interpolation_mode=mode, aggregation_policy=band)
+            self.recording.log(path, lines, static=True)
         indexes = [
             rr.TimeColumn(CYCLE_TIMELINE, sequence=np.asarray(cycles, dtype=np.int64)),
             self._time_column(times),

@@ -17,6 +17,8 @@ import numpy as np
 
 LINEAR_INTERPOLATION = 1
 """rerun.components.InterpolationMode.Linear: a series' default."""
+MIN_MAX_AGGREGATION = 5
+"""rerun.components.AggregationPolicy.MinMax."""
 
 
 @dataclass
@@ -30,6 +32,8 @@ class Trace:
     series_names: dict[str, str] = field(default_factory=dict)
     stepped: set[str] = field(default_factory=set)
     """Series drawn as steps (a value held until the next sample), not as straight lines."""
+    banded: set[str] = field(default_factory=set)
+    """Series drawn zoomed out as the band between their least and greatest value."""
     rows: dict[str, int] = field(default_factory=lambda: defaultdict(int))
     """Rows on a timeline per entity, whatever they hold (scalars, texts, 3D transforms)."""
     blueprints: int = 0
@@ -49,6 +53,9 @@ class Trace:
                 modes = columns.get("SeriesLines:interpolation_mode")
                 if modes and modes[0] and modes[0][0] != LINEAR_INTERPOLATION:
                     trace.stepped.add(path_)
+                policies = columns.get("SeriesLines:aggregation_policy")
+                if policies and policies[0] and policies[0][0] == MIN_MAX_AGGREGATION:
+                    trace.banded.add(path_)
                 continue
             trace.rows[path_] += chunk.num_rows
             trace.cycles[path_] += columns.get("cycle", [])

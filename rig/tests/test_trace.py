@@ -193,6 +193,9 @@ def test_held_values_are_drawn_as_steps_measured_ones_as_lines(traced: Run, tabl
     for name in ("velocity_setpoint", "velocity_kp", "fault_flags", "led_pattern"):
         assert paths[name] in trace.stepped, name
     assert BUS_TPDOS_PER_CYCLE in trace.stepped
+    # Frame counts zoomed out: the band from the fewest to the most, so one missing frame shows.
+    assert {BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE} <= trace.banded
+    assert paths["velocity_setpoint"] not in trace.banded
     for name in ("motor_velocity", "joint_torque", "motor_duty"):
         assert paths[name] not in trace.stepped, name
     assert truth_path("load_velocity_rad_s") not in trace.stepped
