@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from hilrig.cli import main
+from hilrig.fake_node import FakeJointNode
 from hilrig.trace import blueprint_names
 
 REPO = Path(__file__).resolve().parents[2]
@@ -50,40 +51,34 @@ def test_the_older_spelling_still_works() -> None:
     assert done.stdout.split() == list(blueprint_names())
 
 
-def _fake_node_trace(path: Path) -> None:
-    """A few cycles of a Rig against the in-process fake node, traced to `path`."""
+def _fake_node_trace(path: Path, channel: str) -> None:
+    """A few cycles of a Rig against the fake node on `channel`, traced to `path`."""
     import can
 
-    from hilrig.fake_node import FakeJointNode
     from hilrig.physics import JointParams
     from hilrig.rig import Rig
     from hilrig.table import ControlMode, RigTable
     from hilrig.trace import Tracer, TraceSink
 
     table = RigTable.load()
-    rig_bus, fake_bus = (can.Bus(interface="virtual", channel=f"view-check-{path.name}") for _ in range(2))
-    fake = FakeJointNode(fake_bus, table=table)
     tracer = Tracer(TraceSink.rrd(path), table, blueprint=None)
     params = JointParams.fast_thermal()
-    rig = Rig(rig_bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
-    fake.boot()
-    try:
-        rig.start()
-        rig.set("control_mode", ControlMode.VELOCITY)
-        rig.run(cycles=20)
-    finally:
-        rig.close()
-        fake.close()
-        tracer.close()
-        rig_bus.shutdown()
-        fake_bus.shutdown()
+    with can.Bus(interface="virtual", channel=channel) as bus:
+        rig = Rig(bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
+        try:
+            rig.start()
+            rig.set("control_mode", ControlMode.VELOCITY)
+            rig.run(cycles=20)
+        finally:
+            rig.close()
+            tracer.close()
 
 
 def test_check_lists_the_series_a_dashboard_names_that_the_trace_lacks(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    fake: FakeJointNode, channel: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     trace = tmp_path / "trace.rrd"
-    _fake_node_trace(trace)
+    _fake_node_trace(trace, channel)
     # No SDO poll, no EMCY, no abort in this run: those views are empty, and said so.
     assert main(["view", str(trace), "--check"]) == 1
     gaps = capsys.readouterr().out.splitlines()

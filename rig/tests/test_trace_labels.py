@@ -28,26 +28,23 @@ def test_an_enum_value_and_a_fault_combination_get_their_names() -> None:
     assert value_name(faults, float("nan")) == "nan (no fault_flags)"
 
 
-def test_a_traced_run_names_each_new_value_of_an_enum_field(tmp_path: Path) -> None:
+def test_a_traced_run_names_each_new_value_of_an_enum_field(
+    fake: FakeJointNode, channel: str, tmp_path: Path
+) -> None:
     table = RigTable.load()
-    rig_bus, fake_bus = (can.Bus(interface="virtual", channel="hilrig-trace-labels") for _ in range(2))
-    fake = FakeJointNode(fake_bus, table=table)
     path = tmp_path / "trace.rrd"
     tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=7, background=False, blueprint=None)
-    rig = Rig(rig_bus, table=table, params=JointParams(), seed=1, tpdo_timeout_s=0.5, tracer=tracer)
-    fake.boot()
-    try:
-        rig.start()
-        rig.set("control_mode", ControlMode.VELOCITY)
-        rig.run(cycles=10)
-        rig.set("control_mode", ControlMode.TORQUE)
-        rig.run(cycles=10)
-    finally:
-        rig.close()
-        fake.close()
-        tracer.close()
-        rig_bus.shutdown()
-        fake_bus.shutdown()
+    with can.Bus(interface="virtual", channel=channel) as bus:
+        rig = Rig(bus, table=table, params=JointParams(), seed=1, tpdo_timeout_s=0.5, tracer=tracer)
+        try:
+            rig.start()
+            rig.set("control_mode", ControlMode.VELOCITY)
+            rig.run(cycles=10)
+            rig.set("control_mode", ControlMode.TORQUE)
+            rig.run(cycles=10)
+        finally:
+            rig.close()
+            tracer.close()
 
     trace = Trace.read(path)
     paths = entity_paths(table)

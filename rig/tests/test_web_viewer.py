@@ -55,35 +55,29 @@ def output_dir() -> Path:
 
 
 @pytest.fixture
-def trace(tmp_path: Path) -> Path:
+def trace(fake: FakeJointNode, channel: str, tmp_path: Path) -> Path:
     """A 0.4 s run against the in-process fake node, with an SDO write and an EMCY. Recorded with
     overview as its default blueprint, as `hilrig sim` records: the dashboard the viewer is
     given must still be the one it shows."""
     table = RigTable.load()
     path = tmp_path / "trace.rrd"
-    rig_bus, fake_bus = (can.Bus(interface="virtual", channel="hilrig-web-viewer") for _ in range(2))
-    fake = FakeJointNode(fake_bus, table=table)
     tracer = Tracer(TraceSink.rrd(path), table, blueprint="overview")
-    rig = Rig(
-        rig_bus, table=table, params=JointParams.fast_thermal(), seed=3, tpdo_timeout_s=0.5, tracer=tracer
-    )
-    fake.boot()
-    try:
-        rig.start()
-        rig.set("velocity_setpoint", 5.0)
-        rig.at(0.1, lambda r: r.set("velocity_setpoint", -2.0))
-        rig.run(cycles=CYCLES // 2)
-        rig.set("velocity_kp", 0.25)
-        over_temperature = BOARD_TABLE.emcy("over_temperature")
-        about = BOARD_TABLE.field("winding_temperature").index.to_bytes(2, "little") + bytes(3)
-        fake.send_emcy(EmcyCode.OVER_TEMPERATURE, over_temperature.error_register, about)
-        rig.run(cycles=CYCLES - CYCLES // 2)
-    finally:
-        rig.close()
-        fake.close()
-        tracer.close()
-        rig_bus.shutdown()
-        fake_bus.shutdown()
+    params = JointParams.fast_thermal()
+    with can.Bus(interface="virtual", channel=channel) as bus:
+        rig = Rig(bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
+        try:
+            rig.start()
+            rig.set("velocity_setpoint", 5.0)
+            rig.at(0.1, lambda r: r.set("velocity_setpoint", -2.0))
+            rig.run(cycles=CYCLES // 2)
+            rig.set("velocity_kp", 0.25)
+            over_temperature = BOARD_TABLE.emcy("over_temperature")
+            about = BOARD_TABLE.field("winding_temperature").index.to_bytes(2, "little") + bytes(3)
+            fake.send_emcy(EmcyCode.OVER_TEMPERATURE, over_temperature.error_register, about)
+            rig.run(cycles=CYCLES - CYCLES // 2)
+        finally:
+            rig.close()
+            tracer.close()
     return path
 
 
