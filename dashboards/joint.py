@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 import rerun.blueprint as rrb
 
+from dashboards.check import ORIGIN_SUBTREE
 from dashboards.robot import robot
 from hilrig.table import RigTable, unknown_name
 from hilrig.trace import (
@@ -54,7 +55,7 @@ show a window of some thousand cycles around the time cursor)."""
 
 def _plot(name: str, contents: list[str] | None = None, *, origin: str = "/") -> rrb.TimeSeriesView:
     """A time series plot of `contents` (default: everything under `origin`), the whole run."""
-    shown = contents if contents is not None else "$origin/**"
+    shown = contents if contents is not None else ORIGIN_SUBTREE
     return rrb.TimeSeriesView(name=name, origin=origin, contents=shown, axis_x=WHOLE_RUN)
 
 

@@ -82,6 +82,7 @@ from typing import TextIO
 from boardproto import BoardTable, Pdo
 from boardproto.cia301 import (
     EVENT_DRIVEN_TYPES,
+    LAST_SYNCHRONOUS_TYPE,
     MASTER_HEARTBEAT_MS,
     MASTER_NODE_ID,
     SYNC_COB_ID,
@@ -286,7 +287,7 @@ def _tpdo_per_second(pdo: Pdo, rate_hz: float) -> float:
     kind = pdo.transmission_type
     if kind == 0:
         return rate_hz  # acyclic synchronous: worst case, a change every cycle
-    if kind <= 240:
+    if kind <= LAST_SYNCHRONOUS_TYPE:
         return rate_hz / kind
     if kind in EVENT_DRIVEN_TYPES:
         per_second = rate_hz  # a change at most once per control cycle

@@ -26,10 +26,10 @@ from hilrig.transport import FrameLink, PdoDirection, PdoLayout, can_frame
 
 Value = float | int
 PdoRow = tuple[PdoLayout, tuple[Value, ...]]
+"""One PDO of one cycle: its layout and the values it carried, in mapping order."""
 BUS_EVENTS_PATH = "/events/bus"
 """Where a rig's observers get the bus's own events: which PDOs the node uses, and the TPDO that
 was late, missing, twice or of the wrong length (the error that stopped a lockstep run)."""
-"""One PDO of one cycle: its layout and the values it carried, in mapping order."""
 
 ACTUATOR_OUTPUT = "motor_duty"
 """The HIL output that drives the plant; in lockstep its TPDO must be synchronous type 1."""

@@ -377,7 +377,6 @@ class Tracer(RigObserver):
         self.cycles_logged = 0
         self._params: JointParams | None = None
         self._paths = {name: root + path for name, path in self._entity_paths(table).items()}
-        self._paths_set = set(self._paths.values())
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
         self._polled: dict[str, int] = {}  # field -> every how many cycles it is read over SDO
         # Entities whose values have names (board.toml enums and bitsets): each change of value
@@ -387,8 +386,9 @@ class Tracer(RigObserver):
         }
         self._last_named_value: dict[str, float] = {}
         # Values that hold until changed are drawn as steps, not as slopes between samples: a
-        # command or parameter (sent when it changes, or read over SDO now and then) and a
-        # state with named values (control_mode, fault_flags); a measured signal stays linear.
+        # command or parameter (sent when it changes), a state with named values (control_mode,
+        # fault_flags), and a field read over SDO now and then (on_polled adds those); a
+        # measured signal stays linear.
         self._held: set[str] = {
             self._paths[entry.name]
             for entry in table.board.entries
@@ -518,6 +518,7 @@ class Tracer(RigObserver):
     def on_polled(self, names: tuple[str, ...], every_cycles: int) -> None:
         with self._lock:
             self._polled.update(dict.fromkeys(names, every_cycles))
+            self._held |= {self._paths[name] for name in names}
 
     def on_cycle(self, result: CycleResult) -> None:
         if self._history is None:
@@ -846,8 +847,7 @@ class Tracer(RigObserver):
         if path not in self._named:
             self._named.add(path)
             series = name if name is not None else self._series_name(path)
-            polled = path.rsplit("/", 1)[-1] in self._polled and path in self._paths_set
-            step = counts or path in self._held or polled
+            step = counts or path in self._held
             mode = rr.components.InterpolationMode.StepAfter if step else None
             band = rr.components.AggregationPolicy.MinMax if counts else None
             lines = rr.SeriesLines(names=series, interpolation_mode=mode, aggregation_policy=band)

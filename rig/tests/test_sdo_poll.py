@@ -44,6 +44,7 @@ def test_polled_fields_land_in_the_history_and_the_trace_every_nth_cycle(
     assert trace.cycles[estimate] == [0, 5, 10]
     assert trace.scalars[estimate] == [42.5, 42.5, 42.5]
     assert trace.series_names[estimate].endswith("(SDO, every 5 cycles)")
+    assert estimate in trace.stepped  # held between two reads: drawn as steps
     motor_velocity = entity_paths(table)["motor_velocity"]
     assert "SDO" not in trace.series_names[motor_velocity]
 

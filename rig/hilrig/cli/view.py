@@ -110,7 +110,8 @@ def _check(trace: Path, dashboard: str | None) -> int:
 
     progress(f"view: reading {trace}")
     recording = Trace.read(trace)
-    dashboards = {dashboard: load_blueprint(dashboard)} if dashboard else fitting_dashboards(recording)
+    fitting = fitting_dashboards(recording)  # robot: for the modules the trace has
+    dashboards = {dashboard: fitting.get(dashboard) or load_blueprint(dashboard)} if dashboard else fitting
     gaps = trace_gaps(recording, dashboards)
     for gap in gaps:
         print(gap)
