@@ -513,14 +513,20 @@ class ViewerPage:
         show_dashboard(self.grpc_port, recording, dashboard)
         return self.wait_for(
             lambda s: (
-                s.shown_views() == expected and s.recording_id == recording and _reaches(s, timeline_ends)
+                s.shown_views() == expected and s.recording_id == recording and _whole(s, timeline_ends)
             ),
             f"the views of {name!r} on recording {recording!r}",
         )
 
 
-def _reaches(state: ViewerState, timeline_ends: dict[str, int] | None) -> bool:
-    return timeline_ends is None or all(state.timeline_ends.get(t) == end for t, end in timeline_ends.items())
+def _whole(state: ViewerState, timeline_ends: dict[str, int] | None) -> bool:
+    """The recording is there whole: each timeline at its end and nothing left loading (a
+    timeline reaches its end with the first chunk that holds the last cycle, while other
+    entities' rows still stream in). None: not waited for."""
+    if timeline_ends is None:
+        return True
+    at_end = all(state.timeline_ends.get(t) == end for t, end in timeline_ends.items())
+    return at_end and not state.loading
 
 
 # --- Checking dashboards on a trace ------------------------------------------------------------
@@ -592,7 +598,7 @@ def check_dashboards(
             expected = dashboard_views(name)
             if number == 0:
                 viewer.wait_for(
-                    lambda s, expected=expected: s.shown_views() == expected and _reaches(s, whole),
+                    lambda s, expected=expected: s.shown_views() == expected and _whole(s, whole),
                     f"the views of {name!r} over the whole recording",
                 )
                 console_from = errors_from = 0  # the page's start is the first dashboard's
@@ -623,7 +629,7 @@ def time_to_first_frame(trace: Path, dashboard: str = "overview", screenshot: Pa
     with served_trace(trace, dashboard) as served, contextlib.ExitStack() as stack:
         viewer = stack.enter_context(ViewerPage(served))
         viewer.wait_for(
-            lambda s: s.timeline_ends.get(CYCLE_TIMELINE) == end and bool(s.views) and not s.loading,
+            lambda s: _whole(s, {CYCLE_TIMELINE: end}) and bool(s.views),
             f"the recording up to cycle {end} in {dashboard!r}",
             poll_s=0.05,
         )
