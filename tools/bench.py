@@ -284,11 +284,18 @@ class BusBench:
     def _session(self, what: str, *, traced: bool) -> Any:
         """A HIL session of the firmware in lockstep on the bench's bus (`hilrig.session`), no
         bus log; a trace.rrd when `traced`."""
-        from hilrig.session import SessionConfig, open_session
+        from hilrig.session import open_session
 
         self._runs += 1
-        config = SessionConfig(
-            out_dir=self.logs / f"{self._runs:02d}-{what}",
+        config = self._config(self.logs / f"{self._runs:02d}-{what}", traced=traced)
+        return open_session(config, table=self.table)
+
+    def _config(self, out_dir: Path, *, traced: bool) -> Any:
+        """The `SessionConfig` of the firmware in lockstep on the bench's bus, no bus log."""
+        from hilrig.session import SessionConfig
+
+        return SessionConfig(
+            out_dir=out_dir,
             trace=traced,
             record=False,
             executable=self.firmware_exe,
@@ -296,7 +303,6 @@ class BusBench:
             node_id=FIRMWARE_NODE_ID,
             period_us=PERIOD_US,
         )
-        return open_session(config, table=self.table)
 
     def rig_rate(self, cycles: int, warmup: int, budget_s: float, *, traced: bool) -> tuple[float, int]:
         """(cycles per second, cycles measured) of the full `Rig` (physics, history, checks) in a
@@ -323,20 +329,9 @@ class BusBench:
     def long_trace(self, cycles: int) -> dict[str, Any]:
         """`traced_run` against the firmware through the session rig_rate(traced=True) uses,
         its trace kept in <out>/long-trace/trace.rrd (the path recorded relative to <out>)."""
-        from hilrig.session import SessionConfig
-
         folder = self.out / LONG_TRACE_DIR
         shutil.rmtree(folder, ignore_errors=True)  # never an earlier run's trace in its place
-        config = SessionConfig(
-            out_dir=folder,
-            trace=True,
-            record=False,
-            executable=self.firmware_exe,
-            eds=self.eds,
-            node_id=FIRMWARE_NODE_ID,
-            period_us=PERIOD_US,
-        )
-        run = traced_run(config, cycles, self.table)
+        run = traced_run(self._config(folder, traced=True), cycles, self.table)
         return run | {"trace": str(Path(run["trace"]).relative_to(self.out))}
 
     def robot_rate(self, modules: int, cycles: int, budget_s: float) -> tuple[float, int]:
