@@ -358,6 +358,10 @@ class Tracer(RigObserver):
         if batch_cycles < 1:
             raise ValueError(f"batch_cycles: expected >= 1, got {batch_cycles}")
         self._rr = rr
+        self._scalars = rr.Scalars.descriptor_scalars()
+        # Within one batch, the index columns of each distinct cycle array (a PDO's rows, the
+        # truth's every cycle), built once for all the entities that share it.
+        self._batch_indexes: dict[int, tuple[np.ndarray, list[rr.TimeColumn]]] | None = None
         self.table = table
         self.sinks: tuple[TraceSink, ...] = (sink,) if isinstance(sink, TraceSink) else tuple(sink)
         if not self.sinks and share is None:
@@ -694,10 +698,15 @@ class Tracer(RigObserver):
     def _send(self, batch: _Batch) -> None:
         if callable(batch):
             batch()
-        elif isinstance(batch, _HistorySpan):
-            self._send_span(batch)
-        else:
-            self._send_batch(batch)
+            return
+        self._batch_indexes = {}
+        try:
+            if isinstance(batch, _HistorySpan):
+                self._send_span(batch)
+            else:
+                self._send_batch(batch)
+        finally:
+            self._batch_indexes = None
 
     def _send_span(self, span: _HistorySpan) -> None:
         """A span of a Rig's History: its per-PDO rows are columns already (one numpy call per
@@ -852,11 +861,11 @@ class Tracer(RigObserver):
             band = rr.components.AggregationPolicy.MinMax if counts else None
             lines = rr.SeriesLines(names=series, interpolation_mode=mode, aggregation_policy=band)
             self.recording.log(path, lines, static=True)
-        indexes = [
-            rr.TimeColumn(CYCLE_TIMELINE, sequence=np.asarray(cycles, dtype=np.int64)),
-            self._time_column(times),
-        ]
-        self.recording.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values))
+        self.recording.send_columns(
+            path,
+            indexes=self._indexes(cycles, times),
+            columns=[rr.ComponentColumn(self._scalars, rr.components.ScalarBatch(values))],
+        )
         named = self._value_names.get(path)
         if named is not None:
             self._send_value_names(path, named, np.asarray(cycles), np.asarray(times), values)
@@ -882,6 +891,22 @@ class Tracer(RigObserver):
             ],
             columns=rr.TextLog.columns(text=texts, level=[Severity.INFO.value] * len(texts)),
         )
+
+    def _indexes(self, cycles: Sequence[int], times: Sequence[float]) -> list[rr.TimeColumn]:
+        """The cycle and time columns of `cycles`; inside a batch, built once per cycle array
+        (each is an arrow conversion, and every field of a PDO shares its PDO's cycles)."""
+        cache = self._batch_indexes
+        if cache is not None and isinstance(cycles, np.ndarray):
+            hit = cache.get(id(cycles))
+            if hit is not None and hit[0] is cycles:  # the array is held: its id is its own
+                return hit[1]
+        indexes = [
+            self._rr.TimeColumn(CYCLE_TIMELINE, sequence=np.asarray(cycles, dtype=np.int64)),
+            self._time_column(times),
+        ]
+        if cache is not None and isinstance(cycles, np.ndarray):
+            cache[id(cycles)] = (cycles, indexes)
+        return indexes
 
     def _time_column(self, times: Sequence[float]) -> rr.TimeColumn:
         if self.clock == "simulation":
