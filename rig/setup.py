@@ -1,7 +1,8 @@
 """Build of the rig (metadata: pyproject.toml): its packages, its C extensions and, in a wheel,
 the board's files.
 
-C extension: hilrig.physics._plant, the joint's physics. Its arithmetic must stay bit-identical to
+C extensions: hilrig._wire, the per-cycle PDO exchange on a raw CAN socket (hilrig.transport's fast
+path), and hilrig.physics._plant, the joint's physics. Its arithmetic must stay bit-identical to
 the reference trajectories (tests/data/physics_reference.json): no FMA contraction, no fast-math,
 libm's tanh/exp. A missing compiler or CPython header fails here, by name, instead of deep in
 gcc's output.
@@ -36,14 +37,14 @@ class BuildExtensionWithChecks(build_ext):
         header = Path(sysconfig.get_paths()["include"]) / "Python.h"
         if not header.is_file():
             raise SystemExit(
-                f"hilrig: cannot build hilrig.physics._plant: {header} is missing "
-                "(the CPython headers; on Debian: apt-get install python3-dev)"
+                f"hilrig: cannot build its C extensions (hilrig._wire, hilrig.physics._plant): {header} "
+                "is missing (the CPython headers; on Debian: apt-get install python3-dev)"
             )
         compiler = (os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0]
         if shutil.which(compiler) is None:
             raise SystemExit(
-                f"hilrig: cannot build hilrig.physics._plant: C compiler {compiler!r} not found "
-                "(on Debian: apt-get install gcc)"
+                f"hilrig: cannot build its C extensions (hilrig._wire, hilrig.physics._plant): C compiler "
+                f"{compiler!r} not found (on Debian: apt-get install gcc)"
             )
         super().run()
 
@@ -87,7 +88,12 @@ setup(
             sources=["hilrig/physics/_plant.c"],
             extra_compile_args=["-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra"],
             libraries=["m"],
-        )
+        ),
+        Extension(
+            "hilrig._wire",
+            sources=["hilrig/_wire.c"],
+            extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror"],
+        ),
     ],
     cmdclass={"build_ext": BuildExtensionWithChecks, "build_py": BuildPyWithBoardFiles},
 )

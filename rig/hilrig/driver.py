@@ -22,7 +22,7 @@ from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.node import BoardNode
 from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
 from hilrig.table import unknown_name
-from hilrig.transport import FrameLink, PdoDirection, PdoLayout, can_frame
+from hilrig.transport import Decoders, FrameLink, PdoDirection, PdoLayout, can_frame, send_frames
 
 Value = float | int
 PdoRow = tuple[PdoLayout, tuple[Value, ...]]
@@ -209,6 +209,14 @@ class History:
                 rows.cycles.append(cycle)
                 rows.values.append(values)
 
+    def received_appenders(
+        self, pdo: PdoLayout
+    ) -> tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]:
+        """(append a cycle, append its values) of `pdo`'s received rows: what `record_rows`
+        does for one TPDO, for a driver that records every cycle (both, always together)."""
+        rows = self._received.rows_of(pdo)
+        return rows.cycles.append, rows.values.append
+
     def has_received(self, name: str) -> bool:
         return self._received.has(name)
 
@@ -334,8 +342,13 @@ class Driver:
         self._actuator: tuple[PdoLayout, int] | None = None
         self._due_table: list[frozenset[int]] = [frozenset()]
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
-        self._tpdo_lengths: dict[int, int] = {}
-        self._tpdo_unpack: dict[int, Callable[[bytes], tuple[Value, ...]]] = {}
+        self._decoders: Decoders = {}
+        """COB-ID -> (length, unpack) of every enabled TPDO: what a cycle's exchange decodes."""
+        self._tpdo_appenders: dict[
+            int, tuple[PdoLayout, Callable[[int], None], Callable[[tuple[Value, ...]], None]]
+        ] = {}
+        """COB-ID -> (layout, append a cycle, append its values) of the history's rows of every
+        enabled TPDO (`History.received_appenders`)."""
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
         self._tpdo_names: frozenset[str] = frozenset()
 
@@ -415,8 +428,8 @@ class Driver:
         self._due_table = [
             frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
         ]
-        self._tpdo_lengths = {p.cob_id: p.length for p in enabled_tpdos}
-        self._tpdo_unpack = {p.cob_id: p.codec.unpack for p in enabled_tpdos}
+        self._decoders = {p.cob_id: (p.length, p.codec.unpack) for p in enabled_tpdos}
+        self._tpdo_appenders = {p.cob_id: (p, *self.history.received_appenders(p)) for p in enabled_tpdos}
         self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
         self._pending.clear()
 
@@ -487,9 +500,17 @@ class Driver:
             self.node.emcy_received(data)
 
     def _transmit_rpdos(self, raw: RawSensors | None) -> tuple[PdoRow, ...]:
-        """Send one cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint
-        stream, any RPDO a scenario changed); return what was sent."""
-        send = self.link.send
+        """Send one cycle's RPDOs (`_rpdos_of_cycle`) now; return what was sent."""
+        sent, frames = self._rpdos_of_cycle(raw)
+        if frames:
+            send_frames(self.link, frames)
+        return sent
+
+    def _rpdos_of_cycle(self, raw: RawSensors | None) -> tuple[tuple[PdoRow, ...], bytes]:
+        """One cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint stream, any
+        RPDO a scenario changed): what they carry, and their frames joined, in sending order
+        (the caller sends them: `send_frames`, or ahead of the SYNC in a cycle's exchange)."""
+        frames: list[bytes] = []
         sent: list[PdoRow] = []
         paused = self.paused_rpdos
         if raw is not None:
@@ -497,7 +518,7 @@ class Driver:
                 if pdo.number in paused:
                     continue
                 values = values_of(raw)
-                send(pdo.frame(values))
+                frames.append(pdo.frame(values))
                 sent.append((pdo, values))
         dirty = self._dirty_rpdos
         for number, values in self._rpdo_values.items():
@@ -507,10 +528,10 @@ class Driver:
             pdo = self._rpdo_layouts[number]
             if frame is None:
                 frame = self._rpdo_frames[number] = pdo.frame(values)
-            send(frame)
+            frames.append(frame)
             sent.append((pdo, tuple(values)))
             dirty.discard(number)
-        return tuple(sent)
+        return tuple(sent), b"".join(frames)
 
     def _decode(self, pdo: PdoLayout, data: bytes) -> tuple[Value, ...] | None:
         """The TPDO's values, or None (counted) when the frame's length is not the mapping's."""

@@ -35,6 +35,7 @@ from hilrig.driver import (
 )
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
+from hilrig.transport import exchange, send_frames
 
 
 @dataclass(slots=True)
@@ -50,6 +51,9 @@ class CycleStart:
     due: frozenset[int]
     sync_number: int
     sent: tuple[PdoRow, ...]
+    unsent: bytes = b""
+    """The RPDO frames of `sent`, joined, when `begin_cycle(send=False)` left them to go out
+    with the SYNC in the cycle's exchange (`step`)."""
 
 
 class LockstepDriver(Driver):
@@ -57,13 +61,15 @@ class LockstepDriver(Driver):
 
     Single-threaded: the cycle sends its frames and then reads the node's answers itself from
     the frame link (a raw socket with kernel filters on SocketCAN), decoding them with the codecs
-    compiled from the node's PDO configuration; no receive thread, no hand-over per frame.
+    compiled from the node's PDO configuration; no receive thread, no hand-over per frame. On a
+    raw socket a cycle's RPDOs and SYNC go out, and its due TPDOs come in decoded, in one call
+    each (`transport.exchange`); any other frame comes back to `_collect`'s rules at once.
     """
 
     def step(self) -> CycleResult:
-        start = self.begin_cycle()
-        self.link.send(sync_frame(start.counter))
-        got = self._collect(start.cycle, start.t, start.due, start.sync_number)  # collect_cycle, inline
+        start = self.begin_cycle(send=False)
+        out = start.unsent + sync_frame(start.counter)  # the RPDOs, then the SYNC: one call
+        got = self._collect(start.cycle, start.t, start.due, start.sync_number, out)  # collect_cycle
         result = self.end_cycle(start, got)
         self.plant.step(self.period_s, result.duty)
         self.cycle = start.cycle + 1
@@ -72,8 +78,9 @@ class LockstepDriver(Driver):
     # The three phases of a cycle, apart so that a robot (`hilrig.robot`) runs them for all its
     # modules around one SYNC: every module's RPDOs, one SYNC, every module's TPDOs, one physics
     # step. `step()` is the same sequence for one node.
-    def begin_cycle(self) -> CycleStart:
-        """Sample the plant and send this cycle's RPDOs (before the SYNC)."""
+    def begin_cycle(self, *, send: bool = True) -> CycleStart:
+        """Sample the plant and send this cycle's RPDOs (before the SYNC); with send=False
+        leave them in `unsent` for the caller to send ahead of the SYNC."""
         n = self.cycle
         state = self.plant.state
         raw = self.sensors.read(state)
@@ -86,12 +93,17 @@ class LockstepDriver(Driver):
         else:
             sync_number = 0
             due = frozenset()
-        sent = self._transmit_rpdos(raw)
-        return CycleStart(n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent)
+        sent, frames = self._rpdos_of_cycle(raw)
+        if send and frames:
+            send_frames(self.link, frames)
+            frames = b""
+        return CycleStart(
+            n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent, frames
+        )
 
     def collect_cycle(self, start: CycleStart) -> dict[int, tuple[Value, ...]]:
         """Wait for every TPDO due at this cycle's SYNC (after it was sent)."""
-        return self._collect(start.cycle, start.t, start.due, start.sync_number)
+        return self._collect(start.cycle, start.t, start.due, start.sync_number, start.unsent)
 
     def end_cycle(self, start: CycleStart, got: dict[int, tuple[Value, ...]]) -> CycleResult:
         """Record the cycle in the history; the result's duty is what the physics applies next
@@ -104,24 +116,33 @@ class LockstepDriver(Driver):
             values = got.get(actuator[0].cob_id)
             if values is not None:
                 duty = duty_from_motor_duty(int(values[actuator[1]]))
-        by_cob = self._tpdo_by_cob
-        received = tuple([(by_cob[cob_id], values) for cob_id, values in got.items()])
-        self.history.record_truth(start.state)
-        self.history.record_rows(start.cycle, received, start.sent)
+        # The received rows go straight into the history's rows of each TPDO (appenders fixed
+        # at configure()): this loop runs every cycle for every TPDO.
+        n = start.cycle
+        appenders = self._tpdo_appenders
+        received = []
+        add = received.append
+        for cob_id, values in got.items():
+            pdo, add_cycle, add_values = appenders[cob_id]
+            add_cycle(n)
+            add_values(values)
+            add((pdo, values))
+        history = self.history
+        history.record_truth(start.state)
+        history.record_rows(n, (), start.sent)
         return CycleResult(
-            start.cycle, start.t, start.counter, start.raw, received, duty, start.sent, start.state
+            n, start.t, start.counter, start.raw, tuple(received), duty, start.sent, start.state
         )
 
     def _collect(
-        self, n: int, t: float, due: frozenset[int], sync_number: int
+        self, n: int, t: float, due: frozenset[int], sync_number: int, out: bytes = b""
     ) -> dict[int, tuple[Value, ...]]:
-        """Read the link until every TPDO due at this SYNC (COB-IDs in `due`) is in (the
-        wall-clock bound is only a hang guard), then what is already queued behind them; TPDOs
-        that are not cyclic (event-driven) are taken as they come. A cyclic TPDO twice, one not
-        due, or a frame of the wrong length is a LockstepError of this cycle. Returns the values
-        by COB-ID, in arrival order."""
+        """Send `out` (the cycle's frames not sent yet), then read the link until every TPDO
+        due at this SYNC (COB-IDs in `due`) is in (the wall-clock bound is only a hang guard),
+        then what is already queued behind them; TPDOs that are not cyclic (event-driven) are
+        taken as they come. A cyclic TPDO twice, one not due, or a frame of the wrong length is
+        a LockstepError of this cycle. Returns the values by COB-ID."""
         got: dict[int, tuple[Value, ...]] = {}
-        missing = set(due)
         by_cob = self._tpdo_by_cob
 
         def take(cob_id: int, data: bytes, between_syncs: bool = False) -> None:
@@ -145,27 +166,30 @@ class LockstepDriver(Driver):
                     f"arrived but is not due at SYNC {sync_number} since operational "
                     f"(transmission type {pdo.transmission_type})"
                 )
-            else:  # a due TPDO after all (its COB-ID was taken out of `missing` already)
+            else:  # a due TPDO after all (not one the exchange decoded itself)
                 got[cob_id] = values
                 return
             raise self._error(n, t, f"{pdo.label} {problem}")
 
-        pending, self._pending = self._pending, []
-        for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
-            take(cob_id, data, between_syncs=True)
-        recv = self.link.recv
-        lengths = self._tpdo_lengths
-        unpack = self._tpdo_unpack
+        link = self.link
+        if self._pending:
+            if out:
+                send_frames(link, out)  # the SYNC is on the bus, as when no frame was pending
+                out = b""
+            pending, self._pending = self._pending, []
+            for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
+                take(cob_id, data, between_syncs=True)
+        decoders = self._decoders
         waited = 0.0
-        while missing:
-            frame = recv(LIVENESS_SLICE_S)
-            if frame is not None:
-                cob_id, data = frame
-                if cob_id in missing and len(data) == lengths[cob_id]:  # the usual frame
-                    got[cob_id] = unpack[cob_id](data)
-                    missing.discard(cob_id)
-                else:
-                    take(cob_id, data)
+        while True:
+            # Due TPDOs of the usual length are decoded into `got` inside; anything else comes
+            # back at once, in arrival order.
+            frame = exchange(link, out, due, decoders, got, LIVENESS_SLICE_S)
+            out = b""
+            if frame is None:
+                return got
+            if frame is not False:
+                take(*frame)  # type: ignore[misc]
                 continue
             waited += LIVENESS_SLICE_S
             if self.liveness is not None:
@@ -174,14 +198,12 @@ class LockstepDriver(Driver):
                 except FirmwareError as error:
                     raise FirmwareError(f"cycle {n} (t = {t:.6g} s): {error}") from error
             if waited >= self.tpdo_timeout_s:
+                missing = due.difference(got)
                 labels = ", ".join(by_cob[c].label for c in sorted(missing, key=lambda c: by_cob[c].number))
                 verb = "did" if len(missing) == 1 else "do"
                 heartbeat = self.node.last_heartbeat
                 hint = f"; last heartbeat: {heartbeat.name}" if heartbeat is not None else ""
                 raise self._error(n, t, f"{labels} {verb} not arrive within {self.tpdo_timeout_s:g} s{hint}")
-        while (frame := recv(0.0)) is not None:  # queued behind the due ones: this SYNC's too
-            take(*frame)
-        return got
 
     @staticmethod
     def _error(cycle: int, t: float, what: str) -> LockstepError:

@@ -24,11 +24,12 @@ import os
 import queue
 import socket
 import struct
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
 from boardproto.cia301 import LAST_SYNCHRONOUS_TYPE, STANDARD_ID_MASK, due_at_sync
+from hilrig import _wire
 from hilrig.errors import PdoMappingError
 
 if TYPE_CHECKING:
@@ -179,6 +180,8 @@ def parse_frame(frame: bytes) -> tuple[int, bytes]:
 # --- Links ------------------------------------------------------------------------------
 Frame = tuple[int, bytes]
 """(COB-ID, data) of a received standard data frame."""
+Decoders = Mapping[int, tuple[int, Callable[[bytes], tuple[Value, ...]]]]
+"""COB-ID -> (payload length, unpack) of each TPDO a cycle may wait for."""
 
 
 class FrameLink(Protocol):
@@ -191,6 +194,50 @@ class FrameLink(Protocol):
     def recv(self, timeout_s: float, /) -> Frame | None: ...
 
     def close(self) -> None: ...
+
+
+def send_frames(link: FrameLink, frames: bytes) -> None:
+    """Send every 16-byte frame of `frames` (several `can_frame`s joined), in order: one call on
+    a raw socket (`RawCanLink.send_frames`), one `send` each on any other link."""
+    fast = getattr(link, "send_frames", None)
+    if fast is not None:
+        fast(frames)
+        return
+    for offset in range(0, len(frames), CAN_FRAME_SIZE):
+        link.send(frames[offset : offset + CAN_FRAME_SIZE])
+
+
+def exchange(
+    link: FrameLink,
+    out: bytes,
+    due: frozenset[int],
+    decoders: Decoders,
+    got: dict[int, tuple[Value, ...]],
+    timeout_s: float,
+) -> Frame | bool | None:
+    """One step of a lockstep cycle's exchange: send `out` (joined frames, may be empty), then
+    receive. A frame with a COB-ID in `due`, not yet in `got`, of its decoder's length is decoded
+    into `got`. Returns the first frame that is anything else at once (the caller judges it),
+    False when `timeout_s` passed with a due COB-ID missing, None when every due COB-ID is in
+    `got` and nothing more is queued. On a raw socket all of it is one call into C
+    (`hilrig._wire`); on any other link the same, frame by frame."""
+    fast = getattr(link, "exchange", None)
+    if fast is not None:
+        return fast(out, due, decoders, got, timeout_s)
+    send_frames(link, out)
+    missing = not due.issubset(got)
+    while True:
+        frame = link.recv(timeout_s if missing else 0.0)
+        if frame is None:
+            return False if missing else None
+        cob_id, data = frame
+        if cob_id in due and cob_id not in got:
+            decoder = decoders.get(cob_id)
+            if decoder is not None and len(data) == decoder[0]:
+                got[cob_id] = decoder[1](data)
+                missing = not due.issubset(got)
+                continue
+        return frame
 
 
 class RawCanLink:
@@ -206,6 +253,7 @@ class RawCanLink:
         self._timeout = -1.0
         self._send = sock.send
         self._recv = sock.recv
+        self._fd = sock.fileno()
 
     def _set_timeout(self, timeout_s: float) -> None:
         seconds = int(timeout_s)
@@ -218,6 +266,24 @@ class RawCanLink:
 
     def send(self, frame: bytes) -> None:
         self._send(frame)
+
+    def send_frames(self, frames: bytes) -> None:
+        """Every 16-byte frame of `frames`, in order, in one call (`hilrig._wire`)."""
+        _wire.send_frames(self._fd, frames)
+
+    def exchange(
+        self,
+        out: bytes,
+        due: frozenset[int],
+        decoders: Decoders,
+        got: dict[int, tuple[Value, ...]],
+        timeout_s: float,
+    ) -> Frame | bool | None:
+        """`transport.exchange` in one call into C (`hilrig._wire.exchange`); a wait for a due
+        frame ends after `timeout_s` (the socket's receive timeout)."""
+        if timeout_s != self._timeout:
+            self._set_timeout(timeout_s)
+        return _wire.exchange(self._fd, out, due, decoders, got)
 
     def recv(self, timeout_s: float) -> Frame | None:
         try:
@@ -417,6 +483,7 @@ __all__ = [
     "CAN_HEADER",
     "RECEIVE_QUEUE_BYTES",
     "BusLink",
+    "Decoders",
     "Frame",
     "FrameLink",
     "PdoDirection",
@@ -426,9 +493,11 @@ __all__ = [
     "compile_pdo",
     "compile_pdos",
     "deepen_receive_queue",
+    "exchange",
     "open_link",
     "open_raw_socket",
     "parse_frame",
+    "send_frames",
     "setns_network",
     "socketcan_socket",
 ]

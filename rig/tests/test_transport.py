@@ -1,19 +1,26 @@
-"""The PDO codecs compiled from canopen's configuration and the python-can link, without a
-kernel bus (the raw-socket link is exercised on vcan by tests/test_bus_smoke.py). Frames are
+"""The PDO codecs compiled from canopen's configuration, the python-can link, and a cycle's
+exchange (in C on a raw socket, frame by frame elsewhere), without a kernel bus: a Unix socketpair
+carries whole frames as a raw CAN socket does (the raw-socket link is exercised on vcan by
+tests/test_bus_smoke.py and every scenario). Frames are
 checked against the generated DBC with cantools, independently of the struct codecs."""
 
 from __future__ import annotations
 
 import itertools
+import os
+import signal
+import socket
 import struct
-from typing import ClassVar
+from collections.abc import Iterator
+from typing import Any, ClassVar
 
 import can
 import canopen
 import cantools
 import pytest
 
-from boardproto.cia301 import FunctionCode, cob_id, due_at_sync, emcy_cob_id, sync_counter
+from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, due_at_sync, emcy_cob_id, sync_counter
+from hilrig import _wire
 from hilrig.errors import PdoMappingError
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.transport import (
@@ -21,9 +28,12 @@ from hilrig.transport import (
     BusLink,
     PdoDirection,
     PdoLayout,
+    RawCanLink,
     can_frame,
     compile_pdos,
+    exchange,
     parse_frame,
+    send_frames,
 )
 
 NODE_ID = 0x10
@@ -157,3 +167,145 @@ def test_bus_link_passes_only_the_wanted_standard_data_frames() -> None:
         finally:
             link.close()
             notifier.stop()
+
+
+# --- One cycle's exchange: in C on a raw socket, frame by frame on any other link ------------
+class _FramesOnly:
+    """A link with `send`/`recv` alone (as python-can's BusLink): `transport.exchange` runs its
+    frame-by-frame version over it."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self._raw = RawCanLink(sock)
+
+    def send(self, frame: bytes) -> None:
+        self._raw.send(frame)
+
+    def recv(self, timeout_s: float) -> tuple[int, bytes] | None:
+        return self._raw.recv(timeout_s)
+
+    def close(self) -> None:
+        self._raw.close()
+
+
+@pytest.fixture(params=["raw socket (C)", "frame by frame"])
+def wire(request: pytest.FixtureRequest) -> Iterator[tuple[Any, socket.socket]]:
+    """(the link under test, its peer): a socketpair carries whole 16-byte frames as a raw CAN
+    socket does, so the C exchange runs here without a kernel CAN bus."""
+    ours, peer = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    link = RawCanLink(ours) if request.param.startswith("raw") else _FramesOnly(ours)
+    try:
+        yield link, peer
+    finally:
+        link.close()
+        peer.close()
+
+
+TPDO2_ID, RPDO1_ID = cob_id(FunctionCode.TPDO2, NODE_ID), cob_id(FunctionCode.RPDO1, NODE_ID)
+DUE = frozenset({TPDO1_ID, TPDO2_ID})
+DECODERS = {TPDO1_ID: (2, struct.Struct("<h").unpack), TPDO2_ID: (4, struct.Struct("<f").unpack)}
+SLICE_S = 0.05  # a receive's wait when a due frame is missing (it is, in one test)
+
+
+def test_exchange_sends_out_then_decodes_every_due_frame(wire) -> None:
+    link, peer = wire
+    sync = can_frame(SYNC_COB_ID, b"\x01")
+    peer.send(can_frame(TPDO2_ID, struct.pack("<f", 1.5)))
+    peer.send(can_frame(TPDO1_ID, struct.pack("<h", -3)))
+    got: dict[int, tuple] = {}
+    assert exchange(link, can_frame(RPDO1_ID, b"\x07") + sync, DUE, DECODERS, got, SLICE_S) is None
+    assert got == {TPDO2_ID: (1.5,), TPDO1_ID: (-3,)}
+    assert list(got) == [TPDO2_ID, TPDO1_ID]  # arrival order
+    assert [parse_frame(peer.recv(CAN_FRAME_SIZE)) for _ in range(2)] == [
+        (RPDO1_ID, b"\x07"),
+        (SYNC_COB_ID, b"\x01"),
+    ]
+
+
+def test_exchange_hands_back_any_other_frame_at_once_in_arrival_order(wire) -> None:
+    link, peer = wire
+    for frame in (
+        can_frame(TPDO1_ID, b"\x01\x00"),
+        can_frame(EMCY_ID, bytes(8)),  # not due
+        can_frame(TPDO2_ID, b"\x01\x02"),  # due, of the wrong length
+        can_frame(TPDO1_ID, b"\x02\x00"),  # twice
+        can_frame(TPDO2_ID, struct.pack("<f", 2.0)),
+        can_frame(TPDO2_ID, struct.pack("<f", 3.0)),  # behind the due ones: still handed back
+    ):
+        peer.send(frame)
+    got: dict[int, tuple] = {}
+    steps = []
+    while (result := exchange(link, b"", DUE, DECODERS, got, SLICE_S)) is not None:
+        steps.append(result)
+    assert steps == [
+        (EMCY_ID, bytes(8)),
+        (TPDO2_ID, b"\x01\x02"),
+        (TPDO1_ID, b"\x02\x00"),
+        (TPDO2_ID, struct.pack("<f", 3.0)),
+    ]
+    assert got == {TPDO1_ID: (1,), TPDO2_ID: (2.0,)}
+
+
+def test_exchange_says_false_when_the_wait_passes_with_a_due_frame_missing(wire) -> None:
+    link, peer = wire
+    peer.send(can_frame(TPDO1_ID, b"\x05\x00"))
+    got: dict[int, tuple] = {}
+    assert exchange(link, b"", DUE, DECODERS, got, SLICE_S) is False
+    assert got == {TPDO1_ID: (5,)}
+    peer.send(can_frame(TPDO2_ID, struct.pack("<f", 0.5)))  # the next call goes on where it was
+    assert exchange(link, b"", DUE, DECODERS, got, SLICE_S) is None
+    assert got == {TPDO1_ID: (5,), TPDO2_ID: (0.5,)}
+
+
+def test_exchange_with_nothing_due_only_drains_what_is_queued(wire) -> None:
+    link, peer = wire
+    assert exchange(link, b"", frozenset(), DECODERS, {}, SLICE_S) is None
+    peer.send(can_frame(TPDO1_ID, b"\x05\x00"))
+    assert exchange(link, b"", frozenset(), DECODERS, {}, SLICE_S) == (TPDO1_ID, b"\x05\x00")
+    assert exchange(link, b"", frozenset(), DECODERS, {}, SLICE_S) is None
+
+
+def test_send_frames_sends_each_frame_in_order(wire) -> None:
+    link, peer = wire
+    frames = [can_frame(RPDO1_ID, bytes([k])) for k in range(5)]
+    send_frames(link, b"".join(frames))
+    assert [peer.recv(CAN_FRAME_SIZE) for _ in frames] == frames
+
+
+def test_the_c_exchange_refuses_what_is_not_whole_frames_or_a_socket() -> None:
+    ours, peer = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    with ours, peer:
+        with pytest.raises(ValueError, match="16-byte"):
+            _wire.send_frames(ours.fileno(), b"\x00" * 17)
+        with pytest.raises(ValueError, match="16-byte"):
+            _wire.exchange(ours.fileno(), b"\x00" * 3, DUE, DECODERS, {})
+        with pytest.raises(TypeError, match="due is a set"):
+            _wire.exchange(ours.fileno(), b"", list(DUE), DECODERS, {})
+    not_a_socket = os.open(os.devnull, os.O_WRONLY)
+    try:
+        with pytest.raises(OSError):
+            _wire.send_frames(not_a_socket, can_frame(SYNC_COB_ID, b""))
+    finally:
+        os.close(not_a_socket)
+
+
+def test_a_signal_during_the_c_exchanges_wait_raises_in_python() -> None:
+    """Ctrl-C while a cycle waits for a TPDO stops the run, as a Python socket call would."""
+
+    class Interrupted(Exception):
+        pass
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise Interrupted
+
+    ours, peer = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    link = RawCanLink(ours)
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
+        with pytest.raises(Interrupted):
+            link.exchange(b"", DUE, DECODERS, {}, 60.0)  # would wait a minute for the frames
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+        link.close()
+        peer.close()

@@ -208,3 +208,36 @@ def test_the_report_step_measures_the_first_frame_of_the_long_runs_trace(tmp_pat
     assert first_frame.get("seconds", 0) > 0, first_frame
     with Image.open(first_frame["screenshot"]) as screenshot:
         assert plotted_pixels(screenshot) > PLOTTED_PIXELS
+
+
+def test_lockstep_rows_put_the_rig_against_both_floors_and_read_an_older_run(tmp_path: Path) -> None:
+    def lockstep_rows(bus: dict[str, Any]) -> dict[str, tuple[str, str, float]]:
+        _report(tmp_path, bus)
+        report = json.loads((tmp_path / "report.json").read_text())
+        return {
+            r["measure"]: (r["ours"], r["baseline"], r["ratio"])
+            for r in report["rows"]
+            if "lockstep" in r["measure"]
+        }
+
+    bus = _bus_json()
+    bus["lockstep"] |= {
+        "rig_cycles_per_s": [500.0, 600.0],
+        "floor_cycles_per_s": [1200.0],
+        "engine_floor_cycles_per_s": [1500.0],
+    }
+    rows = lockstep_rows(bus)
+    assert rows["lockstep cycles/s: Rig untraced vs raw-socket floor"] == ("600/s", "1200/s", 0.5)
+    assert rows["lockstep cycles/s: Rig untraced vs the engine's exchange alone (C, no physics/history)"] == (
+        "600/s",
+        "1500/s",
+        0.4,
+    )
+    assert rows["lockstep cycles/s: the engine's exchange alone vs raw-socket floor"] == (
+        "1500/s",
+        "1200/s",
+        1.25,
+    )
+    older = lockstep_rows(_bus_json())  # a bus.json from before the engine's floor was measured
+    assert not any("engine" in measure for measure in older)
+    assert "lockstep cycles/s: Rig untraced vs raw-socket floor" in older

@@ -1,0 +1,288 @@
+/* hilrig._wire: the per-cycle PDO exchange on a raw SocketCAN socket, without a Python call per
+ * frame (used by hilrig.transport.RawCanLink only; every rule about which frame is due, late or
+ * malformed stays in Python, in hilrig.lockstep).
+ *
+ * In the software-emulated micro-VM every Python bytecode costs some 50x its native time while a
+ * system call costs far less, so the Python wrapper and loop around each recv() (eight a cycle)
+ * made up a large share of a lockstep cycle. Here a cycle's frames go out in one call, and the
+ * due TPDOs of the usual length are received and decoded in one call; any other frame goes back
+ * to Python at once, in arrival order, for the rules there.
+ *
+ *   send_frames(fd, frames)                      every 16-byte struct can_frame of `frames`
+ *   exchange(fd, out, due, decoders, got)        send `out`, then receive (see exchange_doc)
+ *
+ * The socket is blocking with the kernel's receive timeout (SO_RCVTIMEO, set by the caller): a
+ * wait is one recv() that returns EAGAIN when the slice passed. The GIL is released around
+ * every system call (canopen's receive thread and the tracer's sender run meanwhile), and a
+ * signal (Ctrl-C) during a wait raises as Python's own socket calls do.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <errno.h>
+#include <stdint.h>
+#include <string.h>
+#include <sys/socket.h>
+
+#define FRAME_SIZE 16 /* struct can_frame: can_id (4), len (1), pad (3), data (8) */
+
+static int fd_argument(PyObject *object) {
+    long fd = PyLong_AsLong(object);
+    if (fd == -1 && PyErr_Occurred()) {
+        return -1;
+    }
+    if (fd < 0 || fd > INT32_MAX) {
+        PyErr_Format(PyExc_ValueError, "expected a file descriptor, got %ld", fd);
+        return -1;
+    }
+    return (int)fd;
+}
+
+static int send_all(int fd, const char *frames, Py_ssize_t size) {
+    for (Py_ssize_t offset = 0; offset < size; offset += FRAME_SIZE) {
+        ssize_t sent;
+        int error;
+        do {
+            Py_BEGIN_ALLOW_THREADS
+            sent = send(fd, frames + offset, FRAME_SIZE, 0);
+            error = errno;
+            Py_END_ALLOW_THREADS
+            if (sent < 0 && error == EINTR && PyErr_CheckSignals() < 0) {
+                return -1;
+            }
+        } while (sent < 0 && error == EINTR);
+        if (sent < 0) {
+            errno = error;
+            PyErr_SetFromErrno(PyExc_OSError);
+            return -1;
+        }
+    }
+    return 0;
+}
+
+static int frames_argument(Py_buffer *buffer, const char *what) {
+    if (buffer->len % FRAME_SIZE != 0) {
+        PyErr_Format(PyExc_ValueError, "%s: expected whole 16-byte CAN frames, got %zd bytes", what,
+                     buffer->len);
+        return -1;
+    }
+    return 0;
+}
+
+PyDoc_STRVAR(send_frames_doc,
+             "send_frames(fd, frames, /)\n--\n\n"
+             "Send every 16-byte struct can_frame of `frames` on the raw CAN socket `fd`, in order.");
+
+static PyObject *send_frames(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
+    (void)module;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "send_frames(fd, frames) takes 2 arguments");
+        return NULL;
+    }
+    int fd = fd_argument(args[0]);
+    if (fd < 0) {
+        return NULL;
+    }
+    Py_buffer frames;
+    if (PyObject_GetBuffer(args[1], &frames, PyBUF_SIMPLE) < 0) {
+        return NULL;
+    }
+    int status = frames_argument(&frames, "send_frames");
+    if (status == 0) {
+        status = send_all(fd, frames.buf, frames.len);
+    }
+    PyBuffer_Release(&frames);
+    if (status < 0) {
+        return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
+/* How many COB-IDs of `due` are not keys of `got` yet; -1 on error. */
+static Py_ssize_t count_missing(PyObject *due, PyObject *got) {
+    Py_ssize_t missing = 0;
+    PyObject *iterator = PyObject_GetIter(due);
+    if (iterator == NULL) {
+        return -1;
+    }
+    PyObject *cob_id;
+    while ((cob_id = PyIter_Next(iterator)) != NULL) {
+        int present = PyDict_Contains(got, cob_id);
+        Py_DECREF(cob_id);
+        if (present < 0) {
+            Py_DECREF(iterator);
+            return -1;
+        }
+        missing += !present;
+    }
+    Py_DECREF(iterator);
+    return PyErr_Occurred() ? -1 : missing;
+}
+
+/* The values of a due TPDO of the usual length (a new reference), or NULL without an error set
+ * when the frame is not that (then it goes back to Python), or NULL with an error set. */
+static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ssize_t length, PyObject *due,
+                              PyObject *decoders, PyObject *got) {
+    int wanted = PySet_Contains(due, cob_id);
+    if (wanted <= 0) {
+        return NULL;
+    }
+    wanted = PyDict_Contains(got, cob_id);
+    if (wanted != 0) {
+        return NULL; /* twice (or an error) */
+    }
+    PyObject *decoder = PyDict_GetItemWithError(decoders, cob_id); /* borrowed */
+    if (decoder == NULL) {
+        return NULL;
+    }
+    if (!PyTuple_Check(decoder) || PyTuple_GET_SIZE(decoder) != 2) {
+        PyErr_SetString(PyExc_TypeError, "exchange: a decoder is a (length, unpack) tuple");
+        return NULL;
+    }
+    Py_ssize_t expected = PyLong_AsSsize_t(PyTuple_GET_ITEM(decoder, 0));
+    if (expected == -1 && PyErr_Occurred()) {
+        return NULL;
+    }
+    if (expected != length) {
+        return NULL;
+    }
+    PyObject *payload = PyBytes_FromStringAndSize((const char *)data, length);
+    if (payload == NULL) {
+        return NULL;
+    }
+    PyObject *values = PyObject_CallOneArg(PyTuple_GET_ITEM(decoder, 1), payload);
+    Py_DECREF(payload);
+    return values;
+}
+
+PyDoc_STRVAR(exchange_doc,
+             "exchange(fd, out, due, decoders, got, /)\n--\n\n"
+             "Send the frames of `out` (whole 16-byte struct can_frames, may be empty), then\n"
+             "receive on `fd`. A frame whose COB-ID is in `due` (a frozenset), is not yet a key\n"
+             "of `got` and has the length of its decoder (`decoders[cob_id] = (length,\n"
+             "unpack)`) is decoded into `got[cob_id] = unpack(data)`. Returns:\n"
+             "  (cob_id, data)  the first frame that is anything else, at once (Python judges it);\n"
+             "  False           the socket's receive timeout passed with a due COB-ID missing;\n"
+             "  None            every due COB-ID is in `got` and nothing more is queued.\n"
+             "While a due COB-ID is missing a receive waits (up to SO_RCVTIMEO); after that it\n"
+             "only takes what is queued already.");
+
+static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
+    (void)module;
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "exchange(fd, out, due, decoders, got) takes 5 arguments");
+        return NULL;
+    }
+    int fd = fd_argument(args[0]);
+    if (fd < 0) {
+        return NULL;
+    }
+    PyObject *due = args[2], *decoders = args[3], *got = args[4];
+    if (!PyAnySet_Check(due) || !PyDict_Check(decoders) || !PyDict_Check(got)) {
+        PyErr_SetString(PyExc_TypeError, "exchange: due is a set, decoders and got are dicts");
+        return NULL;
+    }
+    Py_buffer out;
+    if (PyObject_GetBuffer(args[1], &out, PyBUF_SIMPLE) < 0) {
+        return NULL;
+    }
+    int status = frames_argument(&out, "exchange");
+    if (status == 0 && out.len > 0) {
+        status = send_all(fd, out.buf, out.len);
+    }
+    PyBuffer_Release(&out);
+    if (status < 0) {
+        return NULL;
+    }
+    Py_ssize_t missing = count_missing(due, got);
+    if (missing < 0) {
+        return NULL;
+    }
+    unsigned char frame[FRAME_SIZE];
+    for (;;) {
+        ssize_t received;
+        int error;
+        int flags = missing > 0 ? 0 : MSG_DONTWAIT;
+        Py_BEGIN_ALLOW_THREADS
+        received = recv(fd, frame, FRAME_SIZE, flags);
+        error = errno;
+        Py_END_ALLOW_THREADS
+        if (received < 0) {
+            if (error == EINTR) {
+                if (PyErr_CheckSignals() < 0) {
+                    return NULL;
+                }
+                continue;
+            }
+            if (error == EAGAIN || error == EWOULDBLOCK) {
+                if (missing > 0) {
+                    Py_RETURN_FALSE;
+                }
+                Py_RETURN_NONE;
+            }
+            errno = error;
+            return PyErr_SetFromErrno(PyExc_OSError);
+        }
+        if (received < 8) {
+            continue; /* not a CAN frame; a raw CAN socket never delivers one */
+        }
+        uint32_t can_id;
+        memcpy(&can_id, frame, sizeof can_id);
+        Py_ssize_t length = frame[4] <= 8 ? frame[4] : 8;
+        PyObject *cob_id = PyLong_FromUnsignedLong(can_id);
+        if (cob_id == NULL) {
+            return NULL;
+        }
+        PyObject *values = usual_values(cob_id, frame + 8, length, due, decoders, got);
+        if (values != NULL) {
+            int stored = PyDict_SetItem(got, cob_id, values);
+            Py_DECREF(values);
+            Py_DECREF(cob_id);
+            if (stored < 0) {
+                return NULL;
+            }
+            missing -= 1;
+            continue;
+        }
+        if (PyErr_Occurred()) {
+            Py_DECREF(cob_id);
+            return NULL;
+        }
+        PyObject *data = PyBytes_FromStringAndSize((const char *)frame + 8, length);
+        if (data == NULL) {
+            Py_DECREF(cob_id);
+            return NULL;
+        }
+        PyObject *result = PyTuple_Pack(2, cob_id, data);
+        Py_DECREF(cob_id);
+        Py_DECREF(data);
+        return result;
+    }
+}
+
+static PyMethodDef methods[] = {
+    {"send_frames", (PyCFunction)(void (*)(void))send_frames, METH_FASTCALL, send_frames_doc},
+    {"exchange", (PyCFunction)(void (*)(void))exchange, METH_FASTCALL, exchange_doc},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef wire_module = {
+    PyModuleDef_HEAD_INIT,
+    "hilrig._wire",
+    "The per-cycle PDO exchange on a raw SocketCAN socket (hilrig.transport's fast path).",
+    -1,
+    methods,
+    NULL,
+    NULL,
+    NULL,
+    NULL,
+};
+
+PyMODINIT_FUNC PyInit__wire(void) {
+    PyObject *module = PyModule_Create(&wire_module);
+    if (module != NULL && PyModule_AddIntConstant(module, "FRAME_SIZE", FRAME_SIZE) < 0) {
+        Py_DECREF(module);
+        return NULL;
+    }
+    return module;
+}
