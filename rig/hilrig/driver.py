@@ -217,6 +217,13 @@ class History:
         rows = self._received.rows_of(pdo)
         return rows.cycles.append, rows.values.append
 
+    def sent_appenders(
+        self, pdo: PdoLayout
+    ) -> tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]:
+        """The same as `received_appenders` for the rows of an RPDO the rig sends."""
+        rows = self._sent.rows_of(pdo)
+        return rows.cycles.append, rows.values.append
+
     def has_received(self, name: str) -> bool:
         return self._received.has(name)
 
@@ -331,7 +338,9 @@ class Driver:
         self._operational = False
         self._syncs_since_operational = 0
         self._rpdo_values: dict[int, list[Value]] = {}
-        self._rpdo_frames: dict[int, bytes] = {}  # packed once per change, sent every cycle
+        self._rpdo_frames: dict[int, tuple[PdoLayout, bytes, tuple[Value, ...]]] = {}
+        """RPDO number -> (layout, frame, values): packed once per change, sent every cycle."""
+        self._stream_order: list[int] = []  # the setpoint stream's RPDOs, in sending order
         self._sensor_rpdos: list[tuple[PdoLayout, Callable[[RawSensors], tuple[Value, ...]]]] = []
         self._stream_rpdos: set[int] = set()
         self._dirty_rpdos: set[int] = set()
@@ -349,6 +358,10 @@ class Driver:
         ] = {}
         """COB-ID -> (layout, append a cycle, append its values) of the history's rows of every
         enabled TPDO (`History.received_appenders`)."""
+        self._rpdo_appenders: dict[
+            int, tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]
+        ] = {}
+        """RPDO number -> (append a cycle, append its values) of the history's sent rows."""
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
         self._tpdo_names: frozenset[str] = frozenset()
 
@@ -419,6 +432,7 @@ class Driver:
             self._rpdo_values[pdo.number] = [previous.get(n, table.field(n).default) for n in pdo.names]
             for position, name in enumerate(pdo.names):
                 self._field_rpdo[name] = (pdo.number, position)
+        self._stream_order = [number for number in self._rpdo_values if number in self._stream_rpdos]
         enabled_tpdos = [p for p in self.node.tpdos.values() if p.enabled and p.names]
         self._tpdo_by_cob = {p.cob_id: p for p in enabled_tpdos}
         self._tpdo_names = frozenset(n for p in enabled_tpdos for n in p.names)
@@ -430,6 +444,7 @@ class Driver:
         ]
         self._decoders = {p.cob_id: (p.length, p.codec.unpack) for p in enabled_tpdos}
         self._tpdo_appenders = {p.cob_id: (p, *self.history.received_appenders(p)) for p in enabled_tpdos}
+        self._rpdo_appenders = {p.number: self.history.sent_appenders(p) for p in enabled_rpdos}
         self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
         self._pending.clear()
 
@@ -520,16 +535,17 @@ class Driver:
                 values = values_of(raw)
                 frames.append(pdo.frame(values))
                 sent.append((pdo, values))
-        dirty = self._dirty_rpdos
-        for number, values in self._rpdo_values.items():
-            if number in paused or not (number in self._stream_rpdos or number in dirty):
+        dirty, stream, packed = self._dirty_rpdos, self._stream_rpdos, self._rpdo_frames
+        # Most cycles send the setpoint stream alone: then only its RPDOs are looked at.
+        for number in self._rpdo_values if dirty else self._stream_order:
+            if number in paused or not (number in stream or number in dirty):
                 continue
-            frame = self._rpdo_frames.get(number)
-            pdo = self._rpdo_layouts[number]
-            if frame is None:
-                frame = self._rpdo_frames[number] = pdo.frame(values)
-            frames.append(frame)
-            sent.append((pdo, tuple(values)))
+            entry = packed.get(number)
+            if entry is None:
+                pdo, values = self._rpdo_layouts[number], tuple(self._rpdo_values[number])
+                entry = packed[number] = (pdo, pdo.frame(values), values)
+            frames.append(entry[1])
+            sent.append((entry[0], entry[2]))
             dirty.discard(number)
         return tuple(sent), b"".join(frames)
 

@@ -116,8 +116,8 @@ class LockstepDriver(Driver):
             values = got.get(actuator[0].cob_id)
             if values is not None:
                 duty = duty_from_motor_duty(int(values[actuator[1]]))
-        # The received rows go straight into the history's rows of each TPDO (appenders fixed
-        # at configure()): this loop runs every cycle for every TPDO.
+        # The rows go straight into the history's rows of each PDO (appenders fixed at
+        # configure()): these loops run every cycle for every PDO.
         n = start.cycle
         appenders = self._tpdo_appenders
         received = []
@@ -127,9 +127,12 @@ class LockstepDriver(Driver):
             add_cycle(n)
             add_values(values)
             add((pdo, values))
-        history = self.history
-        history.record_truth(start.state)
-        history.record_rows(n, (), start.sent)
+        sent_appenders = self._rpdo_appenders
+        for pdo, values in start.sent:
+            add_cycle, add_values = sent_appenders[pdo.number]
+            add_cycle(n)
+            add_values(values)
+        self.history.record_truth(start.state)
         return CycleResult(
             n, start.t, start.counter, start.raw, tuple(received), duty, start.sent, start.state
         )
