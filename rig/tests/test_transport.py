@@ -277,9 +277,9 @@ def test_the_c_exchange_refuses_what_is_not_whole_frames_or_a_socket() -> None:
         with pytest.raises(ValueError, match="16-byte"):
             _wire.send_frames(ours.fileno(), b"\x00" * 17)
         with pytest.raises(ValueError, match="16-byte"):
-            _wire.exchange(ours.fileno(), b"\x00" * 3, DUE, DECODERS, {})
+            _wire.exchange(ours.fileno(), b"\x00" * 3, DUE, DECODERS, {}, 0.0)
         with pytest.raises(TypeError, match="due is a set"):
-            _wire.exchange(ours.fileno(), b"", list(DUE), DECODERS, {})
+            _wire.exchange(ours.fileno(), b"", list(DUE), DECODERS, {}, 0.0)
     not_a_socket = os.open(os.devnull, os.O_WRONLY)
     try:
         with pytest.raises(OSError):
