@@ -164,34 +164,57 @@ static int64_t monotonic_ns(void) {
     return (int64_t)now.tv_sec * 1000000000 + now.tv_nsec;
 }
 
-/* One frame into `frame`: when `wait`, look for one for up to `spin_ns` without sleeping
- * (yielding the CPU to anything else runnable), then block up to the socket's receive timeout;
- * otherwise only take what is queued. Returns recv()'s result, its errno in `error`.
+/* How long a wait on each socket looks for a frame before it sleeps, by file descriptor; adapted
+ * as it goes (see `receive`). -1: not used yet. Only touched by the thread using that socket. */
+#define LOOK_SLOTS 4096
+static int64_t look_ns[LOOK_SLOTS];
+static const int64_t kLookStepNs = 20000; /* 20 us: what a look that paid grows by */
+
+/* One frame into `frame`: when `wait`, look for one without sleeping (yielding the CPU to anything
+ * else runnable) for up to the socket's current look time, then block up to the socket's receive
+ * timeout; otherwise only take what is queued. Returns recv()'s result, its errno in `error`.
  *
  * Why look before sleeping: a cycle's TPDOs come some microseconds apart, and the exchange takes
  * each in far less. Blocking between them puts the rig's CPU to sleep and has the next frame
  * wake it, which in the software-emulated VM costs more than the whole frame (measured: the
  * exchange alone ran at 1500-1700 cycles/s blocking at once, against 2450-2860 for a Python
- * loop that was slow enough to find each frame queued). Called without the GIL. */
-static ssize_t receive(int fd, unsigned char *frame, int wait, int64_t spin_ns, int *error) {
+ * loop that was slow enough to find each frame queued).
+ *
+ * Why adapt: looking burns the CPU the node (and, on a shared machine, everything else) may need
+ * when the node is slow to answer. So the look time halves each time a look finds nothing, and
+ * grows (doubled plus 20 us, up to `max_look_ns`) each time a look, or a sleep shorter than
+ * `max_look_ns`, found the frame: a node answering within it is looked for, a loaded one is
+ * slept on. Called without the GIL. */
+static ssize_t receive(int fd, unsigned char *frame, int wait, int64_t max_look_ns, int *error) {
     ssize_t received = recv(fd, frame, FRAME_SIZE, MSG_DONTWAIT);
     *error = errno;
     if (received >= 0 || !wait || (*error != EAGAIN && *error != EWOULDBLOCK)) {
         return received;
     }
-    if (spin_ns > 0) {
-        int64_t until = monotonic_ns() + spin_ns;
+    int64_t *look = fd < LOOK_SLOTS ? &look_ns[fd] : NULL;
+    int64_t budget = look == NULL ? 0 : (*look < 0 || *look > max_look_ns ? max_look_ns : *look);
+    int64_t started = monotonic_ns();
+    if (budget > 0) {
         do {
             sched_yield();
             received = recv(fd, frame, FRAME_SIZE, MSG_DONTWAIT);
             *error = errno;
             if (received >= 0 || (*error != EAGAIN && *error != EWOULDBLOCK)) {
+                if (received >= 0) {
+                    budget = 2 * budget + kLookStepNs;
+                    *look = budget < max_look_ns ? budget : max_look_ns;
+                }
                 return received;
             }
-        } while (monotonic_ns() < until);
+        } while (monotonic_ns() - started < budget);
+        *look = budget / 2 < kLookStepNs / 2 ? 0 : budget / 2;
     }
     received = recv(fd, frame, FRAME_SIZE, 0);
     *error = errno;
+    if (look != NULL && received >= 0 && max_look_ns > 0 && *look == 0 &&
+        monotonic_ns() - started < max_look_ns) {
+        *look = kLookStepNs; /* the frame came soon after all: look again next time */
+    }
     return received;
 }
 
@@ -204,8 +227,9 @@ PyDoc_STRVAR(exchange_doc,
              "  (cob_id, data)  the first frame that is anything else, at once (Python judges it);\n"
              "  False           the socket's receive timeout passed with a due COB-ID missing;\n"
              "  None            every due COB-ID is in `got` and nothing more is queued.\n"
-             "While a due COB-ID is missing a receive looks for a frame for up to `spin_s` without\n"
-             "sleeping, then waits (up to SO_RCVTIMEO); after that it only takes what is queued.");
+             "While a due COB-ID is missing a receive looks for a frame without sleeping for up to\n"
+             "`spin_s` (less while looking does not pay on this socket), then waits (up to\n"
+             "SO_RCVTIMEO); after that it only takes what is queued.");
 
 static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
     (void)module;
@@ -322,6 +346,9 @@ static struct PyModuleDef wire_module = {
 };
 
 PyMODINIT_FUNC PyInit__wire(void) {
+    for (int fd = 0; fd < LOOK_SLOTS; ++fd) {
+        look_ns[fd] = -1;
+    }
     PyObject *module = PyModule_Create(&wire_module);
     if (module != NULL && PyModule_AddIntConstant(module, "FRAME_SIZE", FRAME_SIZE) < 0) {
         Py_DECREF(module);

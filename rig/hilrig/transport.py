@@ -48,10 +48,11 @@ about 800 bytes of kernel memory). The default (net.core.rmem_default, about 200
 frames) overflows in half a second when a Python reader is descheduled on a loaded machine, and
 the kernel then drops frames without a word."""
 LOOK_BEFORE_SLEEP_S = 0.0005
-"""How long a cycle's exchange on a raw socket looks for the next due TPDO before it sleeps in
-the kernel (`hilrig._wire`): longer than a node's turnaround in the emulated VM (SYNC to its last
-TPDO: ~0.1 ms measured), so the rig's CPU is not put to sleep and woken between one TPDO and the
-next, which costs more there than taking the frame."""
+"""The longest a cycle's exchange on a raw socket looks for the next due TPDO before it sleeps in
+the kernel (`hilrig._wire`; less, down to not at all, while looking does not pay on that socket):
+longer than a node's turnaround in the emulated VM (SYNC to its last TPDO: ~0.1 ms measured), so
+the rig's CPU is not put to sleep and woken between one TPDO and the next, which costs more there
+than taking the frame."""
 SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
 SO_TIMESTAMP = getattr(socket, "SO_TIMESTAMP", 29)
 """Linux's SO_TIMESTAMP (also the ancillary message type SCM_TIMESTAMP); Python does not name it."""
