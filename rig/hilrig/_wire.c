@@ -63,13 +63,23 @@ static int send_all(int fd, const char *frames, Py_ssize_t size) {
     return 0;
 }
 
-static int frames_argument(Py_buffer *buffer, const char *what) {
-    if (buffer->len % FRAME_SIZE != 0) {
-        PyErr_Format(PyExc_ValueError, "%s: expected whole 16-byte CAN frames, got %zd bytes", what,
-                     buffer->len);
+/* Send the frames of `object` (any bytes-like of whole 16-byte frames) on `fd`; 0, or -1 with an
+ * error set (a ValueError naming `what` when the length is not whole frames). */
+static int send_object(int fd, PyObject *object, const char *what) {
+    Py_buffer frames;
+    if (PyObject_GetBuffer(object, &frames, PyBUF_SIMPLE) < 0) {
         return -1;
     }
-    return 0;
+    int status = 0;
+    if (frames.len % FRAME_SIZE != 0) {
+        PyErr_Format(PyExc_ValueError, "%s: expected whole 16-byte CAN frames, got %zd bytes", what,
+                     frames.len);
+        status = -1;
+    } else if (frames.len > 0) {
+        status = send_all(fd, frames.buf, frames.len);
+    }
+    PyBuffer_Release(&frames);
+    return status;
 }
 
 PyDoc_STRVAR(send_frames_doc,
@@ -86,16 +96,7 @@ static PyObject *send_frames(PyObject *module, PyObject *const *args, Py_ssize_t
     if (fd < 0) {
         return NULL;
     }
-    Py_buffer frames;
-    if (PyObject_GetBuffer(args[1], &frames, PyBUF_SIMPLE) < 0) {
-        return NULL;
-    }
-    int status = frames_argument(&frames, "send_frames");
-    if (status == 0) {
-        status = send_all(fd, frames.buf, frames.len);
-    }
-    PyBuffer_Release(&frames);
-    if (status < 0) {
+    if (send_object(fd, args[1], "send_frames") < 0) {
         return NULL;
     }
     Py_RETURN_NONE;
@@ -251,16 +252,7 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
         PyErr_SetString(PyExc_TypeError, "exchange: due is a set, decoders and got are dicts");
         return NULL;
     }
-    Py_buffer out;
-    if (PyObject_GetBuffer(args[1], &out, PyBUF_SIMPLE) < 0) {
-        return NULL;
-    }
-    int status = frames_argument(&out, "exchange");
-    if (status == 0 && out.len > 0) {
-        status = send_all(fd, out.buf, out.len);
-    }
-    PyBuffer_Release(&out);
-    if (status < 0) {
+    if (send_object(fd, args[1], "exchange") < 0) {
         return NULL;
     }
     Py_ssize_t missing = count_missing(due, got);

@@ -209,19 +209,12 @@ class History:
                 rows.cycles.append(cycle)
                 rows.values.append(values)
 
-    def received_appenders(
-        self, pdo: PdoLayout
-    ) -> tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]:
-        """(append a cycle, append its values) of `pdo`'s received rows: what `record_rows`
-        does for one TPDO, for a driver that records every cycle (both, always together)."""
-        rows = self._received.rows_of(pdo)
-        return rows.cycles.append, rows.values.append
-
-    def sent_appenders(
-        self, pdo: PdoLayout
-    ) -> tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]:
-        """The same as `received_appenders` for the rows of an RPDO the rig sends."""
-        rows = self._sent.rows_of(pdo)
+    def appenders(self, pdo: PdoLayout) -> tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]:
+        """(append a cycle, append its values) of `pdo`'s rows (received for a TPDO, sent for an
+        RPDO): what `record_rows` does for one PDO, for a driver that records every cycle (both,
+        always together)."""
+        direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
+        rows = direction.rows_of(pdo)
         return rows.cycles.append, rows.values.append
 
     def has_received(self, name: str) -> bool:
@@ -357,7 +350,7 @@ class Driver:
             int, tuple[PdoLayout, Callable[[int], None], Callable[[tuple[Value, ...]], None]]
         ] = {}
         """COB-ID -> (layout, append a cycle, append its values) of the history's rows of every
-        enabled TPDO (`History.received_appenders`)."""
+        enabled TPDO (`History.appenders`)."""
         self._rpdo_appenders: dict[
             int, tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]
         ] = {}
@@ -443,8 +436,8 @@ class Driver:
             frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
         ]
         self._decoders = {p.cob_id: (p.length, p.codec.unpack) for p in enabled_tpdos}
-        self._tpdo_appenders = {p.cob_id: (p, *self.history.received_appenders(p)) for p in enabled_tpdos}
-        self._rpdo_appenders = {p.number: self.history.sent_appenders(p) for p in enabled_rpdos}
+        self._tpdo_appenders = {p.cob_id: (p, *self.history.appenders(p)) for p in enabled_tpdos}
+        self._rpdo_appenders = {p.number: self.history.appenders(p) for p in enabled_rpdos}
         self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
         self._pending.clear()
 
