@@ -33,6 +33,10 @@ HEARTBEAT = heartbeat_cob_id(NODE_ID)
 # on a loaded machine: a bounded hang guard instead, as the scenarios use.
 SDO_TIMEOUT_S = 5.0
 
+# The firmware's SDO server timeout (SdoServer::kSegmentTimeoutUs, 1 s) in control cycles of the
+# fixture's firmware (Firmware's default period, 1 ms).
+SERVER_TIMEOUT_CYCLES = 1000
+
 
 @pytest.fixture(autouse=True)
 def _patient_sdo_client(request: pytest.FixtureRequest) -> None:
@@ -109,13 +113,38 @@ def test_bad_requests_get_the_cia301_abort_codes(node_under_test: NodeUnderTest)
     assert abort_code(raw_sdo(node_under_test, bytes([0x70]))) == 0x05030000
 
 
-def test_segmented_download_that_stalls_is_aborted_by_the_server(node_under_test: NodeUnderTest) -> None:
-    # Initiate a segmented download of 4 bytes to velocity_kp, then go silent: the server
-    # must give up with "SDO protocol timed out" (it waits about a second; bounded).
+def send_syncs(under_test: NodeUnderTest, count: int) -> None:
+    """`count` SYNCs, each awaited by its TPDO1 (sent every SYNC while operational) as a lockstep
+    master does: in lockstep each is one control cycle, and none may be lost to a full queue."""
+    tpdo1 = TABLE.tpdos[0].cob_id(NODE_ID)
+    for _ in range(count):
+        under_test.wait_for(tpdo1, after_subscribing=under_test.network.sync.transmit)
+
+
+def test_segmented_download_that_stalls_is_aborted_after_a_second_of_control_time(
+    node_under_test: NodeUnderTest,
+) -> None:
+    # In lockstep the server times its client out on simulation time (each SYNC one period),
+    # as the heartbeat consumer does: a client slowed by a loaded host keeps its transfer, and
+    # one that stays silent is aborted with "SDO protocol timed out" in the cycle that reaches
+    # SERVER_TIMEOUT_CYCLES since its last frame, and not one cycle earlier.
+    node_under_test.node.nmt.state = "OPERATIONAL"
     index = TABLE.field("velocity_kp").index
-    answer = raw_sdo(node_under_test, bytes([0x21, index & 0xFF, index >> 8, 0, 4, 0, 0, 0]))
-    assert answer[0] == 0x60, f"expected an initiate-download response, got {answer.hex()}"
-    assert abort_code(bytes(node_under_test.wait_for(SDO_TX, timeout_s=30).data)) == 0x05040000
+    initiate = bytes([0x21, index & 0xFF, index >> 8, 0, 4, 0, 0, 0])  # segmented, 4 bytes
+    answered: list[bytes] = []
+    assert raw_sdo(node_under_test, initiate)[0] == 0x60, "expected an initiate-download response"
+    node_under_test.network.subscribe(SDO_TX, lambda can_id, data, ts: answered.append(bytes(data)))
+    send_syncs(node_under_test, SERVER_TIMEOUT_CYCLES - 1)
+    assert answered == [], f"aborted before the timeout: {[a.hex() for a in answered]}"
+    last_segment = bytes([0x07]) + struct.pack("<f", TABLE.field("velocity_kp").default)  # 3 unused, c
+    assert raw_sdo(node_under_test, last_segment)[0] == 0x20, "the transfer was still open"
+
+    answered.clear()
+    assert raw_sdo(node_under_test, initiate)[0] == 0x60
+    answered.clear()
+    send_syncs(node_under_test, SERVER_TIMEOUT_CYCLES)
+    assert len(answered) == 1, f"expected one abort, got {[a.hex() for a in answered]}"
+    assert abort_code(answered[0]) == 0x05040000
 
 
 def test_tpdo_remapped_in_pre_operational_is_sent_on_sync(node_under_test: NodeUnderTest) -> None:

@@ -9,7 +9,7 @@
 // once: the entry then waits for the node's next heartbeat to monitor again.
 //
 // Time is whatever microsecond clock the caller passes (the node picks wall or control time,
-// see Node::set_consumer_clock); it may wrap. Fixed-size, no heap.
+// see Node::set_timeout_clock); it may wrap. Fixed-size, no heap.
 #pragma once
 
 #include <array>

@@ -226,7 +226,7 @@ TEST_F(HeartbeatConsumerTest, ResetCommunicationEndsALossAndTellsTheListener) {
 // Lockstep: time is control cycles times the period; the wall clock means nothing.
 TEST_F(HeartbeatConsumerTest, OnControlCyclesOnlyControlTimeCounts) {
   constexpr std::uint32_t kPeriodUs = 1'000;
-  node.set_consumer_clock(ConsumerClock::ControlCycles);
+  node.set_timeout_clock(TimeoutClock::ControlCycles);
   watch_master();
   master_heartbeat();
   for (int i = 0; i < 100; ++i) advance_us(1'000'000);  // the host stalls for 100 s

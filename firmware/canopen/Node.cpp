@@ -243,19 +243,20 @@ bool Node::handle_heartbeat(const CanFrame& frame, std::uint32_t now_us) {
     return true;
   }
   ++counters_.heartbeats_consumed;
-  heartbeat_consumer_.heartbeat(static_cast<std::uint8_t>(node_id), consumer_now(now_us));
+  heartbeat_consumer_.heartbeat(static_cast<std::uint8_t>(node_id), timeout_now(now_us));
   tell_heartbeat_listener(false);  // a lost heartbeat may be back
   return true;
 }
 
-std::uint32_t Node::consumer_now(std::uint32_t now_us) const {
-  return consumer_clock_ == ConsumerClock::WallTime ? now_us : control_time_us_;
+std::uint32_t Node::timeout_now(std::uint32_t now_us) const {
+  return timeout_clock_ == TimeoutClock::WallTime ? now_us : control_time_us_;
 }
 
 void Node::advance_control_time(std::uint32_t elapsed_us) {
   control_time_us_ += elapsed_us;
-  if (state_ == NmtState::Initialising || consumer_clock_ != ConsumerClock::ControlCycles) return;
+  if (state_ == NmtState::Initialising || timeout_clock_ != TimeoutClock::ControlCycles) return;
   check_heartbeat_timeouts(control_time_us_);
+  check_sdo_timeout(control_time_us_);
 }
 
 void Node::check_heartbeat_timeouts(std::uint32_t consumer_now_us) {
@@ -266,6 +267,15 @@ void Node::check_heartbeat_timeouts(std::uint32_t consumer_now_us) {
     report_emcy(emcy::heartbeat_error(lost_node_id));
   });
   if (event) tell_heartbeat_listener(true);
+}
+
+void Node::check_sdo_timeout(std::uint32_t server_now_us) {
+  if (state_ == NmtState::Stopped) return;  // a stopped node serves no SDO
+  std::array<std::uint8_t, 8> response{};
+  if (sdo_.check_timeout(server_now_us, response)) {
+    ++counters_.sdo_aborts_sent;
+    send(kSdoResponseCobIdBase + node_id_, response);
+  }
 }
 
 void Node::tell_heartbeat_listener(bool event) {
@@ -283,7 +293,8 @@ void Node::handle_sdo(const CanFrame& frame, std::uint32_t now_us) {
   ++counters_.sdo_requests;
   std::array<std::uint8_t, 8> response{};
   const std::uint32_t aborts_before = sdo_.aborts_sent();
-  const bool answered = sdo_.handle(std::span<const std::uint8_t, 8>(frame.data), now_us, response);
+  const bool answered =
+      sdo_.handle(std::span<const std::uint8_t, 8>(frame.data), timeout_now(now_us), response);
   // A write may have changed the accepted set (0x1005, 0x1016, an RPDO's COB-ID). Once the
   // master has the answer it may send on the new id at once, so the filter changes first.
   tell_acceptance_listener();
@@ -303,14 +314,14 @@ void Node::send_sdo_segments(std::uint32_t now_us) {
       segment_send_refused_ = true;
       break;
     }
-    sdo_.segment_sent(now_us);
+    sdo_.segment_sent(timeout_now(now_us));
   }
   counters_.sdo_aborts_sent += sdo_.aborts_sent() - aborts_before;
 }
 
 void Node::poll(std::uint32_t now_us) {
   if (state_ == NmtState::Initialising) return;
-  if (consumer_clock_ == ConsumerClock::WallTime) check_heartbeat_timeouts(now_us);
+  if (timeout_clock_ == TimeoutClock::WallTime) check_heartbeat_timeouts(now_us);
   const std::uint32_t period_us = std::uint32_t{heartbeat_ms_} * 1000u;
   if (period_us != 0 && now_us - last_heartbeat_us_ >= period_us) {
     // Keep the cadence when poll() is a little late; restart it after a long gap.
@@ -319,14 +330,8 @@ void Node::poll(std::uint32_t now_us) {
     const std::array<std::uint8_t, 1> heartbeat = {static_cast<std::uint8_t>(state_)};
     if (send(kErrorControlCobIdBase + node_id_, heartbeat)) ++counters_.heartbeats_sent;
   }
-  if (state_ != NmtState::Stopped) {
-    std::array<std::uint8_t, 8> response{};
-    if (sdo_.check_timeout(now_us, response)) {
-      ++counters_.sdo_aborts_sent;
-      send(kSdoResponseCobIdBase + node_id_, response);
-    }
-    send_sdo_segments(now_us);
-  }
+  if (timeout_clock_ == TimeoutClock::WallTime) check_sdo_timeout(now_us);
+  if (state_ != NmtState::Stopped) send_sdo_segments(now_us);
   if (state_ == NmtState::Operational) {
     poll_event_tpdos(now_us);
     poll_rpdo_deadlines(now_us);

@@ -104,9 +104,11 @@ struct NodeCounters {
   std::uint32_t default_pdo_errors = 0;   // default PDO mappings the OD could not resolve
 };
 
-// The heartbeat consumer's (0x1016) clock. The choice is the platform's: the node cannot tell
-// whether its SYNCs are real time or simulation time.
-enum class ConsumerClock : std::uint8_t {
+// The clock of the node's timeouts on its peers: the heartbeat consumer's (0x1016) and the SDO
+// server's (a client silent mid-transfer). The choice is the platform's: the node cannot tell
+// whether its SYNCs are real time or simulation time. The heartbeat producer and event-driven
+// PDOs always run on now_us: they are the node's own output, not a judgement of a peer.
+enum class TimeoutClock : std::uint8_t {
   WallTime,       // the now_us of process() and poll(): a board that keeps its own period
   ControlCycles,  // only advance_control_time() moves it, by the control period per cycle: in
                   // lockstep every SYNC is one period of simulation time, so a slow or paused
@@ -155,7 +157,7 @@ class Node final {
   // the node. Set after start(), it hears the present set at once.
   void set_acceptance_listener(AcceptanceListener* listener);
 
-  // Timers: heartbeat producer (and consumer on ConsumerClock::WallTime), SDO server timeout,
+  // Timers: heartbeat producer (and, on TimeoutClock::WallTime, consumer and SDO server timeout),
   // event-driven TPDOs (event timer, change of value limited by the inhibit time), RPDO
   // deadlines (EMCY rpdo_timeout); and the next segments of an SDO block upload. Call at least
   // once per millisecond for exact timing.
@@ -170,10 +172,11 @@ class Node final {
   // the mapped values changed). Call once per SYNC, after the control cycle.
   void transmit_synchronous_pdos(std::uint32_t now_us);
 
-  // The heartbeat consumer's clock (default WallTime). With ControlCycles, call
-  // advance_control_time(period) once per control cycle, before running it: a heartbeat that
-  // timed out then reaches the application in that same cycle.
-  void set_consumer_clock(ConsumerClock clock) { consumer_clock_ = clock; }
+  // The clock of the heartbeat consumer and the SDO server timeout (default WallTime). With
+  // ControlCycles, call advance_control_time(period) once per control cycle, before running it:
+  // a heartbeat that timed out then reaches the application in that same cycle, and a transfer
+  // whose client fell silent is aborted there.
+  void set_timeout_clock(TimeoutClock clock) { timeout_clock_ = clock; }
   void advance_control_time(std::uint32_t elapsed_us);
 
   // EMCY producer. An error stays active until cleared; reporting an active error again (same
@@ -309,8 +312,9 @@ class Node final {
   void handle_nmt(const CanFrame& frame, std::uint32_t now_us, ProcessResult& result);
   void handle_sync(const CanFrame& frame, ProcessResult& result);
   bool handle_heartbeat(const CanFrame& frame, std::uint32_t now_us);
-  std::uint32_t consumer_now(std::uint32_t now_us) const;
+  std::uint32_t timeout_now(std::uint32_t now_us) const;
   void check_heartbeat_timeouts(std::uint32_t consumer_now_us);
+  void check_sdo_timeout(std::uint32_t server_now_us);
   void tell_heartbeat_listener(bool event);
   void handle_sdo(const CanFrame& frame, std::uint32_t now_us);
   void tell_acceptance_listener();
@@ -349,8 +353,8 @@ class Node final {
   std::uint16_t heartbeat_ms_ = 0;
   std::uint32_t last_heartbeat_us_ = 0;
   HeartbeatConsumer heartbeat_consumer_;
-  ConsumerClock consumer_clock_ = ConsumerClock::WallTime;
-  std::uint32_t control_time_us_ = 0;  // ConsumerClock::ControlCycles; wraps
+  TimeoutClock timeout_clock_ = TimeoutClock::WallTime;
+  std::uint32_t control_time_us_ = 0;  // TimeoutClock::ControlCycles; wraps
   std::uint8_t told_lost_heartbeats_ = 0;  // what the listener last heard
   HeartbeatListener* heartbeat_listener_ = nullptr;
   AcceptanceListener* acceptance_listener_ = nullptr;

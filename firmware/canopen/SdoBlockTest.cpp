@@ -297,6 +297,29 @@ TEST_F(SdoBlockTest, BlockUploadWaitingForAckTimesOut) {
   EXPECT_EQ(next_sent().data, abort_data(0x1008, 0, SdoAbort::ProtocolTimedOut));
 }
 
+// Lockstep: the server waits on simulation time. A client as slow as a loaded emulator (a
+// sub-block read over seconds) keeps its transfer; one silent for the timeout's worth of
+// control cycles is aborted in the cycle that reaches it.
+TEST_F(SdoBlockTest, OnControlCyclesOnlyControlTimeTimesOutATransfer) {
+  constexpr std::uint32_t kPeriodUs = 1'000;
+  node.set_timeout_clock(TimeoutClock::ControlCycles);
+  sdo(initiate_block_upload(0x1008, 0, 127));
+  exchange(kStartUpload);
+  for (int i = 0; i < 100; ++i) advance_us(SdoServer::kSegmentTimeoutUs);  // the host stalls
+  EXPECT_TRUE(all_sent().empty());
+  for (std::uint32_t cycle = 1; cycle < SdoServer::kSegmentTimeoutUs / kPeriodUs; ++cycle) {
+    node.advance_control_time(kPeriodUs);
+  }
+  EXPECT_TRUE(all_sent().empty());
+  node.advance_control_time(kPeriodUs);
+  EXPECT_EQ(next_sent().data, abort_data(0x1008, 0, SdoAbort::ProtocolTimedOut));
+  // A client that answers within the timeout of simulation time goes on, however late.
+  sdo(initiate_block_upload(0x1008, 0, 127));
+  exchange(kStartUpload);
+  node.advance_control_time(SdoServer::kSegmentTimeoutUs - 1);
+  EXPECT_FALSE(exchange(block_ack(3, 127)).empty()) << "the end frame or the next sub-block";
+}
+
 TEST_F(SdoBlockTest, BlockUploadWaitingForStartOrEndTimesOut) {
   sdo(initiate_block_upload(0x1008, 0, 127));
   advance_us(SdoServer::kSegmentTimeoutUs);

@@ -7,8 +7,9 @@
 // Input layout (firmware/canopen/fuzz/make_seeds.py writes seeds in it):
 //   byte 0           board config: (b % 64) < field count -> the board refuses writes to that
 //                    field (the FieldAccess "not owner" path); bit 6 -> storage starts with an
-//                    image stored by a previous node; bit 7 -> the heartbeat consumer runs on
-//                    control time (lockstep: each SYNC's cycle advances it by kCyclePeriodUs)
+//                    image stored by a previous node; bit 7 -> the heartbeat consumer and the
+//                    SDO server timeout run on control time (lockstep: each SYNC's cycle
+//                    advances it by kCyclePeriodUs)
 //   then records     [head][dt][raw id: 2 bytes, classes 10..15 only][data: min(len, 8) bytes]
 //     head & 0x0F    frame length 0..15 (9..15 are invalid lengths the engine must drop)
 //     head >> 4      identifier class: 0 NMT, 1 SYNC 0x080, 2 SDO request 0x600+id,
@@ -30,7 +31,8 @@
 //      up to blksize or the last bit, Node::kSdoSegmentsPerCall per process()/poll() until the
 //      sub-block is out (or the end frame once all is acknowledged); the client's end gets
 //      nothing. A transfer left open by the client is aborted with "SDO protocol timed out" by
-//      the first poll() at least SdoServer::kSegmentTimeoutUs later, and only then.
+//      the first poll() at least SdoServer::kSegmentTimeoutUs later, and only then; on control
+//      time, by the first SYNC's control cycle that far on, and never by poll().
 //   3. Counters: each frame given to process() lands in exactly one outcome counter; the SDO,
 //      heartbeat, TPDO and EMCY counters equal the frames seen on the port; nothing was dropped.
 //   4. Error register: non-zero implies the generic bit; every EMCY (not an error reset) carries
@@ -256,7 +258,7 @@ class Harness {
     }
     if ((config & 0x80) != 0) {
       control_clock_ = true;
-      node_.set_consumer_clock(co::ConsumerClock::ControlCycles);
+      node_.set_timeout_clock(co::TimeoutClock::ControlCycles);
     }
     recorder_.reset();  // static: what an earlier input left must not matter
     node_.set_recorder(&recorder_);
@@ -283,9 +285,16 @@ class Harness {
   }
 
   void finish() {
-    // One last look after the client fell silent: the server timeout must fire.
-    now_us_ += co::SdoServer::kSegmentTimeoutUs;
-    poll_and_check();
+    // One last look after the client fell silent: the server timeout must fire, on its clock.
+    if (control_clock_) {
+      advance_control_time(co::SdoServer::kSegmentTimeoutUs);
+      Sent sent = drain();
+      check_sdo_timeout(sent);
+      check_counters();
+    } else {
+      now_us_ += co::SdoServer::kSegmentTimeoutUs;
+      poll_and_check();
+    }
   }
 
  private:
@@ -354,11 +363,42 @@ class Harness {
     check(known_abort_code(code), "SDO abort with a code outside the CiA 301 table", code);
   }
 
+  // The clock the node's SDO server times its client out on (Node::set_timeout_clock).
+  std::uint32_t timeout_now() const { return control_clock_ ? control_time_us_ : now_us_; }
+
+  bool sdo_timeout_due() const {
+    return sdo_.open != SdoModel::Open::None && node_.state() != co::NmtState::Stopped &&
+           timeout_now() - sdo_.last_activity_us >= co::SdoServer::kSegmentTimeoutUs;
+  }
+
+  void advance_control_time(std::uint32_t elapsed_us) {
+    node_.advance_control_time(elapsed_us);
+    control_time_us_ += elapsed_us;
+  }
+
+  // What the clock's move sent (a poll on wall time, a control cycle on control time): the
+  // timeout abort if one was due, else no SDO frame. Takes the abort out of `sent`.
+  void check_sdo_timeout(Sent& sent) {
+    if (!sdo_timeout_due()) {
+      check(sent.sdo.empty(), "an SDO frame sent with no transfer timing out",
+            sent.sdo.empty() ? 0 : sent.sdo.front().data[0]);
+      return;
+    }
+    check(sent.sdo.size() == 1, "open SDO transfer not aborted after the server timeout", sent.sdo.size());
+    const co::CanFrame& r = sent.sdo.front();
+    check(r.data[0] == 0x80 && le32(r.data, 4) == co::to_code(co::SdoAbort::ProtocolTimedOut),
+          "SDO timeout answered with something else than 0x05040000", r.data[0], le32(r.data, 4));
+    check(r.data[1] == sdo_.multiplexer[0] && r.data[2] == sdo_.multiplexer[1] &&
+              r.data[3] == sdo_.multiplexer[2],
+          "SDO timeout abort names another object");
+    sdo_.open = SdoModel::Open::None;
+    sent.sdo.clear();
+  }
+
   void poll_and_check() {
     node_.poll(now_us_);
     Sent sent = drain();
-    const bool due = sdo_.open != SdoModel::Open::None && node_.state() != co::NmtState::Stopped &&
-                     now_us_ - sdo_.last_activity_us >= co::SdoServer::kSegmentTimeoutUs;
+    const bool due = !control_clock_ && sdo_timeout_due();
     if (!due && sdo_.sub_block_open() && node_.state() != co::NmtState::Stopped) {
       check(!sent.sdo.empty(), "poll() did not go on with the sub-block", sdo_.sequence);
       check_segments(sent.sdo);
@@ -366,15 +406,7 @@ class Harness {
       check(sent.sdo.empty(), "poll() sent an SDO frame with no transfer timing out",
             sent.sdo.empty() ? 0 : sent.sdo.front().data[0]);
     } else {
-      check(sent.sdo.size() == 1, "open SDO transfer not aborted after the server timeout",
-            sent.sdo.size());
-      const co::CanFrame& r = sent.sdo.front();
-      check(r.data[0] == 0x80 && le32(r.data, 4) == co::to_code(co::SdoAbort::ProtocolTimedOut),
-            "SDO timeout answered with something else than 0x05040000", r.data[0], le32(r.data, 4));
-      check(r.data[1] == sdo_.multiplexer[0] && r.data[2] == sdo_.multiplexer[1] &&
-                r.data[3] == sdo_.multiplexer[2],
-            "SDO timeout abort names another object");
-      sdo_.open = SdoModel::Open::None;
+      check_sdo_timeout(sent);
     }
     check_counters();
   }
@@ -395,11 +427,12 @@ class Harness {
     if (result.sync) {
       // The control cycle would run here (after the consumer's control time moved on, as on the
       // platform); the recorder samples what it left on the board.
-      if (control_clock_) node_.advance_control_time(kCyclePeriodUs);
+      if (control_clock_) advance_control_time(kCyclePeriodUs);
       recorder_.sample(++cycle_, [this](board::FieldId id) { return board_.read(id); });
       node_.transmit_synchronous_pdos(now_us_);
     }
     Sent sent = drain();
+    if (result.sync && control_clock_) check_sdo_timeout(sent);  // the cycle's timeout abort
     if (filtered_out) check_filtered_out(frame, before, counters_before, sent);
 
     if (served && sdo_.open == SdoModel::Open::BlockDownload && frame.data[0] != 0x80) {
@@ -479,7 +512,7 @@ class Harness {
         if ((q[0] & 0x01) != 0) {
           sdo_.open = SdoModel::Open::None;
         } else {
-          sdo_.last_activity_us = now_us_;
+          sdo_.last_activity_us = timeout_now();
         }
         return;
       case 3:  // upload segment
@@ -490,7 +523,7 @@ class Harness {
         if ((r[0] & 0x01) != 0) {
           sdo_.open = SdoModel::Open::None;
         } else {
-          sdo_.last_activity_us = now_us_;
+          sdo_.last_activity_us = timeout_now();
         }
         return;
       default: fail("command specifier 7 answered without an abort", r[0]);
@@ -526,7 +559,7 @@ class Harness {
       return;
     }
     if (in_sequence) sdo_.sequence = sequence;
-    sdo_.last_activity_us = now_us_;
+    sdo_.last_activity_us = timeout_now();
     if (sequence < sdo_.block_size && !last) {
       check(frames.empty(), "segment inside a sub-block answered", q[0], frames.size());
       return;
@@ -611,7 +644,7 @@ class Harness {
       expect_abort(frames, co::SdoAbort::CommandSpecifierInvalid, "block upload command out of turn");
       return;
     }
-    sdo_.last_activity_us = now_us_;
+    sdo_.last_activity_us = timeout_now();
     switch (subcommand) {
       case 3:  // start: the first sub-block
         sdo_.open = SdoModel::Open::BlockUpload;
@@ -690,7 +723,7 @@ class Harness {
         }
       }
     }
-    sdo_.last_activity_us = now_us_;
+    sdo_.last_activity_us = timeout_now();
     check(!sdo_.sub_block_open() || frames.size() == co::Node::kSdoSegmentsPerCall,
           "sub-block stalled: fewer segments than allowed per call", frames.size());
   }
@@ -700,7 +733,7 @@ class Harness {
     sdo_.multiplexer[0] = q[1];
     sdo_.multiplexer[1] = q[2];
     sdo_.multiplexer[2] = q[3];
-    sdo_.last_activity_us = now_us_;
+    sdo_.last_activity_us = timeout_now();
   }
 
   void check_recorder() {
@@ -763,6 +796,7 @@ class Harness {
   std::uint32_t cycle_ = 0;
   static constexpr std::uint32_t kCyclePeriodUs = 1'000;
   bool control_clock_ = false;
+  std::uint32_t control_time_us_ = 0;  // the node's, on control_clock_
   std::uint32_t now_us_ = 0xFFF0'0000u;  // wraps early: the engine must handle it
   std::uint32_t frames_ = 0;
   std::uint32_t sdo_requests_ = 0;

@@ -337,11 +337,12 @@ int run(const Options& options) {
   // node tells it before it answers, so a master never talks to a filter that lags.
   static_assert(co::Node::kMaxAcceptedIds <= linuxhw::SocketCanPort::kMaxAcceptedIds);
   if (options.acceptance_filter) node.set_acceptance_listener(&port);
-  // The heartbeat consumer's clock: in lockstep, simulation time (each SYNC's cycle advances it
-  // by the period, so a rig sending the master's heartbeat every k cycles sees a trip at an exact
-  // cycle whatever the host's speed); free-running, the wall clock.
-  node.set_consumer_clock(options.mode == Mode::Lockstep ? co::ConsumerClock::ControlCycles
-                                                         : co::ConsumerClock::WallTime);
+  // The clock of the timeouts on peers (heartbeat consumer, SDO server): in lockstep, simulation
+  // time (each SYNC's cycle advances it by the period, so a rig sending the master's heartbeat
+  // every k cycles sees a trip at an exact cycle, and an SDO client slowed by a loaded host is
+  // not cut off mid-transfer, whatever the host's speed); free-running, the wall clock.
+  node.set_timeout_clock(options.mode == Mode::Lockstep ? co::TimeoutClock::ControlCycles
+                                                         : co::TimeoutClock::WallTime);
 
   // SIGINT/SIGTERM arrive as readable data on a file descriptor: the loop finishes the frame
   // or cycle at hand and exits cleanly, with nothing half-written.
