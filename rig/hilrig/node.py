@@ -28,6 +28,7 @@ from canopen.pdo import PdoMap
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from boardproto.cia301 import (
+    STANDARD_ID_MASK,
     SYNC_COUNTER_MAX,
     NmtCommand,
     NmtState,
@@ -399,13 +400,23 @@ class BoardNode:
             self.link.close()
         self.link = open_link(bus, self.network.notifier, receive_ids)
         if socketcan_socket(bus) is not None:
-            bus.set_filters(
-                [
-                    {"can_id": cob_id, "can_mask": 0x7FF, "extended": False}
-                    for cob_id in (sdo_response_cob_id(self.node_id), heartbeat_cob_id(self.node_id))
-                ]
-            )
+            self.receive_only_answers()
         return self.link
+
+    def receive_only_answers(self) -> None:
+        """Narrow canopen's bus to this node's SDO answers and heartbeats (kernel filters on
+        SocketCAN, python-can's own on other interfaces), for a master that needs no PDO from
+        it: on a busy bus every TPDO would otherwise become a python-can object in canopen's
+        receive thread, and an SDO answer would queue behind them (on a slow host, past the SDO
+        timeout)."""
+        bus = self.network.bus
+        assert bus is not None
+        bus.set_filters(
+            [
+                {"can_id": cob_id, "can_mask": STANDARD_ID_MASK, "extended": False}
+                for cob_id in (sdo_response_cob_id(self.node_id), heartbeat_cob_id(self.node_id))
+            ]
+        )
 
     def send_frame(self, cob_id: int, data: bytes) -> None:
         """Any raw frame on the node's bus (fault injection: floods, malformed frames)."""

@@ -99,3 +99,42 @@ def test_nmt_commands_end_in_the_states_cia301_defines() -> None:
     assert NmtCommand.STOP.resulting_state is NmtState.STOPPED
     assert NmtCommand.RESET_NODE.resulting_state is NmtState.PRE_OPERATIONAL
     assert NmtState.PRE_OPERATIONAL == 0x7F
+
+
+def test_a_node_narrowed_to_answers_hears_its_sdo_answers_and_heartbeats_only(table: RigTable) -> None:
+    import threading
+
+    import can
+
+    from boardproto.cia301 import heartbeat_cob_id, sdo_response_cob_id
+    from hilrig.node import BoardNode
+
+    node_id = 0x10
+    ours = can.Bus(interface="virtual", channel="narrowed", receive_own_messages=False)
+    board = can.Bus(interface="virtual", channel="narrowed")
+    node = BoardNode(ours, node_id, None, table)
+    heard: list[int] = []
+    last = threading.Event()
+    wanted = {sdo_response_cob_id(node_id), heartbeat_cob_id(node_id)}
+    tpdo1 = cob_id(FunctionCode.TPDO1, node_id)
+    for cob in (tpdo1, *wanted):
+        node.network.subscribe(cob, lambda can_id, data, ts: (heard.append(can_id), last.set()))
+    try:
+        node.receive_only_answers()
+        for cob in (tpdo1, sdo_response_cob_id(node_id), tpdo1, heartbeat_cob_id(node_id)):
+            board.send(
+                can.Message(
+                    arbitration_id=cob,
+                    data=bytes(8 if cob != heartbeat_cob_id(node_id) else 1),
+                    is_extended_id=False,
+                )
+            )
+        deadline = 50  # x 0.1 s: a hang guard, the frames are in memory
+        while len(heard) < 2 and deadline:
+            last.wait(0.1)
+            deadline -= 1
+        assert heard == [sdo_response_cob_id(node_id), heartbeat_cob_id(node_id)]
+    finally:
+        node.close()
+        ours.shutdown()
+        board.shutdown()

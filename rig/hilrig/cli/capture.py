@@ -200,6 +200,9 @@ def run(args: argparse.Namespace) -> int:
     settings = settings_from(args, table)
     period_s = args.period_us * 1e-6
     with open_bus(args) as bus, board_node(args, bus, table) as node:
+        # The board's TPDOs (7 a cycle at 1 kHz by default) are nothing to this command: on a
+        # slow host they would queue ahead of the SDO answers it polls the recorder with.
+        node.receive_only_answers()
         recorder = RecorderClient(node, table)
         try:
             recorder.configure(settings)
