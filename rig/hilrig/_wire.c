@@ -9,7 +9,12 @@
  * to Python at once, in arrival order, for the rules there.
  *
  *   send_frames(fd, frames)                      every 16-byte struct can_frame of `frames`
- *   exchange(fd, out, due, decoders, got, spin_s) send `out`, then receive (see exchange_doc)
+ *   exchange(fd, out, due, decoders, got, spin_s[, cycle])
+ *                                                send `out`, then receive (see exchange_doc)
+ *
+ * A decoder may carry its PDO's history rows (a list of cycles, a list of values): each TPDO it
+ * decodes is then also appended there, tagged with `cycle`, so the rig's per-cycle bookkeeping
+ * of every TPDO needs no Python either.
  *
  * The socket is blocking with the kernel's receive timeout (SO_RCVTIMEO, set by the caller): a
  * wait is a short look without sleeping (`receive`), then one recv() that returns EAGAIN when
@@ -126,7 +131,7 @@ static Py_ssize_t count_missing(PyObject *due, PyObject *got) {
 /* The values of a due TPDO of the usual length (a new reference), or NULL without an error set
  * when the frame is not that (then it goes back to Python), or NULL with an error set. */
 static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ssize_t length, PyObject *due,
-                              PyObject *decoders, PyObject *got) {
+                              PyObject *decoders, PyObject *got, PyObject *cycle) {
     int wanted = PySet_Contains(due, cob_id);
     if (wanted <= 0) {
         return NULL;
@@ -139,8 +144,10 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
     if (decoder == NULL) {
         return NULL;
     }
-    if (!PyTuple_Check(decoder) || PyTuple_GET_SIZE(decoder) != 2) {
-        PyErr_SetString(PyExc_TypeError, "exchange: a decoder is a (length, unpack) tuple");
+    Py_ssize_t items = PyTuple_Check(decoder) ? PyTuple_GET_SIZE(decoder) : 0;
+    if (items != 2 && items != 4) {
+        PyErr_SetString(PyExc_TypeError,
+                        "exchange: a decoder is a (length, unpack) or (length, unpack, cycles, values) tuple");
         return NULL;
     }
     Py_ssize_t expected = PyLong_AsSsize_t(PyTuple_GET_ITEM(decoder, 0));
@@ -156,6 +163,19 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
     }
     PyObject *values = PyObject_CallOneArg(PyTuple_GET_ITEM(decoder, 1), payload);
     Py_DECREF(payload);
+    if (values == NULL || items == 2) {
+        return values;
+    }
+    PyObject *cycles = PyTuple_GET_ITEM(decoder, 2), *rows = PyTuple_GET_ITEM(decoder, 3);
+    if (cycle == NULL || !PyList_Check(cycles) || !PyList_Check(rows)) {
+        Py_DECREF(values);
+        PyErr_SetString(PyExc_TypeError, "exchange: rows need their cycle, and lists to go in");
+        return NULL;
+    }
+    if (PyList_Append(cycles, cycle) < 0 || PyList_Append(rows, values) < 0) {
+        Py_DECREF(values);
+        return NULL;
+    }
     return values;
 }
 
@@ -220,11 +240,12 @@ static ssize_t receive(int fd, unsigned char *frame, int wait, int64_t max_look_
 }
 
 PyDoc_STRVAR(exchange_doc,
-             "exchange(fd, out, due, decoders, got, spin_s, /)\n--\n\n"
+             "exchange(fd, out, due, decoders, got, spin_s, cycle=None, /)\n--\n\n"
              "Send the frames of `out` (whole 16-byte struct can_frames, may be empty), then\n"
              "receive on `fd`. A frame whose COB-ID is in `due` (a frozenset), is not yet a key\n"
              "of `got` and has the length of its decoder (`decoders[cob_id] = (length,\n"
-             "unpack)`) is decoded into `got[cob_id] = unpack(data)`. Returns:\n"
+             "unpack)`) is decoded into `got[cob_id] = unpack(data)`; a decoder `(length, unpack,\n"
+             "cycles, values)` also appends `cycle` and the values to those two lists. Returns:\n"
              "  (cob_id, data)  the first frame that is anything else, at once (Python judges it);\n"
              "  False           the socket's receive timeout passed with a due COB-ID missing;\n"
              "  None            every due COB-ID is in `got` and nothing more is queued.\n"
@@ -234,10 +255,12 @@ PyDoc_STRVAR(exchange_doc,
 
 static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
     (void)module;
-    if (nargs != 6) {
-        PyErr_SetString(PyExc_TypeError, "exchange(fd, out, due, decoders, got, spin_s) takes 6 arguments");
+    if (nargs != 6 && nargs != 7) {
+        PyErr_SetString(PyExc_TypeError,
+                        "exchange(fd, out, due, decoders, got, spin_s, cycle=None) takes 6 or 7 arguments");
         return NULL;
     }
+    PyObject *cycle = nargs == 7 && args[6] != Py_None ? args[6] : NULL;
     int fd = fd_argument(args[0]);
     if (fd < 0) {
         return NULL;
@@ -292,7 +315,7 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
         if (cob_id == NULL) {
             return NULL;
         }
-        PyObject *values = usual_values(cob_id, frame + 8, length, due, decoders, got);
+        PyObject *values = usual_values(cob_id, frame + 8, length, due, decoders, got, cycle);
         if (values != NULL) {
             int stored = PyDict_SetItem(got, cob_id, values);
             Py_DECREF(values);

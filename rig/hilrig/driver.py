@@ -22,7 +22,7 @@ from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.node import BoardNode
 from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
 from hilrig.table import unknown_name
-from hilrig.transport import Decoders, FrameLink, PdoDirection, PdoLayout, can_frame, send_frames
+from hilrig.transport import FrameLink, PdoDirection, PdoLayout, Unpack, can_frame, send_frames
 
 Value = float | int
 PdoRow = tuple[PdoLayout, tuple[Value, ...]]
@@ -209,13 +209,13 @@ class History:
                 rows.cycles.append(cycle)
                 rows.values.append(values)
 
-    def appenders(self, pdo: PdoLayout) -> tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]:
-        """(append a cycle, append its values) of `pdo`'s rows (received for a TPDO, sent for an
-        RPDO): what `record_rows` does for one PDO, for a driver that records every cycle (both,
-        always together)."""
+    def row_lists(self, pdo: PdoLayout) -> tuple[list[int], list[tuple[Value, ...]]]:
+        """(cycles, values) of `pdo`'s rows (received for a TPDO, sent for an RPDO), for a driver
+        that appends to them every cycle (what `record_rows` does for one PDO; both lists always
+        together, a cycle and its values, cycles in order)."""
         direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
         rows = direction.rows_of(pdo)
-        return rows.cycles.append, rows.values.append
+        return rows.cycles, rows.values
 
     def has_received(self, name: str) -> bool:
         return self._received.has(name)
@@ -344,13 +344,9 @@ class Driver:
         self._actuator: tuple[PdoLayout, int] | None = None
         self._due_table: list[frozenset[int]] = [frozenset()]
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
-        self._decoders: Decoders = {}
-        """COB-ID -> (length, unpack) of every enabled TPDO: what a cycle's exchange decodes."""
-        self._tpdo_appenders: dict[
-            int, tuple[PdoLayout, Callable[[int], None], Callable[[tuple[Value, ...]], None]]
-        ] = {}
-        """COB-ID -> (layout, append a cycle, append its values) of the history's rows of every
-        enabled TPDO (`History.appenders`)."""
+        self._decoders: dict[int, tuple[int, Unpack, list[int], list[tuple[Value, ...]]]] = {}
+        """COB-ID -> (length, unpack, cycles, values) of every enabled TPDO: what a cycle's
+        exchange decodes, and the history's rows it appends each one to (`History.row_lists`)."""
         self._rpdo_appenders: dict[
             int, tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]
         ] = {}
@@ -435,9 +431,13 @@ class Driver:
         self._due_table = [
             frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
         ]
-        self._decoders = {p.cob_id: (p.length, p.codec.unpack) for p in enabled_tpdos}
-        self._tpdo_appenders = {p.cob_id: (p, *self.history.appenders(p)) for p in enabled_tpdos}
-        self._rpdo_appenders = {p.number: self.history.appenders(p) for p in enabled_rpdos}
+        self._decoders = {
+            p.cob_id: (p.length, p.codec.unpack, *self.history.row_lists(p)) for p in enabled_tpdos
+        }
+        self._rpdo_appenders = {}
+        for p in enabled_rpdos:
+            cycles, values = self.history.row_lists(p)
+            self._rpdo_appenders[p.number] = (cycles.append, values.append)
         self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
         self._pending.clear()
 

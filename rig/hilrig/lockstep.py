@@ -116,26 +116,17 @@ class LockstepDriver(Driver):
             values = got.get(actuator[0].cob_id)
             if values is not None:
                 duty = duty_from_motor_duty(int(values[actuator[1]]))
-        # The rows go straight into the history's rows of each PDO (appenders fixed at
-        # configure()): these loops run every cycle for every PDO.
+        # The TPDOs' rows are in the history already (appended as they were decoded, see
+        # `_collect`); the RPDOs' go into their rows here (appenders fixed at configure()).
         n = start.cycle
-        appenders = self._tpdo_appenders
-        received = []
-        add = received.append
-        for cob_id, values in got.items():
-            pdo, add_cycle, add_values = appenders[cob_id]
-            add_cycle(n)
-            add_values(values)
-            add((pdo, values))
+        received = tuple(zip(map(self._tpdo_by_cob.__getitem__, got), got.values(), strict=True))
         sent_appenders = self._rpdo_appenders
         for pdo, values in start.sent:
             add_cycle, add_values = sent_appenders[pdo.number]
             add_cycle(n)
             add_values(values)
         self.history.record_truth(start.state)
-        return CycleResult(
-            n, start.t, start.counter, start.raw, tuple(received), duty, start.sent, start.state
-        )
+        return CycleResult(n, start.t, start.counter, start.raw, received, duty, start.sent, start.state)
 
     def _collect(
         self, n: int, t: float, due: frozenset[int], sync_number: int, out: bytes = b""
@@ -144,9 +135,39 @@ class LockstepDriver(Driver):
         due at this SYNC (COB-IDs in `due`) is in (the wall-clock bound is only a hang guard),
         then what is already queued behind them; TPDOs that are not cyclic (event-driven) are
         taken as they come. A cyclic TPDO twice, one not due, or a frame of the wrong length is
-        a LockstepError of this cycle. Returns the values by COB-ID."""
+        a LockstepError of this cycle. Returns the values by COB-ID, each also appended to its
+        PDO's rows in the history as this cycle's (none of them when the cycle fails)."""
         got: dict[int, tuple[Value, ...]] = {}
+        try:
+            return self._collect_into(got, n, t, due, sync_number, out)
+        except BaseException:
+            self._forget_rows(n, got)
+            raise
+
+    def _forget_rows(self, n: int, got: dict[int, tuple[Value, ...]]) -> None:
+        """Take the rows of cycle `n` that `got`'s TPDOs left in the history back out."""
+        for cob_id in got:
+            _, _, cycles, values = self._decoders[cob_id]
+            if cycles and cycles[-1] == n:
+                del cycles[-1], values[-1]
+
+    def _collect_into(
+        self,
+        got: dict[int, tuple[Value, ...]],
+        n: int,
+        t: float,
+        due: frozenset[int],
+        sync_number: int,
+        out: bytes,
+    ) -> dict[int, tuple[Value, ...]]:
         by_cob = self._tpdo_by_cob
+        decoders = self._decoders
+
+        def keep(cob_id: int, values: tuple[Value, ...]) -> None:
+            got[cob_id] = values
+            _, _, cycles, rows = decoders[cob_id]
+            cycles.append(n)
+            rows.append(values)
 
         def take(cob_id: int, data: bytes, between_syncs: bool = False) -> None:
             """Any frame but a due TPDO of the right length: EMCY, acyclic TPDO, or a problem."""
@@ -158,7 +179,7 @@ class LockstepDriver(Driver):
             if values is None:
                 problem = f"arrived with {len(data)} bytes, its mapping has {pdo.length}"
             elif not pdo.is_cyclic:
-                got[cob_id] = values
+                keep(cob_id, values)
                 return
             elif between_syncs:
                 problem = "arrived between SYNCs"
@@ -170,7 +191,7 @@ class LockstepDriver(Driver):
                     f"(transmission type {pdo.transmission_type})"
                 )
             else:  # a due TPDO after all (not one the exchange decoded itself)
-                got[cob_id] = values
+                keep(cob_id, values)
                 return
             raise self._error(n, t, f"{pdo.label} {problem}")
 
@@ -182,12 +203,11 @@ class LockstepDriver(Driver):
             pending, self._pending = self._pending, []
             for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
                 take(cob_id, data, between_syncs=True)
-        decoders = self._decoders
         waited = 0.0
         while True:
-            # Due TPDOs of the usual length are decoded into `got` inside; anything else comes
-            # back at once, in arrival order.
-            frame = exchange(link, out, due, decoders, got, LIVENESS_SLICE_S)
+            # Due TPDOs of the usual length are decoded into `got` (and their rows) inside;
+            # anything else comes back at once, in arrival order.
+            frame = exchange(link, out, due, decoders, got, LIVENESS_SLICE_S, n)
             out = b""
             if frame is None:
                 return got

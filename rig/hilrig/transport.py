@@ -186,7 +186,11 @@ def parse_frame(frame: bytes) -> tuple[int, bytes]:
 # --- Links ------------------------------------------------------------------------------
 Frame = tuple[int, bytes]
 """(COB-ID, data) of a received standard data frame."""
-Decoders = Mapping[int, tuple[int, Callable[[bytes], tuple[Value, ...]]]]
+Unpack = Callable[[bytes], tuple[Value, ...]]
+Decoder = tuple[int, Unpack] | tuple[int, Unpack, list[int], list[tuple[Value, ...]]]
+Decoders = Mapping[int, Decoder]
+"""By COB-ID: (length, unpack), or (length, unpack, cycles, values) to have each decoded TPDO also
+appended to those rows (a PDO's history), tagged with the exchange's cycle."""
 """COB-ID -> (payload length, unpack) of each TPDO a cycle may wait for."""
 
 
@@ -220,16 +224,18 @@ def exchange(
     decoders: Decoders,
     got: dict[int, tuple[Value, ...]],
     timeout_s: float,
+    cycle: int | None = None,
 ) -> Frame | bool | None:
     """One step of a lockstep cycle's exchange: send `out` (joined frames, may be empty), then
     receive. A frame with a COB-ID in `due`, not yet in `got`, of its decoder's length is decoded
-    into `got`. Returns the first frame that is anything else at once (the caller judges it),
-    False when `timeout_s` passed with a due COB-ID missing, None when every due COB-ID is in
-    `got` and nothing more is queued. On a raw socket all of it is one call into C
-    (`hilrig._wire`); on any other link the same, frame by frame."""
+    into `got` (and appended to the decoder's rows, if it has any, as `cycle`'s). Returns the
+    first frame that is anything else at once (the caller judges it), False when `timeout_s`
+    passed with a due COB-ID missing, None when every due COB-ID is in `got` and nothing more is
+    queued. On a raw socket all of it is one call into C (`hilrig._wire`); on any other link the
+    same, frame by frame."""
     fast = getattr(link, "exchange", None)
     if fast is not None:
-        return fast(out, due, decoders, got, timeout_s)
+        return fast(out, due, decoders, got, timeout_s, cycle)
     send_frames(link, out)
     missing = not due.issubset(got)
     while True:
@@ -240,7 +246,12 @@ def exchange(
         if cob_id in due and cob_id not in got:
             decoder = decoders.get(cob_id)
             if decoder is not None and len(data) == decoder[0]:
-                got[cob_id] = decoder[1](data)
+                values = got[cob_id] = decoder[1](data)
+                if len(decoder) == 4:
+                    if cycle is None:
+                        raise TypeError("exchange: rows need their cycle")
+                    decoder[2].append(cycle)
+                    decoder[3].append(values)
                 missing = not due.issubset(got)
                 continue
         return frame
@@ -284,12 +295,13 @@ class RawCanLink:
         decoders: Decoders,
         got: dict[int, tuple[Value, ...]],
         timeout_s: float,
+        cycle: int | None = None,
     ) -> Frame | bool | None:
         """`transport.exchange` in one call into C (`hilrig._wire.exchange`); a wait for a due
         frame ends after `timeout_s` (the socket's receive timeout)."""
         if timeout_s != self._timeout:
             self._set_timeout(timeout_s)
-        return _wire.exchange(self._fd, out, due, decoders, got, LOOK_BEFORE_SLEEP_S)
+        return _wire.exchange(self._fd, out, due, decoders, got, LOOK_BEFORE_SLEEP_S, cycle)
 
     def recv(self, timeout_s: float) -> Frame | None:
         try:
@@ -489,12 +501,14 @@ __all__ = [
     "CAN_HEADER",
     "RECEIVE_QUEUE_BYTES",
     "BusLink",
+    "Decoder",
     "Decoders",
     "Frame",
     "FrameLink",
     "PdoDirection",
     "PdoLayout",
     "RawCanLink",
+    "Unpack",
     "can_frame",
     "compile_pdo",
     "compile_pdos",

@@ -218,6 +218,9 @@ def test_missing_tpdo_raises_lockstep_error_naming_cycle_time_and_pdo(bench: Ben
     ):
         bench.rig.run(cycles=10)
     assert bench.rig.cycle == 6
+    # The TPDOs that did arrive in the failed cycle are not in the history: it ends at cycle 5.
+    t, _ = bench.rig.history("motor_duty")  # TPDO1, in before the missing TPDO3
+    assert t[-1] == pytest.approx(0.005)
 
 
 def test_missing_slow_tpdo_is_noticed_at_its_sync(bench: Bench) -> None:

@@ -264,6 +264,25 @@ def test_exchange_with_nothing_due_only_drains_what_is_queued(wire) -> None:
     assert exchange(link, b"", frozenset(), DECODERS, {}, SLICE_S) is None
 
 
+def test_exchange_appends_each_decoded_frame_to_its_rows_as_the_cycle_s(wire) -> None:
+    link, peer = wire
+    rows: dict[int, tuple[list[int], list[tuple]]] = {cob: ([7], [(0,)]) for cob in DUE}  # cycle 7's
+    decoders = {cob: (*DECODERS[cob], *rows[cob]) for cob in DUE}
+    for frame in (
+        can_frame(TPDO2_ID, b"\x01\x02"),  # wrong length: handed back, in no row
+        can_frame(TPDO2_ID, struct.pack("<f", 2.5)),
+        can_frame(TPDO1_ID, b"\x09\x00"),
+    ):
+        peer.send(frame)
+    got: dict[int, tuple] = {}
+    assert exchange(link, b"", DUE, decoders, got, SLICE_S, 8) == (TPDO2_ID, b"\x01\x02")
+    assert exchange(link, b"", DUE, decoders, got, SLICE_S, 8) is None
+    assert rows == {TPDO1_ID: ([7, 8], [(0,), (9,)]), TPDO2_ID: ([7, 8], [(0,), (2.5,)])}
+    peer.send(can_frame(TPDO1_ID, b"\x01\x00"))
+    with pytest.raises(TypeError, match="cycle"):  # rows without a cycle to file them under
+        exchange(link, b"", DUE, decoders, {}, SLICE_S)
+
+
 def test_send_frames_sends_each_frame_in_order(wire) -> None:
     link, peer = wire
     frames = [can_frame(RPDO1_ID, bytes([k])) for k in range(5)]
