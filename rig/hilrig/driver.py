@@ -46,7 +46,7 @@ TRUTH_ALIASES: dict[str, str] = {
 }
 """Short names without the unit suffix ("load_velocity" -> "load_velocity_rad_s")."""
 
-_SYNC_FRAMES = tuple(can_frame(SYNC_COB_ID, bytes([counter])) for counter in range(1, SYNC_COUNTER_MAX + 1))
+SYNC_FRAMES = tuple(can_frame(SYNC_COB_ID, bytes([counter])) for counter in range(1, SYNC_COUNTER_MAX + 1))
 """The SYNC frame of each counter value 1..240 (index counter - 1)."""
 
 
@@ -56,9 +56,10 @@ def sync_counter(cycle: int) -> int:
 
 
 def sync_frame(counter: int) -> bytes:
+    """The SYNC frame with `counter` (1..240); `SYNC_FRAMES[counter - 1]` without the check."""
     if not 1 <= counter <= SYNC_COUNTER_MAX:
         raise ValueError(f"SYNC counter: expected 1..{SYNC_COUNTER_MAX}, got {counter}")
-    return _SYNC_FRAMES[counter - 1]
+    return SYNC_FRAMES[counter - 1]
 
 
 def resolve_truth_name(name: str) -> str:
@@ -562,6 +563,7 @@ __all__ = [
     "ACTUATOR_OUTPUT",
     "BUS_EVENTS_PATH",
     "SETPOINT_STREAM",
+    "SYNC_FRAMES",
     "TRUTH_ALIASES",
     "TRUTH_NAMES",
     "CycleResult",

@@ -22,6 +22,7 @@ from hilrig.driver import (
     ACTUATOR_OUTPUT,
     LIVENESS_SLICE_S,
     SETPOINT_STREAM,
+    SYNC_FRAMES,
     TRUTH_ALIASES,
     TRUTH_NAMES,
     CycleResult,
@@ -31,7 +32,6 @@ from hilrig.driver import (
     Value,
     resolve_truth_name,
     sync_counter,
-    sync_frame,
 )
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
@@ -68,7 +68,7 @@ class LockstepDriver(Driver):
 
     def step(self) -> CycleResult:
         start = self.begin_cycle(send=False)
-        out = start.unsent + sync_frame(start.counter)  # the RPDOs, then the SYNC: one call
+        out = start.unsent + SYNC_FRAMES[start.counter - 1]  # the RPDOs, then the SYNC: one call
         got = self._collect(start.cycle, start.t, start.due, start.sync_number, out)  # collect_cycle
         result = self.end_cycle(start, got)
         self.plant.step(self.period_s, result.duty)
@@ -119,7 +119,8 @@ class LockstepDriver(Driver):
         # The TPDOs' rows are in the history already (appended as they were decoded, see
         # `_collect`); the RPDOs' go into their rows here (appenders fixed at configure()).
         n = start.cycle
-        received = tuple(zip(map(self._tpdo_by_cob.__getitem__, got), got.values(), strict=True))
+        by_cob = self._tpdo_by_cob
+        received = tuple([(by_cob[cob_id], values) for cob_id, values in got.items()])
         sent_appenders = self._rpdo_appenders
         for pdo, values in start.sent:
             add_cycle, add_values = sent_appenders[pdo.number]
@@ -138,11 +139,96 @@ class LockstepDriver(Driver):
         a LockstepError of this cycle. Returns the values by COB-ID, each also appended to its
         PDO's rows in the history as this cycle's (none of them when the cycle fails)."""
         got: dict[int, tuple[Value, ...]] = {}
+        link, decoders = self.link, self._decoders
         try:
-            return self._collect_into(got, n, t, due, sync_number, out)
+            if self._pending:
+                if out:
+                    send_frames(link, out)  # the SYNC is on the bus, as when no frame was pending
+                    out = b""
+                pending, self._pending = self._pending, []
+                for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
+                    self._take(got, n, t, due, sync_number, cob_id, data, between_syncs=True)
+            waited = 0.0
+            while True:
+                # Due TPDOs of the usual length are decoded into `got` (and their rows) inside;
+                # anything else comes back at once, in arrival order.
+                frame = exchange(link, out, due, decoders, got, LIVENESS_SLICE_S, n)
+                if frame is None:
+                    return got
+                out = b""
+                if frame is not False:
+                    self._take(got, n, t, due, sync_number, *frame)  # type: ignore[misc]
+                    continue
+                waited += LIVENESS_SLICE_S
+                self._check_alive(n, t, due, got, waited)
         except BaseException:
             self._forget_rows(n, got)
             raise
+
+    def _take(
+        self,
+        got: dict[int, tuple[Value, ...]],
+        n: int,
+        t: float,
+        due: frozenset[int],
+        sync_number: int,
+        cob_id: int,
+        data: bytes,
+        between_syncs: bool = False,
+    ) -> None:
+        """Any frame of cycle `n` but a due TPDO of the right length: EMCY, acyclic TPDO, or a
+        problem (a LockstepError). A TPDO taken goes into `got` and its rows."""
+        pdo = self._tpdo_by_cob.get(cob_id)
+        if pdo is None:
+            self._other_frame(cob_id, data)
+            return
+        values = self._decode(pdo, data)
+        if values is None:
+            problem = f"arrived with {len(data)} bytes, its mapping has {pdo.length}"
+        elif not pdo.is_cyclic:
+            self._keep(got, n, cob_id, values)
+            return
+        elif between_syncs:
+            problem = "arrived between SYNCs"
+        elif cob_id in got:
+            problem = "arrived twice"
+        elif cob_id not in due:
+            problem = (
+                f"arrived but is not due at SYNC {sync_number} since operational "
+                f"(transmission type {pdo.transmission_type})"
+            )
+        else:  # a due TPDO after all (not one the exchange decoded itself)
+            self._keep(got, n, cob_id, values)
+            return
+        raise self._error(n, t, f"{pdo.label} {problem}")
+
+    def _keep(
+        self, got: dict[int, tuple[Value, ...]], n: int, cob_id: int, values: tuple[Value, ...]
+    ) -> None:
+        """A TPDO of cycle `n` into `got` and its rows (what the exchange does in C)."""
+        got[cob_id] = values
+        _, _, cycles, rows = self._decoders[cob_id]
+        cycles.append(n)
+        rows.append(values)
+
+    def _check_alive(
+        self, n: int, t: float, due: frozenset[int], got: dict[int, tuple[Value, ...]], waited: float
+    ) -> None:
+        """A wait for a due TPDO passed: FirmwareError if the node's process died, LockstepError
+        once the TPDO timeout has passed."""
+        if self.liveness is not None:
+            try:
+                self.liveness()  # raises (e.g. FirmwareError) when the node's process died
+            except FirmwareError as error:
+                raise FirmwareError(f"cycle {n} (t = {t:.6g} s): {error}") from error
+        if waited >= self.tpdo_timeout_s:
+            by_cob = self._tpdo_by_cob
+            missing = due.difference(got)
+            labels = ", ".join(by_cob[c].label for c in sorted(missing, key=lambda c: by_cob[c].number))
+            verb = "did" if len(missing) == 1 else "do"
+            heartbeat = self.node.last_heartbeat
+            hint = f"; last heartbeat: {heartbeat.name}" if heartbeat is not None else ""
+            raise self._error(n, t, f"{labels} {verb} not arrive within {self.tpdo_timeout_s:g} s{hint}")
 
     def _forget_rows(self, n: int, got: dict[int, tuple[Value, ...]]) -> None:
         """Take the rows of cycle `n` that `got`'s TPDOs left in the history back out."""
@@ -150,83 +236,6 @@ class LockstepDriver(Driver):
             _, _, cycles, values = self._decoders[cob_id]
             if cycles and cycles[-1] == n:
                 del cycles[-1], values[-1]
-
-    def _collect_into(
-        self,
-        got: dict[int, tuple[Value, ...]],
-        n: int,
-        t: float,
-        due: frozenset[int],
-        sync_number: int,
-        out: bytes,
-    ) -> dict[int, tuple[Value, ...]]:
-        by_cob = self._tpdo_by_cob
-        decoders = self._decoders
-
-        def keep(cob_id: int, values: tuple[Value, ...]) -> None:
-            got[cob_id] = values
-            _, _, cycles, rows = decoders[cob_id]
-            cycles.append(n)
-            rows.append(values)
-
-        def take(cob_id: int, data: bytes, between_syncs: bool = False) -> None:
-            """Any frame but a due TPDO of the right length: EMCY, acyclic TPDO, or a problem."""
-            pdo = by_cob.get(cob_id)
-            if pdo is None:
-                self._other_frame(cob_id, data)
-                return
-            values = self._decode(pdo, data)
-            if values is None:
-                problem = f"arrived with {len(data)} bytes, its mapping has {pdo.length}"
-            elif not pdo.is_cyclic:
-                keep(cob_id, values)
-                return
-            elif between_syncs:
-                problem = "arrived between SYNCs"
-            elif cob_id in got:
-                problem = "arrived twice"
-            elif cob_id not in due:
-                problem = (
-                    f"arrived but is not due at SYNC {sync_number} since operational "
-                    f"(transmission type {pdo.transmission_type})"
-                )
-            else:  # a due TPDO after all (not one the exchange decoded itself)
-                keep(cob_id, values)
-                return
-            raise self._error(n, t, f"{pdo.label} {problem}")
-
-        link = self.link
-        if self._pending:
-            if out:
-                send_frames(link, out)  # the SYNC is on the bus, as when no frame was pending
-                out = b""
-            pending, self._pending = self._pending, []
-            for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
-                take(cob_id, data, between_syncs=True)
-        waited = 0.0
-        while True:
-            # Due TPDOs of the usual length are decoded into `got` (and their rows) inside;
-            # anything else comes back at once, in arrival order.
-            frame = exchange(link, out, due, decoders, got, LIVENESS_SLICE_S, n)
-            out = b""
-            if frame is None:
-                return got
-            if frame is not False:
-                take(*frame)  # type: ignore[misc]
-                continue
-            waited += LIVENESS_SLICE_S
-            if self.liveness is not None:
-                try:
-                    self.liveness()  # raises (e.g. FirmwareError) when the node's process died
-                except FirmwareError as error:
-                    raise FirmwareError(f"cycle {n} (t = {t:.6g} s): {error}") from error
-            if waited >= self.tpdo_timeout_s:
-                missing = due.difference(got)
-                labels = ", ".join(by_cob[c].label for c in sorted(missing, key=lambda c: by_cob[c].number))
-                verb = "did" if len(missing) == 1 else "do"
-                heartbeat = self.node.last_heartbeat
-                hint = f"; last heartbeat: {heartbeat.name}" if heartbeat is not None else ""
-                raise self._error(n, t, f"{labels} {verb} not arrive within {self.tpdo_timeout_s:g} s{hint}")
 
     @staticmethod
     def _error(cycle: int, t: float, what: str) -> LockstepError:
