@@ -115,7 +115,7 @@ class LockstepDriver(Driver):
             # driver whose command stream stopped would be.
             values = got.get(actuator[0].cob_id)
             if values is not None:
-                duty = duty_from_motor_duty(int(values[actuator[1]]))
+                duty = duty_from_motor_duty(values[actuator[1]])  # an int: the codec's I16
         # The TPDOs' rows are in the history already (appended as they were decoded, see
         # `_collect`); the RPDOs' go into their rows here (appenders fixed at configure()).
         n = start.cycle

@@ -85,6 +85,8 @@ class PdoLayout:
     length: int = field(init=False, compare=False)
     """Bytes in the frame, from the mapping."""
     _header: bytes = field(init=False, repr=False, compare=False)
+    _padded: struct.Struct = field(init=False, repr=False, compare=False)
+    """The codec with the frame's unused data bytes as padding: `frame` packs in one call."""
     _hash: int = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -92,6 +94,8 @@ class PdoLayout:
         object.__setattr__(self, "codec", codec)
         object.__setattr__(self, "length", codec.size)
         object.__setattr__(self, "_header", CAN_HEADER.pack(self.cob_id, codec.size))
+        padding = "x" * max(0, CAN_FRAME_SIZE - CAN_HEADER.size - codec.size)
+        object.__setattr__(self, "_padded", struct.Struct("<" + "".join(self.formats) + padding))
         key = (self.direction, self.number, self.cob_id, self.enabled, self.transmission_type, self.names)
         object.__setattr__(self, "_hash", hash((key, self.formats, self.addresses)))
 
@@ -130,7 +134,7 @@ class PdoLayout:
 
     def frame(self, values: Sequence[Value]) -> bytes:
         """A whole SocketCAN frame (16 bytes) carrying `values`."""
-        return (self._header + self.codec.pack(*values)).ljust(CAN_FRAME_SIZE, b"\0")
+        return self._header + self._padded.pack(*values)
 
     def object_bytes(self, name: str, value: Value) -> bytes:
         """How `name` with `value` reads over SDO: the same bytes as in this PDO."""
