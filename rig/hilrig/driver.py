@@ -22,7 +22,16 @@ from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.node import BoardNode
 from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
 from hilrig.table import unknown_name
-from hilrig.transport import FrameLink, PdoDirection, PdoLayout, Unpack, can_frame, send_frames
+from hilrig.transport import (
+    Exchange,
+    FrameLink,
+    PdoDirection,
+    PdoLayout,
+    Unpack,
+    can_frame,
+    exchanger,
+    send_frames,
+)
 
 Value = float | int
 PdoRow = tuple[PdoLayout, tuple[Value, ...]]
@@ -352,6 +361,8 @@ class Driver:
             int, tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]
         ] = {}
         """RPDO number -> (append a cycle, append its values) of the history's sent rows."""
+        self._exchange: Exchange | None = None
+        """`transport.exchange` bound to the link (configure())."""
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
         self._tpdo_names: frozenset[str] = frozenset()
 
@@ -440,6 +451,7 @@ class Driver:
             cycles, values = self.history.row_lists(p)
             self._rpdo_appenders[p.number] = (cycles.append, values.append)
         self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
+        self._exchange = exchanger(self._link)
         self._pending.clear()
 
     def rpdo_of(self, name: str) -> int | None:

@@ -35,7 +35,7 @@ from hilrig.driver import (
 )
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
-from hilrig.transport import exchange, send_frames
+from hilrig.transport import send_frames
 
 
 @dataclass(slots=True)
@@ -139,11 +139,12 @@ class LockstepDriver(Driver):
         a LockstepError of this cycle. Returns the values by COB-ID, each also appended to its
         PDO's rows in the history as this cycle's (none of them when the cycle fails)."""
         got: dict[int, tuple[Value, ...]] = {}
-        link, decoders = self.link, self._decoders
+        exchange, decoders = self._exchange, self._decoders
+        assert exchange is not None, "configure() binds the exchange"
         try:
             if self._pending:
                 if out:
-                    send_frames(link, out)  # the SYNC is on the bus, as when no frame was pending
+                    send_frames(self.link, out)  # the SYNC is on the bus, as when no frame was pending
                     out = b""
                 pending, self._pending = self._pending, []
                 for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
@@ -152,7 +153,7 @@ class LockstepDriver(Driver):
             while True:
                 # Due TPDOs of the usual length are decoded into `got` (and their rows) inside;
                 # anything else comes back at once, in arrival order.
-                frame = exchange(link, out, due, decoders, got, LIVENESS_SLICE_S, n)
+                frame = exchange(out, due, decoders, got, LIVENESS_SLICE_S, n)
                 if frame is None:
                     return got
                 out = b""

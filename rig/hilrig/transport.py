@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import enum
 import fcntl
+import functools
 import os
 import queue
 import socket
@@ -219,6 +220,19 @@ def send_frames(link: FrameLink, frames: bytes) -> None:
         return
     for offset in range(0, len(frames), CAN_FRAME_SIZE):
         link.send(frames[offset : offset + CAN_FRAME_SIZE])
+
+
+Exchange = Callable[
+    [bytes, frozenset[int], Decoders, dict[int, tuple[Value, ...]], float, int | None], Frame | bool | None
+]
+"""`exchange` bound to one link: (out, due, decoders, got, timeout_s, cycle)."""
+
+
+def exchanger(link: FrameLink) -> Exchange:
+    """`exchange` bound to `link`, for a driver that exchanges every cycle (looked up once): the
+    link's own, one call into C on a raw socket, or the frame-by-frame one."""
+    fast = getattr(link, "exchange", None)
+    return fast if fast is not None else functools.partial(exchange, link)
 
 
 def exchange(
@@ -507,6 +521,7 @@ __all__ = [
     "BusLink",
     "Decoder",
     "Decoders",
+    "Exchange",
     "Frame",
     "FrameLink",
     "PdoDirection",
@@ -518,6 +533,7 @@ __all__ = [
     "compile_pdos",
     "deepen_receive_queue",
     "exchange",
+    "exchanger",
     "open_link",
     "open_raw_socket",
     "parse_frame",
