@@ -159,7 +159,9 @@ def _checked_frames(path: Path, suffix: str, frames: Iterable[can.Message]) -> I
 
 class BusRecorder:
     """Everything on a bus into a whole log, from a socket of its own (so it sees every
-    sender's frames alike), until `close()`. The recorder owns `bus` and shuts it down."""
+    sender's frames alike), until `close()`, which also logs what its socket still holds (a
+    receive thread behind a fast sender, as in the emulated VM, must not lose the run's end).
+    The recorder owns `bus` and shuts it down."""
 
     def __init__(self, bus: can.BusABC, path: Path) -> None:
         import can
@@ -169,11 +171,18 @@ class BusRecorder:
         self._stack = contextlib.ExitStack()
         self._stack.callback(bus.shutdown)
         logger = self._stack.enter_context(whole_file_logger(path))
+        self._stack.callback(_log_queued, bus, logger)  # runs second, with the thread stopped
         self._notifier = can.Notifier(bus, [logger], timeout=0.05)
         self._stack.callback(self._notifier.stop)  # runs first: no frame after the logger stops
 
     def close(self) -> None:
         self._stack.close()
+
+
+def _log_queued(bus: can.BusABC, logger: can.Listener) -> None:
+    """Log every frame `bus` has queued (until a receive finds none)."""
+    while (message := bus.recv(timeout=0.0)) is not None:
+        logger(message)
 
 
 class _Launcher(Protocol):
