@@ -172,7 +172,9 @@ class BusRecorder:
         self._stack.callback(bus.shutdown)
         logger = self._stack.enter_context(whole_file_logger(path))
         self._stack.callback(_log_queued, bus, logger)  # runs second, with the thread stopped
-        self._notifier = can.Notifier(bus, [logger], timeout=0.05)
+        # The logger's method, not the logger: Notifier.stop() would stop (close) a Listener
+        # before the queue is logged; whole_file_logger closes it last.
+        self._notifier = can.Notifier(bus, [logger.on_message_received], timeout=0.05)
         self._stack.callback(self._notifier.stop)  # runs first: no frame after the logger stops
 
     def close(self) -> None:

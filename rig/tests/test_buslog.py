@@ -11,13 +11,16 @@ from hilrig.buslog import BusRecorder
 
 
 class _StalledNotifier:
-    """A receive thread that has not got round to any frame yet (as one behind a fast sender)."""
+    """A receive thread that has not got round to any frame yet (as one behind a fast sender);
+    stop() stops the listeners that can be, as python-can's does."""
 
     def __init__(self, bus: can.BusABC, listeners: list, timeout: float = 1.0) -> None:
-        pass
+        self.listeners = listeners
 
     def stop(self, timeout: float = 5.0) -> None:
-        pass
+        for listener in self.listeners:
+            if hasattr(listener, "stop"):
+                listener.stop()
 
 
 def test_close_logs_what_the_receive_thread_had_not_taken_yet(
