@@ -32,9 +32,9 @@ def test_close_logs_what_the_receive_thread_had_not_taken_yet(
     recorder = BusRecorder(can.Bus(interface="virtual", channel="stalled"), path)
     try:
         for k in range(50):
-            sender.send(can.Message(arbitration_id=0x100 + k, data=bytes([k]), is_extended_id=False))
+            sender.send(can.Message(arbitration_id=0x123 + k, data=bytes([k]), is_extended_id=False))
     finally:
         recorder.close()
         sender.shutdown()
     logged = [m.arbitration_id for m in can.LogReader(str(path))]
-    assert logged == [0x100 + k for k in range(50)]
+    assert logged == [0x123 + k for k in range(50)]
