@@ -35,7 +35,7 @@ from hilrig.driver import (
 )
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
-from hilrig.transport import send_frames
+from hilrig.transport import append_row, send_frames
 
 
 @dataclass(slots=True)
@@ -208,9 +208,7 @@ class LockstepDriver(Driver):
     ) -> None:
         """A TPDO of cycle `n` into `got` and its rows (what the exchange does in C)."""
         got[cob_id] = values
-        _, _, cycles, rows = self._decoders[cob_id]
-        cycles.append(n)
-        rows.append(values)
+        append_row(self._decoders[cob_id], n, values)
 
     def _check_alive(
         self, n: int, t: float, due: frozenset[int], got: dict[int, tuple[Value, ...]], waited: float

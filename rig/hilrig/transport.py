@@ -222,6 +222,15 @@ def send_frames(link: FrameLink, frames: bytes) -> None:
         link.send(frames[offset : offset + CAN_FRAME_SIZE])
 
 
+def append_row(
+    decoder: tuple[int, Unpack, list[int], list[tuple[Value, ...]]], cycle: int, values: tuple[Value, ...]
+) -> None:
+    """Append `values` as cycle `cycle`'s to the rows a decoder carries (what the C exchange
+    does for each TPDO it decodes)."""
+    decoder[2].append(cycle)
+    decoder[3].append(values)
+
+
 Exchange = Callable[
     [bytes, frozenset[int], Decoders, dict[int, tuple[Value, ...]], float, int | None], Frame | bool | None
 ]
@@ -268,8 +277,7 @@ def exchange(
                 if len(decoder) == 4:
                     if cycle is None:
                         raise TypeError("exchange: rows need their cycle")
-                    decoder[2].append(cycle)
-                    decoder[3].append(values)
+                    append_row(decoder, cycle, values)  # type: ignore[arg-type]
                 missing = not due.issubset(got)
                 continue
         return frame
@@ -528,6 +536,7 @@ __all__ = [
     "PdoLayout",
     "RawCanLink",
     "Unpack",
+    "append_row",
     "can_frame",
     "compile_pdo",
     "compile_pdos",
