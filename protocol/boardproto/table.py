@@ -81,6 +81,15 @@ class DataType(enum.IntEnum):
         return _BITS[self]
 
     @property
+    def struct_code(self) -> str:
+        """Its `struct` code (little-endian, as on the bus); ValueError for a type of no fixed
+        size (VISIBLE_STRING, DOMAIN)."""
+        code = _STRUCT_CODES.get(self)
+        if code is None:
+            raise ValueError(f"{self.toml_name} has no fixed-size binary form")
+        return code
+
+    @property
     def is_signed(self) -> bool:
         return self in (DataType.INTEGER8, DataType.INTEGER16, DataType.INTEGER32)
 
@@ -105,6 +114,17 @@ _BITS = {
     DataType.REAL32: 32,
     DataType.VISIBLE_STRING: 0,
     DataType.DOMAIN: 0,
+}
+
+_STRUCT_CODES = {
+    DataType.BOOLEAN: "?",
+    DataType.INTEGER8: "b",
+    DataType.INTEGER16: "h",
+    DataType.INTEGER32: "i",
+    DataType.UNSIGNED8: "B",
+    DataType.UNSIGNED16: "H",
+    DataType.UNSIGNED32: "I",
+    DataType.REAL32: "f",
 }
 
 # Integer types a HIL I/O object may have (what real hardware registers give).

@@ -12,9 +12,9 @@
  *   exchange(fd, out, due, decoders, got, spin_s[, cycle])
  *                                                send `out`, then receive (see exchange_doc)
  *
- * A decoder may carry its PDO's history rows (a list of cycles, a list of values): each TPDO it
- * decodes is then also appended there, tagged with `cycle`, so the rig's per-cycle bookkeeping
- * of every TPDO needs no Python either.
+ * A decoder may carry its PDO's history rows (two bytearrays: the cycles as native int64, the
+ * payloads back to back): each TPDO it decodes is then also appended there, tagged with
+ * `cycle`, so the rig's per-cycle bookkeeping of every TPDO needs no Python object either.
  *
  * The socket is blocking with the kernel's receive timeout (SO_RCVTIMEO, set by the caller): a
  * wait is a short look without sleeping (`receive`), then one recv() that returns EAGAIN when
@@ -128,10 +128,20 @@ static Py_ssize_t count_missing(PyObject *due, PyObject *got) {
     return PyErr_Occurred() ? -1 : missing;
 }
 
+/* Append `size` bytes to a bytearray (amortized: bytearray over-allocates as a list does). */
+static int append_bytes(PyObject *array, const void *bytes, Py_ssize_t size) {
+    Py_ssize_t before = PyByteArray_GET_SIZE(array);
+    if (PyByteArray_Resize(array, before + size) < 0) {
+        return -1;
+    }
+    memcpy(PyByteArray_AS_STRING(array) + before, bytes, (size_t)size);
+    return 0;
+}
+
 /* The values of a due TPDO of the usual length (a new reference), or NULL without an error set
  * when the frame is not that (then it goes back to Python), or NULL with an error set. */
 static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ssize_t length, PyObject *due,
-                              PyObject *decoders, PyObject *got, PyObject *cycle) {
+                              PyObject *decoders, PyObject *got, const int64_t *cycle) {
     int wanted = PySet_Contains(due, cob_id);
     if (wanted <= 0) {
         return NULL;
@@ -147,7 +157,7 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
     Py_ssize_t items = PyTuple_Check(decoder) ? PyTuple_GET_SIZE(decoder) : 0;
     if (items != 2 && items != 4) {
         PyErr_SetString(PyExc_TypeError,
-                        "exchange: a decoder is a (length, unpack) or (length, unpack, cycles, values) tuple");
+                        "exchange: a decoder is a (length, unpack) or (length, unpack, cycles, payloads) tuple");
         return NULL;
     }
     Py_ssize_t expected = PyLong_AsSsize_t(PyTuple_GET_ITEM(decoder, 0));
@@ -167,12 +177,14 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
         return values;
     }
     PyObject *cycles = PyTuple_GET_ITEM(decoder, 2), *rows = PyTuple_GET_ITEM(decoder, 3);
-    if (cycle == NULL || !PyList_Check(cycles) || !PyList_Check(rows)) {
+    if (cycle == NULL || !PyByteArray_CheckExact(cycles) || !PyByteArray_CheckExact(rows)) {
         Py_DECREF(values);
-        PyErr_SetString(PyExc_TypeError, "exchange: rows need their cycle, and lists to go in");
+        PyErr_SetString(PyExc_TypeError, "exchange: rows need their cycle, and bytearrays to go in");
         return NULL;
     }
-    if (PyList_Append(cycles, cycle) < 0 || PyList_Append(rows, values) < 0) {
+    /* The payload first, then the cycle: a reader counts rows by their cycles, so a row it
+     * counts always has its payload (the tracer reads from another thread). */
+    if (append_bytes(rows, data, length) < 0 || append_bytes(cycles, cycle, sizeof *cycle) < 0) {
         Py_DECREF(values);
         return NULL;
     }
@@ -245,7 +257,8 @@ PyDoc_STRVAR(exchange_doc,
              "receive on `fd`. A frame whose COB-ID is in `due` (a frozenset), is not yet a key\n"
              "of `got` and has the length of its decoder (`decoders[cob_id] = (length,\n"
              "unpack)`) is decoded into `got[cob_id] = unpack(data)`; a decoder `(length, unpack,\n"
-             "cycles, values)` also appends `cycle` and the values to those two lists. Returns:\n"
+             "cycles, payloads)` also appends `cycle` (a native int64) and the data to those two\n"
+             "bytearrays. Returns:\n"
              "  (cob_id, data)  the first frame that is anything else, at once (Python judges it);\n"
              "  False           the socket's receive timeout passed with a due COB-ID missing;\n"
              "  None            every due COB-ID is in `got` and nothing more is queued.\n"
@@ -260,7 +273,15 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
                         "exchange(fd, out, due, decoders, got, spin_s, cycle=None) takes 6 or 7 arguments");
         return NULL;
     }
-    PyObject *cycle = nargs == 7 && args[6] != Py_None ? args[6] : NULL;
+    int64_t cycle_number = 0;
+    const int64_t *cycle = NULL;
+    if (nargs == 7 && args[6] != Py_None) {
+        cycle_number = PyLong_AsLongLong(args[6]);
+        if (cycle_number == -1 && PyErr_Occurred()) {
+            return NULL;
+        }
+        cycle = &cycle_number;
+    }
     int fd = fd_argument(args[0]);
     if (fd < 0) {
         return NULL;

@@ -23,6 +23,7 @@ from hilrig.node import BoardNode
 from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
 from hilrig.table import unknown_name
 from hilrig.transport import (
+    ROW_CYCLE,
     Exchange,
     FrameLink,
     PdoDirection,
@@ -79,26 +80,96 @@ def resolve_truth_name(name: str) -> str:
     raise unknown_name("ground-truth quantity", name, (*TRUTH_NAMES, *TRUTH_ALIASES))
 
 
-def sdo_poll_layout(names: tuple[str, ...]) -> PdoLayout:
+def sdo_poll_layout(names: tuple[str, ...], formats: tuple[str, ...]) -> PdoLayout:
     """The history's row layout of fields read over SDO (`Rig.poll_over_sdo`): a TPDO-like
-    record with no COB-ID (number 0, disabled), so it is stored and traced like received PDOs."""
+    record with no COB-ID (number 0, disabled) and each field's `struct` code, so it is stored
+    and traced like received PDOs."""
     return PdoLayout(
-        direction=PdoDirection.TPDO, number=0, cob_id=0, enabled=False, transmission_type=255, names=names
+        direction=PdoDirection.TPDO,
+        number=0,
+        cob_id=0,
+        enabled=False,
+        transmission_type=255,
+        names=names,
+        formats=formats,
     )
 
 
 # --- History --------------------------------------------------------------------------------
 class _PdoRows:
-    """Every cycle one PDO was exchanged in, with the values it carried. Cheap to append; only
-    ever appended to, so a length is a mark that stays valid (`History.mark`)."""
+    """Every cycle one PDO was exchanged in, with the payload it carried: two bytearrays, the
+    cycles (`ROW_CYCLE` each) and the payloads back to back, as on the bus. An append is two
+    copies of a few bytes, with no Python object kept per row (a million-cycle run holds some
+    14 bytes per PDO and cycle, not a tuple of numbers); readers get numpy columns.
 
-    __slots__ = ("cycles", "layout", "names", "values")
+    Only ever appended to (a failed cycle's last row is taken back), so a count is a mark that
+    stays valid. A writer appends the payload before the cycle and a reader counts cycles, so a
+    reader on another thread never counts a row without its payload. Readers copy what they
+    read (a slice): a live view on the bytearray would stop it from growing."""
+
+    __slots__ = ("cycles", "data", "dtype", "layout", "names", "record", "width")
 
     def __init__(self, layout: PdoLayout) -> None:
         self.layout = layout
         self.names = layout.names
-        self.cycles: list[int] = []
-        self.values: list[tuple[Value, ...]] = []
+        if len(layout.formats) != len(layout.names):
+            raise ValueError(f"{layout.label}: no codec, its rows cannot be stored")
+        self.record = layout.codec
+        self.width = layout.length
+        names = [f"v{i}" for i in range(len(layout.names))]
+        self.dtype = np.dtype({"names": names, "formats": ["<" + code for code in layout.formats]})
+        self.cycles = bytearray()
+        self.data = bytearray()
+
+    @property
+    def count(self) -> int:
+        return len(self.cycles) // ROW_CYCLE.size
+
+    def append(self, cycle: int, values: Iterable[Value]) -> None:
+        self.data += self.record.pack(*values)
+        self.cycles += ROW_CYCLE.pack(cycle)
+
+    def last_cycle(self) -> int:
+        return ROW_CYCLE.unpack_from(self.cycles, len(self.cycles) - ROW_CYCLE.size)[0]
+
+    def drop_last(self) -> None:
+        """Take the last row back (the cycle it belongs to failed)."""
+        del self.cycles[-ROW_CYCLE.size :]
+        del self.data[len(self.data) - self.width :]
+
+    def last(self, position: int) -> tuple[int, Value]:
+        """(cycle, value at `position`) of the last row (there is one)."""
+        row = self.record.unpack_from(self.data, (self.count - 1) * self.width)
+        return self.last_cycle(), row[position]
+
+    def cycle_column(self, begin: int, end: int) -> np.ndarray:
+        """The cycles of rows begin..end (int64)."""
+        size = ROW_CYCLE.size
+        return np.frombuffer(bytes(self.cycles[begin * size : end * size]), dtype=np.int64)
+
+    def records(self, begin: int, end: int) -> np.ndarray:
+        """Rows begin..end as a numpy record array (field `v<i>` is the i-th mapped value)."""
+        return np.frombuffer(bytes(self.data[begin * self.width : end * self.width]), dtype=self.dtype)
+
+    def matrix(self, begin: int, end: int) -> np.ndarray:
+        """Rows begin..end as a float64 (rows x values) array."""
+        records = self.records(begin, end)
+        matrix = np.empty((len(records), len(self.names)), dtype=np.float64)
+        for i, name in enumerate(self.dtype.names or ()):
+            matrix[:, i] = records[name]
+        return matrix
+
+    def column(self, position: int) -> np.ndarray:
+        """Every value at `position`, as the numbers they are: int64, float64 or bool."""
+        return _widened(self.records(0, self.count)[f"v{position}"])
+
+
+def _widened(column: np.ndarray) -> np.ndarray:
+    """A column of a PDO's own type (int16, float32, ...) as int64, float64 or bool: what
+    arithmetic on a series expects, and exactly the numbers the bus carried."""
+    if column.dtype.kind == "b":
+        return column.astype(bool)
+    return column.astype(np.int64 if column.dtype.kind in "iu" else np.float64)
 
 
 class _Direction:
@@ -122,26 +193,33 @@ class _Direction:
         self._by_identity[id(pdo)] = (pdo, rows)
         return rows
 
-    def series(self, name: str) -> tuple[list[int], list[Value]]:
+    def series(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Cycles and values of `name`, in cycle order, from every PDO that carried it."""
-        places = [(rows, i) for rows, i in self.where.get(name, ()) if rows.cycles]
+        places = [(rows, i) for rows, i in self.where.get(name, ()) if rows.count]
+        if not places:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        # Counted once per PDO: the rig may append on while this reads (the tracer's thread).
+        counts = [rows.count for rows, _ in places]
+        cycles = [rows.cycle_column(0, count) for (rows, _), count in zip(places, counts, strict=True)]
+        values = [
+            _widened(rows.records(0, count)[f"v{i}"]) for (rows, i), count in zip(places, counts, strict=True)
+        ]
         if len(places) == 1:
-            rows, i = places[0]
-            return rows.cycles, [v[i] for v in rows.values]
-        pairs = sorted(
-            ((c, v[i]) for rows, i in places for c, v in zip(rows.cycles, rows.values, strict=True)),
-            key=operator.itemgetter(0),
-        )
-        return [c for c, _ in pairs], [v for _, v in pairs]
+            return cycles[0], values[0]
+        every_cycle = np.concatenate(cycles)
+        order = np.argsort(every_cycle, kind="stable")
+        return every_cycle[order], np.concatenate(values)[order]
 
     def has(self, name: str) -> bool:
-        return any(rows.cycles for rows, _ in self.where.get(name, ()))
+        return any(rows.count for rows, _ in self.where.get(name, ()))
 
     def latest(self, name: str) -> tuple[int, Value] | None:
         best: tuple[int, Value] | None = None
         for rows, i in self.where.get(name, ()):
-            if rows.cycles and (best is None or rows.cycles[-1] >= best[0]):
-                best = (rows.cycles[-1], rows.values[-1][i])
+            if rows.count:
+                last = rows.last(i)
+                if best is None or last[0] >= best[0]:
+                    best = last
         return best
 
 
@@ -153,17 +231,19 @@ class HistoryMark:
     truth: int
 
 
-HistoryBlock = tuple[PdoLayout, list[int], list[tuple[Value, ...]]]
-"""(layout, cycles, values): one PDO's rows between two marks (`layout.names` name the values)."""
+HistoryBlock = tuple[PdoLayout, np.ndarray, np.ndarray]
+"""(layout, cycles, values): one PDO's rows between two marks, the cycles (int64) and a float64
+(rows x names) matrix; `layout.names` name its columns."""
 
 
 class History:
     """Per-cycle record of what the node sent, what the rig sent, and the plant's truth.
 
-    Stored as rows per PDO (one append per PDO and cycle); a field's series is assembled when
-    asked for. Times are cycle * period exactly: the start of the cycle whose SYNC the values
-    belong to. Truth rows hold the plant state at that time (the one the cycle's sensor frame
-    was sampled from).
+    Stored per PDO as the bus carried it (`_PdoRows`: a cycle and a payload per row, appended
+    in C for every TPDO a lockstep cycle decodes); a field's series is assembled when asked for.
+    Times are cycle * period exactly: the start of the cycle whose SYNC the values belong to.
+    Truth rows hold the plant state at that time (the one the cycle's sensor frame was sampled
+    from).
     """
 
     def __init__(self, period_us: int) -> None:
@@ -175,34 +255,40 @@ class History:
     def time_of(self, cycle: int) -> float:
         return cycle * self.period_us / 1e6
 
-    def _times(self, cycles: Iterable[int]) -> np.ndarray:
-        return np.fromiter(cycles, dtype=np.int64) * self.period_us / 1e6
+    def _times(self, cycles: Iterable[int] | np.ndarray) -> np.ndarray:
+        if not isinstance(cycles, np.ndarray):
+            cycles = np.fromiter(cycles, dtype=np.int64)
+        return cycles * self.period_us / 1e6
 
     @property
     def cycles(self) -> int:
         return len(self._truth)
 
+    def layouts(self) -> list[PdoLayout]:
+        """Every PDO layout with rows here (received, then sent), with or without a row yet."""
+        return [*self._received.rows, *self._sent.rows]
+
     def mark(self) -> HistoryMark:
         """Where everything recorded so far ends: what an observer has taken so far (the tracer
         takes whole batches of columns from here instead of copying every cycle's values)."""
-        rows = {r: len(r.cycles) for d in (self._received, self._sent) for r in d.rows.values()}
+        rows = {r: r.count for d in (self._received, self._sent) for r in d.rows.values()}
         return HistoryMark(rows, len(self._truth))
 
     def blocks_between(self, start: HistoryMark, end: HistoryMark) -> list[HistoryBlock]:
-        """What was recorded after `start` up to `end`, PDO by PDO (safe from another thread
-        while the rig records on: rows are only appended to)."""
+        """What was recorded after `start` up to `end`, PDO by PDO, as columns (safe from
+        another thread while the rig records on: rows are only appended to)."""
         blocks = []
         for rows, stop in end.rows.items():
             begin = start.rows.get(rows, 0)
             if stop > begin:
-                blocks.append((rows.layout, rows.cycles[begin:stop], rows.values[begin:stop]))
+                blocks.append((rows.layout, rows.cycle_column(begin, stop), rows.matrix(begin, stop)))
         return blocks
 
     def truth_between(self, start: HistoryMark, end: HistoryMark) -> tuple[range, list[JointState]]:
         """The cycles and plant states recorded after `start` up to `end` (one per cycle)."""
         return range(start.truth, end.truth), self._truth[start.truth : end.truth]
 
-    def times_of(self, cycles: Iterable[int]) -> np.ndarray:
+    def times_of(self, cycles: Iterable[int] | np.ndarray) -> np.ndarray:
         """The times of these cycles [s], as `time_of` gives them."""
         return self._times(cycles)
 
@@ -210,22 +296,25 @@ class History:
         self._truth.append(state)
 
     def record_rows(self, cycle: int, received: Iterable[PdoRow], sent: Iterable[PdoRow]) -> None:
-        # Every cycle, for about ten PDOs: the identity look-up of `rows_of` is inlined.
+        """Rows of one cycle from their values (what the lockstep driver does from the frames)."""
         for direction, pdo_rows in ((self._received, received), (self._sent, sent)):
-            by_identity = direction._by_identity
             for pdo, values in pdo_rows:
-                known = by_identity.get(id(pdo))
-                rows = known[1] if known is not None and known[0] is pdo else direction.rows_of(pdo)
-                rows.cycles.append(cycle)
-                rows.values.append(values)
+                direction.rows_of(pdo).append(cycle, values)
 
-    def row_lists(self, pdo: PdoLayout) -> tuple[list[int], list[tuple[Value, ...]]]:
-        """(cycles, values) of `pdo`'s rows (received for a TPDO, sent for an RPDO), for a driver
-        that appends to them every cycle (what `record_rows` does for one PDO; both lists always
-        together, a cycle and its values, cycles in order)."""
+    def row_store(self, pdo: PdoLayout) -> tuple[bytearray, bytearray]:
+        """(cycles, payloads) of `pdo`'s rows (received for a TPDO, sent for an RPDO), for a
+        driver that appends to them every cycle: the payload as on the bus, then the cycle
+        (`ROW_CYCLE`), as `transport.append_row` and the C exchange do."""
         direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
         rows = direction.rows_of(pdo)
-        return rows.cycles, rows.values
+        return rows.cycles, rows.data
+
+    def take_back(self, pdo: PdoLayout, cycle: int) -> None:
+        """Drop `pdo`'s last row if it is `cycle`'s (that cycle failed after the row went in)."""
+        direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
+        rows = direction.rows_of(pdo)
+        if rows.count and rows.last_cycle() == cycle:
+            rows.drop_last()
 
     def has_received(self, name: str) -> bool:
         return self._received.has(name)
@@ -236,12 +325,12 @@ class History:
     def received(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """(t, values) of every cycle a TPDO carried `name`."""
         cycles, values = self._received.series(name)
-        return self._times(cycles), np.asarray(values)
+        return self._times(cycles), values
 
     def sent(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """(t, values) of every cycle the rig sent `name` in an RPDO."""
         cycles, values = self._sent.series(name)
-        return self._times(cycles), np.asarray(values)
+        return self._times(cycles), values
 
     def latest_received(self, name: str) -> Value:
         latest = self._received.latest(name)
@@ -354,13 +443,11 @@ class Driver:
         self._actuator: tuple[PdoLayout, int] | None = None
         self._due_table: list[frozenset[int]] = [frozenset()]
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
-        self._decoders: dict[int, tuple[int, Unpack, list[int], list[tuple[Value, ...]]]] = {}
-        """COB-ID -> (length, unpack, cycles, values) of every enabled TPDO: what a cycle's
-        exchange decodes, and the history's rows it appends each one to (`History.row_lists`)."""
-        self._rpdo_appenders: dict[
-            int, tuple[Callable[[int], None], Callable[[tuple[Value, ...]], None]]
-        ] = {}
-        """RPDO number -> (append a cycle, append its values) of the history's sent rows."""
+        self._decoders: dict[int, tuple[int, Unpack, bytearray, bytearray]] = {}
+        """COB-ID -> (length, unpack, cycles, payloads) of every enabled TPDO: what a cycle's
+        exchange decodes, and the history's rows it appends each one to (`History.row_store`)."""
+        self._rpdo_rows: dict[int, tuple[bytearray, bytearray, int]] = {}
+        """RPDO number -> (cycles, payloads, payload length) of the history's sent rows."""
         self._exchange: Exchange | None = None
         """`transport.exchange` bound to the link (configure())."""
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
@@ -444,12 +531,9 @@ class Driver:
             frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
         ]
         self._decoders = {
-            p.cob_id: (p.length, p.codec.unpack, *self.history.row_lists(p)) for p in enabled_tpdos
+            p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p)) for p in enabled_tpdos
         }
-        self._rpdo_appenders = {}
-        for p in enabled_rpdos:
-            cycles, values = self.history.row_lists(p)
-            self._rpdo_appenders[p.number] = (cycles.append, values.append)
+        self._rpdo_rows = {p.number: (*self.history.row_store(p), p.length) for p in enabled_rpdos}
         self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
         self._exchange = exchanger(self._link)
         self._pending.clear()
@@ -524,13 +608,13 @@ class Driver:
         """Send one cycle's RPDOs (`_rpdos_of_cycle`) now; return what was sent."""
         sent, frames = self._rpdos_of_cycle(raw)
         if frames:
-            send_frames(self.link, frames)
+            send_frames(self.link, b"".join(frames))
         return sent
 
-    def _rpdos_of_cycle(self, raw: RawSensors | None) -> tuple[tuple[PdoRow, ...], bytes]:
+    def _rpdos_of_cycle(self, raw: RawSensors | None) -> tuple[tuple[PdoRow, ...], list[bytes]]:
         """One cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint stream, any
-        RPDO a scenario changed): what they carry, and their frames joined, in sending order
-        (the caller sends them: `send_frames`, or ahead of the SYNC in a cycle's exchange)."""
+        RPDO a scenario changed): what they carry, and their frames, in sending order (the
+        caller sends them: `send_frames`, or ahead of the SYNC in a cycle's exchange)."""
         frames: list[bytes] = []
         sent: list[PdoRow] = []
         paused = self.paused_rpdos
@@ -553,7 +637,7 @@ class Driver:
             frames.append(entry[1])
             sent.append((entry[0], entry[2]))
             dirty.discard(number)
-        return tuple(sent), b"".join(frames)
+        return tuple(sent), frames
 
     def _decode(self, pdo: PdoLayout, data: bytes) -> tuple[Value, ...] | None:
         """The TPDO's values, or None (counted) when the frame's length is not the mapping's."""

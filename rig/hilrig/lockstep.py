@@ -35,7 +35,7 @@ from hilrig.driver import (
 )
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
-from hilrig.transport import append_row, send_frames
+from hilrig.transport import CAN_HEADER_SIZE, ROW_CYCLE, append_row, send_frames
 
 
 @dataclass(slots=True)
@@ -51,6 +51,8 @@ class CycleStart:
     due: frozenset[int]
     sync_number: int
     sent: tuple[PdoRow, ...]
+    frames: list[bytes]
+    """The frame of each of `sent` (the history keeps their payloads)."""
     unsent: bytes = b""
     """The RPDO frames of `sent`, joined, when `begin_cycle(send=False)` left them to go out
     with the SYNC in the cycle's exchange (`step`)."""
@@ -94,11 +96,12 @@ class LockstepDriver(Driver):
             sync_number = 0
             due = frozenset()
         sent, frames = self._rpdos_of_cycle(raw)
-        if send and frames:
-            send_frames(self.link, frames)
-            frames = b""
+        joined = b"".join(frames)
+        if send and joined:
+            send_frames(self.link, joined)
+            joined = b""
         return CycleStart(
-            n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent, frames
+            n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent, frames, joined
         )
 
     def collect_cycle(self, start: CycleStart) -> dict[int, tuple[Value, ...]]:
@@ -117,15 +120,15 @@ class LockstepDriver(Driver):
             if values is not None:
                 duty = duty_from_motor_duty(values[actuator[1]])  # an int: the codec's I16
         # The TPDOs' rows are in the history already (appended as they were decoded, see
-        # `_collect`); the RPDOs' go into their rows here (appenders fixed at configure()).
+        # `_collect`); the RPDOs' payloads go into their rows here, from their frames.
         n = start.cycle
         by_cob = self._tpdo_by_cob
         received = tuple([(by_cob[cob_id], values) for cob_id, values in got.items()])
-        sent_appenders = self._rpdo_appenders
-        for pdo, values in start.sent:
-            add_cycle, add_values = sent_appenders[pdo.number]
-            add_cycle(n)
-            add_values(values)
+        rpdo_rows, cycle_row = self._rpdo_rows, ROW_CYCLE.pack(n)
+        for (pdo, _), frame in zip(start.sent, start.frames, strict=True):
+            cycles, payloads, length = rpdo_rows[pdo.number]
+            payloads += frame[CAN_HEADER_SIZE : CAN_HEADER_SIZE + length]
+            cycles += cycle_row
         self.history.record_truth(start.state)
         return CycleResult(n, start.t, start.counter, start.raw, received, duty, start.sent, start.state)
 
@@ -187,7 +190,7 @@ class LockstepDriver(Driver):
         if values is None:
             problem = f"arrived with {len(data)} bytes, its mapping has {pdo.length}"
         elif not pdo.is_cyclic:
-            self._keep(got, n, cob_id, values)
+            self._keep(got, n, cob_id, values, data)
             return
         elif between_syncs:
             problem = "arrived between SYNCs"
@@ -199,16 +202,16 @@ class LockstepDriver(Driver):
                 f"(transmission type {pdo.transmission_type})"
             )
         else:  # a due TPDO after all (not one the exchange decoded itself)
-            self._keep(got, n, cob_id, values)
+            self._keep(got, n, cob_id, values, data)
             return
         raise self._error(n, t, f"{pdo.label} {problem}")
 
     def _keep(
-        self, got: dict[int, tuple[Value, ...]], n: int, cob_id: int, values: tuple[Value, ...]
+        self, got: dict[int, tuple[Value, ...]], n: int, cob_id: int, values: tuple[Value, ...], data: bytes
     ) -> None:
         """A TPDO of cycle `n` into `got` and its rows (what the exchange does in C)."""
         got[cob_id] = values
-        append_row(self._decoders[cob_id], n, values)
+        append_row(self._decoders[cob_id], n, data)
 
     def _check_alive(
         self, n: int, t: float, due: frozenset[int], got: dict[int, tuple[Value, ...]], waited: float
@@ -231,10 +234,9 @@ class LockstepDriver(Driver):
 
     def _forget_rows(self, n: int, got: dict[int, tuple[Value, ...]]) -> None:
         """Take the rows of cycle `n` that `got`'s TPDOs left in the history back out."""
+        by_cob = self._tpdo_by_cob
         for cob_id in got:
-            _, _, cycles, values = self._decoders[cob_id]
-            if cycles and cycles[-1] == n:
-                del cycles[-1], values[-1]
+            self.history.take_back(by_cob[cob_id], n)
 
     @staticmethod
     def _error(cycle: int, t: float, what: str) -> LockstepError:

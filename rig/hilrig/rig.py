@@ -178,7 +178,8 @@ class Rig(CycleRunner):
         if not names:
             self._polled = None
             return
-        self._polled = (sdo_poll_layout(tuple(names)), every_cycles)
+        formats = tuple(self.table.entry(name).data_type.struct_code for name in names)
+        self._polled = (sdo_poll_layout(tuple(names), formats), every_cycles)
         for observer in self.observers:
             observer.on_polled(tuple(names), every_cycles)
 

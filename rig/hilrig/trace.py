@@ -407,6 +407,7 @@ class Tracer(RigObserver):
         self._history: History | None = None
         self._history_mark: HistoryMark | None = None
         self._history_cycles = 0
+        self._name_ahead = False  # name the history's series on the sender before its first batch
         self._lock = threading.Lock()  # guards the swap of _pending, and _params (event threads)
         self._closed = False
         self._error: BaseException | None = None
@@ -518,6 +519,7 @@ class Tracer(RigObserver):
         if self.cycles_logged == 0 and self._history is None:
             self._history = history
             self._history_mark = history.mark()
+            self._name_ahead = True
 
     def on_polled(self, names: tuple[str, ...], every_cycles: int) -> None:
         with self._lock:
@@ -530,6 +532,9 @@ class Tracer(RigObserver):
             return
         # The rig recorded this cycle in its History already: only count it.
         self._check_open()
+        if self._name_ahead:  # the first cycle: the node's PDOs are known now
+            self._name_ahead = False
+            self.submit(self._name_history_series)
         self._history_cycles += 1
         self.cycles_logged += 1
         if self._batch_due(self._history_cycles):
@@ -708,16 +713,31 @@ class Tracer(RigObserver):
         finally:
             self._batch_indexes = None
 
+    def _name_history_series(self) -> None:
+        """Name the series a Rig's history fills (each PDO's fields and frame count, the truth)
+        on the sender, ahead of the first batch: naming 45 series is a third of what a first
+        batch costs, and the sender does it while the rig runs, not when the run ends (close()).
+        Only series the history has a PDO for: a name alone is no data (`trace_gaps` still
+        reports a series without rows)."""
+        assert self._history is not None
+        for layout in self._history.layouts():
+            for name in layout.names:
+                self._name_series(self._paths[name])
+            if layout.enabled and layout.cob_id:
+                path, name = self.root + frames_path(layout), _frames_series_name(layout)
+                self._name_series(path, name=name, counts=True)
+        if self._history.cycles:  # the truth too, when the rig has a plant
+            for quantity in TRUTH_QUANTITIES[:-1]:
+                self._name_series(self.root + truth_path(quantity))
+
     def _send_span(self, span: _HistorySpan) -> None:
-        """A span of a Rig's History: its per-PDO rows are columns already (one numpy call per
-        PDO and batch, no per-cycle work here)."""
+        """A span of a Rig's History: its per-PDO rows come as columns (the payloads as the bus
+        carried them, read by numpy: no per-cycle work here)."""
         history = span.history
         parts: list[_Part] = []
         frames: list[tuple[PdoLayout, np.ndarray]] = []
-        for layout, cycles, rows in history.blocks_between(span.start, span.end):
-            cycle_column = np.asarray(cycles, dtype=np.int64)
-            matrix = _matrix(rows, len(layout.names))
-            parts.append((layout.names, cycle_column, history.times_of(cycles), matrix))
+        for layout, cycle_column, matrix in history.blocks_between(span.start, span.end):
+            parts.append((layout.names, cycle_column, history.times_of(cycle_column), matrix))
             frames.append((layout, cycle_column))
         self._send_parts(parts)
         cycles, states = history.truth_between(span.start, span.end)
@@ -812,8 +832,8 @@ class Tracer(RigObserver):
         for label, per_cycle in counts.items():
             pdo = self._framed[label]
             totals[pdo.direction] += per_cycle
-            path = self.root + frames_path(pdo)
-            self._send_scalars(path, every_cycle, times, per_cycle, name=f"{label} [frames]", counts=True)
+            path, name = self.root + frames_path(pdo), _frames_series_name(pdo)
+            self._send_scalars(path, every_cycle, times, per_cycle, name=name, counts=True)
         if counts:
             for path, direction in (
                 (BUS_TPDOS_PER_CYCLE, PdoDirection.TPDO),
@@ -854,13 +874,7 @@ class Tracer(RigObserver):
         fewest and the most (the viewer's average would hide one missing frame among a thousand)."""
         rr = self._rr
         if path not in self._named:
-            self._named.add(path)
-            series = name if name is not None else self._series_name(path)
-            step = counts or path in self._held
-            mode = rr.components.InterpolationMode.StepAfter if step else None
-            band = rr.components.AggregationPolicy.MinMax if counts else None
-            lines = rr.SeriesLines(names=series, interpolation_mode=mode, aggregation_policy=band)
-            self.recording.log(path, lines, static=True)
+            self._name_series(path, name=name, counts=counts)
         self.recording.send_columns(
             path,
             indexes=self._indexes(cycles, times),
@@ -869,6 +883,20 @@ class Tracer(RigObserver):
         named = self._value_names.get(path)
         if named is not None:
             self._send_value_names(path, named, np.asarray(cycles), np.asarray(times), values)
+
+    def _name_series(self, path: str, *, name: str | None = None, counts: bool = False) -> None:
+        """The static SeriesLines of an entity, once: its series name (default: from the field
+        or truth), drawn as steps if it holds its value (and `counts`: see `_send_scalars`)."""
+        if path in self._named:
+            return
+        self._named.add(path)
+        rr = self._rr
+        series = name if name is not None else self._series_name(path)
+        step = counts or path in self._held
+        mode = rr.components.InterpolationMode.StepAfter if step else None
+        band = rr.components.AggregationPolicy.MinMax if counts else None
+        lines = rr.SeriesLines(names=series, interpolation_mode=mode, aggregation_policy=band)
+        self.recording.log(path, lines, static=True)
 
     def _send_value_names(
         self, path: str, named: ValueEnum | BitSet, cycles: np.ndarray, times: np.ndarray, values: np.ndarray
@@ -1038,6 +1066,11 @@ def _matrix(rows: Iterable[Sequence[Value]], width: int, count: int | None = Non
         count = len(rows)  # type: ignore[arg-type]
     flat = np.fromiter(itertools.chain.from_iterable(rows), dtype=np.float64, count=count * width)
     return flat.reshape(count, width)
+
+
+def _frames_series_name(pdo: PdoLayout) -> str:
+    """'TPDO3 (0x390) [frames]': the series of a PDO's frames per cycle."""
+    return f"{pdo.label} [frames]"
 
 
 def label_path(path: str) -> str:

@@ -42,6 +42,8 @@ Value = float | int
 CAN_FRAME = struct.Struct("=IB3x8s")
 """struct can_frame of SocketCAN (host byte order): can_id, len, 3 pad bytes, 8 data bytes."""
 CAN_HEADER = struct.Struct("=IB3x")
+CAN_HEADER_SIZE = CAN_HEADER.size
+"""Where a frame's data bytes start."""
 CAN_FRAME_SIZE = CAN_FRAME.size
 RECEIVE_QUEUE_BYTES = 16 * 1024 * 1024
 """Receive queue of every socket the rig opens: some 20 000 frames (a queued CAN frame costs
@@ -192,10 +194,10 @@ def parse_frame(frame: bytes) -> tuple[int, bytes]:
 Frame = tuple[int, bytes]
 """(COB-ID, data) of a received standard data frame."""
 Unpack = Callable[[bytes], tuple[Value, ...]]
-Decoder = tuple[int, Unpack] | tuple[int, Unpack, list[int], list[tuple[Value, ...]]]
+Decoder = tuple[int, Unpack] | tuple[int, Unpack, bytearray, bytearray]
 Decoders = Mapping[int, Decoder]
-"""By COB-ID: (length, unpack), or (length, unpack, cycles, values) to have each decoded TPDO also
-appended to those rows (a PDO's history), tagged with the exchange's cycle."""
+"""By COB-ID: (length, unpack), or (length, unpack, cycles, payloads) to have each decoded TPDO
+also appended to those rows (a PDO's history), tagged with the exchange's cycle (`append_row`)."""
 """COB-ID -> (payload length, unpack) of each TPDO a cycle may wait for."""
 
 
@@ -222,13 +224,15 @@ def send_frames(link: FrameLink, frames: bytes) -> None:
         link.send(frames[offset : offset + CAN_FRAME_SIZE])
 
 
-def append_row(
-    decoder: tuple[int, Unpack, list[int], list[tuple[Value, ...]]], cycle: int, values: tuple[Value, ...]
-) -> None:
-    """Append `values` as cycle `cycle`'s to the rows a decoder carries (what the C exchange
-    does for each TPDO it decodes)."""
-    decoder[2].append(cycle)
-    decoder[3].append(values)
+ROW_CYCLE = struct.Struct("=q")
+"""The cycle of a row a decoder carries: a native int64, as `hilrig._wire` appends it."""
+
+
+def append_row(decoder: tuple[int, Unpack, bytearray, bytearray], cycle: int, data: bytes) -> None:
+    """Append `data` (a TPDO's payload) as cycle `cycle`'s to the rows a decoder carries (what
+    the C exchange does for each TPDO it decodes): the payload first, then the cycle."""
+    decoder[3].extend(data)
+    decoder[2].extend(ROW_CYCLE.pack(cycle))
 
 
 Exchange = Callable[
@@ -273,11 +277,11 @@ def exchange(
         if cob_id in due and cob_id not in got:
             decoder = decoders.get(cob_id)
             if decoder is not None and len(data) == decoder[0]:
-                values = got[cob_id] = decoder[1](data)
+                got[cob_id] = decoder[1](data)
                 if len(decoder) == 4:
                     if cycle is None:
                         raise TypeError("exchange: rows need their cycle")
-                    append_row(decoder, cycle, values)  # type: ignore[arg-type]
+                    append_row(decoder, cycle, data)  # type: ignore[arg-type]
                 missing = not due.issubset(got)
                 continue
         return frame
@@ -526,6 +530,7 @@ __all__ = [
     "CAN_FRAME_SIZE",
     "CAN_HEADER",
     "RECEIVE_QUEUE_BYTES",
+    "ROW_CYCLE",
     "BusLink",
     "Decoder",
     "Decoders",

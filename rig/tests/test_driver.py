@@ -5,6 +5,7 @@ stored per PDO."""
 from __future__ import annotations
 
 import dataclasses
+import struct
 from collections import deque
 from collections.abc import Callable
 
@@ -117,6 +118,16 @@ def test_a_tpdo_twice_is_reported(driver) -> None:
         driver.step()
 
 
+def test_a_failed_cycle_leaves_none_of_its_rows_in_the_history(driver) -> None:
+    driver.step()
+    before = driver.history.mark().rows
+    _link(driver).script = lambda n, frames: [*frames, frames[2]]  # every due TPDO in, then one twice
+    with pytest.raises(LockstepError, match="arrived twice"):
+        driver.step()
+    assert driver.history.mark().rows == before
+    assert driver.history.received("motor_duty")[0].tolist() == [0.0]
+
+
 def test_a_missing_tpdo_times_out_naming_it(driver) -> None:
     _link(driver).script = lambda n, frames: [f for f in frames if f[0] != TPDO6]
     with pytest.raises(LockstepError, match=r"TPDO6 \(0x2D0\) did not arrive within 0.5 s"):
@@ -157,3 +168,35 @@ def test_history_keeps_rows_per_pdo_and_merges_a_name_carried_twice() -> None:
     history.record_rows(4, [(twin, (4, 2.0))], ())
     assert np.array_equal(history.received("a")[1], [0, 1, 2, 3, 4])
     assert not history.has_received("c") and not history.has_sent("a")
+
+
+def test_history_gives_back_exactly_the_numbers_the_bus_carried() -> None:
+    # Rows are stored as the payloads the bus carried: every type comes back as the number it
+    # was (a REAL32 as its float32 value), widened to int64, float64 or bool for arithmetic.
+    names, formats = ("i", "u", "flag", "x"), ("h", "H", "?", "f")
+    layout = PdoLayout(PdoDirection.TPDO, 2, TPDO6, True, 1, names, formats)
+    rows = [(-32768, 65535, True, 0.1), (7, 0, False, -2.5e-3)]
+    history = History(period_us=500)
+    for cycle, values in enumerate(rows, start=10):
+        history.record_rows(cycle, [(layout, values)], ())
+    as_float32 = struct.unpack("<f", struct.pack("<f", 0.1))[0]
+    t, i = history.received("i")
+    assert t.tolist() == [0.005, 0.0055] and i.dtype == np.int64 and i.tolist() == [-32768, 7]
+    assert history.received("u")[1].tolist() == [65535, 0]
+    assert history.received("flag")[1].dtype == np.bool_
+    x = history.received("x")[1]
+    assert x.dtype == np.float64 and x[0] == as_float32
+    assert history.latest_received("x") == struct.unpack("<f", struct.pack("<f", -2.5e-3))[0]
+    assert history.latest_received("flag") is False
+
+    start = history.mark()
+    history.record_rows(12, [(layout, (1, 2, True, 3.0))], ())
+    ((block_layout, cycles, matrix),) = history.blocks_between(start, history.mark())
+    assert block_layout is layout and cycles.tolist() == [12] and matrix.tolist() == [[1.0, 2.0, 1.0, 3.0]]
+    held = history.received("i")  # what a reader holds never stops the rows from growing
+    history.record_rows(13, [(layout, (2, 2, False, 3.0))], ())
+    assert held[1].tolist() == [-32768, 7, 1] and history.received("i")[1].tolist() == [-32768, 7, 1, 2]
+
+    history.take_back(layout, 12)  # not the last row's cycle: nothing to take back
+    history.take_back(layout, 13)
+    assert history.received("i")[1].tolist() == [-32768, 7, 1]

@@ -25,6 +25,7 @@ from hilrig.errors import PdoMappingError
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.transport import (
     CAN_FRAME_SIZE,
+    ROW_CYCLE,
     BusLink,
     PdoDirection,
     PdoLayout,
@@ -266,7 +267,9 @@ def test_exchange_with_nothing_due_only_drains_what_is_queued(wire) -> None:
 
 def test_exchange_appends_each_decoded_frame_to_its_rows_as_the_cycle_s(wire) -> None:
     link, peer = wire
-    rows: dict[int, tuple[list[int], list[tuple]]] = {cob: ([7], [(0,)]) for cob in DUE}  # cycle 7's
+    # Cycle 7's rows already in: the cycles as native int64, the payloads back to back.
+    first = {TPDO1_ID: b"\x00\x00", TPDO2_ID: struct.pack("<f", 0.5)}
+    rows = {cob: (bytearray(ROW_CYCLE.pack(7)), bytearray(first[cob])) for cob in DUE}
     decoders = {cob: (*DECODERS[cob], *rows[cob]) for cob in DUE}
     for frame in (
         can_frame(TPDO2_ID, b"\x01\x02"),  # wrong length: handed back, in no row
@@ -277,7 +280,11 @@ def test_exchange_appends_each_decoded_frame_to_its_rows_as_the_cycle_s(wire) ->
     got: dict[int, tuple] = {}
     assert exchange(link, b"", DUE, decoders, got, SLICE_S, 8) == (TPDO2_ID, b"\x01\x02")
     assert exchange(link, b"", DUE, decoders, got, SLICE_S, 8) is None
-    assert rows == {TPDO1_ID: ([7, 8], [(0,), (9,)]), TPDO2_ID: ([7, 8], [(0,), (2.5,)])}
+    cycles_7_8 = ROW_CYCLE.pack(7) + ROW_CYCLE.pack(8)
+    assert rows == {
+        TPDO1_ID: (cycles_7_8, b"\x00\x00\x09\x00"),
+        TPDO2_ID: (cycles_7_8, struct.pack("<ff", 0.5, 2.5)),
+    }
     peer.send(can_frame(TPDO1_ID, b"\x01\x00"))
     with pytest.raises(TypeError, match="cycle"):  # rows without a cycle to file them under
         exchange(link, b"", DUE, decoders, {}, SLICE_S)
