@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import math
 import operator
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -348,34 +348,83 @@ class History:
 
 
 # --- One cycle's result ---------------------------------------------------------------------
-@dataclass(slots=True)
 class CycleResult:
-    """What one cycle (lockstep) or tick (real time) exchanged (treat it as read-only)."""
+    """What one cycle (lockstep) or tick (real time) exchanged (treat it as read-only).
 
-    cycle: int
-    time_s: float
-    sync_counter: int
-    raw: RawSensors | None  # None when no sensor frame was sampled (real time, physics off)
-    received_rows: tuple[PdoRow, ...]
-    duty: float
-    sent_rows: tuple[PdoRow, ...] = ()
-    truth: JointState | None = None
-    """The plant state the cycle's sensor frame was sampled from (None without physics)."""
-    _dicts: dict[str, dict[str, Value]] = field(default_factory=dict, repr=False, compare=False)
+    received_rows: the TPDOs' rows; or, with `tpdos` (COB-ID -> layout), the decoded values by
+    COB-ID as the lockstep exchange collects them, made into rows only when asked for (most
+    cycles nobody asks: the history has them already)."""
+
+    __slots__ = (
+        "_dicts",
+        "_received",
+        "_tpdos",
+        "cycle",
+        "duty",
+        "raw",
+        "sent_rows",
+        "sync_counter",
+        "time_s",
+        "truth",
+    )
+
+    def __init__(
+        self,
+        cycle: int,
+        time_s: float,
+        sync_counter: int,
+        raw: RawSensors | None,
+        received_rows: tuple[PdoRow, ...] | Mapping[int, tuple[Value, ...]],
+        duty: float,
+        sent_rows: tuple[PdoRow, ...] = (),
+        truth: JointState | None = None,
+        tpdos: Mapping[int, PdoLayout] | None = None,
+    ) -> None:
+        self.cycle = cycle
+        self.time_s = time_s
+        self.sync_counter = sync_counter
+        self.raw = raw
+        """None when no sensor frame was sampled (real time, physics off)."""
+        self._received = received_rows
+        self._tpdos = tpdos
+        self.duty = duty
+        self.sent_rows = sent_rows
+        self.truth = truth
+        """The plant state the cycle's sensor frame was sampled from (None without physics)."""
+        self._dicts: dict[str, dict[str, Value]] | None = None
+
+    @property
+    def received_rows(self) -> tuple[PdoRow, ...]:
+        if self._tpdos is not None:
+            tpdos = self._tpdos
+            got = self._received
+            assert isinstance(got, Mapping)
+            self._received = tuple([(tpdos[cob_id], values) for cob_id, values in got.items()])
+            self._tpdos = None
+        return self._received  # type: ignore[return-value]
 
     @property
     def received(self) -> dict[str, Value]:
         """TPDO values by name (built on first use)."""
-        if "received" not in self._dicts:
-            self._dicts["received"] = _merge(self.received_rows)
-        return self._dicts["received"]
+        return self._merged("received", self.received_rows)
 
     @property
     def sent(self) -> dict[str, Value]:
         """RPDO values by name (built on first use)."""
-        if "sent" not in self._dicts:
-            self._dicts["sent"] = _merge(self.sent_rows)
-        return self._dicts["sent"]
+        return self._merged("sent", self.sent_rows)
+
+    def _merged(self, which: str, rows: tuple[PdoRow, ...]) -> dict[str, Value]:
+        if self._dicts is None:
+            self._dicts = {}
+        if which not in self._dicts:
+            self._dicts[which] = _merge(rows)
+        return self._dicts[which]
+
+    def __repr__(self) -> str:
+        return (
+            f"CycleResult(cycle={self.cycle}, time_s={self.time_s}, sync_counter={self.sync_counter}, "
+            f"received_rows={self.received_rows!r}, duty={self.duty}, sent_rows={self.sent_rows!r})"
+        )
 
 
 def _merge(rows: Iterable[PdoRow]) -> dict[str, Value]:

@@ -122,15 +122,15 @@ class LockstepDriver(Driver):
         # The TPDOs' rows are in the history already (appended as they were decoded, see
         # `_collect`); the RPDOs' payloads go into their rows here, from their frames.
         n = start.cycle
-        by_cob = self._tpdo_by_cob
-        received = tuple([(by_cob[cob_id], values) for cob_id, values in got.items()])
         rpdo_rows, cycle_row = self._rpdo_rows, ROW_CYCLE.pack(n)
         for (pdo, _), frame in zip(start.sent, start.frames, strict=True):
             cycles, payloads, length = rpdo_rows[pdo.number]
             payloads += frame[CAN_HEADER_SIZE : CAN_HEADER_SIZE + length]
             cycles += cycle_row
         self.history.record_truth(start.state)
-        return CycleResult(n, start.t, start.counter, start.raw, received, duty, start.sent, start.state)
+        return CycleResult(
+            n, start.t, start.counter, start.raw, got, duty, start.sent, start.state, self._tpdo_by_cob
+        )
 
     def _collect(
         self, n: int, t: float, due: frozenset[int], sync_number: int, out: bytes = b""
