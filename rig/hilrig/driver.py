@@ -464,6 +464,8 @@ class Driver:
         self.plant = plant
         self.sensors = sensors
         self.period_us = period_us
+        self.period_s = period_us / 1e6
+        """The period in seconds (what the plant is stepped by every cycle)."""
         self.tpdo_timeout_s = tpdo_timeout_s
         self.liveness = liveness
         self.history = History(period_us)
@@ -501,10 +503,6 @@ class Driver:
         """`transport.exchange` bound to the link (configure())."""
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
         self._tpdo_names: frozenset[str] = frozenset()
-
-    @property
-    def period_s(self) -> float:
-        return self.period_us / 1e6
 
     @property
     def needs_plant_io(self) -> bool:
