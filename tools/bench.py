@@ -28,6 +28,12 @@ What is measured, and against what:
 * Field recorder cost: the instructions of its end-of-cycle call under callgrind, armed with 8
   channels (a sample every cycle and a level trigger looked at, its dearest state) next to
   idle, and the armed cost as a share of the demo joint's cycle.
+* The Rig's own lockstep cycle, natively and deterministically (`tools/rig_probe.py`: the Rig
+  over a raw-socket pair whose peer answers each SYNC at once, no firmware, no bus): the main
+  thread's instructions per cycle under callgrind next to the engine's exchange alone with the
+  same frames, and the bytes the Rig keeps per cycle (tracemalloc) next to the data bytes the bus
+  carried. The VM's rates move by 10-20 % between runs; these do not, so a change to the
+  per-cycle path shows here first.
 * Long runs stay viewable: one traced 60 s lockstep run at 1 kHz (60000 cycles) of the full
   `Rig` against the firmware, the session as in (b); its trace.rrd stays in <out>/long-trace/.
   Reported: the .rrd's size (and bytes per cycle), and, on the host, the time from asking
@@ -164,30 +170,58 @@ def run_board_bench(out: Path) -> dict[str, float]:
     }
 
 
-def callgrind_instructions(out: Path, loop: str, cycles: int) -> int:
-    """Instructions inside hil_count_<loop> (fw_cycle_count) for `cycles` cycles."""
-    exe = out / "bin" / "fw_cycle_count"
+def _callgrind_total(options: list[str], command: list[str], *, python: bool = False) -> int:
+    """Instructions callgrind counted running `command` with `options`; for a `python` command
+    those of its main thread alone (its threads counted apart), with the same string hashes
+    every run (so the same dict layouts)."""
     with tempfile.TemporaryDirectory(prefix="bench-callgrind-") as folder:
         data = Path(folder) / "callgrind.out"
+        threads = ["--separate-threads=yes"] if python else []
         subprocess.run(
-            [
-                "valgrind",
-                "--tool=callgrind",
-                "--collect-atstart=no",
-                f"--toggle-collect=hil_count_{loop}",
-                f"--callgrind-out-file={data}",
-                str(exe),
-                loop,
-                str(cycles),
-            ],
+            ["valgrind", "--tool=callgrind", *threads, *options, f"--callgrind-out-file={data}", *command],
             check=True,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            env={**os.environ, "PYTHONHASHSEED": "0"} if python else None,
         )
-        match = re.search(r"^(?:summary|totals):\s*(\d+)", data.read_text(), re.MULTILINE)
+        written = Path(f"{data}-01") if python else data
+        match = re.search(r"^(?:summary|totals):\s*(\d+)", written.read_text(), re.MULTILINE)
         if match is None:
-            raise RuntimeError(f"no instruction total in callgrind output of {loop}")
+            raise RuntimeError(f"no instruction total in callgrind output of {' '.join(command)}")
         return int(match.group(1))
+
+
+def callgrind_instructions(out: Path, loop: str, cycles: int) -> int:
+    """Instructions inside hil_count_<loop> (fw_cycle_count) for `cycles` cycles."""
+    options = ["--collect-atstart=no", f"--toggle-collect=hil_count_{loop}"]
+    return _callgrind_total(options, [str(out / "bin" / "fw_cycle_count"), loop, str(cycles)])
+
+
+RIG_PROBE_CYCLES = (500, 2500)
+"""`tools/rig_probe.py` runs at two lengths: their difference is what the cycles cost."""
+
+
+def rig_probe_instructions(mode: str, cycles: int) -> int:
+    """Instructions of the main thread of `tools/rig_probe.py MODE CYCLES` under callgrind."""
+    command = [sys.executable, str(ROOT / "tools" / "rig_probe.py"), mode, str(cycles)]
+    return _callgrind_total([], command, python=True)
+
+
+def rig_probe_costs() -> dict[str, float]:
+    """The Rig's lockstep cycle and the engine's exchange alone, natively (`tools/rig_probe.py`):
+    instructions per cycle of each (callgrind), and the Rig's bytes kept per cycle."""
+    short, long = RIG_PROBE_CYCLES
+    costs: dict[str, float] = {}
+    for mode in ("rig", "engine"):
+        difference = rig_probe_instructions(mode, long) - rig_probe_instructions(mode, short)
+        costs[mode] = difference / (long - short)
+        say(f"  {mode}: {costs[mode]:.0f} instructions per cycle")
+    probe = [sys.executable, str(ROOT / "tools" / "rig_probe.py"), "memory", str(long)]
+    printed = subprocess.run(probe, check=True, capture_output=True, text=True).stdout
+    kept, carried = re.findall(r"[\d.]+", printed)[:2]
+    costs["kept_bytes"], costs["bus_bytes"] = float(kept), float(carried)
+    say(f"  the Rig keeps {kept} bytes per cycle; the bus carried {carried}")
+    return costs
 
 
 def native_main(args: argparse.Namespace) -> int:
@@ -208,6 +242,8 @@ def native_main(args: argparse.Namespace) -> int:
             per_cycle[loop] = (total - empty) / CALLGRIND_CYCLES
             say(f"  {loop}: {per_cycle[loop]:.0f} instructions per cycle")
         result["callgrind"] = {"cycles": CALLGRIND_CYCLES, "instructions_per_cycle": per_cycle}
+        say(f"the Rig's own lockstep cycle, natively (tools/rig_probe.py, {RIG_PROBE_CYCLES} cycles)")
+        result["rig_probe"] = rig_probe_costs()
     write_json_atomically(out / "native.json", result)
     return 0
 
@@ -898,6 +934,26 @@ def _recorder_rows(row: Callable[..., None], ipc: dict[str, float]) -> None:
     )
 
 
+def _rig_probe_rows(row: Callable[..., None], probe: dict[str, float] | None) -> None:
+    """The Rig's own lockstep cycle, natively and deterministically (`tools/rig_probe.py`): its
+    instructions against the engine's exchange alone, and the bytes its history keeps per
+    cycle. A native.json of an older run has none: no rows then."""
+    if not probe:
+        return
+    row(
+        "instructions/cycle (main thread): Rig lockstep cycle vs the engine's exchange alone",
+        f"{probe['rig']:.0f}",
+        f"{probe['engine']:.0f}",
+        _ratio(probe["rig"], probe["engine"]),
+    )
+    row(
+        "bytes per lockstep cycle: kept by the Rig (history) vs the data on the bus",
+        f"{probe['kept_bytes']:.0f} B",
+        f"{probe['bus_bytes']:.0f} B",
+        _ratio(probe["kept_bytes"], probe["bus_bytes"]),
+    )
+
+
 NO_LONG_TRACE = "no long run in bus.json (a bus step from before it, or --long-trace-cycles 0)"
 
 
@@ -1124,6 +1180,7 @@ def build_report(
             _ratio(ipc["core"], ipc["naive"]),
         )
         _recorder_rows(row, ipc)
+    _rig_probe_rows(row, native.get("rig_probe"))
     _long_trace_rows(row, bus.get("long_trace"), first_frame)
     load = bus["bus_load"]
     for item in load["loads"]:

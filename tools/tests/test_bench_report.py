@@ -1,6 +1,7 @@
 """tools/bench.py's report: the field recorder's rows (armed vs idle, armed vs a demo cycle), the
-long run's rows (.rrd size, the web viewer's time to a first drawn frame), and the long run
-itself against the in-process fake node (the bus step runs it against the firmware)."""
+Rig's own cycle measured natively (tools/rig_probe.py), the long run's rows (.rrd size, the web
+viewer's time to a first drawn frame), and the long run itself against the in-process fake node
+(the bus step runs it against the firmware)."""
 
 from __future__ import annotations
 
@@ -54,6 +55,36 @@ def test_recorder_rows_say_when_a_goal_is_missed_and_skip_an_old_run() -> None:
     rows = _rows({"demo": 1000.0, "recorder_idle": 50.0, "recorder_armed": 500.0})
     assert [r["goal_met"] for r in rows] == [False, False]
     assert _rows({"demo": 1000.0, "core": 1.0, "naive": 1.0}) == []
+
+
+# --- The Rig's own cycle, natively (tools/rig_probe.py) ------------------------------------------
+def test_rig_probe_rows_give_the_rigs_instructions_and_its_bytes_kept_per_cycle() -> None:
+    rows = bench.ReportRows()
+    probe = {"rig": 110_000.4, "engine": 55_000.0, "kept_bytes": 550.0, "bus_bytes": 68.8}
+    bench._rig_probe_rows(rows, probe)
+    instructions, kept = rows
+    assert instructions["measure"].startswith("instructions/cycle (main thread): Rig lockstep cycle vs")
+    assert (instructions["ours"], instructions["baseline"]) == ("110000", "55000")
+    assert instructions["ratio"] == pytest.approx(2.0, abs=1e-4)
+    assert (kept["ours"], kept["baseline"]) == ("550 B", "69 B")
+    empty = bench.ReportRows()
+    bench._rig_probe_rows(empty, None)  # a native.json of an older run, or no valgrind
+    assert empty == []
+
+
+@pytest.mark.parametrize("mode", ["rig", "engine"])
+def test_the_rig_probe_runs_its_cycles_against_its_answering_peer(mode: str) -> None:
+    probe = load_tool("rig_probe")
+    assert probe.main([mode, "30"]) == 0
+
+
+def test_the_rig_probe_counts_what_the_rig_keeps_and_what_the_bus_carried(capsys) -> None:
+    probe = load_tool("rig_probe")
+    assert probe.main(["memory", "200"]) == 0
+    kept, on_bus = (float(word) for word in capsys.readouterr().out.split() if word[0].isdigit())
+    # The history keeps every PDO's payload and cycle (and the truth), so more than the bus
+    # carried, but no per-cycle Python tuples any more: some 550 bytes natively.
+    assert on_bus > 0 and on_bus < kept < 20 * on_bus
 
 
 # --- The long run: .rrd size and time to a first drawn frame -----------------------------------

@@ -1,0 +1,141 @@
+"""The Rig's own cost per lockstep cycle, natively and deterministically (`make bench` runs it).
+
+The VM's cycles per second move by 10-20 % between runs of the same code; these do not:
+
+    python tools/rig_probe.py rig CYCLES      # the full Rig (physics, history, checks)
+    python tools/rig_probe.py engine CYCLES   # the engine's exchange alone, same frames
+    python tools/rig_probe.py memory CYCLES   # bytes the Rig keeps per cycle (tracemalloc), and
+                                              # the data bytes the bus carried
+
+`make bench` runs the first two under callgrind at two lengths, so start-up cancels out, and
+reports instructions per cycle of the main thread. Both run over a raw-socket link (an AF_UNIX
+SOCK_SEQPACKET pair, the C exchange as on SocketCAN) whose peer answers at once: before each
+exchange it queues every TPDO due at that SYNC (zero payloads of the mapped lengths), after it
+takes what the rig sent. The node's PDO configuration comes from the fake node over canopen's
+SDO, as on a bus; no firmware, no bus, no waiting, so nothing depends on timing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import math
+import socket
+import sys
+import tracemalloc
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path[:0] = [str(REPO / "rig"), str(REPO / "protocol")]
+
+from hilrig.transport import RawCanLink, can_frame  # noqa: E402
+
+MODES = ("rig", "engine", "memory")
+WARMUP_CYCLES = 20
+
+
+class AnsweringLink(RawCanLink):
+    """A raw-socket link whose peer is a node that answers at once: each exchange first has the
+    peer queue the due TPDOs, then runs the C exchange, then drains what the rig sent."""
+
+    def __init__(self, ours: socket.socket, peer: socket.socket, answers: dict[int, bytes]) -> None:
+        super().__init__(ours)
+        self._peer = peer
+        self._answers = answers
+        self.last_out = b""
+        """The frames the last exchange that sent any sent: a cycle's RPDOs, then its SYNC."""
+        self.data_bytes = 0
+        """Data bytes of every frame either way so far (what the bus carried)."""
+
+    def exchange(self, out, due, decoders, got, timeout_s, cycle=None):  # type: ignore[no-untyped-def]
+        if out:
+            self.last_out = out
+            self.data_bytes += sum(out[offset] for offset in range(4, len(out), 16))  # can_dlc
+        for cob_id in due:
+            answer = self._answers[cob_id]
+            self._peer.send(answer)
+            self.data_bytes += answer[4]
+        result = super().exchange(out, due, decoders, got, timeout_s, cycle)
+        while True:
+            try:
+                self._peer.recv(16, socket.MSG_DONTWAIT)
+            except BlockingIOError:
+                return result
+
+
+def _socket_pair() -> tuple[socket.socket, socket.socket]:
+    ours, peer = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    for end in (ours, peer):
+        end.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
+        end.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+    return ours, peer
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("mode", choices=MODES)
+    parser.add_argument("cycles", type=int)
+    args = parser.parse_args(argv)
+    if args.cycles < 0:
+        parser.error("cycles: expected >= 0")
+
+    import can
+
+    from hilrig.driver import SYNC_FRAMES
+    from hilrig.fake_node import FakeJointNode
+    from hilrig.rig import Rig
+    from hilrig.table import RigTable
+    from hilrig.transport import exchange
+
+    table = RigTable.load()
+    channel = "rig-probe"
+    with (
+        can.Bus(interface="virtual", channel=channel) as rig_bus,
+        can.Bus(interface="virtual", channel=channel) as node_bus,
+    ):
+        fake = FakeJointNode(node_bus, table=table)
+        fake.boot()
+        ours, peer = _socket_pair()
+        rig = Rig(rig_bus, table=table, seed=1, tpdo_timeout_s=5.0)
+        answers: dict[int, bytes] = {}
+        link = AnsweringLink(ours, peer, answers)
+        rig.node.open_link = lambda receive_ids: link  # type: ignore[method-assign]
+        try:
+            rig.start()  # reads the PDO configuration over SDO, then opens the link
+            fake.close()  # from here on the link's peer is the node
+            tpdos = [p for p in rig.node.tpdos.values() if p.enabled and p.names]
+            answers.update({p.cob_id: can_frame(p.cob_id, bytes(p.length)) for p in tpdos})
+            rig.set("velocity_setpoint", 5.0)
+            rig.run(cycles=WARMUP_CYCLES)
+            gc.collect()
+            if args.mode == "engine":
+                # The RPDO frames the Rig sent in its last cycle (its exchange's frames but the
+                # SYNC), and every cyclic TPDO due at each SYNC.
+                out = link.last_out[: -len(SYNC_FRAMES[0])]
+                cyclic = [p for p in tpdos if p.is_cyclic]
+                period = math.lcm(*(p.transmission_type for p in cyclic))
+                due = [frozenset(p.cob_id for p in cyclic if p.due_at_sync(n + 1)) for n in range(period)]
+                decoders = {p.cob_id: (p.length, p.codec.unpack) for p in tpdos}
+                for n in range(args.cycles):
+                    got: dict[int, tuple[float | int, ...]] = {}
+                    frames = out + SYNC_FRAMES[n % len(SYNC_FRAMES)]
+                    while exchange(link, frames, due[n % period], decoders, got, 5.0) is not None:
+                        frames = b""
+            elif args.mode == "memory":
+                tracemalloc.start()
+                before, carried = tracemalloc.get_traced_memory()[0], link.data_bytes
+                rig.run(cycles=args.cycles)
+                grown = tracemalloc.get_traced_memory()[0] - before
+                cycles, on_bus = max(args.cycles, 1), link.data_bytes - carried
+                print(f"{grown / cycles:.1f} bytes kept per cycle, {on_bus / cycles:.1f} on the bus")
+            else:
+                rig.run(cycles=args.cycles)
+        finally:
+            rig.close()
+            ours.close()
+            peer.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
