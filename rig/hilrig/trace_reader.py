@@ -4,11 +4,14 @@ their levels, and the series names. For tests and for people post-processing a r
 
     trace = Trace.read(Path("out/scenarios/<test>/trace.rrd"))
     trace.scalars["/fields/virtual_sensors/motor_velocity"]   # one value per logged cycle
+    trace.at_cycles("/bus/frames/TPDO8", range(100))           # a step series at every cycle
 """
 
 from __future__ import annotations
 
+import bisect
 from collections import defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -74,6 +77,18 @@ class Trace:
             trace.times[path_] = [trace.times[path_][i] for i in order]
             trace.scalars[path_] = [trace.scalars[path_][i] for i in order]
         return trace
+
+    def at_cycles(self, path: str, cycles: Iterable[int]) -> list[float]:
+        """A step series' value at each of `cycles`: its latest row at or before the cycle (a
+        series sent as its changes, like the frame counts). KeyError before its first row."""
+        logged, values = self.cycles[path], self.scalars[path]
+        found: list[float] = []
+        for cycle in cycles:
+            row = bisect.bisect_right(logged, cycle) - 1
+            if row < 0:
+                raise KeyError(f"{path}: no row at or before cycle {cycle}")
+            found.append(values[row])
+        return found
 
 
 def _columns(batch: Any) -> dict[str, list[Any]]:

@@ -48,6 +48,8 @@ from hilrig.trace_reader import Trace
 PARAMS = JointParams.fast_thermal()
 CYCLES = 47  # not a multiple of the batch: the last, partial batch must be written by close()
 BATCH = 10
+BATCH_ENDS = [*range(BATCH - 1, CYCLES - 1, BATCH), CYCLES - 1]
+"""The last cycle of each batch: a step series sent as its changes has a row there."""
 _channels = itertools.count()
 
 
@@ -136,11 +138,15 @@ def test_every_field_has_one_sample_per_cycle_it_was_exchanged_in(traced: Run, t
 def test_ground_truth_is_logged_every_cycle_next_to_the_fields(traced: Run) -> None:
     _scenario(traced)
     trace = Trace.read(traced.path)
-    for quantity in TRUTH_QUANTITIES:
+    for quantity in TRUTH_QUANTITIES[:-1]:
         assert trace.cycles[truth_path(quantity)] == list(range(CYCLES)), quantity
     _, true_velocity = traced.rig.truth("load_velocity")
     assert trace.scalars[truth_path("load_velocity_rad_s")] == pytest.approx(true_velocity.tolist())
-    assert set(trace.scalars[truth_path(TRUE_SPRING_STIFFNESS)]) == {PARAMS.spring_stiffness_nm_per_rad}
+    # The plant's spring constant, a parameter: a step series, its first cycle and each batch's last.
+    stiffness = truth_path(TRUE_SPRING_STIFFNESS)
+    assert trace.cycles[stiffness] == [0, *BATCH_ENDS]
+    assert trace.at_cycles(stiffness, range(CYCLES)) == [PARAMS.spring_stiffness_nm_per_rad] * CYCLES
+    assert stiffness in trace.stepped
     assert trace.series_names[truth_path("load_velocity_rad_s")] == "true load_velocity_rad_s [rad/s]"
 
 
@@ -169,16 +175,18 @@ def test_frames_per_cycle_of_every_pdo_and_the_pdo_configuration_are_in_the_trac
     streamed = [p for p in rpdos if p.number in (1, 2)]
     for pdo in (*tpdos, *streamed):
         path = frames_path(pdo)
-        assert trace.cycles[path] == every_cycle, pdo.label  # zeros where it did not come
         expected = [float(pdo in streamed or pdo.due_at_sync(c + 1)) for c in every_cycle]
-        assert trace.scalars[path] == expected, pdo.label
+        assert trace.at_cycles(path, every_cycle) == expected, pdo.label  # zeros where it did not come
+        # A step series: a row where the count changes and at each batch's last cycle, no other.
+        changes = [c for c in every_cycle if c == 0 or expected[c] != expected[c - 1]]
+        assert trace.cycles[path] == sorted({*changes, *BATCH_ENDS}), pdo.label
         assert trace.series_names[path] == f"{pdo.label} [frames]"
     framed = {p for p in trace.scalars if p.startswith(BUS_FRAMES_ROOT)}
     assert framed == {frames_path(p) for p in (*tpdos, *streamed)}
     # TPDO8 (winding temperature) every 10th SYNC: the sum per cycle shows it.
-    sums = trace.scalars[BUS_TPDOS_PER_CYCLE]
+    sums = trace.at_cycles(BUS_TPDOS_PER_CYCLE, every_cycle)
     assert sums[9] == sums[0] + 1 and len(set(sums)) == 2
-    assert set(trace.scalars[BUS_RPDOS_PER_CYCLE]) == {len(streamed)}
+    assert set(trace.at_cycles(BUS_RPDOS_PER_CYCLE, every_cycle)) == {len(streamed)}
     lines = [text for text, level in trace.texts[BUS_EVENTS_PATH] if level == "INFO"]
     assert len(lines) == len(tpdos) + len(rpdos)
     assert any(line.startswith("TPDO8 (0x") and "every 10th SYNC: " in line for line in lines), lines
