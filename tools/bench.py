@@ -170,21 +170,26 @@ def run_board_bench(out: Path) -> dict[str, float]:
     }
 
 
-def _callgrind_total(options: list[str], command: list[str], *, python: bool = False) -> int:
+def _callgrind_total(
+    options: list[str], command: list[str], *, python: bool = False, all_threads: bool = False
+) -> int:
     """Instructions callgrind counted running `command` with `options`; for a `python` command
-    those of its main thread alone (its threads counted apart), with the same string hashes
-    every run (so the same dict layouts)."""
+    those of its main thread alone (its threads counted apart) unless `all_threads`, with the
+    same string hashes every run (so the same dict layouts) and numpy's BLAS on the calling
+    thread (its worker threads spin after a call, and callgrind counted their spinning: totals
+    of the same run moved by 20M instructions)."""
     with tempfile.TemporaryDirectory(prefix="bench-callgrind-") as folder:
         data = Path(folder) / "callgrind.out"
-        threads = ["--separate-threads=yes"] if python else []
+        main_thread = python and not all_threads
+        threads = ["--separate-threads=yes"] if main_thread else []
         subprocess.run(
             ["valgrind", "--tool=callgrind", *threads, *options, f"--callgrind-out-file={data}", *command],
             check=True,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
-            env={**os.environ, "PYTHONHASHSEED": "0"} if python else None,
+            env={**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1"} if python else None,
         )
-        written = Path(f"{data}-01") if python else data
+        written = Path(f"{data}-01") if main_thread else data
         match = re.search(r"^(?:summary|totals):\s*(\d+)", written.read_text(), re.MULTILINE)
         if match is None:
             raise RuntimeError(f"no instruction total in callgrind output of {' '.join(command)}")
@@ -201,21 +206,35 @@ RIG_PROBE_CYCLES = (500, 2500)
 """`tools/rig_probe.py` runs at two lengths: their difference is what the cycles cost."""
 
 
-def rig_probe_instructions(mode: str, cycles: int) -> int:
-    """Instructions of the main thread of `tools/rig_probe.py MODE CYCLES` under callgrind."""
+TRACE_PROBE_CYCLES = 2000
+"""Cycles of the traced run `tools/rig_probe.py` measures: as many as a `make bench` round's."""
+
+
+def rig_probe_instructions(mode: str, cycles: int, *, all_threads: bool = False) -> int:
+    """Instructions of the main thread (or of all threads) of `tools/rig_probe.py MODE CYCLES`
+    under callgrind."""
     command = [sys.executable, str(ROOT / "tools" / "rig_probe.py"), mode, str(cycles)]
-    return _callgrind_total([], command, python=True)
+    return _callgrind_total([], command, python=True, all_threads=all_threads)
 
 
 def rig_probe_costs() -> dict[str, float]:
     """The Rig's lockstep cycle and the engine's exchange alone, natively (`tools/rig_probe.py`):
-    instructions per cycle of each (callgrind), and the Rig's bytes kept per cycle."""
+    instructions per cycle of each (callgrind), what tracing costs per cycle, and the Rig's bytes
+    kept per cycle."""
     short, long = RIG_PROBE_CYCLES
     costs: dict[str, float] = {}
     for mode in ("rig", "engine"):
         difference = rig_probe_instructions(mode, long) - rig_probe_instructions(mode, short)
         costs[mode] = difference / (long - short)
         say(f"  {mode}: {costs[mode]:.0f} instructions per cycle")
+    # Tracing: every thread of a traced run (the sender, Rerun's encoder and file writer, close()
+    # and the file's footer included) against the same run with the Tracer made but not attached.
+    traced, idle = (
+        rig_probe_instructions(mode, TRACE_PROBE_CYCLES, all_threads=True)
+        for mode in ("traced", "tracer-idle")
+    )
+    costs["tracing"] = (traced - idle) / TRACE_PROBE_CYCLES
+    say(f"  tracing {TRACE_PROBE_CYCLES} cycles: {costs['tracing']:.0f} instructions per cycle (all threads)")
     probe = [sys.executable, str(ROOT / "tools" / "rig_probe.py"), "memory", str(long)]
     printed = subprocess.run(probe, check=True, capture_output=True, text=True).stdout
     kept, carried = re.findall(r"[\d.]+", printed)[:2]
@@ -936,8 +955,9 @@ def _recorder_rows(row: Callable[..., None], ipc: dict[str, float]) -> None:
 
 def _rig_probe_rows(row: Callable[..., None], probe: dict[str, float] | None) -> None:
     """The Rig's own lockstep cycle, natively and deterministically (`tools/rig_probe.py`): its
-    instructions against the engine's exchange alone, and the bytes its history keeps per
-    cycle. A native.json of an older run has none: no rows then."""
+    instructions against the engine's exchange alone, what tracing a run costs per cycle (every
+    thread, close included) against it, and the bytes its history keeps per cycle. A native.json
+    of an older run has none: no rows then."""
     if not probe:
         return
     row(
@@ -946,6 +966,13 @@ def _rig_probe_rows(row: Callable[..., None], probe: dict[str, float] | None) ->
         f"{probe['engine']:.0f}",
         _ratio(probe["rig"], probe["engine"]),
     )
+    if "tracing" in probe:  # a native.json from before the traced probe has none
+        row(
+            f"instructions/cycle (all threads): tracing a {TRACE_PROBE_CYCLES}-cycle run vs the Rig's cycle",
+            f"{probe['tracing']:.0f}",
+            f"{probe['rig']:.0f}",
+            _ratio(probe["tracing"], probe["rig"]),
+        )
     row(
         "bytes per lockstep cycle: kept by the Rig (history) vs the data on the bus",
         f"{probe['kept_bytes']:.0f} B",

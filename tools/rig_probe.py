@@ -6,13 +6,19 @@ The VM's cycles per second move by 10-20 % between runs of the same code; these 
     python tools/rig_probe.py engine CYCLES   # the engine's exchange alone, same frames
     python tools/rig_probe.py memory CYCLES   # bytes the Rig keeps per cycle (tracemalloc), and
                                               # the data bytes the bus carried
+    python tools/rig_probe.py traced CYCLES   # the full Rig traced to a .rrd, close() included
+    python tools/rig_probe.py tracer-idle CYCLES  # the same Tracer made and closed, not attached
 
 `make bench` runs the first two under callgrind at two lengths, so start-up cancels out, and
-reports instructions per cycle of the main thread. Both run over a raw-socket link (an AF_UNIX
-SOCK_SEQPACKET pair, the C exchange as on SocketCAN) whose peer answers at once: before each
-exchange it queues every TPDO due at that SYNC (zero payloads of the mapped lengths), after it
-takes what the rig sent. The node's PDO configuration comes from the fake node over canopen's
-SDO, as on a bus; no firmware, no bus, no waiting, so nothing depends on timing.
+reports instructions per cycle of the main thread; and the last two at one length, counting every
+thread (the sender, Rerun's encoder and file writer): their difference is what tracing those
+cycles costs, from naming the series to the file's footer, whatever runs in parallel.
+
+All run over a raw-socket link (an AF_UNIX SOCK_SEQPACKET pair, the C exchange as on SocketCAN)
+whose peer answers at once: before each exchange it queues every TPDO due at that SYNC (zero
+payloads of the mapped lengths), after it takes what the rig sent. The node's PDO configuration
+comes from the fake node over canopen's SDO, as on a bus; no firmware, no bus, no waiting, so
+nothing depends on timing.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import gc
 import math
 import socket
 import sys
+import tempfile
 import tracemalloc
 from pathlib import Path
 
@@ -30,7 +37,7 @@ sys.path[:0] = [str(REPO / "rig"), str(REPO / "protocol")]
 
 from hilrig.transport import RawCanLink, can_frame  # noqa: E402
 
-MODES = ("rig", "engine", "memory")
+MODES = ("rig", "engine", "memory", "traced", "tracer-idle")
 WARMUP_CYCLES = 20
 
 
@@ -89,6 +96,12 @@ def main(argv: list[str] | None = None) -> int:
 
     table = RigTable.load()
     channel = "rig-probe"
+    folder = tempfile.TemporaryDirectory(prefix="rig-probe-")
+    tracer = None
+    if args.mode in ("traced", "tracer-idle"):
+        from hilrig.trace import Tracer
+
+        tracer = Tracer.for_scenario(folder.name, table)  # as a HIL session makes it
     with (
         can.Bus(interface="virtual", channel=channel) as rig_bus,
         can.Bus(interface="virtual", channel=channel) as node_bus,
@@ -96,7 +109,8 @@ def main(argv: list[str] | None = None) -> int:
         fake = FakeJointNode(node_bus, table=table)
         fake.boot()
         ours, peer = _socket_pair()
-        rig = Rig(rig_bus, table=table, seed=1, tpdo_timeout_s=5.0)
+        attached = tracer if args.mode == "traced" else None
+        rig = Rig(rig_bus, table=table, seed=1, tpdo_timeout_s=5.0, tracer=attached)
         answers: dict[int, bytes] = {}
         link = AnsweringLink(ours, peer, answers)
         rig.node.open_link = lambda receive_ids: link  # type: ignore[method-assign]
@@ -130,10 +144,15 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{grown / cycles:.1f} bytes kept per cycle, {on_bus / cycles:.1f} on the bus")
             else:
                 rig.run(cycles=args.cycles)
+                if tracer is not None:
+                    tracer.close()  # the rest of the trace sent and written, the file complete
         finally:
             rig.close()
+            if tracer is not None:
+                tracer.close()
             ours.close()
             peer.close()
+            folder.cleanup()
     return 0
 
 

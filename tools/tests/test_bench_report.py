@@ -72,7 +72,20 @@ def test_rig_probe_rows_give_the_rigs_instructions_and_its_bytes_kept_per_cycle(
     assert empty == []
 
 
-@pytest.mark.parametrize("mode", ["rig", "engine"])
+def test_rig_probe_rows_give_what_tracing_costs_per_cycle_next_to_the_rigs_cycle() -> None:
+    rows = bench.ReportRows()
+    probe = {"rig": 110_000.0, "engine": 55_000.0, "tracing": 77_000.4, "kept_bytes": 550.0}
+    bench._rig_probe_rows(rows, {**probe, "bus_bytes": 68.8})
+    _, tracing, kept = rows
+    assert tracing["measure"] == (
+        f"instructions/cycle (all threads): tracing a {bench.TRACE_PROBE_CYCLES}-cycle run vs the Rig's cycle"
+    )
+    assert (tracing["ours"], tracing["baseline"]) == ("77000", "110000")
+    assert tracing["ratio"] == pytest.approx(0.7, abs=1e-4)
+    assert kept["measure"].startswith("bytes per lockstep cycle")
+
+
+@pytest.mark.parametrize("mode", ["rig", "engine", "traced", "tracer-idle"])
 def test_the_rig_probe_runs_its_cycles_against_its_answering_peer(mode: str) -> None:
     probe = load_tool("rig_probe")
     assert probe.main([mode, "30"]) == 0
