@@ -909,20 +909,23 @@ class Tracer(RigObserver):
     def _group_schema(self, paths: tuple[str, ...]) -> Any:
         """The record batch of `_send_group`: the cycle and time indexes, a Scalars column per path."""
         pa = self._pa
-        if self.clock == "simulation":
-            time_field = _index_field(pa, SIM_TIME_TIMELINE, pa.duration("ns"))
-        else:
-            time_field = _index_field(pa, WALL_TIME_TIMELINE, pa.timestamp("ns"))
-        fields = [_index_field(pa, CYCLE_TIMELINE, pa.int64()), time_field]
+        fields = [_index_field(pa, CYCLE_TIMELINE, pa.int64()), _index_field(pa, *self._time_index())]
         fields += [_component_field(pa, path, self._scalars, pa.float64()) for path in paths]
         return pa.schema(fields)
 
-    def _time_array(self, times: np.ndarray) -> Any:
-        """Seconds as the time index's Arrow array, converted as `rr.TimeColumn` converts them."""
+    def _time_index(self) -> tuple[str, Any]:
+        """The time timeline of this clock and its Arrow type: sim_time (a duration) in
+        lockstep, wall_time (a timestamp) in real time."""
         pa = self._pa
         if self.clock == "simulation":
-            return pa.array((times * 1e9).astype("timedelta64[ns]"), pa.duration("ns"))
-        return pa.array((times * 1e9).astype("datetime64[ns]"), pa.timestamp("ns"))
+            return SIM_TIME_TIMELINE, pa.duration("ns")
+        return WALL_TIME_TIMELINE, pa.timestamp("ns")
+
+    def _time_array(self, times: np.ndarray) -> Any:
+        """Seconds as the time index's Arrow array, converted as `rr.TimeColumn` converts them."""
+        arrow_type = self._time_index()[1]
+        numpy_type = "timedelta64[ns]" if self.clock == "simulation" else "datetime64[ns]"
+        return self._pa.array((times * 1e9).astype(numpy_type), arrow_type)
 
     def _send_changes(
         self, cycles: np.ndarray, times: np.ndarray, series: Sequence[tuple[str, np.ndarray]]
@@ -935,10 +938,8 @@ class Tracer(RigObserver):
             return
         groups: dict[bytes, tuple[np.ndarray, list[tuple[str, np.ndarray]]]] = {}
         for path, values in series:
-            before = self._last_held_value.get(path, np.nan)
-            keep = values != np.concatenate(([before], values[:-1]))  # NaN != anything: the first counts
+            keep = _changed(self._last_held_value, path, values)
             keep[-1] = True
-            self._last_held_value[path] = float(values[-1])
             rows = np.flatnonzero(keep)
             groups.setdefault(rows.tobytes(), (rows, []))[1].append((path, values[rows]))
         for rows, group in groups.values():
@@ -974,12 +975,9 @@ class Tracer(RigObserver):
     ) -> None:
         """The name of each new value (where it differs from the one before), as a TextLog at
         `<path>/label` (a child entity: the number's own entity keeps one component per row)."""
-        before = self._last_named_value.get(path, np.nan)
-        previous = np.concatenate(([before], values[:-1]))
-        changed = np.flatnonzero(values != previous)  # NaN != anything: the first value counts
+        changed = np.flatnonzero(_changed(self._last_named_value, path, values))
         if not len(changed):
             return
-        self._last_named_value[path] = float(values[-1])
         rr = self._rr
         texts = [f"{path.rsplit('/', 1)[-1]} = {value_name(named, float(values[i]))}" for i in changed]
         self.recording.send_columns(
@@ -1111,6 +1109,16 @@ class ChainTrace(RobotObserver):
                 )
 
         tracer.submit(send)
+
+
+def _changed(last: dict[str, float], path: str, values: np.ndarray) -> np.ndarray:
+    """Where each of `values` differs from the one before it, the first from the last value of
+    `path` in `last` (none yet: NaN, which differs from anything); `last` then holds this last."""
+    before = last.get(path, np.nan)
+    changed = values != np.concatenate(([before], values[:-1]))
+    if len(values):
+        last[path] = float(values[-1])
+    return changed
 
 
 _RERUN_KIND = b"rerun:kind"
