@@ -1,5 +1,5 @@
 /* hilrig._wire: the per-cycle PDO exchange on a raw SocketCAN socket, without a Python call per
- * frame (used by hilrig.transport.RawCanLink only; every rule about which frame is due, late or
+ * frame (used through hilrig.transport only; every rule about which frame is due, late or
  * malformed stays in Python, in hilrig.lockstep).
  *
  * In the software-emulated micro-VM every Python bytecode costs some 50x its native time while a
@@ -11,10 +11,13 @@
  *   send_frames(fd, frames)                      every 16-byte struct can_frame of `frames`
  *   exchange(fd, out, due, decoders, got, spin_s[, cycle])
  *                                                send `out`, then receive (see exchange_doc)
+ *   append_rows(frames, rows, cycle)             the RPDO frames a cycle sent into their rows
  *
  * A decoder may carry its PDO's history rows (two bytearrays: the cycles as native int64, the
  * payloads back to back): each TPDO it decodes is then also appended there, tagged with
- * `cycle`, so the rig's per-cycle bookkeeping of every TPDO needs no Python object either.
+ * `cycle`, so the rig's per-cycle bookkeeping of every TPDO needs no Python object either;
+ * `append_rows` files the RPDO frames a cycle sent the same way (it touches no socket: the
+ * lockstep driver calls it on any link).
  *
  * The socket is blocking with the kernel's receive timeout (SO_RCVTIMEO, set by the caller): a
  * wait is a short look without sleeping (`receive`), then one recv() that returns EAGAIN when
@@ -363,9 +366,77 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
     }
 }
 
+PyDoc_STRVAR(append_rows_doc,
+             "append_rows(frames, rows, cycle, /)\n--\n\n"
+             "Append each 16-byte struct can_frame of `frames` whose COB-ID is a key of `rows`\n"
+             "(COB-ID -> (cycles, payloads), two bytearrays) to those rows as cycle `cycle`'s: its\n"
+             "payload (as long as the frame says), then the cycle as a native int64, as `exchange`\n"
+             "appends a TPDO it decodes. Frames of other COB-IDs are left out.");
+
+static PyObject *append_rows(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
+    (void)module;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "append_rows(frames, rows, cycle) takes 3 arguments");
+        return NULL;
+    }
+    PyObject *rows = args[1];
+    if (!PyDict_Check(rows)) {
+        PyErr_SetString(PyExc_TypeError, "append_rows: rows is a dict");
+        return NULL;
+    }
+    int64_t cycle = PyLong_AsLongLong(args[2]);
+    if (cycle == -1 && PyErr_Occurred()) {
+        return NULL;
+    }
+    Py_buffer frames;
+    if (PyObject_GetBuffer(args[0], &frames, PyBUF_SIMPLE) < 0) {
+        return NULL;
+    }
+    int status = 0;
+    if (frames.len % FRAME_SIZE != 0) {
+        PyErr_Format(PyExc_ValueError, "append_rows: expected whole 16-byte CAN frames, got %zd bytes", frames.len);
+        status = -1;
+    }
+    for (Py_ssize_t offset = 0; status == 0 && offset < frames.len; offset += FRAME_SIZE) {
+        const unsigned char *frame = (const unsigned char *)frames.buf + offset;
+        uint32_t can_id;
+        memcpy(&can_id, frame, sizeof can_id);
+        PyObject *cob_id = PyLong_FromUnsignedLong(can_id);
+        if (cob_id == NULL) {
+            status = -1;
+            break;
+        }
+        PyObject *store = PyDict_GetItemWithError(rows, cob_id); /* borrowed */
+        Py_DECREF(cob_id);
+        if (store == NULL) {
+            status = PyErr_Occurred() ? -1 : 0;
+            continue;
+        }
+        if (!PyTuple_Check(store) || PyTuple_GET_SIZE(store) != 2 ||
+            !PyByteArray_CheckExact(PyTuple_GET_ITEM(store, 0)) ||
+            !PyByteArray_CheckExact(PyTuple_GET_ITEM(store, 1))) {
+            PyErr_SetString(PyExc_TypeError, "append_rows: a row store is a (cycles, payloads) tuple of bytearrays");
+            status = -1;
+            break;
+        }
+        Py_ssize_t length = frame[4] <= 8 ? frame[4] : 8;
+        /* The payload first, then the cycle, as `exchange` appends (a reader counts cycles). */
+        if (append_bytes(PyTuple_GET_ITEM(store, 1), frame + 8, length) < 0 ||
+            append_bytes(PyTuple_GET_ITEM(store, 0), &cycle, sizeof cycle) < 0) {
+            status = -1;
+        }
+    }
+    PyBuffer_Release(&frames);
+    if (status < 0) {
+        return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef methods[] = {
     {"send_frames", (PyCFunction)(void (*)(void))send_frames, METH_FASTCALL, send_frames_doc},
     {"exchange", (PyCFunction)(void (*)(void))exchange, METH_FASTCALL, exchange_doc},
+    {"append_rows", (PyCFunction)(void (*)(void))append_rows, METH_FASTCALL, append_rows_doc},
     {NULL, NULL, 0, NULL},
 };
 

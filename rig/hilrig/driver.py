@@ -483,6 +483,9 @@ class Driver:
         self._rpdo_values: dict[int, list[Value]] = {}
         self._rpdo_frames: dict[int, tuple[PdoLayout, bytes, tuple[Value, ...]]] = {}
         """RPDO number -> (layout, frame, values): packed once per change, sent every cycle."""
+        self._steady_stream: tuple[list[bytes], list[PdoRow]] | None = None
+        """The setpoint stream's frames and rows as `_rpdos_of_cycle` last sent them: what every
+        cycle sends again while no RPDO changed (None: work it out again)."""
         self._stream_order: list[int] = []  # the setpoint stream's RPDOs, in sending order
         self._sensor_rpdos: list[tuple[PdoLayout, Callable[[RawSensors], tuple[Value, ...]]]] = []
         self._stream_rpdos: set[int] = set()
@@ -497,8 +500,9 @@ class Driver:
         self._decoders: dict[int, tuple[int, Unpack, bytearray, bytearray]] = {}
         """COB-ID -> (length, unpack, cycles, payloads) of every enabled TPDO: what a cycle's
         exchange decodes, and the history's rows it appends each one to (`History.row_store`)."""
-        self._rpdo_rows: dict[int, tuple[bytearray, bytearray, int]] = {}
-        """RPDO number -> (cycles, payloads, payload length) of the history's sent rows."""
+        self._rpdo_rows: dict[int, tuple[bytearray, bytearray]] = {}
+        """COB-ID -> (cycles, payloads) of each enabled RPDO's sent rows in the history, which a
+        lockstep cycle files the frames it sent into (`transport.append_frame_rows`)."""
         self._exchange: Exchange | None = None
         """`transport.exchange` bound to the link (configure())."""
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
@@ -536,6 +540,10 @@ class Driver:
             extra = [n for n in pdo.names if not table.is_hil_input(n)]
             if extra:
                 problems.append(f"{pdo.label} mixes sensor inputs with {', '.join(extra)}")
+        for cob_id in sorted({p.cob_id for p in enabled_rpdos}):
+            sharing = [p.label for p in enabled_rpdos if p.cob_id == cob_id]
+            if len(sharing) > 1:  # the node could not tell their frames apart, nor could the history
+                problems.append(f"{' and '.join(sharing)} share a COB-ID")
         stream = [p for p in enabled_rpdos if set(SETPOINT_STREAM) & set(p.names)]
         for name in SETPOINT_STREAM:
             if not any(name in p.names for p in stream):
@@ -560,6 +568,7 @@ class Driver:
             name: self._rpdo_values[number][position] for name, (number, position) in self._field_rpdo.items()
         }
         self._rpdo_values, self._rpdo_frames, self._field_rpdo, self._rpdo_layouts = {}, {}, {}, {}
+        self._steady_stream = None
         for pdo in enabled_rpdos:
             if pdo in sensor_rpdos:
                 continue
@@ -580,7 +589,7 @@ class Driver:
         self._decoders = {
             p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p)) for p in enabled_tpdos
         }
-        self._rpdo_rows = {p.number: (*self.history.row_store(p), p.length) for p in enabled_rpdos}
+        self._rpdo_rows = {p.cob_id: self.history.row_store(p) for p in enabled_rpdos}
         self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
         self._exchange = exchanger(self._link)
         self._pending.clear()
@@ -598,6 +607,7 @@ class Driver:
         number, position = self._field_rpdo[name]
         self._rpdo_values[number][position] = value
         self._rpdo_frames.pop(number, None)
+        self._steady_stream = None
         self._dirty_rpdos.add(number)
 
     def resend_rpdos(self) -> None:
@@ -667,13 +677,18 @@ class Driver:
         paused = self.paused_rpdos
         if raw is not None:
             for pdo, values_of in self._sensor_rpdos:
-                if pdo.number in paused:
+                if paused and pdo.number in paused:
                     continue
                 values = values_of(raw)
                 frames.append(pdo.frame(values))
                 sent.append((pdo, values))
-        dirty, stream, packed = self._dirty_rpdos, self._stream_rpdos, self._rpdo_frames
-        # Most cycles send the setpoint stream alone: then only its RPDOs are looked at.
+        dirty, steady = self._dirty_rpdos, self._steady_stream
+        if steady is not None and not dirty and not paused:
+            # Most cycles send the setpoint stream alone, unchanged since it was last packed.
+            frames += steady[0]
+            sent += steady[1]
+            return tuple(sent), frames
+        stream, packed = self._stream_rpdos, self._rpdo_frames
         for number in self._rpdo_values if dirty else self._stream_order:
             if number in paused or not (number in stream or number in dirty):
                 continue
@@ -684,6 +699,9 @@ class Driver:
             frames.append(entry[1])
             sent.append((entry[0], entry[2]))
             dirty.discard(number)
+        if not paused:  # every stream RPDO is packed now
+            stream_entries = [packed[number] for number in self._stream_order]
+            self._steady_stream = ([e[1] for e in stream_entries], [(e[0], e[2]) for e in stream_entries])
         return tuple(sent), frames
 
     def _decode(self, pdo: PdoLayout, data: bytes) -> tuple[Value, ...] | None:

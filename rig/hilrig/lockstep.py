@@ -35,7 +35,7 @@ from hilrig.driver import (
 )
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
-from hilrig.transport import CAN_HEADER_SIZE, ROW_CYCLE, append_row, send_frames
+from hilrig.transport import append_frame_rows, append_row, send_frames
 
 
 @dataclass(slots=True)
@@ -51,11 +51,11 @@ class CycleStart:
     due: frozenset[int]
     sync_number: int
     sent: tuple[PdoRow, ...]
-    frames: list[bytes]
-    """The frame of each of `sent` (the history keeps their payloads)."""
+    frames: bytes
+    """The frames of `sent`, joined (the history files their payloads: `end_cycle`)."""
     unsent: bytes = b""
-    """The RPDO frames of `sent`, joined, when `begin_cycle(send=False)` left them to go out
-    with the SYNC in the cycle's exchange (`step`)."""
+    """`frames` when `begin_cycle(send=False)` left them to go out with the SYNC in the cycle's
+    exchange (`step`)."""
 
 
 class LockstepDriver(Driver):
@@ -97,11 +97,12 @@ class LockstepDriver(Driver):
             due = frozenset()
         sent, frames = self._rpdos_of_cycle(raw)
         joined = b"".join(frames)
+        unsent = joined
         if send and joined:
             send_frames(self.link, joined)
-            joined = b""
+            unsent = b""
         return CycleStart(
-            n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent, frames, joined
+            n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent, joined, unsent
         )
 
     def collect_cycle(self, start: CycleStart) -> dict[int, tuple[Value, ...]]:
@@ -122,11 +123,7 @@ class LockstepDriver(Driver):
         # The TPDOs' rows are in the history already (appended as they were decoded, see
         # `_collect`); the RPDOs' payloads go into their rows here, from their frames.
         n = start.cycle
-        rpdo_rows, cycle_row = self._rpdo_rows, ROW_CYCLE.pack(n)
-        for (pdo, _), frame in zip(start.sent, start.frames, strict=True):
-            cycles, payloads, length = rpdo_rows[pdo.number]
-            payloads += frame[CAN_HEADER_SIZE : CAN_HEADER_SIZE + length]
-            cycles += cycle_row
+        append_frame_rows(start.frames, self._rpdo_rows, n)
         self.history.record_truth(start.state)
         return CycleResult(
             n, start.t, start.counter, start.raw, got, duty, start.sent, start.state, self._tpdo_by_cob

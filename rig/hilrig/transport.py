@@ -228,6 +228,13 @@ ROW_CYCLE = struct.Struct("=q")
 """The cycle of a row a decoder carries: a native int64, as `hilrig._wire` appends it."""
 
 
+append_frame_rows: Callable[[bytes, Mapping[int, tuple[bytearray, bytearray]], int], None] = _wire.append_rows
+"""append_frame_rows(frames, rows, cycle): each 16-byte frame of `frames` (several joined) whose
+COB-ID has rows in `rows` (COB-ID -> the cycles and payloads `History.row_store` gives) appended
+to them as cycle `cycle`'s, payload first, as `append_row` and the C exchange file a TPDO: how a
+lockstep cycle files the RPDOs it sent, one call into C (touching no socket: any link)."""
+
+
 def append_row(decoder: tuple[int, Unpack, bytearray, bytearray], cycle: int, data: bytes) -> None:
     """Append `data` (a TPDO's payload) as cycle `cycle`'s to the rows a decoder carries (what
     the C exchange does for each TPDO it decodes): the payload first, then the cycle."""
@@ -541,6 +548,7 @@ __all__ = [
     "PdoLayout",
     "RawCanLink",
     "Unpack",
+    "append_frame_rows",
     "append_row",
     "can_frame",
     "compile_pdo",

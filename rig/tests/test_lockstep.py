@@ -273,6 +273,13 @@ def test_start_refuses_a_mapping_without_the_sensor_inputs(unstarted: Bench) -> 
         unstarted.rig.start()
 
 
+def test_start_refuses_two_rpdos_on_one_cob_id(unstarted: Bench) -> None:
+    rpdo2, rpdo3 = BOARD_TABLE.rpdo(2), BOARD_TABLE.rpdo(3)
+    unstarted.fake.set_pdo_parameter(rpdo3.communication_index, 1, rpdo2.cob_id(NODE_ID))
+    with pytest.raises(PdoMappingError, match=re.escape(f"RPDO2 (0x{rpdo2.cob_id(NODE_ID):03X}) and RPDO3")):
+        unstarted.rig.start()
+
+
 def test_start_without_a_node_is_a_bounded_timeout(table: RigTable) -> None:
     (bus,) = _buses(1)
     rig = Rig(bus, table=table, boot_timeout_s=0.05, sdo_timeout_s=0.05)

@@ -30,6 +30,7 @@ from hilrig.transport import (
     PdoDirection,
     PdoLayout,
     RawCanLink,
+    append_frame_rows,
     can_frame,
     compile_pdos,
     exchange,
@@ -288,6 +289,25 @@ def test_exchange_appends_each_decoded_frame_to_its_rows_as_the_cycle_s(wire) ->
     peer.send(can_frame(TPDO1_ID, b"\x01\x00"))
     with pytest.raises(TypeError, match="cycle"):  # rows without a cycle to file them under
         exchange(link, b"", DUE, decoders, {}, SLICE_S)
+
+
+def test_append_frame_rows_files_each_frame_with_rows_as_the_cycle_s() -> None:
+    rpdo2_id = cob_id(FunctionCode.RPDO2, NODE_ID)
+    rows = {
+        RPDO1_ID: (bytearray(ROW_CYCLE.pack(3)), bytearray(b"\x01\x02")),
+        rpdo2_id: (bytearray(), bytearray()),
+    }
+    frames = can_frame(RPDO1_ID, b"\x05\x06") + can_frame(rpdo2_id, struct.pack("<f", 1.5))
+    append_frame_rows(frames + can_frame(SYNC_COB_ID, b"\x04"), rows, 4)  # the SYNC has no rows
+    assert rows == {
+        RPDO1_ID: (ROW_CYCLE.pack(3) + ROW_CYCLE.pack(4), b"\x01\x02\x05\x06"),
+        rpdo2_id: (ROW_CYCLE.pack(4), struct.pack("<f", 1.5)),
+    }
+    with pytest.raises(ValueError, match="whole 16-byte CAN frames"):
+        append_frame_rows(frames[:-1], rows, 5)
+    with pytest.raises(TypeError, match="row store"):
+        append_frame_rows(frames, {RPDO1_ID: [bytearray(), bytearray()]}, 5)
+    assert len(rows[RPDO1_ID][0]) == 2 * ROW_CYCLE.size  # nothing filed by the refused calls
 
 
 def test_send_frames_sends_each_frame_in_order(wire) -> None:

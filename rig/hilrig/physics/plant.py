@@ -33,7 +33,7 @@ def duty_from_motor_duty(motor_duty: int) -> float:
     to [-1, 1] like a real H-bridge would, and the rig can flag them separately.
     Raises ValueError for values an I16 cannot carry (a packing bug, not a duty).
     """
-    if isinstance(motor_duty, bool) or not isinstance(motor_duty, int):
+    if type(motor_duty) is not int and (isinstance(motor_duty, bool) or not isinstance(motor_duty, int)):
         raise TypeError(f"motor_duty: expected int, got {type(motor_duty).__name__}")
     if not _I16_MIN <= motor_duty <= _I16_MAX:
         raise ValueError(f"motor_duty: expected I16 ({_I16_MIN}..{_I16_MAX}), got {motor_duty}")
