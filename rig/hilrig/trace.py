@@ -550,14 +550,16 @@ class Tracer(RigObserver):
         if self._history is None:
             self._append(result)
             return
-        # The rig recorded this cycle in its History already: only count it.
+        # The rig recorded this cycle in its History already: only count it. Every cycle, on the
+        # rig's thread: `_batch_due` is asked only when it can say yes (a whole batch, or a
+        # live sink's latency to look at).
         self._check_open()
         if self._name_ahead:  # the first cycle: the node's PDOs are known now
             self._name_ahead = False
             self.submit(self._name_history_series)
-        self._history_cycles += 1
+        pending = self._history_cycles = self._history_cycles + 1
         self.cycles_logged += 1
-        if self._batch_due(self._history_cycles):
+        if (pending >= self.batch_cycles or self.max_latency_s is not None) and self._batch_due(pending):
             self._hand_over()
 
     def on_nmt(self, state: NmtState, t: float, *, cycle: int | None, source: str) -> None:
