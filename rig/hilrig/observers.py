@@ -27,6 +27,10 @@ class RigObserver:
         """The rig's per-cycle history, once, when the observer is attached: an observer that
         wants columns rather than rows can take them from it (`History.mark`)."""
 
+    def on_configured(self, *, truth: bool) -> None:
+        """The rig read the node's PDO configuration (at start, and again after a restart): the
+        history now has rows for every PDO it will fill, and the plant's truth when `truth`."""
+
     def on_polled(self, names: tuple[str, ...], every_cycles: int) -> None:
         """These fields travel in no PDO and are read over SDO every `every_cycles` cycles into
         the history (`Rig.poll_over_sdo`): sparser than the rest, and worth saying so."""

@@ -206,6 +206,8 @@ class Rig(CycleRunner):
         self.node.read_pdo_configuration(from_node=True)
         self.driver.configure()
         self._log_pdo_configuration()
+        for observer in self.observers:
+            observer.on_configured(truth=self.physics)
         self.nmt(NmtCommand.START)
 
     def _log_pdo_configuration(self) -> None:

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import contextlib
 import enum
+import functools
 import itertools
 import operator
 import os
@@ -396,7 +397,8 @@ class Tracer(RigObserver):
         self.time_timeline = SIM_TIME_TIMELINE if clock == "simulation" else WALL_TIME_TIMELINE
         self.web_url: str | None = None
         """The page of the served web viewer (with the data's address), when a web sink is used."""
-        self.cycles_logged = 0
+        self._handed_over_cycles = 0  # cycles logged and handed to the sender (cycles_logged)
+        self._look_at = 1  # on_cycle looks further once this many cycles are pending
         self._params: JointParams | None = None
         self._paths = {name: root + path for name, path in self._entity_paths(table).items()}
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
@@ -516,7 +518,6 @@ class Tracer(RigObserver):
         # The rig's thread alone appends and hands over (no lock on this path: it runs every cycle).
         self._check_open()
         self._pending.append(row)
-        self.cycles_logged += 1
         if self._batch_due(len(self._pending)):
             self._hand_over()
 
@@ -525,6 +526,11 @@ class Tracer(RigObserver):
         return pending >= self.batch_cycles or (
             self.max_latency_s is not None and time.monotonic() >= self._next_hand_over
         )
+
+    @property
+    def cycles_logged(self) -> int:
+        """Cycles logged so far (by `log_cycle`, or as an observer of a rig)."""
+        return self._handed_over_cycles + self.pending_cycles
 
     @property
     def pending_cycles(self) -> int:
@@ -541,6 +547,13 @@ class Tracer(RigObserver):
             self._history_mark = history.mark()
             self._name_ahead = True
 
+    def on_configured(self, *, truth: bool) -> None:
+        # The node's PDOs are known: name their series now, on the sender, while the rig finishes
+        # starting up, rather than beside its first cycles (naming is per series, ~50 of them).
+        if self._name_ahead and not self._closed:
+            self._name_ahead = False
+            self.submit(functools.partial(self._name_history_series, truth=truth))
+
     def on_polled(self, names: tuple[str, ...], every_cycles: int) -> None:
         with self._lock:
             self._polled.update(dict.fromkeys(names, every_cycles))
@@ -550,16 +563,24 @@ class Tracer(RigObserver):
         if self._history is None:
             self._append(result)
             return
-        # The rig recorded this cycle in its History already: only count it. Every cycle, on the
-        # rig's thread: `_batch_due` is asked only when it can say yes (a whole batch, or a
-        # live sink's latency to look at).
-        self._check_open()
-        if self._name_ahead:  # the first cycle: the node's PDOs are known now
-            self._name_ahead = False
-            self.submit(self._name_history_series)
+        # The rig recorded this cycle in its History already: only count it. This runs every
+        # cycle on the rig's thread, so the rest waits for a cycle that may need it (`_look_at`).
         pending = self._history_cycles = self._history_cycles + 1
-        self.cycles_logged += 1
-        if (pending >= self.batch_cycles or self.max_latency_s is not None) and self._batch_due(pending):
+        if pending >= self._look_at:
+            self._counted(pending)
+
+    def _counted(self, pending: int) -> None:
+        """A followed History's cycle where something may be due: the first (name the series if
+        no `on_configured` did), a whole batch, a live sink's latency, or a closed tracer."""
+        self._check_open()
+        if self._name_ahead:  # attached after the rig started: the node's PDOs are known now
+            self._name_ahead = False
+            assert self._history is not None
+            truth = self._history.cycles > 0  # the truth is in when the rig has a plant
+            self.submit(functools.partial(self._name_history_series, truth=truth))
+        # From here on, look every cycle only when a live sink's latency may make one due.
+        self._look_at = self.batch_cycles if self.max_latency_s is None else 1
+        if self._batch_due(pending):
             self._hand_over()
 
     def on_nmt(self, state: NmtState, t: float, *, cycle: int | None, source: str) -> None:
@@ -627,6 +648,7 @@ class Tracer(RigObserver):
             return
         self._hand_over()
         self._closed = True
+        self._look_at = 0  # a cycle after this is an error (`_counted`)
         if self._worker is not None and self._queue is not None:
             self._queue.put(None)
             self._worker.join()
@@ -652,6 +674,7 @@ class Tracer(RigObserver):
             self._next_hand_over = time.monotonic() + self.max_latency_s
         with self._lock:
             rows, self._pending = self._pending, []
+        self._handed_over_cycles += len(rows) + self._history_cycles
         batch: list[_Batch] = [rows] if rows else []
         if self._history is not None and self._history_cycles:
             assert self._history_mark is not None
@@ -731,7 +754,7 @@ class Tracer(RigObserver):
         else:
             self._send_batch(batch)
 
-    def _name_history_series(self) -> None:
+    def _name_history_series(self, *, truth: bool) -> None:
         """Name the series a Rig's history fills (each PDO's fields and frame count, the truth)
         on the sender, ahead of the first batch: naming 45 series is a third of what a first
         batch costs, and the sender does it while the rig runs, not when the run ends (close()).
@@ -743,7 +766,7 @@ class Tracer(RigObserver):
             series += [(self._paths[name], None, False) for name in layout.names]
             if layout.enabled and layout.cob_id:
                 series.append((self.root + frames_path(layout), _frames_series_name(layout), True))
-        if self._history.cycles:  # the truth too, when the rig has a plant
+        if truth:  # the truth too, when the rig has a plant
             series += [(self.root + truth_path(quantity), None, False) for quantity in TRUTH_QUANTITIES[:-1]]
         self._name_many(series)
 

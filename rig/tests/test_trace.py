@@ -341,6 +341,17 @@ def test_real_time_stamps_read_back_to_the_nanosecond(tmp_path: Path, table: Rig
     assert trace.scalars[duty_path] == pytest.approx([0.0, 0.1, 0.2])
 
 
+def test_a_rigs_cycles_are_counted_and_handed_over_in_whole_batches(traced: Run) -> None:
+    rig, tracer = traced.rig, traced.tracer
+    rig.start()
+    rig.run(cycles=BATCH + 3)
+    assert (tracer.cycles_logged, tracer.pending_cycles) == (BATCH + 3, 3)
+    tracer.close()
+    assert (tracer.cycles_logged, tracer.pending_cycles) == (BATCH + 3, 0)
+    with pytest.raises(RuntimeError, match="Tracer is closed"):  # not one cycle more, unseen
+        rig.run(cycles=1)
+
+
 @pytest.mark.parametrize("latency_s", [None, 0.0], ids=["file-default", "live-latency-0"])
 def test_batches_wait_for_their_size_unless_a_live_latency_is_due(
     tmp_path: Path, table: RigTable, latency_s: float | None
