@@ -71,21 +71,30 @@ static int send_all(int fd, const char *frames, Py_ssize_t size) {
     return 0;
 }
 
-/* Send the frames of `object` (any bytes-like of whole 16-byte frames) on `fd`; 0, or -1 with an
- * error set (a ValueError naming `what` when the length is not whole frames). */
-static int send_object(int fd, PyObject *object, const char *what) {
-    Py_buffer frames;
-    if (PyObject_GetBuffer(object, &frames, PyBUF_SIMPLE) < 0) {
+/* The bytes of `object` (any bytes-like) into `frames` when they are whole 16-byte frames; 0, or
+ * -1 with an error set (a ValueError naming `what` when the length is not whole frames) and
+ * nothing to release. */
+static int get_frames(PyObject *object, Py_buffer *frames, const char *what) {
+    if (PyObject_GetBuffer(object, frames, PyBUF_SIMPLE) < 0) {
         return -1;
     }
-    int status = 0;
-    if (frames.len % FRAME_SIZE != 0) {
+    if (frames->len % FRAME_SIZE != 0) {
         PyErr_Format(PyExc_ValueError, "%s: expected whole 16-byte CAN frames, got %zd bytes", what,
-                     frames.len);
-        status = -1;
-    } else if (frames.len > 0) {
-        status = send_all(fd, frames.buf, frames.len);
+                     frames->len);
+        PyBuffer_Release(frames);
+        return -1;
     }
+    return 0;
+}
+
+/* Send the frames of `object` (any bytes-like of whole 16-byte frames) on `fd`; 0, or -1 with an
+ * error set (`get_frames`, or the send's). */
+static int send_object(int fd, PyObject *object, const char *what) {
+    Py_buffer frames;
+    if (get_frames(object, &frames, what) < 0) {
+        return -1;
+    }
+    int status = frames.len > 0 ? send_all(fd, frames.buf, frames.len) : 0;
     PyBuffer_Release(&frames);
     return status;
 }
@@ -389,14 +398,10 @@ static PyObject *append_rows(PyObject *module, PyObject *const *args, Py_ssize_t
         return NULL;
     }
     Py_buffer frames;
-    if (PyObject_GetBuffer(args[0], &frames, PyBUF_SIMPLE) < 0) {
+    if (get_frames(args[0], &frames, "append_rows") < 0) {
         return NULL;
     }
     int status = 0;
-    if (frames.len % FRAME_SIZE != 0) {
-        PyErr_Format(PyExc_ValueError, "append_rows: expected whole 16-byte CAN frames, got %zd bytes", frames.len);
-        status = -1;
-    }
     for (Py_ssize_t offset = 0; status == 0 && offset < frames.len; offset += FRAME_SIZE) {
         const unsigned char *frame = (const unsigned char *)frames.buf + offset;
         uint32_t can_id;
