@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import can
 
-from boardproto.cia301 import STANDARD_ID_MASK, emcy_cob_id, heartbeat_cob_id, sdo_response_cob_id
+from boardproto.cia301 import STANDARD_ID_MASK, emcy_cob_id, heartbeat_cob_id
 from hilrig.buslog import RecorderProcess, whole_file_logger
 from hilrig.errors import BusUnavailableError
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
@@ -329,9 +329,10 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
             else:
                 bus = BoardInterface("socketcan", launcher.channel).open()
             stack.callback(bus.shutdown)
-            # Each module's SDO client wakes for its own node's frames only (kernel filters), not
-            # for every module's SDO traffic while they all start side by side.
-            own = (sdo_response_cob_id(node_id), heartbeat_cob_id(node_id), emcy_cob_id(node_id))
+            # Each module's canopen network wakes for its own node's frames only (kernel
+            # filters), not for every module's SDO traffic while they all start side by side;
+            # its SDO answers come on the SDO client's own socket (`hilrig.node.SocketSdoClient`).
+            own = (heartbeat_cob_id(node_id), emcy_cob_id(node_id))
             bus.set_filters([{"can_id": c, "can_mask": STANDARD_ID_MASK, "extended": False} for c in own])
             module_tracer = None
             if tracer is not None:

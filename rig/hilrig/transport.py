@@ -5,7 +5,8 @@ Why not python-can's `Bus` for every frame: its per-frame object and decode cost
 measures ~108 us of CPU per received frame natively) caps a lockstep rig far below what the kernel
 and the firmware allow. So on SocketCAN the PDOs (and the node's EMCY) travel over one raw socket
 of their own, opened beside the caller's python-can bus (same interface, same network namespace)
-with kernel receive filters; `canopen` keeps that bus for SDO, NMT and heartbeat only. On any other
+with kernel receive filters; `canopen` keeps that bus for NMT and heartbeat only (its SDO client's
+frames take a raw socket of their own: `hilrig.node.SocketSdoClient`). On any other
 python-can interface (pcan, kvaser, slcan, virtual) the same exchange runs over python-can's `Bus`
 (`BusLink`), so a real board keeps working::
 
