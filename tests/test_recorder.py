@@ -4,11 +4,15 @@ every captured sample equal to what the same fields' TPDOs carried in the same c
 
 from __future__ import annotations
 
+import canopen
 import numpy as np
 import pytest
-from conftest import TABLE
+from canopen.sdo import SdoClient
+from conftest import EDS, TABLE
 
+from boardproto.table import RecorderObject
 from hilrig.capture import CaptureSettings, RecorderClient
+from hilrig.netns import PrivateBus
 from hilrig.table import ControlMode
 
 pytestmark = pytest.mark.bus
@@ -29,7 +33,9 @@ PRE_TRIGGER_PERCENT = 10
 STEP_AT_CYCLE = 400
 
 
-def test_a_triggered_capture_equals_the_lockstep_history_cycle_for_cycle(make_scenario) -> None:
+def test_a_triggered_capture_equals_the_lockstep_history_cycle_for_cycle(
+    make_scenario, private_bus: PrivateBus
+) -> None:
     rig = make_scenario().rig
     rig.set("control_mode", ControlMode.VELOCITY)
     rig.set("velocity_setpoint", 0.0)
@@ -73,3 +79,23 @@ def test_a_triggered_capture_equals_the_lockstep_history_cycle_for_cycle(make_sc
         mismatches = [(c, a, b) for c, a, b in zip(rig_cycle_of, captured, sent, strict=True) if a != b]
         assert not mismatches, f"{name}: {len(mismatches)} samples differ, first {mismatches[:3]}"
     assert max(recording.column(0)) > 0.0, "the capture saw the motor speed up"
+
+    # The same bytes by block upload through python-canopen as anyone uses it: a RemoteNode of
+    # its own on a python-can bus (Message objects, canopen's receive thread and queue), not the
+    # rig's SDO client, whose frames take a raw socket (`hilrig.node.SocketSdoClient`).
+    assert TABLE.board.recorder is not None
+    index = TABLE.board.recorder.index_of(RecorderObject.DATA)
+    ours = rig.node.block_upload(index, 0, "upload the recording again")
+    bus = private_bus.open()
+    network = canopen.Network(bus)
+    try:
+        network.connect()
+        remote = canopen.RemoteNode(rig.node.node_id, str(EDS))
+        network.add_node(remote)
+        assert type(remote.sdo) is SdoClient
+        remote.sdo.RESPONSE_TIMEOUT = 5.0  # a hang guard for the emulated VM
+        with remote.sdo.open(index, 0, "rb", block_transfer=True) as stream:
+            theirs = bytes(stream.read())
+    finally:
+        network.disconnect()  # shuts the bus down too
+    assert len(ours) > 64_000 and theirs == ours
