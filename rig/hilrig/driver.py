@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id
+from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id, sync_counter
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.node import BoardNode
 from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
@@ -57,12 +57,8 @@ TRUTH_ALIASES: dict[str, str] = {
 """Short names without the unit suffix ("load_velocity" -> "load_velocity_rad_s")."""
 
 SYNC_FRAMES = tuple(can_frame(SYNC_COB_ID, bytes([counter])) for counter in range(1, SYNC_COUNTER_MAX + 1))
-"""The SYNC frame of each counter value 1..240 (index counter - 1)."""
-
-
-def sync_counter(cycle: int) -> int:
-    """The SYNC counter of cycle index `cycle` (0-based): 1..240, wrapping."""
-    return cycle % SYNC_COUNTER_MAX + 1
+"""The SYNC frame of each counter value 1..240 (index counter - 1; cycle n's: index
+n % SYNC_COUNTER_MAX, as `sync_counter(n)` counts)."""
 
 
 def sync_frame(counter: int) -> bytes:
@@ -251,6 +247,8 @@ class History:
         self._received = _Direction()
         self._sent = _Direction()
         self._truth: list[JointState] = []
+        self.record_truth: Callable[[JointState], None] = self._truth.append
+        """Record the plant state of the next cycle (every cycle: the list's own append)."""
 
     def time_of(self, cycle: int) -> float:
         return cycle * self.period_us / 1e6
@@ -291,9 +289,6 @@ class History:
     def times_of(self, cycles: Iterable[int] | np.ndarray) -> np.ndarray:
         """The times of these cycles [s], as `time_of` gives them."""
         return self._times(cycles)
-
-    def record_truth(self, state: JointState) -> None:
-        self._truth.append(state)
 
     def record_rows(self, cycle: int, received: Iterable[PdoRow], sent: Iterable[PdoRow]) -> None:
         """Rows of one cycle from their values (what the lockstep driver does from the frames)."""
@@ -483,9 +478,9 @@ class Driver:
         self._rpdo_values: dict[int, list[Value]] = {}
         self._rpdo_frames: dict[int, tuple[PdoLayout, bytes, tuple[Value, ...]]] = {}
         """RPDO number -> (layout, frame, values): packed once per change, sent every cycle."""
-        self._steady_stream: tuple[list[bytes], list[PdoRow]] | None = None
-        """The setpoint stream's frames and rows as `_rpdos_of_cycle` last sent them: what every
-        cycle sends again while no RPDO changed (None: work it out again)."""
+        self._steady_stream: tuple[bytes, tuple[PdoRow, ...]] | None = None
+        """The setpoint stream's frames (joined) and rows as `_rpdos_of_cycle` last sent them: what
+        every cycle sends again while no RPDO changed (None: work it out again)."""
         self._stream_order: list[int] = []  # the setpoint stream's RPDOs, in sending order
         self._sensor_rpdos: list[tuple[PdoLayout, Callable[[RawSensors], tuple[Value, ...]]]] = []
         self._stream_rpdos: set[int] = set()
@@ -665,14 +660,14 @@ class Driver:
         """Send one cycle's RPDOs (`_rpdos_of_cycle`) now; return what was sent."""
         sent, frames = self._rpdos_of_cycle(raw)
         if frames:
-            send_frames(self.link, b"".join(frames))
+            send_frames(self.link, frames)
         return sent
 
-    def _rpdos_of_cycle(self, raw: RawSensors | None) -> tuple[tuple[PdoRow, ...], list[bytes]]:
+    def _rpdos_of_cycle(self, raw: RawSensors | None) -> tuple[tuple[PdoRow, ...], bytes]:
         """One cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint stream, any
-        RPDO a scenario changed): what they carry, and their frames, in sending order (the
+        RPDO a scenario changed): what they carry, and their frames joined, in sending order (the
         caller sends them: `send_frames`, or ahead of the SYNC in a cycle's exchange)."""
-        frames: list[bytes] = []
+        frames = b""
         sent: list[PdoRow] = []
         paused = self.paused_rpdos
         if raw is not None:
@@ -680,14 +675,12 @@ class Driver:
                 if paused and pdo.number in paused:
                     continue
                 values = values_of(raw)
-                frames.append(pdo.frame(values))
+                frames += pdo.frame(values)
                 sent.append((pdo, values))
         dirty, steady = self._dirty_rpdos, self._steady_stream
         if steady is not None and not dirty and not paused:
             # Most cycles send the setpoint stream alone, unchanged since it was last packed.
-            frames += steady[0]
-            sent += steady[1]
-            return tuple(sent), frames
+            return (*sent, *steady[1]), frames + steady[0]
         stream, packed = self._stream_rpdos, self._rpdo_frames
         for number in self._rpdo_values if dirty else self._stream_order:
             if number in paused or not (number in stream or number in dirty):
@@ -696,12 +689,15 @@ class Driver:
             if entry is None:
                 pdo, values = self._rpdo_layouts[number], tuple(self._rpdo_values[number])
                 entry = packed[number] = (pdo, pdo.frame(values), values)
-            frames.append(entry[1])
+            frames += entry[1]
             sent.append((entry[0], entry[2]))
             dirty.discard(number)
         if not paused:  # every stream RPDO is packed now
             stream_entries = [packed[number] for number in self._stream_order]
-            self._steady_stream = ([e[1] for e in stream_entries], [(e[0], e[2]) for e in stream_entries])
+            self._steady_stream = (
+                b"".join(e[1] for e in stream_entries),
+                tuple((e[0], e[2]) for e in stream_entries),
+            )
         return tuple(sent), frames
 
     def _decode(self, pdo: PdoLayout, data: bytes) -> tuple[Value, ...] | None:

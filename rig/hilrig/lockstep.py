@@ -37,6 +37,8 @@ from hilrig.errors import FirmwareError, LockstepError
 from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
 from hilrig.transport import append_frame_rows, append_row, send_frames
 
+_NOTHING_DUE: frozenset[int] = frozenset()
+
 
 @dataclass(slots=True)
 class CycleStart:
@@ -69,40 +71,28 @@ class LockstepDriver(Driver):
     """
 
     def step(self) -> CycleResult:
-        start = self.begin_cycle(send=False)
-        out = start.unsent + SYNC_FRAMES[start.counter - 1]  # the RPDOs, then the SYNC: one call
-        got = self._collect(start.cycle, start.t, start.due, start.sync_number, out)  # collect_cycle
-        result = self.end_cycle(start, got)
+        n, state, raw, due, sync_number, sent, frames = self._sample()
+        t, counter = self.history.time_of(n), sync_counter(n)
+        # The RPDOs, then the SYNC, in the exchange's one call (`_collect`).
+        got = self._collect(n, t, due, sync_number, frames + SYNC_FRAMES[counter - 1])
+        result = self._record(n, t, counter, state, raw, sent, frames, got)
         self.plant.step(self.period_s, result.duty)
-        self.cycle = start.cycle + 1
+        self.cycle = n + 1
         return result
 
     # The three phases of a cycle, apart so that a robot (`hilrig.robot`) runs them for all its
     # modules around one SYNC: every module's RPDOs, one SYNC, every module's TPDOs, one physics
-    # step. `step()` is the same sequence for one node.
+    # step. `step()` is the same sequence for one node, on the same `_sample` and `_record`.
     def begin_cycle(self, *, send: bool = True) -> CycleStart:
         """Sample the plant and send this cycle's RPDOs (before the SYNC); with send=False
         leave them in `unsent` for the caller to send ahead of the SYNC."""
-        n = self.cycle
-        state = self.plant.state
-        raw = self.sensors.read(state)
-        if self.sensor_override is not None:
-            raw = self.sensor_override(raw)
-        if self._operational:
-            self._syncs_since_operational += 1
-            sync_number = self._syncs_since_operational
-            due = self._due_table[sync_number % len(self._due_table)]
-        else:
-            sync_number = 0
-            due = frozenset()
-        sent, frames = self._rpdos_of_cycle(raw)
-        joined = b"".join(frames)
-        unsent = joined
-        if send and joined:
-            send_frames(self.link, joined)
+        n, state, raw, due, sync_number, sent, frames = self._sample()
+        unsent = frames
+        if send and frames:
+            send_frames(self.link, frames)
             unsent = b""
         return CycleStart(
-            n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent, joined, unsent
+            n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent, frames, unsent
         )
 
     def collect_cycle(self, start: CycleStart) -> dict[int, tuple[Value, ...]]:
@@ -112,6 +102,42 @@ class LockstepDriver(Driver):
     def end_cycle(self, start: CycleStart, got: dict[int, tuple[Value, ...]]) -> CycleResult:
         """Record the cycle in the history; the result's duty is what the physics applies next
         (the caller steps the plant and advances `cycle`)."""
+        return self._record(
+            start.cycle, start.t, start.counter, start.state, start.raw, start.sent, start.frames, got
+        )
+
+    def _sample(self) -> tuple[int, JointState, RawSensors, frozenset[int], int, tuple[PdoRow, ...], bytes]:
+        """A cycle's first phase, nothing sent yet: (cycle, the plant's state, the sensor frame
+        sampled from it, the TPDOs (COB-IDs) due at its SYNC, that SYNC's number since the node
+        went operational, the RPDOs' rows, their frames joined in sending order)."""
+        n = self.cycle
+        state = self.plant.state
+        raw = self.sensors.read(state)
+        if self.sensor_override is not None:
+            raw = self.sensor_override(raw)
+        if self._operational:
+            sync_number = self._syncs_since_operational = self._syncs_since_operational + 1
+            due = self._due_table[sync_number % len(self._due_table)]
+        else:
+            sync_number = 0
+            due = _NOTHING_DUE
+        sent, frames = self._rpdos_of_cycle(raw)
+        return n, state, raw, due, sync_number, sent, frames
+
+    def _record(
+        self,
+        n: int,
+        t: float,
+        counter: int,
+        state: JointState,
+        raw: RawSensors,
+        sent: tuple[PdoRow, ...],
+        frames: bytes,
+        got: dict[int, tuple[Value, ...]],
+    ) -> CycleResult:
+        """A cycle's last phase: its RPDOs and truth into the history (its TPDOs are in already,
+        appended as they were decoded: `_collect`), and the result, whose duty is what the
+        physics applies next."""
         duty = 0.0
         actuator = self._actuator
         if actuator is not None:
@@ -120,14 +146,9 @@ class LockstepDriver(Driver):
             values = got.get(actuator[0].cob_id)
             if values is not None:
                 duty = duty_from_motor_duty(values[actuator[1]])  # an int: the codec's I16
-        # The TPDOs' rows are in the history already (appended as they were decoded, see
-        # `_collect`); the RPDOs' payloads go into their rows here, from their frames.
-        n = start.cycle
-        append_frame_rows(start.frames, self._rpdo_rows, n)
-        self.history.record_truth(start.state)
-        return CycleResult(
-            n, start.t, start.counter, start.raw, got, duty, start.sent, start.state, self._tpdo_by_cob
-        )
+        append_frame_rows(frames, self._rpdo_rows, n)
+        self.history.record_truth(state)
+        return CycleResult(n, t, counter, raw, got, duty, sent, state, self._tpdo_by_cob)
 
     def _collect(
         self, n: int, t: float, due: frozenset[int], sync_number: int, out: bytes = b""
