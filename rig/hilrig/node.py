@@ -122,6 +122,17 @@ class _BoardRemoteNode(canopen.RemoteNode):
         return client
 
 
+def answer_filters(node_id: int, bus: can.BusABC, *also: int) -> list[can.typechecking.CanFilter]:
+    """Receive filters (python-can's, kernel filters on SocketCAN) for the canopen bus of node
+    `node_id` when it needs no PDO from it: the node's heartbeats and, unless its SDO answers
+    come on the SDO client's own socket (SocketCAN: `SocketSdoClient`), its SDO answers; plus the
+    COB-IDs in `also`."""
+    wanted = [heartbeat_cob_id(node_id), *also]
+    if socketcan_socket(bus) is None:
+        wanted.append(sdo_response_cob_id(node_id))
+    return [can.typechecking.CanFilter(can_id=c, can_mask=STANDARD_ID_MASK, extended=False) for c in wanted]
+
+
 class SdoAbortCode(enum.IntEnum):
     """SDO abort codes the board may send; the values ARE the CiA 301 codes on the wire."""
 
@@ -485,18 +496,14 @@ class BoardNode:
         return self.link
 
     def receive_only_answers(self) -> None:
-        """Narrow canopen's bus to this node's heartbeats and, unless they come on the SDO
-        client's own socket (`SocketSdoClient`), its SDO answers (kernel filters on SocketCAN,
-        python-can's own on other interfaces), for a master that needs no PDO from it: on a
-        busy bus every TPDO would otherwise become a python-can object in canopen's receive
-        thread, and an SDO answer would queue behind them (on a slow host, past the SDO
-        timeout)."""
+        """Narrow canopen's bus to what `answer_filters` lets through (this node's heartbeats,
+        and its SDO answers unless they have a socket of their own), for a master that needs no
+        PDO from it: on a busy bus every TPDO would otherwise become a python-can object in
+        canopen's receive thread, and an SDO answer would queue behind them (on a slow host,
+        past the SDO timeout)."""
         bus = self.network.bus
         assert bus is not None
-        wanted = [heartbeat_cob_id(self.node_id)]
-        if not isinstance(self.remote.sdo, SocketSdoClient):
-            wanted.append(sdo_response_cob_id(self.node_id))
-        bus.set_filters([{"can_id": c, "can_mask": STANDARD_ID_MASK, "extended": False} for c in wanted])
+        bus.set_filters(answer_filters(self.node_id, bus))
 
     def send_frame(self, cob_id: int, data: bytes) -> None:
         """Any raw frame on the node's bus (fault injection: floods, malformed frames)."""

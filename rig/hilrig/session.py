@@ -27,12 +27,12 @@ from typing import TYPE_CHECKING, Any
 
 import can
 
-from boardproto.cia301 import STANDARD_ID_MASK, emcy_cob_id, heartbeat_cob_id
+from boardproto.cia301 import emcy_cob_id
 from hilrig.buslog import RecorderProcess, whole_file_logger
 from hilrig.errors import BusUnavailableError
 from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.netns import PrivateBus, private_buses_supported
-from hilrig.node import BoardNode
+from hilrig.node import BoardNode, answer_filters
 from hilrig.physics import JointParams
 from hilrig.rig import DEFAULT_EDS_PATH, Rig, TimingMode
 from hilrig.robot import MasterHeartbeat, Robot, module_ids
@@ -330,10 +330,8 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
                 bus = BoardInterface("socketcan", launcher.channel).open()
             stack.callback(bus.shutdown)
             # Each module's canopen network wakes for its own node's frames only (kernel
-            # filters), not for every module's SDO traffic while they all start side by side;
-            # its SDO answers come on the SDO client's own socket (`hilrig.node.SocketSdoClient`).
-            own = (heartbeat_cob_id(node_id), emcy_cob_id(node_id))
-            bus.set_filters([{"can_id": c, "can_mask": STANDARD_ID_MASK, "extended": False} for c in own])
+            # filters), not for every module's SDO traffic while they all start side by side.
+            bus.set_filters(answer_filters(node_id, bus, emcy_cob_id(node_id)))
             module_tracer = None
             if tracer is not None:
                 module_tracer = tracer.module_tracer(node_id)
