@@ -20,7 +20,7 @@ import numpy as np
 from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id, sync_counter
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.node import BoardNode
-from hilrig.physics import JointPlant, JointState, RawSensors, SensorModel
+from hilrig.physics import STATE_FIELDS, JointPlant, JointState, RawSensors, SensorModel, state_matrix
 from hilrig.table import unknown_name
 from hilrig.transport import (
     ROW_CYCLE,
@@ -336,10 +336,9 @@ class History:
     def truth(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """(t, values) of a ground-truth quantity (JointState attribute or its short alias)."""
         attribute = resolve_truth_name(name)
-        values = np.fromiter(
-            (getattr(s, attribute) for s in self._truth), dtype=float, count=len(self._truth)
-        )
-        return self._times(range(len(self._truth))), values
+        states = self._truth[:]  # the rig may append on while this reads (the tracer's thread)
+        values = state_matrix(states)[:, STATE_FIELDS.index(attribute)]
+        return self._times(range(len(states))), values
 
 
 # --- One cycle's result ---------------------------------------------------------------------

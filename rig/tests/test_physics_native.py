@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from hilrig.physics import (
+    STATE_FIELDS,
     JointParams,
     JointPlant,
     JointState,
@@ -20,6 +21,7 @@ from hilrig.physics import (
     ntc_resistance,
     read_sensors,
     round_half_away,
+    state_matrix,
     thermistor_adc_exact,
 )
 from hilrig.physics.sensors import NOISE_BLOCK_READS
@@ -190,3 +192,23 @@ def test_step_refuses_non_numbers_and_non_finite_load_torque() -> None:
     with pytest.raises(ValueError, match=r"dt_s: expected finite > 0, got -0\.001"):
         plant.step(-1e-3, 0.5)
     assert plant.step(1e-3, 1).applied_duty == 1.0  # ints are numbers too
+
+
+def test_state_matrix_reads_every_field_of_every_state_in_declaration_order() -> None:
+    plant = JointPlant(JointParams.fast_thermal())
+    states = [plant.state] + [plant.step(1e-3, duty) for duty in (0.5, -0.25, 1.0)]
+    matrix = state_matrix(states)
+    assert tuple(field.name for field in dataclasses.fields(JointState)) == STATE_FIELDS
+    assert matrix.shape == (4, len(STATE_FIELDS)) and matrix.dtype == np.float64
+    expected = [[getattr(state, name) for name in STATE_FIELDS] for state in states]
+    assert matrix.tolist() == expected  # bit for bit: the same doubles
+    assert state_matrix([]).shape == (0, len(STATE_FIELDS))
+    assert state_matrix(tuple(states[:2])).tolist() == expected[:2]
+
+
+def test_state_matrix_refuses_what_is_no_joint_state() -> None:
+    plant = JointPlant(JointParams())
+    with pytest.raises(AttributeError, match="time_s"):
+        state_matrix([plant.state, 3])  # type: ignore[list-item]
+    with pytest.raises(TypeError, match="list or tuple of JointState"):
+        state_matrix(5)  # type: ignore[arg-type]

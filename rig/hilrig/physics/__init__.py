@@ -22,10 +22,12 @@ except ImportError as error:
 from hilrig.physics.params import FAST_THERMAL_TIME_CONSTANT_S, JointParams
 from hilrig.physics.plant import (
     MOTOR_DUTY_FULL_SCALE,
+    STATE_FIELDS,
     SUBSTEP_FRACTION,
     JointPlant,
     JointState,
     duty_from_motor_duty,
+    state_matrix,
 )
 from hilrig.physics.sensors import (
     CURRENT_COUNTS_PER_A,
@@ -54,6 +56,7 @@ __all__ = [
     "ENCODER_MODULUS",
     "FAST_THERMAL_TIME_CONSTANT_S",
     "MOTOR_DUTY_FULL_SCALE",
+    "STATE_FIELDS",
     "SUBSTEP_FRACTION",
     "THERMISTOR_ADC_MAX",
     "EncoderUnwrapper",
@@ -71,6 +74,7 @@ __all__ = [
     "ntc_temperature_c",
     "read_sensors",
     "round_half_away",
+    "state_matrix",
     "thermistor_adc",
     "thermistor_adc_exact",
     "thermistor_adc_to_resistance",

@@ -11,7 +11,10 @@ validation of parameters and the sub-step limits that do not change during a run
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
+
+import numpy as np
 
 from hilrig.physics import _plant
 from hilrig.physics.params import JointParams
@@ -66,6 +69,17 @@ class JointState:
     """Winding resistance at the present temperature [ohm]."""
     applied_duty: float
     """Duty applied during the last step, after clamping to [-1, 1] [1]."""
+
+
+STATE_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(JointState))
+"""JointState's fields in declaration order: the columns of `state_matrix`."""
+
+
+def state_matrix(states: Sequence[JointState]) -> np.ndarray:
+    """The states as a float64 (len(states) x len(STATE_FIELDS)) array, a column per field, read
+    in C (a batch of the truth in the tracer, a truth series of the History)."""
+    values = np.frombuffer(_plant.state_values(states), dtype=np.float64)
+    return values.reshape(len(states), len(STATE_FIELDS))
 
 
 def _plant_coefficients(
