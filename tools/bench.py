@@ -206,6 +206,11 @@ RIG_PROBE_CYCLES = (500, 2500)
 """`tools/rig_probe.py` runs at two lengths: their difference is what the cycles cost."""
 
 
+LOCKSTEP_ROUNDS = 5
+"""Rounds of the lockstep kinds (Rig untraced and traced, the floors), alternating, best of each.
+The emulated VM's rate moves by up to 50 % between rounds of one run when the host is busy; three
+rounds were too few to catch an undisturbed one of each kind (a run where all three traced rounds
+fell on a busy stretch read 0.64 traced vs untraced, the next run 0.84)."""
 TRACE_PROBE_CYCLES = 2000
 """Cycles of the traced run `tools/rig_probe.py` measures: as many as a `make bench` round's."""
 
@@ -1313,7 +1318,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if name == "bus":
             command.add_argument("--cycles", type=int, default=2000, help="lockstep cycles per measurement")
             command.add_argument("--warmup", type=int, default=50)
-            command.add_argument("--rounds", type=int, default=3, help="rig/floor pairs; best of each")
+            command.add_argument(
+                "--rounds",
+                type=int,
+                default=LOCKSTEP_ROUNDS,
+                help="rounds of the lockstep kinds, alternating; best of each",
+            )
             command.add_argument("--sdo", type=int, default=200, help="SDO uploads per server")
             command.add_argument("--free-cycles", type=int, default=10_000)
             command.add_argument("--robot-cycles", type=int, default=500, help="gait cycles per robot size")
