@@ -30,8 +30,9 @@ Off the hot path: as a `RigObserver` the tracer follows the rig's `History` (`on
 already keeps every PDO's values per cycle, so a traced cycle costs a count and no Rerun call.
 Every `batch_cycles` cycles (and, for a live viewer, at least once a second) the span since the
 last batch (two `History.mark`s) goes to a background thread that turns each PDO's rows into one
-numpy array and sends one `send_columns` chunk per entity. Rows given by `log_cycle` (a replayed
-log) are pivoted the same way. Nothing is ever dropped and the lockstep loop never waits for
+numpy array and sends the series over the same cycles as one Arrow record batch, which Rerun
+splits into one chunk per entity. Rows given by `log_cycle` (a replayed log) are pivoted the same
+way. Nothing is ever dropped and the lockstep loop never waits for
 Rerun (`make bench` measures a traced Rig against an untraced one). `import rerun` is slow in the
 emulated VM, so it happens only when a Tracer is made.
 """
@@ -84,8 +85,8 @@ SIM_TIME_TIMELINE = "sim_time"
 WALL_TIME_TIMELINE = "wall_time"
 DEFAULT_BATCH_CYCLES = 5000
 """Cycles collected before one batch is pivoted and sent (5 s of simulation at 1 kHz). Each
-batch costs one `send_columns` per entity whatever its length (about 0.25 ms natively, 20 times
-that in the emulated VM), so large batches are what makes a traced run cost little: measured
+batch has a fixed cost in Rerun per entity whatever its length (a chunk, its schema, its place
+in the file's footer), so large batches are what makes a traced run cost little: measured
 natively, 33 us of CPU per traced cycle at 500 cycles a batch, 13 us at 5000."""
 LIVE_LATENCY_S = 1.0
 """A live sink (spawned, connected or served viewer) also gets a batch whenever this much wall
@@ -936,10 +937,10 @@ class Tracer(RigObserver):
     def _send_group(
         self, cycles: Sequence[int], times: Sequence[float], series: Sequence[tuple[str, np.ndarray]]
     ) -> None:
-        """Entities over the same rows (a PDO's fields, the truth): one Arrow record batch, which
-        Rerun splits into one chunk per entity, each as `send_columns` would make it. One call
-        for the group instead of one per entity: in the emulated VM the Python of each call cost
-        about 2 ms. An entity not named yet gets its default name first."""
+        """Entities over the same rows (`_send_row_sets`): one Arrow record batch, which Rerun
+        splits into one chunk per entity, each as `send_columns` would make it. One call for the
+        group instead of one per entity: in the emulated VM the Python of each call cost about
+        2 ms. An entity not named yet gets its default name first."""
         pa = self._pa
         unnamed = [(path, None, False) for path, _ in series if path not in self._named]
         if unnamed:
