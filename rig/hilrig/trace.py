@@ -784,8 +784,7 @@ class Tracer(RigObserver):
         cycles, states = history.truth_between(span.start, span.end)
         every_cycle = np.asarray(cycles, dtype=np.int64)
         times = history.times_of(cycles)
-        truth = [(every_cycle, times, self._truth_series(states))] if states else []
-        self._send_parts(parts, also=truth)
+        self._send_parts(parts, also=self._truth_row_sets(every_cycle, times, states))
         if states:
             self._send_spring_stiffness(every_cycle, times)
             self._send_frames(frames, every_cycle, times)
@@ -821,10 +820,8 @@ class Tracer(RigObserver):
         with_truth = [i for i, row in enumerate(batch) if row.truth is not None]
         truth_cycles, truth_times = all_cycles[with_truth], all_times[with_truth]
         states: list[JointState] = [batch[i].truth for i in with_truth]  # type: ignore[misc]
-        truth = [(truth_cycles, truth_times, self._truth_series(states))] if states else []
-        self._send_parts(parts, also=truth)
-        if states:
-            self._send_spring_stiffness(truth_cycles, truth_times)
+        self._send_parts(parts, also=self._truth_row_sets(truth_cycles, truth_times, states))
+        self._send_spring_stiffness(truth_cycles, truth_times)
 
         results = [row for row in batch if isinstance(row, CycleResult)]
         if results:
@@ -918,13 +915,19 @@ class Tracer(RigObserver):
         self._name_many(names)
         self._send_changes(every_cycle, times, series)
 
-    def _truth_series(self, states: Sequence[JointState]) -> list[tuple[str, np.ndarray]]:
-        """The truth's series (path, values) over these plant states."""
+    def _truth_row_sets(
+        self, cycles: np.ndarray, times: np.ndarray, states: Sequence[JointState]
+    ) -> list[_RowSet]:
+        """The truth's series over these plant states, as the row set `_send_parts` sends with
+        the PDOs' (none without states)."""
+        if not states:
+            return []
         matrix = state_matrix(states)
-        return [
+        series = [
             (self.root + truth_path(quantity), matrix[:, STATE_FIELDS.index(quantity)])
             for quantity in TRUTH_QUANTITIES[:-1]
         ]
+        return [(cycles, times, series)]
 
     def _send_spring_stiffness(self, cycles: np.ndarray, times: np.ndarray) -> None:
         """The plant's spring constant over these cycles (a parameter: as its changes)."""
