@@ -61,8 +61,9 @@ What one lockstep cycle puts on the bus (`lockstep_traffic`):
 A robot (`lockstep_traffic(..., node_ids=[1, .., N], master_heartbeat_ms=20)`, `hilrig
 bus-load --modules N`): N identical modules on one bus, each with the frames above under its
 own COB-IDs (base + node id), but ONE SYNC per cycle for all, plus the master's heartbeat
-(1 byte on 0x700 + 0x7F) every master_heartbeat_ms. The report shows one row per kind with its
-count and COB-ID range (`RPDO1 x8  0x201..0x208`); the sums count every frame.
+(1 byte on `heartbeat_cob_id(MASTER_NODE_ID)`) every master_heartbeat_ms. The report shows one
+row per kind with its count and COB-ID range (`RPDO1 x8  0x201..0x208`); the sums count every
+frame.
 
 Bus load = busy time per second, averaged over time. The peak cycle (every synchronous TPDO
 due at once) must also fit in one cycle period: that share is reported beside it. Above 70 %
@@ -102,7 +103,7 @@ SYNC_DATA_BYTES = 1  # the SYNC counter
 HEARTBEAT_DATA_BYTES = 1
 MAX_DATA_BYTES = 8
 DEFAULT_MASTER_NODE_ID = MASTER_NODE_ID
-"""The rig as the master of a robot: its heartbeat goes on 0x700 + this id."""
+"""The rig as the master of a robot: its heartbeat goes on `heartbeat_cob_id` of this id."""
 DEFAULT_MASTER_HEARTBEAT_MS = MASTER_HEARTBEAT_MS
 RATE_STEPS_PER_HZ = 10
 """`highest_rate_hz` answers to 0.1 Hz."""

@@ -1,6 +1,6 @@
 """`hilrig scan`: which CANopen nodes are on the bus.
 
-Two ways to be found, run together: a node's boot-up or heartbeat (COB-ID 0x700 + id) heard
+Two ways to be found, run together: a node's boot-up or heartbeat (on its `heartbeat_cob_id`) heard
 while listening, and an answer to an SDO upload of 0x1018 sub 1 (vendor id), sent to node ids
 1..127 at once at the start. Each node found is then asked for 0x1008 (device name) and 0x1018
 (product code, revision) with a short timeout; a node that lacks one shows '-'.
