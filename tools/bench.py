@@ -275,11 +275,23 @@ def native_main(args: argparse.Namespace) -> int:
 # --- bus part -----------------------------------------------------------------------------------
 
 
+def drive(rig: Any, setpoint: float = 5.0) -> None:
+    """The motor under velocity control toward `setpoint`: the firmware's controller, the
+    plant and the traced signals move, as in a scenario. (Until 2026-11-27 the rounds left the
+    node's control disabled: the motor stood still and 27 of a traced round's 30 per-cycle
+    series held one value.)"""
+    from hilrig.table import ControlMode
+
+    rig.set("control_mode", ControlMode.VELOCITY)
+    rig.set("velocity_setpoint", setpoint)
+
+
 def traced_run(config: Any, cycles: int, table: Any) -> dict[str, Any]:
     """`cycles` lockstep cycles of the full `Rig` in a session of `config` (a `SessionConfig`
-    with trace=True: trace.rrd in its out_dir, as rig_rate(traced=True) writes it), the velocity
-    setpoint flipping sign every LONG_TRACE_STEP_S. Returns the trace's path, size and last
-    logged cycle, and the run's wall-clock seconds (the trace's close() included)."""
+    with trace=True: trace.rrd in its out_dir, as rig_rate(traced=True) writes it), the motor
+    driven (`drive`) with the setpoint flipping sign every LONG_TRACE_STEP_S. Returns the
+    trace's path, size and last logged cycle, and the run's wall-clock seconds (the trace's
+    close() included)."""
     from hilrig.session import open_session
     from hilrig.trace import CYCLE_TIMELINE
     from hilrig.trace_reader import timeline_end
@@ -290,6 +302,7 @@ def traced_run(config: Any, cycles: int, table: Any) -> dict[str, Any]:
         if rig is None or tracer is None or path is None:
             raise ValueError("traced_run needs a session with a rig and trace=True")
         step = max(1, round(LONG_TRACE_STEP_S * 1e6 / config.period_us))
+        drive(rig)
         start = time.perf_counter()
         done, sign = 0, 1.0
         while done < cycles:
@@ -375,7 +388,7 @@ class BusBench:
         session = self._session("rig-traced" if traced else "rig", traced=traced)
         try:
             rig = session.rig
-            rig.set("velocity_setpoint", 5.0)
+            drive(rig)
             rig.run(cycles=warmup)
             start = time.perf_counter()
             done = 0

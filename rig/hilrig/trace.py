@@ -88,6 +88,9 @@ DEFAULT_BATCH_CYCLES = 5000
 batch has a fixed cost in Rerun per entity whatever its length (a chunk, its schema, its place
 in the file's footer), so large batches are what makes a traced run cost little: measured
 natively, 33 us of CPU per traced cycle at 500 cycles a batch, 13 us at 5000."""
+SETTLE_TIMEOUT_S = 5.0
+"""How long `Tracer.settle` (at the rig's start, once its series are named) waits for Rerun to
+take what was sent so far; past it the start goes on and the rest is written beside the run."""
 LIVE_LATENCY_S = 1.0
 """A live sink (spawned, connected or served viewer) also gets a batch whenever this much wall
 time passed since the last one, so what it shows is never more than about a second old."""
@@ -550,11 +553,14 @@ class Tracer(RigObserver):
             self._name_ahead = True
 
     def on_configured(self, *, truth: bool) -> None:
-        # The node's PDOs are known: name their series now, on the sender, while the rig finishes
-        # starting up, rather than beside its first cycles (naming is per series, ~50 of them).
+        # The node's PDOs are known: name their series now, before the first cycle, and let
+        # Rerun write them (and the start's events) before it too. Each of those ~60 one-row
+        # chunks costs Rerun's encoder about as much as a 2000-row one; left to run beside the
+        # first cycles, that work took the emulated VM's other CPU from the firmware.
         if self._name_ahead and not self._closed:
             self._name_ahead = False
             self.submit(functools.partial(self._name_history_series, truth=truth))
+            self.settle()
 
     def on_polled(self, names: tuple[str, ...], every_cycles: int) -> None:
         with self._lock:
@@ -718,6 +724,24 @@ class Tracer(RigObserver):
                 stream.flush()
             finally:
                 stream.disconnect()
+
+    def settle(self, timeout_s: float = SETTLE_TIMEOUT_S) -> bool:
+        """Wait until what was logged and submitted so far is in Rerun's hands and written to
+        the sinks (a file's bytes on disk, a live viewer's sent). False when that took longer
+        than `timeout_s` (a live viewer not reachable yet): nothing is lost, the rest is written
+        while the caller goes on."""
+        self._check_open()
+        settled = threading.Event()
+
+        def flush() -> None:
+            try:
+                self.recording.flush(timeout_sec=timeout_s)
+                settled.set()
+            except RuntimeError:  # Rerun's "flush timed out": still queued, not an error
+                pass
+
+        self.submit(flush)
+        return settled.wait(timeout_s)
 
     def submit(self, work: Callable[[], None]) -> None:
         """Run `work` (sending something to the recording) on the sender thread, in order with

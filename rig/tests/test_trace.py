@@ -135,6 +135,22 @@ def test_every_field_has_one_sample_per_cycle_it_was_exchanged_in(traced: Run, t
     assert trace.cycles[paths["velocity_kp"]] == [12]
 
 
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # read while still being written
+@pytest.mark.parametrize(
+    "traced", [(Tracer, True), (Tracer, False)], ids=["background", "inline"], indirect=True
+)
+def test_the_series_are_named_in_the_file_before_the_first_cycle(traced: Run, table: RigTable) -> None:
+    # The start names every series and lets Rerun write those static chunks then, not beside
+    # the run's first cycles (`Tracer.on_configured`).
+    traced.rig.start()
+    assert traced.rig.cycle == 0
+    names = Trace.read(traced.path).series_names
+    paths = entity_paths(table)
+    for name in ("motor_velocity", "velocity_setpoint", "motor_duty"):
+        assert paths[name] in names, f"{name} not named in {traced.path} before the first cycle"
+    assert truth_path("load_velocity_rad_s") in names
+
+
 def test_ground_truth_is_logged_every_cycle_next_to_the_fields(traced: Run) -> None:
     _scenario(traced)
     trace = Trace.read(traced.path)
