@@ -1115,6 +1115,15 @@ def build_report(
         ">= 0.8",
         ratio >= 0.8,
     )
+    untraced, traced = lockstep["rig_cycles_per_s"], lockstep["rig_traced_cycles_per_s"]
+    if len(untraced) == len(traced) > 1:  # the same rounds, alternating: the host drifts between rounds
+        paired = [_ratio(t, u) for t, u in zip(traced, untraced, strict=True)]
+        row(
+            "lockstep cycles/s: Rig traced vs untraced, median of each round's pair",
+            f"{min(paired):.2f}..{max(paired):.2f}",
+            f"{len(paired)} rounds",
+            statistics.median(paired),
+        )
     if "engine_floor" in best:  # a bus.json of before the engine's exchange floor lacks it
         row(
             "lockstep cycles/s: Rig untraced vs the engine's exchange alone (C, no physics/history)",

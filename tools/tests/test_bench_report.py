@@ -282,6 +282,15 @@ def test_lockstep_rows_put_the_rig_against_both_floors_and_read_an_older_run(tmp
         "1200/s",
         1.25,
     )
+    paired = "lockstep cycles/s: Rig traced vs untraced, median of each round's pair"
+    assert paired not in rows  # 2 untraced rounds, 1 traced: not the same rounds
+    bus["lockstep"] |= {
+        "rig_cycles_per_s": [1000.0, 2000.0, 1500.0],
+        "rig_traced_cycles_per_s": [800.0, 1500.0, 1350.0],
+    }
+    rows = lockstep_rows(bus)
+    assert rows[paired] == ("0.75..0.90", "3 rounds", 0.8)
+    assert rows["lockstep cycles/s: Rig traced vs untraced"] == ("1500/s", "2000/s", 0.75)  # best of each
     older = lockstep_rows(_bus_json())  # a bus.json from before the engine's floor was measured
     assert not any("engine" in measure for measure in older)
     assert "lockstep cycles/s: Rig untraced vs raw-socket floor" in older
