@@ -135,16 +135,30 @@ def test_every_field_has_one_sample_per_cycle_it_was_exchanged_in(traced: Run, t
     assert trace.cycles[paths["velocity_kp"]] == [12]
 
 
-@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # read while still being written
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # a copy taken while being written
 @pytest.mark.parametrize(
     "traced", [(Tracer, True), (Tracer, False)], ids=["background", "inline"], indirect=True
 )
-def test_the_series_are_named_in_the_file_before_the_first_cycle(traced: Run, table: RigTable) -> None:
+def test_the_series_are_named_in_the_file_before_the_first_cycle(
+    traced: Run, table: RigTable, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     # The start names every series and lets Rerun write those static chunks then, not beside
-    # the run's first cycles (`Tracer.on_configured`).
+    # the run's first cycles (`Tracer.on_configured`). The file is copied the moment the start's
+    # settle() returns: after it the start goes on logging (the NMT start), and a message being
+    # appended would be a torn end to read.
+    on_disk = tmp_path / "at-settle.rrd"
+    settle = traced.tracer.settle
+
+    def settle_then_copy() -> bool:
+        settled = settle()
+        assert traced.rig.cycle == 0
+        on_disk.write_bytes(traced.path.read_bytes())
+        return settled
+
+    monkeypatch.setattr(traced.tracer, "settle", settle_then_copy)
     traced.rig.start()
-    assert traced.rig.cycle == 0
-    names = Trace.read(traced.path).series_names
+    assert on_disk.exists(), "the start did not wait for Rerun (Tracer.settle) before the first cycle"
+    names = Trace.read(on_disk).series_names
     paths = entity_paths(table)
     for name in ("motor_velocity", "velocity_setpoint", "motor_duty"):
         assert paths[name] in names, f"{name} not named in {traced.path} before the first cycle"
