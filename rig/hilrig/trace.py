@@ -729,8 +729,7 @@ class Tracer(RigObserver):
         """Wait until what was logged and submitted so far is in Rerun's hands and written to
         the sinks (a file's bytes on disk, a live viewer's sent). False when that took longer
         than `timeout_s` (a live viewer not reachable yet): nothing is lost, the rest is written
-        while the caller goes on."""
-        self._check_open()
+        while the caller goes on. A closed tracer raises (`submit`)."""
         settled = threading.Event()
 
         def flush() -> None:
