@@ -121,6 +121,8 @@ cost to send and write."""
 BUS_FRAMES_ROOT = f"{BUS_ROOT}/frames"
 BUS_TPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/tpdos"
 BUS_RPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/rpdos"
+_TOTALED = (PdoDirection.TPDO, PdoDirection.RPDO)
+"""The directions of BUS_TPDOS_PER_CYCLE and BUS_RPDOS_PER_CYCLE, in that order."""
 ROBOT_ROOT = "/robot"
 """A robot's 3D view: /robot/links/<k> (a capsule moved by the chain's pose of link k),
 /robot/ground; its own events (a module lost...) at /events/robot."""
@@ -376,6 +378,10 @@ class Tracer(RigObserver):
         # The Arrow schema of each group of entities sent together (`_send_group`): the same
         # groups come back every batch (a PDO's fields, the truth).
         self._group_schemas: dict[tuple[str, ...], Any] = {}
+        # Their columns: a Scalars field per entity (`_scalars_field`), made when its series is
+        # named, ahead of the run, and the two index fields (`_group_schema`).
+        self._scalars_fields: dict[str, Any] = {}
+        self._index_fields: list[Any] | None = None
         # The static SeriesLines components (`_name_many`), as rerun's own batches convert them.
         self._line_names = rr.SeriesLines.descriptor_names()
         self._line_mode = rr.SeriesLines.descriptor_interpolation_mode()
@@ -787,13 +793,19 @@ class Tracer(RigObserver):
         reports a series without rows)."""
         assert self._history is not None
         series: list[tuple[str, str | None, bool]] = []
+        framed = False
         for layout in self._history.layouts():
             series += [(self._paths[name], None, False) for name in layout.names]
             if layout.enabled and layout.cob_id:
                 series.append((self.root + frames_path(layout), _frames_series_name(layout), True))
-        if truth:  # the truth too, when the rig has a plant
-            series += [(self.root + truth_path(quantity), None, False) for quantity in TRUTH_QUANTITIES[:-1]]
+                framed = True
+        if framed:  # the frames of each direction per cycle (`_send_frames`)
+            series += self._bus_totals_series()
+        if truth:  # the truth too, when the rig has a plant, and its spring constant
+            series += [(self.root + truth_path(quantity), None, False) for quantity in TRUTH_QUANTITIES]
         self._name_many(series)
+        for path, _, _ in series:  # the columns of the batches to come, made while nothing runs
+            self._scalars_field(path)
 
     def _send_span(self, span: _HistorySpan) -> None:
         """A span of a Rig's History: its per-PDO rows come as columns (the payloads as the bus
@@ -808,9 +820,9 @@ class Tracer(RigObserver):
         every_cycle = np.asarray(cycles, dtype=np.int64)
         times = history.times_of(cycles)
         self._send_parts(parts, also=self._truth_row_sets(every_cycle, times, states))
-        if states:
-            self._send_spring_stiffness(every_cycle, times)
-            self._send_frames(frames, every_cycle, times)
+        if states:  # the spring constant's changes go with the frame counts' (mostly the same rows)
+            stiffness = self._spring_stiffness_series(len(every_cycle))
+            self._send_frames(frames, every_cycle, times, also=stiffness)
 
     def _send_batch(self, batch: list[_CycleRow | CycleResult]) -> None:
         """Rows (log_cycle, or cycles of a Rig not followed through its History): pivoted into
@@ -903,40 +915,49 @@ class Tracer(RigObserver):
             self._send_group(cycles, times, series)
 
     def _send_frames(
-        self, frames: Sequence[tuple[PdoLayout, np.ndarray]], every_cycle: np.ndarray, times: np.ndarray
+        self,
+        frames: Sequence[tuple[PdoLayout, np.ndarray]],
+        every_cycle: np.ndarray,
+        times: np.ndarray,
+        also: Sequence[tuple[str, np.ndarray]] = (),
     ) -> None:
         """Frames per cycle of every PDO seen so far (a row of a PDO is one frame on the bus),
-        and their sums per direction, over `every_cycle` (consecutive cycles), as their changes."""
+        and their sums per direction, over `every_cycle` (consecutive cycles), as their changes;
+        with them the step series of `also` (over the same cycles)."""
         if not len(every_cycle):
             return
         first, count = int(every_cycle[0]), len(every_cycle)
         for pdo, _ in frames:
             if pdo.enabled and pdo.cob_id:  # not the rows of fields read over SDO
                 self._framed.setdefault(pdo.label, pdo)
-        counts = {label: np.zeros(count) for label in self._framed}
-        for pdo, cycles in frames:
-            if pdo.label in counts:
-                offsets = cycles - first
-                offsets = offsets[(offsets >= 0) & (offsets < count)]
-                counts[pdo.label] += np.bincount(offsets, minlength=count)
-        totals = {PdoDirection.TPDO: np.zeros(count), PdoDirection.RPDO: np.zeros(count)}
-        names: list[tuple[str, str | None, bool]] = []
-        series: list[tuple[str, np.ndarray]] = []
-        for label, per_cycle in counts.items():
-            pdo = self._framed[label]
-            totals[pdo.direction] += per_cycle
-            path = self.root + frames_path(pdo)
-            names.append((path, _frames_series_name(pdo), True))
-            series.append((path, per_cycle))
-        if counts:
-            for path, direction in (
-                (BUS_TPDOS_PER_CYCLE, PdoDirection.TPDO),
-                (BUS_RPDOS_PER_CYCLE, PdoDirection.RPDO),
-            ):
-                names.append((self.root + path, f"{direction.value}s per cycle [frames]", True))
-                series.append((self.root + path, totals[direction]))
-        self._name_many(names)
+        series = list(also)
+        if self._framed:
+            # Every PDO's count per cycle in one bincount: row k of the matrix is PDO k's.
+            row_of = {label: k for k, label in enumerate(self._framed)}
+            seen = [(row_of[pdo.label], cycles) for pdo, cycles in frames if pdo.label in row_of]
+            counts = np.zeros((len(row_of), count))
+            if seen:
+                offsets = np.concatenate([cycles for _, cycles in seen]).astype(np.int64) - first
+                lengths = [len(cycles) for _, cycles in seen]
+                rows = np.repeat(np.array([k for k, _ in seen], np.int64), lengths)
+                inside = (offsets >= 0) & (offsets < count)
+                flat = rows[inside] * count + offsets[inside]
+                counts += np.bincount(flat, minlength=counts.size).reshape(counts.shape)
+            pdos = list(self._framed.values())
+            series += [(self.root + frames_path(pdo), counts[k]) for k, pdo in enumerate(pdos)]
+            for (path, _, _), direction in zip(self._bus_totals_series(), _TOTALED, strict=True):
+                series.append((path, counts[[pdo.direction is direction for pdo in pdos]].sum(axis=0)))
+            named = [(self.root + frames_path(pdo), _frames_series_name(pdo), True) for pdo in pdos]
+            self._name_many([*named, *self._bus_totals_series()])  # named ahead, for a Rig's History
         self._send_changes(every_cycle, times, series)
+
+    def _bus_totals_series(self) -> list[tuple[str, str, bool]]:
+        """(path, series name, counts) of the frames per cycle of each direction (`_name_many`),
+        in the order of `_TOTALED`."""
+        return [
+            (self.root + path, f"{direction.value}s per cycle [frames]", True)
+            for path, direction in zip((BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE), _TOTALED, strict=True)
+        ]
 
     def _truth_row_sets(
         self, cycles: np.ndarray, times: np.ndarray, states: Sequence[JointState]
@@ -954,11 +975,18 @@ class Tracer(RigObserver):
 
     def _send_spring_stiffness(self, cycles: np.ndarray, times: np.ndarray) -> None:
         """The plant's spring constant over these cycles (a parameter: as its changes)."""
+        if len(cycles):
+            self._send_changes(cycles, times, self._spring_stiffness_series(len(cycles)))
+
+    def _spring_stiffness_series(self, count: int) -> list[tuple[str, np.ndarray]]:
+        """The plant's spring constant over `count` cycles, as (path, values) (none before the
+        rig gave its parameters)."""
         with self._lock:
             params = self._params
-        if params is not None and len(cycles):
-            stiffness = np.full(len(cycles), params.spring_stiffness_nm_per_rad)
-            self._send_changes(cycles, times, [(self.root + truth_path(TRUE_SPRING_STIFFNESS), stiffness)])
+        if params is None:
+            return []
+        stiffness = np.full(count, params.spring_stiffness_nm_per_rad)
+        return [(self.root + truth_path(TRUE_SPRING_STIFFNESS), stiffness)]
 
     def _send_group(
         self, cycles: Sequence[int], times: Sequence[float], series: Sequence[tuple[str, np.ndarray]]
@@ -988,9 +1016,20 @@ class Tracer(RigObserver):
     def _group_schema(self, paths: tuple[str, ...]) -> Any:
         """The record batch of `_send_group`: the cycle and time indexes, a Scalars column per path."""
         pa = self._pa
-        fields = [_index_field(pa, CYCLE_TIMELINE, pa.int64()), _index_field(pa, *self._time_index())]
-        fields += [_component_field(pa, path, self._scalars, pa.float64()) for path in paths]
-        return pa.schema(fields)
+        if self._index_fields is None:
+            self._index_fields = [
+                _index_field(pa, CYCLE_TIMELINE, pa.int64()),
+                _index_field(pa, *self._time_index()),
+            ]
+        return pa.schema([*self._index_fields, *(self._scalars_field(path) for path in paths)])
+
+    def _scalars_field(self, path: str) -> Any:
+        """The Scalars column of entity `path` in `_send_group`'s batches (made once)."""
+        field = self._scalars_fields.get(path)
+        if field is None:
+            field = _component_field(self._pa, path, self._scalars, self._pa.float64())
+            self._scalars_fields[path] = field
+        return field
 
     def _time_index(self) -> tuple[str, Any]:
         """The time timeline of this clock and its Arrow type: sim_time (a duration) in
@@ -1013,14 +1052,19 @@ class Tracer(RigObserver):
         from the one before (across batches) and the last row of the batch, which carries the
         line to the batch's end. Read back, the latest row at or before a cycle is its value.
         Series with the same rows (counts that never change) go as one group."""
-        if not len(cycles):
+        if not len(cycles) or not series:
             return
+        # All series at once: row k of `values` is series k's, compared with the value before.
+        values = np.vstack([v for _, v in series])
+        held = self._last_held_value
+        before = np.array([held.get(path, np.nan) for path, _ in series])  # none yet: NaN
+        keep = values != np.hstack((before[:, None], values[:, :-1]))
+        keep[:, -1] = True
+        held.update(zip((path for path, _ in series), values[:, -1].tolist(), strict=True))
         groups: dict[bytes, tuple[np.ndarray, list[tuple[str, np.ndarray]]]] = {}
-        for path, values in series:
-            keep = _changed(self._last_held_value, path, values)
-            keep[-1] = True
-            rows = np.flatnonzero(keep)
-            groups.setdefault(rows.tobytes(), (rows, []))[1].append((path, values[rows]))
+        for (path, _), row, kept in zip(series, values, keep, strict=True):
+            rows = np.flatnonzero(kept)
+            groups.setdefault(rows.tobytes(), (rows, []))[1].append((path, row[rows]))
         for rows, group in groups.values():
             self._send_group(cycles[rows], times[rows], group)
 
