@@ -8,8 +8,9 @@
 What is measured, and against what:
 
 * Lockstep speed, all on the same engine and firmware build, each measurement with a fresh
-  firmware process, rounds alternating, best of each: (a) the full `Rig` (physics, history,
-  checks) in a HIL session (`hilrig.session`), untraced; (b) the same with a Rerun trace to a
+  firmware process, rounds alternating (the Rig's pair in both orders, `pair_order`), best of
+  each: (a) the full `Rig` (physics, history, checks) in a HIL session (`hilrig.session`),
+  untraced; (b) the same with a Rerun trace to a
   file; (c) the floor: the same RPDO frames + SYNC out and the same number of TPDO frames back
   over one raw socket with kernel filters (`hilrig.transport`), a Python call per frame, no
   physics, no checks, no trace; (d) the engine's exchange alone: the same frames through the
@@ -206,11 +207,21 @@ RIG_PROBE_CYCLES = (500, 2500)
 """`tools/rig_probe.py` runs at two lengths: their difference is what the cycles cost."""
 
 
-LOCKSTEP_ROUNDS = 5
+LOCKSTEP_ROUNDS = 6
 """Rounds of the lockstep kinds (Rig untraced and traced, the floors), alternating, best of each.
 The emulated VM's rate moves by up to 50 % between rounds of one run when the host is busy; three
 rounds were too few to catch an undisturbed one of each kind (a run where all three traced rounds
-fell on a busy stretch read 0.64 traced vs untraced, the next run 0.84)."""
+fell on a busy stretch read 0.64 traced vs untraced, the next run 0.84). An even number: the Rig's
+pair runs untraced first in half the rounds and traced first in the other half (`pair_order`)."""
+
+
+def pair_order(round_: int) -> tuple[str, str]:
+    """The order of the Rig's untraced and traced runs in round `round_` (from 1): untraced first
+    in odd rounds, traced first in even ones, so that neither kind always runs right after the
+    other's teardown (a firmware exiting, a trace file being written back)."""
+    return ("rig", "rig_traced") if round_ % 2 else ("rig_traced", "rig")
+
+
 TRACE_PROBE_CYCLES = 2000
 """Cycles of the traced run `tools/rig_probe.py` measures: as many as a `make bench` round's."""
 
@@ -853,8 +864,10 @@ def bus_main(args: argparse.Namespace) -> int:
         measured: list[dict[str, int]] = []
         for round_ in range(1, args.rounds + 1):
             got = {
-                "rig": bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=False),
-                "rig_traced": bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=True),
+                kind: bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=kind == "rig_traced")
+                for kind in pair_order(round_)
+            }
+            got |= {
                 "floor": bench.floor_rate(args.cycles, args.warmup, args.budget_s),
                 "engine_floor": bench.engine_floor_rate(args.cycles, args.warmup, args.budget_s),
                 "python_can": bench.python_can_rate(args.cycles, args.warmup, args.budget_s),
@@ -862,8 +875,9 @@ def bus_main(args: argparse.Namespace) -> int:
             for kind in kinds:
                 rates[kind].append(got[kind][0])
             measured.append({kind: got[kind][1] for kind in kinds})
+            first = "untraced" if pair_order(round_)[0] == "rig" else "traced"
             say(
-                f"  round {round_}: "
+                f"  round {round_} (Rig {first} first): "
                 + ", ".join(f"{kind} {got[kind][0]:.0f}/s ({got[kind][1]} cycles)" for kind in kinds)
             )
         rpdos, tpdos = bench._floor_layout()

@@ -294,3 +294,11 @@ def test_lockstep_rows_put_the_rig_against_both_floors_and_read_an_older_run(tmp
     older = lockstep_rows(_bus_json())  # a bus.json from before the engine's floor was measured
     assert not any("engine" in measure for measure in older)
     assert "lockstep cycles/s: Rig untraced vs raw-socket floor" in older
+
+
+def test_the_rigs_pair_runs_each_kind_first_in_half_of_the_rounds() -> None:
+    orders = [bench.pair_order(round_) for round_ in range(1, bench.LOCKSTEP_ROUNDS + 1)]
+    assert all(sorted(order) == ["rig", "rig_traced"] for order in orders)
+    firsts = [order[0] for order in orders]
+    assert firsts.count("rig") == firsts.count("rig_traced") == bench.LOCKSTEP_ROUNDS // 2
+    assert firsts[:2] == ["rig", "rig_traced"]  # alternating, untraced first in round 1
