@@ -8,17 +8,17 @@
 What is measured, and against what:
 
 * Lockstep speed, all on the same engine and firmware build, each measurement with a fresh
-  firmware process, rounds alternating (the Rig's pair in both orders, `pair_order`), best of
-  each: (a) the full `Rig` (physics, history, checks) in a HIL session (`hilrig.session`),
-  untraced; (b) the same with a Rerun trace to a
-  file; (c) the floor: the same RPDO frames + SYNC out and the same number of TPDO frames back
-  over one raw socket with kernel filters (`hilrig.transport`), a Python call per frame, no
-  physics, no checks, no trace; (d) the engine's exchange alone: the same frames through the
-  call the Rig makes each cycle (`transport.exchange`, in C on the raw socket), decoded, no
-  physics, no history; (e) for comparison, that exchange through python-can's Bus. Goals:
-  (a)/(c) >= 0.5, (b)/(a) >= 0.8; (a)/(d) is the stricter figure (what physics, history and
-  checks cost on top of the engine's own wire). Simulated-time speed-up at 1 kHz = cycles per
-  second / 1000.
+  firmware process, rounds alternating, best of each: (a) the full `Rig` (physics, history,
+  checks) in a HIL session (`hilrig.session`), untraced; (b) the same with a Rerun trace to a
+  file, run beside (a) in pairs, two a round, each kind first in one (`rig_pair_orders`); (c)
+  the floor: the same RPDO frames + SYNC out and the same number of TPDO frames back over one
+  raw socket with kernel filters (`hilrig.transport`), a Python call per frame, no physics, no
+  checks, no trace; (d) the engine's exchange alone: the same frames through the call the Rig
+  makes each cycle (`transport.exchange`, in C on the raw socket), decoded, no physics, no
+  history; (e) for comparison, that exchange through python-can's Bus. Goals: (a)/(c) >= 0.5
+  (best of each), (b)/(a) >= 0.8 (the median of the pairs' ratios); (a)/(d) is the stricter
+  figure (what physics, history and checks cost on top of the engine's own wire).
+  Simulated-time speed-up at 1 kHz = cycles per second / 1000.
 * SDO latency: expedited upload (a REAL32 board parameter) from `canopen.RemoteNode` to the
   firmware, next to the same upload served by a `canopen.LocalNode` (same EDS, another node id)
   running in its own Python process on the same private bus. Requests alternate. Goal: the
@@ -211,15 +211,16 @@ LOCKSTEP_ROUNDS = 6
 """Rounds of the lockstep kinds (Rig untraced and traced, the floors), alternating, best of each.
 The emulated VM's rate moves by up to 50 % between rounds of one run when the host is busy; three
 rounds were too few to catch an undisturbed one of each kind (a run where all three traced rounds
-fell on a busy stretch read 0.64 traced vs untraced, the next run 0.84). An even number: the Rig's
-pair runs untraced first in half the rounds and traced first in the other half (`pair_order`)."""
+fell on a busy stretch read 0.64 traced vs untraced, the next run 0.84)."""
 
 
-def pair_order(round_: int) -> tuple[str, str]:
-    """The order of the Rig's untraced and traced runs in round `round_` (from 1): untraced first
-    in odd rounds, traced first in even ones, so that neither kind always runs right after the
-    other's teardown (a firmware exiting, a trace file being written back)."""
-    return ("rig", "rig_traced") if round_ % 2 else ("rig_traced", "rig")
+def rig_pair_orders(round_: int) -> list[tuple[str, str]]:
+    """The Rig's runs in round `round_` (from 1): two pairs of an untraced and a traced run, each
+    kind first in one of them (untraced, traced, traced, untraced in odd rounds; the mirror in
+    even ones), so that neither kind always runs right after the other's teardown, and each pair
+    is two runs back to back: their ratio is what tracing costs, whatever the host's drift."""
+    pairs = [("rig", "rig_traced"), ("rig_traced", "rig")]
+    return pairs if round_ % 2 else pairs[::-1]
 
 
 TRACE_PROBE_CYCLES = 2000
@@ -861,29 +862,40 @@ def bus_main(args: argparse.Namespace) -> int:
         )
         kinds = ("rig", "rig_traced", "floor", "engine_floor", "python_can")
         rates: dict[str, list[float]] = {kind: [] for kind in kinds}
-        measured: list[dict[str, int]] = []
+        measured: list[dict[str, Any]] = []
         for round_ in range(1, args.rounds + 1):
+            pairs = [
+                {
+                    kind: bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=kind == "rig_traced")
+                    for kind in order
+                }
+                for order in rig_pair_orders(round_)
+            ]
             got = {
-                kind: bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=kind == "rig_traced")
-                for kind in pair_order(round_)
-            }
-            got |= {
                 "floor": bench.floor_rate(args.cycles, args.warmup, args.budget_s),
                 "engine_floor": bench.engine_floor_rate(args.cycles, args.warmup, args.budget_s),
                 "python_can": bench.python_can_rate(args.cycles, args.warmup, args.budget_s),
             }
             for kind in kinds:
-                rates[kind].append(got[kind][0])
-            measured.append({kind: got[kind][1] for kind in kinds})
-            first = "untraced" if pair_order(round_)[0] == "rig" else "traced"
+                runs = [pair[kind] for pair in pairs] if kind in pairs[0] else [got[kind]]
+                rates[kind] += [rate for rate, _ in runs]
+                measured.append({"round": round_, "kind": kind, "cycles": [cycles for _, cycles in runs]})
             say(
-                f"  round {round_} (Rig {first} first): "
-                + ", ".join(f"{kind} {got[kind][0]:.0f}/s ({got[kind][1]} cycles)" for kind in kinds)
+                f"  round {round_}: "
+                + ", ".join(
+                    f"pair {'traced' if pair_order[0] == 'rig_traced' else 'untraced'} first: untraced "
+                    f"{pair['rig'][0]:.0f}/s, traced {pair['rig_traced'][0]:.0f}/s "
+                    f"({_ratio(pair['rig_traced'][0], pair['rig'][0]):.2f})"
+                    for pair, pair_order in zip(pairs, rig_pair_orders(round_), strict=True)
+                )
+                + "; "
+                + ", ".join(f"{kind} {got[kind][0]:.0f}/s ({got[kind][1]} cycles)" for kind in got)
             )
         rpdos, tpdos = bench._floor_layout()
         result["lockstep"] = {
             "cycles": args.cycles,
             "rounds": args.rounds,
+            "rig_pairs_per_round": len(rig_pair_orders(1)),
             "measured_cycles": measured,
             "budget_s": args.budget_s,
             **{f"{kind}_cycles_per_s": rates[kind] for kind in kinds},
@@ -1120,23 +1132,36 @@ def build_report(
         ratio >= 0.5,
         **lockstep,
     )
-    ratio = _ratio(best["rig_traced"], best["rig"])
-    row(
-        "lockstep cycles/s: Rig traced vs untraced",
-        f"{best['rig_traced']:.0f}/s",
-        f"{best['rig']:.0f}/s",
-        ratio,
-        ">= 0.8",
-        ratio >= 0.8,
-    )
+    # Traced vs untraced, the goal: the median over the pairs of runs back to back. The host's speed
+    # drifts by up to 50 % between rounds, and the best of each kind compares each one's luckiest
+    # moment (2026-11-27, one code, four runs: best of each 0.73..0.90, the pairs 0.61..1.37).
     untraced, traced = lockstep["rig_cycles_per_s"], lockstep["rig_traced_cycles_per_s"]
-    if len(untraced) == len(traced) > 1:  # the same rounds, alternating: the host drifts between rounds
+    best_ratio = _ratio(best["rig_traced"], best["rig"])
+    if len(untraced) == len(traced) > 1:  # runs paired by their place in the lists
         paired = [_ratio(t, u) for t, u in zip(traced, untraced, strict=True)]
+        ratio = statistics.median(paired)
         row(
-            "lockstep cycles/s: Rig traced vs untraced, median of each round's pair",
+            "lockstep cycles/s: Rig traced vs untraced, median of the runs paired back to back",
             f"{min(paired):.2f}..{max(paired):.2f}",
-            f"{len(paired)} rounds",
-            statistics.median(paired),
+            f"{len(paired)} pairs",
+            ratio,
+            ">= 0.8",
+            ratio >= 0.8,
+        )
+        row(
+            "lockstep cycles/s: Rig traced vs untraced, best of each",
+            f"{best['rig_traced']:.0f}/s",
+            f"{best['rig']:.0f}/s",
+            best_ratio,
+        )
+    else:  # a bus.json of runs not paired: the best of each
+        row(
+            "lockstep cycles/s: Rig traced vs untraced, best of each",
+            f"{best['rig_traced']:.0f}/s",
+            f"{best['rig']:.0f}/s",
+            best_ratio,
+            ">= 0.8",
+            best_ratio >= 0.8,
         )
     if "engine_floor" in best:  # a bus.json of before the engine's exchange floor lacks it
         row(
