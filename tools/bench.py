@@ -10,7 +10,7 @@ What is measured, and against what:
 * Lockstep speed, all on the same engine and firmware build, each measurement with a fresh
   firmware process, rounds alternating, best of each: (a) the full `Rig` (physics, history,
   checks) in a HIL session (`hilrig.session`), untraced; (b) the same with a Rerun trace to a
-  file, run beside (a) in pairs, two a round, each kind first in one (`rig_pair_orders`); (c)
+  file, run beside (a) in pairs, four a round, each kind first in half (`rig_pair_orders`); (c)
   the floor: the same RPDO frames + SYNC out and the same number of TPDO frames back over one
   raw socket with kernel filters (`hilrig.transport`), a Python call per frame, no physics, no
   checks, no trace; (d) the engine's exchange alone: the same frames through the call the Rig
@@ -214,12 +214,19 @@ rounds were too few to catch an undisturbed one of each kind (a run where all th
 fell on a busy stretch read 0.64 traced vs untraced, the next run 0.84)."""
 
 
+RIG_PAIRS_PER_ROUND = 4
+"""Untraced/traced pairs of Rig runs per round (an even number: each kind first in half). On this
+shared host one pair's ratio scatters widely (0.61..1.93 for one code), and at 12 pairs a run's
+median still missed 0.8 in 2 of 6 runs of code whose 48 pairs pooled gave 0.855 (0.832..0.881)."""
+
+
 def rig_pair_orders(round_: int) -> list[tuple[str, str]]:
-    """The Rig's runs in round `round_` (from 1): two pairs of an untraced and a traced run, each
-    kind first in one of them (untraced, traced, traced, untraced in odd rounds; the mirror in
-    even ones), so that neither kind always runs right after the other's teardown, and each pair
-    is two runs back to back: their ratio is what tracing costs, whatever the host's drift."""
-    pairs = [("rig", "rig_traced"), ("rig_traced", "rig")]
+    """The Rig's runs in round `round_` (from 1): RIG_PAIRS_PER_ROUND pairs of an untraced and a
+    traced run, each kind first in half of them (untraced, traced, traced, untraced, ... in odd
+    rounds; the mirror in even ones), so that neither kind always runs right after the other's
+    teardown, and each pair is two runs back to back: their ratio is what tracing costs, whatever
+    the host's drift."""
+    pairs = [("rig", "rig_traced"), ("rig_traced", "rig")] * (RIG_PAIRS_PER_ROUND // 2)
     return pairs if round_ % 2 else pairs[::-1]
 
 
