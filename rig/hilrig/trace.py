@@ -121,8 +121,8 @@ cost to send and write."""
 BUS_FRAMES_ROOT = f"{BUS_ROOT}/frames"
 BUS_TPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/tpdos"
 BUS_RPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/rpdos"
-_TOTALED = (PdoDirection.TPDO, PdoDirection.RPDO)
-"""The directions of BUS_TPDOS_PER_CYCLE and BUS_RPDOS_PER_CYCLE, in that order."""
+_BUS_TOTALS = ((BUS_TPDOS_PER_CYCLE, PdoDirection.TPDO), (BUS_RPDOS_PER_CYCLE, PdoDirection.RPDO))
+"""The frames per cycle of each direction: the series and the direction it sums."""
 ROBOT_ROOT = "/robot"
 """A robot's 3D view: /robot/links/<k> (a capsule moved by the chain's pose of link k),
 /robot/ground; its own events (a module lost...) at /events/robot."""
@@ -945,18 +945,19 @@ class Tracer(RigObserver):
                 counts += np.bincount(flat, minlength=counts.size).reshape(counts.shape)
             pdos = list(self._framed.values())
             series += [(self.root + frames_path(pdo), counts[k]) for k, pdo in enumerate(pdos)]
-            for (path, _, _), direction in zip(self._bus_totals_series(), _TOTALED, strict=True):
-                series.append((path, counts[[pdo.direction is direction for pdo in pdos]].sum(axis=0)))
+            for path, direction in _BUS_TOTALS:
+                series.append(
+                    (self.root + path, counts[[pdo.direction is direction for pdo in pdos]].sum(axis=0))
+                )
             named = [(self.root + frames_path(pdo), _frames_series_name(pdo), True) for pdo in pdos]
             self._name_many([*named, *self._bus_totals_series()])  # named ahead, for a Rig's History
         self._send_changes(every_cycle, times, series)
 
     def _bus_totals_series(self) -> list[tuple[str, str, bool]]:
-        """(path, series name, counts) of the frames per cycle of each direction (`_name_many`),
-        in the order of `_TOTALED`."""
+        """(path, series name, counts) of the frames per cycle of each direction (`_name_many`)."""
         return [
             (self.root + path, f"{direction.value}s per cycle [frames]", True)
-            for path, direction in zip((BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE), _TOTALED, strict=True)
+            for path, direction in _BUS_TOTALS
         ]
 
     def _truth_row_sets(
@@ -1052,19 +1053,14 @@ class Tracer(RigObserver):
         from the one before (across batches) and the last row of the batch, which carries the
         line to the batch's end. Read back, the latest row at or before a cycle is its value.
         Series with the same rows (counts that never change) go as one group."""
-        if not len(cycles) or not series:
+        if not len(cycles):
             return
-        # All series at once: row k of `values` is series k's, compared with the value before.
-        values = np.vstack([v for _, v in series])
-        held = self._last_held_value
-        before = np.array([held.get(path, np.nan) for path, _ in series])  # none yet: NaN
-        keep = values != np.hstack((before[:, None], values[:, :-1]))
-        keep[:, -1] = True
-        held.update(zip((path for path, _ in series), values[:, -1].tolist(), strict=True))
         groups: dict[bytes, tuple[np.ndarray, list[tuple[str, np.ndarray]]]] = {}
-        for (path, _), row, kept in zip(series, values, keep, strict=True):
-            rows = np.flatnonzero(kept)
-            groups.setdefault(rows.tobytes(), (rows, []))[1].append((path, row[rows]))
+        for path, values in series:
+            keep = _changed(self._last_held_value, path, values)
+            keep[-1] = True
+            rows = np.flatnonzero(keep)
+            groups.setdefault(rows.tobytes(), (rows, []))[1].append((path, values[rows]))
         for rows, group in groups.values():
             self._send_group(cycles[rows], times[rows], group)
 
