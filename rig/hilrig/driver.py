@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import operator
+import os
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
@@ -47,6 +48,36 @@ SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
 """Fields of the RPDO sent every cycle, like a real master's setpoint stream."""
 LIVENESS_SLICE_S = 0.25
 """While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
+
+
+@dataclass(frozen=True, slots=True)
+class ProcessActivity:
+    """What the kernel says a process is doing: CPU time used so far (all its threads), and
+    whether it is asleep (blocked, waiting for an event) right now."""
+
+    cpu_s: float
+    sleeping: bool
+
+
+_CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def process_activity(pid: int) -> ProcessActivity | None:
+    """`pid`'s activity from /proc/PID/stat; None once it is gone or where /proc has no such
+    file (the guard then falls back to wall time)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            text = stat.read()
+    except OSError:
+        return None
+    # The command name is in parentheses and may hold anything: fields follow the last ')'.
+    fields = text[text.rfind(b")") + 2 :].split()
+    try:
+        state, utime, stime = fields[0], int(fields[11]), int(fields[12])
+    except (IndexError, ValueError):
+        return None
+    return ProcessActivity((utime + stime) / _CLOCK_TICKS, state in (b"S", b"I"))
+
 
 TRUTH_NAMES: tuple[str, ...] = tuple(name for name in JointState.__dataclass_fields__ if name != "time_s")
 """Ground-truth quantities, named as the JointState attributes (unit in the name)."""
@@ -451,6 +482,7 @@ class Driver:
         period_us: int,
         tpdo_timeout_s: float = 5.0,
         liveness: Callable[[], None] | None = None,
+        activity: Callable[[], ProcessActivity | None] | None = None,
     ) -> None:
         if period_us <= 0:
             raise ValueError(f"period_us: expected > 0, got {period_us}")
@@ -462,6 +494,9 @@ class Driver:
         """The period in seconds (what the plant is stepped by every cycle)."""
         self.tpdo_timeout_s = tpdo_timeout_s
         self.liveness = liveness
+        self.activity = activity
+        """The node's process activity (`hilrig.lockstep.process_activity`), for the hang
+        guard to tell a busy host from a stuck firmware; None: wall time only."""
         self.history = History(period_us)
         self.cycle = 0
         """Cycles completed; also the index of the next cycle."""

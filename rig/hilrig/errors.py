@@ -28,6 +28,11 @@ class LockstepError(RigError, TimeoutError):
     """A lockstep cycle did not complete: a PDO of that cycle is missing or late."""
 
 
+class HostStarvedError(RigError, TimeoutError):
+    """A lockstep wait ended because the host gave the firmware too little CPU for too long, not
+    because the firmware misbehaved (`hilrig.lockstep.HangGuard`): no verdict on the firmware."""
+
+
 class RealTimeError(RigError, TimeoutError):
     """In real-time mode the node's TPDOs stopped arriving (the message says since when)."""
 

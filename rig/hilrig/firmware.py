@@ -21,6 +21,7 @@ from types import TracebackType
 from typing import IO, Any, Protocol, Self
 
 from hilrig import resources
+from hilrig.driver import ProcessActivity, process_activity
 from hilrig.errors import FirmwareError
 
 DEFAULT_EXECUTABLE = resources.DEFAULT_FIRMWARE
@@ -149,6 +150,12 @@ class Firmware:
                 f"{describe_exit(code)}; last lines of {self.log_path}:\n"
                 f"{self.log_tail()}"
             )
+
+    def activity(self) -> ProcessActivity | None:
+        """The process's CPU time and sleep state (the lockstep hang guard's view of it); None
+        when it is not running."""
+        process = self.process
+        return process_activity(process.pid) if process is not None else None
 
     def log_tail(self, lines: int = LOG_TAIL_LINES) -> str:
         try:

@@ -7,7 +7,8 @@ One cycle (index n, simulation time t = n * period, exact):
    master; the firmware's watchdog watches it) and any other RPDO a scenario changed;
 3. send SYNC with counter (n mod 240) + 1;
 4. wait for every synchronous TPDO due at this SYNC (type k: every k-th SYNC since the node
-   entered operational); the wall-clock bound is only a hang guard;
+   entered operational); the wall-clock bound is only a hang guard (`HangGuard`), and one that
+   a busy host does not trip where the firmware process can be watched;
 5. step the plant by one period with the duty from the actuator TPDO (motor_duty).
 
 Every cycle's received values, sent values and the plant's ground truth go into `History`.
@@ -16,6 +17,7 @@ Every cycle's received values, sent values and the plant's ground truth go into 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from hilrig.driver import (
@@ -29,15 +31,81 @@ from hilrig.driver import (
     Driver,
     History,
     PdoRow,
+    ProcessActivity,
     Value,
     resolve_truth_name,
     sync_counter,
 )
-from hilrig.errors import FirmwareError, LockstepError
+from hilrig.errors import FirmwareError, HostStarvedError, LockstepError
 from hilrig.physics import JointState, RawSensors, duty_from_motor_duty
 from hilrig.transport import append_frame_rows, append_row, send_frames
 
 _NOTHING_DUE: frozenset[int] = frozenset()
+
+
+HANG_CAP_FACTOR = 24
+"""With the firmware process watched, no wait lasts longer than this many TPDO timeouts of wall
+time (2 min at the default 5 s), whatever the host: a host starved that long ends the scenario,
+and says so (`HostStarvedError`)."""
+IDLE_CPU_SHARE = 0.1
+"""A slice of a wait counts as idle when the firmware was asleep at its end and used less than
+this share of the slice in CPU: a node that will answer is either runnable or working."""
+
+
+class HangGuard:
+    """When one wait for a cycle's due TPDOs gives up. Made at the wait's first quiet slice (a
+    cycle that answers in time never reads /proc), then `check` after each further one.
+
+    Without a view of the node's process (a real board, a fake node): after `timeout_s` of
+    waiting, as every hang guard. With one (`activity`: the firmware's `ProcessActivity`), a
+    busy host must not read as a broken firmware, so waiting counts only while the firmware
+    could have answered and did not:
+
+    - asleep with next to no CPU for `timeout_s` in a row: what it waits for will not come (a
+      frame lost, a rule that keeps it silent);
+    - `timeout_s` of CPU used without an answer: a loop that does not end;
+    - otherwise the host is slow (the firmware runnable, getting little CPU: another VM, a
+      mutation run, a shared CI runner) and the wait goes on, up to HANG_CAP_FACTOR timeouts;
+      ending there is a `HostStarvedError`, which names the host, not the firmware.
+    """
+
+    def __init__(
+        self, timeout_s: float, activity: Callable[[], ProcessActivity | None] | None, first_slice_s: float
+    ) -> None:
+        self.timeout_s = timeout_s
+        self.activity = activity
+        self.waited_s = first_slice_s
+        self._idle_s = 0.0
+        self._start = self._last = activity() if activity is not None else None
+
+    def check(self, slice_s: float) -> str | None:
+        """One more quiet slice of `slice_s` passed: None to wait on, else why the wait ends,
+        said after "TPDOn did not arrive"; HostStarvedError when only the host is to blame."""
+        self.waited_s += slice_s
+        now = self.activity() if self.activity is not None else None
+        if now is None or self._start is None or self._last is None:
+            return f" within {self.timeout_s:g} s" if self.waited_s >= self.timeout_s else None
+        used = now.cpu_s - self._last.cpu_s
+        self._last = now
+        quiet = now.sleeping and used < IDLE_CPU_SHARE * slice_s
+        self._idle_s = self._idle_s + slice_s if quiet else 0.0
+        if self._idle_s >= self.timeout_s:
+            return (
+                f": the firmware sat idle for {self._idle_s:g} s with them due "
+                f"({self.waited_s:g} s waited in all)"
+            )
+        spent = now.cpu_s - self._start.cpu_s
+        if spent >= self.timeout_s:
+            return (
+                f": the firmware used {spent:.3g} s of CPU in {self.waited_s:g} s without "
+                "answering (a loop that does not end?)"
+            )
+        if self.waited_s >= HANG_CAP_FACTOR * self.timeout_s:
+            raise HostStarvedError(
+                f"the host is starved, not a firmware verdict: no answer in {self.waited_s:g} s "
+                f"of wall time, while the firmware, neither idle nor spinning, got {spent:.3g} s of CPU"
+            )
+        return None
 
 
 @dataclass(slots=True)
@@ -170,7 +238,7 @@ class LockstepDriver(Driver):
                 pending, self._pending = self._pending, []
                 for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
                     self._take(got, n, t, due, sync_number, cob_id, data, between_syncs=True)
-            waited = 0.0
+            guard: HangGuard | None = None
             while True:
                 # Due TPDOs of the usual length are decoded into `got` (and their rows) inside;
                 # anything else comes back at once, in arrival order.
@@ -181,8 +249,9 @@ class LockstepDriver(Driver):
                 if frame is not False:
                     self._take(got, n, t, due, sync_number, *frame)  # type: ignore[misc]
                     continue
-                waited += LIVENESS_SLICE_S
-                self._check_alive(n, t, due, got, waited)
+                if guard is None:
+                    guard = HangGuard(self.tpdo_timeout_s, self.activity, LIVENESS_SLICE_S)
+                self._check_alive(n, t, due, got, guard)
         except BaseException:
             self._forget_rows(n, got)
             raise
@@ -232,23 +301,28 @@ class LockstepDriver(Driver):
         append_row(self._decoders[cob_id], n, data)
 
     def _check_alive(
-        self, n: int, t: float, due: frozenset[int], got: dict[int, tuple[Value, ...]], waited: float
+        self, n: int, t: float, due: frozenset[int], got: dict[int, tuple[Value, ...]], guard: HangGuard
     ) -> None:
-        """A wait for a due TPDO passed: FirmwareError if the node's process died, LockstepError
-        once the TPDO timeout has passed."""
+        """A quiet slice of a wait for due TPDOs passed: FirmwareError if the node's process
+        died, LockstepError once the hang guard gives up on the firmware, HostStarvedError
+        once it gives up on the host."""
         if self.liveness is not None:
             try:
                 self.liveness()  # raises (e.g. FirmwareError) when the node's process died
             except FirmwareError as error:
                 raise FirmwareError(f"cycle {n} (t = {t:.6g} s): {error}") from error
-        if waited >= self.tpdo_timeout_s:
+        try:
+            why = guard.check(LIVENESS_SLICE_S)
+        except HostStarvedError as error:
+            raise HostStarvedError(f"cycle {n} (t = {t:.6g} s): {error}") from None
+        if why is not None:
             by_cob = self._tpdo_by_cob
             missing = due.difference(got)
             labels = ", ".join(by_cob[c].label for c in sorted(missing, key=lambda c: by_cob[c].number))
             verb = "did" if len(missing) == 1 else "do"
             heartbeat = self.node.last_heartbeat
             hint = f"; last heartbeat: {heartbeat.name}" if heartbeat is not None else ""
-            raise self._error(n, t, f"{labels} {verb} not arrive within {self.tpdo_timeout_s:g} s{hint}")
+            raise self._error(n, t, f"{labels} {verb} not arrive{why}{hint}")
 
     def _forget_rows(self, n: int, got: dict[int, tuple[Value, ...]]) -> None:
         """Take the rows of cycle `n` that `got`'s TPDOs left in the history back out."""
@@ -272,11 +346,13 @@ def cycles_for(seconds: float, period_us: int) -> int:
 
 __all__ = [
     "ACTUATOR_OUTPUT",
+    "HANG_CAP_FACTOR",
     "SETPOINT_STREAM",
     "TRUTH_ALIASES",
     "TRUTH_NAMES",
     "CycleResult",
     "CycleStart",
+    "HangGuard",
     "History",
     "LockstepDriver",
     "cycles_for",

@@ -50,6 +50,11 @@ else:
     DEFAULT_FIRMWARE = Path("build") / "bin" / "joint-firmware"
     REBUILD_HINT = "reinstall hilrig"
 
+if os.environ.get("HIL_FIRMWARE"):
+    # Another build of the firmware for every caller that takes the default (a mutant under
+    # `make mutate`, a release build next to the test build).
+    DEFAULT_FIRMWARE = Path(os.environ["HIL_FIRMWARE"])
+
 EDS_HINT = f"{REBUILD_HINT}, or give --eds FILE"
 DBC_HINT = f"{REBUILD_HINT}, or give --dbc FILE"
 FIRMWARE_HINT = "build it with `make build`" if CHECKOUT is not None else "give --firmware FILE"

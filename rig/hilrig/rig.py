@@ -34,7 +34,14 @@ from canopen.emcy import EmcyError
 
 from boardproto.cia301 import NmtCommand, NmtState, transmission_text
 from hilrig import resources
-from hilrig.driver import BUS_EVENTS_PATH, CycleResult, Driver, resolve_truth_name, sdo_poll_layout
+from hilrig.driver import (
+    BUS_EVENTS_PATH,
+    CycleResult,
+    Driver,
+    ProcessActivity,
+    resolve_truth_name,
+    sdo_poll_layout,
+)
 from hilrig.errors import FieldAccessError, LockstepError, NoValueError, RealTimeError, SdoAbortError
 from hilrig.lockstep import LockstepDriver
 from hilrig.node import BoardNode, EmcyRecord
@@ -71,10 +78,11 @@ class Rig(CycleRunner):
     bus: python-can bus the caller owns and shuts down. node_id: default from board.toml.
     eds: the generated EDS. params/seed: plant parameters and sensor noise seed.
     period_us: control period (the firmware's --period-us). liveness: called while waiting
-    for TPDOs, raises when the node's process died (e.g. `Firmware.check`). Timeouts in
-    seconds of wall clock are hang guards only. tracer: a `hilrig.trace.Tracer` that gets every
-    cycle, NMT change, EMCY and SDO abort (the caller closes it); it is an observer like any
-    other (`add_observer`).
+    for TPDOs, raises when the node's process died (e.g. `Firmware.check`). activity: the
+    node's process activity (e.g. `Firmware.activity`), so that the lockstep hang guard tells a
+    busy host from a stuck firmware. Timeouts in seconds of wall clock are hang guards only.
+    tracer: a `hilrig.trace.Tracer` that gets every cycle, NMT change, EMCY and SDO abort (the
+    caller closes it); it is an observer like any other (`add_observer`).
     mode: "lockstep" or "realtime" (`TimingMode`); in real time `period_us` is the rig's own
     tick, which need not equal the node's period. physics: False only in real time (observe
     and command a real board; `truth()` and `state` then have nothing to show).
@@ -93,6 +101,7 @@ class Rig(CycleRunner):
         period_us: int = 1000,
         table: RigTable | None = None,
         liveness: Callable[[], None] | None = None,
+        activity: Callable[[], ProcessActivity | None] | None = None,
         boot_timeout_s: float = 2.0,
         tpdo_timeout_s: float = 5.0,
         sdo_timeout_s: float = 1.0,
@@ -134,6 +143,7 @@ class Rig(CycleRunner):
                 period_us=period_us,
                 tpdo_timeout_s=tpdo_timeout_s,
                 liveness=liveness,
+                activity=activity,
             )
         self._emcy: list[EmcyRecord] = []
         self._emcy_lock = threading.Lock()
@@ -450,5 +460,3 @@ class Rig(CycleRunner):
         self.driver.poll()  # what arrived since the last cycle
         with self._emcy_lock:
             return list(self._emcy)
-
-

@@ -1,0 +1,95 @@
+"""The lockstep hang guard: when a wait for due TPDOs ends, told from the firmware process's
+activity (a scripted sequence here, one value per quiet slice), and /proc's stat line read."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+import pytest
+
+from hilrig.driver import ProcessActivity, process_activity
+from hilrig.errors import HostStarvedError
+from hilrig.lockstep import HANG_CAP_FACTOR, HangGuard
+
+TIMEOUT_S = 1.0
+SLICE_S = 0.25
+
+
+def scripted(activities: list[ProcessActivity]) -> tuple[HangGuard, Iterator[str | None]]:
+    """A guard over `activities` (the first is read when the guard is made) and its verdicts,
+    one per further slice."""
+    it = iter(activities)
+    guard = HangGuard(TIMEOUT_S, lambda: next(it), SLICE_S)
+    return guard, (guard.check(SLICE_S) for _ in activities[1:])
+
+
+def verdicts(activities: list[ProcessActivity]) -> list[str | None]:
+    _, checks = scripted(activities)
+    return list(checks)
+
+
+def test_without_a_process_view_it_is_wall_time() -> None:
+    guard = HangGuard(TIMEOUT_S, None, SLICE_S)
+    assert [guard.check(SLICE_S) for _ in range(3)] == [None, None, " within 1 s"]
+
+
+def test_a_process_that_is_gone_falls_back_to_wall_time() -> None:
+    guard = HangGuard(TIMEOUT_S, lambda: None, SLICE_S)
+    assert [guard.check(SLICE_S) for _ in range(3)] == [None, None, " within 1 s"]
+
+
+def test_a_firmware_asleep_without_cpu_for_the_timeout_is_a_verdict() -> None:
+    asleep = [ProcessActivity(2.0 + 0.001 * k, sleeping=True) for k in range(6)]
+    got = verdicts(asleep)
+    assert got[:3] == [None, None, None]
+    assert got[3] == ": the firmware sat idle for 1 s with them due (1.25 s waited in all)"
+
+
+def test_idle_must_be_in_a_row() -> None:
+    # Asleep, then working for a slice (the queue it drains), then asleep again: idle restarts.
+    pattern = [True, True, True, False, True, True, True, True]
+    cpu = [1.0, 1.0, 1.0, 1.0, 1.2, 1.2, 1.2, 1.2, 1.2]
+    got = verdicts([ProcessActivity(c, s) for c, s in zip(cpu, [True, *pattern], strict=True)])
+    assert got[:7] == [None] * 7
+    assert got[7] is not None and "sat idle for 1 s" in got[7]
+
+
+def test_a_firmware_that_burns_the_timeout_in_cpu_without_answering_is_a_verdict() -> None:
+    spinning = [ProcessActivity(5.0 + SLICE_S * k, sleeping=False) for k in range(6)]
+    got = verdicts(spinning)
+    assert got[:3] == [None, None, None]
+    assert got[3] is not None and got[3].startswith(
+        ": the firmware used 1 s of CPU in 1.25 s without answering"
+    )
+
+
+def test_a_starved_host_is_waited_for_then_named_not_the_firmware() -> None:
+    # Runnable, with the SYNC to handle, and barely any CPU given: the host's fault. (A node
+    # that gets its CPU answers within milliseconds of it; one that used the timeout in CPU
+    # without answering spins, whatever the host.)
+    slices = HANG_CAP_FACTOR * int(TIMEOUT_S / SLICE_S)
+    starved = [ProcessActivity(0.001 * k, sleeping=False) for k in range(slices + 1)]
+    guard, checks = scripted(starved)
+    with pytest.raises(HostStarvedError, match="the host is starved, not a firmware verdict"):
+        for verdict in checks:
+            assert verdict is None
+    assert guard.waited_s == pytest.approx(HANG_CAP_FACTOR * TIMEOUT_S)
+
+
+def test_a_starved_host_that_recovers_ends_no_wait() -> None:
+    starved = [ProcessActivity(0.001 * k, sleeping=False) for k in range(40)]
+    assert verdicts(starved) == [None] * 39
+
+
+def test_process_activity_of_this_process() -> None:
+    before = process_activity(os.getpid())
+    assert before is not None
+    assert before.sleeping is False  # this thread is running: it is reading the file
+    sum(range(2_000_000))
+    after = process_activity(os.getpid())
+    assert after is not None and after.cpu_s >= before.cpu_s
+
+
+def test_process_activity_of_no_process_is_none() -> None:
+    assert process_activity(2**22 + 1) is None  # above the kernel's pid_max limit
