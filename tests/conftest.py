@@ -51,15 +51,34 @@ DURATIONS = REPO / "tests" / ".test_durations"
 """Each scenario's recorded duration (`make durations`), for pytest-split and the order below."""
 
 
+HANG_GUARD_S = 600.0
+"""pytest-timeout's bound on a scenario (pytest.ini): a hang guard that dumps every thread's
+stack, never a timing check."""
+HANG_GUARD_FACTOR = 10
+"""A scenario whose recorded duration is long gets this many times it instead: the 8-module gait
+(about 3 minutes in the VM) ran past 600 s with one busy loop beside the VM, a busy host read as
+a hang. Ten times what it takes on a quiet machine is still a bound a real hang reaches."""
+KEEP_ORDER = "HIL_SCENARIO_ORDER"
+"""Set to "given": run the scenarios in the order of the command line (`make mutate` puts the
+scenarios that killed most mutants first), not longest first."""
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """The longest scenarios first: pytest-xdist hands tests out in collection order, and the
     8-module gait (over 3 minutes in the VM) started last would run alone at the end while the
-    other worker idles. A scenario without a recorded duration counts as an average one."""
+    other worker idles. A scenario without a recorded duration counts as an average one. Each
+    long scenario's hang guard grows with its duration (HANG_GUARD_FACTOR)."""
     try:
         durations: dict[str, float] = json.loads(DURATIONS.read_text())
     except (OSError, ValueError):
         return  # no order to go by: collection order
+    for item in items:
+        guard_s = HANG_GUARD_FACTOR * durations.get(item.nodeid, 0.0)
+        if guard_s > HANG_GUARD_S and item.get_closest_marker("timeout") is None:
+            item.add_marker(pytest.mark.timeout(round(guard_s)))
+    if os.environ.get(KEEP_ORDER) == "given":
+        return
     average = sum(durations.values()) / len(durations) if durations else 0.0
     items.sort(key=lambda item: -durations.get(item.nodeid, average))  # stable: ties keep their order
 
