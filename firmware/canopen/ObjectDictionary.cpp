@@ -147,7 +147,7 @@ std::uint32_t Node::read_communication(std::uint16_t index, std::uint8_t sub) co
     case 0x1005: return sync_cob_id_;
     case 0x1010:
     case 0x1011: return sub == 0 ? kStoreHighestSub : kSavesOnCommand;
-    case 0x1014: return 0x80u + node_id_;
+    case 0x1014: return cia301::cob_id(cia301::FunctionCode::SyncEmcy, node_id_);
     case HeartbeatConsumer::kIndex:
       return sub == 0 ? HeartbeatConsumer::kEntries : heartbeat_consumer_.entry(sub);
     case 0x1017: return heartbeat_ms_;
