@@ -22,8 +22,8 @@ from canopen.pdo import PdoVariable
 from canopen.sdo import SdoAbortedError
 
 from boardproto import Field
-from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState, heartbeat_cob_id
-from hilrig.node import RECEIVE_POLL_S, SdoAbortCode
+from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState, SdoAbortCode, heartbeat_cob_id
+from hilrig.node import RECEIVE_POLL_S
 from hilrig.table import LedPattern, RigTable
 
 Value = float | int

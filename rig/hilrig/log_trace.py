@@ -17,12 +17,16 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from boardproto.cia301 import (
+    EMCY_ERROR_RESET,
+    HEARTBEAT_STATE_MASK,
     SYNC_COB_ID,
+    EmcyLayout,
     NmtState,
     SdoCommand,
     emcy_cob_id,
     heartbeat_cob_id,
     sdo_response_cob_id,
+    split_emcy,
 )
 from hilrig.node import EmcyRecord, explain_abort
 from hilrig.table import RigTable
@@ -92,10 +96,10 @@ def trace_log(
             cycle, cycle_t = cycle + 1, t
             open_sent, sent, received = sent, {}, {}
             continue
-        if cob_id == emcy_id and len(data) == 8:
-            code, register = struct.unpack_from("<HB", data)
-            record = EmcyRecord(code, register, data[3:], at_cycle, t - first_t)
-            level = Severity.INFO if code == 0 else Severity.ERROR
+        if cob_id == emcy_id and len(data) == EmcyLayout.FRAME_BYTES:
+            emcy = split_emcy(data)
+            record = EmcyRecord(emcy.code, emcy.register, emcy.manufacturer, at_cycle, t - first_t)
+            level = Severity.INFO if emcy.code == EMCY_ERROR_RESET else Severity.ERROR
             tracer.log_text(EMCY_PATH, f"{record} (s into the log)", level, t=t, cycle=at_cycle)
             stats.events += 1
             continue
@@ -108,7 +112,7 @@ def trace_log(
             continue
         if cob_id == heartbeat_id and len(data) == 1:
             try:
-                state = NmtState(data[0] & 0x7F)
+                state = NmtState(data[0] & HEARTBEAT_STATE_MASK)
             except ValueError:
                 continue
             if state is not heartbeat_state:

@@ -12,7 +12,6 @@ the node over SDO), never by hand::
 
 from __future__ import annotations
 
-import enum
 import struct
 import threading
 import time
@@ -32,9 +31,11 @@ from boardproto.cia301 import (
     SYNC_COUNTER_MAX,
     NmtCommand,
     NmtState,
+    SdoAbortCode,
     SdoCommand,
     heartbeat_cob_id,
     sdo_response_cob_id,
+    split_emcy,
 )
 from hilrig.errors import NodeSilentError, SdoAbortError, SdoTimeoutError
 from hilrig.table import ObjectEntry, RigTable
@@ -133,71 +134,10 @@ def answer_filters(node_id: int, bus: can.BusABC, *also: int) -> list[can.typech
     return [can.typechecking.CanFilter(can_id=c, can_mask=STANDARD_ID_MASK, extended=False) for c in wanted]
 
 
-class SdoAbortCode(enum.IntEnum):
-    """SDO abort codes the board may send; the values ARE the CiA 301 codes on the wire."""
-
-    TOGGLE_BIT_NOT_ALTERNATED = 0x0503_0000
-    PROTOCOL_TIMED_OUT = 0x0504_0000
-    COMMAND_SPECIFIER_INVALID = 0x0504_0001
-    INVALID_BLOCK_SIZE = 0x0504_0002
-    INVALID_SEQUENCE_NUMBER = 0x0504_0003
-    CRC_ERROR = 0x0504_0004
-    OUT_OF_MEMORY = 0x0504_0005
-    UNSUPPORTED_ACCESS = 0x0601_0000
-    WRITE_ONLY = 0x0601_0001
-    READ_ONLY = 0x0601_0002
-    OBJECT_DOES_NOT_EXIST = 0x0602_0000
-    OBJECT_CANNOT_BE_MAPPED = 0x0604_0041
-    PDO_LENGTH_EXCEEDED = 0x0604_0042
-    PARAMETER_INCOMPATIBLE = 0x0604_0043
-    LENGTH_MISMATCH = 0x0607_0010
-    LENGTH_TOO_HIGH = 0x0607_0012
-    LENGTH_TOO_LOW = 0x0607_0013
-    SUB_INDEX_DOES_NOT_EXIST = 0x0609_0011
-    VALUE_RANGE_EXCEEDED = 0x0609_0030
-    VALUE_TOO_HIGH = 0x0609_0031
-    VALUE_TOO_LOW = 0x0609_0032
-    RESOURCE_NOT_AVAILABLE = 0x060A_0023
-    GENERAL_ERROR = 0x0800_0000
-    DATA_CANNOT_BE_STORED = 0x0800_0020
-    LOCAL_CONTROL = 0x0800_0021
-    DEVICE_STATE = 0x0800_0022
-
-
-_ABORT_WORDS: dict[SdoAbortCode, str] = {
-    SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED: "toggle bit not alternated",
-    SdoAbortCode.PROTOCOL_TIMED_OUT: "SDO protocol timed out",
-    SdoAbortCode.COMMAND_SPECIFIER_INVALID: "command not valid (undefined, or out of turn in the transfer)",
-    SdoAbortCode.INVALID_BLOCK_SIZE: "block transfer: block size 0 or above 127",
-    SdoAbortCode.INVALID_SEQUENCE_NUMBER: "block transfer: invalid sequence number",
-    SdoAbortCode.CRC_ERROR: "block transfer: CRC does not match the data",
-    SdoAbortCode.OUT_OF_MEMORY: "value larger than the node can buffer",
-    SdoAbortCode.UNSUPPORTED_ACCESS: "unsupported access",
-    SdoAbortCode.WRITE_ONLY: "object is write-only",
-    SdoAbortCode.READ_ONLY: "object is read-only over the bus",
-    SdoAbortCode.OBJECT_DOES_NOT_EXIST: "no such object in the node's dictionary",
-    SdoAbortCode.OBJECT_CANNOT_BE_MAPPED: "object cannot be mapped to a PDO",
-    SdoAbortCode.PDO_LENGTH_EXCEEDED: "mapping exceeds the 64 bits of a PDO",
-    SdoAbortCode.PARAMETER_INCOMPATIBLE: "settings that do not fit together (a recorder without channels...)",
-    SdoAbortCode.LENGTH_MISMATCH: "data length does not match the object's type",
-    SdoAbortCode.LENGTH_TOO_HIGH: "data longer than the object's type",
-    SdoAbortCode.LENGTH_TOO_LOW: "data shorter than the object's type",
-    SdoAbortCode.SUB_INDEX_DOES_NOT_EXIST: "no such sub-index",
-    SdoAbortCode.VALUE_RANGE_EXCEEDED: "value out of range",
-    SdoAbortCode.VALUE_TOO_HIGH: "value too high",
-    SdoAbortCode.VALUE_TOO_LOW: "value too low",
-    SdoAbortCode.RESOURCE_NOT_AVAILABLE: "resource not available",
-    SdoAbortCode.GENERAL_ERROR: "general error",
-    SdoAbortCode.DATA_CANNOT_BE_STORED: "refused by the application (or storage failed)",
-    SdoAbortCode.LOCAL_CONTROL: "refused: under local control",
-    SdoAbortCode.DEVICE_STATE: "not possible in the node's present state (e.g. PDO change while operational)",
-}
-
-
 def explain_abort(code: int, entry: ObjectEntry | None = None) -> str:
     """'0x06090031 value too high (max 10.0)': the code, its meaning and the table's limit."""
     try:
-        words = _ABORT_WORDS[SdoAbortCode(code)]
+        words = SdoAbortCode(code).text
     except ValueError:
         words = "unknown abort code"
     text = f"0x{code:08X} {words}"
@@ -378,8 +318,8 @@ class BoardNode:
 
     def emcy_received(self, data: bytes) -> None:
         """An EMCY frame that arrived on the frame link: decoded and handed to the callbacks."""
-        code, register = int.from_bytes(data[:2], "little"), data[2] if len(data) > 2 else 0
-        error = EmcyError(code, register, bytes(data[3:8]), time.time())
+        parts = split_emcy(data)
+        error = EmcyError(parts.code, parts.register, parts.manufacturer, time.time())
         for callback in self._emcy_callbacks:
             callback(error)
 

@@ -38,7 +38,8 @@ from boardproto.cia301 import (
     HEARTBEAT_CONSUMER_INDEX,
     MASTER_HEARTBEAT_MS,
     MASTER_NODE_ID,
-    NODE_ID_MASK,
+    MAX_NODE_ID_WITH_PDO_5_TO_8,
+    MIN_NODE_ID,
     NmtState,
     heartbeat_cob_id,
     heartbeat_consumer_entry,
@@ -93,8 +94,7 @@ class LostModule:
 
     def __str__(self) -> str:
         return (
-            f"module node 0x{self.node_id:02X} lost at cycle {self.cycle} (t = {self.t:.6g} s): "
-            f"{self.reason}"
+            f"module node 0x{self.node_id:02X} lost at cycle {self.cycle} (t = {self.t:.6g} s): {self.reason}"
         )
 
 
@@ -188,10 +188,10 @@ def module_ids(modules: int | Sequence[int]) -> tuple[int, ...]:
         raise ValueError("a robot needs at least one module")
     seen: set[int] = set()
     for node_id in ids:
-        if not 1 <= node_id < (NODE_ID_MASK + 1) // 2:
+        if not MIN_NODE_ID <= node_id <= MAX_NODE_ID_WITH_PDO_5_TO_8:
             raise ValueError(
-                f"module node id {node_id}: expected 1..63 (PDO 5..8 of node N use the identifiers "
-                "of node N + 64)"
+                f"module node id {node_id}: expected {MIN_NODE_ID}..{MAX_NODE_ID_WITH_PDO_5_TO_8} "
+                "(PDO 5..8 of node N use the identifiers of node N + 64)"
             )
         if node_id in seen:
             raise ValueError(

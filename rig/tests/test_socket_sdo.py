@@ -19,14 +19,14 @@ import canopen
 import pytest
 from canopen.sdo import SdoAbortedError, SdoClient, SdoCommunicationError
 
-from boardproto.cia301 import sdo_request_cob_id, sdo_response_cob_id
+from boardproto.cia301 import SdoAbortCode, sdo_request_cob_id, sdo_response_cob_id
 from hilrig.fake_node import FakeJointNode
 from hilrig.node import BoardNode, SocketSdoClient, _BoardRemoteNode
 from hilrig.rig import DEFAULT_EDS_PATH
 from hilrig.table import RigTable
 from hilrig.transport import CAN_HEADER, RawCanLink, can_frame
 
-OBJECT_DOES_NOT_EXIST = 0x0602_0000
+OBJECT_DOES_NOT_EXIST = SdoAbortCode.OBJECT_DOES_NOT_EXIST
 
 
 class Bridge:

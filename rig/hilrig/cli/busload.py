@@ -6,7 +6,7 @@ import argparse
 import math
 import sys
 
-from boardproto.cia301 import heartbeat_cob_id
+from boardproto.cia301 import MAX_NODE_ID_WITH_PDO_5_TO_8, heartbeat_cob_id
 from hilrig.busload import (
     DEFAULT_MASTER_HEARTBEAT_MS,
     DEFAULT_MASTER_NODE_ID,
@@ -35,7 +35,7 @@ def _rate(text: str) -> float:
 
 # PDO 5..8 of node N take the COB-IDs of PDO 1..4 of node N + 64 (board.toml's default layout):
 # node ids 1..63 keep every module's identifiers apart.
-MAX_MODULES = 63
+MAX_MODULES = MAX_NODE_ID_WITH_PDO_5_TO_8
 MAX_HEARTBEAT_MS = 0xFFFF  # CiA 301 heartbeat times are UNSIGNED16 milliseconds
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self, TextIO
 
+from boardproto.cia301 import MAX_NODE_ID, MIN_NODE_ID, is_node_id
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
 from hilrig.errors import BusUnavailableError, FieldNameError, RigError, one_line
@@ -36,7 +37,6 @@ if TYPE_CHECKING:
 DEFAULT_INTERFACE = "socketcan"
 DEFAULT_CHANNEL = "vcan0"
 """The bus when python-can's configuration names none: the rig's own virtual bus."""
-MAX_NODE_ID = 127
 
 # The package an interface needs beyond python-can, and python-can's extra that pulls it in.
 # python-can raises "... not installed" for these; the line then says what to install.
@@ -78,11 +78,11 @@ def node_id(text: str) -> int:
         value = int(text, 0)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected a node id 1..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text!r}"
+            f"expected a node id {MIN_NODE_ID}..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text!r}"
         ) from None
-    if not 1 <= value <= MAX_NODE_ID:
+    if not is_node_id(value):
         raise argparse.ArgumentTypeError(
-            f"expected a node id 1..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text}"
+            f"expected a node id {MIN_NODE_ID}..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text}"
         )
     return value
 

@@ -361,7 +361,14 @@ def _trace(args: argparse.Namespace) -> int:
 
 def describe_frame(cob_id: int, data: bytes, node: int) -> str:
     """CiA 301 services that are not in the DBC, in words."""
-    from boardproto.cia301 import NMT_COB_ID, SYNC_COB_ID, FunctionCode, function_of
+    from boardproto.cia301 import (
+        HEARTBEAT_STATE_MASK,
+        NMT_COB_ID,
+        SYNC_COB_ID,
+        FunctionCode,
+        function_of,
+        split_emcy,
+    )
     from hilrig.cli.scan import state_name
 
     function, sender = function_of(cob_id)
@@ -370,9 +377,9 @@ def describe_frame(cob_id: int, data: bytes, node: int) -> str:
     if cob_id == SYNC_COB_ID:
         return f"SYNC {data[0]}" if data else "SYNC"
     if function == FunctionCode.SYNC_EMCY:
-        return f"EMCY node 0x{sender:02X} code 0x{int.from_bytes(data[:2], 'little'):04X}"
+        return f"EMCY node 0x{sender:02X} code 0x{split_emcy(data).code:04X}"
     if function == FunctionCode.HEARTBEAT and len(data) == 1:
-        return f"heartbeat node 0x{sender:02X} {state_name(data[0] & 0x7F)}"
+        return f"heartbeat node 0x{sender:02X} {state_name(data[0] & HEARTBEAT_STATE_MASK)}"
     if function == FunctionCode.SDO_RESPONSE:
         return f"SDO answer from node 0x{sender:02X}"
     if function == FunctionCode.SDO_REQUEST:
