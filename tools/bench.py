@@ -9,10 +9,10 @@ What is measured, and against what:
 
 * Lockstep speed, all on the same engine and firmware build, each measurement with a fresh
   firmware process, rounds alternating, best of each: (a) the full `Rig` (physics, history,
-  checks) in a HIL session (`hilrig.session`), untraced; (b) the same with a Rerun trace to a
+  checks) in a HIL session (`hilrig.session.builder`), untraced; (b) the same with a Rerun trace to a
   file, run beside (a) in pairs, four a round, each kind first in half (`rig_pair_orders`); (c)
   the floor: the same RPDO frames + SYNC out and the same number of TPDO frames back over one
-  raw socket with kernel filters (`hilrig.transport`), a Python call per frame, no physics, no
+  raw socket with kernel filters (`hilrig.wire.transport`), a Python call per frame, no physics, no
   checks, no trace; (d) the engine's exchange alone: the same frames through the call the Rig
   makes each cycle (`transport.exchange`, in C on the raw socket), decoded, no physics, no
   history; (e) for comparison, that exchange through python-can's Bus. Goals: (a)/(c) >= 0.5
@@ -39,8 +39,8 @@ What is measured, and against what:
   `Rig` against the firmware, the session as in (b); its trace.rrd stays in <out>/long-trace/.
   Reported: the .rrd's size (and bytes per cycle), and, on the host, the time from asking
   headless Chromium (software WebGL) for the served web viewer to the first screenshot of the
-  whole recording with the overview's plots drawn (`hilrig.browser.time_to_first_frame`).
-* Bus load: `hilrig.busload` for the default PDO mapping at 1 kHz.
+  whole recording with the overview's plots drawn (`hilrig.observe.browser.time_to_first_frame`).
+* Bus load: `hilrig.apps.busload` for the default PDO mapping at 1 kHz.
 * Free-running timing: the firmware in `--mode free`, no SYNC on the bus. Over SDO the rig
   turns the TPDO carrying velocity_controller_output into an event-driven one (type 255,
   inhibit 0, no event timer) and makes that value change every cycle (velocity control with
@@ -415,9 +415,9 @@ def traced_run(config: Any, cycles: int, table: Any) -> dict[str, Any]:
     driven (`drive`) with the setpoint flipping sign every LONG_TRACE_STEP_S. Returns the
     trace's path, size and last logged cycle, and the run's wall-clock seconds (the trace's
     close() included)."""
-    from hilrig.session import open_session
-    from hilrig.trace import CYCLE_TIMELINE
-    from hilrig.trace_reader import timeline_end
+    from hilrig.observe.paths import CYCLE_TIMELINE
+    from hilrig.observe.reader import timeline_end
+    from hilrig.session.builder import open_session
 
     session = open_session(config, table=table)
     try:
@@ -465,7 +465,7 @@ class BusBench:
 
     @contextlib.contextmanager
     def firmware(self, what: str, mode: str = "lockstep") -> Iterator[Any]:
-        from hilrig.firmware import Firmware
+        from hilrig.session.firmware import Firmware
 
         self._runs += 1
         fw = Firmware(
@@ -482,9 +482,9 @@ class BusBench:
 
     # --- lockstep: the rig (untraced, traced) and the floors -----------------------------------
     def _session(self, what: str, *, traced: bool) -> Any:
-        """A HIL session of the firmware in lockstep on the bench's bus (`hilrig.session`), no
+        """A HIL session of the firmware in lockstep on the bench's bus (`hilrig.session.builder`), no
         bus log; a trace.rrd when `traced`."""
-        from hilrig.session import open_session
+        from hilrig.session.builder import open_session
 
         self._runs += 1
         config = self._config(self.logs / f"{self._runs:02d}-{what}", traced=traced)
@@ -492,7 +492,7 @@ class BusBench:
 
     def _config(self, out_dir: Path, *, traced: bool) -> Any:
         """The `SessionConfig` of the firmware in lockstep on the bench's bus, no bus log."""
-        from hilrig.session import SessionConfig
+        from hilrig.session.builder import SessionConfig
 
         return SessionConfig(
             out_dir=out_dir,
@@ -506,7 +506,7 @@ class BusBench:
 
     def rig_rate(self, cycles: int, warmup: int, budget_s: float, *, traced: bool) -> tuple[float, int]:
         """(cycles per second, cycles measured) of the full `Rig` (physics, history, checks) in a
-        HIL session (`hilrig.session`, no bus log), with or without a Rerun trace (written to a
+        HIL session (`hilrig.session.builder`, no bus log), with or without a Rerun trace (written to a
         file; its close(), which sends what is pending, is inside the measurement)."""
         session = self._session("rig-traced" if traced else "rig", traced=traced)
         try:
@@ -538,8 +538,8 @@ class BusBench:
         """(cycles per second, cycles measured) of a robot of `modules` modules on this bus (the
         same engine: one SYNC, every module's PDOs, the MuJoCo chain) following the gait,
         untraced, no bus log; start-up outside the measurement."""
-        from hilrig.robot import TravellingWave
-        from hilrig.session import SessionConfig, open_session
+        from hilrig.engine.robot import TravellingWave
+        from hilrig.session.builder import SessionConfig, open_session
 
         self._runs += 1
         config = SessionConfig(
@@ -574,7 +574,7 @@ class BusBench:
         recorder's whole buffer, a DOMAIN) by SDO block transfer and by segmented transfer,
         alternating, from the firmware in lockstep; bytes per second of each, best of `rounds`."""
         from boardproto.table import RecorderObject
-        from hilrig.capture import CaptureSettings, RecorderClient
+        from hilrig.apps.capture import CaptureSettings, RecorderClient
 
         session = self._session("recorder", traced=False)
         try:
@@ -609,11 +609,11 @@ class BusBench:
 
     def _floor_layout(self) -> tuple[list[Any], list[Any]]:
         """The RPDOs the rig sends every cycle (sensors, setpoint stream) and the enabled cyclic
-        TPDOs, compiled from the EDS exactly as the rig compiles them (`hilrig.transport`)."""
+        TPDOs, compiled from the EDS exactly as the rig compiles them (`hilrig.wire.transport`)."""
         import canopen
 
-        from hilrig.driver import SETPOINT_STREAM
-        from hilrig.transport import PdoDirection, compile_pdos
+        from hilrig.engine.driver import SETPOINT_STREAM
+        from hilrig.wire.transport import PdoDirection, compile_pdos
 
         network = canopen.Network()  # never connected: the PDO maps only need a home
         node = canopen.RemoteNode(FIRMWARE_NODE_ID, str(self.eds))
@@ -643,7 +643,7 @@ class BusBench:
 
     def floor_rate(self, cycles: int, warmup: int, budget_s: float) -> tuple[float, int]:
         """The floor: the same RPDO frames + SYNC out and the same TPDO frames back, over one raw
-        socket with kernel filters (`hilrig.transport`), a Python call per frame, no physics,
+        socket with kernel filters (`hilrig.wire.transport`), a Python call per frame, no physics,
         no checks, no trace."""
         return self._raw_floor_rate("floor", cycles, warmup, budget_s, engine=False)
 
@@ -664,7 +664,7 @@ class BusBench:
             heartbeat_cob_id,
             sync_counter,
         )
-        from hilrig.transport import RawCanLink, can_frame, exchange, open_raw_socket
+        from hilrig.wire.transport import RawCanLink, can_frame, exchange, open_raw_socket
 
         rpdos, tpdos = self._floor_layout()
         out_frames = [p.frame([0] * len(p.names)) for p in rpdos]
@@ -870,8 +870,8 @@ class BusBench:
     # --- free-running timing -------------------------------------------------------------------
     def free_running(self, cycles: int) -> dict[str, Any]:
         from boardproto.cia301 import STANDARD_ID_MASK, NmtCommand
-        from hilrig.node import BoardNode
         from hilrig.table import ControlMode
+        from hilrig.wire.node import BoardNode
 
         carrier = next(
             p for p in self.proto.tpdos if "velocity_controller_output" in [e.name for e in p.entries]
@@ -1042,8 +1042,8 @@ def _free_running_run(bench: BusBench, args: argparse.Namespace) -> dict[str, An
 
 
 def bus_main(args: argparse.Namespace) -> int:
-    from hilrig.busload import STANDARD_BITRATES, bus_load, lockstep_traffic
-    from hilrig.netns import PrivateBus, private_buses_supported
+    from hilrig.apps.busload import STANDARD_BITRATES, bus_load, lockstep_traffic
+    from hilrig.session.netns import PrivateBus, private_buses_supported
 
     out: Path = args.out
     if not private_buses_supported():
@@ -1216,7 +1216,7 @@ def measure_first_frame(out: Path, long_trace: dict[str, Any] | None) -> dict[st
     trace = out / long_trace["trace"]
     if not trace.is_file():
         return {"error": f"no trace at {trace}"}
-    from hilrig.browser import ViewerCheckError, browser_missing, time_to_first_frame
+    from hilrig.observe.browser import ViewerCheckError, browser_missing, time_to_first_frame
 
     missing = browser_missing()
     if missing is not None:

@@ -6,9 +6,9 @@ import pytest
 
 from boardproto.cia301 import FunctionCode, NmtCommand, NmtState, SdoAbortCode, cob_id
 from hilrig.errors import FieldNameError
-from hilrig.node import explain_abort
 from hilrig.table import RigTable
-from hilrig.transport import PdoDirection, PdoLayout
+from hilrig.wire.node import explain_abort
+from hilrig.wire.transport import PdoDirection, PdoLayout
 
 TPDO2_ID = cob_id(FunctionCode.TPDO2, 0x10)  # of node 0x10
 
@@ -98,7 +98,7 @@ def test_a_node_narrowed_to_answers_hears_its_sdo_answers_and_heartbeats_only(ta
     import can
 
     from boardproto.cia301 import heartbeat_cob_id, sdo_response_cob_id
-    from hilrig.node import BoardNode
+    from hilrig.wire.node import BoardNode
 
     node_id = 0x10
     ours = can.Bus(interface="virtual", channel="narrowed", receive_own_messages=False)

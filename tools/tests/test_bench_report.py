@@ -182,9 +182,9 @@ def test_the_report_without_a_long_run_still_comes_whole(tmp_path: Path) -> None
 def test_the_report_without_chromium_gives_the_size_and_says_what_to_install(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import hilrig.browser
+    import hilrig.observe.browser
 
-    monkeypatch.setattr(hilrig.browser, "CHROMIUM", tmp_path / "no-chromium")
+    monkeypatch.setattr(hilrig.observe.browser, "CHROMIUM", tmp_path / "no-chromium")
     (tmp_path / "long-trace").mkdir()
     (tmp_path / "long-trace" / "trace.rrd").write_bytes(bytes(100))  # never opened: no browser
     size, frame = _report(tmp_path, _bus_json(long_trace=LONG_TRACE))
@@ -198,8 +198,8 @@ def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
     the in-process fake node answering each SYNC; the trace in out/long-trace/."""
     import can
 
-    from hilrig.fake_node import FakeJointNode
-    from hilrig.session import BoardInterface, SessionConfig
+    from hilrig.session.builder import BoardInterface, SessionConfig
+    from hilrig.session.fake_node import FakeJointNode
     from hilrig.table import RigTable
 
     table = RigTable.load()
@@ -223,7 +223,7 @@ def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
 
 
 def test_the_long_run_writes_a_whole_trace_against_the_fake_node(tmp_path: Path) -> None:
-    from hilrig.trace_reader import Trace
+    from hilrig.observe.reader import Trace
 
     cycles = 2 * round(bench.LONG_TRACE_STEP_S * 1000) + 100  # two setpoint flips
     run = _fake_node_run(tmp_path, cycles)
@@ -242,7 +242,7 @@ def test_the_report_step_measures_the_first_frame_of_the_long_runs_trace(tmp_pat
     on a short run: a time, and the screenshot it stopped at has the overview's plots drawn."""
     from PIL import Image
 
-    from hilrig.browser import PLOTTED_PIXELS, browser_missing, plotted_pixels
+    from hilrig.observe.browser import PLOTTED_PIXELS, browser_missing, plotted_pixels
 
     if browser_missing() is not None:
         pytest.skip(str(browser_missing()))

@@ -31,8 +31,8 @@ if TYPE_CHECKING:
     import canopen
     import cantools.database
 
-    from hilrig.node import BoardNode
-    from hilrig.trace import TraceSink
+    from hilrig.observe.sinks import TraceSink
+    from hilrig.wire.node import BoardNode
 
 DEFAULT_INTERFACE = "socketcan"
 DEFAULT_CHANNEL = "vcan0"
@@ -208,7 +208,7 @@ def can_filter(text: str) -> CanFilter:
 # --- Option groups ---------------------------------------------------------------------
 def live_sink(text: str) -> TraceSink:
     """A `--viewer` value: spawn[:PORT] | web[:PORT[:GRPC_PORT]] | connect[:URL]."""
-    from hilrig.trace import parse_live_sink
+    from hilrig.observe.sinks import parse_live_sink
 
     try:
         return parse_live_sink(text)
@@ -468,7 +468,7 @@ def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[can.BusABC]
         raise BusUnavailableError(
             f"cannot open {describe_bus(args)}: {one_line(error)}{_bus_hint(args, error)}"
         ) from error
-    from hilrig.netns import deepen_receive_queue
+    from hilrig.session.netns import deepen_receive_queue
 
     deepen_receive_queue(bus)  # a recorder or watcher descheduled for a moment loses nothing
     try:
@@ -564,7 +564,7 @@ def load_dbc(path: Path) -> cantools.database.can.Database:
 
 @contextlib.contextmanager
 def board_node(args: argparse.Namespace, bus: can.BusABC, table: RigTable) -> Iterator[BoardNode]:
-    from hilrig.node import BoardNode
+    from hilrig.wire.node import BoardNode
 
     node_id = resolved_node_id(args, table)
     od = load_eds(eds_path(args), node_id)
