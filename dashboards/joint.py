@@ -1,11 +1,12 @@
 """Rerun blueprints for the demo joint, built from the entity paths the tracer logs.
 
     python -m dashboards overview out/scenarios/<test>/trace.rrd       # open a trace with a view
-    blueprint("tuning")                                                # rerun.blueprint.Blueprint
+    blueprint("tuning", RigTable.load())                               # rerun.blueprint.Blueprint
 
-Every path comes from `hilrig.trace` and every field name is checked against board.toml when
-a blueprint is built, so a renamed field fails here with close matches instead of showing an
-empty plot.
+Every path comes from `hilrig.observe.paths`, the one module of hilrig the dashboards import (so
+the rig can load them without their pulling the rig back in); the table is given, and every field
+name is checked against it when a blueprint is built, so a renamed field fails here with close
+matches instead of showing an empty plot.
 """
 
 from __future__ import annotations
@@ -14,10 +15,8 @@ from collections.abc import Callable
 
 import rerun.blueprint as rrb
 
-from dashboards.check import ORIGIN_SUBTREE
 from dashboards.robot import robot
-from hilrig.table import RigTable, unknown_name
-from hilrig.trace import (
+from hilrig.observe.paths import (
     BUS_EVENTS_PATH,
     BUS_FRAMES_ROOT,
     BUS_RPDOS_PER_CYCLE,
@@ -29,15 +28,19 @@ from hilrig.trace import (
     SDO_PATH,
     SIM_TIME_TIMELINE,
     TRUE_SPRING_STIFFNESS,
+    EntryTable,
     entity_paths,
     truth_path,
 )
+
+ORIGIN_SUBTREE = "$origin/**"
+"""A view's contents when it names no series: everything under its origin."""
 
 
 class _Paths:
     """Field name -> entity path, checked against the table."""
 
-    def __init__(self, table: RigTable) -> None:
+    def __init__(self, table: EntryTable) -> None:
         self._table = table
         self._paths = entity_paths(table)
 
@@ -67,7 +70,7 @@ def _blueprint(*parts: rrb.Container | rrb.View, timeline: str = SIM_TIME_TIMELI
     return rrb.Blueprint(*parts, rrb.TimePanel(timeline=timeline), collapse_panels=False)
 
 
-def overview(table: RigTable) -> rrb.Blueprint:
+def overview(table: EntryTable) -> rrb.Blueprint:
     """Is the joint doing what it is told? Per controlled quantity the setpoint, the firmware's
     belief and the truth on one plot (one unit per plot); the motor command it turned into; the
     mode and the fault state; the event log."""
@@ -91,7 +94,7 @@ def overview(table: RigTable) -> rrb.Blueprint:
     ))
 
 
-def tuning(table: RigTable) -> rrb.Blueprint:
+def tuning(table: EntryTable) -> rrb.Blueprint:
     """Controller tuning: per loop, setpoint vs measurement vs truth, and the controller's
     effort (one unit per plot)."""
     p = _Paths(table)
@@ -120,7 +123,7 @@ def tuning(table: RigTable) -> rrb.Blueprint:
     ))
 
 
-def thermal(table: RigTable) -> rrb.Blueprint:
+def thermal(table: EntryTable) -> rrb.Blueprint:
     """Winding temperature (measured vs true), derating, resistance and current."""
     p = _Paths(table)
     return _blueprint(rrb.Vertical(
@@ -140,7 +143,7 @@ def thermal(table: RigTable) -> rrb.Blueprint:
     ))
 
 
-def faults(table: RigTable) -> rrb.Blueprint:
+def faults(table: EntryTable) -> rrb.Blueprint:
     """Fault flags, safe state, watchdog and LED next to the NMT/EMCY/SDO event log."""
     p = _Paths(table)
     return _blueprint(rrb.Horizontal(
@@ -154,7 +157,7 @@ def faults(table: RigTable) -> rrb.Blueprint:
     ), timeline=CYCLE_TIMELINE)
 
 
-def bus(table: RigTable) -> rrb.Blueprint:
+def bus(table: EntryTable) -> rrb.Blueprint:
     """What went over the bus each cycle: frames per PDO (COB-ID) and per direction, which PDOs
     the node uses and any TPDO late, missing or malformed, SDO aborts, EMCY and NMT."""
     return _blueprint(rrb.Vertical(
@@ -173,7 +176,7 @@ def bus(table: RigTable) -> rrb.Blueprint:
     ), timeline=CYCLE_TIMELINE)
 
 
-def named_fields(table: RigTable) -> list[str]:
+def named_fields(table: EntryTable) -> list[str]:
     """Every board field some dashboard plots by name, in first-named order: what a trace must
     hold for no plot to miss a series (`hilrig sim` polls the ones no PDO carries)."""
     field_of = {path: name for name, path in entity_paths(table).items()}
@@ -194,7 +197,7 @@ def named_fields(table: RigTable) -> list[str]:
     return list(names)
 
 
-BLUEPRINTS: dict[str, Callable[[RigTable], rrb.Blueprint]] = {
+BLUEPRINTS: dict[str, Callable[[EntryTable], rrb.Blueprint]] = {
     "overview": overview,
     "tuning": tuning,
     "thermal": thermal,
@@ -205,10 +208,11 @@ BLUEPRINTS: dict[str, Callable[[RigTable], rrb.Blueprint]] = {
 """Blueprint builders by name; `blueprint(name)` is the way to get one."""
 
 
-def blueprint(name: str, table: RigTable | None = None) -> rrb.Blueprint:
-    """The blueprint called `name` (FieldNameError listing close matches for a typo)."""
+def blueprint(name: str, table: EntryTable) -> rrb.Blueprint:
+    """The blueprint called `name` for `table` (a `hilrig.table.RigTable`); KeyError listing the
+    names for another (`hilrig.observe.blueprints.load_blueprint` lists the close matches)."""
     try:
         build = BLUEPRINTS[name]
     except KeyError:
-        raise unknown_name("dashboard", name, BLUEPRINTS) from None
-    return build(table if table is not None else RigTable.load())
+        raise KeyError(f"no dashboard named {name!r}: one of {', '.join(BLUEPRINTS)}") from None
+    return build(table)

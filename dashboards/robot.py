@@ -4,7 +4,7 @@ every joint's commanded vs actual angle on one timeline, duties, torques and eve
     blueprint("robot")                    # modules 1..8
     robot(table, node_ids=(1, 2, 3))      # the modules of a given robot (`hilrig sim --modules`)
 
-Paths come from `hilrig.trace` (each module's fields under /modules/<id>), names are checked
+Paths come from `hilrig.observe.paths` (each module's fields under /modules/<id>), names are checked
 against board.toml like every other dashboard.
 """
 
@@ -14,14 +14,21 @@ from collections.abc import Sequence
 
 import rerun.blueprint as rrb
 
-from hilrig.table import RigTable
-from hilrig.trace import EVENTS_ROOT, ROBOT_ROOT, SIM_TIME_TIMELINE, entity_paths, module_root, truth_path
+from hilrig.observe.paths import (
+    EVENTS_ROOT,
+    ROBOT_ROOT,
+    SIM_TIME_TIMELINE,
+    EntryTable,
+    entity_paths,
+    module_root,
+    truth_path,
+)
 
 DEFAULT_NODE_IDS = tuple(range(1, 9))
 """The modules a robot blueprint shows when not told: 1..8, `hilrig sim --modules 8`."""
 
 
-def robot(table: RigTable, node_ids: Sequence[int] = DEFAULT_NODE_IDS) -> rrb.Blueprint:
+def robot(table: EntryTable, node_ids: Sequence[int] = DEFAULT_NODE_IDS) -> rrb.Blueprint:
     """The chain in 3D and, per joint on one plot, the angle commanded vs measured."""
     table.check(("position_setpoint", "output_position", "motor_duty_command", "joint_torque"))
     paths = entity_paths(table)

@@ -1,13 +1,13 @@
 """Build of the rig (metadata: pyproject.toml): its packages, its C extensions and, in a wheel,
 the board's files.
 
-C extensions: hilrig._wire, the per-cycle PDO exchange on a raw CAN socket (hilrig.transport's fast
-path), and hilrig.physics._plant, the joint's physics. Its arithmetic must stay bit-identical to
+C extensions: hilrig.wire._wire, the per-cycle PDO exchange on a raw CAN socket (hilrig.wire.transport's
+fast path), and hilrig.plants._plant, the joint's physics. Its arithmetic must stay bit-identical to
 the reference trajectories (tests/data/physics_reference.json): no FMA contraction, no fast-math,
 libm's tanh/exp. A missing compiler or CPython header fails here, by name, instead of deep in
 gcc's output.
 
-Packages: hilrig, and dashboards from the repository's root (it imports hilrig.trace, which loads
+Packages: hilrig, and dashboards from the repository's root (hilrig.observe loads
 its blueprints, so the two ship together). The editable install maps both onto the checkout.
 
 The board's files (wheel only): hilrig/data/ gets protocol/board.toml and the EDS and DBC that the
@@ -37,14 +37,14 @@ class BuildExtensionWithChecks(build_ext):
         header = Path(sysconfig.get_paths()["include"]) / "Python.h"
         if not header.is_file():
             raise SystemExit(
-                f"hilrig: cannot build its C extensions (hilrig._wire, hilrig.physics._plant): {header} "
+                f"hilrig: cannot build its C extensions (hilrig.wire._wire, hilrig.plants._plant): {header} "
                 "is missing (the CPython headers; on Debian: apt-get install python3-dev)"
             )
         compiler = (os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0]
         if shutil.which(compiler) is None:
             raise SystemExit(
-                f"hilrig: cannot build its C extensions (hilrig._wire, hilrig.physics._plant): C compiler "
-                f"{compiler!r} not found (on Debian: apt-get install gcc)"
+                f"hilrig: cannot build its C extensions (hilrig.wire._wire, hilrig.plants._plant): "
+                f"C compiler {compiler!r} not found (on Debian: apt-get install gcc)"
             )
         super().run()
 
@@ -84,14 +84,14 @@ setup(
     package_dir={"": ".", "dashboards": "../dashboards"},
     ext_modules=[
         Extension(
-            "hilrig.physics._plant",
-            sources=["hilrig/physics/_plant.c"],
+            "hilrig.plants._plant",
+            sources=["hilrig/plants/_plant.c"],
             extra_compile_args=["-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra"],
             libraries=["m"],
         ),
         Extension(
-            "hilrig._wire",
-            sources=["hilrig/_wire.c"],
+            "hilrig.wire._wire",
+            sources=["hilrig/wire/_wire.c"],
             extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror"],
         ),
     ],

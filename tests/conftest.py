@@ -16,17 +16,17 @@ import canopen
 import pytest
 
 from boardproto.cia301 import NmtState, heartbeat_cob_id
-from hilrig.buslog import BusRecorder
 from hilrig.cli.common import bitrate
+from hilrig.engine.rig import Rig
+from hilrig.engine.robot import MasterHeartbeat
 from hilrig.expect import Expect
-from hilrig.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
-from hilrig.netns import PrivateBus, private_buses_supported
-from hilrig.physics import JointParams
-from hilrig.rig import Rig
-from hilrig.robot import MasterHeartbeat
-from hilrig.session import BoardInterface, HilSession, SessionConfig, open_session
+from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
+from hilrig.plants import JointParams
+from hilrig.session.builder import BoardInterface, HilSession, SessionConfig, open_session
+from hilrig.session.buslog import BusRecorder
+from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
+from hilrig.session.netns import PrivateBus, private_buses_supported
 from hilrig.table import RigTable
-from hilrig.trace import TraceSink, live_sinks_from_environment, parse_live_sink
 
 REPO = Path(__file__).resolve().parent.parent
 EDS = REPO / "build" / "protocol" / "board.eds"
@@ -252,7 +252,7 @@ class Scenario:
 
 @pytest.fixture
 def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterator:
-    """Factory: `make_scenario(params=..., seed=...)` opens a HIL session (`hilrig.session`):
+    """Factory: `make_scenario(params=..., seed=...)` opens a HIL session (`hilrig.session.builder`):
     the firmware in lockstep on this test's private bus, a candump recorder, a Rerun trace and
     a `Rig`, all torn down after the test (firmware stopped with SIGTERM, files closed whole).
     `mode="realtime"`: the firmware runs `--mode free` and the rig in real time
@@ -328,7 +328,7 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
 
 @pytest.fixture
 def make_robot(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterator:
-    """Factory: `make_robot(n=8)` opens a robot session (`hilrig.session`, `modules=`): the
+    """Factory: `make_robot(n=8)` opens a robot session (`hilrig.session.builder`, `modules=`): the
     firmware started n times on this test's private bus (node ids 1..n, or `node_ids`), one rig
     per module, the chain's mechanics from MuJoCo, the master heartbeat, a candump recorder and
     one Rerun trace (each module under /modules/<id>, the chain in 3D under /robot); returns the

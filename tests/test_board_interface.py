@@ -19,8 +19,8 @@ from pathlib import Path
 import pytest
 from conftest import NODE_ID, REALTIME_FIRMWARE_PERIOD_US, REPO, stop_summary
 
-from hilrig.firmware import Firmware
-from hilrig.netns import PrivateBus
+from hilrig.session.firmware import Firmware
+from hilrig.session.netns import PrivateBus
 
 pytestmark = [pytest.mark.bus, pytest.mark.slow, pytest.mark.realtime]
 

@@ -28,11 +28,11 @@ from boardproto.cia301 import (
     sdo_response_cob_id,
 )
 from boardproto.table import ERROR_RESET_CODE
-from hilrig.faults import FaultInjector, FaultPlan
-from hilrig.netns import PrivateBus
-from hilrig.node import SdoAbortCode
-from hilrig.physics import JointParams
+from hilrig.plants import JointParams
+from hilrig.session.faults import FaultInjector, FaultPlan
+from hilrig.session.netns import PrivateBus
 from hilrig.table import ControlMode, EmcyCode
+from hilrig.wire.node import SdoAbortCode
 
 pytestmark = pytest.mark.bus
 

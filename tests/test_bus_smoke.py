@@ -12,9 +12,9 @@ import can
 import pytest
 from bus_echo_peer import ECHO_ANSWER_ID, ECHO_REQUEST_ID, READY_ID
 
-from hilrig.buslog import RecorderProcess
-from hilrig.netns import RECEIVE_QUEUE_BYTES, PrivateBus
-from hilrig.transport import RawCanLink, can_frame, open_raw_socket, socketcan_socket
+from hilrig.session.buslog import RecorderProcess
+from hilrig.session.netns import RECEIVE_QUEUE_BYTES, PrivateBus
+from hilrig.wire.transport import RawCanLink, can_frame, open_raw_socket, socketcan_socket
 
 pytestmark = pytest.mark.bus
 
@@ -73,7 +73,7 @@ def test_the_rigs_sockets_get_a_deep_receive_queue(private_bus: PrivateBus) -> N
 
 
 def test_the_frame_link_opens_beside_a_bus_in_its_namespace_and_filters(private_bus: PrivateBus) -> None:
-    """The raw-socket link (hilrig.transport) lands in the private bus's namespace, not this
+    """The raw-socket link (hilrig.wire.transport) lands in the private bus's namespace, not this
     thread's, and the kernel passes it only the COB-IDs it asked for."""
     with private_bus.open() as bus, PrivateBus() as other, other.open() as elsewhere:
         wanted, other_id, sent_id = 0x7C1, 0x7C2, 0x7C3  # no CANopen service's: a bus-level test

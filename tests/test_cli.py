@@ -14,7 +14,7 @@ from conftest import NODE_ID, REPO, NodeUnderTest
 
 from boardproto import load_table
 from boardproto.cia301 import SYNC_COB_ID
-from hilrig.netns import PrivateBus
+from hilrig.session.netns import PrivateBus
 
 pytestmark = pytest.mark.bus
 

@@ -25,8 +25,8 @@ from typing import Any
 import pytest
 from conftest import REPO, TABLE
 
-from hilrig.netns import PrivateBus
-from hilrig.trace import entity_paths
+from hilrig.observe.paths import entity_paths
+from hilrig.session.netns import PrivateBus
 
 pytestmark = [pytest.mark.bus, pytest.mark.realtime]  # wall-clock time: runs alone
 
@@ -114,7 +114,7 @@ def wait_for_port(bus: PrivateBus, port: int, process: subprocess.Popen[bytes], 
 
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # a stream, downloaded as it goes
 def test_the_compose_services_run_what_they_say(services: Services, scenario_dir: Path) -> None:
-    from hilrig.trace_reader import Trace  # imports rerun: slow in the VM
+    from hilrig.observe.reader import Trace  # imports rerun: slow in the VM
 
     compose = compose_services()
     firmware = services.start("firmware", compose["firmware"])

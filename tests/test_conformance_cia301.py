@@ -27,7 +27,7 @@ from boardproto.cia301 import (
     sdo_request_cob_id,
     sdo_response_cob_id,
 )
-from hilrig.netns import PrivateBus
+from hilrig.session.netns import PrivateBus
 
 pytestmark = pytest.mark.bus
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hilrig.lockstep import TRUTH_NAMES
+from hilrig.engine.lockstep import TRUTH_NAMES
 from hilrig.table import ControlMode
 
 pytestmark = pytest.mark.bus

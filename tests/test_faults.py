@@ -15,8 +15,8 @@ from boardproto import load_table
 from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState
 from boardproto.table import ERROR_RESET_CODE
 from hilrig.errors import FirmwareError
-from hilrig.faults import FaultInjector, FaultPlan
-from hilrig.physics import JointParams
+from hilrig.plants import JointParams
+from hilrig.session.faults import FaultInjector, FaultPlan
 from hilrig.table import ControlMode, EmcyCode, FaultFlags
 
 pytestmark = pytest.mark.bus

@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hilrig.physics import JointParams
+from hilrig.plants import JointParams
 from hilrig.table import ControlMode, EmcyCode, FaultFlags
 
 pytestmark = pytest.mark.bus

@@ -18,7 +18,7 @@ from conftest import NODE_ID, REPO, NodeUnderTest, start_node, stop_node
 
 from boardproto import load_table
 from boardproto.cia301 import SdoCommand, heartbeat_cob_id, sdo_request_cob_id, sdo_response_cob_id
-from hilrig.netns import PrivateBus
+from hilrig.session.netns import PrivateBus
 from hilrig.table import EmcyCode
 
 pytestmark = pytest.mark.bus

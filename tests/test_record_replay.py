@@ -15,10 +15,10 @@ import pytest
 from conftest import BOOT_TIMEOUT_S, NODE_ID, REPO
 
 from boardproto.cia301 import emcy_cob_id, heartbeat_cob_id
-from hilrig.buslog import BusRecorder, node_cob_ids
-from hilrig.faults import FaultInjector, FaultPlan
-from hilrig.firmware import Firmware
-from hilrig.netns import PrivateBus
+from hilrig.session.buslog import BusRecorder, node_cob_ids
+from hilrig.session.faults import FaultInjector, FaultPlan
+from hilrig.session.firmware import Firmware
+from hilrig.session.netns import PrivateBus
 from hilrig.table import ControlMode, RigTable
 
 pytestmark = pytest.mark.bus

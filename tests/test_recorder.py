@@ -1,5 +1,5 @@
 """The firmware's field recorder, end to end in lockstep: set up over SDO, triggered by a
-velocity step, uploaded by SDO block transfer through python-canopen (`hilrig.capture`), and
+velocity step, uploaded by SDO block transfer through python-canopen (`hilrig.apps.capture`), and
 every captured sample equal to what the same fields' TPDOs carried in the same cycle."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from canopen.sdo import SdoClient
 from conftest import EDS, TABLE
 
 from boardproto.table import RecorderObject
-from hilrig.capture import CaptureSettings, RecorderClient
-from hilrig.netns import PrivateBus
+from hilrig.apps.capture import CaptureSettings, RecorderClient
+from hilrig.session.netns import PrivateBus
 from hilrig.table import ControlMode
 
 pytestmark = pytest.mark.bus
@@ -82,7 +82,7 @@ def test_a_triggered_capture_equals_the_lockstep_history_cycle_for_cycle(
 
     # The same bytes by block upload through python-canopen as anyone uses it: a RemoteNode of
     # its own on a python-can bus (Message objects, canopen's receive thread and queue), not the
-    # rig's SDO client, whose frames take a raw socket (`hilrig.node.SocketSdoClient`).
+    # rig's SDO client, whose frames take a raw socket (`hilrig.wire.node.SocketSdoClient`).
     assert TABLE.board.recorder is not None
     index = TABLE.board.recorder.index_of(RecorderObject.DATA)
     ours = rig.node.block_upload(index, 0, "upload the recording again")

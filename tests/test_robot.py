@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dashboards.check import fitting_dashboards, trace_gaps
-from hilrig.robot import MasterHeartbeat, Robot, RobotObserver, TravellingWave
+from hilrig.engine.robot import MasterHeartbeat, Robot, RobotObserver, TravellingWave
+from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
+from hilrig.observe.reader import Trace
 from hilrig.table import EmcyCode, FaultFlags, RigTable
-from hilrig.trace_reader import Trace
 
 pytestmark = pytest.mark.bus
 

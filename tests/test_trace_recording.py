@@ -8,11 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dashboards.check import fitting_dashboards, trace_gaps
 from hilrig.errors import SdoAbortError
+from hilrig.observe.blueprints import dashboard_fields
+from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
+from hilrig.observe.paths import EMCY_PATH, SDO_PATH, entity_paths
+from hilrig.observe.reader import Trace
 from hilrig.table import ControlMode
-from hilrig.trace import EMCY_PATH, SDO_PATH, dashboard_fields, entity_paths
-from hilrig.trace_reader import Trace
 
 POLL_EVERY = 100
 """Cycles between SDO reads of what a dashboard plots but no PDO carries (as `hilrig sim`)."""

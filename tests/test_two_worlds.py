@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 
 from boardproto.cia301 import NmtState
+from hilrig.engine.rig import Rig
 from hilrig.expect import Expect
-from hilrig.physics import JointParams
-from hilrig.rig import Rig
+from hilrig.plants import JointParams
 from hilrig.table import ControlMode
 
 pytestmark = pytest.mark.bus

@@ -9,10 +9,10 @@ What is measured, and against what:
 
 * Lockstep speed, all on the same engine and firmware build, each measurement with a fresh
   firmware process, rounds alternating, best of each: (a) the full `Rig` (physics, history,
-  checks) in a HIL session (`hilrig.session`), untraced; (b) the same with a Rerun trace to a
+  checks) in a HIL session (`hilrig.session.builder`), untraced; (b) the same with a Rerun trace to a
   file, run beside (a) in pairs, four a round, each kind first in half (`rig_pair_orders`); (c)
   the floor: the same RPDO frames + SYNC out and the same number of TPDO frames back over one
-  raw socket with kernel filters (`hilrig.transport`), a Python call per frame, no physics, no
+  raw socket with kernel filters (`hilrig.wire.transport`), a Python call per frame, no physics, no
   checks, no trace; (d) the engine's exchange alone: the same frames through the call the Rig
   makes each cycle (`transport.exchange`, in C on the raw socket), decoded, no physics, no
   history; (e) for comparison, that exchange through python-can's Bus. Goals: (a)/(c) >= 0.5
@@ -39,14 +39,20 @@ What is measured, and against what:
   `Rig` against the firmware, the session as in (b); its trace.rrd stays in <out>/long-trace/.
   Reported: the .rrd's size (and bytes per cycle), and, on the host, the time from asking
   headless Chromium (software WebGL) for the served web viewer to the first screenshot of the
-  whole recording with the overview's plots drawn (`hilrig.browser.time_to_first_frame`).
-* Bus load: `hilrig.busload` for the default PDO mapping at 1 kHz.
+  whole recording with the overview's plots drawn (`hilrig.observe.browser.time_to_first_frame`).
+* Bus load: `hilrig.apps.busload` for the default PDO mapping at 1 kHz.
 * Free-running timing: the firmware in `--mode free`, no SYNC on the bus. Over SDO the rig
   turns the TPDO carrying velocity_controller_output into an event-driven one (type 255,
   inhibit 0, no event timer) and makes that value change every cycle (velocity control with
   only an integral gain, staleness limits raised so no fault stops the controller); the
   firmware then sends it right after each cycle. The kernel's receive timestamps of those
   frames give the cycle periods; period error = interval - period.
+
+A measurement that fails (a probe that times out under callgrind on a busy host, exits non-zero
+or raises) gives no figure and stops nothing: native.json and bus.json keep its error under
+"not_measured", and the report shows it as a row "not measured" with that error (the end of the
+probe's stderr included); every other row is still there, and report.json is written atomically.
+A step that wrote no part at all still gets a report, whose rows of that part say so.
 """
 
 from __future__ import annotations
@@ -68,8 +74,9 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
+_T = TypeVar("_T")
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "build" / "bench"
 FIRMWARE_NODE_ID = 0x10
@@ -152,6 +159,75 @@ CALLGRIND_CYCLES = 2000
 # fw_cycle_count's loops: the demo joint, the stand-ins on the core and on the naive board, and
 # the field recorder's end-of-cycle call idle and armed with 8 channels.
 CALLGRIND_LOOPS = ("demo", "core", "naive", "recorder_idle", "recorder_armed")
+PROBE_TIMEOUT_S = 1800.0
+"""A probe (a benchmark, a count under callgrind) still running after this is stopped and not
+measured: callgrind slows Python some 50x, and a busy host stretches that further."""
+STDERR_TAIL_LINES = 12
+"""Lines of a failed probe's stderr its error text keeps (the end, where the reason is)."""
+NOT_MEASURED = "not measured"
+
+
+class ProbeError(RuntimeError):
+    """A probe gave no figure: it timed out, exited non-zero, or could not start. The text says
+    which, the command, and the tail of the probe's stderr."""
+
+
+def _stderr_tail(stderr: str | bytes | None) -> str:
+    if isinstance(stderr, bytes):  # TimeoutExpired keeps bytes even with text=True
+        stderr = stderr.decode("utf-8", "replace")
+    lines = (stderr or "").strip().splitlines()[-STDERR_TAIL_LINES:]
+    return "\nstderr (end):\n" + "\n".join(f"  {line}" for line in lines) if lines else "\nno stderr"
+
+
+def run_probe(
+    command: Sequence[str],
+    *,
+    timeout_s: float = PROBE_TIMEOUT_S,
+    env: dict[str, str] | None = None,
+    show_stdout: bool = False,
+) -> str:
+    """Runs one probe and returns its stdout ("" when `show_stdout` lets it go to the console);
+    ProbeError when it times out, exits non-zero or cannot start, with its stderr's tail."""
+    shown = " ".join(Path(command[0]).name if n == 0 else part for n, part in enumerate(command))
+    try:
+        done = subprocess.run(
+            list(command),
+            stdout=None if show_stdout else subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=timeout_s,
+            env=env,
+            check=False,
+        )
+    except subprocess.TimeoutExpired as error:
+        raise ProbeError(f"{shown}: timed out after {timeout_s:g} s{_stderr_tail(error.stderr)}") from error
+    except OSError as error:
+        raise ProbeError(f"{shown}: could not start: {error}") from error
+    if done.returncode != 0:
+        raise ProbeError(f"{shown}: exit status {done.returncode}{_stderr_tail(done.stderr)}")
+    return done.stdout or ""
+
+
+def failure_text(error: Exception) -> str:
+    """A probe's failure in words: a ProbeError's own text, else the exception's type and text."""
+    return str(error) if isinstance(error, ProbeError) else f"{type(error).__name__}: {error}"
+
+
+class NotMeasured(dict[str, str]):
+    """Why each measurement that failed gave no figure, by name; saved in native.json and
+    bus.json, so the report shows the error in the measurement's own row."""
+
+    def attempt(self, name: str, measure: Callable[[], _T]) -> _T | None:
+        """measure(), or None with the failure noted under `name`: one probe that fails (a
+        timeout under callgrind on a busy host) costs its own figure, never the run."""
+        try:
+            return measure()
+        except Exception as error:
+            self[name] = failure_text(error)
+            say(f"  {name}: {NOT_MEASURED}: {self[name].splitlines()[0]}")
+            return None
+
+
 RECORDER_IDLE_GOAL = 10  # instructions per cycle: an idle recorder is a comparison
 RECORDER_ARMED_SHARE_GOAL = 0.10  # of the demo joint's cycle, 8 channels armed
 
@@ -161,7 +237,7 @@ def run_board_bench(out: Path) -> dict[str, float]:
     json_path = out / "fw_board_bench.json"
     json_path.unlink(missing_ok=True)
     exe = out / "bin" / "fw_board_bench"
-    subprocess.run([str(exe), f"--benchmark_out={json_path}", "--benchmark_out_format=json"], check=True)
+    run_probe([str(exe), f"--benchmark_out={json_path}", "--benchmark_out_format=json"], show_stdout=True)
     scale = {"ns": 1.0, "us": 1e3, "ms": 1e6, "s": 1e9}
     data = json.loads(json_path.read_text())
     return {
@@ -183,11 +259,8 @@ def _callgrind_total(
         data = Path(folder) / "callgrind.out"
         main_thread = python and not all_threads
         threads = ["--separate-threads=yes"] if main_thread else []
-        subprocess.run(
+        run_probe(
             ["valgrind", "--tool=callgrind", *threads, *options, f"--callgrind-out-file={data}", *command],
-            check=True,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
             env={**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1"} if python else None,
         )
         written = Path(f"{data}-01") if main_thread else data
@@ -241,29 +314,49 @@ def rig_probe_instructions(mode: str, cycles: int, *, all_threads: bool = False)
     return _callgrind_total([], command, python=True, all_threads=all_threads)
 
 
-def rig_probe_costs() -> dict[str, float]:
-    """The Rig's lockstep cycle and the engine's exchange alone, natively (`tools/rig_probe.py`):
-    instructions per cycle of each (callgrind), what tracing costs per cycle, and the Rig's bytes
-    kept per cycle."""
+def _rig_probe_per_cycle(mode: str) -> float:
     short, long = RIG_PROBE_CYCLES
-    costs: dict[str, float] = {}
-    for mode in ("rig", "engine"):
-        difference = rig_probe_instructions(mode, long) - rig_probe_instructions(mode, short)
-        costs[mode] = difference / (long - short)
-        say(f"  {mode}: {costs[mode]:.0f} instructions per cycle")
-    # Tracing: every thread of a traced run (the sender, Rerun's encoder and file writer, close()
-    # and the file's footer included) against the same run with the Tracer made but not attached.
+    return (rig_probe_instructions(mode, long) - rig_probe_instructions(mode, short)) / (long - short)
+
+
+def _tracing_per_cycle() -> float:
+    """Every thread of a traced run (the sender, Rerun's encoder and file writer, close() and the
+    file's footer included) against the same run with the Tracer made but not attached."""
     traced, idle = (
         rig_probe_instructions(mode, TRACE_PROBE_CYCLES, all_threads=True)
         for mode in ("traced", "tracer-idle")
     )
-    costs["tracing"] = (traced - idle) / TRACE_PROBE_CYCLES
-    say(f"  tracing {TRACE_PROBE_CYCLES} cycles: {costs['tracing']:.0f} instructions per cycle (all threads)")
-    probe = [sys.executable, str(ROOT / "tools" / "rig_probe.py"), "memory", str(long)]
-    printed = subprocess.run(probe, check=True, capture_output=True, text=True).stdout
-    kept, carried = re.findall(r"[\d.]+", printed)[:2]
-    costs["kept_bytes"], costs["bus_bytes"] = float(kept), float(carried)
-    say(f"  the Rig keeps {kept} bytes per cycle; the bus carried {carried}")
+    return (traced - idle) / TRACE_PROBE_CYCLES
+
+
+def _rig_memory_per_cycle() -> tuple[float, float]:
+    """(bytes the Rig keeps, data bytes the bus carried) per cycle."""
+    probe = [sys.executable, str(ROOT / "tools" / "rig_probe.py"), "memory", str(RIG_PROBE_CYCLES[1])]
+    printed = run_probe(probe)
+    figures = re.findall(r"[\d.]+", printed)[:2]
+    if len(figures) != 2:
+        raise ProbeError(f"rig_probe.py memory: expected two figures, got {printed.strip()!r}")
+    return float(figures[0]), float(figures[1])
+
+
+def rig_probe_costs(not_measured: NotMeasured) -> dict[str, float]:
+    """The Rig's lockstep cycle and the engine's exchange alone, natively (`tools/rig_probe.py`):
+    instructions per cycle of each (callgrind), what tracing costs per cycle, and the Rig's bytes
+    kept per cycle. A probe that fails leaves its key out and its error in `not_measured`."""
+    costs: dict[str, float] = {}
+    for mode in ("rig", "engine"):
+        cost = not_measured.attempt(f"rig_probe {mode}", lambda mode=mode: _rig_probe_per_cycle(mode))
+        if cost is not None:
+            costs[mode] = cost
+            say(f"  {mode}: {cost:.0f} instructions per cycle")
+    tracing = not_measured.attempt("rig_probe tracing", _tracing_per_cycle)
+    if tracing is not None:
+        costs["tracing"] = tracing
+        say(f"  tracing {TRACE_PROBE_CYCLES} cycles: {tracing:.0f} instructions per cycle (all threads)")
+    memory = not_measured.attempt("rig_probe memory", _rig_memory_per_cycle)
+    if memory is not None:
+        costs["kept_bytes"], costs["bus_bytes"] = memory
+        say(f"  the Rig keeps {memory[0]:.0f} bytes per cycle; the bus carried {memory[1]:.0f}")
     return costs
 
 
@@ -271,8 +364,9 @@ def native_main(args: argparse.Namespace) -> int:
     out: Path = args.out
     (out / "bus.json").unlink(missing_ok=True)  # parts of an earlier run are not mixed in
     result: dict[str, Any] = {"machine": machine(), "date": datetime.datetime.now().astimezone().isoformat()}
+    not_measured = NotMeasured()
     say("firmware core benchmarks (fw_board_bench, Google Benchmark)")
-    result["board_bench_ns"] = run_board_bench(out)
+    result["board_bench_ns"] = not_measured.attempt("board_bench", lambda: run_board_bench(out)) or {}
     if shutil.which("valgrind") is None:
         say("valgrind is missing (apt-get install valgrind, or make deps): no instruction counts")
         result["callgrind"] = None
@@ -280,13 +374,23 @@ def native_main(args: argparse.Namespace) -> int:
         say(f"instruction counts under callgrind ({CALLGRIND_CYCLES} cycles per loop, minus a 0-cycle run)")
         per_cycle = {}
         for loop in CALLGRIND_LOOPS:
-            total = callgrind_instructions(out, loop, CALLGRIND_CYCLES)
-            empty = callgrind_instructions(out, loop, 0)
-            per_cycle[loop] = (total - empty) / CALLGRIND_CYCLES
-            say(f"  {loop}: {per_cycle[loop]:.0f} instructions per cycle")
+            cost = not_measured.attempt(
+                f"callgrind {loop}",
+                lambda loop=loop: (
+                    (
+                        callgrind_instructions(out, loop, CALLGRIND_CYCLES)
+                        - callgrind_instructions(out, loop, 0)
+                    )
+                    / CALLGRIND_CYCLES
+                ),
+            )
+            if cost is not None:
+                per_cycle[loop] = cost
+                say(f"  {loop}: {cost:.0f} instructions per cycle")
         result["callgrind"] = {"cycles": CALLGRIND_CYCLES, "instructions_per_cycle": per_cycle}
         say(f"the Rig's own lockstep cycle, natively (tools/rig_probe.py, {RIG_PROBE_CYCLES} cycles)")
-        result["rig_probe"] = rig_probe_costs()
+        result["rig_probe"] = rig_probe_costs(not_measured)
+    result["not_measured"] = not_measured
     write_json_atomically(out / "native.json", result)
     return 0
 
@@ -311,9 +415,9 @@ def traced_run(config: Any, cycles: int, table: Any) -> dict[str, Any]:
     driven (`drive`) with the setpoint flipping sign every LONG_TRACE_STEP_S. Returns the
     trace's path, size and last logged cycle, and the run's wall-clock seconds (the trace's
     close() included)."""
-    from hilrig.session import open_session
-    from hilrig.trace import CYCLE_TIMELINE
-    from hilrig.trace_reader import timeline_end
+    from hilrig.observe.paths import CYCLE_TIMELINE
+    from hilrig.observe.reader import timeline_end
+    from hilrig.session.builder import open_session
 
     session = open_session(config, table=table)
     try:
@@ -361,7 +465,7 @@ class BusBench:
 
     @contextlib.contextmanager
     def firmware(self, what: str, mode: str = "lockstep") -> Iterator[Any]:
-        from hilrig.firmware import Firmware
+        from hilrig.session.firmware import Firmware
 
         self._runs += 1
         fw = Firmware(
@@ -378,9 +482,9 @@ class BusBench:
 
     # --- lockstep: the rig (untraced, traced) and the floors -----------------------------------
     def _session(self, what: str, *, traced: bool) -> Any:
-        """A HIL session of the firmware in lockstep on the bench's bus (`hilrig.session`), no
+        """A HIL session of the firmware in lockstep on the bench's bus (`hilrig.session.builder`), no
         bus log; a trace.rrd when `traced`."""
-        from hilrig.session import open_session
+        from hilrig.session.builder import open_session
 
         self._runs += 1
         config = self._config(self.logs / f"{self._runs:02d}-{what}", traced=traced)
@@ -388,7 +492,7 @@ class BusBench:
 
     def _config(self, out_dir: Path, *, traced: bool) -> Any:
         """The `SessionConfig` of the firmware in lockstep on the bench's bus, no bus log."""
-        from hilrig.session import SessionConfig
+        from hilrig.session.builder import SessionConfig
 
         return SessionConfig(
             out_dir=out_dir,
@@ -402,7 +506,7 @@ class BusBench:
 
     def rig_rate(self, cycles: int, warmup: int, budget_s: float, *, traced: bool) -> tuple[float, int]:
         """(cycles per second, cycles measured) of the full `Rig` (physics, history, checks) in a
-        HIL session (`hilrig.session`, no bus log), with or without a Rerun trace (written to a
+        HIL session (`hilrig.session.builder`, no bus log), with or without a Rerun trace (written to a
         file; its close(), which sends what is pending, is inside the measurement)."""
         session = self._session("rig-traced" if traced else "rig", traced=traced)
         try:
@@ -434,8 +538,8 @@ class BusBench:
         """(cycles per second, cycles measured) of a robot of `modules` modules on this bus (the
         same engine: one SYNC, every module's PDOs, the MuJoCo chain) following the gait,
         untraced, no bus log; start-up outside the measurement."""
-        from hilrig.robot import TravellingWave
-        from hilrig.session import SessionConfig, open_session
+        from hilrig.engine.robot import TravellingWave
+        from hilrig.session.builder import SessionConfig, open_session
 
         self._runs += 1
         config = SessionConfig(
@@ -470,7 +574,7 @@ class BusBench:
         recorder's whole buffer, a DOMAIN) by SDO block transfer and by segmented transfer,
         alternating, from the firmware in lockstep; bytes per second of each, best of `rounds`."""
         from boardproto.table import RecorderObject
-        from hilrig.capture import CaptureSettings, RecorderClient
+        from hilrig.apps.capture import CaptureSettings, RecorderClient
 
         session = self._session("recorder", traced=False)
         try:
@@ -505,11 +609,11 @@ class BusBench:
 
     def _floor_layout(self) -> tuple[list[Any], list[Any]]:
         """The RPDOs the rig sends every cycle (sensors, setpoint stream) and the enabled cyclic
-        TPDOs, compiled from the EDS exactly as the rig compiles them (`hilrig.transport`)."""
+        TPDOs, compiled from the EDS exactly as the rig compiles them (`hilrig.wire.transport`)."""
         import canopen
 
-        from hilrig.driver import SETPOINT_STREAM
-        from hilrig.transport import PdoDirection, compile_pdos
+        from hilrig.engine.driver import SETPOINT_STREAM
+        from hilrig.wire.transport import PdoDirection, compile_pdos
 
         network = canopen.Network()  # never connected: the PDO maps only need a home
         node = canopen.RemoteNode(FIRMWARE_NODE_ID, str(self.eds))
@@ -539,7 +643,7 @@ class BusBench:
 
     def floor_rate(self, cycles: int, warmup: int, budget_s: float) -> tuple[float, int]:
         """The floor: the same RPDO frames + SYNC out and the same TPDO frames back, over one raw
-        socket with kernel filters (`hilrig.transport`), a Python call per frame, no physics,
+        socket with kernel filters (`hilrig.wire.transport`), a Python call per frame, no physics,
         no checks, no trace."""
         return self._raw_floor_rate("floor", cycles, warmup, budget_s, engine=False)
 
@@ -560,7 +664,7 @@ class BusBench:
             heartbeat_cob_id,
             sync_counter,
         )
-        from hilrig.transport import RawCanLink, can_frame, exchange, open_raw_socket
+        from hilrig.wire.transport import RawCanLink, can_frame, exchange, open_raw_socket
 
         rpdos, tpdos = self._floor_layout()
         out_frames = [p.frame([0] * len(p.names)) for p in rpdos]
@@ -766,8 +870,8 @@ class BusBench:
     # --- free-running timing -------------------------------------------------------------------
     def free_running(self, cycles: int) -> dict[str, Any]:
         from boardproto.cia301 import STANDARD_ID_MASK, NmtCommand
-        from hilrig.node import BoardNode
         from hilrig.table import ControlMode
+        from hilrig.wire.node import BoardNode
 
         carrier = next(
             p for p in self.proto.tpdos if "velocity_controller_output" in [e.name for e in p.entries]
@@ -848,9 +952,98 @@ class BusBench:
         }
 
 
+def _lockstep_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
+    say(
+        f"lockstep: {args.rounds} rounds of {args.cycles} cycles: Rig untraced, Rig traced, "
+        "raw-socket floor, the engine's exchange alone, python-can floor, alternating"
+    )
+    kinds = ("rig", "rig_traced", "floor", "engine_floor", "python_can")
+    rates: dict[str, list[float]] = {kind: [] for kind in kinds}
+    measured: list[dict[str, Any]] = []
+    for round_ in range(1, args.rounds + 1):
+        orders = rig_pair_orders(round_)
+        pairs = [
+            {
+                kind: bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=kind == "rig_traced")
+                for kind in order
+            }
+            for order in orders
+        ]
+        got = {
+            "floor": bench.floor_rate(args.cycles, args.warmup, args.budget_s),
+            "engine_floor": bench.engine_floor_rate(args.cycles, args.warmup, args.budget_s),
+            "python_can": bench.python_can_rate(args.cycles, args.warmup, args.budget_s),
+        }
+        for kind in kinds:
+            runs = [pair[kind] for pair in pairs] if kind in pairs[0] else [got[kind]]
+            rates[kind] += [rate for rate, _ in runs]
+            measured.append({"round": round_, "kind": kind, "cycles": [cycles for _, cycles in runs]})
+        say(
+            f"  round {round_}: "
+            + ", ".join(
+                f"pair {'traced' if order[0] == 'rig_traced' else 'untraced'} first: untraced "
+                f"{pair['rig'][0]:.0f}/s, traced {pair['rig_traced'][0]:.0f}/s "
+                f"({_ratio(pair['rig_traced'][0], pair['rig'][0]):.2f})"
+                for pair, order in zip(pairs, orders, strict=True)
+            )
+            + "; "
+            + ", ".join(f"{kind} {got[kind][0]:.0f}/s ({got[kind][1]} cycles)" for kind in got)
+        )
+    rpdos, tpdos = bench._floor_layout()
+    return {
+        "cycles": args.cycles,
+        "rounds": args.rounds,
+        "rig_pairs_per_round": RIG_PAIRS_PER_ROUND,
+        "measured_cycles": measured,
+        "budget_s": args.budget_s,
+        **{f"{kind}_cycles_per_s": rates[kind] for kind in kinds},
+        "frames_per_cycle": {
+            "out": len(rpdos) + 1,
+            "in": sum(1 / p.transmission_type for p in tpdos),
+        },
+    }
+
+
+def _robot_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
+    say(f"robot: {ROBOT_SIZES} modules, {args.robot_cycles} gait cycles each, two rounds alternating")
+    robot_rates: dict[str, list[float]] = {str(n): [] for n in ROBOT_SIZES}
+    for _ in range(2):
+        for n in ROBOT_SIZES:
+            rate, done = bench.robot_rate(n, args.robot_cycles, args.budget_s)
+            robot_rates[str(n)].append(rate)
+            say(f"  {n} modules: {rate:.0f} cycles/s ({done} cycles)")
+    return {"cycles": args.robot_cycles, "cycles_per_s": robot_rates}
+
+
+def _long_trace_run(bench: BusBench, args: argparse.Namespace) -> dict[str, Any] | None:
+    """None (no long run) with --long-trace-cycles 0."""
+    if args.long_trace_cycles <= 0:
+        return None
+    say(f"long run: {args.long_trace_cycles} traced lockstep cycles of the Rig, its trace kept")
+    run = bench.long_trace(args.long_trace_cycles)
+    per_s = run["cycles"] / run["seconds"]
+    say(f"  {run['trace']}: {run['bytes'] / 1e6:.1f} MB, {per_s:.0f} cycles/s")
+    return run
+
+
+def _sdo_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
+    say(f"SDO: {args.sdo} expedited uploads each from the firmware and a canopen.LocalNode, alternating")
+    return bench.sdo_latency(args.sdo, 2 * args.budget_s)
+
+
+def _recorder_upload_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
+    say("SDO: the recorder's whole buffer by block and by segmented upload, alternating")
+    return bench.recorder_upload(3, 4 * args.budget_s)
+
+
+def _free_running_run(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
+    say(f"free-running: {args.free_cycles} cycles of the firmware in --mode free")
+    return bench.free_running(args.free_cycles)
+
+
 def bus_main(args: argparse.Namespace) -> int:
-    from hilrig.busload import STANDARD_BITRATES, bus_load, lockstep_traffic
-    from hilrig.netns import PrivateBus, private_buses_supported
+    from hilrig.apps.busload import STANDARD_BITRATES, bus_load, lockstep_traffic
+    from hilrig.session.netns import PrivateBus, private_buses_supported
 
     out: Path = args.out
     if not private_buses_supported():
@@ -861,79 +1054,23 @@ def bus_main(args: argparse.Namespace) -> int:
         return 1
     bus_path = os.environ.get("HIL_BUS_PATH", "unknown")
     result: dict[str, Any] = {"bus_path": bus_path, "bus_machine": machine()}
+    not_measured = NotMeasured()
     with PrivateBus() as private_bus:
         bench = BusBench(private_bus, out)
-        say(
-            f"lockstep: {args.rounds} rounds of {args.cycles} cycles: Rig untraced, Rig traced, "
-            "raw-socket floor, the engine's exchange alone, python-can floor, alternating"
-        )
-        kinds = ("rig", "rig_traced", "floor", "engine_floor", "python_can")
-        rates: dict[str, list[float]] = {kind: [] for kind in kinds}
-        measured: list[dict[str, Any]] = []
-        for round_ in range(1, args.rounds + 1):
-            orders = rig_pair_orders(round_)
-            pairs = [
-                {
-                    kind: bench.rig_rate(args.cycles, args.warmup, args.budget_s, traced=kind == "rig_traced")
-                    for kind in order
-                }
-                for order in orders
-            ]
-            got = {
-                "floor": bench.floor_rate(args.cycles, args.warmup, args.budget_s),
-                "engine_floor": bench.engine_floor_rate(args.cycles, args.warmup, args.budget_s),
-                "python_can": bench.python_can_rate(args.cycles, args.warmup, args.budget_s),
-            }
-            for kind in kinds:
-                runs = [pair[kind] for pair in pairs] if kind in pairs[0] else [got[kind]]
-                rates[kind] += [rate for rate, _ in runs]
-                measured.append({"round": round_, "kind": kind, "cycles": [cycles for _, cycles in runs]})
-            say(
-                f"  round {round_}: "
-                + ", ".join(
-                    f"pair {'traced' if order[0] == 'rig_traced' else 'untraced'} first: untraced "
-                    f"{pair['rig'][0]:.0f}/s, traced {pair['rig_traced'][0]:.0f}/s "
-                    f"({_ratio(pair['rig_traced'][0], pair['rig'][0]):.2f})"
-                    for pair, order in zip(pairs, orders, strict=True)
-                )
-                + "; "
-                + ", ".join(f"{kind} {got[kind][0]:.0f}/s ({got[kind][1]} cycles)" for kind in got)
-            )
-        rpdos, tpdos = bench._floor_layout()
-        result["lockstep"] = {
-            "cycles": args.cycles,
-            "rounds": args.rounds,
-            "rig_pairs_per_round": RIG_PAIRS_PER_ROUND,
-            "measured_cycles": measured,
-            "budget_s": args.budget_s,
-            **{f"{kind}_cycles_per_s": rates[kind] for kind in kinds},
-            "frames_per_cycle": {
-                "out": len(rpdos) + 1,
-                "in": sum(1 / p.transmission_type for p in tpdos),
-            },
-        }
-        say(f"robot: {ROBOT_SIZES} modules, {args.robot_cycles} gait cycles each, two rounds alternating")
-        robot_rates: dict[str, list[float]] = {str(n): [] for n in ROBOT_SIZES}
-        for _ in range(2):
-            for n in ROBOT_SIZES:
-                rate, done = bench.robot_rate(n, args.robot_cycles, args.budget_s)
-                robot_rates[str(n)].append(rate)
-                say(f"  {n} modules: {rate:.0f} cycles/s ({done} cycles)")
-        result["robot"] = {"cycles": args.robot_cycles, "cycles_per_s": robot_rates}
-        if args.long_trace_cycles > 0:
-            say(f"long run: {args.long_trace_cycles} traced lockstep cycles of the Rig, its trace kept")
-            result["long_trace"] = bench.long_trace(args.long_trace_cycles)
-            run = result["long_trace"]
-            per_s = run["cycles"] / run["seconds"]
-            say(f"  {run['trace']}: {run['bytes'] / 1e6:.1f} MB, {per_s:.0f} cycles/s")
-        say(f"SDO: {args.sdo} expedited uploads each from the firmware and a canopen.LocalNode, alternating")
-        result["sdo"] = bench.sdo_latency(args.sdo, 2 * args.budget_s)
-        say("SDO: the recorder's whole buffer by block and by segmented upload, alternating")
-        result["recorder_upload"] = bench.recorder_upload(3, 4 * args.budget_s)
-        say(f"free-running: {args.free_cycles} cycles of the firmware in --mode free")
-        result["free_running"] = bench.free_running(args.free_cycles)
-    table = bench.proto
-    traffic = lockstep_traffic(table, 1000.0)
+        for name, measure in (
+            ("lockstep", lambda: _lockstep_runs(bench, args)),
+            ("robot", lambda: _robot_runs(bench, args)),
+            ("long_trace", lambda: _long_trace_run(bench, args)),
+            ("sdo", lambda: _sdo_runs(bench, args)),
+            ("recorder_upload", lambda: _recorder_upload_runs(bench, args)),
+            ("free_running", lambda: _free_running_run(bench, args)),
+        ):
+            measured = not_measured.attempt(name, measure)
+            if measured is not None:
+                result[name] = measured
+        proto = bench.proto
+    result["not_measured"] = not_measured
+    traffic = lockstep_traffic(proto, 1000.0)
     result["bus_load"] = {
         "rate_hz": 1000.0,
         "frames_per_cycle": sum(t.per_second for t in traffic) / 1000.0,
@@ -980,9 +1117,30 @@ def _ratio(a: float, b: float) -> float:
     return a / b if b else float("nan")
 
 
-def _recorder_rows(row: Callable[..., None], ipc: dict[str, float]) -> None:
+def _not_measured_row(row: Callable[..., None], what: str, errors: Sequence[str]) -> None:
+    """A row for a measurement whose probe failed: the first line of its error in the table,
+    every error whole in the row's data."""
+    row(what, NOT_MEASURED, errors[0].splitlines()[0], None, error="\n".join(errors))
+
+
+def _recorder_rows(
+    row: Callable[..., None], ipc: dict[str, float], not_measured: dict[str, str] | None = None
+) -> None:
     """The field recorder's cost per cycle: armed (8 channels) vs idle, and vs a demo cycle.
-    A native.json of an older run has no recorder loops: no rows then."""
+    A native.json of an older run has no recorder loops: no rows then; a loop whose probe
+    failed: its rows 'not measured' with the error."""
+    failed = [
+        (not_measured or {})[f"callgrind {loop}"]
+        for loop in ("recorder_armed", "recorder_idle", "demo")
+        if f"callgrind {loop}" in (not_measured or {})
+    ]
+    if failed and not all(loop in ipc for loop in ("recorder_armed", "recorder_idle", "demo")):
+        for what in (
+            "instructions/cycle: recorder 8 channels armed vs idle",
+            "instructions/cycle: recorder 8 channels armed vs demo joint",
+        ):
+            _not_measured_row(row, what, failed)
+        return
     if "recorder_armed" not in ipc or "recorder_idle" not in ipc:
         return
     armed, idle, demo = ipc["recorder_armed"], ipc["recorder_idle"], ipc["demo"]
@@ -1005,32 +1163,46 @@ def _recorder_rows(row: Callable[..., None], ipc: dict[str, float]) -> None:
     )
 
 
-def _rig_probe_rows(row: Callable[..., None], probe: dict[str, float] | None) -> None:
+def _rig_probe_rows(
+    row: Callable[..., None], probe: dict[str, float] | None, not_measured: dict[str, str] | None = None
+) -> None:
     """The Rig's own lockstep cycle, natively and deterministically (`tools/rig_probe.py`): its
     instructions against the engine's exchange alone, what tracing a run costs per cycle (every
     thread, close included) against it, and the bytes its history keeps per cycle. A native.json
-    of an older run has none: no rows then."""
-    if not probe:
+    of an older run has none: no rows then. A probe that failed: its rows 'not measured', each
+    with the error of the probe it needed."""
+    errors = {
+        name.removeprefix("rig_probe "): text
+        for name, text in (not_measured or {}).items()
+        if name.startswith("rig_probe ")
+    }
+    if not probe and not errors:
         return
-    row(
-        "instructions/cycle (main thread): Rig lockstep cycle vs the engine's exchange alone",
-        f"{probe['rig']:.0f}",
-        f"{probe['engine']:.0f}",
-        _ratio(probe["rig"], probe["engine"]),
-    )
-    if "tracing" in probe:  # a native.json from before the traced probe has none
+    probe = probe or {}
+
+    def failed(*needs: str) -> list[str]:
+        return [errors[need] for need in needs if need in errors]
+
+    what = "instructions/cycle (main thread): Rig lockstep cycle vs the engine's exchange alone"
+    if errors_of := failed("rig", "engine"):
+        _not_measured_row(row, what, errors_of)
+    else:
+        row(what, f"{probe['rig']:.0f}", f"{probe['engine']:.0f}", _ratio(probe["rig"], probe["engine"]))
+    what = f"instructions/cycle (all threads): tracing a {TRACE_PROBE_CYCLES}-cycle run vs the Rig's cycle"
+    if errors_of := failed("tracing", "rig"):
+        _not_measured_row(row, what, errors_of)
+    elif "tracing" in probe:  # a native.json from before the traced probe has none
+        row(what, f"{probe['tracing']:.0f}", f"{probe['rig']:.0f}", _ratio(probe["tracing"], probe["rig"]))
+    what = "bytes per lockstep cycle: kept by the Rig (history) vs the data on the bus"
+    if errors_of := failed("memory"):
+        _not_measured_row(row, what, errors_of)
+    else:
         row(
-            f"instructions/cycle (all threads): tracing a {TRACE_PROBE_CYCLES}-cycle run vs the Rig's cycle",
-            f"{probe['tracing']:.0f}",
-            f"{probe['rig']:.0f}",
-            _ratio(probe["tracing"], probe["rig"]),
+            what,
+            f"{probe['kept_bytes']:.0f} B",
+            f"{probe['bus_bytes']:.0f} B",
+            _ratio(probe["kept_bytes"], probe["bus_bytes"]),
         )
-    row(
-        "bytes per lockstep cycle: kept by the Rig (history) vs the data on the bus",
-        f"{probe['kept_bytes']:.0f} B",
-        f"{probe['bus_bytes']:.0f} B",
-        _ratio(probe["kept_bytes"], probe["bus_bytes"]),
-    )
 
 
 NO_LONG_TRACE = "no long run in bus.json (a bus step from before it, or --long-trace-cycles 0)"
@@ -1044,7 +1216,7 @@ def measure_first_frame(out: Path, long_trace: dict[str, Any] | None) -> dict[st
     trace = out / long_trace["trace"]
     if not trace.is_file():
         return {"error": f"no trace at {trace}"}
-    from hilrig.browser import ViewerCheckError, browser_missing, time_to_first_frame
+    from hilrig.observe.browser import ViewerCheckError, browser_missing, time_to_first_frame
 
     missing = browser_missing()
     if missing is not None:
@@ -1118,13 +1290,8 @@ class ReportRows(list[dict[str, Any]]):
         )
 
 
-def build_report(
-    native: dict[str, Any], bus: dict[str, Any], bus_path: str, first_frame: dict[str, Any]
-) -> dict[str, Any]:
-    """The report's rows from the native and bus parts' JSON and the web viewer's time to a
-    first frame of the long trace (`measure_first_frame`)."""
-    rows = row = ReportRows()
-
+def _lockstep_rows(row: ReportRows, bus: dict[str, Any]) -> None:
+    """The Rig against its floors, traced against untraced, and simulated time."""
     lockstep = bus["lockstep"]
     kinds = ("rig", "rig_traced", "floor", "engine_floor", "python_can")
     best = {
@@ -1190,6 +1357,10 @@ def build_report(
             "1.00x (real time)",
             best[kind] / 1000,
         )
+
+
+def _robot_rows(row: ReportRows, bus: dict[str, Any]) -> None:
+    """How a robot's lockstep cycle grows with its modules."""
     robot = bus.get("robot")
     if robot:
         rates = {int(n): max(values) for n, values in robot["cycles_per_s"].items()}
@@ -1207,6 +1378,10 @@ def build_report(
                 None,
                 **({"cycles": robot["cycles"], "cycles_per_s": robot["cycles_per_s"]} if n == 1 else {}),
             )
+
+
+def _recorder_upload_rows(row: ReportRows, bus: dict[str, Any]) -> None:
+    """The recorder's buffer by block against segmented SDO upload."""
     upload = bus.get("recorder_upload")
     if upload:
         block, segmented = max(upload["block_bytes_per_s"]), max(upload["segmented_bytes_per_s"])
@@ -1221,6 +1396,10 @@ def build_report(
             canopennode_published_vcan_kib_per_s=CANOPENNODE_BLOCK_UPLOAD_KIB_PER_S,
             **upload,
         )
+
+
+def _sdo_rows(row: ReportRows, bus: dict[str, Any]) -> None:
+    """SDO latency and turnaround, the firmware against a canopen.LocalNode."""
     sdo = bus["sdo"]
     ours_us, local_us = sdo["firmware"]["median_us"], sdo["local_node"]["median_us"]
     ratio = _ratio(local_us, ours_us)
@@ -1241,7 +1420,12 @@ def build_report(
             f"{served['local_node']:.0f} us",
             _ratio(served["local_node"], served["firmware"]),
         )
+
+
+def _board_bench_rows(row: ReportRows, native: dict[str, Any], not_measured: dict[str, str]) -> None:
+    """fw_board_bench's ratios; a failed run's rows say why."""
     ns = native["board_bench_ns"]
+    failed = not_measured.get("board_bench")
     for what, ours, base, base_name in (
         ("board get (vs raw array)", "BM_Get_MessageBoard", "BM_Get_RawArray", "raw"),
         ("board get (vs unordered_map<string>)", "BM_Get_MessageBoard", "BM_Get_StringMap", "map"),
@@ -1249,7 +1433,9 @@ def build_report(
         ("board set (vs unordered_map<string>)", "BM_Set_MessageBoard", "BM_Set_StringMap", "map"),
         ("17-component cycle (vs naive board)", "BM_Cycle_MessageBoard", "BM_Cycle_StringMap", "map"),
     ):
-        if ours in ns and base in ns:
+        if failed and not (ours in ns and base in ns):
+            _not_measured_row(row, what, [failed])
+        elif ours in ns and base in ns:
             r = _ratio(ns[ours], ns[base])
             goal, met = "", None
             if ours == "BM_Get_MessageBoard" and base_name == "raw":
@@ -1257,25 +1443,31 @@ def build_report(
             if ours == "BM_Cycle_MessageBoard":
                 goal, met = "< 2000 ns", ns[ours] < 2000
             row(what, f"{ns[ours]:.2f} ns", f"{ns[base]:.2f} ns", r, goal, met)
+
+
+def _instruction_rows(row: ReportRows, native: dict[str, Any], not_measured: dict[str, str]) -> None:
+    """Instructions of one control cycle under callgrind (fw_cycle_count): a pair whose loop
+    failed is a row 'not measured' with the loop's error."""
     callgrind = native.get("callgrind")
-    if callgrind:
-        ipc = callgrind["instructions_per_cycle"]
-        row(
-            "instructions/cycle: demo joint vs stand-ins on naive board",
-            f"{ipc['demo']:.0f}",
-            f"{ipc['naive']:.0f}",
-            _ratio(ipc["demo"], ipc["naive"]),
-            **callgrind,
-        )
-        row(
-            "instructions/cycle: stand-ins, core vs naive board",
-            f"{ipc['core']:.0f}",
-            f"{ipc['naive']:.0f}",
-            _ratio(ipc["core"], ipc["naive"]),
-        )
-        _recorder_rows(row, ipc)
-    _rig_probe_rows(row, native.get("rig_probe"))
-    _long_trace_rows(row, bus.get("long_trace"), first_frame)
+    if not callgrind:
+        return
+    ipc = callgrind["instructions_per_cycle"]
+    for what, ours, base, data in (
+        ("instructions/cycle: demo joint vs stand-ins on naive board", "demo", "naive", callgrind),
+        ("instructions/cycle: stand-ins, core vs naive board", "core", "naive", {}),
+    ):
+        failed = [
+            not_measured[f"callgrind {loop}"] for loop in (ours, base) if f"callgrind {loop}" in not_measured
+        ]
+        if failed:
+            _not_measured_row(row, what, failed)
+        else:
+            row(what, f"{ipc[ours]:.0f}", f"{ipc[base]:.0f}", _ratio(ipc[ours], ipc[base]), **data)
+    _recorder_rows(row, ipc, not_measured)
+
+
+def _bus_load_rows(row: ReportRows, bus: dict[str, Any]) -> None:
+    """The bus load of the default PDO mapping at 1 kHz."""
     load = bus["bus_load"]
     for item in load["loads"]:
         mbit = item["bitrate"] / 1e6
@@ -1290,6 +1482,10 @@ def build_report(
             busiest_cycle=item["busiest_cycle"],
             frames_per_cycle=load["frames_per_cycle"],
         )
+
+
+def _free_running_rows(row: ReportRows, bus: dict[str, Any], bus_path: str) -> None:
+    """The free-running firmware's period error."""
     free = bus["free_running"]
     err = free["abs_error_us"]
     vm = not bus_path.startswith("native")
@@ -1302,6 +1498,53 @@ def build_report(
         None,
         **free,
     )
+
+
+SECTION_TITLES = {
+    "lockstep": "lockstep cycles/s (Rig, traced, floors)",
+    "robot": "robot lockstep cycles/s",
+    "recorder_upload": "SDO upload of the recorder's buffer: block vs segmented",
+    "sdo": "SDO upload median (firmware vs LocalNode)",
+    "board_bench": "board get/set and cycle (fw_board_bench)",
+    "callgrind": "instructions/cycle (callgrind)",
+    "rig_probe": "the Rig's own lockstep cycle (tools/rig_probe.py)",
+    "long_trace": "long traced run",
+    "bus_load": "bus load at 1 kHz",
+    "free_running": "free-running |period error|",
+}
+"""The report's sections, in order; a section whose data is missing or broken is one row
+'not measured' under this title, with the error."""
+
+
+def build_report(
+    native: dict[str, Any], bus: dict[str, Any], bus_path: str, first_frame: dict[str, Any]
+) -> dict[str, Any]:
+    """The report's rows from the native and bus parts' JSON and the web viewer's time to a
+    first frame of the long trace (`measure_first_frame`). A measurement that failed (its
+    error in the part's "not_measured") or whose data cannot be read is a row 'not measured'
+    with its error text; every other row is still there."""
+    rows = ReportRows()
+    not_measured: dict[str, str] = {**native.get("not_measured", {}), **bus.get("not_measured", {})}
+    sections: dict[str, Callable[[], None]] = {
+        "lockstep": lambda: _lockstep_rows(rows, bus),
+        "robot": lambda: _robot_rows(rows, bus),
+        "recorder_upload": lambda: _recorder_upload_rows(rows, bus),
+        "sdo": lambda: _sdo_rows(rows, bus),
+        "board_bench": lambda: _board_bench_rows(rows, native, not_measured),
+        "callgrind": lambda: _instruction_rows(rows, native, not_measured),
+        "rig_probe": lambda: _rig_probe_rows(rows, native.get("rig_probe"), not_measured),
+        "long_trace": lambda: _long_trace_rows(rows, bus.get("long_trace"), first_frame),
+        "bus_load": lambda: _bus_load_rows(rows, bus),
+        "free_running": lambda: _free_running_rows(rows, bus, bus_path),
+    }
+    for name, add_rows in sections.items():
+        kept = len(rows)
+        try:
+            add_rows()
+        except Exception as error:  # its data is missing or unreadable: this section only
+            del rows[kept:]
+            text = not_measured.get(name) or failure_text(error)
+            rows(SECTION_TITLES[name], NOT_MEASURED, text.splitlines()[0], None, error=text)
     return {
         "date": native["date"],
         "machine": native["machine"],
@@ -1332,41 +1575,64 @@ def format_report(report: dict[str, Any]) -> str:
         lines.append("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
         if n == 0:
             lines.append("  ".join("-" * w for w in widths))
-    free = next(r for r in report["rows"] if r["measure"].startswith("free-running"))["data"]
     lines += [
         "",
         "ratios: lockstep = ours/baseline rate and SDO = LocalNode/firmware latency (higher is better);",
         "        board and instructions = ours/baseline (lower is better); free-running = p99 error/period;",
         "        .rrd size = bytes per cycle.",
-        f"free-running: {free['method']};",
-        f"        {free['cycles']} periods, mean {free['mean_period_us']:.1f} us, "
-        f"{free['late_by_half_a_period']} late by > half a period, "
-        f"firmware overruns {free['firmware_overruns']}.",
     ]
+    free = next((r["data"] for r in report["rows"] if r["measure"].startswith("free-running")), {})
+    if "method" in free:
+        lines += [
+            f"free-running: {free['method']};",
+            f"        {free['cycles']} periods, mean {free['mean_period_us']:.1f} us, "
+            f"{free['late_by_half_a_period']} late by > half a period, "
+            f"firmware overruns {free['firmware_overruns']}.",
+        ]
     if not report["bus_path"].startswith("native"):
         lines.append(
             "free-running timing was measured inside the software-emulated micro-VM: its timers and "
             "scheduling say nothing about a real target, so that row is NOT meaningful here."
         )
+    errors = [r for r in report["rows"] if r["ours"] == NOT_MEASURED and "\n" in r["data"].get("error", "")]
+    for r in errors:  # the whole error of each failed probe, its stderr's tail included
+        lines += [
+            "",
+            f"{NOT_MEASURED}: {r['measure']}:",
+            *(f"    {line}" for line in r["data"]["error"].splitlines()),
+        ]
     return "\n".join(lines)
+
+
+NATIVE_SECTIONS = ("board_bench", "callgrind", "rig_probe")
+
+
+def _read_part(path: Path, step: str, sections: Sequence[str]) -> tuple[dict[str, Any], bool]:
+    """(the part's JSON, True), or, when the step wrote none, (a part whose every section is
+    not measured, saying so, False): the report is written from what there is."""
+    try:
+        return json.loads(path.read_text()), True
+    except (OSError, ValueError) as error:
+        why = f"{path.name} is unreadable ({error}): the {step} step did not finish"
+        print(f"bench: {why}", file=sys.stderr)
+        return {"not_measured": dict.fromkeys(sections, why)}, False
 
 
 def report_main(args: argparse.Namespace) -> int:
     out: Path = args.out
-    try:
-        native = json.loads((out / "native.json").read_text())
-        bus = json.loads((out / "bus.json").read_text())
-    except FileNotFoundError as error:
-        print(f"bench: {error.filename} is missing: the run did not finish (make bench)", file=sys.stderr)
-        return 1
-    bus_path = bus["bus_path"]
+    native, native_whole = _read_part(out / "native.json", "native", NATIVE_SECTIONS)
+    bus_sections = [name for name in SECTION_TITLES if name not in NATIVE_SECTIONS]
+    bus, bus_whole = _read_part(out / "bus.json", "bus", bus_sections)
+    native.setdefault("date", datetime.datetime.now().astimezone().isoformat())
+    native.setdefault("machine", machine())
+    bus_path = bus.get("bus_path", "unknown")
     with contextlib.suppress(OSError):
         bus_path = (out / "bus-path.txt").read_text().strip() or bus_path
     report = build_report(native, bus, bus_path, measure_first_frame(out, bus.get("long_trace")))
     print(format_report(report))
     write_json_atomically(out / "report.json", report)
     say(f"report written to {out / 'report.json'}")
-    return 0
+    return 0 if native_whole and bus_whole else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,29 +1,45 @@
-"""Find protocol values typed by hand: COB-ID bases, fault bits, control-mode numbers, EMCY codes.
+"""Find protocol values typed by hand: COB-ID bases, SDO abort codes, fault bits, control-mode
+numbers, EMCY codes.
 
-Each has one home: the CiA 301 connection set in `boardproto.cia301`, the board's named values
-(control modes, fault bits, LED patterns, EMCY codes) in protocol/board.toml, reached in Python
-through `hilrig.table` (`ControlMode.VELOCITY`, `FaultFlags.MOTOR_ENCODER_STALE`,
-`EmcyCode.STALE_SENSOR`). A number typed anywhere else is a second copy that nothing checks.
+Each has one home: the CiA 301 rules (connection set, abort codes) in `boardproto.cia301`, which
+the firmware reaches through the generated `board/cia301.hpp`; the board's named values (control
+modes, fault bits, LED patterns, EMCY codes) in protocol/board.toml, reached in Python through
+`hilrig.table` (`ControlMode.VELOCITY`, `FaultFlags.MOTOR_ENCODER_STALE`, `EmcyCode.STALE_SENSOR`)
+and in C++ through `board/fields.hpp`. A number typed anywhere else is a second copy that nothing
+checks.
 
     python tools/protocol_literals.py            # lists findings, exit 1 if any
     python tools/protocol_literals.py rig/x.py   # only these files (or directories)
 
-What counts, in rig/, tests/ and tools/ (Python):
+What counts, in the Python, C and C++ of firmware/, protocol/, rig/, tests/ and tools/ (the home,
+protocol/boardproto/cia301.py, excepted):
 - a hex literal equal to a COB-ID base of the predefined connection set (0x080, 0x180 ... 0x700)
   or of the form base + node id written with three hex digits (0x190, 0x610, 0x710);
+- a hex literal equal to an SDO abort code (0x06090031, in C++ also 0x0609'0031), except in the
+  bus-level scenarios of tests/: its CiA 301 conformance checks spell the spec's codes on
+  purpose, a reading of the spec independent of boardproto.cia301;
 - a hex literal equal to an EMCY code the table declares (0x5000, 0x8210, ...);
+and in the Python of rig/, tests/ and tools/ (protocol/ is where the board's named values are
+defined and generated, and its tests read the generated files back against numbers):
 - a number other than 0 in an expression that is about fault flags (a name, attribute or string
   with "fault_flags", "fault_bit" or "fault_mask" in it: `fault_flags & 3`, `FAULT_BIT = 1 << 4`);
 - a number in an expression that is about the control mode (`rig.set("control_mode", 1)`,
   `control_mode == 2`, `VELOCITY_MODE = 1`).
+The last two read Python's syntax tree. C and C++ are read as text, comments and string literals
+left out, for the CiA 301 rules only (the board's named values reach C++ through the generated
+board/fields.hpp, whose cross-check is protocol/tests/FieldTableTest.cpp): an abort code in any
+spelling, a COB-ID written with three hex digits (0x080, 0x610) or a base added to something
+(`0x80 + node_id`); a two-digit 0x80 alone is a byte there (a command specifier, bit 7).
 
 A deliberate literal (a test that spells the wire bytes on purpose, a byte that merely equals a
-base) is marked on its line with `# protocol-literal: <why>`; the reason is required.
+base) is marked on its line with `# protocol-literal: <why>` (C/C++: `// protocol-literal: <why>`);
+the reason is required.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
@@ -33,11 +49,21 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "protocol"))
 
 from boardproto import load_table  # noqa: E402
-from boardproto.cia301 import FunctionCode  # noqa: E402
+from boardproto.cia301 import FunctionCode, SdoAbortCode  # noqa: E402
 
-SCANNED_DIRECTORIES = ("rig", "tests", "tools")
-MARKER = "# protocol-literal:"
+SCANNED_DIRECTORIES = ("firmware", "protocol", "rig", "tests", "tools")
+PYTHON_SUFFIXES = (".py",)
+C_SUFFIXES = (".c", ".h", ".cpp", ".hpp")
+MARKER_TEXT = "protocol-literal:"
+MARKER = f"# {MARKER_TEXT}"
+C_MARKER = f"// {MARKER_TEXT}"
 THIS_FILE = Path(__file__).resolve()
+HOMES = frozenset({REPO / "protocol" / "boardproto" / "cia301.py"})
+"""Files that are the home of the values: they state them, nothing to find there."""
+NAMED_VALUE_DIRECTORIES = ("rig", "tests", "tools")
+"""Where the control-mode and fault-flag rules apply (the board's named values' users)."""
+SPEC_CONFORMANCE_DIRECTORIES = ("tests",)
+"""Where SDO abort codes may be spelled: the conformance scenarios check against the spec."""
 
 # NMT's COB-ID is 0: a literal 0 is far too common to flag; NMT frames are spelled NMT_COB_ID.
 COB_ID_BASES = frozenset(int(code) for code in FunctionCode if code != FunctionCode.NMT)
@@ -47,6 +73,12 @@ NODE_ID_MASK = 0x7F
 CONTROL_MODE_WORDS = ("control_mode", "velocity_mode", "torque_mode", "position_mode", "disabled_mode")
 FAULT_WORDS = ("fault_flags", "fault_bit", "fault_mask", "fault_flag")
 FAULT_SUFFIXES = ("_bit", "_flags")  # COMMAND_WATCHDOG_BIT = 1 << 4, STALE_ENCODER_FLAGS = 0b11
+SDO_ABORT_CODES = frozenset(int(code) for code in SdoAbortCode)
+WHY_COB_ID = "a COB-ID of the CiA 301 connection set: use boardproto.cia301"
+WHY_COB_ID_CPP = "a COB-ID of the CiA 301 connection set: use cia301:: of board/cia301.hpp"
+WHY_SDO_ABORT = "an SDO abort code: use boardproto.cia301.SdoAbortCode"
+WHY_SDO_ABORT_CPP = "an SDO abort code: use cia301::SdoAbort of board/cia301.hpp"
+WHY_EMCY = "an EMCY code of board.toml: use hilrig.table.EmcyCode"
 
 
 @dataclass(frozen=True)
@@ -125,9 +157,30 @@ def _about(words: Iterable[str]) -> str | None:
 _VALUE_CONTEXTS = (ast.Compare, ast.BinOp, ast.Call, ast.Assign, ast.AnnAssign, ast.Dict)
 
 
+@dataclass(frozen=True)
+class _Rules:
+    """Which rules apply to a file besides the COB-ID and EMCY ones (those apply everywhere)."""
+
+    sdo_abort_codes: bool
+    named_values: bool
+
+
+def _rules_for(path: Path) -> _Rules:
+    """A file of the repository by its top folder; any other file (an example) gets every rule."""
+    try:
+        top = path.resolve().relative_to(REPO).parts[0]
+    except ValueError:
+        return _Rules(sdo_abort_codes=True, named_values=True)
+    return _Rules(
+        sdo_abort_codes=top not in SPEC_CONFORMANCE_DIRECTORIES,
+        named_values=top in NAMED_VALUE_DIRECTORIES,
+    )
+
+
 class _Scanner(ast.NodeVisitor):
-    def __init__(self, path: Path, source: str, emcy_codes: frozenset[int]) -> None:
+    def __init__(self, path: Path, source: str, emcy_codes: frozenset[int], rules: _Rules) -> None:
         self.path = path
+        self.rules = rules
         self.lines = source.split("\n")  # as the parser counts lines
         self.encoded_lines = [line.encode() for line in self.lines]  # AST columns count UTF-8 bytes
         self.source = source
@@ -155,12 +208,14 @@ class _Scanner(ast.NodeVisitor):
             spelled = self._spelled(node)
             if spelled.lower().startswith("0x"):
                 if _is_cob_id(node.value, spelled):
-                    self._add(node, "a COB-ID of the CiA 301 connection set: use boardproto.cia301")
+                    self._add(node, WHY_COB_ID)
+                elif self.rules.sdo_abort_codes and node.value in SDO_ABORT_CODES:
+                    self._add(node, WHY_SDO_ABORT)
                 elif node.value in self.emcy_codes:
-                    self._add(node, "an EMCY code of board.toml: use hilrig.table.EmcyCode")
+                    self._add(node, WHY_EMCY)
 
     def generic_visit(self, node: ast.AST) -> None:
-        if isinstance(node, _VALUE_CONTEXTS):
+        if self.rules.named_values and isinstance(node, _VALUE_CONTEXTS):
             self._check_values(node)
         super().generic_visit(node)
 
@@ -215,18 +270,67 @@ def _value_groups(node: ast.AST) -> Iterator[tuple[list[str], list[ast.Constant]
         yield [*_words(node)], [*_numbers(node)]
 
 
+# C and C++ text: comments and string/character literals are blanked (newlines kept, so line
+# numbers stay), then hex literals are read with their digit separators and suffixes.
+_C_NOT_CODE = re.compile(
+    r"""//[^\n]*|/\*.*?\*/|"(?:\\.|[^"\\\n])*"|'(?:\\.|[^'\\\n])+'(?![0-9A-Fa-f])""", re.DOTALL
+)
+_C_HEX = re.compile(r"(?<![\w.'])0[xX][0-9A-Fa-f](?:'?[0-9A-Fa-f])*[uUlL]*\b")
+_C_ADDED_AFTER = re.compile(r"^\s*\+(?!\+)")  # `0x80 + id`
+_C_ADDED_BEFORE = re.compile(r"(?<!\+)\+\s*$")  # `id + 0x80`
+
+
+def _blank(match: re.Match[str]) -> str:
+    return re.sub(r"[^\n]", " ", match.group(0))
+
+
+def scan_c_source(path: Path, source: str) -> list[Finding]:
+    """Findings in C or C++ text: the CiA 301 hex-literal rules (a comment may name any code)."""
+    lines = source.split("\n")
+    code = _C_NOT_CODE.sub(_blank, source)
+    findings = []
+    for number, line in enumerate(code.split("\n"), start=1):
+        for match in _C_HEX.finditer(line):
+            spelled = match.group(0).rstrip("uUlL").replace("'", "")
+            value = int(spelled, 16)
+            added = _C_ADDED_AFTER.search(line[match.end() :][:3]) or _C_ADDED_BEFORE.search(
+                line[: match.start()][-3:]
+            )
+            if _is_cob_id(value, spelled) and (len(spelled) == 5 or added):
+                why = WHY_COB_ID_CPP
+            elif value in SDO_ABORT_CODES and _rules_for(path).sdo_abort_codes:
+                why = WHY_SDO_ABORT_CPP
+            else:
+                continue
+            original = lines[number - 1]
+            if C_MARKER in original:
+                if original.split(C_MARKER, 1)[1].strip():
+                    continue
+                why = f"{why} (the {C_MARKER!r} mark on this line gives no reason)"
+            findings.append(Finding(path, number, match.group(0), why))
+    return findings
+
+
 def scan_file(path: Path, emcy_codes: frozenset[int] | None = None) -> list[Finding]:
     source = path.read_text(encoding="utf-8")
-    scanner = _Scanner(path, source, _emcy_codes() if emcy_codes is None else emcy_codes)
+    codes = _emcy_codes() if emcy_codes is None else emcy_codes
+    if path.suffix in C_SUFFIXES:
+        return scan_c_source(path, source)
+    scanner = _Scanner(path, source, codes, _rules_for(path))
     scanner.visit(ast.parse(source, filename=str(path)))
     return sorted(scanner.findings.values(), key=lambda f: f.line)
+
+
+def _is_scanned(path: Path) -> bool:
+    return path.suffix in PYTHON_SUFFIXES + C_SUFFIXES and "__pycache__" not in path.parts
 
 
 def scanned_files(root: Path = REPO) -> list[Path]:
     files = []
     for directory in SCANNED_DIRECTORIES:
-        files += sorted((root / directory).rglob("*.py"))
-    return [f for f in files if f.resolve() != THIS_FILE and "__pycache__" not in f.parts]
+        files += sorted(f for f in (root / directory).rglob("*") if _is_scanned(f))
+    skipped = {THIS_FILE, *(home.resolve() for home in HOMES)}
+    return [f for f in files if f.resolve() not in skipped]
 
 
 def scan(paths: Iterable[Path]) -> list[Finding]:
@@ -235,7 +339,11 @@ def scan(paths: Iterable[Path]) -> list[Finding]:
 
 
 def main(argv: list[str]) -> int:
-    paths = [p for a in argv for p in (sorted(Path(a).rglob("*.py")) if Path(a).is_dir() else [Path(a)])]
+    paths = [
+        path
+        for argument in map(Path, argv)
+        for path in (sorted(filter(_is_scanned, argument.rglob("*"))) if argument.is_dir() else [argument])
+    ]
     paths = paths or scanned_files()
     findings = scan(paths)
     for finding in findings:

@@ -38,7 +38,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(REPO / "rig"), str(REPO / "protocol")]
 
-from hilrig.transport import RawCanLink, can_frame  # noqa: E402
+from hilrig.wire.transport import RawCanLink, can_frame  # noqa: E402
 
 MODES = ("rig", "engine", "memory", "traced", "tracer-idle")
 WARMUP_CYCLES = 20
@@ -91,18 +91,18 @@ def main(argv: list[str] | None = None) -> int:
 
     import can
 
-    from hilrig.driver import SYNC_FRAMES
-    from hilrig.fake_node import FakeJointNode
-    from hilrig.rig import Rig
+    from hilrig.engine.driver import SYNC_FRAMES
+    from hilrig.engine.rig import Rig
+    from hilrig.session.fake_node import FakeJointNode
     from hilrig.table import RigTable
-    from hilrig.transport import exchange
+    from hilrig.wire.transport import exchange
 
     table = RigTable.load()
     channel = "rig-probe"
     folder = tempfile.TemporaryDirectory(prefix="rig-probe-")
     tracer = None
     if args.mode in ("traced", "tracer-idle"):
-        from hilrig.trace import Tracer
+        from hilrig.observe.tracer import Tracer
 
         tracer = Tracer.for_scenario(folder.name, table)  # as a HIL session makes it
     with (

@@ -1,4 +1,4 @@
-"""The `make run` demo: `hilrig sim` (rig/hilrig/demo.py) inside tools/with-vcan.
+"""The `make run` demo: `hilrig sim` (rig/hilrig/apps/demo.py) inside tools/with-vcan.
 
 The firmware runs in lockstep on a private vcan bus against the rig's joint physics: a velocity
 then a torque profile, a summary, and the bus log in --out.

@@ -12,7 +12,7 @@ namespace {
 using Ids = std::vector<std::uint32_t>;
 
 constexpr std::uint32_t kInvalid = 0x8000'0000u;
-constexpr std::uint32_t kMasterHeartbeat = 0x701;
+constexpr std::uint32_t kMasterHeartbeat = cia301::cob_id(cia301::FunctionCode::Heartbeat, 1);
 
 struct Heard {
   Ids ids;
@@ -33,12 +33,12 @@ class RecordingAcceptance final : public AcceptanceListener {
 
 class AcceptanceFilterTest : public NodeTest {
  protected:
-  static constexpr std::uint32_t kRpdo1 = 0x200 + kNodeId;
-  static constexpr std::uint32_t kRpdo2 = 0x300 + kNodeId;
-  static constexpr std::uint32_t kRpdo3 = 0x400 + kNodeId;
-  static constexpr std::uint32_t kRpdo4 = 0x500 + kNodeId;
+  static constexpr std::uint32_t kRpdo1 = cia301::cob_id(cia301::FunctionCode::Rpdo1, kNodeId);
+  static constexpr std::uint32_t kRpdo2 = cia301::cob_id(cia301::FunctionCode::Rpdo2, kNodeId);
+  static constexpr std::uint32_t kRpdo3 = cia301::cob_id(cia301::FunctionCode::Rpdo3, kNodeId);
+  static constexpr std::uint32_t kRpdo4 = cia301::cob_id(cia301::FunctionCode::Rpdo4, kNodeId);
   // board.toml's defaults: RPDO1..3 enabled, RPDO4 not; no heartbeat consumed.
-  const Ids kDefaultIds = {0x000, 0x080, kRpdo1, kRpdo2, kRpdo3, kSdoRx};
+  const Ids kDefaultIds = {0x000, cia301::kSyncCobId, kRpdo1, kRpdo2, kRpdo3, kSdoRx};
 
   void SetUp() override {
     node.set_acceptance_listener(&listener);  // before start(), as the platform does
@@ -104,7 +104,7 @@ TEST_F(AcceptanceFilterTest, AnRpdoMadeInvalidLeavesTheSet) {
 }
 
 TEST_F(AcceptanceFilterTest, ARemappedRpdoCobIdIsAcceptedAndServed) {
-  constexpr std::uint32_t kRemapped = 0x234;
+  constexpr std::uint32_t kRemapped = 0x234;  // protocol-literal: any free identifier
   ASSERT_EQ(download(0x1400, 1, kInvalid | kRpdo1, 4), SdoAbort::None);
   ASSERT_EQ(download(0x1400, 1, kRemapped, 4), SdoAbort::None);
   const Ids expected = with(without(kDefaultIds, kRpdo1), {kRemapped});
@@ -116,8 +116,8 @@ TEST_F(AcceptanceFilterTest, ARemappedRpdoCobIdIsAcceptedAndServed) {
 }
 
 TEST_F(AcceptanceFilterTest, TheSyncCobIdFollows0x1005) {
-  ASSERT_EQ(download(0x1005, 0, 0x081, 4), SdoAbort::None);
-  const Ids expected = with(without(kDefaultIds, 0x080), {0x081});
+  ASSERT_EQ(download(0x1005, 0, 0x081, 4), SdoAbort::None);  // protocol-literal: SYNC moved
+  const Ids expected = with(without(kDefaultIds, cia301::kSyncCobId), {0x081});  // protocol-literal: SYNC moved
   EXPECT_EQ(accepted(), expected);
   EXPECT_EQ(last_heard_before_any_frame(), expected);
 }
@@ -147,7 +147,7 @@ TEST_F(AcceptanceFilterTest, ResetCommunicationReloadsTheStoredSetBeforeTheBootU
   ASSERT_EQ(download(0x1010, 2, Node::kStoreSignature, 4), SdoAbort::None);
   const Ids stored = with(kDefaultIds, {kRpdo4, kMasterHeartbeat});
   ASSERT_EQ(download(0x1402, 1, kInvalid | kRpdo3, 4), SdoAbort::None);  // not stored
-  ASSERT_EQ(download(0x1005, 0, 0x081, 4), SdoAbort::None);                // not stored
+  ASSERT_EQ(download(0x1005, 0, 0x081, 4), SdoAbort::None);  // protocol-literal: SYNC moved, not stored
   nmt(NmtCommand::ResetCommunication);
   EXPECT_EQ(accepted(), stored);
   EXPECT_EQ(last_heard_before_any_frame(), stored) << "boot-up before the filter";
@@ -195,11 +195,11 @@ TEST_F(AcceptanceFilterTest, DuplicateCobIdsAreListedOnce) {
 // remote or 29-bit frame, changes nothing but the received and ignored counters, and the node
 // answers nothing. So a filter that drops exactly those frames changes nothing on the bus.
 TEST_F(AcceptanceFilterTest, FramesOutsideTheSetAreOnlyEverCountedAsIgnored) {
-  enable_rpdo4(0x555);
+  enable_rpdo4(0x555);  // protocol-literal: any free identifier
   ASSERT_EQ(download(0x1016, 1, 0x0001'0096u, 4), SdoAbort::None);
-  ASSERT_EQ(download(0x1005, 0, 0x0FF, 4), SdoAbort::None);
+  ASSERT_EQ(download(0x1005, 0, 0x0FF, 4), SdoAbort::None);  // protocol-literal: SYNC moved
   const Ids accepted_ids = accepted();
-  ASSERT_EQ(accepted_ids, with(without(kDefaultIds, 0x080), {0x0FF, 0x555, kMasterHeartbeat}));
+  ASSERT_EQ(accepted_ids, with(without(kDefaultIds, cia301::kSyncCobId), {0x0FF, 0x555, kMasterHeartbeat}));  // protocol-literal: as set above
   for (const NmtCommand state : {NmtCommand::EnterPreOperational, NmtCommand::Start, NmtCommand::Stop}) {
     nmt(state);
     all_sent();

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "HeartbeatConsumer.hpp"
+#include "board/cia301.hpp"
 #include "board/fields.hpp"
 
 namespace co {
@@ -16,20 +17,23 @@ namespace co {
 namespace error_register = board::error_register;
 
 namespace emcy_code {
-inline constexpr std::uint16_t kErrorReset = 0x0000;  // CiA 301: "error reset or no error"
+inline constexpr std::uint16_t kErrorReset = cia301::kEmcyErrorReset;  // "error reset or no error"
 }  // namespace emcy_code
+
+// The manufacturer-specific error field of an EMCY frame (its last bytes, CiA 301 7.2.7.3.1).
+using EmcyManufacturerBytes = std::array<std::uint8_t, cia301::emcy_layout::kManufacturerBytes>;
 
 struct EmcyReport {
   std::uint16_t code = 0;
   std::uint8_t register_bits = 0;  // error register bits this error sets (besides kGeneric)
-  std::array<std::uint8_t, 5> manufacturer{};
+  EmcyManufacturerBytes manufacturer{};
 
   friend bool operator==(const EmcyReport&, const EmcyReport&) = default;
 };
 
 namespace emcy {
 
-constexpr std::array<std::uint8_t, 5> about_index(std::uint16_t object_index) {
+constexpr EmcyManufacturerBytes about_index(std::uint16_t object_index) {
   return {static_cast<std::uint8_t>(object_index & 0xFF),
           static_cast<std::uint8_t>(object_index >> 8), 0, 0, 0};
 }

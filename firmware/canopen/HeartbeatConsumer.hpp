@@ -17,6 +17,7 @@
 #include <cstdint>
 
 #include "SdoAbort.hpp"
+#include "board/cia301.hpp"
 #include "board/fields.hpp"
 
 namespace co {
@@ -25,10 +26,10 @@ namespace co {
 template <std::size_t Entries>
 class BasicHeartbeatConsumer {
  public:
-  static constexpr std::uint16_t kIndex = 0x1016;
+  static constexpr std::uint16_t kIndex = cia301::kHeartbeatConsumerIndex;
   static constexpr std::size_t kEntries = Entries;
   static constexpr std::uint32_t kReservedBits = 0xFF00'0000u;
-  static constexpr std::uint8_t kMaxNodeId = 127;
+  static constexpr std::uint8_t kMaxNodeId = cia301::kMaxNodeId;
 
   static constexpr std::uint8_t node_id_of(std::uint32_t entry) {
     return static_cast<std::uint8_t>(entry >> 16);

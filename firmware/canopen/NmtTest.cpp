@@ -19,7 +19,7 @@ TEST(NmtStartTest, StartSendsBootUpAndEntersPreOperational) {
   node.start(0);
   CanFrame frame;
   ASSERT_TRUE(port.pop_sent(frame));
-  EXPECT_EQ(frame, make_frame(0x722, {0x00}));
+  EXPECT_EQ(frame, make_frame(cia301::cob_id(cia301::FunctionCode::Heartbeat, 0x22), {0x00}));
   EXPECT_EQ(node.state(), NmtState::PreOperational);
 }
 
@@ -29,7 +29,7 @@ TEST(NmtStartTest, FramesBeforeStartAreIgnored) {
   FakeHil hil;
   MemoryStorage storage;
   Node node(0x22, port, fields, hil, storage);
-  node.process(make_frame(0x622, {0x40, 0x00, 0x10, 0, 0, 0, 0, 0}), 0);
+  node.process(make_frame(cia301::cob_id(cia301::FunctionCode::SdoRequest, 0x22), {0x40, 0x00, 0x10, 0, 0, 0, 0, 0}), 0);
   node.process(make_frame(0x000, {0x01, 0x22}), 0);
   EXPECT_EQ(port.sent_count(), 0u);
   EXPECT_EQ(node.state(), NmtState::Initialising);
@@ -95,19 +95,19 @@ TEST_F(NmtTest, SdoIsServedInPreOperationalAndOperational) {
 }
 
 TEST_F(NmtTest, SyncIsReportedInPreOperationalAndOperationalButNotStopped) {
-  EXPECT_TRUE(receive(0x080, {}).sync);
+  EXPECT_TRUE(receive(cia301::kSyncCobId, {}).sync);
   nmt(NmtCommand::Start);
-  const ProcessResult with_counter = receive(0x080, {7});
+  const ProcessResult with_counter = receive(cia301::kSyncCobId, {7});
   EXPECT_TRUE(with_counter.sync);
   EXPECT_TRUE(with_counter.sync_has_counter);
   EXPECT_EQ(with_counter.sync_counter, 7);
   nmt(NmtCommand::Stop);
-  EXPECT_FALSE(receive(0x080, {}).sync);
+  EXPECT_FALSE(receive(cia301::kSyncCobId, {}).sync);
   EXPECT_EQ(node.counters().syncs_received, 2u);
 }
 
 TEST_F(NmtTest, SyncLongerThanOneByteIsMalformed) {
-  EXPECT_FALSE(receive(0x080, {1, 2}).sync);
+  EXPECT_FALSE(receive(cia301::kSyncCobId, {1, 2}).sync);
   EXPECT_EQ(node.counters().frames_malformed, 1u);
 }
 
@@ -127,7 +127,7 @@ TEST_F(NmtTest, NoPdosUnlessOperational) {
   EXPECT_FALSE(all_sent().empty());
   // Stopped: nothing again.
   nmt(NmtCommand::Stop);
-  receive(0x080, {});
+  receive(cia301::kSyncCobId, {});
   node.transmit_synchronous_pdos(now_us);
   EXPECT_TRUE(all_sent().empty());
 }
@@ -136,9 +136,9 @@ TEST_F(NmtTest, ResetCommunicationSendsBootUpAndRestoresCommunicationParameters)
   ASSERT_EQ(download(0x1005, 0, 0x81, 4), SdoAbort::None);
   nmt(NmtCommand::Start);
   nmt(NmtCommand::ResetCommunication);
-  EXPECT_EQ(next_sent(), make_frame(0x700 + kNodeId, {0x00}));
+  EXPECT_EQ(next_sent(), make_frame(cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId), {0x00}));
   EXPECT_EQ(node.state(), NmtState::PreOperational);
-  EXPECT_EQ(upload(0x1005, 0), 0x80u);
+  EXPECT_EQ(upload(0x1005, 0), cia301::kSyncCobId);
   EXPECT_EQ(upload(0x1017, 0), board::kNode.heartbeat_ms);
 }
 
@@ -156,7 +156,7 @@ TEST_F(NmtTest, ResetNodeRestoresBusOwnedFieldsAndReportsIt) {
   const ProcessResult result = receive(0x000, {0x81, kNodeId});
   EXPECT_TRUE(result.application_reset);
   EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(id)], board::info(id).default_value);
-  EXPECT_EQ(next_sent(), make_frame(0x700 + kNodeId, {0x00}));
+  EXPECT_EQ(next_sent(), make_frame(cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId), {0x00}));
   EXPECT_EQ(node.state(), NmtState::PreOperational);
 }
 

@@ -10,12 +10,8 @@
 namespace co {
 namespace {
 
-constexpr std::uint32_t kNmtCobId = 0x000;
-constexpr std::uint32_t kEmcyCobIdBase = 0x080;
-constexpr std::uint32_t kSdoRequestCobIdBase = 0x600;
-constexpr std::uint32_t kSdoResponseCobIdBase = 0x580;
-constexpr std::uint32_t kErrorControlCobIdBase = 0x700;  // boot-up and heartbeat
-constexpr std::uint8_t kNmtBroadcast = 0;
+using cia301::FunctionCode;
+using cia301::kStandardIdMask;
 
 static_assert(tables::hil_inputs_fit_int32(),
               "every HIL I/O object needs an integer type; inputs must fit int32 (HilIo)");
@@ -72,11 +68,11 @@ ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
     ++counters_.frames_ignored;
     return result;
   }
-  if (frame.id == kNmtCobId) {
+  if (frame.id == cia301::kNmtCobId) {
     handle_nmt(frame, now_us, result);
     return result;
   }
-  if (frame.id == (sync_cob_id_ & 0x7FFu) && state_ != NmtState::Stopped) {
+  if (frame.id == (sync_cob_id_ & kStandardIdMask) && state_ != NmtState::Stopped) {
     handle_sync(frame, result);
     return result;
   }
@@ -86,7 +82,7 @@ ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
     ++counters_.frames_ignored;
     return result;
   }
-  if (frame.id == kSdoRequestCobIdBase + node_id_) {
+  if (frame.id == cia301::cob_id(FunctionCode::SdoRequest, node_id_)) {
     handle_sdo(frame, now_us);
     return result;
   }
@@ -105,16 +101,16 @@ ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
 std::size_t Node::accepted_ids(std::span<std::uint32_t, kMaxAcceptedIds> out) const {
   // The same rules process() and handle_heartbeat() apply, read from the same state.
   std::size_t count = 0;
-  out[count++] = kNmtCobId;
-  out[count++] = sync_cob_id_ & 0x7FFu;
-  out[count++] = kSdoRequestCobIdBase + node_id_;
+  out[count++] = cia301::kNmtCobId;
+  out[count++] = sync_cob_id_ & kStandardIdMask;
+  out[count++] = cia301::cob_id(FunctionCode::SdoRequest, node_id_);
   for (const Pdo& rpdo : rpdos_) {
     if (rpdo.valid()) out[count++] = rpdo.can_id();
   }
   for (std::uint8_t sub = 1; sub <= HeartbeatConsumer::kEntries; ++sub) {
     const std::uint32_t entry = heartbeat_consumer_.entry(sub);
     if (HeartbeatConsumer::is_used(entry)) {
-      out[count++] = kErrorControlCobIdBase + HeartbeatConsumer::node_id_of(entry);
+      out[count++] = cia301::cob_id(FunctionCode::Heartbeat, HeartbeatConsumer::node_id_of(entry));
     }
   }
   std::sort(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count));
@@ -147,7 +143,7 @@ void Node::handle_nmt(const CanFrame& frame, std::uint32_t now_us, ProcessResult
     return;
   }
   const std::uint8_t target = frame.data[1];
-  if (target != kNmtBroadcast && target != node_id_) {
+  if (target != cia301::kNmtAllNodes && target != node_id_) {
     ++counters_.frames_ignored;
     return;
   }
@@ -176,7 +172,7 @@ void Node::enter(NmtState state) {
 
 void Node::reset_communication(std::uint32_t now_us) {
   sdo_.reset();
-  sync_cob_id_ = 0x80;
+  sync_cob_id_ = cia301::kSyncCobId;
   sync_overflow_ = 0;
   configuration_date_ = 0;
   configuration_time_ = 0;
@@ -190,7 +186,7 @@ void Node::reset_communication(std::uint32_t now_us) {
   // Stored COB-IDs are back: the filter takes them before the boot-up invites the master.
   tell_acceptance_listener();
   const std::array<std::uint8_t, 1> boot_up = {static_cast<std::uint8_t>(NmtState::Initialising)};
-  send(kErrorControlCobIdBase + node_id_, boot_up);
+  send(cia301::cob_id(FunctionCode::Heartbeat, node_id_), boot_up);
 }
 
 void Node::handle_sync(const CanFrame& frame, ProcessResult& result) {
@@ -210,7 +206,7 @@ void Node::handle_sync(const CanFrame& frame, ProcessResult& result) {
     apply_rpdo(pdo, std::span<const std::uint8_t>(pdo.buffer.data(), pdo.payload_bytes));
   }
   for (Pdo& pdo : tpdos_) {
-    if (!pdo.valid() || pdo.transmission_type > 240) continue;
+    if (!pdo.valid() || pdo.transmission_type > cia301::kLastSynchronousType) continue;
     if (pdo.transmission_type == 0) {
       pdo.due_at_sync = true;
       continue;
@@ -232,9 +228,10 @@ void Node::handle_sync(const CanFrame& frame, ProcessResult& result) {
 }
 
 bool Node::handle_heartbeat(const CanFrame& frame, std::uint32_t now_us) {
-  // 0x701..0x77F: the heartbeat (or boot-up) of node id 1..127; only watched nodes are served.
-  const std::uint32_t node_id = frame.id - kErrorControlCobIdBase;
-  if (frame.id <= kErrorControlCobIdBase || node_id > HeartbeatConsumer::kMaxNodeId ||
+  // The heartbeat (or boot-up) of node id 1..127; only watched nodes are served.
+  const std::uint32_t heartbeat_base = static_cast<std::uint32_t>(FunctionCode::Heartbeat);
+  const std::uint32_t node_id = frame.id - heartbeat_base;
+  if (frame.id < heartbeat_base || !cia301::is_node_id(node_id) ||
       !heartbeat_consumer_.watches(static_cast<std::uint8_t>(node_id))) {
     return false;
   }
@@ -274,7 +271,7 @@ void Node::check_sdo_timeout(std::uint32_t server_now_us) {
   std::array<std::uint8_t, 8> response{};
   if (sdo_.check_timeout(server_now_us, response)) {
     ++counters_.sdo_aborts_sent;
-    send(kSdoResponseCobIdBase + node_id_, response);
+    send(cia301::cob_id(FunctionCode::SdoResponse, node_id_), response);
   }
 }
 
@@ -298,7 +295,7 @@ void Node::handle_sdo(const CanFrame& frame, std::uint32_t now_us) {
   // A write may have changed the accepted set (0x1005, 0x1016, an RPDO's COB-ID). Once the
   // master has the answer it may send on the new id at once, so the filter changes first.
   tell_acceptance_listener();
-  if (answered) send(kSdoResponseCobIdBase + node_id_, response);
+  if (answered) send(cia301::cob_id(FunctionCode::SdoResponse, node_id_), response);
   counters_.sdo_aborts_sent += sdo_.aborts_sent() - aborts_before;
   send_sdo_segments(now_us);
 }
@@ -310,7 +307,7 @@ void Node::send_sdo_segments(std::uint32_t now_us) {
   for (std::size_t n = 0; n < kSdoSegmentsPerCall && sdo_.peek_segment(segment); ++n) {
     // Refused (transmit queue full): the server keeps it for the next poll rather than leave
     // a gap the client would have to ask for again.
-    if (!send(kSdoResponseCobIdBase + node_id_, segment)) {
+    if (!send(cia301::cob_id(FunctionCode::SdoResponse, node_id_), segment)) {
       segment_send_refused_ = true;
       break;
     }
@@ -328,7 +325,7 @@ void Node::poll(std::uint32_t now_us) {
     last_heartbeat_us_ += period_us;
     if (now_us - last_heartbeat_us_ >= period_us) last_heartbeat_us_ = now_us;
     const std::array<std::uint8_t, 1> heartbeat = {static_cast<std::uint8_t>(state_)};
-    if (send(kErrorControlCobIdBase + node_id_, heartbeat)) ++counters_.heartbeats_sent;
+    if (send(cia301::cob_id(FunctionCode::Heartbeat, node_id_), heartbeat)) ++counters_.heartbeats_sent;
   }
   if (timeout_clock_ == TimeoutClock::WallTime) check_sdo_timeout(now_us);
   if (state_ != NmtState::Stopped) send_sdo_segments(now_us);
@@ -583,12 +580,15 @@ bool Node::may_send_emcy() const {
   return state_ == NmtState::PreOperational || state_ == NmtState::Operational;
 }
 
-void Node::send_emcy(std::uint16_t code, const std::array<std::uint8_t, 5>& manufacturer) {
+void Node::send_emcy(std::uint16_t code, const EmcyManufacturerBytes& manufacturer) {
   if (!may_send_emcy()) return;
-  std::array<std::uint8_t, 8> data = {static_cast<std::uint8_t>(code & 0xFF),
-                                      static_cast<std::uint8_t>(code >> 8), error_register_};
-  std::copy(manufacturer.begin(), manufacturer.end(), data.begin() + 3);
-  if (send(kEmcyCobIdBase + node_id_, data)) ++counters_.emcy_sent;
+  namespace layout = cia301::emcy_layout;
+  std::array<std::uint8_t, layout::kFrameBytes> data{};
+  data[layout::kErrorCodeOffset] = static_cast<std::uint8_t>(code & 0xFF);
+  data[layout::kErrorCodeOffset + 1] = static_cast<std::uint8_t>(code >> 8);
+  data[layout::kErrorRegisterOffset] = error_register_;
+  std::copy(manufacturer.begin(), manufacturer.end(), data.begin() + layout::kManufacturerOffset);
+  if (send(cia301::cob_id(FunctionCode::SyncEmcy, node_id_), data)) ++counters_.emcy_sent;
 }
 
 void Node::update_error_register() {
@@ -631,7 +631,7 @@ bool Node::report_emcy(const EmcyReport& report) {
 }
 
 bool Node::report_emcy(std::uint16_t error_code, std::uint8_t error_register_bits,
-                       const std::array<std::uint8_t, 5>& manufacturer) {
+                       const EmcyManufacturerBytes& manufacturer) {
   return report_emcy(EmcyReport{error_code, error_register_bits, manufacturer});
 }
 

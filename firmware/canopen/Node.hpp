@@ -22,26 +22,16 @@
 #include "Recorder.hpp"
 #include "SdoAbort.hpp"
 #include "SdoServer.hpp"
+#include "board/cia301.hpp"
 #include "board/fields.hpp"
 
 namespace co {
 
-// Values are the heartbeat state bytes (CiA 301, 7.2.8.3.2.2).
-enum class NmtState : std::uint8_t {
-  Initialising = 0x00,  // before start(); also the boot-up message's byte
-  Stopped = 0x04,
-  Operational = 0x05,
-  PreOperational = 0x7F,
-};
-
-// NMT command specifiers (CiA 301, 7.2.8.3.1).
-enum class NmtCommand : std::uint8_t {
-  Start = 0x01,
-  Stop = 0x02,
-  EnterPreOperational = 0x80,
-  ResetNode = 0x81,
-  ResetCommunication = 0x82,
-};
+// Values are the heartbeat state bytes (CiA 301, 7.2.8.3.2.2); Initialising is the state
+// before start() and the boot-up message's byte. Generated from boardproto.cia301.
+using NmtState = cia301::NmtState;
+// NMT command specifiers (CiA 301, 7.2.8.3.1), generated from boardproto.cia301.
+using NmtCommand = cia301::NmtCommand;
 
 // What process() saw that the caller must act on.
 struct ProcessResult {
@@ -184,7 +174,7 @@ class Node final {
   // updated, 0x1003 history pushed, frame sent (pre-operational/operational only), true.
   bool report_emcy(const EmcyReport& report);
   bool report_emcy(std::uint16_t error_code, std::uint8_t error_register_bits,
-                   const std::array<std::uint8_t, 5>& manufacturer);
+                   const EmcyManufacturerBytes& manufacturer);
   // Clears one active error (code and manufacturer bytes) or all with `error_code`, and sends
   // an error reset (code 0x0000, the remaining error register). false: nothing was active.
   bool clear_emcy(const EmcyReport& report);
@@ -265,7 +255,7 @@ class Node final {
     std::array<std::uint8_t, 8> buffer{};
 
     bool valid() const { return (cob_id & 0x8000'0000u) == 0; }
-    std::uint32_t can_id() const { return cob_id & 0x7FFu; }
+    std::uint32_t can_id() const { return cob_id & cia301::kStandardIdMask; }
   };
   struct ActiveError {
     EmcyReport report;
@@ -332,7 +322,7 @@ class Node final {
   std::size_t collect_application(std::span<parameter_image::StoredValue> out);
   std::size_t stored_entries(std::span<parameter_image::StoredValue> out, bool communication);
   bool save_image(std::span<const parameter_image::StoredValue> values, std::size_t count);
-  void send_emcy(std::uint16_t code, const std::array<std::uint8_t, 5>& manufacturer);
+  void send_emcy(std::uint16_t code, const EmcyManufacturerBytes& manufacturer);
   void update_error_register();
   bool may_send_emcy() const;
   bool send(std::uint32_t id, std::span<const std::uint8_t> data);
@@ -346,7 +336,7 @@ class Node final {
   SdoServer sdo_;
 
   NmtState state_ = NmtState::Initialising;
-  std::uint32_t sync_cob_id_ = 0x80;
+  std::uint32_t sync_cob_id_ = cia301::kSyncCobId;
   std::uint8_t sync_overflow_ = 0;  // 0x1019: 0 = SYNC without counter, else counter 1..value
   std::uint32_t configuration_date_ = 0;  // 0x1020:01, days since 1984-01-01 (written by a master)
   std::uint32_t configuration_time_ = 0;  // 0x1020:02, ms after midnight

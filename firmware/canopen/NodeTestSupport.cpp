@@ -77,7 +77,7 @@ void NodeTest::nmt(NmtCommand command, std::uint8_t target) {
 }
 
 void NodeTest::sync() {
-  const ProcessResult result = receive(0x080, {});
+  const ProcessResult result = receive(cia301::kSyncCobId, {});
   EXPECT_TRUE(result.sync);
   node.transmit_synchronous_pdos(now_us);
 }

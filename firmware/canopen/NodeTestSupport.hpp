@@ -61,10 +61,10 @@ std::uint32_t float_bits(float v);
 class NodeTest : public ::testing::Test {
  protected:
   static constexpr std::uint8_t kNodeId = 0x10;
-  static constexpr std::uint32_t kSdoRx = 0x600 + kNodeId;
-  static constexpr std::uint32_t kSdoTx = 0x580 + kNodeId;
-  static constexpr std::uint32_t kEmcy = 0x80 + kNodeId;
-  static constexpr std::uint32_t kHeartbeat = 0x700 + kNodeId;
+  static constexpr std::uint32_t kSdoRx = cia301::cob_id(cia301::FunctionCode::SdoRequest, kNodeId);
+  static constexpr std::uint32_t kSdoTx = cia301::cob_id(cia301::FunctionCode::SdoResponse, kNodeId);
+  static constexpr std::uint32_t kEmcy = cia301::cob_id(cia301::FunctionCode::SyncEmcy, kNodeId);
+  static constexpr std::uint32_t kHeartbeat = cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId);
   static constexpr std::uint32_t kSerial = 0x1234'5678;
 
   void SetUp() override;

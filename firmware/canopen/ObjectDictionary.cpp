@@ -147,7 +147,7 @@ std::uint32_t Node::read_communication(std::uint16_t index, std::uint8_t sub) co
     case 0x1005: return sync_cob_id_;
     case 0x1010:
     case 0x1011: return sub == 0 ? kStoreHighestSub : kSavesOnCommand;
-    case 0x1014: return 0x80u + node_id_;
+    case 0x1014: return cia301::cob_id(cia301::FunctionCode::SyncEmcy, node_id_);
     case HeartbeatConsumer::kIndex:
       return sub == 0 ? HeartbeatConsumer::kEntries : heartbeat_consumer_.entry(sub);
     case 0x1017: return heartbeat_ms_;
@@ -337,7 +337,7 @@ SdoAbort Node::write_communication(std::uint16_t index, std::uint8_t sub, std::u
       if ((value & 0x7FFF'F800u) != 0) return SdoAbort::ValueRangeExceeded;
       // A restricted id would shadow NMT, SDO or error control: e.g. 0x600+id turns every SDO
       // request into a SYNC and leaves the node deaf to SDO until a reset (found by fuzzing).
-      if (tables::is_restricted_can_id(value & 0x7FFu)) return SdoAbort::ValueRangeExceeded;
+      if (cia301::is_restricted_cob_id(value & cia301::kStandardIdMask)) return SdoAbort::ValueRangeExceeded;
       sync_cob_id_ = value;
       return SdoAbort::None;
     case 0x1010:

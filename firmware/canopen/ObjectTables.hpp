@@ -7,6 +7,7 @@
 #include <optional>
 #include <span>
 
+#include "board/cia301.hpp"
 #include "board/fields.hpp"
 
 namespace co::tables {
@@ -17,15 +18,8 @@ inline constexpr std::uint16_t kRpdoMappingBase = 0x1600;
 inline constexpr std::uint16_t kTpdoCommunicationBase = 0x1800;
 inline constexpr std::uint16_t kTpdoMappingBase = 0x1A00;
 
-// CAN identifiers CiA 301 (7.3.5) reserves for NMT, SYNC/EMCY, SDO and error control: no
-// configurable COB-ID (PDOs, SYNC 0x1005) may use them.
 // PDO COB-ID bit 31: 1 = PDO not valid (CiA 301, 7.5.2.35/37).
 inline constexpr std::uint32_t kPdoInvalidBit = 0x8000'0000u;
-
-constexpr bool is_restricted_can_id(std::uint32_t id) {
-  return id <= 0x7F || (id >= 0x101 && id <= 0x180) || (id >= 0x581 && id <= 0x5FF) ||
-         (id >= 0x601 && id <= 0x67F) || (id >= 0x6E0 && id <= 0x6FF) || id >= 0x701;
-}
 
 constexpr std::uint8_t size_of(board::DataType type) {
   switch (type) {

@@ -56,18 +56,18 @@ SdoAbort Node::write_pdo_communication(Pdo& pdo, bool is_rpdo, std::uint8_t sub,
   switch (sub) {
     case 1: {
       const bool valid = (value & kInvalidBit) == 0;
-      const std::uint32_t can_id = value & 0x7FFu;
+      const std::uint32_t can_id = value & cia301::kStandardIdMask;
       // bit 29 (29-bit id) and bits 11..28 must be zero; the id may change only while the
       // PDO is invalid; an enabled PDO needs a usable id and a mapping.
       if ((value & 0x3FFF'F800u) != 0) return SdoAbort::ValueRangeExceeded;
       // A TPDO cannot be configured "RTR allowed": the node would not keep that promise.
       if (!is_rpdo && (value & kRtrBit) == 0) return SdoAbort::ValueRangeExceeded;
       if (valid && pdo.valid() && can_id != pdo.can_id()) return SdoAbort::ValueRangeExceeded;
-      if (valid && (tables::is_restricted_can_id(can_id) || pdo.mapping_count == 0)) {
+      if (valid && (cia301::is_restricted_cob_id(can_id) || pdo.mapping_count == 0)) {
         return SdoAbort::ValueRangeExceeded;
       }
       const bool enabling = valid && !pdo.valid();
-      pdo.cob_id = value & (kInvalidBit | kRtrBit | 0x7FFu);
+      pdo.cob_id = value & (kInvalidBit | kRtrBit | cia301::kStandardIdMask);
       if (enabling) {
         pdo.received_once = false;
         pdo.sent_once = false;

@@ -23,8 +23,8 @@ std::uint32_t map(FieldId id) { return map(index_of(id), 32); }
 
 class PdoTest : public NodeTest {
  protected:
-  static constexpr std::uint32_t kTpdo1 = 0x180 + kNodeId;
-  static constexpr std::uint32_t kRpdo1 = 0x200 + kNodeId;
+  static constexpr std::uint32_t kTpdo1 = cia301::cob_id(cia301::FunctionCode::Tpdo1, kNodeId);
+  static constexpr std::uint32_t kRpdo1 = cia301::cob_id(cia301::FunctionCode::Rpdo1, kNodeId);
 
   // The CiA 301 procedure: disable, sub0 = 0, entries, sub0 = n, enable.
   void remap(std::uint16_t communication, std::uint16_t mapping, std::uint32_t cob_id,
@@ -100,7 +100,7 @@ TEST_F(PdoTest, SyncTpdoCarriesValuesOfTheControlCycleAfterTheSync) {
   remap(0x1800, 0x1A00, kTpdo1, 1, {map(FieldId::motor_velocity)});
   nmt(NmtCommand::Start);
   value(FieldId::motor_velocity) = 1.0f;
-  ASSERT_TRUE(receive(0x080, {}).sync);
+  ASSERT_TRUE(receive(cia301::kSyncCobId, {}).sync);
   value(FieldId::motor_velocity) = 2.0f;  // the control cycle runs here
   node.transmit_synchronous_pdos(now_us);
   const auto v = le32(float_bits(2.0f));
@@ -242,15 +242,15 @@ TEST_F(PdoTest, CobIdRules) {
   ASSERT_EQ(download(0x1A00, 1, map(FieldId::motor_velocity), 4), SdoAbort::None);
   ASSERT_EQ(download(0x1A00, 0, 1, 1), SdoAbort::None);
   // Reserved identifiers and 29-bit ids.
-  EXPECT_EQ(download(0x1800, 1, kNoRtr | (0x700 + kNodeId), 4), SdoAbort::ValueRangeExceeded);
-  EXPECT_EQ(download(0x1800, 1, kNoRtr | 0x590, 4), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | (cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId)), 4), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | cia301::cob_id(cia301::FunctionCode::SdoResponse, kNodeId), 4), SdoAbort::ValueRangeExceeded);
   EXPECT_EQ(download(0x1800, 1, kNoRtr | 0x2000'0000u | kTpdo1, 4), SdoAbort::ValueRangeExceeded);
   // A new id while valid needs the invalid step in between.
   ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1, 4), SdoAbort::None);
-  EXPECT_EQ(download(0x1800, 1, kNoRtr | 0x1A0, 4), SdoAbort::ValueRangeExceeded);
-  ASSERT_EQ(download(0x1800, 1, kNoRtr | 0x1A0 | kInvalid, 4), SdoAbort::None);
-  EXPECT_EQ(download(0x1800, 1, kNoRtr | 0x1A0, 4), SdoAbort::None);
-  EXPECT_EQ(upload(0x1800, 1), kNoRtr | 0x1A0u);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | cia301::cob_id(cia301::FunctionCode::Tpdo1, 0x20), 4), SdoAbort::ValueRangeExceeded);
+  ASSERT_EQ(download(0x1800, 1, kNoRtr | cia301::cob_id(cia301::FunctionCode::Tpdo1, 0x20) | kInvalid, 4), SdoAbort::None);
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | cia301::cob_id(cia301::FunctionCode::Tpdo1, 0x20), 4), SdoAbort::None);
+  EXPECT_EQ(upload(0x1800, 1), kNoRtr | cia301::cob_id(cia301::FunctionCode::Tpdo1, 0x20));
 }
 
 TEST_F(PdoTest, InvalidTransmissionTypesAbortValueRangeExceeded) {
@@ -324,7 +324,7 @@ TEST_F(RpdoTest, SynchronousRpdoTakesEffectAtTheNextSync) {
   nmt(NmtCommand::Start);
   receive(rpdo(2.5f, 11));
   EXPECT_EQ(hil.input_writes, 0u);
-  EXPECT_TRUE(receive(0x080, {}).sync);
+  EXPECT_TRUE(receive(cia301::kSyncCobId, {}).sync);
   EXPECT_FLOAT_EQ(value(FieldId::velocity_setpoint), 2.5f);
   EXPECT_EQ(hil.inputs[static_cast<std::size_t>(HilInputId::motor_encoder_counts)], 11);
 }
@@ -338,7 +338,7 @@ namespace {
 class RpdoDeadlineTest : public NodeTest {};
 
 TEST_F(RpdoDeadlineTest, MissedDeadlineRaisesEmcy8250AndTheNextFrameClearsIt) {
-  const std::uint32_t cob_id = 0x200 + kNodeId;
+  const std::uint32_t cob_id = cia301::cob_id(cia301::FunctionCode::Rpdo1, kNodeId);
   ASSERT_EQ(download(0x1400, 1, cob_id | 0x8000'0000u, 4), SdoAbort::None);
   ASSERT_EQ(download(0x1400, 5, 50, 2), SdoAbort::None);  // 50 ms deadline
   ASSERT_EQ(download(0x1400, 1, cob_id, 4), SdoAbort::None);
@@ -361,7 +361,7 @@ TEST_F(RpdoDeadlineTest, MissedDeadlineRaisesEmcy8250AndTheNextFrameClearsIt) {
 }
 
 TEST_F(RpdoDeadlineTest, ErrorRegisterCanBeMappedIntoATpdo) {
-  const std::uint32_t cob_id = 0x180 + kNodeId;
+  const std::uint32_t cob_id = cia301::cob_id(cia301::FunctionCode::Tpdo1, kNodeId);
   for (std::uint16_t n = 0; n < board::kTpdoCount; ++n) {
     const auto comm = static_cast<std::uint16_t>(0x1800 + n);
     ASSERT_EQ(download(comm, 1, upload(comm, 1) | 0x8000'0000u, 4), SdoAbort::None);
@@ -409,7 +409,7 @@ TEST_F(PdoTest, RemoteFrameOnATpdoIdGetsNoAnswer) {
 class SyncStartTest : public PdoTest {
  protected:
   void sync_with_counter(std::uint8_t counter) {
-    ASSERT_TRUE(receive(0x080, {counter}).sync);
+    ASSERT_TRUE(receive(cia301::kSyncCobId, {counter}).sync);
     node.transmit_synchronous_pdos(now_us);
   }
   // TPDO1 alone, every `period`-th SYNC, first at counter `start`.

@@ -592,7 +592,7 @@ TEST_F(RecorderNodeTest, WhileArmedSettingsAndDataAbortWithTheDeviceStateCode) {
   EXPECT_EQ(set(object::kChannels, 1, index_of(kTorque), 2), SdoAbort::DeviceState);
   EXPECT_EQ(sdo({0x40, static_cast<std::uint8_t>(object::kData), static_cast<std::uint8_t>(object::kData >> 8), 0}),
             abort_data(object::kData, 0, SdoAbort::DeviceState));
-  EXPECT_EQ(to_code(SdoAbort::DeviceState), 0x0800'0022u);
+  EXPECT_EQ(to_code(SdoAbort::DeviceState), 0x0800'0022u);  // protocol-literal: the spec's code
   // Reset node: the recorder is back at power-on.
   nmt(NmtCommand::ResetNode);
   all_sent();

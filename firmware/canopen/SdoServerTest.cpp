@@ -262,7 +262,7 @@ TEST_F(SdoServerTest, RequestShorterThanEightBytesIsIgnoredAsMalformed) {
 }
 
 TEST_F(SdoServerTest, RequestsToOtherNodesAreNotAnswered) {
-  receive(0x600 + kNodeId + 1, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
+  receive(cia301::cob_id(cia301::FunctionCode::SdoRequest, kNodeId) + 1, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
   EXPECT_TRUE(all_sent().empty());
 }
 
@@ -275,7 +275,7 @@ TEST_F(SdoServerTest, SyncCobIdRejectsProducerAndExtendedBits) {
 
 TEST_F(SdoServerTest, SyncCobIdRefusesRestrictedIdsSoSdoStaysReachable) {
   // Regression (fuzz_canopen_frames): 0x1005 = 0x600+id made every later SDO request a SYNC.
-  for (const std::uint32_t id : {kSdoRx, 0x000u, 0x07Fu, 0x101u, kSdoTx, 0x6E0u, 0x700u + kNodeId}) {
+  for (const std::uint32_t id : {kSdoRx, 0x000u, 0x07Fu, 0x101u, kSdoTx, 0x6E0u, cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId)}) {
     EXPECT_EQ(download(0x1005, 0, id, 4), SdoAbort::ValueRangeExceeded)
         << "COB-ID 0x" << std::hex << id;
   }

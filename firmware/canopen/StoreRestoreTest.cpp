@@ -81,8 +81,8 @@ TEST_F(StoreRestoreTest, SaveAllThenResetNodeKeepsCommunicationParameters) {
             (std::array<std::uint8_t, 8>{0x4B, 0x17, 0x10, 0x00, 0xFA, 0x00, 0, 0}));
   // The stored SYNC COB-ID is in force, not only readable.
   nmt(NmtCommand::Start);
-  EXPECT_TRUE(receive(0x081, {}).sync);
-  EXPECT_FALSE(receive(0x080, {}).sync);
+  EXPECT_TRUE(receive(0x081, {}).sync);  // protocol-literal: the stored SYNC id
+  EXPECT_FALSE(receive(cia301::kSyncCobId, {}).sync);
 }
 
 TEST_F(StoreRestoreTest, StoredCommunicationParametersSurviveResetCommunicationAndPowerCycle) {
@@ -104,7 +104,7 @@ TEST_F(StoreRestoreTest, StoredCommunicationParametersSurviveResetCommunicationA
 
 TEST_F(StoreRestoreTest, StoredPdoMappingIsInForceAfterReset) {
   // TPDO1: motor_velocity alone, every 2nd SYNC.
-  const std::uint32_t cob_id = 0x4000'0000u | (0x180 + kNodeId);
+  const std::uint32_t cob_id = 0x4000'0000u | (cia301::cob_id(cia301::FunctionCode::Tpdo1, kNodeId));
   const std::uint32_t entry = (std::uint32_t{index_of(FieldId::motor_velocity)} << 16) | 32;
   ASSERT_EQ(download(0x1800, 1, cob_id | 0x8000'0000u, 4), SdoAbort::None);
   ASSERT_EQ(download(0x1800, 2, 2, 1), SdoAbort::None);
@@ -129,7 +129,7 @@ TEST_F(StoreRestoreTest, StoredPdoMappingIsInForceAfterReset) {
   EXPECT_TRUE(all_sent().empty()) << "type 2: not at the first SYNC";
   sync();
   const auto v = le32(float_bits(1.5f));
-  EXPECT_EQ(next_sent(), make_frame(0x180 + kNodeId, {v[0], v[1], v[2], v[3]}));
+  EXPECT_EQ(next_sent(), make_frame(cia301::cob_id(cia301::FunctionCode::Tpdo1, kNodeId), {v[0], v[1], v[2], v[3]}));
 }
 
 TEST_F(StoreRestoreTest, StoredPdoTheFirmwareNoLongerAcceptsFallsBackToItsDefault) {

@@ -1,13 +1,21 @@
-"""The CiA 301 predefined connection set: function codes, COB-ID bases, the SYNC counter and
-the rule for which synchronous TPDO is due at which SYNC. One home; everything else imports it.
+"""The CiA 301 rules the firmware and the rig both follow: the predefined connection set
+(function codes, COB-ID bases), node-id limits, NMT states and commands (the heartbeat byte),
+the EMCY frame layout, the SDO abort codes with their texts, the SYNC counter and the rule for
+which synchronous TPDO is due at which SYNC.
+
+One home: the rig imports this module, and the firmware includes `board/cia301.hpp`, which
+`boardproto.cia301_header` generates from it. Nothing else writes these numbers down.
 
     cob_id(FunctionCode.TPDO1, 0x10)      # 0x190
     due_at_sync(10, 20)                   # True: a type-10 TPDO goes out at every 10th SYNC
+    SdoAbortCode(0x06090031).text         # 'value too high'
 """
 
 from __future__ import annotations
 
 import enum
+from dataclasses import dataclass
+from typing import Self
 
 
 class FunctionCode(enum.IntEnum):
@@ -31,6 +39,11 @@ class FunctionCode(enum.IntEnum):
 
 
 NODE_ID_MASK = 0x7F
+MIN_NODE_ID = 1
+MAX_NODE_ID = 0x7F
+"""Node ids 1..127 (CiA 301 7.3.2): 0 is NMT's "all nodes", never a node's own id."""
+NMT_ALL_NODES = 0
+"""The node id byte of an NMT command addressed to every node."""
 FUNCTION_CODE_MASK = 0x780
 STANDARD_ID_MASK = 0x7FF
 TPDO_FUNCTIONS = (FunctionCode.TPDO1, FunctionCode.TPDO2, FunctionCode.TPDO3, FunctionCode.TPDO4)
@@ -38,6 +51,23 @@ RPDO_FUNCTIONS = (FunctionCode.RPDO1, FunctionCode.RPDO2, FunctionCode.RPDO3, Fu
 SYNC_COB_ID = int(FunctionCode.SYNC_EMCY)
 NMT_COB_ID = int(FunctionCode.NMT)
 TIME_COB_ID = int(FunctionCode.TIME)
+RESTRICTED_COB_ID_RANGES: tuple[tuple[int, int], ...] = (
+    (0x000, 0x07F),  # NMT, and the ids below SYNC
+    (0x101, 0x180),  # above TIME up to TPDO1's base
+    (0x581, 0x5FF),  # SDO responses
+    (0x601, 0x67F),  # SDO requests
+    (0x6E0, 0x6FF),  # reserved
+    (0x701, 0x7FF),  # error control (heartbeat, boot-up) and above
+)
+"""CAN identifiers CiA 301 (7.3.5) reserves for NMT, SYNC/EMCY, SDO and error control, as
+inclusive ranges: no configurable COB-ID (a PDO's, SYNC's 0x1005) may use them."""
+
+
+def is_restricted_cob_id(can_id: int) -> bool:
+    """True when a configurable COB-ID may not take this 11-bit identifier."""
+    return any(first <= can_id <= last for first, last in RESTRICTED_COB_ID_RANGES)
+
+
 SYNC_COUNTER_MAX = 240
 """SYNC counters run 1..240 and wrap (CiA 301 counter overflow value 240)."""
 LAST_SYNCHRONOUS_TYPE = 240
@@ -45,6 +75,11 @@ LAST_SYNCHRONOUS_TYPE = 240
 254/255: event-driven."""
 EVENT_DRIVEN_TYPES = (254, 255)
 """Event-driven transmission types: 254 manufacturer-specific, 255 device profile."""
+
+
+HEARTBEAT_STATE_MASK = 0x7F
+"""The state bits of a heartbeat (or node guarding) byte: the top bit is node guarding's toggle
+bit, never part of the state."""
 
 
 class NmtState(enum.IntEnum):
@@ -84,21 +119,117 @@ class SdoCommand(enum.IntEnum):
     ABORT = 0x80  # cs 4, both directions
 
 
+class SdoAbortCode(enum.IntEnum):
+    """SDO abort codes (CiA 301, 7.2.4.3.17); the values ARE the codes on the wire, and each
+    carries its text (`SdoAbortCode.VALUE_TOO_HIGH.text`: 'value too high'), which the rig
+    prints and the generated C++ header holds beside the code."""
+
+    text: str
+
+    def __new__(cls, code: int, text: str) -> Self:
+        member = int.__new__(cls, code)
+        member._value_ = code
+        member.text = text
+        return member
+
+    TOGGLE_BIT_NOT_ALTERNATED = 0x0503_0000, "toggle bit not alternated"
+    PROTOCOL_TIMED_OUT = 0x0504_0000, "SDO protocol timed out"
+    COMMAND_SPECIFIER_INVALID = (
+        0x0504_0001,
+        "command not valid (undefined, or out of turn in the transfer)",
+    )
+    INVALID_BLOCK_SIZE = 0x0504_0002, "block transfer: block size 0 or above 127"
+    INVALID_SEQUENCE_NUMBER = 0x0504_0003, "block transfer: invalid sequence number"
+    CRC_ERROR = 0x0504_0004, "block transfer: CRC does not match the data"
+    OUT_OF_MEMORY = 0x0504_0005, "value larger than the node can buffer"
+    UNSUPPORTED_ACCESS = 0x0601_0000, "unsupported access"
+    WRITE_ONLY = 0x0601_0001, "object is write-only"
+    READ_ONLY = 0x0601_0002, "object is read-only over the bus"
+    OBJECT_DOES_NOT_EXIST = 0x0602_0000, "no such object in the node's dictionary"
+    OBJECT_CANNOT_BE_MAPPED = 0x0604_0041, "object cannot be mapped to a PDO"
+    PDO_LENGTH_EXCEEDED = 0x0604_0042, "mapping exceeds the 64 bits of a PDO"
+    PARAMETER_INCOMPATIBLE = (
+        0x0604_0043,
+        "settings that do not fit together (a recorder without channels...)",
+    )
+    LENGTH_MISMATCH = 0x0607_0010, "data length does not match the object's type"
+    LENGTH_TOO_HIGH = 0x0607_0012, "data longer than the object's type"
+    LENGTH_TOO_LOW = 0x0607_0013, "data shorter than the object's type"
+    SUB_INDEX_DOES_NOT_EXIST = 0x0609_0011, "no such sub-index"
+    VALUE_RANGE_EXCEEDED = 0x0609_0030, "value out of range"
+    VALUE_TOO_HIGH = 0x0609_0031, "value too high"
+    VALUE_TOO_LOW = 0x0609_0032, "value too low"
+    RESOURCE_NOT_AVAILABLE = 0x060A_0023, "resource not available"
+    GENERAL_ERROR = 0x0800_0000, "general error"
+    DATA_CANNOT_BE_STORED = 0x0800_0020, "refused by the application (or storage failed)"
+    LOCAL_CONTROL = 0x0800_0021, "refused: under local control"
+    DEVICE_STATE = (
+        0x0800_0022,
+        "not possible in the node's present state (e.g. PDO change while operational)",
+    )
+
+
+class EmcyLayout:
+    """Where the parts of an EMCY frame go (CiA 301, 7.2.7.3.1): the error code (UNSIGNED16,
+    little-endian) in bytes 0..1, the error register (0x1001) in byte 2, the manufacturer-specific
+    error field in bytes 3..7. Every EMCY frame carries all 8 bytes."""
+
+    FRAME_BYTES = 8
+    ERROR_CODE_OFFSET = 0
+    ERROR_CODE_BYTES = 2
+    ERROR_REGISTER_OFFSET = 2
+    MANUFACTURER_OFFSET = 3
+    MANUFACTURER_BYTES = 5
+
+
+EMCY_ERROR_RESET = 0x0000
+"""The EMCY error code of 'error reset or no error': sent when an error goes away, with the error
+register that remains."""
+
+
+@dataclass(frozen=True)
+class EmcyFrame:
+    """The three parts of an EMCY frame's data."""
+
+    code: int
+    register: int
+    manufacturer: bytes
+
+
+def split_emcy(data: bytes) -> EmcyFrame:
+    """The parts of an EMCY frame's data; a short frame (a node that breaks the layout) gives
+    what it has: missing bytes read as 0 / empty."""
+    code = int.from_bytes(data[EmcyLayout.ERROR_CODE_OFFSET : EmcyLayout.ERROR_CODE_BYTES], "little")
+    register = data[EmcyLayout.ERROR_REGISTER_OFFSET] if len(data) > EmcyLayout.ERROR_REGISTER_OFFSET else 0
+    manufacturer = bytes(
+        data[EmcyLayout.MANUFACTURER_OFFSET : EmcyLayout.MANUFACTURER_OFFSET + EmcyLayout.MANUFACTURER_BYTES]
+    )
+    return EmcyFrame(code, register, manufacturer)
+
+
 def function_of(cob_id: int) -> tuple[int, int]:
     """(function code bits, node id) of an 11-bit COB-ID: 0x190 -> (0x180, 0x10)."""
     return cob_id & FUNCTION_CODE_MASK, cob_id & NODE_ID_MASK
 
 
+def is_node_id(node_id: int) -> bool:
+    """True for a node's own id, 1..127."""
+    return MIN_NODE_ID <= node_id <= MAX_NODE_ID
+
+
 def cob_id(function: FunctionCode, node_id: int) -> int:
     """The COB-ID of a per-node service: base + node id."""
-    if not 1 <= node_id <= NODE_ID_MASK:
-        raise ValueError(f"node id: expected 1..127, got {node_id}")
+    if not is_node_id(node_id):
+        raise ValueError(f"node id: expected {MIN_NODE_ID}..{MAX_NODE_ID}, got {node_id}")
     return int(function) + node_id
 
 
 PDO_EXTENSION_OFFSET = 0x40
 """PDO 5..8 by the common extension of the predefined set: PDO 1..4's bases + 0x40 (so they share
 identifiers with PDO 1..4 of node id + 64)."""
+MAX_NODE_ID_WITH_PDO_5_TO_8 = PDO_EXTENSION_OFFSET - 1
+"""The highest node id (63) whose PDO 5..8 identifiers are no other node's PDO 1..4: nodes that
+use 8 PDOs each share a bus only with ids 1..63."""
 
 
 def predefined_pdo_base(functions: tuple[FunctionCode, ...], number: int) -> int | None:
@@ -132,8 +263,8 @@ HEARTBEAT_CONSUMER_INDEX = 0x1016
 def heartbeat_consumer_entry(node_id: int, time_ms: int) -> int:
     """One 0x1016 entry: the node id to watch in bits 16..23, its consumer time [ms] in bits
     0..15 (CiA 301 7.5.2.31); a heartbeat later than that from the node is a heartbeat event."""
-    if not 1 <= node_id <= NODE_ID_MASK:
-        raise ValueError(f"heartbeat consumer: node id 1..127 expected, got {node_id}")
+    if not is_node_id(node_id):
+        raise ValueError(f"heartbeat consumer: node id {MIN_NODE_ID}..{MAX_NODE_ID} expected, got {node_id}")
     if not 1 <= time_ms <= 0xFFFF:
         raise ValueError(f"heartbeat consumer: time 1..65535 ms expected, got {time_ms}")
     return node_id << 16 | time_ms
@@ -179,24 +310,34 @@ def transmission_text(transmission_type: int) -> str:
 
 
 __all__ = [
+    "EMCY_ERROR_RESET",
     "EVENT_DRIVEN_TYPES",
     "FUNCTION_CODE_MASK",
     "HEARTBEAT_CONSUMER_INDEX",
+    "HEARTBEAT_STATE_MASK",
     "LAST_SYNCHRONOUS_TYPE",
     "MASTER_HEARTBEAT_MS",
     "MASTER_NODE_ID",
+    "MAX_NODE_ID",
+    "MAX_NODE_ID_WITH_PDO_5_TO_8",
+    "MIN_NODE_ID",
+    "NMT_ALL_NODES",
     "NMT_COB_ID",
     "NODE_ID_MASK",
     "PDO_EXTENSION_OFFSET",
+    "RESTRICTED_COB_ID_RANGES",
     "RPDO_FUNCTIONS",
     "STANDARD_ID_MASK",
     "SYNC_COB_ID",
     "SYNC_COUNTER_MAX",
     "TIME_COB_ID",
     "TPDO_FUNCTIONS",
+    "EmcyFrame",
+    "EmcyLayout",
     "FunctionCode",
     "NmtCommand",
     "NmtState",
+    "SdoAbortCode",
     "SdoCommand",
     "cob_id",
     "due_at_sync",
@@ -204,9 +345,12 @@ __all__ = [
     "function_of",
     "heartbeat_cob_id",
     "heartbeat_consumer_entry",
+    "is_node_id",
+    "is_restricted_cob_id",
     "predefined_pdo_base",
     "sdo_request_cob_id",
     "sdo_response_cob_id",
+    "split_emcy",
     "sync_counter",
     "transmission_text",
 ]

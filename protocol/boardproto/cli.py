@@ -7,6 +7,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from boardproto.cia301_header import generate_cia301_header
 from boardproto.cpp_header import generate_header
 from boardproto.dbc import generate_dbc
 from boardproto.eds import generate_eds
@@ -20,6 +21,7 @@ EXIT_BAD_INPUT = 2
 # Output path (relative to --out-dir) -> generator.
 OUTPUTS: dict[str, Callable[[BoardTable], str]] = {
     "include/board/fields.hpp": generate_header,
+    "include/board/cia301.hpp": lambda _table: generate_cia301_header(),
     "board.eds": generate_eds,
     "board.dbc": generate_dbc,
     "field_vectors.csv": generate_field_vectors,
@@ -29,8 +31,8 @@ OUTPUTS: dict[str, Callable[[BoardTable], str]] = {
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m boardproto",
-        description="Generate the board's C++ header, CANopen EDS, DBC and field vectors "
-        "from the field table (protocol/board.toml).",
+        description="Generate the board's C++ headers, CANopen EDS, DBC and field vectors "
+        "from the field table (protocol/board.toml) and the CiA 301 rules (boardproto.cia301).",
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     generate = commands.add_parser(

@@ -89,7 +89,7 @@ def _data_type_enumerators() -> str:
 # Smallest integer type that holds every value of an [[enum]] (values fit in 25 bits signed).
 _ENUM_TYPES = (
     ("std::uint8_t", 0, 0xFF),
-    ("std::int8_t", -0x80, 0x7F),
+    ("std::int8_t", -0x80, 0x7F),  # protocol-literal: the int8 range
     ("std::uint16_t", 0, 0xFFFF),
     ("std::int16_t", -0x8000, 0x7FFF),
     ("std::int32_t", -0x8000_0000, 0x7FFF_FFFF),

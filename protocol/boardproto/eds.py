@@ -30,6 +30,7 @@ from canopen.objectdictionary import (
     export_od,
 )
 
+from boardproto.cia301 import SYNC_COB_ID, FunctionCode, emcy_cob_id
 from boardproto.cpp_header import GENERATED_BANNER
 from boardproto.table import (
     BoardTable,
@@ -53,8 +54,6 @@ STORAGE_VOLATILE = "RAM"
 SAVES_ON_COMMAND = 0x0000_0001
 # 0x1010 / 0x1011 sub-indices: 1 all parameters, 2 communication (0x1000..0x1FFF), 3 application.
 STORE_GROUPS = ((1, "all"), (2, "communication"), (3, "application"))
-SYNC_COB_ID = 0x80
-EMCY_COB_ID_BASE = 0x80
 # 0x1016 sub n: bits 16..23 the monitored node id, bits 0..15 the consumer time in ms (CiA 301,
 # 7.5.2.31); 0 = entry unused.
 CONSUMER_HEARTBEAT_UNUSED = 0
@@ -262,12 +261,12 @@ def _add_communication_objects(od: ObjectDictionary, table: BoardTable) -> None:
                 ],
             )
         )
-    emcy_cob_id = _variable(
-        "COB-ID EMCY", 0x1014, 0, DataType.UNSIGNED32, "ro", EMCY_COB_ID_BASE + node.default_node_id
+    emcy_cob_id_object = _variable(
+        "COB-ID EMCY", 0x1014, 0, DataType.UNSIGNED32, "ro", emcy_cob_id(node.default_node_id)
     )
-    emcy_cob_id.default_raw = f"$NODEID+0x{EMCY_COB_ID_BASE:X}"
-    emcy_cob_id.relative = True
-    od.add_object(emcy_cob_id)
+    emcy_cob_id_object.default_raw = f"$NODEID+0x{FunctionCode.SYNC_EMCY:X}"
+    emcy_cob_id_object.relative = True
+    od.add_object(emcy_cob_id_object)
     od.add_object(
         _array(
             "Consumer heartbeat time",

@@ -208,7 +208,7 @@ MAX_RECORDER_CHANNELS = 254
 # The sample memory's REAL32 values: 16 MiB at most, so sizes and offsets stay far inside 32 bits.
 MAX_RECORDER_VALUES = 1 << 22
 # Recorder objects carry enum values in UNSIGNED8 objects.
-_RECORDER_ENUM_RANGE = range(0, 0x100)
+_RECORDER_ENUM_RANGE = range(0, 0x100)  # protocol-literal: the UNSIGNED8 range
 _PDO_REQUIRED_KEYS = frozenset({"number", "transmission_type", "map"})
 _PDO_OPTIONAL_KEYS = frozenset({"enabled", "inhibit_time_100us", "event_timer_ms", "cob_id_base"})
 
@@ -289,7 +289,7 @@ class _Entry:
 
 
 def _hex_or_int(value: int) -> str:
-    return f"0x{value:X}" if value >= 0x100 else str(value)
+    return f"0x{value:X}" if value >= 0x100 else str(value)  # protocol-literal: hex from 3 digits
 
 
 def _check_name(entry: _Entry) -> str:

@@ -270,7 +270,7 @@ class ErrorRegisterBit(enum.IntFlag):
     TEMPERATURE = 0x08
     COMMUNICATION = 0x10
     DEVICE_PROFILE = 0x20
-    MANUFACTURER = 0x80
+    MANUFACTURER = 0x80  # protocol-literal: error register bit 7, not SYNC
 
     @property
     def toml_name(self) -> str:

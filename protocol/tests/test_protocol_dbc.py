@@ -15,6 +15,7 @@ import pytest
 from cantools.database.can import Database
 
 from boardproto import BoardTable, load_table
+from boardproto.cia301 import FunctionCode, cob_id
 from boardproto.dbc import MAX_COMBINED_BITS, build_database, node_id_warning, value_choices
 from boardproto.table import BitSet, FlagBit
 
@@ -52,7 +53,7 @@ def test_one_message_per_enabled_default_pdo(database: Database, table: BoardTab
 
 def test_decodes_actuator_tpdo_as_the_firmware_packs_it(database: Database) -> None:
     frame = struct.pack("<hB", -2500, 3)  # motor_duty I16, led_pattern U8, little-endian
-    message = database.get_message_by_frame_id(0x190)
+    message = database.get_message_by_frame_id(cob_id(FunctionCode.TPDO1, 0x10))
     assert message.name == "TPDO1"
     assert message.decode(frame, decode_choices=False) == {"motor_duty": -2500, "led_pattern": 3}
     assert message.decode(frame) == {"motor_duty": -2500, "led_pattern": "fast_blink"}

@@ -10,6 +10,7 @@ import pytest
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes, import_od
 
 from boardproto import BoardTable, Pdo
+from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, emcy_cob_id
 from boardproto.eds import generate_eds
 
 
@@ -79,7 +80,7 @@ def test_communication_objects(od: canopen.ObjectDictionary, table: BoardTable) 
     assert isinstance(errors, ODArray)
     assert sorted(errors.subindices) == list(range(node.error_history_length + 1))
     assert _variable(od, 0x1003, 0).access_type == "rw"  # write 0 clears the history
-    assert _variable(od, 0x1005).default == 0x80
+    assert _variable(od, 0x1005).default == SYNC_COB_ID
     assert _variable(od, 0x1008).default == "hil-joint-firmware"
     assert _variable(od, 0x1008).data_type == datatypes.VISIBLE_STRING
     assert _variable(od, 0x1009).default == node.hardware_version
@@ -90,7 +91,7 @@ def test_communication_objects(od: canopen.ObjectDictionary, table: BoardTable) 
         for sub in (1, 2, 3):
             assert _variable(od, index, sub).access_type == "rw"
             assert _variable(od, index, sub).default == 1  # saves on command
-    assert _variable(od, 0x1014).default == 0x80 + node.default_node_id
+    assert _variable(od, 0x1014).default == emcy_cob_id(node.default_node_id)
     assert _variable(od, 0x1014).access_type == "ro"
     assert _variable(od, 0x1019).default == 0
     assert (_variable(od, 0x1019).min, _variable(od, 0x1019).max) == (0, 240)
@@ -149,8 +150,8 @@ def test_remote_node_sees_default_pdos_for_any_node_id(
         assert _pdo_layout(node.rpdo.map[pdo.number]) == _expected_layout(pdo, node_id), pdo.name
     for pdo in table.tpdos:
         assert _pdo_layout(node.tpdo.map[pdo.number]) == _expected_layout(pdo, node_id), pdo.name
-    assert node.tpdo.map[1].cob_id == 0x180 + node_id
-    assert node.rpdo.map[1].cob_id == 0x200 + node_id
+    assert node.tpdo.map[1].cob_id == cob_id(FunctionCode.TPDO1, node_id)
+    assert node.rpdo.map[1].cob_id == cob_id(FunctionCode.RPDO1, node_id)
     assert not any(pdo_map.rtr_allowed for pdo_map in node.tpdo.map.values())
 
 

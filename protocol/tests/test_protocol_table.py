@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from boardproto import Access, BoardTable, DataType, Kind, UnknownNameError
+from boardproto.cia301 import FunctionCode, cob_id
 
 CONTRACT_FIELDS = {
     Kind.SENSOR: [
@@ -130,7 +131,7 @@ def test_default_rpdos_follow_the_contract(table: BoardTable) -> None:
     ]
     assert layout == [
         (
-            0x210,
+            cob_id(FunctionCode.RPDO1, 0x10),
             True,
             255,
             [
@@ -140,16 +141,16 @@ def test_default_rpdos_follow_the_contract(table: BoardTable) -> None:
                 "motor_current_adc",
             ],
         ),
-        (0x310, True, 255, ["velocity_setpoint", "torque_setpoint"]),
-        (0x410, True, 255, ["control_mode", "position_setpoint"]),
-        (0x510, False, 255, []),
+        (cob_id(FunctionCode.RPDO2, 0x10), True, 255, ["velocity_setpoint", "torque_setpoint"]),
+        (cob_id(FunctionCode.RPDO3, 0x10), True, 255, ["control_mode", "position_setpoint"]),
+        (cob_id(FunctionCode.RPDO4, 0x10), False, 255, []),
     ]
 
 
 def test_default_tpdos_follow_the_contract(table: BoardTable) -> None:
     assert len(table.tpdos) == 8
     tpdo1 = table.tpdo(1)
-    assert (tpdo1.cob_id(0x10), tpdo1.transmission_type) == (0x190, 1)
+    assert (tpdo1.cob_id(0x10), tpdo1.transmission_type) == (cob_id(FunctionCode.TPDO1, 0x10), 1)
     assert [(e.name, e.bits) for e in tpdo1.entries] == [("motor_duty", 16), ("led_pattern", 8)]
     for pdo in table.tpdos[1:]:
         assert pdo.enabled

@@ -12,7 +12,7 @@ import struct
 import time
 from collections.abc import Callable
 
-from hilrig.physics import JointParams, JointPlant, SensorModel
+from hilrig.plants import JointParams, JointPlant, SensorModel
 
 
 def per_call_us(action: Callable[[], object], calls: int) -> float:

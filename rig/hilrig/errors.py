@@ -3,6 +3,9 @@ they fit, so callers can catch ``TimeoutError`` or ``ValueError`` without knowin
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
+
 
 def one_line(error: BaseException) -> str:
     """The error's message on one line (what the command line prints); its type if it has none."""
@@ -30,7 +33,7 @@ class LockstepError(RigError, TimeoutError):
 
 class HostStarvedError(RigError, TimeoutError):
     """A lockstep wait ended because the host gave the firmware too little CPU for too long, not
-    because the firmware misbehaved (`hilrig.lockstep.HangGuard`): no verdict on the firmware."""
+    because the firmware misbehaved (`hilrig.engine.lockstep.HangGuard`): no verdict on the firmware."""
 
 
 class RealTimeError(RigError, TimeoutError):
@@ -83,3 +86,10 @@ class LogFileError(RigError, ValueError):
 class LogFormatError(LogFileError):
     """A bus log in a format python-can does not read, or not without a package that is not
     installed (the message lists the formats, or says what to install)."""
+
+
+def unknown_name(what: str, name: str, known: Iterable[str]) -> FieldNameError:
+    """FieldNameError "no <what> named 'x'; did you mean 'y'?" with up to three close matches."""
+    matches = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
+    hint = f"; did you mean {' or '.join(repr(m) for m in matches)}?" if matches else ""
+    return FieldNameError(f"no {what} named {name!r}{hint}")

@@ -1,5 +1,5 @@
-"""Where the board's files are: the field table, the EDS and DBC generated from it, the dashboards,
-the firmware. Every default path of hilrig comes from here; three cases:
+"""Where the board's files are: the field table, the EDS and DBC generated from it, the
+firmware. Every default path of hilrig comes from here; three cases:
 
 - a checkout (this file is rig/hilrig/resources.py beside protocol/board.toml): the checkout's
   table, the EDS and DBC `make build` generates into build/protocol/, build/bin/joint-firmware;
@@ -13,13 +13,10 @@ the firmware. Every default path of hilrig comes from here; three cases:
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
-import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
 
 _PACKAGE = Path(__file__).resolve().parent
 
@@ -119,28 +116,6 @@ def _cache_dir() -> Path:
         path = Path(tempfile.gettempdir()) / f"hilrig-{os.getuid()}" / "tables"
         path.mkdir(parents=True, exist_ok=True)
     return path
-
-
-def dashboards() -> ModuleType:
-    """The `dashboards` package: installed beside hilrig by the wheel (and mapped by the editable
-    install); in a checkout run from PYTHONPATH alone, loaded from the checkout's dashboards/."""
-    try:
-        import dashboards  # type: ignore[import-not-found]
-
-        return dashboards
-    except ImportError:
-        if CHECKOUT is None:
-            raise ImportError("hilrig's dashboards package is not installed: reinstall hilrig") from None
-    root = CHECKOUT / "dashboards"
-    spec = importlib.util.spec_from_file_location(
-        "dashboards", root / "__init__.py", submodule_search_locations=[str(root)]
-    )
-    if spec is None or spec.loader is None:
-        raise ImportError(f"no dashboards package at {root}")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["dashboards"] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def checkout_version() -> str:

@@ -10,14 +10,13 @@ rig at once. A name the table does not define raises `FieldNameError` with the c
 
 from __future__ import annotations
 
-import difflib
 import enum
 from collections.abc import Iterable
 from pathlib import Path
 
 from boardproto import BoardTable, Field, HilIo, Kind, load_table
 from hilrig import resources
-from hilrig.errors import FieldNameError
+from hilrig.errors import FieldNameError, unknown_name
 
 DEFAULT_TABLE_PATH = resources.DEFAULT_TABLE
 """protocol/board.toml of the checkout this package lives in, or the wheel's copy of it."""
@@ -34,13 +33,6 @@ FaultFlags = BOARD_TABLE.bitset("fault_flags").python_type()
 EmcyCode = enum.IntEnum("EmcyCode", {code.name.upper(): code.code for code in BOARD_TABLE.emcy_codes})
 
 ObjectEntry = Field | HilIo
-
-
-def unknown_name(what: str, name: str, known: Iterable[str]) -> FieldNameError:
-    """FieldNameError "no <what> named 'x'; did you mean 'y'?" with up to three close matches."""
-    matches = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
-    hint = f"; did you mean {' or '.join(repr(m) for m in matches)}?" if matches else ""
-    return FieldNameError(f"no {what} named {name!r}{hint}")
 
 
 class RigTable:
@@ -93,3 +85,16 @@ class RigTable:
 
     def fields_of_kind(self, kind: Kind) -> tuple[Field, ...]:
         return self.board.fields_of_kind(kind)
+
+
+__all__ = [
+    "BOARD_TABLE",
+    "DEFAULT_TABLE_PATH",
+    "ControlMode",
+    "EmcyCode",
+    "FaultFlags",
+    "LedPattern",
+    "ObjectEntry",
+    "RigTable",
+    "unknown_name",
+]

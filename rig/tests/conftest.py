@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from hilrig.fake_node import FakeJointNode
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
 
 _channels = itertools.count()

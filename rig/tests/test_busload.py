@@ -1,4 +1,4 @@
-"""Bus load: frame bit counts and loads against values computed by hand (see hilrig.busload)."""
+"""Bus load: frame bit counts and loads against values computed by hand (see hilrig.apps.busload)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from boardproto import BoardTable, load_table
 from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, heartbeat_cob_id
-from hilrig.busload import (
+from hilrig.apps.busload import (
     STANDARD_BITRATES,
     BusRates,
     Traffic,
@@ -351,7 +351,7 @@ def test_highest_rate_when_the_average_binds(table_path: Path) -> None:
     assert highest_rate_hz(table, 125_000, max_load=0.9) > 0
 
 
-# --- CAN FD: every number below by hand from the formulas in hilrig.busload's docstring ----------
+# --- CAN FD: every number below by hand from the formulas in hilrig.apps.busload's docstring ----------
 @pytest.mark.parametrize(
     ("data_bytes", "nominal", "worst"),
     [

@@ -1,4 +1,4 @@
-"""`hilrig.buslog.BusRecorder` without a CAN bus: python-can's virtual bus."""
+"""`hilrig.session.buslog.BusRecorder` without a CAN bus: python-can's virtual bus."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 import can
 import pytest
 
-from hilrig.buslog import BusRecorder
+from hilrig.session.buslog import BusRecorder
 
 
 class _StalledNotifier:

@@ -12,7 +12,7 @@ import pytest
 
 from boardproto.recording import Recording, encode_recording
 from boardproto.table import BitSet, RecorderObject, RecorderStatusSub, RecorderTriggerSub
-from hilrig.capture import (
+from hilrig.apps.capture import (
     RECORDER_EVENTS,
     CaptureError,
     CaptureSettings,
@@ -24,8 +24,8 @@ from hilrig.capture import (
     write_rrd,
 )
 from hilrig.cli import main
+from hilrig.observe.paths import entity_paths
 from hilrig.table import FaultFlags, RigTable
-from hilrig.trace import entity_paths
 
 TABLE = RigTable.load()
 RECORDER = TABLE.board.recorder
@@ -211,7 +211,7 @@ def test_column_header_is_the_trace_series_name() -> None:
 
 def test_rrd_looks_like_a_lockstep_trace(tmp_path: Path) -> None:
     pytest.importorskip("rerun")
-    from hilrig.trace_reader import Trace
+    from hilrig.observe.reader import Trace
 
     path = tmp_path / "capture.rrd"
     write_rrd(_recording(), TABLE, path, period_s=0.001)

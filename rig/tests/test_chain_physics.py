@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 
-from hilrig.physics import JointParams, JointPlant
+from hilrig.plants import JointParams, JointPlant
 
 # --- JointPlant with an external load --------------------------------------------------------
 
@@ -104,8 +104,8 @@ def mujoco() -> ModuleType:
 
 
 def _chain_module() -> ModuleType:
-    """hilrig.physics.chain, imported inside the tests (it is importable without MuJoCo)."""
-    from hilrig.physics import chain
+    """hilrig.plants.chain, imported inside the tests (it is importable without MuJoCo)."""
+    from hilrig.plants import chain
 
     return chain
 
@@ -407,5 +407,5 @@ def test_the_single_joint_rig_does_not_import_mujoco() -> None:
     import subprocess
     import sys
 
-    code = "import sys, hilrig.physics, hilrig.physics.chain; assert 'mujoco' not in sys.modules"
+    code = "import sys, hilrig.plants, hilrig.plants.chain; assert 'mujoco' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)

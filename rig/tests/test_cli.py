@@ -24,10 +24,10 @@ from boardproto.cia301 import (
     sdo_request_cob_id,
     sdo_response_cob_id,
 )
-from hilrig.buslog import whole_file_logger
+from hilrig.apps.demo import ScenarioFileError, load_scenario
 from hilrig.cli import COMMAND_MODULES, commands, main
-from hilrig.demo import ScenarioFileError, load_scenario
-from hilrig.fake_node import FakeJointNode
+from hilrig.session.buslog import whole_file_logger
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import LedPattern, RigTable
 
 DEFAULT_KP = RigTable.load().field("velocity_kp").default  # from board.toml, not a copy
@@ -328,8 +328,8 @@ def test_record_then_replay_decode(
 def test_record_then_replay_into_a_trace(
     capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str, tmp_path: Path
 ) -> None:
-    from hilrig.trace import Tracer
-    from hilrig.trace_reader import Trace
+    from hilrig.observe.paths import entity_paths
+    from hilrig.observe.reader import Trace
 
     log, rrd = tmp_path / "bench.log", tmp_path / "bench.rrd"
     argv = ["--nmt-start", "--sync-period-ms", "5", "--count", "60", "-i", "virtual", "-c", channel]
@@ -349,7 +349,7 @@ def test_record_then_replay_into_a_trace(
         elif message.arbitration_id == tpdo1 and syncs >= 0 and expected[-1:] != [syncs]:
             expected.append(syncs)
     assert len(expected) >= 5
-    paths = Tracer._entity_paths(RigTable.load())
+    paths = entity_paths(RigTable.load())
     trace = Trace.read(rrd)
     assert trace.cycles[paths["motor_duty"]] == expected
     assert trace.scalars[paths["led_pattern"]] == [float(LedPattern.ON)] * len(expected)  # the fake's law

@@ -32,7 +32,7 @@ from hilrig.cli.common import (
     bus_kwarg,
     can_filter,
 )
-from hilrig.fake_node import FakeJointNode
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
 
 NODE_ID = RigTable.load().board.node.default_node_id

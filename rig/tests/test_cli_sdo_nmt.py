@@ -15,9 +15,9 @@ from hilrig import resources
 from hilrig.cli import main
 from hilrig.cli.common import UsageError
 from hilrig.cli.sdo_raw import VALUE_TYPES, object_address
-from hilrig.fake_node import FakeJointNode
-from hilrig.node import SdoAbortCode
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
+from hilrig.wire.node import SdoAbortCode
 
 TABLE = RigTable.load()
 NODE = TABLE.board.node

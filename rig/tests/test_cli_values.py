@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from hilrig.cli import main
-from hilrig.fake_node import FakeJointNode
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import ControlMode, FaultFlags, LedPattern, RigTable
 
 

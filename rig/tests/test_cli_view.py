@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from hilrig.cli import main
-from hilrig.fake_node import FakeJointNode
-from hilrig.trace import blueprint_names
+from hilrig.observe.blueprints import blueprint_names
+from hilrig.session.fake_node import FakeJointNode
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -55,10 +55,11 @@ def _fake_node_trace(path: Path, channel: str) -> None:
     """A few cycles of a Rig against the fake node on `channel`, traced to `path`."""
     import can
 
-    from hilrig.physics import JointParams
-    from hilrig.rig import Rig
+    from hilrig.engine.rig import Rig
+    from hilrig.observe.sinks import TraceSink
+    from hilrig.observe.tracer import Tracer
+    from hilrig.plants import JointParams
     from hilrig.table import ControlMode, RigTable
-    from hilrig.trace import Tracer, TraceSink
 
     table = RigTable.load()
     tracer = Tracer(TraceSink.rrd(path), table, blueprint=None)

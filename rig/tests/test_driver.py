@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 
 from boardproto.cia301 import SYNC_COB_ID, NmtState, emcy_cob_id
-from hilrig.driver import History
+from hilrig.engine.driver import History
+from hilrig.engine.lockstep import LockstepDriver
+from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.errors import LockstepError
-from hilrig.lockstep import LockstepDriver
-from hilrig.physics import JointParams, JointPlant, SensorModel
-from hilrig.rig import DEFAULT_EDS_PATH
+from hilrig.plants import JointParams, JointPlant, SensorModel
 from hilrig.table import BOARD_TABLE, RigTable
-from hilrig.transport import PdoDirection, PdoLayout, compile_pdos, parse_frame
+from hilrig.wire.transport import PdoDirection, PdoLayout, compile_pdos, parse_frame
 
 NODE_ID = 0x10
 EMCY = emcy_cob_id(NODE_ID)

@@ -13,9 +13,11 @@ import can
 import pytest
 
 from boardproto.cia301 import SYNC_COB_ID
+from hilrig.engine.rig import Rig
 from hilrig.errors import FirmwareError
-from hilrig.fake_node import FakeJointNode
-from hilrig.faults import (
+from hilrig.plants import JointParams
+from hilrig.session.fake_node import FakeJointNode
+from hilrig.session.faults import (
     DEFAULT_FLOOD_COB_ID,
     UNUSED_COB_ID,
     FaultInjector,
@@ -24,8 +26,6 @@ from hilrig.faults import (
     FaultSpec,
     FaultSpecError,
 )
-from hilrig.physics import JointParams
-from hilrig.rig import Rig
 from hilrig.table import RigTable
 
 TABLE = RigTable.load()
@@ -196,7 +196,7 @@ def test_restart_reboots_the_node_and_the_rig_carries_on(benches: list[Bench]) -
     bench = _bench()
     benches.append(bench)
 
-    class FakeFirmware:  # what FaultInjector needs of hilrig.firmware.Firmware
+    class FakeFirmware:  # what FaultInjector needs of hilrig.session.firmware.Firmware
         restarts = 0
 
         def kill(self) -> None:

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from hilrig.errors import FirmwareError
-from hilrig.firmware import Firmware, describe_exit
+from hilrig.session.firmware import Firmware, describe_exit
 
 CRASH = """
 import sys

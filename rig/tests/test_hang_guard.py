@@ -8,9 +8,9 @@ from collections.abc import Iterator
 
 import pytest
 
-from hilrig.driver import ProcessActivity, process_activity
+from hilrig.engine.driver import ProcessActivity, process_activity
+from hilrig.engine.lockstep import HANG_CAP_FACTOR, HangGuard
 from hilrig.errors import HostStarvedError
-from hilrig.lockstep import HANG_CAP_FACTOR, HangGuard
 
 TIMEOUT_S = 1.0
 SLICE_S = 0.25

@@ -18,21 +18,21 @@ from pathlib import Path
 import can
 import pytest
 
-from hilrig.browser import WAIT_S, ViewerPage, browser_missing, free_port, wait_until_listening
+from hilrig.apps.demo import DEFAULT_POLL_EVERY
 from hilrig.cli import main
-from hilrig.demo import DEFAULT_POLL_EVERY
-from hilrig.fake_node import FakeJointNode
-from hilrig.table import RigTable
-from hilrig.trace import (
+from hilrig.observe.browser import WAIT_S, ViewerPage, browser_missing, free_port, wait_until_listening
+from hilrig.observe.paths import WALL_TIME_TIMELINE
+from hilrig.observe.sinks import (
     LIVE_TRACE_ENV,
-    WALL_TIME_TIMELINE,
     SinkKind,
     TraceSink,
-    ViewerProcess,
     live_sinks_from_environment,
     parse_live_sink,
     web_viewer_url,
 )
+from hilrig.observe.viewer import ViewerProcess
+from hilrig.session.fake_node import FakeJointNode
+from hilrig.table import RigTable
 
 NO_BROWSER = browser_missing()
 
@@ -174,8 +174,8 @@ def test_sim_streams_to_a_web_viewer_that_shows_the_recording_grow_while_it_runs
     assert not run.is_alive(), "hilrig sim did not end after its scenario"
     assert result == [0]
     assert later.timeline_ends[WALL_TIME_TIMELINE] > started
-    from hilrig.trace import entity_paths
-    from hilrig.trace_reader import Trace
+    from hilrig.observe.paths import entity_paths
+    from hilrig.observe.reader import Trace
 
     # The file is written beside the live sink, with what a dashboard plots but no PDO carries
     # read over SDO (every DEFAULT_POLL_EVERY cycles, cycle 0 first).
@@ -199,8 +199,8 @@ def test_a_boards_pdos_stream_live_to_a_viewer(command: str, tmp_path: Path) -> 
     """`hilrig record|watch --viewer connect:URL` against the fake node (we are its master: NMT
     start, SYNC): a Rerun server that saves what it receives gets the decoded fields on the wall
     clock."""
-    from hilrig.trace import entity_paths
-    from hilrig.trace_reader import Trace
+    from hilrig.observe.paths import entity_paths
+    from hilrig.observe.reader import Trace
 
     table = RigTable.load()
     saved = tmp_path / "viewer.rrd"

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from boardproto.cia301 import NMT_COB_ID, SYNC_COB_ID, NmtCommand
+from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig
 from hilrig.errors import (
     FieldAccessError,
     FieldNameError,
@@ -26,11 +27,10 @@ from hilrig.errors import (
     ScenarioTimeoutError,
     SdoAbortError,
 )
-from hilrig.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
-from hilrig.node import SdoAbortCode
-from hilrig.physics import JointParams, JointPlant, RawSensors, SensorModel, duty_from_motor_duty
-from hilrig.rig import DEFAULT_EDS_PATH, Rig
+from hilrig.plants import JointParams, JointPlant, RawSensors, SensorModel, duty_from_motor_duty
+from hilrig.session.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
 from hilrig.table import BOARD_TABLE, ControlMode, EmcyCode, LedPattern, RigTable
+from hilrig.wire.node import SdoAbortCode
 
 DBC_PATH = DEFAULT_EDS_PATH.with_name("board.dbc")
 PARAMS = JointParams.fast_thermal()

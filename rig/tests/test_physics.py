@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from hilrig.physics import JointParams, JointPlant, JointState, duty_from_motor_duty
+from hilrig.plants import JointParams, JointPlant, JointState, duty_from_motor_duty
 
 CONTROL_PERIOD_S = 1e-3
 

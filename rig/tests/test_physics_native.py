@@ -1,4 +1,4 @@
-"""The C fast paths (hilrig.physics._plant) against the Python reference conversions, the
+"""The C fast paths (hilrig.plants._plant) against the Python reference conversions, the
 noise stream drawn in blocks, and the plant's cached state snapshot."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from hilrig.physics import (
+from hilrig.plants import (
     STATE_FIELDS,
     JointParams,
     JointPlant,
@@ -24,7 +24,7 @@ from hilrig.physics import (
     state_matrix,
     thermistor_adc_exact,
 )
-from hilrig.physics.sensors import NOISE_BLOCK_READS
+from hilrig.plants.sensors import NOISE_BLOCK_READS
 
 
 def reference_reading(state: JointState, params: JointParams, noise: tuple[float, float]) -> RawSensors:

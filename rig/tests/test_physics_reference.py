@@ -17,7 +17,7 @@ import math
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from hilrig.physics import JointParams, JointPlant, SensorModel
+from hilrig.plants import JointParams, JointPlant, SensorModel
 
 FIXTURE = Path(__file__).parent / "data" / "physics_reference.json"
 BLOCK_STEPS = 100

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from hilrig.physics import (
+from hilrig.plants import (
     EncoderUnwrapper,
     JointParams,
     JointPlant,

@@ -13,11 +13,11 @@ import can
 import pytest
 
 from boardproto.cia301 import SYNC_COB_ID
+from hilrig.engine.realtime import RealTimeDriver, WallHistory
+from hilrig.engine.rig import Rig
 from hilrig.errors import NoValueError, RealTimeError
-from hilrig.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
-from hilrig.physics import JointParams
-from hilrig.realtime import RealTimeDriver, WallHistory
-from hilrig.rig import Rig
+from hilrig.plants import JointParams
+from hilrig.session.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
 from hilrig.table import BOARD_TABLE, RigTable
 
 PERIOD_US = 10_000

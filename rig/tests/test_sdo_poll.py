@@ -8,11 +8,13 @@ from pathlib import Path
 import can
 import pytest
 
-from hilrig.fake_node import FakeJointNode
-from hilrig.rig import Rig
+from hilrig.engine.rig import Rig
+from hilrig.observe.paths import entity_paths
+from hilrig.observe.reader import Trace
+from hilrig.observe.sinks import TraceSink
+from hilrig.observe.tracer import Tracer
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
-from hilrig.trace import Tracer, TraceSink, entity_paths
-from hilrig.trace_reader import Trace
 
 POLLED = ("spring_constant_estimate", "spring_constant_confidence")
 

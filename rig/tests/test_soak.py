@@ -31,8 +31,7 @@ from boardproto.cia301 import (
     sdo_response_cob_id,
 )
 from boardproto.table import ErrorRegisterBit
-from hilrig.rig import DEFAULT_EDS_PATH
-from hilrig.soak import (
+from hilrig.apps.soak.run import (
     EMCY_ERROR_RESET,
     EMCY_PDO_LENGTH,
     EMCY_STALE_SENSOR,
@@ -58,8 +57,9 @@ from hilrig.soak import (
     thin,
     write_json_atomic,
 )
+from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.table import FaultFlags
-from hilrig.transport import can_frame, parse_frame
+from hilrig.wire.transport import can_frame, parse_frame
 
 NODE_ID = 0x10
 DBC_PATH = DEFAULT_EDS_PATH.with_name("board.dbc")
@@ -309,7 +309,7 @@ class FakeFirmware:
             "output_velocity": pattern.output_velocity_rad_s,
         }
 
-    # The FrameLink the driver talks to (hilrig.transport).
+    # The FrameLink the driver talks to (hilrig.wire.transport).
     def send(self, frame: bytes) -> None:
         cob_id, data = parse_frame(frame)
         if cob_id not in self.accepted:  # the firmware's acceptance filter: never received

@@ -1,4 +1,4 @@
-"""canopen's SDO client over a raw socket (`hilrig.node.SocketSdoClient`), against canopen's own
+"""canopen's SDO client over a raw socket (`hilrig.wire.node.SocketSdoClient`), against canopen's own
 SDO server (the fake joint node's LocalNode).
 
 The kernel here may have no CAN, so the client's socket is one end of an AF_UNIX SEQPACKET pair
@@ -19,14 +19,14 @@ import canopen
 import pytest
 from canopen.sdo import SdoAbortedError, SdoClient, SdoCommunicationError
 
-from boardproto.cia301 import sdo_request_cob_id, sdo_response_cob_id
-from hilrig.fake_node import FakeJointNode
-from hilrig.node import BoardNode, SocketSdoClient, _BoardRemoteNode
-from hilrig.rig import DEFAULT_EDS_PATH
+from boardproto.cia301 import SdoAbortCode, sdo_request_cob_id, sdo_response_cob_id
+from hilrig.engine.rig import DEFAULT_EDS_PATH
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
-from hilrig.transport import CAN_HEADER, RawCanLink, can_frame
+from hilrig.wire.node import BoardNode, SocketSdoClient, _BoardRemoteNode
+from hilrig.wire.transport import CAN_HEADER, RawCanLink, can_frame
 
-OBJECT_DOES_NOT_EXIST = 0x0602_0000
+OBJECT_DOES_NOT_EXIST = SdoAbortCode.OBJECT_DOES_NOT_EXIST
 
 
 class Bridge:

@@ -15,12 +15,10 @@ import can
 import pytest
 
 from boardproto.cia301 import NmtCommand
+from hilrig.engine.rig import Rig
 from hilrig.errors import FieldNameError, LockstepError, SdoAbortError
-from hilrig.fake_node import FakeJointNode
-from hilrig.physics import JointParams
-from hilrig.rig import Rig
-from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
-from hilrig.trace import (
+from hilrig.observe.blueprints import blueprint_names, load_blueprint
+from hilrig.observe.paths import (
     BUS_EVENTS_PATH,
     BUS_FRAMES_ROOT,
     BUS_RPDOS_PER_CYCLE,
@@ -30,20 +28,20 @@ from hilrig.trace import (
     SDO_PATH,
     TRUE_SPRING_STIFFNESS,
     TRUTH_QUANTITIES,
-    SinkKind,
-    Tracer,
-    TraceSink,
-    blueprint_names,
     entity_paths,
     frames_path,
     link_path,
-    load_blueprint,
     module_root,
-    open_trace,
     truth_path,
     truth_unit,
 )
-from hilrig.trace_reader import Trace
+from hilrig.observe.reader import Trace
+from hilrig.observe.sinks import SinkKind, TraceSink
+from hilrig.observe.tracer import Tracer
+from hilrig.observe.viewer import open_trace
+from hilrig.plants import JointParams
+from hilrig.session.fake_node import FakeJointNode
+from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
 
 PARAMS = JointParams.fast_thermal()
 CYCLES = 47  # not a multiple of the batch: the last, partial batch must be written by close()
@@ -343,7 +341,10 @@ def test_open_trace_opens_the_file_with_the_named_blueprint(tmp_path: Path, tabl
 
 
 def test_the_rig_does_not_import_rerun_without_a_tracer() -> None:
-    code = "import sys, hilrig.rig, hilrig.trace; assert 'rerun' not in sys.modules, 'rerun imported'"
+    code = (
+        "import sys, hilrig.engine.rig, hilrig.observe.tracer; "
+        "assert 'rerun' not in sys.modules, 'rerun imported'"
+    )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert result.returncode == 0, result.stderr
 
@@ -402,7 +403,7 @@ def test_batches_wait_for_their_size_unless_a_live_latency_is_due(
 
 
 def test_a_live_sink_gets_a_latency_bound_by_default(tmp_path: Path) -> None:
-    from hilrig.trace import LIVE_LATENCY_S, default_latency
+    from hilrig.observe.sinks import LIVE_LATENCY_S, default_latency
 
     rrd = TraceSink.rrd(tmp_path / "a.rrd")
     assert default_latency([rrd]) is None
@@ -412,9 +413,9 @@ def test_a_live_sink_gets_a_latency_bound_by_default(tmp_path: Path) -> None:
 
 
 def test_a_dashboard_check_names_every_series_without_data(traced: Run, table: RigTable) -> None:
-    """`dashboards.check.missing_series`: what a view names but the trace lacks, line by line."""
+    """`dashboard_check.missing_series`: what a view names but the trace lacks, line by line."""
     from dashboards import blueprint
-    from dashboards.check import missing_series
+    from hilrig.observe.dashboard_check import missing_series
 
     _scenario(traced)
     trace = Trace.read(traced.path)
@@ -432,3 +433,15 @@ def test_a_dashboard_check_names_every_series_without_data(traced: Run, table: R
     assert (paths["control_mode"] in trace.series_names) == (not isinstance(traced.tracer, _RowsOnly))
     bus = missing_series(blueprint("bus", table), trace, name="bus")
     assert bus == [], bus
+
+
+def test_the_truth_paths_name_every_quantity_of_the_joint_state() -> None:
+    """hilrig.observe.paths lists the truth quantities itself (it imports no plant, so that the
+    dashboards import nothing else of hilrig): the list must stay the JointState's."""
+    from dataclasses import fields
+
+    from hilrig.observe.paths import TRUE_SPRING_STIFFNESS, TRUTH_QUANTITIES
+    from hilrig.plants import JointState
+
+    state = tuple(f.name for f in fields(JointState) if f.name != "time_s")
+    assert (*state, TRUE_SPRING_STIFFNESS) == TRUTH_QUANTITIES

@@ -7,12 +7,15 @@ from pathlib import Path
 
 import can
 
-from hilrig.fake_node import FakeJointNode
-from hilrig.physics import JointParams
-from hilrig.rig import Rig
+from hilrig.engine.rig import Rig
+from hilrig.observe.batches import value_name
+from hilrig.observe.paths import entity_paths, label_path
+from hilrig.observe.reader import Trace
+from hilrig.observe.sinks import TraceSink
+from hilrig.observe.tracer import Tracer
+from hilrig.plants import JointParams
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import BOARD_TABLE, ControlMode, FaultFlags, RigTable
-from hilrig.trace import Tracer, TraceSink, entity_paths, label_path, value_name
-from hilrig.trace_reader import Trace
 
 
 def test_an_enum_value_and_a_fault_combination_get_their_names() -> None:

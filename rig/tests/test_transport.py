@@ -20,10 +20,10 @@ import cantools
 import pytest
 
 from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, due_at_sync, emcy_cob_id, sync_counter
-from hilrig import _wire
+from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.errors import PdoMappingError
-from hilrig.rig import DEFAULT_EDS_PATH
-from hilrig.transport import (
+from hilrig.wire import _wire
+from hilrig.wire.transport import (
     CAN_FRAME_SIZE,
     ROW_CYCLE,
     BusLink,

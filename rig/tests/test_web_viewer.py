@@ -1,6 +1,6 @@
 """The web viewer, served by `open_trace(..., web=True)`, shows a recording with each of the
 project's dashboards in headless Chromium (Debian's `chromium`, driven by Playwright; no browser
-is downloaded). The machinery is `hilrig.browser`; see there how the viewer is read.
+is downloaded). The machinery is `hilrig.observe.browser`; see there how the viewer is read.
 
 One viewer process and one page: the first dashboard is the one `open_trace` serves, every
 other one is sent to the running viewer and checked in turn. A screenshot of each goes to
@@ -18,7 +18,8 @@ import can
 import pytest
 from PIL import Image
 
-from hilrig.browser import (
+from hilrig.engine.rig import Rig
+from hilrig.observe.browser import (
     BLUEPRINT_AREA,
     PLOTTED_PIXELS,
     RERUN_VERSION,
@@ -33,11 +34,12 @@ from hilrig.browser import (
     plotted_pixels,
     served_trace,
 )
-from hilrig.fake_node import FakeJointNode
-from hilrig.physics import JointParams
-from hilrig.rig import Rig
+from hilrig.observe.paths import CYCLE_TIMELINE, SIM_TIME_TIMELINE
+from hilrig.observe.sinks import APPLICATION_ID, TraceSink
+from hilrig.observe.tracer import Tracer
+from hilrig.plants import JointParams
+from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
-from hilrig.trace import APPLICATION_ID, CYCLE_TIMELINE, SIM_TIME_TIMELINE, Tracer, TraceSink
 
 REPO = Path(__file__).resolve().parents[2]
 CYCLES = 400  # 0.4 s at 1 kHz: every plot has a step and a transient in it

@@ -116,7 +116,7 @@ def test_the_wheel_holds_every_module_the_table_its_eds_and_dbc_and_the_dashboar
     } | {path.relative_to(REPO).as_posix() for path in (REPO / "dashboards").glob("*.py")}
     assert sources <= names, f"left out of the wheel: {sorted(sources - names)}"
     assert {"hilrig/data/board.toml", "hilrig/data/board.eds", "hilrig/data/board.dbc"} <= names
-    for extension in ("hilrig/physics/_plant.", "hilrig/_wire."):
+    for extension in ("hilrig/plants/_plant.", "hilrig/wire/_wire."):
         assert any(name.startswith(extension) and name.endswith(".so") for name in names), extension
     assert not any("/tests/" in name or name.endswith(".c") for name in names)
 

@@ -1,8 +1,8 @@
 """Every dashboard in the web viewer, in headless Chromium, on traces of the real firmware: the
 ones two scenarios of the bus stage wrote (tools/run-tests runs this after that stage, natively).
 
-For each trace, every dashboard made for it (`dashboards.check.fitting_dashboards`: the five of
-one joint, or `robot`) is shown one after another in one page (`hilrig.browser.check_dashboards`):
+For each trace, every dashboard made for it (`hilrig.observe.dashboard_check.fitting_dashboards`: the five of
+one joint, or `robot`) is shown one after another in one page (`hilrig.observe.browser.check_dashboards`):
 the viewer shows exactly the dashboard's views, none hidden or reporting an error, the recording
 whole, something plotted, no console error; and every series each view names has data in the
 trace. Screenshots: $HIL_OUT_DIR/viewer/<trace>/<dashboard>.png.
@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
-from dashboards.check import fitting_dashboards, trace_gaps
-from hilrig.browser import browser_missing, check_dashboards
-from hilrig.trace_reader import Trace
+from hilrig.observe.browser import browser_missing, check_dashboards
+from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
+from hilrig.observe.reader import Trace
 
 REPO = Path(__file__).resolve().parents[2]
 FIRMWARE_TRACES = {

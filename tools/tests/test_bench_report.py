@@ -182,9 +182,9 @@ def test_the_report_without_a_long_run_still_comes_whole(tmp_path: Path) -> None
 def test_the_report_without_chromium_gives_the_size_and_says_what_to_install(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import hilrig.browser
+    import hilrig.observe.browser
 
-    monkeypatch.setattr(hilrig.browser, "CHROMIUM", tmp_path / "no-chromium")
+    monkeypatch.setattr(hilrig.observe.browser, "CHROMIUM", tmp_path / "no-chromium")
     (tmp_path / "long-trace").mkdir()
     (tmp_path / "long-trace" / "trace.rrd").write_bytes(bytes(100))  # never opened: no browser
     size, frame = _report(tmp_path, _bus_json(long_trace=LONG_TRACE))
@@ -198,8 +198,8 @@ def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
     the in-process fake node answering each SYNC; the trace in out/long-trace/."""
     import can
 
-    from hilrig.fake_node import FakeJointNode
-    from hilrig.session import BoardInterface, SessionConfig
+    from hilrig.session.builder import BoardInterface, SessionConfig
+    from hilrig.session.fake_node import FakeJointNode
     from hilrig.table import RigTable
 
     table = RigTable.load()
@@ -223,7 +223,7 @@ def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
 
 
 def test_the_long_run_writes_a_whole_trace_against_the_fake_node(tmp_path: Path) -> None:
-    from hilrig.trace_reader import Trace
+    from hilrig.observe.reader import Trace
 
     cycles = 2 * round(bench.LONG_TRACE_STEP_S * 1000) + 100  # two setpoint flips
     run = _fake_node_run(tmp_path, cycles)
@@ -242,7 +242,7 @@ def test_the_report_step_measures_the_first_frame_of_the_long_runs_trace(tmp_pat
     on a short run: a time, and the screenshot it stopped at has the overview's plots drawn."""
     from PIL import Image
 
-    from hilrig.browser import PLOTTED_PIXELS, browser_missing, plotted_pixels
+    from hilrig.observe.browser import PLOTTED_PIXELS, browser_missing, plotted_pixels
 
     if browser_missing() is not None:
         pytest.skip(str(browser_missing()))
@@ -311,3 +311,105 @@ def test_each_round_pairs_the_rigs_runs_both_ways_round() -> None:
     assert bench.rig_pair_orders(1)[0] == ("rig", "rig_traced")
     assert bench.rig_pair_orders(2)[0] == ("rig_traced", "rig")
     assert bench.rig_pair_orders(2) == bench.rig_pair_orders(1)[::-1]
+
+
+# --- A probe that fails costs its own row, never the report --------------------------------------
+SLOW_PROBE = (
+    "import sys, time; print('callgrind: still counting', file=sys.stderr, flush=True); time.sleep(30)"
+)
+FAILING_PROBE = "import sys; print('valgrind: out of memory', file=sys.stderr); sys.exit(3)"
+
+
+def test_a_probe_that_times_out_or_fails_says_so_with_the_end_of_its_stderr() -> None:
+    with pytest.raises(bench.ProbeError) as timed_out:
+        bench.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=1.0)
+    assert "timed out after 1 s" in str(timed_out.value)
+    assert "callgrind: still counting" in str(timed_out.value)
+    with pytest.raises(bench.ProbeError) as failed:
+        bench.run_probe([sys.executable, "-c", FAILING_PROBE])
+    assert "exit status 3" in str(failed.value) and "valgrind: out of memory" in str(failed.value)
+    with pytest.raises(bench.ProbeError, match="could not start"):
+        bench.run_probe(["/nonexistent/fw_board_bench"])
+
+
+def _native_step_with_a_rig_probe_that_times_out(out: Path, monkeypatch: pytest.MonkeyPatch) -> int:
+    """`tools/bench.py native` where fw_board_bench is not built, the callgrind counts are
+    stand-ins, and rig_probe.py under callgrind times out for the Rig's cycle."""
+
+    def rig_probe_instructions(mode: str, cycles: int, *, all_threads: bool = False) -> int:
+        if mode == "rig":
+            bench.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=0.5)
+        return cycles * 1000
+
+    monkeypatch.setattr(bench.shutil, "which", lambda name: f"/usr/bin/{name}")
+    monkeypatch.setattr(bench, "callgrind_instructions", lambda out, loop, cycles: 100 + cycles * 2000)
+    monkeypatch.setattr(bench, "rig_probe_instructions", rig_probe_instructions)
+    monkeypatch.setattr(bench, "_rig_memory_per_cycle", lambda: (550.0, 68.8))
+    return bench.main(["native", "--out", str(out)])
+
+
+def _report_rows(out: Path) -> dict[str, dict[str, Any]]:
+    return {r["measure"]: r for r in json.loads((out / "report.json").read_text())["rows"]}
+
+
+def test_a_failing_probe_is_a_row_not_measured_and_the_report_is_still_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    assert _native_step_with_a_rig_probe_that_times_out(tmp_path, monkeypatch) == 0
+    native = json.loads((tmp_path / "native.json").read_text())
+    assert set(native["not_measured"]) == {"board_bench", "rig_probe rig"}
+    assert "timed out after 0.5 s" in native["not_measured"]["rig_probe rig"]
+    (tmp_path / "bus.json").write_text(json.dumps(_bus_json()))
+    assert bench.main(["report", "--out", str(tmp_path)]) == 0
+    rows = _report_rows(tmp_path)
+    rig_cycle = rows["instructions/cycle (main thread): Rig lockstep cycle vs the engine's exchange alone"]
+    assert rig_cycle["ours"] == "not measured"
+    assert rig_cycle["baseline"].endswith("timed out after 0.5 s")
+    assert "callgrind: still counting" in rig_cycle["data"]["error"]  # the probe's stderr tail
+    board = rows["board get (vs raw array)"]
+    assert board["ours"] == "not measured" and "could not start" in board["data"]["error"]
+    # Every other figure is there: the probes that worked, and the bus part.
+    assert (
+        rows["bytes per lockstep cycle: kept by the Rig (history) vs the data on the bus"]["ours"] == "550 B"
+    )
+    assert rows["instructions/cycle: demo joint vs stand-ins on naive board"]["ours"] == "2000"
+    assert rows["lockstep cycles/s: Rig untraced vs raw-socket floor"]["ours"] == "900/s"
+    assert not list(tmp_path.glob(".report.json.*"))  # written atomically: no temporary left
+
+
+def test_the_printed_report_ends_with_each_failed_probes_whole_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _native_step_with_a_rig_probe_that_times_out(tmp_path, monkeypatch)
+    (tmp_path / "bus.json").write_text(json.dumps(_bus_json()))
+    capsys.readouterr()
+    bench.main(["report", "--out", str(tmp_path)])
+    printed = capsys.readouterr().out
+    assert "not measured: instructions/cycle (main thread): Rig lockstep cycle" in printed
+    assert "    stderr (end):" in printed and "callgrind: still counting" in printed
+
+
+def test_a_bus_section_that_cannot_be_read_costs_only_its_own_row(tmp_path: Path) -> None:
+    bus = _bus_json()
+    del bus["sdo"]["local_node"]  # a bus.json whose SDO part broke off
+    bus["not_measured"] = {"free_running": "free_running: the firmware never reached operational"}
+    del bus["free_running"]
+    _report(tmp_path, bus)
+    rows = _report_rows(tmp_path)
+    sdo = rows[bench.SECTION_TITLES["sdo"]]
+    assert (sdo["ours"], sdo["baseline"]) == ("not measured", "KeyError: 'local_node'")
+    assert not any(measure.startswith("SDO server turnaround") for measure in rows)  # dropped whole
+    free = rows[bench.SECTION_TITLES["free_running"]]
+    assert free["baseline"] == "free_running: the firmware never reached operational"
+    assert rows["lockstep cycles/s: Rig untraced vs raw-socket floor"]["ours"] == "900/s"
+
+
+def test_a_missing_part_still_gives_a_report_and_a_failed_exit(tmp_path: Path) -> None:
+    machine = {"cpu": "cpu", "cores": 2, "kernel": "6"}
+    native = {"date": "today", "machine": machine, "board_bench_ns": {}, "callgrind": None}
+    (tmp_path / "native.json").write_text(json.dumps(native))  # no bus.json: the VM step died
+    assert bench.main(["report", "--out", str(tmp_path)]) == 1
+    lockstep = _report_rows(tmp_path)[bench.SECTION_TITLES["lockstep"]]
+    assert lockstep["ours"] == "not measured"
+    assert "bus.json is unreadable" in lockstep["baseline"]
+    assert "the bus step did not finish" in lockstep["baseline"]

@@ -65,10 +65,10 @@
 namespace {
 
 constexpr std::uint8_t kNodeId = 0x10;
-constexpr std::uint32_t kSdoRx = 0x600 + kNodeId;
-constexpr std::uint32_t kSdoTx = 0x580 + kNodeId;
-constexpr std::uint32_t kEmcy = 0x080 + kNodeId;
-constexpr std::uint32_t kErrorControl = 0x700 + kNodeId;
+constexpr std::uint32_t kSdoRx = cia301::cob_id(cia301::FunctionCode::SdoRequest, kNodeId);
+constexpr std::uint32_t kSdoTx = cia301::cob_id(cia301::FunctionCode::SdoResponse, kNodeId);
+constexpr std::uint32_t kEmcy = cia301::cob_id(cia301::FunctionCode::SyncEmcy, kNodeId);
+constexpr std::uint32_t kErrorControl = cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId);
 constexpr std::size_t kMaxFrames = 4096;
 
 [[noreturn]] void fail(const char* what, unsigned long a = 0, unsigned long b = 0) {
@@ -301,14 +301,14 @@ class Harness {
   static std::uint32_t frame_id(std::uint8_t cls, Input& in) {
     switch (cls) {
       case 0: return 0x000;
-      case 1: return 0x080;
+      case 1: return cia301::kSyncCobId;
       case 2: return kSdoRx;
-      case 3: return 0x601;
-      case 4: return 0x200 + kNodeId;
-      case 5: return 0x300 + kNodeId;
-      case 6: return 0x400 + kNodeId;
-      case 7: return 0x500 + kNodeId;
-      case 8: return 0x180 + kNodeId;
+      case 3: return cia301::cob_id(cia301::FunctionCode::SdoRequest, 1);
+      case 4: return cia301::cob_id(cia301::FunctionCode::Rpdo1, kNodeId);
+      case 5: return cia301::cob_id(cia301::FunctionCode::Rpdo2, kNodeId);
+      case 6: return cia301::cob_id(cia301::FunctionCode::Rpdo3, kNodeId);
+      case 7: return cia301::cob_id(cia301::FunctionCode::Rpdo4, kNodeId);
+      case 8: return cia301::cob_id(cia301::FunctionCode::Tpdo1, kNodeId);
       case 9: return kSdoTx;
       default: break;
     }

@@ -8,11 +8,16 @@ from __future__ import annotations
 
 import binascii
 import struct
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "protocol"))  # works without the venv
+
+from boardproto.cia301 import heartbeat_cob_id, sdo_request_cob_id
 
 NODE_ID = 0x10
 NO_REFUSAL = 63  # config byte: refuse no field, storage empty
-CONTROL_CLOCK = 0x80  # config bit: the heartbeat consumer counts control cycles (lockstep)
+CONTROL_CLOCK = 0x80  # protocol-literal: a config bit: the heartbeat consumer counts control cycles
 
 # Identifier classes of FrameFuzzer.cpp.
 NMT, SYNC, SDO, RPDO1, RPDO2, RPDO3, RAW_ID = 0, 1, 2, 4, 5, 6, 10
@@ -37,7 +42,7 @@ def raw(can_id: int, data: bytes = b"", dt: int = 0) -> bytes:
 
 
 def master_heartbeat(dt: int = 0) -> bytes:
-    return raw(0x700 + MASTER_ID, bytes([0x05]), dt)
+    return raw(heartbeat_cob_id(MASTER_ID), bytes([0x05]), dt)
 
 
 def nmt_start() -> bytes:
@@ -55,7 +60,8 @@ def block_download(index: int, value: bytes, crc_of: bytes | None = None) -> byt
     records = sdo(0xC6, index & 0xFF, index >> 8, 0x00, *struct.pack("<I", len(value)))
     chunks = [value[i : i + 7] for i in range(0, len(value), 7)]
     for seqno, chunk in enumerate(chunks, start=1):
-        records += sdo(seqno | (0x80 if seqno == len(chunks) else 0), *chunk)
+        last = 0x80 if seqno == len(chunks) else 0  # protocol-literal: block segment's 'no more' bit
+        records += sdo(seqno | last, *chunk)
     unused = 7 - len(chunks[-1])
     return records + sdo(0xC1 | (unused << 2), *crc16(value if crc_of is None else crc_of))
 
@@ -127,7 +133,7 @@ def seeds() -> dict[str, bytes]:
         + frame(SYNC, dt=125),
         # Regression: 0x1005 = 0x600+id once turned every later SDO request into a SYNC.
         "sync_cob_id_on_sdo_request": bytes([NO_REFUSAL])
-        + sdo(0x23, 0x05, 0x10, 0x00, (0x600 + NODE_ID) & 0xFF, (0x600 + NODE_ID) >> 8)
+        + sdo(0x23, 0x05, 0x10, 0x00, sdo_request_cob_id(NODE_ID) & 0xFF, sdo_request_cob_id(NODE_ID) >> 8)
         + sdo(0x40, 0x00, 0x10, 0x00),
         # Block transfer: whole exchanges the fuzzer can then cut, repeat and corrupt.
         "sdo_block_download_2401": bytes([NO_REFUSAL]) + block_download(0x2401, velocity),

@@ -73,7 +73,7 @@ bool store_confirmed(co::MemoryPort& port) {
   bool confirmed = false;
   co::CanFrame frame;
   while (port.pop_sent(frame)) {
-    if (frame.id == 0x580u + kNodeId && frame.len == 8 && frame.data[0] == 0x60 &&
+    if (frame.id == cia301::cob_id(cia301::FunctionCode::SdoResponse, kNodeId) && frame.len == 8 && frame.data[0] == 0x60 &&
         frame.data[1] == 0x10 && frame.data[2] == 0x10 && frame.data[3] == 0x01) {
       confirmed = true;
     }
@@ -121,7 +121,7 @@ int main(int argc, char** argv) {
   }
 
   co::CanFrame save;  // SDO expedited download, 4 bytes, 0x1010 sub 1 = "save"
-  save.id = 0x600u + kNodeId;
+  save.id = cia301::cob_id(cia301::FunctionCode::SdoRequest, kNodeId);
   save.len = 8;
   save.data = {0x23, 0x10, 0x10, 0x01, 's', 'a', 'v', 'e'};
   (void)store_confirmed(port);  // the boot-up message

@@ -24,6 +24,7 @@ namespace linuxhw {
 namespace {
 
 constexpr int kDeliveryTimeoutMs = 1000;
+constexpr std::uint32_t kAnyId = 0x555;  // protocol-literal: an identifier of no service here
 
 std::string test_interface() {
   const char* name = std::getenv("HIL_TEST_CAN_INTERFACE");
@@ -129,16 +130,16 @@ TEST_F(SocketCanPortTest, FramesQueuedBeforeAFilterChangeStayQueued) {
 TEST_F(SocketCanPortTest, AcceptAllReceivesEveryFrameAgain) {
   ASSERT_TRUE(port.accept_only(std::vector<std::uint32_t>{0x123}));
   ASSERT_TRUE(port.accept_all());
-  peer.send(0x555, {1});
+  peer.send(kAnyId, {1});
   peer.send(0x123 | CAN_RTR_FLAG);
-  EXPECT_EQ(ids_until(0x123 | CAN_RTR_FLAG), (std::vector<std::uint32_t>{0x555, 0x123 | CAN_RTR_FLAG}));
+  EXPECT_EQ(ids_until(0x123 | CAN_RTR_FLAG), (std::vector<std::uint32_t>{kAnyId, 0x123 | CAN_RTR_FLAG}));
 }
 
 TEST_F(SocketCanPortTest, AnEmptySetIsRefusedAndTheSocketTakesEverything) {
   EXPECT_FALSE(port.accept_only({}));
   EXPECT_EQ(port.counters().filter_failures, 1u);
-  peer.send(0x555, {1});
-  EXPECT_EQ(ids_until(0x555), (std::vector<std::uint32_t>{0x555}));
+  peer.send(kAnyId, {1});
+  EXPECT_EQ(ids_until(kAnyId), (std::vector<std::uint32_t>{kAnyId}));
 }
 
 // main()'s wiring: the node's set reaches the kernel at start() and with the SDO answer that
@@ -155,11 +156,11 @@ TEST_F(SocketCanPortTest, TheNodeSetsTheFilterBeforeItAnswers) {
   auto serve = [&] {
     while (const std::optional<co::CanFrame> frame = next()) {
       node.process(*frame, 0);
-      if (frame->id == 0x600u + kNodeId) return;
+      if (frame->id == cia301::cob_id(cia301::FunctionCode::SdoRequest, kNodeId)) return;
     }
   };
   auto download = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t value) {
-    peer.send(0x600u + kNodeId, {0x23, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8),
+    peer.send(cia301::cob_id(cia301::FunctionCode::SdoRequest, kNodeId), {0x23, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8),
                                  sub, static_cast<std::uint8_t>(value), static_cast<std::uint8_t>(value >> 8),
                                  static_cast<std::uint8_t>(value >> 16), static_cast<std::uint8_t>(value >> 24)});
     serve();
@@ -167,22 +168,23 @@ TEST_F(SocketCanPortTest, TheNodeSetsTheFilterBeforeItAnswers) {
     ASSERT_TRUE(answer.has_value());
     EXPECT_EQ(answer->data[0], 0x60) << "SDO abort";
   };
-  peer.send(0x510, {1, 2, 3, 4});  // RPDO4's id, not enabled yet: filtered out
+  constexpr std::uint32_t kRpdo4 = cia301::cob_id(cia301::FunctionCode::Rpdo4, kNodeId);
+  peer.send(kRpdo4, {1, 2, 3, 4});  // RPDO4's id, not enabled yet: filtered out
   download(0x1603, 1, 0x2401'0020u);
   download(0x1603, 0, 1);
-  download(0x1403, 1, 0x510);
+  download(0x1403, 1, kRpdo4);
   download(0x1017, 0, 0);
   peer.send(0x000, {0x01, kNodeId});  // start
   peer.send(0x7E0, {1});                 // nobody's id
-  peer.send(0x510, {0, 0, 0x80, 0x3F});  // at once after the answer: 1.0f
+  peer.send(kRpdo4, {0, 0, 0x80, 0x3F});  // at once after the answer: 1.0f
   const std::uint32_t before = node.counters().frames_received;
   std::vector<std::uint32_t> ids;
   while (const std::optional<co::CanFrame> frame = next()) {
     ids.push_back(frame->id);
     node.process(*frame, 0);
-    if (frame->id == 0x510) break;
+    if (frame->id == kRpdo4) break;
   }
-  EXPECT_EQ(ids, (std::vector<std::uint32_t>{0x000, 0x510}));
+  EXPECT_EQ(ids, (std::vector<std::uint32_t>{0x000, kRpdo4}));
   EXPECT_EQ(node.counters().frames_received, before + 2);
   EXPECT_EQ(node.counters().rpdos_received, 1u);
   EXPECT_EQ(node.counters().frames_ignored, 0u);

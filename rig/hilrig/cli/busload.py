@@ -6,8 +6,8 @@ import argparse
 import math
 import sys
 
-from boardproto.cia301 import heartbeat_cob_id
-from hilrig.busload import (
+from boardproto.cia301 import MAX_NODE_ID_WITH_PDO_5_TO_8, heartbeat_cob_id
+from hilrig.apps.busload import (
     DEFAULT_MASTER_HEARTBEAT_MS,
     DEFAULT_MASTER_NODE_ID,
     DEFAULT_RATE_HZ,
@@ -35,7 +35,7 @@ def _rate(text: str) -> float:
 
 # PDO 5..8 of node N take the COB-IDs of PDO 1..4 of node N + 64 (board.toml's default layout):
 # node ids 1..63 keep every module's identifiers apart.
-MAX_MODULES = 63
+MAX_MODULES = MAX_NODE_ID_WITH_PDO_5_TO_8
 MAX_HEARTBEAT_MS = 0xFFFF  # CiA 301 heartbeat times are UNSIGNED16 milliseconds
 
 
@@ -187,7 +187,7 @@ COMMANDS = (
         description="Count the frames of one lockstep cycle (RPDOs, SYNC, TPDOs by transmission type,\n"
         "heartbeat) from the table's PDO layout and the share of a real bus they take, nominal\n"
         "and with worst-case bit stuffing, as classic CAN or as CAN FD frames (arbitration at\n"
-        "--bitrate, the data phase at --data-bitrate). Formulas: `pydoc hilrig.busload`.\n"
+        "--bitrate, the data phase at --data-bitrate). Formulas: `pydoc hilrig.apps.busload`.\n"
         f"Above {100 * WARNING_LOAD:.0f} % a WARNING line (exit code 0); above "
         f"{100 * FULL_LOAD:.0f} % on average or in the\nbusiest cycle it does not fit: an OVERLOAD "
         "line and exit code 1.\n\n"

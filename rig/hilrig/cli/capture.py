@@ -15,7 +15,7 @@ from pathlib import Path
 
 from boardproto import UnknownNameError
 from boardproto.table import BitSet
-from hilrig.capture import (
+from hilrig.apps.capture import (
     CaptureError,
     CaptureSettings,
     Progress,

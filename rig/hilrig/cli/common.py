@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self, TextIO
 
+from boardproto.cia301 import MAX_NODE_ID, MIN_NODE_ID, is_node_id
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
 from hilrig.errors import BusUnavailableError, FieldNameError, RigError, one_line
@@ -30,13 +31,12 @@ if TYPE_CHECKING:
     import canopen
     import cantools.database
 
-    from hilrig.node import BoardNode
-    from hilrig.trace import TraceSink
+    from hilrig.observe.sinks import TraceSink
+    from hilrig.wire.node import BoardNode
 
 DEFAULT_INTERFACE = "socketcan"
 DEFAULT_CHANNEL = "vcan0"
 """The bus when python-can's configuration names none: the rig's own virtual bus."""
-MAX_NODE_ID = 127
 
 # The package an interface needs beyond python-can, and python-can's extra that pulls it in.
 # python-can raises "... not installed" for these; the line then says what to install.
@@ -78,11 +78,11 @@ def node_id(text: str) -> int:
         value = int(text, 0)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected a node id 1..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text!r}"
+            f"expected a node id {MIN_NODE_ID}..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text!r}"
         ) from None
-    if not 1 <= value <= MAX_NODE_ID:
+    if not is_node_id(value):
         raise argparse.ArgumentTypeError(
-            f"expected a node id 1..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text}"
+            f"expected a node id {MIN_NODE_ID}..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text}"
         )
     return value
 
@@ -208,7 +208,7 @@ def can_filter(text: str) -> CanFilter:
 # --- Option groups ---------------------------------------------------------------------
 def live_sink(text: str) -> TraceSink:
     """A `--viewer` value: spawn[:PORT] | web[:PORT[:GRPC_PORT]] | connect[:URL]."""
-    from hilrig.trace import parse_live_sink
+    from hilrig.observe.sinks import parse_live_sink
 
     try:
         return parse_live_sink(text)
@@ -468,7 +468,7 @@ def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[can.BusABC]
         raise BusUnavailableError(
             f"cannot open {describe_bus(args)}: {one_line(error)}{_bus_hint(args, error)}"
         ) from error
-    from hilrig.netns import deepen_receive_queue
+    from hilrig.session.netns import deepen_receive_queue
 
     deepen_receive_queue(bus)  # a recorder or watcher descheduled for a moment loses nothing
     try:
@@ -564,7 +564,7 @@ def load_dbc(path: Path) -> cantools.database.can.Database:
 
 @contextlib.contextmanager
 def board_node(args: argparse.Namespace, bus: can.BusABC, table: RigTable) -> Iterator[BoardNode]:
-    from hilrig.node import BoardNode
+    from hilrig.wire.node import BoardNode
 
     node_id = resolved_node_id(args, table)
     od = load_eds(eds_path(args), node_id)

@@ -13,7 +13,7 @@ import threading
 import time
 from dataclasses import dataclass
 
-from boardproto.cia301 import NmtCommand, NmtState, heartbeat_cob_id
+from boardproto.cia301 import HEARTBEAT_STATE_MASK, NMT_ALL_NODES, NmtCommand, NmtState, heartbeat_cob_id
 from hilrig.cli.common import (
     Command,
     UsageError,
@@ -36,16 +36,12 @@ ACTIONS: dict[str, NmtCommand] = {
 }
 """The command line's words for the CiA 301 NMT commands."""
 
-ALL_NODES = 0
-"""Node id 0 in an NMT frame addresses every node (CiA 301)."""
-
 DEFAULT_WAIT_S = 3.0
-_STATE_MASK = 0x7F  # the heartbeat byte's top bit is node guarding's toggle bit, not state
 
 
 def nmt_target(text: str) -> int:
     """'all' -> 0, else a node id 1..127."""
-    return ALL_NODES if text.lower() == "all" else node_id(text)
+    return NMT_ALL_NODES if text.lower() == "all" else node_id(text)
 
 
 def _state_name(state: int) -> str:
@@ -72,7 +68,7 @@ class HeartbeatWatch:
         if len(data) != 1:
             return
         with self._changed:
-            self.heard.append(Heard(data[0] & _STATE_MASK, time.monotonic()))
+            self.heard.append(Heard(data[0] & HEARTBEAT_STATE_MASK, time.monotonic()))
             self._changed.notify_all()
 
     def wait_for(self, state: NmtState, since: int, timeout_s: float) -> Heard | None:
@@ -118,12 +114,12 @@ def run(args: argparse.Namespace) -> int:
 
     command = ACTIONS[args.action]
     target = args.node if args.node is not None else load_table(args).board.node.default_node_id
-    if args.wait and target == ALL_NODES:
+    if args.wait and target == NMT_ALL_NODES:
         raise UsageError(
             "--wait needs one node: after an NMT command to all, each node answers in its own time "
             "(`hilrig scan` lists their states)"
         )
-    addressee = "all nodes" if target == ALL_NODES else f"node 0x{target:02X}"
+    addressee = "all nodes" if target == NMT_ALL_NODES else f"node 0x{target:02X}"
     with open_bus(args) as bus:
         network = canopen.Network(bus)  # not connected: only sends unless it has to listen
         watch = HeartbeatWatch()

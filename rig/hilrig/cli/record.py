@@ -20,7 +20,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hilrig.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 from hilrig.cli.common import (
     DBC_HINT,
     LIVE_VIEWER_HELP,
@@ -44,11 +43,12 @@ from hilrig.cli.common import (
     positive_int,
     progress,
 )
+from hilrig.session.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 
 if TYPE_CHECKING:
     import can
 
-    from hilrig.log_trace import LiveBusTrace
+    from hilrig.apps.log_trace import LiveBusTrace
     from hilrig.table import RigTable
 
 PROGRESS_EVERY_S = 1.0
@@ -163,7 +163,7 @@ def run_record(args: argparse.Namespace) -> int:
         import canopen  # noqa: F401  (seconds in the VM: import before frames are counted)
     live = None
     if args.viewer:
-        from hilrig.log_trace import LiveBusTrace
+        from hilrig.apps.log_trace import LiveBusTrace
 
         table = load_table(args)
         node = args.node_id if args.node_id is not None else table.board.node.default_node_id
@@ -274,7 +274,7 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
 def existing_log(text: str) -> Path:
     path = Path(text)
     if not path.is_file():
-        from hilrig.buslog import readable_formats  # imports python-can: only on this error
+        from hilrig.session.buslog import readable_formats  # imports python-can: only on this error
 
         raise argparse.ArgumentTypeError(
             f"log {text} does not exist; record one with `hilrig record FILE` "
@@ -323,8 +323,9 @@ def run_replay(args: argparse.Namespace) -> int:
 
 
 def _trace(args: argparse.Namespace) -> int:
-    from hilrig.log_trace import trace_log
-    from hilrig.trace import Tracer, TraceSink
+    from hilrig.apps.log_trace import trace_log
+    from hilrig.observe.sinks import TraceSink
+    from hilrig.observe.tracer import Tracer
 
     table = load_table(args)
     database = load_dbc(dbc_path(args))
@@ -361,7 +362,14 @@ def _trace(args: argparse.Namespace) -> int:
 
 def describe_frame(cob_id: int, data: bytes, node: int) -> str:
     """CiA 301 services that are not in the DBC, in words."""
-    from boardproto.cia301 import NMT_COB_ID, SYNC_COB_ID, FunctionCode, function_of
+    from boardproto.cia301 import (
+        HEARTBEAT_STATE_MASK,
+        NMT_COB_ID,
+        SYNC_COB_ID,
+        FunctionCode,
+        function_of,
+        split_emcy,
+    )
     from hilrig.cli.scan import state_name
 
     function, sender = function_of(cob_id)
@@ -370,9 +378,9 @@ def describe_frame(cob_id: int, data: bytes, node: int) -> str:
     if cob_id == SYNC_COB_ID:
         return f"SYNC {data[0]}" if data else "SYNC"
     if function == FunctionCode.SYNC_EMCY:
-        return f"EMCY node 0x{sender:02X} code 0x{int.from_bytes(data[:2], 'little'):04X}"
+        return f"EMCY node 0x{sender:02X} code 0x{split_emcy(data).code:04X}"
     if function == FunctionCode.HEARTBEAT and len(data) == 1:
-        return f"heartbeat node 0x{sender:02X} {state_name(data[0] & 0x7F)}"
+        return f"heartbeat node 0x{sender:02X} {state_name(data[0] & HEARTBEAT_STATE_MASK)}"
     if function == FunctionCode.SDO_RESPONSE:
         return f"SDO answer from node 0x{sender:02X}"
     if function == FunctionCode.SDO_REQUEST:

@@ -15,9 +15,16 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from boardproto.cia301 import FunctionCode, SdoCommand, function_of, sdo_request_cob_id
-from hilrig.cli.common import (
+from boardproto.cia301 import (
+    HEARTBEAT_STATE_MASK,
     MAX_NODE_ID,
+    MIN_NODE_ID,
+    FunctionCode,
+    SdoCommand,
+    function_of,
+    sdo_request_cob_id,
+)
+from hilrig.cli.common import (
     Command,
     add_bus_options,
     describe_bus,
@@ -95,7 +102,7 @@ def listen(bus: can.BusABC, listen_s: float, ids: range, *, probe: bool) -> dict
         if node_id not in ids:
             continue
         if function == FunctionCode.HEARTBEAT and len(message.data) == 1:
-            found.setdefault(node_id, FoundNode(node_id)).state = message.data[0] & 0x7F
+            found.setdefault(node_id, FoundNode(node_id)).state = message.data[0] & HEARTBEAT_STATE_MASK
         elif function == FunctionCode.SDO_RESPONSE and len(message.data) == 8:
             data = bytes(message.data)
             if int.from_bytes(data[1:3], "little") != IDENTITY_INDEX or data[3] != 1:
@@ -167,9 +174,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    ids = range(1, MAX_NODE_ID + 1)
+    ids = range(MIN_NODE_ID, MAX_NODE_ID + 1)
     with open_bus(args) as bus:
-        what = "listening" if args.no_probe else f"probing node ids 1..{MAX_NODE_ID} and listening"
+        what = "listening" if args.no_probe else f"probing node ids {ids.start}..{ids.stop - 1} and listening"
         progress(f"scan: {what} for {args.listen:g} s on {describe_bus(args)}")
         found = listen(bus, args.listen, ids, probe=not args.no_probe)
         for number, node in enumerate(sorted(found.values(), key=lambda n: n.node_id), start=1):

@@ -36,8 +36,8 @@ if TYPE_CHECKING:
     import can
     import canopen
 
-    from hilrig.node import BoardNode
     from hilrig.table import RigTable
+    from hilrig.wire.node import BoardNode
 
 MAX_INDEX = 0xFFFF
 MAX_SUBINDEX = 0xFF
@@ -252,7 +252,7 @@ def _unknown_type(info: ObjectInfo, eds: Path | None) -> str:
 def _node(
     args: argparse.Namespace, bus: can.BusABC, table: RigTable, od: canopen.ObjectDictionary | None
 ) -> Iterator[BoardNode]:
-    from hilrig.node import BoardNode
+    from hilrig.wire.node import BoardNode
 
     node = BoardNode(bus, resolved_node_id(args, table), od, table, sdo_timeout_s=args.sdo_timeout)
     try:

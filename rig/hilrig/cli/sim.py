@@ -26,12 +26,12 @@ from hilrig.table import BOARD_TABLE
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from hilrig.faults import FaultSpec
-    from hilrig.trace import TraceSink
+    from hilrig.observe.sinks import TraceSink
+    from hilrig.session.faults import FaultSpec
 
 
 def fault_spec(text: str) -> FaultSpec:
-    from hilrig.faults import FaultSpec, FaultSpecError
+    from hilrig.session.faults import FaultSpec, FaultSpecError
 
     try:
         return FaultSpec.parse(text)
@@ -41,7 +41,7 @@ def fault_spec(text: str) -> FaultSpec:
 
 def modules_spec(text: str) -> int | tuple[int, ...]:
     """--modules: a count (8: node ids 1..8) or node ids (1,2,5 or 0x01,0x02)."""
-    from hilrig.robot import module_ids
+    from hilrig.engine.robot import module_ids
 
     try:
         spec: int | tuple[int, ...] = (
@@ -58,8 +58,8 @@ def modules_spec(text: str) -> int | tuple[int, ...]:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from hilrig.demo import DEFAULT_POLL_EVERY
-    from hilrig.faults import FAULT_SYNTAX_HELP  # the fault models need numpy: only for `sim`
+    from hilrig.apps.demo import DEFAULT_POLL_EVERY
+    from hilrig.session.faults import FAULT_SYNTAX_HELP  # the fault models need numpy: only for `sim`
 
     parser.add_argument(
         "--out",
@@ -175,10 +175,10 @@ def run(args: argparse.Namespace) -> int:
         return run_robot_command(args)
     if args.seconds is not None:
         raise UsageError("--seconds is the gait's length: it goes with --modules")
-    from hilrig.demo import DemoOptions, format_summary, run_demo
-    from hilrig.faults import FaultPlan
-    from hilrig.firmware import DEFAULT_EXECUTABLE
-    from hilrig.session import BoardInterface
+    from hilrig.apps.demo import DemoOptions, format_summary, run_demo
+    from hilrig.session.builder import BoardInterface
+    from hilrig.session.faults import FaultPlan
+    from hilrig.session.firmware import DEFAULT_EXECUTABLE
 
     executable = args.firmware or DEFAULT_EXECUTABLE
     if not args.board and not executable.is_file():
@@ -212,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _live_sinks(args: argparse.Namespace) -> list[TraceSink]:
     """--viewer, else $HIL_TRACE; none with --no-trace (and both given: a usage error)."""
-    from hilrig.trace import live_sinks_from_environment
+    from hilrig.observe.sinks import live_sinks_from_environment
 
 
     try:
@@ -226,7 +226,7 @@ def _live_sinks(args: argparse.Namespace) -> list[TraceSink]:
 
 def _report(args: argparse.Namespace, text: str, viewer_url: str | None, live: Sequence[TraceSink]) -> int:
     """The summary on stdout and in summary.txt; then, with a web viewer, keep serving."""
-    from hilrig.trace import SinkKind
+    from hilrig.observe.sinks import SinkKind
 
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "summary.txt").write_text(text + "\n")
@@ -243,9 +243,9 @@ def _report(args: argparse.Namespace, text: str, viewer_url: str | None, live: S
 
 
 def run_robot_command(args: argparse.Namespace) -> int:
-    """`hilrig sim --modules N`: the robot demo (hilrig.robot_demo)."""
-    from hilrig.firmware import DEFAULT_EXECUTABLE
-    from hilrig.robot_demo import GAIT_SECONDS, RobotOptions, format_robot_summary, run_robot
+    """`hilrig sim --modules N`: the robot demo (hilrig.apps.robot_demo)."""
+    from hilrig.apps.robot_demo import GAIT_SECONDS, RobotOptions, format_robot_summary, run_robot
+    from hilrig.session.firmware import DEFAULT_EXECUTABLE
 
     given = {"--board": args.board, "--fault": bool(args.fault), "--node-id": args.node_id is not None}
     refused = [flag for flag, present in given.items() if present]

@@ -3,18 +3,60 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from hilrig.cli.common import Command, UsageError
+from hilrig.cli.common import Command, UsageError, node_id
 
 
 def _configure(parser: argparse.ArgumentParser) -> None:
-    from hilrig.soak import add_arguments
+    """The soak's options (`hilrig soak --help`)."""
+    from hilrig.apps.soak.run import (
+        DEFAULT_EDS_PATH,
+        DEFAULT_FAULT_INTERVAL,
+        DEFAULT_RSS_BOUND_KIB,
+        DEFAULT_SAMPLE_EVERY,
+    )
+    from hilrig.session.firmware import DEFAULT_EXECUTABLE
+    from hilrig.table import BOARD_TABLE
 
-    add_arguments(parser)
+    parser.add_argument(
+        "--cycles", type=int, default=1_000_000, help="firmware cycles to run (default 1000000)"
+    )
+    parser.add_argument(
+        "--out", type=Path, default=Path("build/soak"), help="report.json and firmware.log go here"
+    )
+    parser.add_argument("--seed", type=int, default=11, help="seed of the fault plan (default 11)")
+    parser.add_argument(
+        "--fault-interval", type=int, default=DEFAULT_FAULT_INTERVAL, help="cycles between faults"
+    )
+    parser.add_argument(
+        "--sample-every", type=int, default=DEFAULT_SAMPLE_EVERY, help="cycles between RSS samples"
+    )
+    parser.add_argument(
+        "--rss-bound-kib", type=int, default=DEFAULT_RSS_BOUND_KIB, help="allowed growth after warm-up"
+    )
+    default_node = BOARD_TABLE.node.default_node_id
+    parser.add_argument(
+        "--node-id", type=node_id, default=default_node, help=f"default 0x{default_node:02X} (board.toml's)"
+    )
+    parser.add_argument("--period-us", type=int, default=1000)
+    parser.add_argument("--eds", type=Path, default=DEFAULT_EDS_PATH)
+    parser.add_argument("--firmware", type=Path, default=DEFAULT_EXECUTABLE)
+    parser.add_argument("--channel", help="use this interface as it is (default: a private namespace vcan0)")
+    parser.add_argument("--stop-file", type=Path, help="stop cleanly once this file exists (tools/soak)")
+    parser.add_argument(
+        "--pin", action="store_true", help="pin driver and firmware to one CPU (slower with canopen's thread)"
+    )
+    parser.add_argument("--cpu", type=int, help="the CPU to pin to (default: the last one allowed)")
+    parser.add_argument(
+        "--keep-thp",
+        action="store_true",
+        help="leave transparent huge pages on for the firmware (khugepaged then makes its RSS jump)",
+    )
 
 
 def _run(args: argparse.Namespace) -> int:
-    from hilrig.soak import run
+    from hilrig.apps.soak.run import run
 
     def usage_error(message: str) -> int:
         raise UsageError(message)

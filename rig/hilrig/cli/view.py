@@ -13,7 +13,7 @@ DEFAULT_DASHBOARD = "overview"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from hilrig.trace import DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
+    from hilrig.observe.sinks import DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
 
     parser.add_argument(
         "trace",
@@ -56,7 +56,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hilrig.errors import RigError
-    from hilrig.trace import DEFAULT_WEB_PORT, blueprint_names, open_trace
+    from hilrig.observe.blueprints import blueprint_names
+    from hilrig.observe.sinks import DEFAULT_WEB_PORT
+    from hilrig.observe.viewer import open_trace
 
     names = blueprint_names()
     if args.list:
@@ -101,12 +103,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _check(trace: Path, dashboard: str | None) -> int:
     """Every series the dashboards name, looked up in the trace; the gaps on stdout."""
-    from hilrig import resources
+    from hilrig.observe.blueprints import dashboards
 
-    resources.dashboards()  # importable from a checkout on PYTHONPATH alone too
-    from dashboards.check import fitting_dashboards, trace_gaps
-    from hilrig.trace import load_blueprint
-    from hilrig.trace_reader import Trace
+    dashboards()  # importable from a checkout on PYTHONPATH alone too
+    from hilrig.observe.blueprints import load_blueprint
+    from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
+    from hilrig.observe.reader import Trace
 
     progress(f"view: reading {trace}")
     recording = Trace.read(trace)

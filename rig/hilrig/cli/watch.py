@@ -42,10 +42,10 @@ from hilrig.errors import NodeSilentError, RigError, SdoTimeoutError
 from hilrig.table import ObjectEntry
 
 if TYPE_CHECKING:
-    from hilrig.log_trace import LiveBusTrace
-    from hilrig.node import BoardNode
+    from hilrig.apps.log_trace import LiveBusTrace
     from hilrig.table import RigTable
-    from hilrig.transport import PdoLayout
+    from hilrig.wire.node import BoardNode
+    from hilrig.wire.transport import PdoLayout
 
 CLEAR_LINE = "\x1b[2K"
 
@@ -257,8 +257,8 @@ def _traced(send_sync: Callable[[int], None], live: LiveBusTrace) -> Callable[[i
 
 def _live_trace(args: argparse.Namespace, node: BoardNode, table: RigTable) -> LiveBusTrace:
     """The node's frames into a live Rerun trace, from canopen's own receive thread."""
-    from hilrig.buslog import NodeDbc
-    from hilrig.log_trace import LiveBusTrace
+    from hilrig.apps.log_trace import LiveBusTrace
+    from hilrig.session.buslog import NodeDbc
 
     dbc = NodeDbc(load_dbc(dbc_path(args)), table, node.node_id)
     progress("watch: streaming live to " + ", ".join(map(str, args.viewer)) + " (importing rerun-sdk)")

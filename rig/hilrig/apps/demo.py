@@ -1,0 +1,396 @@
+"""The demo joint, end to end: the firmware in lockstep on a private bus, the rig's physics,
+a velocity then a torque profile (or a scenario file), and a summary.
+
+`make run` and `hilrig sim` both call `run_demo`. Needs root and a kernel with vcan (natively,
+or inside the micro-VM of `tools/with-vcan`)::
+
+    summary = run_demo(DemoOptions(out_dir=Path("out/demo")))
+    print(format_summary(summary))
+
+With `board=BoardInterface(...)` the same profiles run in real time against a board (or a
+free-running firmware) on that interface: no firmware is started, the rig sends SYNC every
+period. `live` sinks stream the trace to a viewer while it runs, beside out_dir/trace.rrd.
+
+A scenario file defines `def scenario(rig): ...` and drives the `Rig` itself (rig.set,
+rig.run, rig.at...); the summary is computed from what it ran.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import runpy
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig
+from hilrig.errors import BusUnavailableError, FirmwareError, LockstepError, RealTimeError, RigError
+from hilrig.plants import JointParams
+from hilrig.session.builder import SessionConfig, hil_session
+from hilrig.session.faults import FaultEvent, FaultInjector, FaultPlan
+from hilrig.session.firmware import DEFAULT_EXECUTABLE
+from hilrig.session.netns import private_buses_supported
+from hilrig.table import BOARD_TABLE, ControlMode, RigTable
+from hilrig.wire.node import EmcyRecord
+
+if TYPE_CHECKING:
+    from hilrig.observe.sinks import TraceSink
+    from hilrig.session.builder import BoardInterface
+
+Scenario = Callable[[Rig], object]
+Progress = Callable[[str], None]
+
+SETTLE_S = 0.2
+"""Tracking errors skip this long after each setpoint or mode change (the step response)."""
+BOOT_TIMEOUT_S = 60.0
+"""Hang guard for the firmware's boot-up (ASan build in the software-emulated VM)."""
+DEFAULT_POLL_EVERY = 250
+"""Cycles between SDO reads of the fields a dashboard plots but no PDO carries (4 Hz at 1 kHz).
+Each read is a round trip between two cycles (about 15 ms in the micro-VM; six fields): `make
+run`'s 3401 cycles took 8.5 s without polling, 9.8 s every 250 cycles, 10.4 s every 100."""
+
+
+class ScenarioFileError(RigError, ValueError):
+    """A --scenario file that cannot be used (the message says why)."""
+
+
+class RunAbortedError(RigError):
+    """The firmware died or stopped answering mid-run; the message names the cycle and where
+    the evidence is (trace, bus log, firmware log), all of it written whole."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """Hold `value` on `setpoint` for `seconds` of simulation time."""
+
+    setpoint: str
+    value: float
+    seconds: float
+
+
+VELOCITY_PROFILE = (
+    Step("velocity_setpoint", 3.0, 0.6),
+    Step("velocity_setpoint", -2.0, 0.6),
+    Step("velocity_setpoint", 0.0, 0.3),
+)
+"""Gearbox-side velocity [rad/s]: up, reverse, stop."""
+TORQUE_PROFILE = (
+    Step("torque_setpoint", 0.5, 0.4),
+    Step("torque_setpoint", 2.5, 0.4),
+    Step("torque_setpoint", 1.0, 0.4),
+    Step("torque_setpoint", 3.0, 0.4),
+    Step("torque_setpoint", 0.0, 0.3),
+)
+"""Spring torque [N*m] against the demo's viscous load: steps the spring-constant estimator can
+learn from (quasi-static motion at several deflections)."""
+
+
+def demo_params() -> JointParams:
+    """The demo joint: a load with strong viscous friction (constant torque gives a steady speed,
+    so torque steps are quasi-static) and a winding that heats in seconds, not minutes."""
+    return dataclasses.replace(JointParams.fast_thermal(), load_viscous_friction_nm_s_per_rad=1.0)
+
+
+@dataclass(frozen=True)
+class DemoOptions:
+    out_dir: Path
+    scenario_file: Path | None = None
+    node_id: int = 0x10
+    period_us: int = 1000
+    seed: int = 1
+    params: JointParams = field(default_factory=demo_params)
+    trace: bool = True
+    executable: Path = DEFAULT_EXECUTABLE
+    eds: Path = DEFAULT_EDS_PATH
+    faults: FaultPlan = field(default_factory=FaultPlan)
+    poll_every: int = DEFAULT_POLL_EVERY
+    """With a trace: every how many cycles the fields a dashboard plots but no PDO carries are
+    read over SDO into it (0: never)."""
+    live: tuple[TraceSink, ...] = ()
+    """Where the trace also streams while the run goes (spawn, web, connect), beside trace.rrd."""
+    board: BoardInterface | None = None
+    """A board (or free-running firmware) on an interface: real time, no firmware started."""
+
+
+@dataclass(frozen=True)
+class DemoSummary:
+    cycles: int
+    simulated_s: float
+    wall_s: float
+    """From the command's start to the end of the scenario (start-up of the session included)."""
+    cycling_s: float
+    """The scenario alone: the lockstep cycles, without the session's start-up."""
+    velocity_rms_error_rad_s: float | None
+    torque_rms_error_nm: float | None
+    spring_constant_estimate: float
+    spring_constant_confidence: float
+    spring_constant_true: float
+    peak_temperature_reported_c: float | None
+    peak_temperature_true_c: float
+    fault_flags: int
+    safe_state: bool
+    emcy: tuple[EmcyRecord, ...]
+    bus_log: Path
+    firmware_log: Path | None
+    """None: a board's run (no firmware process of the rig's)."""
+    frames_logged: int
+    trace: Path | None = None
+    faults: tuple[FaultEvent, ...] = ()
+    viewer_url: str | None = None
+    """The page of the web viewer serving this run's trace (a `web` live sink)."""
+
+
+def load_scenario(path: Path) -> Scenario:
+    """`scenario(rig)` from a Python file."""
+    try:
+        namespace = runpy.run_path(str(path))
+    except OSError as error:
+        raise ScenarioFileError(f"cannot read scenario {path}: {error.strerror}") from error
+    scenario = namespace.get("scenario")
+    if not callable(scenario):
+        raise ScenarioFileError(f"{path} defines no function `scenario(rig)`")
+    return scenario
+
+
+def run_profile(rig: Rig, mode: int, steps: tuple[Step, ...], progress: Progress, what: str) -> None:
+    rig.set("control_mode", mode)
+    for step in steps:
+        rig.set(step.setpoint, step.value)
+        progress(f"sim: t = {rig.t:.2f} s  {what}: {step.setpoint} = {step.value:g} for {step.seconds:g} s")
+        rig.run(seconds=step.seconds)
+
+
+def default_scenario(progress: Progress) -> Scenario:
+    def scenario(rig: Rig) -> None:
+        run_profile(rig, ControlMode.VELOCITY, VELOCITY_PROFILE, progress, "velocity profile")
+        run_profile(rig, ControlMode.TORQUE, TORQUE_PROFILE, progress, "torque profile")
+        rig.set("control_mode", ControlMode.DISABLED)
+        rig.run(cycles=1)
+
+    return scenario
+
+
+def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
+    """Firmware + rig in lockstep on a private bus (`hilrig.session.builder`), or the rig in real time
+    against `options.board`; the bus log goes to out_dir/bus.log."""
+    if options.board is None and not private_buses_supported():
+        raise BusUnavailableError(
+            "the simulation needs root and a kernel with vcan for its private bus: "
+            "run `make run`, or `tools/with-vcan -- .venv/bin/hilrig sim`"
+        )
+    scenario = (
+        load_scenario(options.scenario_file)
+        if options.scenario_file is not None
+        else default_scenario(progress)
+    )
+    table = RigTable.load()
+    out = options.out_dir
+    started = time.monotonic()
+    if options.trace:
+        progress("sim: tracing to Rerun (importing rerun-sdk takes a while in the VM)")
+        if options.live:
+            progress("sim: streaming the trace live to " + ", ".join(map(str, options.live)))
+    if options.board is None:
+        progress(
+            f"sim: starting {options.executable.name} (node 0x{options.node_id:02X}, lockstep, "
+            f"{options.period_us} us) on a private bus"
+        )
+    else:
+        progress(
+            f"sim: node 0x{options.node_id:02X} on {options.board.interface} {options.board.channel}, "
+            f"real time, SYNC every {options.period_us} us"
+        )
+    config = SessionConfig(
+        out_dir=out,
+        params=options.params,
+        seed=options.seed,
+        node_id=options.node_id,
+        period_us=options.period_us,
+        trace=options.trace,
+        live=options.live if options.trace else (),
+        executable=options.executable,
+        eds=options.eds,
+        boot_timeout_s=BOOT_TIMEOUT_S,
+        sdo_timeout_s=1.0,
+        board=options.board,
+        mode="lockstep" if options.board is None else "realtime",
+    )
+    with hil_session(config, table=table) as session:
+        rig = session.rig
+        assert rig is not None
+        injector: FaultInjector | None = None
+        if options.faults:
+            injector = FaultInjector(
+                rig,
+                options.faults,
+                firmware=session.firmware,
+                boot_timeout_s=BOOT_TIMEOUT_S,
+                on_event=lambda e: progress(f"sim: t = {e.time_s:.3f} s  fault {e.text}"),
+            )
+            injector.install()
+        if options.trace and options.poll_every > 0:
+            from hilrig.observe.blueprints import dashboard_fields
+
+            slow = rig.in_no_pdo(dashboard_fields(table))
+            if slow:
+                rig.poll_over_sdo(slow, every_cycles=options.poll_every)
+                every = options.poll_every
+                progress(f"sim: reading {', '.join(slow)} over SDO every {every} cycles (in no PDO)")
+        progress("sim: node operational, running the scenario")
+        cycling_started = time.monotonic()
+        try:
+            scenario(rig)
+        except (FirmwareError, LockstepError, RealTimeError) as error:
+            first_line = str(error).splitlines()[0].rstrip(";: ")
+            raise RunAbortedError(f"{first_line}; {session.evidence()}") from error
+        cycling_s = time.monotonic() - cycling_started
+        summary = summarize(rig, table, options, started, out, 0, cycling_s)
+        if injector is not None:
+            summary = dataclasses.replace(summary, faults=tuple(injector.log))
+        recorder = session.recorder
+        viewer_url = session.tracer.web_url if session.tracer is not None else None
+    summary = dataclasses.replace(
+        summary,
+        frames_logged=recorder.frames if recorder is not None and recorder.frames is not None else 0,
+        firmware_log=out / "firmware.log" if options.board is None else None,
+        viewer_url=viewer_url,
+    )
+    if options.trace:
+        summary = dataclasses.replace(summary, trace=out / "trace.rrd")
+    return summary
+
+
+def _step_values(times: np.ndarray, change_t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Value of a sparsely sent signal (sent at change_t) at each of `times` (NaN before)."""
+    index = np.searchsorted(change_t, times, side="right") - 1
+    result = np.full(times.shape, np.nan)
+    valid = index >= 0
+    result[valid] = values[index[valid]]
+    return result
+
+
+def _rms_tracking(rig: Rig, mode: int, setpoint: str, measured: str, scale: float) -> float | None:
+    """RMS of setpoint - measured*scale over the cycles in `mode`, settled after each change."""
+    t_sp, sp = rig.sent(setpoint)
+    t_meas, meas = rig.history(measured)
+    t_mode, modes = rig.sent("control_mode")
+    if not len(t_sp) or not len(t_meas) or not len(t_mode):
+        return None
+    meas_at = np.interp(t_sp, t_meas, meas.astype(float) * scale, left=np.nan, right=np.nan)
+    mode_at = _step_values(t_sp, t_mode, modes.astype(float))
+    changes = np.concatenate([t_sp[1:][np.diff(sp) != 0], t_mode])
+    last_change = _step_values(t_sp, np.sort(changes), np.sort(changes))
+    settled = np.isnan(last_change) | (t_sp - np.nan_to_num(last_change) >= SETTLE_S)
+    mask = (mode_at == mode) & settled & ~np.isnan(meas_at)
+    if not mask.any():
+        return None
+    return float(np.sqrt(np.mean((sp[mask] - meas_at[mask]) ** 2)))
+
+
+def _peak(rig: Rig, name: str) -> float | None:
+    _, values = rig.history(name)
+    return float(np.max(values)) if len(values) else None
+
+
+def summarize(
+    rig: Rig, table: RigTable, options: DemoOptions, started: float, out: Path, frames: int, cycling_s: float
+) -> DemoSummary:
+    gear_ratio = float(rig.read("gear_ratio"))
+    _, temperature_true = rig.truth("winding_temperature")
+    _, flags = rig.history("fault_flags")
+    _, safe = rig.history("safe_state")
+    return DemoSummary(
+        cycles=rig.cycle,
+        simulated_s=rig.t,
+        wall_s=time.monotonic() - started,
+        cycling_s=cycling_s,
+        velocity_rms_error_rad_s=_rms_tracking(
+            rig, ControlMode.VELOCITY, "velocity_setpoint", "motor_velocity", 1.0 / gear_ratio
+        ),
+        torque_rms_error_nm=_rms_tracking(rig, ControlMode.TORQUE, "torque_setpoint", "joint_torque", 1.0),
+        spring_constant_estimate=float(rig.read("spring_constant_estimate")),
+        spring_constant_confidence=float(rig.read("spring_constant_confidence")),
+        spring_constant_true=options.params.spring_stiffness_nm_per_rad,
+        peak_temperature_reported_c=_peak(rig, "winding_temperature"),
+        peak_temperature_true_c=float(np.max(temperature_true)) if len(temperature_true) else float("nan"),
+        fault_flags=int(np.bitwise_or.reduce(flags.astype(np.int64))) if len(flags) else 0,
+        safe_state=bool(len(safe) and np.max(safe) > 0),
+        emcy=tuple(rig.emcy),
+        bus_log=out / "bus.log",
+        firmware_log=out / "firmware.log",
+        frames_logged=frames,
+    )
+
+
+def _fmt(value: float | None, unit: str, digits: str = ".3g") -> str:
+    return "-" if value is None else f"{value:{digits}} {unit}"
+
+
+def _rate(cycles: int, seconds: float) -> str:
+    return f"{cycles / seconds:.0f} cycles/s; " if seconds > 0 else ""
+
+
+def format_summary(summary: DemoSummary) -> str:
+    """The summary table people read after `make run`."""
+    faults = "none"
+    if summary.emcy or summary.fault_flags or summary.safe_state:
+        names = BOARD_TABLE.bitset("fault_flags").label(summary.fault_flags)
+        parts = [f"fault_flags 0x{summary.fault_flags:X} ({names})"] if summary.fault_flags else []
+        if summary.safe_state:
+            parts.append("safe state entered")
+        parts += [str(record) for record in summary.emcy[:5]]
+        if len(summary.emcy) > 5:
+            parts.append(f"... {len(summary.emcy) - 5} more EMCY")
+        faults = "; ".join(parts)
+    rows = [
+        (
+            "simulated",
+            f"{summary.cycles} cycles = {summary.simulated_s:.3f} s in {summary.cycling_s:.1f} s wall "
+            f"({_rate(summary.cycles, summary.cycling_s)}{summary.wall_s:.1f} s with start-up)",
+        ),
+        (
+            "velocity tracking error",
+            _fmt(summary.velocity_rms_error_rad_s, "rad/s RMS")
+            + f" (setpoint vs motor_velocity / gear_ratio, {SETTLE_S:g} s after each step)",
+        ),
+        (
+            "torque tracking error",
+            _fmt(summary.torque_rms_error_nm, "N*m RMS")
+            + f" (setpoint vs joint_torque, {SETTLE_S:g} s after each step)",
+        ),
+        (
+            "spring constant",
+            f"{summary.spring_constant_estimate:.4g} N*m/rad estimated "
+            f"(confidence {summary.spring_constant_confidence:.2f}), "
+            f"{summary.spring_constant_true:.4g} true",
+        ),
+        (
+            "peak winding temperature",
+            _fmt(summary.peak_temperature_reported_c, "degC", ".4g")
+            + f" reported, {summary.peak_temperature_true_c:.4g} degC true",
+        ),
+        ("faults", faults),
+        *(
+            ("fault injected" if i == 0 else "", f"t = {e.time_s:.3f} s  {e.text}")
+            for i, e in enumerate(summary.faults)
+        ),
+        (
+            "bus log",
+            f"{summary.bus_log} ({summary.frames_logged} frames; `hilrig replay {summary.bus_log} --decode`)",
+        ),
+    ]
+    if summary.firmware_log is not None:
+        rows.append(("firmware log", str(summary.firmware_log)))
+    if summary.trace is not None:
+        rows += [
+            ("trace (Rerun)", str(summary.trace)),
+            ("open it with", f"hilrig view {summary.trace}   (--dashboard tuning, --web: browser)"),
+        ]
+    if summary.viewer_url is not None:
+        rows.append(("live web viewer", summary.viewer_url))
+    width = max(len(name) for name, _ in rows)
+    return "\n".join(f"{name.ljust(width)}  {value}" for name, value in rows)

@@ -1,0 +1,768 @@
+"""What the lockstep and the real-time driver share: the node's PDO roles, the RPDO values the rig
+commands, the per-cycle `History`, and the frame link the PDOs travel on (`hilrig.wire.transport`).
+
+A driver's small interface (what `Rig` uses): `configure()` after the node's PDO configuration was
+read, `step()` -> `CycleResult`, `cycle`, `t`, `period_us`, `history`, `node_entered(state)`,
+`poll()` (dispatch what arrived between cycles), `set_rpdo_value`, `latest`. The lockstep driver
+(`hilrig.engine.lockstep`) waits for every TPDO due at its SYNC; the real-time one (`hilrig.engine.realtime`)
+keeps a wall-clock period and takes what has arrived.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+import os
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id, sync_counter
+from hilrig.errors import NoValueError, PdoMappingError
+from hilrig.observe.paths import BUS_EVENTS_PATH
+from hilrig.plants import STATE_FIELDS, JointPlant, JointState, RawSensors, SensorModel, state_matrix
+from hilrig.table import unknown_name
+from hilrig.wire.node import BoardNode
+from hilrig.wire.transport import (
+    ROW_CYCLE,
+    Exchange,
+    FrameLink,
+    PdoDirection,
+    PdoLayout,
+    Unpack,
+    can_frame,
+    exchanger,
+    send_frames,
+)
+
+Value = float | int
+PdoRow = tuple[PdoLayout, tuple[Value, ...]]
+"""One PDO of one cycle: its layout and the values it carried, in mapping order."""
+
+ACTUATOR_OUTPUT = "motor_duty"
+"""The HIL output that drives the plant; in lockstep its TPDO must be synchronous type 1."""
+SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
+"""Fields of the RPDO sent every cycle, like a real master's setpoint stream."""
+LIVENESS_SLICE_S = 0.25
+"""While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
+
+
+@dataclass(frozen=True, slots=True)
+class ProcessActivity:
+    """What the kernel says a process is doing: CPU time used so far (all its threads), and
+    whether it is asleep (blocked, waiting for an event) right now."""
+
+    cpu_s: float
+    sleeping: bool
+
+
+_CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def process_activity(pid: int) -> ProcessActivity | None:
+    """`pid`'s activity from /proc/PID/stat; None once it is gone or where /proc has no such
+    file (the guard then falls back to wall time)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            text = stat.read()
+    except OSError:
+        return None
+    # The command name is in parentheses and may hold anything: fields follow the last ')'.
+    fields = text[text.rfind(b")") + 2 :].split()
+    try:
+        state, utime, stime = fields[0], int(fields[11]), int(fields[12])
+    except (IndexError, ValueError):
+        return None
+    return ProcessActivity((utime + stime) / _CLOCK_TICKS, state in (b"S", b"I"))
+
+
+TRUTH_NAMES: tuple[str, ...] = tuple(name for name in JointState.__dataclass_fields__ if name != "time_s")
+"""Ground-truth quantities, named as the JointState attributes (unit in the name)."""
+_UNIT_SUFFIXES = ("_rad_s", "_rad", "_nm", "_a", "_c", "_ohm")
+TRUTH_ALIASES: dict[str, str] = {
+    name[: -len(suffix)]: name for name in TRUTH_NAMES for suffix in _UNIT_SUFFIXES if name.endswith(suffix)
+}
+"""Short names without the unit suffix ("load_velocity" -> "load_velocity_rad_s")."""
+
+SYNC_FRAMES = tuple(can_frame(SYNC_COB_ID, bytes([counter])) for counter in range(1, SYNC_COUNTER_MAX + 1))
+"""The SYNC frame of each counter value 1..240 (index counter - 1; cycle n's: index
+n % SYNC_COUNTER_MAX, as `sync_counter(n)` counts)."""
+
+
+def sync_frame(counter: int) -> bytes:
+    """The SYNC frame with `counter` (1..240); `SYNC_FRAMES[counter - 1]` without the check."""
+    if not 1 <= counter <= SYNC_COUNTER_MAX:
+        raise ValueError(f"SYNC counter: expected 1..{SYNC_COUNTER_MAX}, got {counter}")
+    return SYNC_FRAMES[counter - 1]
+
+
+def resolve_truth_name(name: str) -> str:
+    if name in TRUTH_NAMES:
+        return name
+    if name in TRUTH_ALIASES:
+        return TRUTH_ALIASES[name]
+    raise unknown_name("ground-truth quantity", name, (*TRUTH_NAMES, *TRUTH_ALIASES))
+
+
+def sdo_poll_layout(names: tuple[str, ...], formats: tuple[str, ...]) -> PdoLayout:
+    """The history's row layout of fields read over SDO (`Rig.poll_over_sdo`): a TPDO-like
+    record with no COB-ID (number 0, disabled) and each field's `struct` code, so it is stored
+    and traced like received PDOs."""
+    return PdoLayout(
+        direction=PdoDirection.TPDO,
+        number=0,
+        cob_id=0,
+        enabled=False,
+        transmission_type=255,
+        names=names,
+        formats=formats,
+    )
+
+
+# --- History --------------------------------------------------------------------------------
+class _PdoRows:
+    """Every cycle one PDO was exchanged in, with the payload it carried: two bytearrays, the
+    cycles (`ROW_CYCLE` each) and the payloads back to back, as on the bus. An append is two
+    copies of a few bytes, with no Python object kept per row (a million-cycle run holds some
+    14 bytes per PDO and cycle, not a tuple of numbers); readers get numpy columns.
+
+    Only ever appended to (a failed cycle's last row is taken back), so a count is a mark that
+    stays valid. A writer appends the payload before the cycle and a reader counts cycles, so a
+    reader on another thread never counts a row without its payload. Readers copy what they
+    read (a slice): a live view on the bytearray would stop it from growing."""
+
+    __slots__ = ("cycles", "data", "dtype", "layout", "names", "record", "width")
+
+    def __init__(self, layout: PdoLayout) -> None:
+        self.layout = layout
+        self.names = layout.names
+        if len(layout.formats) != len(layout.names):
+            raise ValueError(f"{layout.label}: no codec, its rows cannot be stored")
+        self.record = layout.codec
+        self.width = layout.length
+        names = [f"v{i}" for i in range(len(layout.names))]
+        self.dtype = np.dtype({"names": names, "formats": ["<" + code for code in layout.formats]})
+        self.cycles = bytearray()
+        self.data = bytearray()
+
+    @property
+    def count(self) -> int:
+        return len(self.cycles) // ROW_CYCLE.size
+
+    def append(self, cycle: int, values: Iterable[Value]) -> None:
+        self.data += self.record.pack(*values)
+        self.cycles += ROW_CYCLE.pack(cycle)
+
+    def last_cycle(self) -> int:
+        return ROW_CYCLE.unpack_from(self.cycles, len(self.cycles) - ROW_CYCLE.size)[0]
+
+    def drop_last(self) -> None:
+        """Take the last row back (the cycle it belongs to failed)."""
+        del self.cycles[-ROW_CYCLE.size :]
+        del self.data[len(self.data) - self.width :]
+
+    def last(self, position: int) -> tuple[int, Value]:
+        """(cycle, value at `position`) of the last row (there is one)."""
+        row = self.record.unpack_from(self.data, (self.count - 1) * self.width)
+        return self.last_cycle(), row[position]
+
+    def cycle_column(self, begin: int, end: int) -> np.ndarray:
+        """The cycles of rows begin..end (int64)."""
+        size = ROW_CYCLE.size
+        return np.frombuffer(bytes(self.cycles[begin * size : end * size]), dtype=np.int64)
+
+    def records(self, begin: int, end: int) -> np.ndarray:
+        """Rows begin..end as a numpy record array (field `v<i>` is the i-th mapped value)."""
+        return np.frombuffer(bytes(self.data[begin * self.width : end * self.width]), dtype=self.dtype)
+
+    def matrix(self, begin: int, end: int) -> np.ndarray:
+        """Rows begin..end as a float64 (rows x values) array."""
+        records = self.records(begin, end)
+        matrix = np.empty((len(records), len(self.names)), dtype=np.float64)
+        for i, name in enumerate(self.dtype.names or ()):
+            matrix[:, i] = records[name]
+        return matrix
+
+    def column(self, position: int) -> np.ndarray:
+        """Every value at `position`, as the numbers they are: int64, float64 or bool."""
+        return _widened(self.records(0, self.count)[f"v{position}"])
+
+
+def _widened(column: np.ndarray) -> np.ndarray:
+    """A column of a PDO's own type (int16, float32, ...) as int64, float64 or bool: what
+    arithmetic on a series expects, and exactly the numbers the bus carried."""
+    if column.dtype.kind == "b":
+        return column.astype(bool)
+    return column.astype(np.int64 if column.dtype.kind in "iu" else np.float64)
+
+
+class _Direction:
+    """Rows by PDO layout, and where each name is found (a layout and a position)."""
+
+    def __init__(self) -> None:
+        self.rows: dict[PdoLayout, _PdoRows] = {}
+        self.where: dict[str, list[tuple[_PdoRows, int]]] = {}
+        self._by_identity: dict[int, tuple[PdoLayout, _PdoRows]] = {}
+
+    def rows_of(self, pdo: PdoLayout) -> _PdoRows:
+        # By identity first (an int key); equal layouts read again after a restart share rows.
+        known = self._by_identity.get(id(pdo))
+        if known is not None and known[0] is pdo:
+            return known[1]
+        rows = self.rows.get(pdo)
+        if rows is None:
+            rows = self.rows[pdo] = _PdoRows(pdo)
+            for position, name in enumerate(pdo.names):
+                self.where.setdefault(name, []).append((rows, position))
+        self._by_identity[id(pdo)] = (pdo, rows)
+        return rows
+
+    def series(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Cycles and values of `name`, in cycle order, from every PDO that carried it."""
+        places = [(rows, i) for rows, i in self.where.get(name, ()) if rows.count]
+        if not places:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        # Counted once per PDO: the rig may append on while this reads (the tracer's thread).
+        counts = [rows.count for rows, _ in places]
+        cycles = [rows.cycle_column(0, count) for (rows, _), count in zip(places, counts, strict=True)]
+        values = [
+            _widened(rows.records(0, count)[f"v{i}"]) for (rows, i), count in zip(places, counts, strict=True)
+        ]
+        if len(places) == 1:
+            return cycles[0], values[0]
+        every_cycle = np.concatenate(cycles)
+        order = np.argsort(every_cycle, kind="stable")
+        return every_cycle[order], np.concatenate(values)[order]
+
+    def has(self, name: str) -> bool:
+        return any(rows.count for rows, _ in self.where.get(name, ()))
+
+    def latest(self, name: str) -> tuple[int, Value] | None:
+        best: tuple[int, Value] | None = None
+        for rows, i in self.where.get(name, ()):
+            if rows.count:
+                last = rows.last(i)
+                if best is None or last[0] >= best[0]:
+                    best = last
+        return best
+
+
+@dataclass(frozen=True, slots=True)
+class HistoryMark:
+    """Where every PDO's rows and the truth ended at one moment (`History.mark`)."""
+
+    rows: dict[_PdoRows, int]
+    truth: int
+
+
+HistoryBlock = tuple[PdoLayout, np.ndarray, np.ndarray]
+"""(layout, cycles, values): one PDO's rows between two marks, the cycles (int64) and a float64
+(rows x names) matrix; `layout.names` name its columns."""
+
+
+class History:
+    """Per-cycle record of what the node sent, what the rig sent, and the plant's truth.
+
+    Stored per PDO as the bus carried it (`_PdoRows`: a cycle and a payload per row, appended
+    in C for every TPDO a lockstep cycle decodes); a field's series is assembled when asked for.
+    Times are cycle * period exactly: the start of the cycle whose SYNC the values belong to.
+    Truth rows hold the plant state at that time (the one the cycle's sensor frame was sampled
+    from).
+    """
+
+    def __init__(self, period_us: int) -> None:
+        self.period_us = period_us
+        self._received = _Direction()
+        self._sent = _Direction()
+        self._truth: list[JointState] = []
+        self.record_truth: Callable[[JointState], None] = self._truth.append
+        """Record the plant state of the next cycle (every cycle: the list's own append)."""
+
+    def time_of(self, cycle: int) -> float:
+        return cycle * self.period_us / 1e6
+
+    def _times(self, cycles: Iterable[int] | np.ndarray) -> np.ndarray:
+        if not isinstance(cycles, np.ndarray):
+            cycles = np.fromiter(cycles, dtype=np.int64)
+        return cycles * self.period_us / 1e6
+
+    @property
+    def cycles(self) -> int:
+        return len(self._truth)
+
+    def layouts(self) -> list[PdoLayout]:
+        """Every PDO layout with rows here (received, then sent), with or without a row yet."""
+        return [*self._received.rows, *self._sent.rows]
+
+    def mark(self) -> HistoryMark:
+        """Where everything recorded so far ends: what an observer has taken so far (the tracer
+        takes whole batches of columns from here instead of copying every cycle's values)."""
+        rows = {r: r.count for d in (self._received, self._sent) for r in d.rows.values()}
+        return HistoryMark(rows, len(self._truth))
+
+    def blocks_between(self, start: HistoryMark, end: HistoryMark) -> list[HistoryBlock]:
+        """What was recorded after `start` up to `end`, PDO by PDO, as columns (safe from
+        another thread while the rig records on: rows are only appended to)."""
+        blocks = []
+        for rows, stop in end.rows.items():
+            begin = start.rows.get(rows, 0)
+            if stop > begin:
+                blocks.append((rows.layout, rows.cycle_column(begin, stop), rows.matrix(begin, stop)))
+        return blocks
+
+    def truth_between(self, start: HistoryMark, end: HistoryMark) -> tuple[range, list[JointState]]:
+        """The cycles and plant states recorded after `start` up to `end` (one per cycle)."""
+        return range(start.truth, end.truth), self._truth[start.truth : end.truth]
+
+    def times_of(self, cycles: Iterable[int] | np.ndarray) -> np.ndarray:
+        """The times of these cycles [s], as `time_of` gives them."""
+        return self._times(cycles)
+
+    def record_rows(self, cycle: int, received: Iterable[PdoRow], sent: Iterable[PdoRow]) -> None:
+        """Rows of one cycle from their values (what the lockstep driver does from the frames)."""
+        for direction, pdo_rows in ((self._received, received), (self._sent, sent)):
+            for pdo, values in pdo_rows:
+                direction.rows_of(pdo).append(cycle, values)
+
+    def row_store(self, pdo: PdoLayout) -> tuple[bytearray, bytearray]:
+        """(cycles, payloads) of `pdo`'s rows (received for a TPDO, sent for an RPDO), for a
+        driver that appends to them every cycle: the payload as on the bus, then the cycle
+        (`ROW_CYCLE`), as `transport.append_row` and the C exchange do."""
+        direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
+        rows = direction.rows_of(pdo)
+        return rows.cycles, rows.data
+
+    def take_back(self, pdo: PdoLayout, cycle: int) -> None:
+        """Drop `pdo`'s last row if it is `cycle`'s (that cycle failed after the row went in)."""
+        direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
+        rows = direction.rows_of(pdo)
+        if rows.count and rows.last_cycle() == cycle:
+            rows.drop_last()
+
+    def has_received(self, name: str) -> bool:
+        return self._received.has(name)
+
+    def has_sent(self, name: str) -> bool:
+        return self._sent.has(name)
+
+    def received(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of every cycle a TPDO carried `name`."""
+        cycles, values = self._received.series(name)
+        return self._times(cycles), values
+
+    def sent(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of every cycle the rig sent `name` in an RPDO."""
+        cycles, values = self._sent.series(name)
+        return self._times(cycles), values
+
+    def latest_received(self, name: str) -> Value:
+        latest = self._received.latest(name)
+        if latest is None:
+            raise KeyError(name)
+        return latest[1]
+
+    def truth(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of a ground-truth quantity (JointState attribute or its short alias)."""
+        attribute = resolve_truth_name(name)
+        states = self._truth[:]  # the rig may append on while this reads (the tracer's thread)
+        values = state_matrix(states)[:, STATE_FIELDS.index(attribute)]
+        return self._times(range(len(states))), values
+
+
+# --- One cycle's result ---------------------------------------------------------------------
+class CycleResult:
+    """What one cycle (lockstep) or tick (real time) exchanged (treat it as read-only).
+
+    received_rows: the TPDOs' rows; or, with `tpdos` (COB-ID -> layout), the decoded values by
+    COB-ID as the lockstep exchange collects them, made into rows only when asked for (most
+    cycles nobody asks: the history has them already)."""
+
+    __slots__ = (
+        "_dicts",
+        "_received",
+        "_tpdos",
+        "cycle",
+        "duty",
+        "raw",
+        "sent_rows",
+        "sync_counter",
+        "time_s",
+        "truth",
+    )
+
+    def __init__(
+        self,
+        cycle: int,
+        time_s: float,
+        sync_counter: int,
+        raw: RawSensors | None,
+        received_rows: tuple[PdoRow, ...] | Mapping[int, tuple[Value, ...]],
+        duty: float,
+        sent_rows: tuple[PdoRow, ...] = (),
+        truth: JointState | None = None,
+        tpdos: Mapping[int, PdoLayout] | None = None,
+    ) -> None:
+        self.cycle = cycle
+        self.time_s = time_s
+        self.sync_counter = sync_counter
+        self.raw = raw
+        """None when no sensor frame was sampled (real time, physics off)."""
+        self._received = received_rows
+        self._tpdos = tpdos
+        self.duty = duty
+        self.sent_rows = sent_rows
+        self.truth = truth
+        """The plant state the cycle's sensor frame was sampled from (None without physics)."""
+        self._dicts: dict[str, dict[str, Value]] | None = None
+
+    @property
+    def received_rows(self) -> tuple[PdoRow, ...]:
+        if self._tpdos is not None:
+            tpdos = self._tpdos
+            got = self._received
+            assert isinstance(got, Mapping)
+            self._received = tuple([(tpdos[cob_id], values) for cob_id, values in got.items()])
+            self._tpdos = None
+        return self._received  # type: ignore[return-value]
+
+    @property
+    def received(self) -> dict[str, Value]:
+        """TPDO values by name (built on first use)."""
+        return self._merged("received", self.received_rows)
+
+    @property
+    def sent(self) -> dict[str, Value]:
+        """RPDO values by name (built on first use)."""
+        return self._merged("sent", self.sent_rows)
+
+    def _merged(self, which: str, rows: tuple[PdoRow, ...]) -> dict[str, Value]:
+        if self._dicts is None:
+            self._dicts = {}
+        if which not in self._dicts:
+            self._dicts[which] = _merge(rows)
+        return self._dicts[which]
+
+    def __repr__(self) -> str:
+        return (
+            f"CycleResult(cycle={self.cycle}, time_s={self.time_s}, sync_counter={self.sync_counter}, "
+            f"received_rows={self.received_rows!r}, duty={self.duty}, sent_rows={self.sent_rows!r})"
+        )
+
+
+def _merge(rows: Iterable[PdoRow]) -> dict[str, Value]:
+    merged: dict[str, Value] = {}
+    for pdo, values in sorted(rows, key=lambda row: row[0].number):
+        merged.update(zip(pdo.names, values, strict=True))
+    return merged
+
+
+# --- The shared driver ----------------------------------------------------------------------
+class Driver:
+    """The node's PDO roles and the rig's RPDO values, over the node's frame link.
+
+    `configure()` (after the node's PDO configuration was read) checks the mapping the driver
+    relies on and compiles the per-cycle work: which RPDOs carry the sensors and the setpoint
+    stream, where the actuator output is, which TPDOs are due at which SYNC.
+    `node_entered(state)` must follow every NMT command the rig sends, since the node counts
+    SYNCs for its TPDOs from the moment it became operational.
+    """
+
+    needs_sync_actuator = True
+    """Whether configure() requires the actuator TPDO to be synchronous type 1."""
+
+    def __init__(
+        self,
+        node: BoardNode,
+        plant: JointPlant,
+        sensors: SensorModel,
+        *,
+        period_us: int,
+        tpdo_timeout_s: float = 5.0,
+        liveness: Callable[[], None] | None = None,
+        activity: Callable[[], ProcessActivity | None] | None = None,
+    ) -> None:
+        if period_us <= 0:
+            raise ValueError(f"period_us: expected > 0, got {period_us}")
+        self.node = node
+        self.plant = plant
+        self.sensors = sensors
+        self.period_us = period_us
+        self.period_s = period_us / 1e6
+        """The period in seconds (what the plant is stepped by every cycle)."""
+        self.tpdo_timeout_s = tpdo_timeout_s
+        self.liveness = liveness
+        self.activity = activity
+        """The node's process activity (`hilrig.engine.lockstep.process_activity`), for the hang
+        guard to tell a busy host from a stuck firmware; None: wall time only."""
+        self.history = History(period_us)
+        self.cycle = 0
+        """Cycles completed; also the index of the next cycle."""
+        self.sensor_override: Callable[[RawSensors], RawSensors] | None = None
+        """Fault injection hook: gets each cycle's raw sensors, returns what is sent."""
+        self.paused_rpdos: set[int] = set()
+        """RPDO numbers not sent at all (e.g. a silent setpoint stream for the watchdog)."""
+        self.malformed_frames = 0
+        """Frames on a TPDO's COB-ID whose length is not the mapping's (counted, dropped)."""
+        self._link: FrameLink | None = None
+        self._operational = False
+        self._syncs_since_operational = 0
+        self._rpdo_values: dict[int, list[Value]] = {}
+        self._rpdo_frames: dict[int, tuple[PdoLayout, bytes, tuple[Value, ...]]] = {}
+        """RPDO number -> (layout, frame, values): packed once per change, sent every cycle."""
+        self._steady_stream: tuple[bytes, tuple[PdoRow, ...]] | None = None
+        """The setpoint stream's frames (joined) and rows as `_rpdos_of_cycle` last sent them: what
+        every cycle sends again while no RPDO changed (None: work it out again)."""
+        self._stream_order: list[int] = []  # the setpoint stream's RPDOs, in sending order
+        self._sensor_rpdos: list[tuple[PdoLayout, Callable[[RawSensors], tuple[Value, ...]]]] = []
+        self._stream_rpdos: set[int] = set()
+        self._dirty_rpdos: set[int] = set()
+        self._field_rpdo: dict[str, tuple[int, int]] = {}  # name -> (RPDO number, position)
+        self._rpdo_layouts: dict[int, PdoLayout] = {}
+        self._tpdo_by_cob: dict[int, PdoLayout] = {}
+        self._emcy_cob_id = emcy_cob_id(node.node_id)
+        self._actuator: tuple[PdoLayout, int] | None = None
+        self._due_table: list[frozenset[int]] = [frozenset()]
+        """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
+        self._decoders: dict[int, tuple[int, Unpack, bytearray, bytearray]] = {}
+        """COB-ID -> (length, unpack, cycles, payloads) of every enabled TPDO: what a cycle's
+        exchange decodes, and the history's rows it appends each one to (`History.row_store`)."""
+        self._rpdo_rows: dict[int, tuple[bytearray, bytearray]] = {}
+        """COB-ID -> (cycles, payloads) of each enabled RPDO's sent rows in the history, which a
+        lockstep cycle files the frames it sent into (`transport.append_frame_rows`)."""
+        self._exchange: Exchange | None = None
+        """`transport.exchange` bound to the link (configure())."""
+        self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
+        self._tpdo_names: frozenset[str] = frozenset()
+
+    @property
+    def needs_plant_io(self) -> bool:
+        """Whether configure() requires the sensor RPDO(s) and the actuator TPDO."""
+        return True
+
+    @property
+    def t(self) -> float:
+        """Simulation time: cycles completed * period, exact."""
+        return self.history.time_of(self.cycle)
+
+    @property
+    def link(self) -> FrameLink:
+        if self._link is None:
+            raise RuntimeError("the driver is not configured yet (Rig.start() configures it)")
+        return self._link
+
+    # --- Configuration ------------------------------------------------------------------
+    def configure(self) -> None:
+        """Work out which PDOs carry what, from the node's mapping; PdoMappingError if the
+        sensor inputs, the setpoint stream or the actuator output is not where it must be."""
+        table = self.node.table
+        problems: list[str] = []
+        enabled_rpdos = [p for p in self.node.rpdos.values() if p.enabled and p.names]
+        sensor_rpdos = [p for p in enabled_rpdos if any(table.is_hil_input(n) for n in p.names)]
+        mapped_inputs = {n for p in sensor_rpdos for n in p.names}
+        for io in table.board.hil_inputs if self.needs_plant_io else ():
+            if io.name not in mapped_inputs:
+                problems.append(f"HIL input {io.name} is in no enabled RPDO")
+        for pdo in sensor_rpdos:
+            extra = [n for n in pdo.names if not table.is_hil_input(n)]
+            if extra:
+                problems.append(f"{pdo.label} mixes sensor inputs with {', '.join(extra)}")
+        for cob_id in sorted({p.cob_id for p in enabled_rpdos}):
+            sharing = [p.label for p in enabled_rpdos if p.cob_id == cob_id]
+            if len(sharing) > 1:  # the node could not tell their frames apart, nor could the history
+                problems.append(f"{' and '.join(sharing)} share a COB-ID")
+        stream = [p for p in enabled_rpdos if set(SETPOINT_STREAM) & set(p.names)]
+        for name in SETPOINT_STREAM:
+            if not any(name in p.names for p in stream):
+                problems.append(f"setpoint {name} is in no enabled RPDO")
+        actuator = [p for p in self.node.tpdos.values() if p.enabled and ACTUATOR_OUTPUT in p.names]
+        if not actuator:
+            if self.needs_plant_io:
+                problems.append(f"HIL output {ACTUATOR_OUTPUT} is in no enabled TPDO")
+        elif self.needs_sync_actuator and actuator[0].transmission_type != 1:
+            problems.append(
+                f"{actuator[0].label} carries {ACTUATOR_OUTPUT} with transmission type "
+                f"{actuator[0].transmission_type}; lockstep needs 1 (every SYNC)"
+            )
+        if problems:
+            raise PdoMappingError(f"node 0x{self.node.node_id:02X} PDO mapping: " + "; ".join(problems))
+
+        self._sensor_rpdos = [(p, _getter(p.names)) for p in sensor_rpdos]
+        self._stream_rpdos = {p.number for p in stream}
+        # Keep what a scenario already set (re-configuring after a reset must not undo it);
+        # otherwise start from the table's defaults, which the firmware starts from too.
+        previous = {
+            name: self._rpdo_values[number][position] for name, (number, position) in self._field_rpdo.items()
+        }
+        self._rpdo_values, self._rpdo_frames, self._field_rpdo, self._rpdo_layouts = {}, {}, {}, {}
+        self._steady_stream = None
+        for pdo in enabled_rpdos:
+            if pdo in sensor_rpdos:
+                continue
+            self._rpdo_layouts[pdo.number] = pdo
+            self._rpdo_values[pdo.number] = [previous.get(n, table.field(n).default) for n in pdo.names]
+            for position, name in enumerate(pdo.names):
+                self._field_rpdo[name] = (pdo.number, position)
+        self._stream_order = [number for number in self._rpdo_values if number in self._stream_rpdos]
+        enabled_tpdos = [p for p in self.node.tpdos.values() if p.enabled and p.names]
+        self._tpdo_by_cob = {p.cob_id: p for p in enabled_tpdos}
+        self._tpdo_names = frozenset(n for p in enabled_tpdos for n in p.names)
+        self._actuator = (actuator[0], actuator[0].names.index(ACTUATOR_OUTPUT)) if actuator else None
+        cyclic = [p for p in enabled_tpdos if p.is_cyclic]
+        period = math.lcm(*(p.transmission_type for p in cyclic)) if cyclic else 1
+        self._due_table = [
+            frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
+        ]
+        self._decoders = {
+            p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p)) for p in enabled_tpdos
+        }
+        self._rpdo_rows = {p.cob_id: self.history.row_store(p) for p in enabled_rpdos}
+        self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
+        self._exchange = exchanger(self._link)
+        self._pending.clear()
+
+    def rpdo_of(self, name: str) -> int | None:
+        """Number of the (non-sensor) RPDO that carries `name`, None if no RPDO does."""
+        where = self._field_rpdo.get(name)
+        return where[0] if where is not None else None
+
+    def tpdo_names(self) -> frozenset[str]:
+        return self._tpdo_names
+
+    def set_rpdo_value(self, name: str, value: Value) -> None:
+        """Put `value` into the RPDO that carries `name`; it goes out with the next cycle."""
+        number, position = self._field_rpdo[name]
+        self._rpdo_values[number][position] = value
+        self._rpdo_frames.pop(number, None)
+        self._steady_stream = None
+        self._dirty_rpdos.add(number)
+
+    def resend_rpdos(self) -> None:
+        """Send every commanded RPDO again with the next cycle, as a master does after its
+        node rebooted (the node starts from defaults)."""
+        self._dirty_rpdos.update(self._rpdo_values)
+
+    def rpdo_value(self, name: str) -> Value:
+        number, position = self._field_rpdo[name]
+        return self._rpdo_values[number][position]
+
+    def node_entered(self, state: NmtState) -> None:
+        """Tell the driver the node's NMT state changed (the rig sent the command)."""
+        self._operational = state is NmtState.OPERATIONAL
+        self._syncs_since_operational = 0
+
+    @property
+    def operational(self) -> bool:
+        return self._operational
+
+    # --- Values -------------------------------------------------------------------------
+    def latest(self, name: str) -> Value:
+        """Latest value the node sent for `name` in a TPDO."""
+        try:
+            return self.history.latest_received(name)
+        except KeyError:
+            if name in self._tpdo_names:
+                raise NoValueError(
+                    f"no TPDO with {name} received yet (t = {self.t:.6g} s, cycle {self.cycle})"
+                ) from None
+            raise NoValueError(f"{name} is in no enabled TPDO") from None
+
+    # --- Frames -------------------------------------------------------------------------
+    def send_frame(self, cob_id: int, data: bytes) -> None:
+        """Any raw frame on the node's bus now (fault injection: floods, malformed frames)."""
+        self.link.send(can_frame(cob_id, data))
+
+    def poll(self) -> None:
+        """Take in what arrived since the last cycle without waiting: EMCYs are dispatched now
+        (to `BoardNode.on_emcy`), TPDOs are kept for the next cycle."""
+        if self._link is None:
+            return
+        recv = self._link.recv
+        while (frame := recv(0.0)) is not None:
+            if frame[0] in self._tpdo_by_cob:
+                self._pending.append(frame)
+            else:
+                self._other_frame(*frame)
+
+    def _other_frame(self, cob_id: int, data: bytes) -> None:
+        if cob_id == self._emcy_cob_id:
+            self.node.emcy_received(data)
+
+    def _transmit_rpdos(self, raw: RawSensors | None) -> tuple[PdoRow, ...]:
+        """Send one cycle's RPDOs (`_rpdos_of_cycle`) now; return what was sent."""
+        sent, frames = self._rpdos_of_cycle(raw)
+        if frames:
+            send_frames(self.link, frames)
+        return sent
+
+    def _rpdos_of_cycle(self, raw: RawSensors | None) -> tuple[tuple[PdoRow, ...], bytes]:
+        """One cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint stream, any
+        RPDO a scenario changed): what they carry, and their frames joined, in sending order (the
+        caller sends them: `send_frames`, or ahead of the SYNC in a cycle's exchange)."""
+        frames = b""
+        sent: list[PdoRow] = []
+        paused = self.paused_rpdos
+        if raw is not None:
+            for pdo, values_of in self._sensor_rpdos:
+                if paused and pdo.number in paused:
+                    continue
+                values = values_of(raw)
+                frames += pdo.frame(values)
+                sent.append((pdo, values))
+        dirty, steady = self._dirty_rpdos, self._steady_stream
+        if steady is not None and not dirty and not paused:
+            # Most cycles send the setpoint stream alone, unchanged since it was last packed.
+            return (*sent, *steady[1]), frames + steady[0]
+        stream, packed = self._stream_rpdos, self._rpdo_frames
+        for number in self._rpdo_values if dirty else self._stream_order:
+            if number in paused or not (number in stream or number in dirty):
+                continue
+            entry = packed.get(number)
+            if entry is None:
+                pdo, values = self._rpdo_layouts[number], tuple(self._rpdo_values[number])
+                entry = packed[number] = (pdo, pdo.frame(values), values)
+            frames += entry[1]
+            sent.append((entry[0], entry[2]))
+            dirty.discard(number)
+        if not paused:  # every stream RPDO is packed now
+            stream_entries = [packed[number] for number in self._stream_order]
+            self._steady_stream = (
+                b"".join(e[1] for e in stream_entries),
+                tuple((e[0], e[2]) for e in stream_entries),
+            )
+        return tuple(sent), frames
+
+    def _decode(self, pdo: PdoLayout, data: bytes) -> tuple[Value, ...] | None:
+        """The TPDO's values, or None (counted) when the frame's length is not the mapping's."""
+        if len(data) != pdo.length:
+            self.malformed_frames += 1
+            return None
+        return pdo.unpack(data)
+
+
+def _getter(names: tuple[str, ...]) -> Callable[[RawSensors], tuple[Value, ...]]:
+    """Values of `names` from a RawSensors, always as a tuple."""
+    get = operator.attrgetter(*names)
+    if len(names) == 1:
+        return lambda raw: (get(raw),)
+    return get  # type: ignore[return-value]
+
+
+__all__ = [
+    "ACTUATOR_OUTPUT",
+    "BUS_EVENTS_PATH",
+    "SETPOINT_STREAM",
+    "SYNC_FRAMES",
+    "TRUTH_ALIASES",
+    "TRUTH_NAMES",
+    "CycleResult",
+    "Driver",
+    "History",
+    "HistoryBlock",
+    "HistoryMark",
+    "PdoRow",
+    "resolve_truth_name",
+    "sdo_poll_layout",
+    "sync_counter",
+    "sync_frame",
+]

@@ -1,0 +1,361 @@
+"""The lockstep driver: the rig is the SYNC producer and each SYNC is one control cycle.
+
+One cycle (index n, simulation time t = n * period, exact):
+
+1. sample the plant: raw sensor values (`RawSensors`) -> the RPDO(s) mapping the HIL inputs;
+2. send the setpoint stream (the RPDO carrying velocity_setpoint, every cycle like a real
+   master; the firmware's watchdog watches it) and any other RPDO a scenario changed;
+3. send SYNC with counter (n mod 240) + 1;
+4. wait for every synchronous TPDO due at this SYNC (type k: every k-th SYNC since the node
+   entered operational); the wall-clock bound is only a hang guard (`HangGuard`), and one that
+   a busy host does not trip where the firmware process can be watched;
+5. step the plant by one period with the duty from the actuator TPDO (motor_duty).
+
+Every cycle's received values, sent values and the plant's ground truth go into `History`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from hilrig.engine.driver import (
+    ACTUATOR_OUTPUT,
+    LIVENESS_SLICE_S,
+    SETPOINT_STREAM,
+    SYNC_FRAMES,
+    TRUTH_ALIASES,
+    TRUTH_NAMES,
+    CycleResult,
+    Driver,
+    History,
+    PdoRow,
+    ProcessActivity,
+    Value,
+    resolve_truth_name,
+    sync_counter,
+)
+from hilrig.errors import FirmwareError, HostStarvedError, LockstepError
+from hilrig.plants import JointState, RawSensors, duty_from_motor_duty
+from hilrig.wire.transport import append_frame_rows, append_row, send_frames
+
+_NOTHING_DUE: frozenset[int] = frozenset()
+
+
+HANG_CAP_FACTOR = 24
+"""With the firmware process watched, no wait lasts longer than this many TPDO timeouts of wall
+time (2 min at the default 5 s), whatever the host: a host starved that long ends the scenario,
+and says so (`HostStarvedError`)."""
+IDLE_CPU_SHARE = 0.1
+"""A slice of a wait counts as idle when the firmware was asleep at its end and used less than
+this share of the slice in CPU: a node that will answer is either runnable or working."""
+
+
+class HangGuard:
+    """When one wait for a cycle's due TPDOs gives up. Made at the wait's first quiet slice (a
+    cycle that answers in time never reads /proc), then `check` after each further one.
+
+    Without a view of the node's process (a real board, a fake node): after `timeout_s` of
+    waiting, as every hang guard. With one (`activity`: the firmware's `ProcessActivity`), a
+    busy host must not read as a broken firmware, so waiting counts only while the firmware
+    could have answered and did not:
+
+    - asleep with next to no CPU for `timeout_s` in a row: what it waits for will not come (a
+      frame lost, a rule that keeps it silent);
+    - `timeout_s` of CPU used without an answer: a loop that does not end;
+    - otherwise the host is slow (the firmware runnable, getting little CPU: another VM, a
+      mutation run, a shared CI runner) and the wait goes on, up to HANG_CAP_FACTOR timeouts;
+      ending there is a `HostStarvedError`, which names the host, not the firmware.
+    """
+
+    def __init__(
+        self, timeout_s: float, activity: Callable[[], ProcessActivity | None] | None, first_slice_s: float
+    ) -> None:
+        self.timeout_s = timeout_s
+        self.activity = activity
+        self.waited_s = first_slice_s
+        self._idle_s = 0.0
+        self._start = self._last = activity() if activity is not None else None
+
+    def check(self, slice_s: float) -> str | None:
+        """One more quiet slice of `slice_s` passed: None to wait on, else why the wait ends,
+        said after "TPDOn did not arrive"; HostStarvedError when only the host is to blame."""
+        self.waited_s += slice_s
+        now = self.activity() if self.activity is not None else None
+        if now is None or self._start is None or self._last is None:
+            return f" within {self.timeout_s:g} s" if self.waited_s >= self.timeout_s else None
+        used = now.cpu_s - self._last.cpu_s
+        self._last = now
+        quiet = now.sleeping and used < IDLE_CPU_SHARE * slice_s
+        self._idle_s = self._idle_s + slice_s if quiet else 0.0
+        if self._idle_s >= self.timeout_s:
+            return (
+                f": the firmware sat idle for {self._idle_s:g} s with them due "
+                f"({self.waited_s:g} s waited in all)"
+            )
+        spent = now.cpu_s - self._start.cpu_s
+        if spent >= self.timeout_s:
+            return (
+                f": the firmware used {spent:.3g} s of CPU in {self.waited_s:g} s without "
+                "answering (a loop that does not end?)"
+            )
+        if self.waited_s >= HANG_CAP_FACTOR * self.timeout_s:
+            raise HostStarvedError(
+                f"the host is starved, not a firmware verdict: no answer in {self.waited_s:g} s "
+                f"of wall time, while the firmware, neither idle nor spinning, got {spent:.3g} s of CPU"
+            )
+        return None
+
+
+@dataclass(slots=True)
+class CycleStart:
+    """What the first phase of a lockstep cycle did: the sensor frame it sampled from `state`,
+    the RPDOs it sent, and the TPDOs (COB-IDs) due at its SYNC."""
+
+    cycle: int
+    t: float
+    counter: int
+    raw: RawSensors
+    state: JointState
+    due: frozenset[int]
+    sync_number: int
+    sent: tuple[PdoRow, ...]
+    frames: bytes
+    """The frames of `sent`, joined (the history files their payloads: `end_cycle`)."""
+    unsent: bytes = b""
+    """`frames` when `begin_cycle(send=False)` left them to go out with the SYNC in the cycle's
+    exchange (`step`)."""
+
+
+class LockstepDriver(Driver):
+    """Runs lockstep cycles between a `BoardNode` and the joint plant.
+
+    Single-threaded: the cycle sends its frames and then reads the node's answers itself from
+    the frame link (a raw socket with kernel filters on SocketCAN), decoding them with the codecs
+    compiled from the node's PDO configuration; no receive thread, no hand-over per frame. On a
+    raw socket a cycle's RPDOs and SYNC go out, and its due TPDOs come in decoded, in one call
+    each (`transport.exchange`); any other frame comes back to `_collect`'s rules at once.
+    """
+
+    def step(self) -> CycleResult:
+        n, state, raw, due, sync_number, sent, frames = self._sample()
+        t, counter = self.history.time_of(n), sync_counter(n)
+        # The RPDOs, then the SYNC, in the exchange's one call (`_collect`).
+        got = self._collect(n, t, due, sync_number, frames + SYNC_FRAMES[counter - 1])
+        result = self._record(n, t, counter, state, raw, sent, frames, got)
+        self.plant.step(self.period_s, result.duty)
+        self.cycle = n + 1
+        return result
+
+    # The three phases of a cycle, apart so that a robot (`hilrig.engine.robot`) runs them for all its
+    # modules around one SYNC: every module's RPDOs, one SYNC, every module's TPDOs, one physics
+    # step. `step()` is the same sequence for one node, on the same `_sample` and `_record`.
+    def begin_cycle(self, *, send: bool = True) -> CycleStart:
+        """Sample the plant and send this cycle's RPDOs (before the SYNC); with send=False
+        leave them in `unsent` for the caller to send ahead of the SYNC."""
+        n, state, raw, due, sync_number, sent, frames = self._sample()
+        unsent = frames
+        if send and frames:
+            send_frames(self.link, frames)
+            unsent = b""
+        return CycleStart(
+            n, self.history.time_of(n), sync_counter(n), raw, state, due, sync_number, sent, frames, unsent
+        )
+
+    def collect_cycle(self, start: CycleStart) -> dict[int, tuple[Value, ...]]:
+        """Wait for every TPDO due at this cycle's SYNC (after it was sent)."""
+        return self._collect(start.cycle, start.t, start.due, start.sync_number, start.unsent)
+
+    def end_cycle(self, start: CycleStart, got: dict[int, tuple[Value, ...]]) -> CycleResult:
+        """Record the cycle in the history; the result's duty is what the physics applies next
+        (the caller steps the plant and advances `cycle`)."""
+        return self._record(
+            start.cycle, start.t, start.counter, start.state, start.raw, start.sent, start.frames, got
+        )
+
+    def _sample(self) -> tuple[int, JointState, RawSensors, frozenset[int], int, tuple[PdoRow, ...], bytes]:
+        """A cycle's first phase, nothing sent yet: (cycle, the plant's state, the sensor frame
+        sampled from it, the TPDOs (COB-IDs) due at its SYNC, that SYNC's number since the node
+        went operational, the RPDOs' rows, their frames joined in sending order)."""
+        n = self.cycle
+        state = self.plant.state
+        raw = self.sensors.read(state)
+        if self.sensor_override is not None:
+            raw = self.sensor_override(raw)
+        if self._operational:
+            sync_number = self._syncs_since_operational = self._syncs_since_operational + 1
+            due = self._due_table[sync_number % len(self._due_table)]
+        else:
+            sync_number = 0
+            due = _NOTHING_DUE
+        sent, frames = self._rpdos_of_cycle(raw)
+        return n, state, raw, due, sync_number, sent, frames
+
+    def _record(
+        self,
+        n: int,
+        t: float,
+        counter: int,
+        state: JointState,
+        raw: RawSensors,
+        sent: tuple[PdoRow, ...],
+        frames: bytes,
+        got: dict[int, tuple[Value, ...]],
+    ) -> CycleResult:
+        """A cycle's last phase: its RPDOs and truth into the history (its TPDOs are in already,
+        appended as they were decoded: `_collect`), and the result, whose duty is what the
+        physics applies next."""
+        duty = 0.0
+        actuator = self._actuator
+        if actuator is not None:
+            # Without the actuator TPDO (node not operational) the bridge is off, as a motor
+            # driver whose command stream stopped would be.
+            values = got.get(actuator[0].cob_id)
+            if values is not None:
+                duty = duty_from_motor_duty(values[actuator[1]])  # an int: the codec's I16
+        append_frame_rows(frames, self._rpdo_rows, n)
+        self.history.record_truth(state)
+        return CycleResult(n, t, counter, raw, got, duty, sent, state, self._tpdo_by_cob)
+
+    def _collect(
+        self, n: int, t: float, due: frozenset[int], sync_number: int, out: bytes = b""
+    ) -> dict[int, tuple[Value, ...]]:
+        """Send `out` (the cycle's frames not sent yet), then read the link until every TPDO
+        due at this SYNC (COB-IDs in `due`) is in (the wall-clock bound is only a hang guard),
+        then what is already queued behind them; TPDOs that are not cyclic (event-driven) are
+        taken as they come. A cyclic TPDO twice, one not due, or a frame of the wrong length is
+        a LockstepError of this cycle. Returns the values by COB-ID, each also appended to its
+        PDO's rows in the history as this cycle's (none of them when the cycle fails)."""
+        got: dict[int, tuple[Value, ...]] = {}
+        exchange, decoders = self._exchange, self._decoders
+        assert exchange is not None, "configure() binds the exchange"
+        try:
+            if self._pending:
+                if out:
+                    send_frames(self.link, out)  # the SYNC is on the bus, as when no frame was pending
+                    out = b""
+                pending, self._pending = self._pending, []
+                for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
+                    self._take(got, n, t, due, sync_number, cob_id, data, between_syncs=True)
+            guard: HangGuard | None = None
+            while True:
+                # Due TPDOs of the usual length are decoded into `got` (and their rows) inside;
+                # anything else comes back at once, in arrival order.
+                frame = exchange(out, due, decoders, got, LIVENESS_SLICE_S, n)
+                if frame is None:
+                    return got
+                out = b""
+                if frame is not False:
+                    self._take(got, n, t, due, sync_number, *frame)  # type: ignore[misc]
+                    continue
+                if guard is None:
+                    guard = HangGuard(self.tpdo_timeout_s, self.activity, LIVENESS_SLICE_S)
+                self._check_alive(n, t, due, got, guard)
+        except BaseException:
+            self._forget_rows(n, got)
+            raise
+
+    def _take(
+        self,
+        got: dict[int, tuple[Value, ...]],
+        n: int,
+        t: float,
+        due: frozenset[int],
+        sync_number: int,
+        cob_id: int,
+        data: bytes,
+        between_syncs: bool = False,
+    ) -> None:
+        """Any frame of cycle `n` but a due TPDO of the right length: EMCY, acyclic TPDO, or a
+        problem (a LockstepError). A TPDO taken goes into `got` and its rows."""
+        pdo = self._tpdo_by_cob.get(cob_id)
+        if pdo is None:
+            self._other_frame(cob_id, data)
+            return
+        values = self._decode(pdo, data)
+        if values is None:
+            problem = f"arrived with {len(data)} bytes, its mapping has {pdo.length}"
+        elif not pdo.is_cyclic:
+            self._keep(got, n, cob_id, values, data)
+            return
+        elif between_syncs:
+            problem = "arrived between SYNCs"
+        elif cob_id in got:
+            problem = "arrived twice"
+        elif cob_id not in due:
+            problem = (
+                f"arrived but is not due at SYNC {sync_number} since operational "
+                f"(transmission type {pdo.transmission_type})"
+            )
+        else:  # a due TPDO after all (not one the exchange decoded itself)
+            self._keep(got, n, cob_id, values, data)
+            return
+        raise self._error(n, t, f"{pdo.label} {problem}")
+
+    def _keep(
+        self, got: dict[int, tuple[Value, ...]], n: int, cob_id: int, values: tuple[Value, ...], data: bytes
+    ) -> None:
+        """A TPDO of cycle `n` into `got` and its rows (what the exchange does in C)."""
+        got[cob_id] = values
+        append_row(self._decoders[cob_id], n, data)
+
+    def _check_alive(
+        self, n: int, t: float, due: frozenset[int], got: dict[int, tuple[Value, ...]], guard: HangGuard
+    ) -> None:
+        """A quiet slice of a wait for due TPDOs passed: FirmwareError if the node's process
+        died, LockstepError once the hang guard gives up on the firmware, HostStarvedError
+        once it gives up on the host."""
+        if self.liveness is not None:
+            try:
+                self.liveness()  # raises (e.g. FirmwareError) when the node's process died
+            except FirmwareError as error:
+                raise FirmwareError(f"cycle {n} (t = {t:.6g} s): {error}") from error
+        try:
+            why = guard.check(LIVENESS_SLICE_S)
+        except HostStarvedError as error:
+            raise HostStarvedError(f"cycle {n} (t = {t:.6g} s): {error}") from None
+        if why is not None:
+            by_cob = self._tpdo_by_cob
+            missing = due.difference(got)
+            labels = ", ".join(by_cob[c].label for c in sorted(missing, key=lambda c: by_cob[c].number))
+            verb = "did" if len(missing) == 1 else "do"
+            heartbeat = self.node.last_heartbeat
+            hint = f"; last heartbeat: {heartbeat.name}" if heartbeat is not None else ""
+            raise self._error(n, t, f"{labels} {verb} not arrive{why}{hint}")
+
+    def _forget_rows(self, n: int, got: dict[int, tuple[Value, ...]]) -> None:
+        """Take the rows of cycle `n` that `got`'s TPDOs left in the history back out."""
+        by_cob = self._tpdo_by_cob
+        for cob_id in got:
+            self.history.take_back(by_cob[cob_id], n)
+
+    @staticmethod
+    def _error(cycle: int, t: float, what: str) -> LockstepError:
+        return LockstepError(f"cycle {cycle} (t = {t:.6g} s): {what}")
+
+
+def cycles_for(seconds: float, period_us: int) -> int:
+    """Whole cycles covering `seconds` (a hair over a whole number is float noise, not a cycle)."""
+    if not (math.isfinite(seconds) and seconds >= 0.0):
+        raise ValueError(f"seconds: expected finite >= 0, got {seconds}")
+    exact = seconds * 1e6 / period_us
+    nearest = round(exact)
+    return nearest if abs(exact - nearest) < 1e-6 else math.ceil(exact)
+
+
+__all__ = [
+    "ACTUATOR_OUTPUT",
+    "HANG_CAP_FACTOR",
+    "SETPOINT_STREAM",
+    "TRUTH_ALIASES",
+    "TRUTH_NAMES",
+    "CycleResult",
+    "CycleStart",
+    "HangGuard",
+    "History",
+    "LockstepDriver",
+    "cycles_for",
+    "resolve_truth_name",
+    "sync_counter",
+]

@@ -1,0 +1,66 @@
+"""The dashboards as the rig loads them: a blueprint of dashboards/ by name (the names checked,
+the table given), the fields they plot, a blueprint saved as a .rbl file."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
+
+from hilrig import resources
+from hilrig.errors import unknown_name
+from hilrig.observe.sinks import APPLICATION_ID
+from hilrig.table import RigTable
+
+if TYPE_CHECKING:
+    import rerun.blueprint as rrb
+
+
+def dashboards() -> ModuleType:
+    """The `dashboards` package: installed beside hilrig by the wheel (and mapped by the editable
+    install); in a checkout run from PYTHONPATH alone, loaded from the checkout's dashboards/."""
+    try:
+        import dashboards  # type: ignore[import-not-found]
+
+        return dashboards
+    except ImportError:
+        if resources.CHECKOUT is None:
+            raise ImportError("hilrig's dashboards package is not installed: reinstall hilrig") from None
+    root = resources.CHECKOUT / "dashboards"
+    spec = importlib.util.spec_from_file_location(
+        "dashboards", root / "__init__.py", submodule_search_locations=[str(root)]
+    )
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no dashboards package at {root}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["dashboards"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def load_blueprint(name: str, table: RigTable | None = None) -> rrb.Blueprint:
+    """The dashboards/ blueprint called `name` (FieldNameError with close matches otherwise), for
+    `table` (default: the board's)."""
+    known = dashboards().BLUEPRINTS
+    if name not in known:
+        raise unknown_name("dashboard", name, known)
+    return dashboards().blueprint(name, table if table is not None else RigTable.load())
+
+
+def dashboard_fields(table: RigTable) -> list[str]:
+    """Every board field a dashboard plots by name (`dashboards.joint.named_fields`)."""
+    names: list[str] = dashboards().named_fields(table)
+    return names
+
+
+def blueprint_names() -> tuple[str, ...]:
+    return tuple(dashboards().BLUEPRINTS)
+
+
+def save_blueprint(name: str, path: str | Path) -> Path:
+    """Write the blueprint `name` as a `.rbl` file for the hilrig application id."""
+    path = Path(path)
+    load_blueprint(name).save(APPLICATION_ID, path)
+    return path

@@ -1,0 +1,558 @@
+/* The demo joint's physics in C: RK4 integration of the plant and the sensor conversions of
+ * one control cycle. hilrig.plants.plant and .sensors are the Python API around it.
+ *
+ * Why C: the lockstep rig runs in a qemu micro-VM with software CPU emulation, where Python's
+ * float code costs ~100x native; one RK4 step of 4 sub-steps there took ~5 ms of a 1 ms cycle.
+ *
+ * Bit-identity: these are the same floating-point operations in the same order as the
+ * original Python (rig/tests/data/physics_reference.json was recorded from it and
+ * test_physics_reference.py asserts equality of every bit). That needs: no contraction into
+ * FMA (-ffp-contract=off), no -ffast-math, and libm's tanh/exp, which Python's math module
+ * calls too. `a + b * c` in Python is a + (b * c); each expression below keeps Python's
+ * left-to-right grouping.
+ *
+ * --- The plant ------------------------------------------------------------------------------
+ * DC motor, gearbox, series-elastic spring, load, winding heat. State (6 values): motor angle
+ * and speed, load angle and speed, winding current, winding temperature.
+ *
+ * Integrator: classic RK4 with fixed sub-steps inside each step. The sub-step is
+ * SUBSTEP_FRACTION of the plant's fastest time scale, taken from the electrical time constant
+ * L/R (at the present winding temperature, since R rises when hot), the spring's natural
+ * frequency with a free rotor, the electromechanical resonance sqrt(kt ke / (L J)), the
+ * mechanical damping rates and the slope of the smoothed Coulomb friction (all but L/R are
+ * computed once, in plant.py). With h*lambda <= 0.5 RK4 is far inside its stability region
+ * (|lambda h| < 2.78 on the real axis) and its per-step error is ~1e-4 of the fastest
+ * decaying mode, so a 1 ms control period on the default joint takes 4 sub-steps
+ * (L/R = 0.5 ms). A semi-implicit Euler would be cheaper but only first-order accurate, and
+ * the tests compare against closed forms tightly.
+ *
+ * H-bridge convention: the winding sees duty * bus voltage. Duty 0 shorts the winding
+ * (complementary PWM, both low sides on), so a spinning motor brakes through its back-EMF.
+ *
+ * Python objects: the state lives in JointState instances (frozen slotted dataclasses); a step
+ * reads the previous one and builds the next one of the same type, so the plant's state is
+ * plain data. Constants come as a tuple of floats built once from JointParams (order: the
+ * enums below, mirrored in plant.py / sensors.py).
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <math.h>
+
+/* Order of the plant's coefficient tuple (plant.py: _plant_coefficients). */
+enum {
+    C_RATIO,
+    C_STIFFNESS,
+    C_SPRING_DAMPING,
+    C_INDUCTANCE,
+    C_R_REF,
+    C_ALPHA,
+    C_T_REF,
+    C_KT,
+    C_KE,
+    C_ROTOR_INERTIA,
+    C_MOTOR_FRICTION,
+    C_LOAD_INERTIA,
+    C_LOAD_FRICTION,
+    C_COULOMB,
+    C_COULOMB_SPEED,
+    C_THERMAL_CONDUCTANCE,
+    C_THERMAL_CAPACITY,
+    C_BUS_VOLTAGE,
+    C_SUBSTEP_FRACTION,
+    C_SUBSTEP_WITHOUT_ELECTRICAL,
+    PLANT_COEFFICIENT_COUNT
+};
+
+/* Order of the sensors' coefficient tuple (sensors.py: _sensor_coefficients). */
+enum {
+    S_MOTOR_COUNTS_PER_REV,
+    S_OUTPUT_COUNTS_PER_REV,
+    S_NTC_R25,
+    S_NTC_BETA,
+    S_PULLUP,
+    S_THERMISTOR_NOISE_COUNTS,
+    S_CURRENT_NOISE_A,
+    SENSOR_COEFFICIENT_COUNT
+};
+
+/* Indices into the integrator's state. */
+enum { X_MOTOR_ANGLE, X_MOTOR_VELOCITY, X_LOAD_ANGLE, X_LOAD_VELOCITY, X_CURRENT, X_TEMPERATURE, X_COUNT };
+
+/* JointState's fields in declaration order; the first 7 are the time and the state. */
+enum {
+    F_TIME,
+    F_MOTOR_ANGLE,
+    F_MOTOR_VELOCITY,
+    F_LOAD_ANGLE,
+    F_LOAD_VELOCITY,
+    F_CURRENT,
+    F_TEMPERATURE,
+    F_SPRING_DEFLECTION,
+    F_SPRING_TORQUE,
+    F_RESISTANCE,
+    F_APPLIED_DUTY,
+    F_COUNT
+};
+static const char *const joint_state_field_names[F_COUNT] = {
+    "time_s",
+    "motor_angle_rad",
+    "motor_velocity_rad_s",
+    "load_angle_rad",
+    "load_velocity_rad_s",
+    "current_a",
+    "winding_temperature_c",
+    "spring_deflection_rad",
+    "spring_torque_nm",
+    "winding_resistance_ohm",
+    "applied_duty",
+};
+
+enum { R_MOTOR_ENCODER, R_OUTPUT_ENCODER, R_THERMISTOR, R_CURRENT, R_COUNT };
+static const char *const raw_sensor_field_names[R_COUNT] = {
+    "motor_encoder_counts",
+    "output_encoder_counts",
+    "thermistor_adc",
+    "motor_current_adc",
+};
+
+/* Sensor constants, as in sensors.py. */
+#define ENCODER_MODULUS 65536.0
+#define THERMISTOR_ADC_MAX 4095.0
+#define CURRENT_COUNTS_PER_A 1000.0
+#define KELVIN_AT_0_C 273.15
+#define NTC_REFERENCE_TEMPERATURE_K 298.15
+#define I16_MIN -32768.0
+#define I16_MAX 32767.0
+/* Python's 2.0 * math.pi: the same double (doubling is exact). */
+#define TWO_PI (2.0 * 3.141592653589793)
+
+typedef struct {
+    PyObject *joint_state_names[F_COUNT];
+    PyObject *raw_sensor_names[R_COUNT];
+} module_state;
+
+static module_state *get_state(PyObject *module) { return (module_state *)PyModule_GetState(module); }
+
+/* --- Argument helpers ------------------------------------------------------------------ */
+static int read_coefficients(PyObject *tuple, double *out, Py_ssize_t count, const char *what)
+{
+    if (!PyTuple_CheckExact(tuple) || PyTuple_GET_SIZE(tuple) != count) {
+        PyErr_Format(PyExc_TypeError, "%s: expected a tuple of %zd floats, got %R", what, count, tuple);
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < count; i++) {
+        PyObject *item = PyTuple_GET_ITEM(tuple, i);
+        if (!PyFloat_CheckExact(item)) {
+            PyErr_Format(PyExc_TypeError, "%s[%zd]: expected float, got %R", what, i, item);
+            return -1;
+        }
+        out[i] = PyFloat_AS_DOUBLE(item);
+    }
+    return 0;
+}
+
+static int read_double(PyObject *object, double *out)
+{
+    double value = PyFloat_AsDouble(object);
+    if (value == -1.0 && PyErr_Occurred()) return -1;
+    *out = value;
+    return 0;
+}
+
+/* Reads fields [0, count) of a JointState into `out`. */
+static int read_fields(PyObject *object, PyObject *const *names, int count, double *out)
+{
+    for (int i = 0; i < count; i++) {
+        PyObject *value = PyObject_GetAttr(object, names[i]);
+        if (value == NULL) return -1;
+        int failed = read_double(value, &out[i]);
+        Py_DECREF(value);
+        if (failed) return -1;
+    }
+    return 0;
+}
+
+/* A new instance of a frozen slotted dataclass, fields set without __init__/__post_init__:
+ * only for values this module computed (users' instances still go through validation). */
+static PyObject *new_frozen(PyTypeObject *type, PyObject *const *names, PyObject **values, int count)
+{
+    PyObject *object = type->tp_alloc(type, 0);
+    for (int i = 0; i < count; i++) {
+        if (object != NULL && values[i] != NULL && PyObject_GenericSetAttr(object, names[i], values[i]) < 0) {
+            Py_CLEAR(object);
+        }
+        if (values[i] == NULL && object != NULL) Py_CLEAR(object); /* a value failed to build */
+    }
+    for (int i = 0; i < count; i++) Py_XDECREF(values[i]);
+    return object;
+}
+
+/* --- Plant physics ---------------------------------------------------------------------- */
+static double winding_resistance(const double *c, double temperature_c)
+{
+    return c[C_R_REF] * (1.0 + c[C_ALPHA] * (temperature_c - c[C_T_REF]));
+}
+
+/* Longest RK4 sub-step from the present temperature [s]: L/R moves with R. */
+static double max_substep(const double *c, double temperature_c)
+{
+    double resistance = winding_resistance(c, temperature_c);
+    double electrical_s = resistance > 0.0 ? c[C_INDUCTANCE] / resistance : INFINITY;
+    double electrical_limit = c[C_SUBSTEP_FRACTION] * electrical_s;
+    /* Python's min(a, b): b only when strictly smaller. */
+    return c[C_SUBSTEP_WITHOUT_ELECTRICAL] < electrical_limit ? c[C_SUBSTEP_WITHOUT_ELECTRICAL]
+                                                              : electrical_limit;
+}
+
+/* Time derivative of the state for winding voltage and external load torque. */
+static void derivative(const double *c, const double *x, double voltage, double load_torque,
+                       int motor_held, double ambient, double *dx)
+{
+    double motor_angle = x[X_MOTOR_ANGLE], motor_vel = x[X_MOTOR_VELOCITY];
+    double load_angle = x[X_LOAD_ANGLE], load_vel = x[X_LOAD_VELOCITY];
+    double current = x[X_CURRENT], temperature = x[X_TEMPERATURE];
+    double ratio = c[C_RATIO];
+    double resistance = c[C_R_REF] * (1.0 + c[C_ALPHA] * (temperature - c[C_T_REF]));
+
+    /* Spring between gearbox output (motor_angle / N) and load; reaches the rotor divided by N
+     * (the gearbox is lossless here, its loss is the viscous term). */
+    double spring_torque = c[C_STIFFNESS] * (motor_angle / ratio - load_angle)
+                           + (c[C_SPRING_DAMPING] * (motor_vel / ratio - load_vel));
+    double current_rate = (voltage - resistance * current - c[C_KE] * motor_vel) / c[C_INDUCTANCE];
+    double motor_accel = 0.0;
+    if (!motor_held) {
+        motor_accel = (c[C_KT] * current - c[C_MOTOR_FRICTION] * motor_vel - spring_torque / ratio)
+                      / c[C_ROTOR_INERTIA];
+    }
+    double friction = c[C_LOAD_FRICTION] * load_vel + c[C_COULOMB] * tanh(load_vel / c[C_COULOMB_SPEED]);
+    double load_accel = (spring_torque - friction + load_torque) / c[C_LOAD_INERTIA];
+    double heat_w = current * current * resistance;
+    double temperature_rate = (heat_w - (temperature - ambient) * c[C_THERMAL_CONDUCTANCE])
+                              / c[C_THERMAL_CAPACITY];
+
+    dx[X_MOTOR_ANGLE] = motor_vel;
+    dx[X_MOTOR_VELOCITY] = motor_accel;
+    dx[X_LOAD_ANGLE] = load_vel;
+    dx[X_LOAD_VELOCITY] = load_accel;
+    dx[X_CURRENT] = current_rate;
+    dx[X_TEMPERATURE] = temperature_rate;
+}
+
+/* A JointState of `type` for time, state and duty, with the derived quantities. */
+static PyObject *build_joint_state(module_state *st, PyTypeObject *type, const double *c, double time_s,
+                                   const double *x, double applied_duty)
+{
+    double ratio = c[C_RATIO];
+    double deflection = x[X_MOTOR_ANGLE] / ratio - x[X_LOAD_ANGLE];
+    double spring_torque = c[C_STIFFNESS] * deflection
+                           + c[C_SPRING_DAMPING] * (x[X_MOTOR_VELOCITY] / ratio - x[X_LOAD_VELOCITY]);
+    double fields[F_COUNT] = {
+        [F_TIME] = time_s,
+        [F_MOTOR_ANGLE] = x[X_MOTOR_ANGLE],
+        [F_MOTOR_VELOCITY] = x[X_MOTOR_VELOCITY],
+        [F_LOAD_ANGLE] = x[X_LOAD_ANGLE],
+        [F_LOAD_VELOCITY] = x[X_LOAD_VELOCITY],
+        [F_CURRENT] = x[X_CURRENT],
+        [F_TEMPERATURE] = x[X_TEMPERATURE],
+        [F_SPRING_DEFLECTION] = deflection,
+        [F_SPRING_TORQUE] = spring_torque,
+        [F_RESISTANCE] = winding_resistance(c, x[X_TEMPERATURE]),
+        [F_APPLIED_DUTY] = applied_duty,
+    };
+    PyObject *values[F_COUNT];
+    for (int i = 0; i < F_COUNT; i++) values[i] = PyFloat_FromDouble(fields[i]);
+    return new_frozen(type, st->joint_state_names, values, F_COUNT);
+}
+
+/* advance(coefficients, state, dt_s, duty, load_torque_nm, motor_held, ambient_c) -> JointState
+ *
+ * The next JointState (same type as `state`) after `dt_s` with `duty` held constant. Validates
+ * dt_s, duty and load torque like JointPlant.step documents; clamps duty to [-1, 1]. */
+static PyObject *advance(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 7) {
+        PyErr_Format(PyExc_TypeError, "advance: expected 7 arguments, got %zd", nargs);
+        return NULL;
+    }
+    module_state *st = get_state(module);
+    double c[PLANT_COEFFICIENT_COUNT];
+    double now[1 + X_COUNT];
+    double dt_s, duty, load_torque, ambient;
+    if (read_coefficients(args[0], c, PLANT_COEFFICIENT_COUNT, "plant coefficients") < 0) return NULL;
+    if (read_fields(args[1], st->joint_state_names, 1 + X_COUNT, now) < 0) return NULL;
+    if (read_double(args[2], &dt_s) < 0 || read_double(args[3], &duty) < 0
+        || read_double(args[4], &load_torque) < 0 || read_double(args[6], &ambient) < 0) {
+        return NULL;
+    }
+    int motor_held = PyObject_IsTrue(args[5]);
+    if (motor_held < 0) return NULL;
+    if (!(isfinite(dt_s) && dt_s > 0.0)) {
+        PyErr_Format(PyExc_ValueError, "dt_s: expected finite > 0, got %S", args[2]);
+        return NULL;
+    }
+    if (!isfinite(duty)) {
+        PyErr_Format(PyExc_ValueError, "duty: expected a finite number in [-1, 1], got %S", args[3]);
+        return NULL;
+    }
+    if (!isfinite(load_torque)) {
+        PyErr_Format(PyExc_ValueError, "load_torque_nm: expected finite, got %S", args[4]);
+        return NULL;
+    }
+    /* An H-bridge cannot exceed its supply. */
+    if (duty > 1.0) duty = 1.0;
+    if (duty < -1.0) duty = -1.0;
+    double voltage = duty * c[C_BUS_VOLTAGE];
+
+    double *x = &now[1];
+    double substep_count = ceil(dt_s / max_substep(c, x[X_TEMPERATURE]) - 1e-9);
+    if (substep_count < 1.0) substep_count = 1.0;
+    if (!(substep_count <= 1e9)) {
+        PyErr_Format(PyExc_ValueError, "dt_s: %S needs more than 1e9 RK4 sub-steps", args[2]);
+        return NULL;
+    }
+    long substeps = (long)substep_count;
+    double h = dt_s / (double)substeps;
+    double half = 0.5 * h;
+    double sixth = h / 6.0;
+    double k1[X_COUNT], k2[X_COUNT], k3[X_COUNT], k4[X_COUNT], probe[X_COUNT];
+    for (long n = 0; n < substeps; n++) {
+        derivative(c, x, voltage, load_torque, motor_held, ambient, k1);
+        for (int i = 0; i < X_COUNT; i++) probe[i] = x[i] + half * k1[i];
+        derivative(c, probe, voltage, load_torque, motor_held, ambient, k2);
+        for (int i = 0; i < X_COUNT; i++) probe[i] = x[i] + half * k2[i];
+        derivative(c, probe, voltage, load_torque, motor_held, ambient, k3);
+        for (int i = 0; i < X_COUNT; i++) probe[i] = x[i] + h * k3[i];
+        derivative(c, probe, voltage, load_torque, motor_held, ambient, k4);
+        for (int i = 0; i < X_COUNT; i++) x[i] = x[i] + sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
+    }
+    for (int i = 0; i < X_COUNT; i++) {
+        if (!isfinite(x[i])) {
+            /* Only reachable with parameters far outside a joint's range; fail loudly instead
+             * of handing NaN encoder counts to the firmware. */
+            char *at = PyOS_double_to_string(now[0], 'f', 6, 0, NULL);
+            PyObject *values = Py_BuildValue("(dddddd)", x[0], x[1], x[2], x[3], x[4], x[5]);
+            if (at != NULL && values != NULL) {
+                PyErr_Format(PyExc_FloatingPointError, "plant state diverged at t = %s s: %R", at, values);
+            }
+            PyMem_Free(at);
+            Py_XDECREF(values);
+            return NULL;
+        }
+    }
+    return build_joint_state(st, Py_TYPE(args[1]), c, now[0] + dt_s, x, duty);
+}
+
+/* joint_state(JointState, coefficients, time_s, motor_angle, motor_velocity, load_angle,
+ *             load_velocity, current, temperature, applied_duty) -> JointState */
+static PyObject *joint_state(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 10 || !PyType_Check(args[0])) {
+        PyErr_SetString(PyExc_TypeError, "joint_state: expected (type, coefficients, 8 floats)");
+        return NULL;
+    }
+    double c[PLANT_COEFFICIENT_COUNT];
+    double values[8];
+    if (read_coefficients(args[1], c, PLANT_COEFFICIENT_COUNT, "plant coefficients") < 0) return NULL;
+    for (int i = 0; i < 8; i++) {
+        if (read_double(args[2 + i], &values[i]) < 0) return NULL;
+    }
+    return build_joint_state(get_state(module), (PyTypeObject *)args[0], c, values[0], &values[1], values[7]);
+}
+
+/* max_substep_s(coefficients, temperature_c) -> float */
+static PyObject *max_substep_s(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)module;
+    double c[PLANT_COEFFICIENT_COUNT];
+    double temperature;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "max_substep_s: expected (coefficients, temperature_c)");
+        return NULL;
+    }
+    if (read_coefficients(args[0], c, PLANT_COEFFICIENT_COUNT, "plant coefficients") < 0) return NULL;
+    if (read_double(args[1], &temperature) < 0) return NULL;
+    return PyFloat_FromDouble(max_substep(c, temperature));
+}
+
+/* --- Sensors ---------------------------------------------------------------------------- */
+/* Python's int(value) errors, for values a float cannot hand to an integer counter. */
+static int check_integral(double value)
+{
+    if (isnan(value)) {
+        PyErr_SetString(PyExc_ValueError, "cannot convert float NaN to integer");
+        return -1;
+    }
+    if (isinf(value)) {
+        PyErr_SetString(PyExc_OverflowError, "cannot convert float infinity to integer");
+        return -1;
+    }
+    return 0;
+}
+
+/* sensors.round_half_away (C's lround), then saturated to [low, high]. */
+static PyObject *rounded_saturated(double value, double low, double high)
+{
+    if (check_integral(value) < 0) return NULL;
+    double rounded = copysign(floor(fabs(value) + 0.5), value);
+    if (rounded < low) rounded = low;
+    if (rounded > high) rounded = high;
+    return PyLong_FromDouble(rounded);
+}
+
+/* sensors.encoder_counts: floor of the position in counts, wrapped to U16. */
+static PyObject *encoder_counts(double angle_rad, double counts_per_rev)
+{
+    double counts = floor(angle_rad * counts_per_rev / TWO_PI);
+    if (check_integral(counts) < 0) return NULL;
+    double wrapped = fmod(counts, ENCODER_MODULUS); /* exact; Python's % is non-negative */
+    if (wrapped < 0.0) wrapped += ENCODER_MODULUS;
+    return PyLong_FromDouble(wrapped);
+}
+
+/* sensors.ntc_resistance and thermistor_adc_exact: unrounded ADC counts at a temperature. */
+static int thermistor_adc_exact(const double *s, double temperature_c, double *adc)
+{
+    double temperature_k = temperature_c + KELVIN_AT_0_C;
+    if (temperature_k == 0.0) {
+        PyErr_SetString(PyExc_ZeroDivisionError, "float division by zero");
+        return -1;
+    }
+    double exponent = s[S_NTC_BETA] * (1.0 / temperature_k - 1.0 / NTC_REFERENCE_TEMPERATURE_K);
+    double growth = exp(exponent);
+    if (isinf(growth) && isfinite(exponent)) {
+        PyErr_SetString(PyExc_OverflowError, "math range error");
+        return -1;
+    }
+    double ntc_ohm = s[S_NTC_R25] * growth;
+    *adc = THERMISTOR_ADC_MAX * ntc_ohm / (ntc_ohm + s[S_PULLUP]);
+    return 0;
+}
+
+/* raw_sensors(RawSensors, coefficients, state, thermistor_noise, current_noise) -> RawSensors
+ *
+ * sensors.read_sensors after its noise draw: encoders floor and wrap, the thermistor divider
+ * and the current sensor round half away from zero and saturate at their ranges. */
+static PyObject *raw_sensors(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5 || !PyType_Check(args[0])) {
+        PyErr_SetString(PyExc_TypeError,
+                        "raw_sensors: expected (type, coefficients, state, thermistor_noise, current_noise)");
+        return NULL;
+    }
+    module_state *st = get_state(module);
+    double s[SENSOR_COEFFICIENT_COUNT];
+    double state[1 + X_COUNT];
+    double thermistor_noise, current_noise, adc;
+    if (read_coefficients(args[1], s, SENSOR_COEFFICIENT_COUNT, "sensor coefficients") < 0) return NULL;
+    if (read_fields(args[2], st->joint_state_names, 1 + X_COUNT, state) < 0) return NULL;
+    if (read_double(args[3], &thermistor_noise) < 0 || read_double(args[4], &current_noise) < 0) return NULL;
+    const double *x = &state[1];
+
+    if (thermistor_adc_exact(s, x[X_TEMPERATURE], &adc) < 0) return NULL;
+    adc += s[S_THERMISTOR_NOISE_COUNTS] * thermistor_noise;
+    double current = x[X_CURRENT] + s[S_CURRENT_NOISE_A] * current_noise;
+
+    PyObject *values[R_COUNT];
+    values[R_MOTOR_ENCODER] = encoder_counts(x[X_MOTOR_ANGLE], s[S_MOTOR_COUNTS_PER_REV]);
+    values[R_OUTPUT_ENCODER] = values[R_MOTOR_ENCODER] == NULL
+                                   ? NULL
+                                   : encoder_counts(x[X_LOAD_ANGLE], s[S_OUTPUT_COUNTS_PER_REV]);
+    values[R_THERMISTOR] = values[R_OUTPUT_ENCODER] == NULL ? NULL
+                                                            : rounded_saturated(adc, 0.0, THERMISTOR_ADC_MAX);
+    values[R_CURRENT] = values[R_THERMISTOR] == NULL
+                            ? NULL
+                            : rounded_saturated(current * CURRENT_COUNTS_PER_A, I16_MIN, I16_MAX);
+    return new_frozen((PyTypeObject *)args[0], st->raw_sensor_names, values, R_COUNT);
+}
+
+/* --- Reading states back --------------------------------------------------------------- */
+/* state_values(states) -> bytes
+ *
+ * Every field of each JointState in `states` (a list or tuple), in declaration order, as
+ * native float64s, row after row: what the tracer turns into the truth's columns (numpy reads
+ * it without a copy). Python's own loop over the attributes cost ~550 instructions a value. */
+static PyObject *state_values(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 1) {
+        PyErr_SetString(PyExc_TypeError, "state_values: expected (states)");
+        return NULL;
+    }
+    PyObject *states = PySequence_Fast(args[0], "state_values: expected a list or tuple of JointState");
+    if (states == NULL) return NULL;
+    Py_ssize_t count = PySequence_Fast_GET_SIZE(states);
+    PyObject *const *items = PySequence_Fast_ITEMS(states);
+    PyObject *bytes = PyBytes_FromStringAndSize(NULL, count * F_COUNT * (Py_ssize_t)sizeof(double));
+    if (bytes != NULL) {
+        double *out = (double *)PyBytes_AS_STRING(bytes);
+        module_state *st = get_state(module);
+        for (Py_ssize_t i = 0; i < count; i++) {
+            if (read_fields(items[i], st->joint_state_names, F_COUNT, &out[i * F_COUNT]) < 0) {
+                Py_CLEAR(bytes);
+                break;
+            }
+        }
+    }
+    Py_DECREF(states);
+    return bytes;
+}
+
+/* --- Module ----------------------------------------------------------------------------- */
+static PyMethodDef methods[] = {
+    {"advance", (PyCFunction)(void (*)(void))advance, METH_FASTCALL,
+     "advance(coefficients, state, dt_s, duty, load_torque_nm, motor_held, ambient_c) -> JointState"},
+    {"joint_state", (PyCFunction)(void (*)(void))joint_state, METH_FASTCALL,
+     "joint_state(JointState, coefficients, time_s, motor_angle, motor_velocity, load_angle, "
+     "load_velocity, current, temperature, applied_duty) -> JointState"},
+    {"max_substep_s", (PyCFunction)(void (*)(void))max_substep_s, METH_FASTCALL,
+     "max_substep_s(coefficients, temperature_c) -> float"},
+    {"state_values", (PyCFunction)(void (*)(void))state_values, METH_FASTCALL,
+     "state_values(states) -> bytes: every field of each JointState, in order, as float64s"},
+    {"raw_sensors", (PyCFunction)(void (*)(void))raw_sensors, METH_FASTCALL,
+     "raw_sensors(RawSensors, coefficients, state, thermistor_noise, current_noise) -> RawSensors"},
+    {NULL, NULL, 0, NULL},
+};
+
+static int module_exec(PyObject *module)
+{
+    module_state *st = get_state(module);
+    for (int i = 0; i < F_COUNT; i++) {
+        st->joint_state_names[i] = PyUnicode_InternFromString(joint_state_field_names[i]);
+        if (st->joint_state_names[i] == NULL) return -1;
+    }
+    for (int i = 0; i < R_COUNT; i++) {
+        st->raw_sensor_names[i] = PyUnicode_InternFromString(raw_sensor_field_names[i]);
+        if (st->raw_sensor_names[i] == NULL) return -1;
+    }
+    return PyModule_AddIntConstant(module, "PLANT_COEFFICIENT_COUNT", PLANT_COEFFICIENT_COUNT) < 0
+               ? -1
+               : PyModule_AddIntConstant(module, "SENSOR_COEFFICIENT_COUNT", SENSOR_COEFFICIENT_COUNT);
+}
+
+static int module_clear(PyObject *module)
+{
+    module_state *st = get_state(module);
+    for (int i = 0; i < F_COUNT; i++) Py_CLEAR(st->joint_state_names[i]);
+    for (int i = 0; i < R_COUNT; i++) Py_CLEAR(st->raw_sensor_names[i]);
+    return 0;
+}
+
+static void module_free(void *module) { module_clear((PyObject *)module); }
+
+static PyModuleDef_Slot slots[] = {
+    {Py_mod_exec, module_exec},
+    {0, NULL},
+};
+
+static struct PyModuleDef module_def = {
+    PyModuleDef_HEAD_INIT,
+    .m_name = "hilrig.plants._plant",
+    .m_doc = "The demo joint's RK4 plant integration and sensor conversions (see _plant.c).",
+    .m_size = sizeof(module_state),
+    .m_methods = methods,
+    .m_slots = slots,
+    .m_clear = module_clear,
+    .m_free = module_free,
+};
+
+PyMODINIT_FUNC PyInit__plant(void) { return PyModuleDef_Init(&module_def); }

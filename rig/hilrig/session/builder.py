@@ -1,0 +1,417 @@
+"""One place that assembles a HIL session: the firmware on a private bus, the bus log, the tracer
+and the rig (or, for a real board, the rig on the board's interface with no firmware), opened in
+order and closed in reverse on one `contextlib.ExitStack`. Used by the pytest fixtures,
+`hilrig sim` / `make run`, the bench and the trace bench::
+
+    with hil_session(SessionConfig(out_dir=Path("out/run"), seed=1)) as session:
+        session.rig.set("control_mode", ControlMode.VELOCITY)  # from hilrig.table
+        session.rig.run(seconds=1.0)
+    # firmware stopped (SIGTERM, its stop line in out/run/firmware.log), out/run/bus.log and
+    # out/run/trace.rrd whole
+
+A real board: `SessionConfig(out_dir=..., board=BoardInterface("socketcan", "can0"), mode="realtime")`.
+
+A robot: `SessionConfig(out_dir=..., modules=8)` starts the firmware 8 times (node ids 1..8, or a
+list), each with its own log (firmware-<id>.log) and parameter file (params-<id>.bin), and hands
+over `session.robot` (`hilrig.engine.robot.Robot`): one bus, one SYNC, the chain's mechanics from MuJoCo,
+each module's trace under /modules/<id>.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import can
+
+from boardproto.cia301 import emcy_cob_id
+from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig, TimingMode
+from hilrig.engine.robot import MasterHeartbeat, Robot, module_ids
+from hilrig.errors import BusUnavailableError
+from hilrig.plants import JointParams
+from hilrig.session.buslog import RecorderProcess, whole_file_logger
+from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware
+from hilrig.session.netns import PrivateBus, private_buses_supported
+from hilrig.table import RigTable
+from hilrig.wire.node import BoardNode, answer_filters
+from hilrig.wire.transport import socketcan_socket
+
+if TYPE_CHECKING:
+    from hilrig.observe.sinks import TraceSink
+    from hilrig.observe.tracer import Tracer
+
+FIRMWARE_MODE = {TimingMode.LOCKSTEP: "lockstep", TimingMode.REALTIME: "free"}
+"""The firmware's --mode for each rig timing mode."""
+BOOT_TIMEOUT_S = 60.0
+"""Hang guard for start-up inside the software-emulated VM (ASan build), not a timing check."""
+
+
+@dataclass(frozen=True)
+class BoardInterface:
+    """A real board's bus, as python-can opens it (interface, channel, bitrate, extra kwargs)."""
+
+    interface: str
+    channel: str
+    bitrate: int | None = None
+    kwargs: dict[str, Any] = field(default_factory=dict)
+
+    def open(self) -> can.BusABC:
+        extra = dict(self.kwargs)
+        if self.bitrate is not None:
+            extra["bitrate"] = self.bitrate
+        try:
+            return can.Bus(interface=self.interface, channel=self.channel, **extra)
+        except (can.CanError, OSError, ValueError, ImportError) as error:
+            raise BusUnavailableError(
+                f"cannot open {self.interface} channel {self.channel}: {error}"
+            ) from error
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """Everything a session is made of. out_dir: firmware.log, bus.log and trace.rrd go here.
+    trace: a trace.rrd in out_dir (True; `live` sinks beside it), these sinks (a sequence of
+    `TraceSink`), or none.
+    board: a real board (no firmware is started); None: the firmware on a private vcan0.
+    firmware_period_us: the firmware's own period (default: the rig's, or 10 ms in real time).
+    """
+
+    out_dir: Path
+    params: JointParams | None = None
+    seed: int = 0
+    node_id: int | None = None
+    mode: TimingMode | str = TimingMode.LOCKSTEP
+    period_us: int = 1000
+    physics: bool = True
+    trace: bool | Sequence[TraceSink] = True
+    live: Sequence[TraceSink] = ()
+    """With trace=True: also stream to these sinks (a viewer) while the run goes."""
+    record: bool = True
+    board: BoardInterface | None = None
+    executable: Path = DEFAULT_EXECUTABLE
+    eds: Path = DEFAULT_EDS_PATH
+    params_file: Path | None = None
+    extra_args: Sequence[str] = ()
+    firmware_period_us: int | None = None
+    boot_timeout_s: float = BOOT_TIMEOUT_S
+    sdo_timeout_s: float = 5.0
+    tpdo_timeout_s: float = 5.0
+    start: bool = True
+    """Bring the node up (Rig.start) before handing the session over."""
+    rig: bool = True
+    """False: no Rig, only the node (`HilSession.node`: canopen for SDO/NMT and the frame link)
+    for a driver of its own (the soak)."""
+    host_channel: str | None = None
+    """Run the firmware on this interface of the host as it is, instead of a private vcan0."""
+    firmware_term_timeout_s: float = 5.0
+    modules: int | Sequence[int] | None = None
+    """A robot: this many modules (node ids 1..N) or these node ids, on one private bus (lockstep,
+    the firmware started by the session; `node_id`, `params_file` and `board` do not apply)."""
+    master: MasterHeartbeat | None = field(default_factory=MasterHeartbeat)
+    """A robot's master heartbeat (None: the rig sends none and the modules watch nothing)."""
+
+
+@dataclass
+class HilSession:
+    """What a running session holds; `close()` ends it early (the context manager does it too)."""
+
+    config: SessionConfig
+    rig: Rig | None  # None: SessionConfig(rig=False), or a robot
+    node: BoardNode  # a robot's: its first module's
+    firmware: Firmware | None  # a robot's: its first module's (all in `robot.firmware`)
+    tracer: Tracer | None
+    private_bus: PrivateBus | None
+    recorder: RecorderProcess | None
+    _stack: contextlib.ExitStack = field(repr=False)
+    robot: Robot | None = None
+
+    @property
+    def out_dir(self) -> Path:
+        return self.config.out_dir
+
+    @property
+    def bus_log(self) -> Path:
+        return self.config.out_dir / "bus.log"
+
+    @property
+    def trace_path(self) -> Path | None:
+        return self.config.out_dir / "trace.rrd" if self.config.trace is True else None
+
+    def evidence(self) -> str:
+        """'trace: ..., bus log: ..., firmware log: ...': where to look when something failed."""
+        parts = []
+        if self.trace_path is not None:
+            parts.append(f"trace: {self.trace_path}")
+        if self.config.record:
+            parts.append(f"bus log: {self.bus_log}")
+        if self.robot is not None:
+            logs = [f.log_path.name for f in self.robot.firmware if f is not None]
+            parts.append(f"firmware logs: {self.out_dir}/{{{','.join(logs)}}}")
+        elif self.firmware is not None:
+            parts.append(f"firmware log: {self.firmware.log_path}")
+        return ", ".join(parts)
+
+    def close(self) -> None:
+        self._stack.close()
+
+
+def _tracer(config: SessionConfig, table: RigTable, blueprint: str | None = "overview") -> Tracer | None:
+    if config.trace is False:
+        return None
+    from hilrig.observe.tracer import Tracer  # rerun is slow to import: only when tracing
+
+    clock = "wall" if TimingMode(config.mode) is TimingMode.REALTIME else "simulation"
+    sinks: list[TraceSink]
+    if config.trace is True:
+        if config.live:
+            from hilrig.observe.sinks import TraceSink
+
+            sinks = [TraceSink.rrd(config.out_dir / "trace.rrd"), *config.live]
+        else:
+            return Tracer.for_scenario(config.out_dir, table, clock=clock, blueprint=blueprint)
+    else:
+        sinks = list(config.trace)
+    return Tracer(sinks, table, clock=clock, recording_name=config.out_dir.name, blueprint=blueprint)
+
+
+def open_session(
+    config: SessionConfig,
+    *,
+    table: RigTable | None = None,
+    before_start: Callable[[Rig], None] | None = None,
+    private_bus: PrivateBus | None = None,
+) -> HilSession:
+    """Open a session (see the module doc); the caller closes it (`HilSession.close`).
+    `before_start` sees the rig before it talks to the node. `private_bus`: run on this private
+    bus (the caller's, e.g. a test's that also sends frames of its own) instead of a new one."""
+    table = table if table is not None else RigTable.load()
+    if config.modules is not None:
+        return _open_robot(config, table, private_bus)
+    mode = TimingMode(config.mode)
+    out = config.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    node_id = config.node_id if config.node_id is not None else table.board.node.default_node_id
+    stack = contextlib.ExitStack()
+    try:
+        recorder: RecorderProcess | None = None
+        firmware: Firmware | None = None
+        if config.board is None and config.host_channel is None and private_bus is None:
+            if not private_buses_supported():
+                raise BusUnavailableError(
+                    "a HIL session needs root and a kernel with vcan for its private bus: run "
+                    "through tools/with-vcan (make run, make test) or on a host with vcan"
+                )
+            private_bus = stack.enter_context(PrivateBus())
+        if config.board is None:
+            launcher = private_bus if private_bus is not None else _HostChannel(config.host_channel or "")
+            if config.record:
+                recorder = RecorderProcess(launcher, out / "bus.log")
+                stack.callback(recorder.close)
+            firmware = Firmware(
+                launcher,
+                node_id=node_id,
+                log_path=out / "firmware.log",
+                params_file=config.params_file,
+                extra_args=config.extra_args,
+                executable=config.executable,
+                mode=FIRMWARE_MODE[mode],
+                period_us=config.firmware_period_us
+                or (config.period_us if mode is TimingMode.LOCKSTEP else 10_000),
+                term_timeout_s=config.firmware_term_timeout_s,
+            )
+            firmware.start()
+            stack.callback(firmware.stop)
+        # The tracer before the rig's bus: importing rerun takes seconds (minutes on a loaded
+        # emulated VM), and a bus opened before it would queue every heartbeat meanwhile for
+        # canopen to wade through before the first SDO answer.
+        tracer = _tracer(config, table)
+        if tracer is not None:
+            stack.callback(tracer.close)
+        if private_bus is not None:
+            bus = private_bus.open()
+        elif config.board is not None:
+            bus = config.board.open()
+        else:
+            bus = BoardInterface("socketcan", config.host_channel or "").open()
+        stack.callback(bus.shutdown)
+        board_logger = None
+        if config.board is not None and config.record:
+            board_logger = _record_board(stack, bus, config.board, out / "bus.log")
+        if not config.rig:
+            node = BoardNode(bus, node_id, config.eds, table, sdo_timeout_s=config.sdo_timeout_s)
+            stack.callback(node.close)
+            return HilSession(config, None, node, firmware, tracer, private_bus, recorder, stack)
+        rig = Rig(
+            bus,
+            node_id=node_id,
+            eds=config.eds,
+            params=config.params,
+            seed=config.seed,
+            period_us=config.period_us,
+            table=table,
+            liveness=firmware.check if firmware is not None else None,
+            activity=firmware.activity if firmware is not None else None,
+            boot_timeout_s=config.boot_timeout_s,
+            tpdo_timeout_s=config.tpdo_timeout_s,
+            sdo_timeout_s=config.sdo_timeout_s,
+            tracer=tracer,
+            mode=mode,
+            physics=config.physics,
+        )
+        stack.callback(rig.close)
+        if board_logger is not None:
+            assert rig.node.network.notifier is not None  # BoardNode connected the network
+            rig.node.network.notifier.add_listener(board_logger)
+        if before_start is not None:
+            before_start(rig)
+        if config.start:
+            rig.start()
+    except BaseException:
+        stack.close()
+        raise
+    return HilSession(config, rig, rig.node, firmware, tracer, private_bus, recorder, stack)
+
+
+def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus | None) -> HilSession:
+    """The robot variant of `open_session`: N firmware processes on one private bus, one bus
+    handle, node and rig per module, one chain, one tracer with a child per module."""
+    assert config.modules is not None
+    node_ids = module_ids(config.modules)  # refuses a repeated id before anything starts
+    if config.board is not None or TimingMode(config.mode) is not TimingMode.LOCKSTEP:
+        raise ValueError("a robot session runs its own firmware modules in lockstep (no board=, no realtime)")
+    from hilrig.plants.chain import ChainPhysics  # MuJoCo: only for robots
+
+    out = config.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    stack = contextlib.ExitStack()
+    try:
+        chain = ChainPhysics(len(node_ids), params=config.params)
+        chain.mujoco_steps_per_period(config.period_us / 1e6)  # a period MuJoCo cannot step: now
+        if private_bus is None and config.host_channel is None:
+            if not private_buses_supported():
+                raise BusUnavailableError(
+                    "a HIL session needs root and a kernel with vcan for its private bus: run "
+                    "through tools/with-vcan (make run, make test) or on a host with vcan"
+                )
+            private_bus = stack.enter_context(PrivateBus())
+        launcher = private_bus if private_bus is not None else _HostChannel(config.host_channel or "")
+        recorder: RecorderProcess | None = None
+        if config.record:
+            recorder = RecorderProcess(launcher, out / "bus.log")
+            stack.callback(recorder.close)
+        firmware: list[Firmware] = []
+        for node_id in node_ids:
+            process = Firmware(
+                launcher,
+                node_id=node_id,
+                log_path=out / f"firmware-{node_id}.log",
+                params_file=out / f"params-{node_id}.bin",
+                extra_args=config.extra_args,
+                executable=config.executable,
+                mode=FIRMWARE_MODE[TimingMode.LOCKSTEP],
+                period_us=config.firmware_period_us or config.period_us,
+                term_timeout_s=config.firmware_term_timeout_s,
+            )
+            process.start()
+            stack.callback(process.stop)
+            firmware.append(process)
+        tracer = _tracer(config, table, blueprint=None)
+        if tracer is not None:
+            stack.callback(tracer.close)
+            from dashboards.robot import robot as robot_blueprint
+
+            tracer.send_blueprint(robot_blueprint(table, node_ids))
+        modules: list[Rig] = []
+        for k, node_id in enumerate(node_ids):
+            if private_bus is not None:
+                bus = private_bus.open()
+            else:
+                bus = BoardInterface("socketcan", launcher.channel).open()
+            stack.callback(bus.shutdown)
+            # Each module's canopen network wakes for its own node's frames only (kernel
+            # filters), not for every module's SDO traffic while they all start side by side.
+            bus.set_filters(answer_filters(node_id, bus, emcy_cob_id(node_id)))
+            module_tracer = None
+            if tracer is not None:
+                module_tracer = tracer.module_tracer(node_id)
+                stack.callback(module_tracer.close)
+            rig = Rig(
+                bus,
+                node_id=node_id,
+                eds=config.eds,
+                plant=chain.plants[k],
+                seed=config.seed * 1000 + k,  # each module's sensor noise of its own
+                period_us=config.period_us,
+                table=table,
+                liveness=firmware[k].check,
+                activity=firmware[k].activity,
+                boot_timeout_s=config.boot_timeout_s,
+                tpdo_timeout_s=config.tpdo_timeout_s,
+                sdo_timeout_s=config.sdo_timeout_s,
+                tracer=module_tracer,
+            )
+            stack.callback(rig.close)
+            modules.append(rig)
+        robot = Robot(modules, chain, firmware=firmware, master=config.master)
+        if tracer is not None:
+            chain_trace = tracer.robot_observer(chain)
+            robot.add_observer(chain_trace)
+            stack.callback(chain_trace.flush)  # before the tracer closes (the stack unwinds)
+        if config.start:
+            robot.start()
+    except BaseException:
+        stack.close()
+        raise
+    return HilSession(
+        config, None, modules[0].node, firmware[0], tracer, private_bus, recorder, stack, robot=robot
+    )
+
+
+def _record_board(
+    stack: contextlib.ExitStack, bus: can.BusABC, board: BoardInterface, path: Path
+) -> can.Listener | None:
+    """A real board's bus log: on SocketCAN from a recorder process with a socket of its own (it
+    sees every sender). On other interfaces (one handle only: PCAN and friends allow no more)
+    the returned logger is to be fed by the notifier that reads the rig's bus (canopen's)."""
+    if socketcan_socket(bus) is not None:
+        recorder = RecorderProcess(_HostChannel(board.channel), path)
+        stack.callback(recorder.close)
+        return None
+    logging = whole_file_logger(path)
+    logger = logging.__enter__()
+    stack.callback(lambda: logging.__exit__(None, None, None))
+    return logger
+
+
+class _HostChannel:
+    """A launcher for processes on an interface of this host (no namespace)."""
+
+    def __init__(self, channel: str) -> None:
+        self.channel = channel
+
+    def popen(self, argv: list[str], **kwargs: Any) -> Any:
+        import subprocess
+
+        return subprocess.Popen(argv, **kwargs)
+
+
+@contextlib.contextmanager
+def hil_session(
+    config: SessionConfig,
+    *,
+    table: RigTable | None = None,
+    before_start: Callable[[Rig], None] | None = None,
+    private_bus: PrivateBus | None = None,
+) -> Iterator[HilSession]:
+    """`open_session` as a context manager: closed in reverse order however the body ends."""
+    session = open_session(config, table=table, before_start=before_start, private_bus=private_bus)
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+__all__ = ["BoardInterface", "HilSession", "SessionConfig", "hil_session", "open_session"]

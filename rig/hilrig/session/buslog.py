@@ -1,0 +1,337 @@
+"""Bus logs: written whole through python-can's loggers, and the master side of a log.
+
+`whole_file_logger` is the one way the project writes a log (`hilrig record`, `hilrig sim`,
+every scenario's bus.log): a `can.Logger` (format by extension: .log candump, .blf Vector,
+.asc, .csv, .trc) writing to a hidden partial file that is renamed to the real name only once
+the logger was stopped (flushed and closed; a BLF file gets its header and object count only
+then). So the named file is always a whole log, also after Ctrl-C or SIGTERM; a hard kill
+(SIGKILL) leaves it untouched and the partial file behind.
+
+`read_log` is the one way the command line reads a log: python-can's `can.LogReader` (format by
+extension, also gzipped), with every problem of the file said in one line that names it.
+
+`RecorderProcess` runs that logger in a process of its own (`python -m hilrig.session.buslog`): every
+frame becomes a python-can Message there, and in the rig's own process those would compete with
+the lockstep loop for the interpreter lock.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import gzip
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+from boardproto.cia301 import TPDO_FUNCTIONS, cob_id, emcy_cob_id, heartbeat_cob_id, sdo_response_cob_id
+from hilrig.errors import LogFileError, LogFormatError, one_line
+from hilrig.table import RigTable
+
+if TYPE_CHECKING:
+    import can
+    import cantools.database
+
+LOG_FORMATS = (".log", ".blf", ".asc", ".csv", ".trc")
+"""The formats the project writes (python-can reads more: `readable_formats`)."""
+
+_CANDUMP_LOG_LINE = re.compile(r"\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")  # (1700000000.000000) can0 123#1122
+_CANDUMP_SCREEN_LINE = re.compile(r"(\(\S+\)\s+)?\S+\s+[0-9A-Fa-f]+\s+\[\d+\]")  # can0  123   [2]  11 22
+
+
+def partial_path(path: Path) -> Path:
+    """Hidden temporary name beside `path`, with the same extension (it picks the format)."""
+    return path.with_name(f".{path.stem}.partial{path.suffix}")
+
+
+@contextmanager
+def whole_file_logger(path: Path) -> Iterator[can.Listener]:
+    """A python-can `can.Logger` whose file appears at `path` only whole (see the module)."""
+    import can
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = partial_path(path)
+    logger = can.Logger(str(partial))
+    try:
+        yield logger
+    finally:
+        logger.stop()  # flush and close: the file is complete from here on
+        os.replace(partial, path)
+
+
+def readable_formats() -> str:
+    """The extensions python-can's LogReader reads, from python-can itself."""
+    from can.io.player import MESSAGE_READERS
+
+    names = [_kind(suffix) for suffix in sorted(MESSAGE_READERS)]
+    return ", ".join(names) + ", each also gzipped (.log.gz)"
+
+
+def _format_of(path: Path) -> str:
+    """The extension that picks the reader, as python-can sees it: 'bus.log.gz' -> '.log'."""
+    suffixes = [suffix.lower() for suffix in path.suffixes]
+    if suffixes[-1:] == [".gz"]:
+        return suffixes[0] if len(suffixes) == 2 else ".gz"
+    return suffixes[-1] if suffixes else ""
+
+
+def _first_line(path: Path) -> str:
+    try:
+        with gzip.open(path, "rb") if path.suffix.lower() == ".gz" else path.open("rb") as file:
+            return file.readline(200).decode("ascii", "replace").strip()
+    except (OSError, EOFError):
+        return ""
+
+
+def _content_hint(path: Path, suffix: str) -> str:
+    """What a candump file in the wrong form or under the wrong name needs."""
+    line = _first_line(path)
+    if suffix == ".log" and _CANDUMP_SCREEN_LINE.match(line):
+        return (
+            "; this is candump's screen output: python-can reads its log form, `candump -L` "
+            "(or `hilrig record`), lines like '(1700000000.000000) can0 123#1122'"
+        )
+    if suffix != ".log" and _CANDUMP_LOG_LINE.match(line):
+        return "; its first line is candump -L: name the file *.log"
+    return ""
+
+
+def _kind(suffix: str) -> str:
+    return f"{suffix} (candump -L)" if suffix == ".log" else suffix
+
+
+@contextmanager
+def read_log(path: Path) -> Iterator[Iterator[can.Message]]:
+    """The frames of the log at `path`, read by python-can's LogReader (format by extension).
+
+    A format python-can does not read (or not without a package this machine lacks) raises
+    LogFormatError; content it cannot parse, at the start or part-way, LogFileError. Both name
+    the file; the first lists the formats read."""
+    import can
+    from can.io.player import MESSAGE_READERS
+
+    suffix = _format_of(path)
+    if suffix not in MESSAGE_READERS:
+        shown = f"{suffix} files" if suffix else "files without an extension"
+        raise LogFormatError(
+            f"{path}: python-can reads no {shown} (the format follows the extension); it reads "
+            f"{readable_formats()}{_content_hint(path, suffix)}"
+        )
+    try:
+        reader = can.LogReader(str(path))
+    except (NotImplementedError, ImportError) as error:  # .mf4 without asammdf
+        raise LogFormatError(f"{path}: {one_line(error)}") from error
+    except Exception as error:  # the reader's parse errors have no common base
+        raise LogFileError(
+            f"{path}: python-can cannot read this {_kind(suffix)} file ({one_line(error)})"
+            f"{_content_hint(path, suffix)}"
+        ) from error
+    try:
+        yield _checked_frames(path, suffix, reader)
+    finally:
+        reader.stop()
+
+
+def _checked_frames(path: Path, suffix: str, frames: Iterable[can.Message]) -> Iterator[can.Message]:
+    count = 0
+    iterator = iter(frames)
+    while True:
+        try:
+            message = next(iterator)
+        except StopIteration:
+            return
+        except Exception as error:  # only python-can's parser runs here: the file is at fault
+            where = f"after frame {count}" if count else "from its start"
+            raise LogFileError(
+                f"{path}: python-can cannot read this {_kind(suffix)} file {where} ({one_line(error)})"
+                f"{_content_hint(path, suffix)}"
+            ) from error
+        count += 1
+        yield message
+
+
+class BusRecorder:
+    """Everything on a bus into a whole log, from a socket of its own (so it sees every
+    sender's frames alike), until `close()`, which also logs what its socket still holds (a
+    receive thread behind a fast sender, as in the emulated VM, must not lose the run's end).
+    The recorder owns `bus` and shuts it down."""
+
+    def __init__(self, bus: can.BusABC, path: Path) -> None:
+        import can
+
+        self.path = path
+        self._bus = bus
+        self._stack = contextlib.ExitStack()
+        self._stack.callback(bus.shutdown)
+        logger = self._stack.enter_context(whole_file_logger(path))
+        self._stack.callback(_log_queued, bus, logger)  # runs second, with the thread stopped
+        # The logger's method, not the logger: Notifier.stop() would stop (close) a Listener
+        # before the queue is logged; whole_file_logger closes it last.
+        self._notifier = can.Notifier(bus, [logger.on_message_received], timeout=0.05)
+        self._stack.callback(self._notifier.stop)  # runs first: no frame after the logger stops
+
+    def close(self) -> None:
+        self._stack.close()
+
+
+def _log_queued(bus: can.BusABC, logger: can.Listener) -> None:
+    """Log every frame `bus` has queued (until a receive finds none)."""
+    while (message := bus.recv(timeout=0.0)) is not None:
+        logger(message)
+
+
+class _Launcher(Protocol):
+    channel: str
+
+    def popen(self, argv: list[str], **kwargs: Any) -> subprocess.Popen[Any]: ...
+
+
+class RecorderProcess:
+    """Everything on `launcher`'s bus into a whole log at `path`, recorded by a process of its
+    own (`python -m hilrig.session.buslog`) started inside the bus's namespace; ready once the
+    constructor returns. `close()` stops it (SIGTERM: the log is renamed whole) and returns the
+    number of frames it wrote."""
+
+    READY_TIMEOUT_S = 120.0
+    """Hang guard for the start (importing python-can takes seconds in the emulated VM)."""
+
+    def __init__(self, launcher: _Launcher, path: Path) -> None:
+        self.path = path
+        self.frames: int | None = None
+        path.parent.mkdir(parents=True, exist_ok=True)
+        argv = [sys.executable, "-m", "hilrig.session.buslog", "--channel", launcher.channel]
+        argv += ["--out", str(path)]
+        self.process = launcher.popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
+        assert self.process.stdout is not None
+        ready: list[str] = []
+        reader = threading.Thread(target=lambda: ready.append(self.process.stdout.readline()), daemon=True)
+        reader.start()
+        reader.join(self.READY_TIMEOUT_S)
+        if not ready or ready[0].strip() != "ready":
+            self.process.kill()
+            self.process.wait()
+            raise RuntimeError(
+                f"bus recorder for {path} did not start (exit {self.process.returncode}, said {ready[:1]!r})"
+            )
+
+    def close(self) -> int | None:
+        """Stop the recorder; the frames it wrote (None if it did not say)."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+        out, _ = self.process.communicate(timeout=60)
+        for line in out.splitlines():
+            if line.startswith("frames "):
+                self.frames = int(line.split()[1])
+        return self.frames
+
+
+def record_main(argv: Sequence[str] | None = None) -> int:
+    """The recorder process: every frame of a SocketCAN channel into python-can's logger until
+    SIGTERM/SIGINT. Frames are read from a raw socket with kernel timestamps (`hilrig.wire.transport`):
+    python-can's own receive path would double the per-frame cost, and inside the emulated VM the
+    recorder must keep up with the lockstep rig."""
+    import can
+
+    from hilrig.wire.transport import RawCanLink, open_raw_socket
+
+    parser = argparse.ArgumentParser(
+        prog="python -m hilrig.session.buslog", description=RecorderProcess.__doc__
+    )
+    parser.add_argument("--channel", required=True, help="SocketCAN interface, e.g. vcan0")
+    parser.add_argument("--out", type=Path, required=True, help="the log (format by extension)")
+    args = parser.parse_args(argv)
+    stop = threading.Event()
+    for number in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(number, lambda *_: stop.set())
+    link = RawCanLink(open_raw_socket(args.channel, None))
+    link.enable_timestamps()
+    message = can.Message
+    channel = args.channel
+    frames = 0
+    with contextlib.closing(link), whole_file_logger(args.out) as logger:
+        print("ready", flush=True)
+        while True:
+            got = link.recv_stamped(0.05)
+            if got is None:
+                if stop.is_set():  # stopped and nothing queued any more
+                    break
+                continue
+            can_id, data, stamp = got
+            logger(
+                message(
+                    timestamp=stamp,
+                    arbitration_id=can_id & (_EFF_MASK if can_id & _EFF_FLAG else _SFF_MASK),
+                    is_extended_id=bool(can_id & _EFF_FLAG),
+                    is_remote_frame=bool(can_id & _RTR_FLAG),
+                    is_error_frame=bool(can_id & _ERR_FLAG),
+                    dlc=len(data),
+                    data=data,
+                    channel=channel,
+                    check=False,
+                )
+            )
+            frames += 1
+    print(f"frames {frames}", flush=True)
+    return 0
+
+
+_EFF_FLAG, _RTR_FLAG, _ERR_FLAG = 0x8000_0000, 0x4000_0000, 0x2000_0000
+_SFF_MASK, _EFF_MASK = 0x7FF, 0x1FFF_FFFF
+
+
+def node_cob_ids(table: RigTable, node_id: int) -> frozenset[int]:
+    """COB-IDs node `node_id` itself sends on (CiA 301 predefined connection set and the
+    table's TPDOs): EMCY, TPDOs, SDO answers, heartbeat and boot-up."""
+    tpdos = {pdo.cob_id(node_id) for pdo in table.board.tpdos}
+    fixed = {emcy_cob_id(node_id), sdo_response_cob_id(node_id), heartbeat_cob_id(node_id)}
+    fixed |= {cob_id(function, node_id) for function in TPDO_FUNCTIONS}
+    return frozenset(tpdos | fixed)
+
+
+def master_side(messages: Iterator[can.Message], table: RigTable, node_id: int) -> Iterator[can.Message]:
+    """The frames of a log that node `node_id` did not send itself: what the master (and any
+    other sender, e.g. an injected flood) put on the bus. Replayed into a fresh node, they drive
+    it through the same run."""
+    own = node_cob_ids(table, node_id)
+    for message in messages:
+        if message.is_extended_id or message.arbitration_id not in own:
+            yield message
+
+
+class NodeDbc:
+    """The generated DBC read for node `node_id`: the DBC holds the default node's COB-IDs,
+    a board at another node id sends the same messages shifted by the difference."""
+
+    def __init__(self, database: cantools.database.can.Database, table: RigTable, node_id: int) -> None:
+        self.database = database
+        self._offset = node_id - table.board.node.default_node_id
+
+    def message(self, cob_id: int) -> cantools.database.can.Message | None:
+        """The DBC message a frame on `cob_id` carries, or None (not a PDO of this node)."""
+        try:
+            return self.database.get_message_by_frame_id(cob_id - self._offset)
+        except KeyError:
+            return None
+
+
+__all__ = [
+    "LOG_FORMATS",
+    "BusRecorder",
+    "NodeDbc",
+    "RecorderProcess",
+    "master_side",
+    "node_cob_ids",
+    "partial_path",
+    "whole_file_logger",
+]
+
+
+if __name__ == "__main__":
+    sys.exit(record_main())

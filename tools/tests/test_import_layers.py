@@ -1,0 +1,199 @@
+"""The rig's layers, checked from the source: every import of rig/hilrig, dashboards/ and tools/
+(at the top, inside functions, under TYPE_CHECKING: a deferred import is still a dependency)
+makes an edge of one module graph, which must have no cycle, and whose edges go down the layers
+only. The dashboards import one leaf of hilrig, the entity paths, so the rig can load them
+without the dashboards pulling the rig back in.
+
+The layer order lives here, once: a module may import its own layer and the layers below it.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    # (layer, module prefixes), bottom up; a module belongs to the layer of its longest prefix.
+    ("base", ("hilrig", "hilrig.errors", "hilrig.resources", "hilrig.table", "hilrig.expect",
+              "hilrig.observe.paths")),
+    ("dashboards", ("dashboards",)),
+    ("wire", ("hilrig.wire",)),
+    ("plants", ("hilrig.plants",)),
+    ("engine", ("hilrig.engine",)),
+    ("observe", ("hilrig.observe",)),
+    ("session", ("hilrig.session",)),
+    ("apps", ("hilrig.apps",)),
+    ("cli", ("hilrig.cli", "hilrig.__main__", "dashboards.__main__")),
+    ("tools", ("tools",)),
+)
+"""Base: the table, the errors, where the board's files are, the condition waiter and the entity
+paths (a leaf every layer may name). The dashboards sit right above it: they build Rerun layouts
+on the entity paths, and the tracer and the session load them. `python -m hilrig` and `python -m
+dashboards` are entry points on top of the CLI."""
+
+DASHBOARDS_MAY_IMPORT = frozenset({"hilrig.observe.paths"})
+"""The one module of hilrig the dashboards import (entry points aside: `dashboards.__main__` is
+the older spelling of `hilrig view` and nothing imports it)."""
+
+PATHS_MAY_IMPORT = frozenset({"hilrig.errors"})
+"""What the entity paths may import of hilrig: only the exception tree (its typo errors), itself
+a leaf."""
+
+
+def source_files() -> Iterator[tuple[str, Path]]:
+    """(module name, file) of every .py file in the graph."""
+    for path in sorted((ROOT / "rig" / "hilrig").rglob("*.py")):
+        yield _dotted(path.relative_to(ROOT / "rig")), path
+    for path in sorted((ROOT / "dashboards").rglob("*.py")):
+        yield _dotted(path.relative_to(ROOT)), path
+    for path in sorted((ROOT / "tools").rglob("*.py")):
+        yield _dotted(path.relative_to(ROOT)), path
+
+
+def _dotted(relative: Path) -> str:
+    parts = list(relative.with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _tool_module(name: str, modules: set[str]) -> str | None:
+    """tools/ are scripts on their own folder's path: `import bench_common` is tools.bench_common."""
+    candidate = f"tools.{name}"
+    return candidate if candidate in modules else None
+
+
+def imports(module: str, path: Path, modules: set[str]) -> set[str]:
+    """The modules of the graph `module` imports, anywhere in its file."""
+    found: set[str] = set()
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - node.level + 1]
+                prefix = ".".join(base + ([node.module] if node.module else []))
+            else:
+                prefix = node.module or ""
+            targets = [f"{prefix}.{alias.name}" for alias in node.names] + [prefix]
+            # `from a.b import c`: the module a.b.c when c is one, else a.b itself
+            submodules = [t for t in targets[:-1] if _resolve(t, modules) == t]
+            targets = submodules if len(submodules) == len(node.names) else [*submodules, prefix]
+        else:
+            continue
+        for target in targets:
+            resolved = _resolve(target, modules)
+            if resolved is None and module.startswith("tools"):
+                resolved = _tool_module(target.split(".")[0], modules)
+            if resolved is not None and resolved != module:
+                found.add(resolved)
+    return found
+
+
+def _resolve(name: str, modules: set[str]) -> str | None:
+    """The longest module of the graph that `name` names (itself, or a package above it)."""
+    while name:
+        if name in modules:
+            return name
+        name = name.rpartition(".")[0]
+    return None
+
+
+def module_graph() -> dict[str, set[str]]:
+    files = dict(source_files())
+    # The C extensions (hilrig.wire._wire, hilrig.plants._plant) are modules too, importing nothing.
+    extensions = {_dotted(c.relative_to(ROOT / "rig")) for c in (ROOT / "rig" / "hilrig").rglob("*.c")}
+    modules = set(files) | extensions
+    graph = {module: imports(module, path, modules) for module, path in files.items()}
+    return graph | {module: set() for module in extensions}
+
+
+def layer_of(module: str) -> int:
+    best, best_len = None, -1
+    for index, (_, prefixes) in enumerate(LAYERS):
+        for prefix in prefixes:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > best_len:
+                best, best_len = index, len(prefix)
+    assert best is not None, f"{module} is in no layer: add it to LAYERS"
+    return best
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle of the graph as [a, b, ..., a], or None."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        path.append(node)
+        for target in sorted(graph[node]):
+            if state.get(target) == 1:
+                return [*path[path.index(target):], target]
+            if target not in state and (cycle := visit(target)) is not None:
+                return cycle
+        path.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (cycle := visit(node)) is not None:
+            return cycle
+    return None
+
+
+def test_the_graph_sees_the_known_modules_and_their_deferred_imports() -> None:
+    graph = module_graph()
+    assert {"hilrig.observe.paths", "hilrig.engine.rig", "dashboards.joint", "tools.bench"} <= set(graph)
+    # a deferred import (inside a function) is an edge too
+    assert "hilrig.apps.soak.run" in graph["hilrig.cli.soak"]
+
+
+def test_no_import_cycle() -> None:
+    cycle = find_cycle(module_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or ())
+
+
+def test_imports_go_down_the_layers() -> None:
+    graph = module_graph()
+    upward = [
+        f"{module} ({LAYERS[layer_of(module)][0]}) imports {target} ({LAYERS[layer_of(target)][0]})"
+        for module, targets in sorted(graph.items())
+        for target in sorted(targets)
+        if layer_of(target) > layer_of(module)
+    ]
+    assert upward == []
+
+
+def test_dashboards_import_only_the_entity_paths_of_hilrig() -> None:
+    graph = module_graph()
+    wrong = {
+        module: sorted(t for t in targets if t.startswith("hilrig") and t not in DASHBOARDS_MAY_IMPORT)
+        for module, targets in graph.items()
+        if module.startswith("dashboards") and module != "dashboards.__main__"
+    }
+    assert {module: targets for module, targets in wrong.items() if targets} == {}
+    paths = {t for t in graph["hilrig.observe.paths"] if t.startswith("hilrig")}
+    assert paths <= PATHS_MAY_IMPORT
+    assert not any(t.startswith("hilrig") for t in graph["hilrig.errors"])
+
+
+def test_each_layer_folder_says_what_lives_there_and_imports_nothing() -> None:
+    # plants/ names its interface in its __init__ (`from hilrig.plants import JointPlant`); cli/'s
+    # __init__ is the command itself.
+    for folder in ("wire", "engine", "session", "observe", "apps"):
+        init = ROOT / "rig" / "hilrig" / folder / "__init__.py"
+        tree = ast.parse(init.read_text())
+        assert ast.get_docstring(tree), f"{init}: no docstring"
+        assert not [n for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))], (
+            f"{init} imports: importing one module of the layer would load them all"
+        )
+
+
+def test_the_rig_top_level_has_at_most_12_modules() -> None:
+    top = sorted(p.name for p in (ROOT / "rig" / "hilrig").glob("*.py"))
+    assert len(top) <= 12, top
