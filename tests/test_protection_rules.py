@@ -1,0 +1,143 @@
+"""The joint's protection rules pinned to the cycle: each scenario sets its limits apart from
+the defaults and from each other, so a bound moved by one, a limit read from the wrong field or a
+rule a cycle late gives a different answer, and asserts what the actuator does on the cycles
+before and after each event, not only that the event happened.
+
+Cycle arithmetic of the lockstep bus: the frames the rig sends before SYNC n are what the
+firmware's cycle n sees, and the TPDOs after SYNC n are cycle n's outputs. A frame stream paused
+from cycle c0 on was last seen in cycle c0 - 1, and a rule "L cycles without" fires in cycle
+c0 - 1 + L, in the same cycle on every output downstream of it (sensors, modules and actuators
+run in that order inside one cycle).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hilrig.plants import JointParams
+from hilrig.table import ControlMode, EmcyCode, FaultFlags, LedPattern
+
+pytestmark = pytest.mark.bus
+
+ENCODER_STALE_CYCLES = 13
+THERMISTOR_STALE_CYCLES = 29
+WATCHDOG_CYCLES = 37
+SENSOR_RPDO = 1  # motor and output encoder counts, thermistor ADC, motor current
+SETPOINT_RPDO = 2  # velocity and torque setpoints: the stream the watchdog watches
+ENCODERS_STALE = FaultFlags.MOTOR_ENCODER_STALE | FaultFlags.OUTPUT_ENCODER_STALE
+
+
+def by_cycle(s, name: str) -> dict[int, float]:
+    """A TPDO field's values by the cycle that sent them."""
+    t, values = s.rig.history(name)
+    return {round(time / s.rig.period_s): float(v) for time, v in zip(t, values, strict=True)}
+
+
+def moving(s, setpoint: float = 2.0) -> None:
+    s.rig.set("control_mode", ControlMode.VELOCITY)
+    s.rig.set("velocity_setpoint", setpoint)
+    s.rig.run(seconds=0.2)
+
+
+def test_stale_encoders_then_thermistor_each_at_their_own_limit(make_scenario) -> None:
+    s = make_scenario()
+    s.rig.set("encoder_stale_cycles", ENCODER_STALE_CYCLES)
+    s.rig.set("thermistor_stale_cycles", THERMISTOR_STALE_CYCLES)
+    moving(s)
+    silent_from = s.rig.cycle
+    s.rig.pause_rpdo(SENSOR_RPDO)
+    s.rig.run(cycles=THERMISTOR_STALE_CYCLES + 10)
+    encoders_at = silent_from - 1 + ENCODER_STALE_CYCLES
+    thermistor_at = silent_from - 1 + THERMISTOR_STALE_CYCLES
+    flags, safe, duty = by_cycle(s, "fault_flags"), by_cycle(s, "safe_state"), by_cycle(s, "motor_duty")
+    for n in range(silent_from - 5, s.rig.cycle):
+        expected = FaultFlags(0)
+        if n >= encoders_at:
+            expected |= ENCODERS_STALE
+        if n >= thermistor_at:
+            expected |= FaultFlags.THERMISTOR_STALE
+        assert FaultFlags(int(flags[n])) == expected, f"cycle {n} (sensors silent from {silent_from})"
+        assert safe[n] == (1.0 if n >= encoders_at else 0.0), f"safe_state at cycle {n}"
+        if n >= encoders_at:
+            assert duty[n] == 0, f"motor_duty at cycle {n}, in the safe state"
+    assert duty[encoders_at - 1] != 0, "the motor was driven up to the cycle before the safe state"
+    assert EmcyCode.STALE_SENSOR in [record.code for record in s.rig.emcy]
+
+
+def test_watchdog_trips_on_its_cycle_and_cuts_the_drive_there(make_scenario) -> None:
+    s = make_scenario()
+    s.rig.set("watchdog_cycles", WATCHDOG_CYCLES)
+    moving(s)
+    stopped_from = s.rig.cycle
+    s.rig.pause_rpdo(SETPOINT_RPDO)
+    s.rig.run(cycles=WATCHDOG_CYCLES + 10)
+    trips_at = stopped_from - 1 + WATCHDOG_CYCLES
+    tripped, flags, duty = (
+        by_cycle(s, "watchdog_tripped"),
+        by_cycle(s, "fault_flags"),
+        by_cycle(s, "motor_duty"),
+    )
+    for n in range(stopped_from - 5, s.rig.cycle):
+        late = n >= trips_at
+        assert tripped[n] == (1.0 if late else 0.0), (
+            f"watchdog_tripped at cycle {n} (stream stopped {stopped_from})"
+        )
+        assert FaultFlags(int(flags[n])) == (FaultFlags.COMMAND_WATCHDOG if late else FaultFlags(0)), (
+            f"cycle {n}"
+        )
+        if late:
+            assert duty[n] == 0, f"motor_duty at cycle {n}, after the trip"
+        else:
+            assert duty[n] != 0, f"motor_duty at cycle {n}: the last setpoint still holds until the trip"
+    assert EmcyCode.SETPOINT_STREAM_LOST in [record.code for record in s.rig.emcy]
+
+
+def test_a_disabled_drive_never_trips_the_watchdog(make_scenario) -> None:
+    s = make_scenario()
+    s.rig.set("watchdog_cycles", WATCHDOG_CYCLES)
+    s.rig.set("control_mode", ControlMode.DISABLED)
+    s.rig.pause_rpdo(SETPOINT_RPDO)
+    s.rig.run(cycles=3 * WATCHDOG_CYCLES)
+    s.expect.never("watchdog_tripped", lambda v: v != 0.0, "a trip with the drive disabled")
+    s.expect.stays_within("motor_duty", 0, 0)
+    assert set(by_cycle(s, "led_pattern").values()) == {float(LedPattern.SLOW_BLINK)}, "disabled: slow blink"
+
+
+def test_thermal_derate_follows_its_line_and_bounds_the_duty(make_scenario) -> None:
+    # Warning 31 degC, limit 47 degC: a derate line whose slope (1/16 per degC) and offset no
+    # neighbouring rule shares; max_duty 0.7 is not the default 0.95. The motor is asked for more
+    # than it may get, so the duty command sits on the bound max_duty * derate while the winding
+    # heats (a hot enclosure, a winding with a 0.8 s thermal time constant).
+    warning_c, limit_c, max_duty = 31.0, 47.0, 0.7
+    s = make_scenario(params=JointParams().with_thermal_time_constant(0.8))
+    s.rig.set("thermal_warning_c", warning_c)
+    s.rig.set("thermal_limit_c", limit_c)
+    s.rig.set("thermal_hysteresis_c", 3.0)
+    s.rig.set("max_duty", max_duty)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
+    s.rig.set("velocity_setpoint", 40.0)  # more than the motor reaches: the bound binds
+    s.rig.plant.set_ambient_temperature(60.0)
+    s.rig.run_until(lambda rig: rig.field("safe_state") == 1.0, within_s=4.0, what="over-temperature cut-off")
+    s.rig.run(cycles=30)  # the temperature and derate go out every 10th cycle
+    temperature, derate = by_cycle(s, "winding_temperature"), by_cycle(s, "thermal_derate")
+    command, wanted = by_cycle(s, "motor_duty_command"), by_cycle(s, "velocity_controller_output")
+    inside = [n for n in temperature if warning_c < temperature[n] < limit_c]
+    assert len(inside) >= 5, f"expected several samples between warning and limit, got {len(inside)}"
+    cut = min(n for n, d in derate.items() if d == 0.0)
+    for n, t_c in sorted(temperature.items()):
+        line = float(np.clip((limit_c - t_c) / (limit_c - warning_c), 0.0, 1.0))
+        expected = line if n < cut else 0.0
+        assert derate[n] == pytest.approx(expected, abs=1e-5), f"derate at cycle {n}, winding {t_c:.3f} degC"
+        bound = np.float32(max_duty) * np.float32(derate[n])
+        assert command[n] == pytest.approx(float(np.clip(wanted[n], -bound, bound)), rel=1e-6, abs=1e-7), (
+            f"duty command at cycle {n}: the controller's {wanted[n]:.4f} "
+            f"within +-{max_duty} * {derate[n]:.4f}"
+        )
+    assert temperature[cut] >= limit_c and all(temperature[n] < limit_c for n in temperature if n < cut), (
+        f"the cut-off at cycle {cut} ({temperature[cut]:.3f} degC) is the first sample "
+        f"at or over {limit_c} degC"
+    )
+    bound_binds = [n for n in inside if abs(wanted[n]) > max_duty * derate[n]]
+    assert len(bound_binds) >= 3, "expected the derated bound to bind while derating"
+    assert all(by_cycle(s, "motor_duty")[n] == 0 for n in derate if n >= cut)
