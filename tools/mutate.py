@@ -243,12 +243,30 @@ class Workspace:
         )
 
     def compile(self, jobs: int) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            ["cmake", "--build", str(self.build), "-j", str(jobs)],
-            capture_output=True,
-            text=True,
-            check=False,
-        )
+        return run_group(["cmake", "--build", str(self.build), "-j", str(jobs)])
+
+
+def run_group(argv: Sequence[str], timeout_s: float | None = None) -> subprocess.CompletedProcess[str]:
+    """Run `argv` in a process group of its own, output captured. On Ctrl-C, SIGTERM or the
+    timeout the whole group gets SIGINT first, so that ninja deletes what it was writing (a
+    compiler killed alone leaves a half-written object file that looks up to date), then
+    SIGKILL. subprocess.run would kill only its child and leave the build's processes running."""
+    process = subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True
+    )
+    try:
+        output, _ = process.communicate(timeout=timeout_s)
+    except BaseException:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGINT)
+        try:
+            process.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(process.pid, signal.SIGKILL)
+            process.communicate()
+        raise
+    return subprocess.CompletedProcess(list(argv), process.returncode, output, "")
 
 
 def run_checked(argv: Sequence[str], what: str) -> None:
@@ -261,14 +279,22 @@ def run_checked(argv: Sequence[str], what: str) -> None:
 @contextlib.contextmanager
 def mutated(workspace: Workspace, mutant: Mutant):
     """The mutant's file changed in the workspace for the body; the original back afterwards,
-    whatever happens (Ctrl-C included)."""
+    whatever happens (Ctrl-C included). The body sets `untouched_outputs` when the build failed
+    before writing anything of the mutant: a .cpp file's one object file was not rewritten (the
+    compiler writes none on an error), so the original gets its old time back and is not
+    compiled again for the next mutant. Never for a header: other translation units that
+    include it may have compiled the mutant before the error."""
     path = workspace.src / mutant.path
     original = path.read_text()
+    before = path.stat()
     path.write_text(mutant.apply(original))
+    state = {"untouched_outputs": False}
     try:
-        yield
+        yield state
     finally:
         path.write_text(original)
+        if state["untouched_outputs"] and path.suffix == ".cpp":
+            os.utime(path, ns=(before.st_atime_ns, before.st_mtime_ns))
 
 
 # --- The unit-test layer ----------------------------------------------------------------------
@@ -286,7 +312,7 @@ def ctest(build: Path, jobs: int, timeout_s: float, junit: Path) -> tuple[list[s
         "--output-junit",
         str(junit),
     ]
-    result = subprocess.run(argv, capture_output=True, text=True, check=False)
+    result = run_group(argv)
     seconds = time.monotonic() - started
     failed, timed_out = [], []
     if junit.exists():
@@ -471,10 +497,11 @@ def build_and_unit(
         folder.mkdir(parents=True)
         result: dict[str, object] = {**asdict(mutant), "source_sha1": digest}
         started = time.monotonic()
-        with mutated(workspace, mutant):
+        with mutated(workspace, mutant) as state:
             built = workspace.compile(jobs)
             build_s = time.monotonic() - started
             if built.returncode != 0:
+                state["untouched_outputs"] = True
                 result.update(compiled=False, seconds={"build": round(build_s, 1)})
                 print(f"mutate: {number}/{len(mutants)} {mutant.id}: does not compile, dropped", flush=True)
             else:
@@ -623,6 +650,10 @@ def merge_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def _interrupted(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="tools/mutate.py", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -648,6 +679,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     scen = sub.add_parser("scenarios", help="(inside tools/with-vcan) the scenario layer of a run")
     scen.add_argument("--out", default=str(DEFAULT_OUT))
     args = parser.parse_args(argv)
+    signal.signal(signal.SIGTERM, _interrupted)  # as Ctrl-C: the mutated file goes back first
     try:
         if args.command == "run":
             return run_command(args)
