@@ -153,8 +153,8 @@ def disable_transparent_huge_pages() -> str:
 
     With THP "always" (Debian's kernels, the micro-VM's), khugepaged collapses the firmware's
     sparse anonymous mappings (ASan's shadow and heap) into 2 MiB pages on its own timer: VmRSS
-    jumps by megabytes a few seconds into the run (measured: +8 MiB at 8 s, AnonHugePages 0 ->
-    10 MiB, then flat) although the firmware touched no new page. That is the kernel's memory
+    jumps by megabytes a few seconds into the run, then stays flat, although the firmware
+    touched no new page. That is the kernel's memory
     policy, not the firmware's use (a real board has no THP), and it would make a flat process
     look like it grew whenever a collapse lands after warm-up."""
     system = "unknown"

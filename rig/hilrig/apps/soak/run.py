@@ -4,27 +4,27 @@ faults now and then; no cycle may be lost and the firmware's memory must stay fl
     make soak                                   # SOAK_CYCLES=1000000, through tools/with-vcan
     tools/with-vcan -- .venv/bin/hilrig soak --cycles 20000 --fault-interval 2000
 
-It runs on the rig's own engine pieces, with a lean loop of its own on top (no physics: a
-constant rotation the checks can predict exactly):
+It runs on the rig's own engine pieces, with a lean loop of its own on top (`driver`; no
+physics: a constant rotation the checks can predict exactly):
 
 * The session (`hilrig.session.builder`, without a Rig): the firmware on a private bus, canopen's
   RemoteNode for SDO and NMT, and the frame link (`hilrig.wire.transport`: one raw socket with kernel
   receive filters for the node's TPDOs, EMCY and heartbeat).
-* The PDO layout (COB-IDs, transmission types, mapped objects and their types) is read once
-  from the generated EDS with canopen and compiled into the same codecs the Rig uses
+* The PDO layout (`layout`: COB-IDs, transmission types, mapped objects and their types) is
+  read once from the generated EDS with canopen and compiled into the same codecs the Rig uses
   (`hilrig.wire.transport.compile_pdos`); the due-at-SYNC rule is `boardproto.cia301.due_at_sync`.
 * The SDO transfers a fault needs go through canopen's SDO client; the node answers in order, so
   after the answer everything it sent before is in the link's queue (the barrier).
 * Per cycle: the sensor RPDO (a constant-speed rotation consistent with the gearbox, see
-  `SensorPattern`), the setpoint RPDO (the stream the watchdog watches), SYNC with counter;
+  `layout.SensorPattern`), the setpoint RPDO (the stream the watchdog watches), SYNC with counter;
   then every TPDO due at that SYNC must arrive once, with its mapped length; the status TPDO
   (safe_state, fault_flags) must say exactly what the injected faults imply; an EMCY that no
   fault explains is a problem.
-* Faults (`plan_faults`, seeded, about one per `fault_interval` cycles, every kind once during
-  warm-up): a too-short sensor RPDO (EMCY 0x8210, then the error reset the next good frame
-  brings), a frame on a COB-ID nobody uses (dropped by the firmware's acceptance filter, so
-  the node never receives it), an SDO upload answered with the right
-  value, the sensor RPDO withheld until the encoder-stale faults latch at exactly the
+* Faults (`fault_plan.plan_faults`, seeded, about one per `fault_interval` cycles, every kind
+  once during warm-up): a too-short sensor RPDO (EMCY 0x8210, then the error reset the next
+  good frame brings), a frame on a COB-ID nobody uses (dropped by the firmware's acceptance
+  filter, so the node never receives it), an SDO upload answered with the right value, the
+  sensor RPDO withheld until the encoder-stale faults latch at exactly the
   encoder_stale_cycles-th silent cycle, then cleared by writing fault_clear = 1, and an NMT
   stop with SYNCs that must go unanswered, then start (an SDO round trip is the barrier that
   proves nothing was answered while stopped).
@@ -35,13 +35,14 @@ constant rotation the checks can predict exactly):
   EMCYs sent = received, no malformed frames, SDO aborts, send failures or refused writes.
 * Memory: VmRSS (and the exact page-table Rss of smaps_rollup) and the open fd count of the
   firmware process every `sample_every` cycles; after warm-up the RSS may grow by at most
-  `DEFAULT_RSS_BOUND_KIB`, and the fd count not at all (`memory_verdict`). Transparent huge
-  pages are turned off for the firmware process (`disable_transparent_huge_pages`): khugepaged
-  would otherwise inflate its RSS by megabytes on its own timer (`--keep-thp` to see it).
+  `memory.DEFAULT_RSS_BOUND_KIB`, and the fd count not at all (`memory.memory_verdict`).
+  Transparent huge pages are turned off for the firmware process
+  (`memory.disable_transparent_huge_pages`): khugepaged would otherwise inflate its RSS by
+  megabytes on its own timer (`--keep-thp` to see it).
 
-Pinning the driver and the firmware to one CPU (`--pin`) is off by default: it made the former
-single-threaded driver about 2x faster in the emulated VM, but with canopen's receive thread in
-the process it is 1.8x slower (measured: 238 cycles/s pinned, 424 not, 10000 cycles).
+Pinning the driver and the firmware to one CPU (`--pin`) is off by default: the driver's process
+has canopen's receive thread besides its own, and on one CPU those threads and the firmware wait
+for each other.
 
 Ctrl-C (or SIGTERM, or the `--stop-file` appearing, which is how `tools/soak` reaches a driver
 inside the VM) stops after the current cycle; the report is still written. The report is
@@ -125,7 +126,7 @@ def _pin(pid: int, cpu: int) -> None:
 
 def _pin_this_process(cpu: int) -> None:
     """Every thread of this process (canopen's receive thread too: sched_setaffinity(0) pins
-    only the calling thread, and a process split across CPUs was measured 2.4x slower here)."""
+    only the calling thread, and a process split across CPUs loses what pinning is for)."""
     for task in os.listdir("/proc/self/task"):
         with contextlib.suppress(ProcessLookupError):
             os.sched_setaffinity(int(task), {cpu})
