@@ -33,7 +33,7 @@ What is measured, and against what:
   over a raw-socket pair whose peer answers each SYNC at once, no firmware, no bus): the main
   thread's instructions per cycle under callgrind next to the engine's exchange alone with the
   same frames, and the bytes the Rig keeps per cycle (tracemalloc) next to the data bytes the bus
-  carried. The VM's rates move by 10-20 % between runs; these do not, so a change to the
+  carried. The VM's rates move between runs; these do not, so a change to the
   per-cycle path shows here first.
 * Long runs stay viewable: one traced 60 s lockstep run at 1 kHz (60000 cycles) of the full
   `Rig` against the firmware, the session as in (b); its trace.rrd stays in <out>/long-trace/.

@@ -21,15 +21,13 @@ ROBOT_SIZES = (1, 4, 8)
 
 LOCKSTEP_ROUNDS = 6
 """Rounds of the lockstep kinds (Rig untraced and traced, the floors), alternating, best of each.
-The emulated VM's rate moves by up to 50 % between rounds of one run when the host is busy; three
-rounds were too few to catch an undisturbed one of each kind (a run where all three traced rounds
-fell on a busy stretch read 0.64 traced vs untraced, the next run 0.84)."""
+The emulated VM's rate moves a lot between rounds of one run when the host is busy: enough rounds
+that each kind gets at least one undisturbed one."""
 
 
 RIG_PAIRS_PER_ROUND = 4
-"""Untraced/traced pairs of Rig runs per round (an even number: each kind first in half). On this
-shared host one pair's ratio scatters widely (0.61..1.93 for one code), and at 12 pairs a run's
-median still missed 0.8 in 2 of 6 runs of code whose 48 pairs pooled gave 0.855 (0.832..0.881)."""
+"""Untraced/traced pairs of Rig runs per round (an even number: each kind first in half). On a
+shared host one pair's ratio scatters widely, so the goal is judged on the median of many pairs."""
 
 
 def rig_pair_orders(round_: int) -> list[tuple[str, str]]:

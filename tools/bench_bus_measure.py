@@ -62,9 +62,8 @@ def percentile(values: Sequence[float], q: float) -> float:
 
 def drive(rig: Any, setpoint: float = 5.0) -> None:
     """The motor under velocity control toward `setpoint`: the firmware's controller, the
-    plant and the traced signals move, as in a scenario. (Until 2026-11-27 the rounds left the
-    node's control disabled: the motor stood still and 27 of a traced round's 30 per-cycle
-    series held one value.)"""
+    plant and the traced signals move, as in a scenario, so a traced round traces changing
+    values, not a motor standing still."""
     from hilrig.table import ControlMode
 
     rig.set("control_mode", ControlMode.VELOCITY)

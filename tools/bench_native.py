@@ -47,8 +47,8 @@ def _callgrind_total(
     """Instructions callgrind counted running `command` with `options`; for a `python` command
     those of its main thread alone (its threads counted apart) unless `all_threads`, with the
     same string hashes every run (so the same dict layouts) and numpy's BLAS on the calling
-    thread (its worker threads spin after a call, and callgrind counted their spinning: totals
-    of the same run moved by 20M instructions)."""
+    thread (its worker threads spin after a call, and callgrind would count their spinning,
+    which moves the totals of the same run)."""
     with tempfile.TemporaryDirectory(prefix="bench-callgrind-") as folder:
         data = Path(folder) / "callgrind.out"
         main_thread = python and not all_threads

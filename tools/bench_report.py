@@ -34,7 +34,7 @@ LONG_TRACE_DASHBOARD = "overview"
 
 CANOPENNODE_BLOCK_UPLOAD_KIB_PER_S = 100_000 / 1024 / 0.145
 """CANopenNode's own published figure for block upload on vcan: 100 kB in 145 ms (its README),
-natively; shown beside ours, which the micro-VM's software emulation slows about 20x."""
+natively; shown beside ours, which the micro-VM's software emulation slows."""
 
 
 RECORDER_IDLE_GOAL = 10  # instructions per cycle: an idle recorder is a comparison
@@ -232,8 +232,7 @@ def _lockstep_rows(row: ReportRows, bus: dict[str, Any]) -> None:
         **lockstep,
     )
     # Traced vs untraced, the goal: the median over the pairs of runs back to back. The host's speed
-    # drifts by up to 50 % between rounds, and the best of each kind compares each one's luckiest
-    # moment (2026-11-27, one code, four runs: best of each 0.73..0.90, the pairs 0.61..1.37).
+    # drifts between rounds, and the best of each kind compares each one's luckiest moment.
     untraced, traced = lockstep["rig_cycles_per_s"], lockstep["rig_traced_cycles_per_s"]
     best_ratio = ratio_of(best["rig_traced"], best["rig"])
     is_paired = len(untraced) == len(traced) > 1  # runs paired by their place in the lists
