@@ -31,33 +31,23 @@ from boardproto.cia301 import (
     sdo_response_cob_id,
 )
 from boardproto.table import ErrorRegisterBit
-from hilrig.apps.soak.run import (
+from hilrig.apps.soak.driver import SoakDriver, Tally
+from hilrig.apps.soak.fault_plan import FaultPlan, PlannedFault, SoakFault, min_fault_interval, plan_faults
+from hilrig.apps.soak.layout import (
     EMCY_ERROR_RESET,
     EMCY_PDO_LENGTH,
     EMCY_STALE_SENSOR,
     RPDO_COMMUNICATION_BASE,
     STALE_ENCODER_BITS,
     STALE_ENCODER_FLAGS,
-    FaultPlan,
-    PlannedFault,
-    ProcessSample,
-    RunStatus,
     SensorPattern,
-    SoakDriver,
-    SoakFault,
     SoakLayout,
-    Tally,
-    build_report,
-    compare_counters,
     load_layout,
-    memory_verdict,
-    min_fault_interval,
-    parse_stop_line,
-    plan_faults,
-    thin,
-    write_json_atomic,
 )
+from hilrig.apps.soak.memory import ProcessSample, memory_verdict
+from hilrig.apps.soak.report import RunStatus, build_report, compare_counters, thin, write_json_atomic
 from hilrig.engine.rig import DEFAULT_EDS_PATH
+from hilrig.session.firmware import parse_stop_line
 from hilrig.table import FaultFlags
 from hilrig.wire.transport import can_frame, parse_frame
 

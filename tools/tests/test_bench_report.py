@@ -16,9 +16,11 @@ from typing import Any
 
 import pytest
 
+TOOLS = Path(__file__).resolve().parent.parent
+
 
 def load_tool(name: str) -> ModuleType:
-    path = Path(__file__).resolve().parent.parent / f"{name}.py"
+    path = TOOLS / f"{name}.py"
     spec = importlib.util.spec_from_file_location(name, path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
@@ -27,17 +29,23 @@ def load_tool(name: str) -> ModuleType:
     return module
 
 
-bench = load_tool("bench")
+sys.path.append(str(TOOLS))  # the tools are scripts on their own folder's path, as when run
+bench = importlib.import_module("bench")
+bench_common = importlib.import_module("bench_common")
+bench_native = importlib.import_module("bench_native")
+bench_bus = importlib.import_module("bench_bus")
+bench_bus_measure = importlib.import_module("bench_bus_measure")
+bench_report = importlib.import_module("bench_report")
 
 
 def _rows(ipc: dict[str, float]) -> list[dict[str, Any]]:
-    rows = bench.ReportRows()
-    bench._recorder_rows(rows, ipc)
+    rows = bench_report.ReportRows()
+    bench_report._recorder_rows(rows, ipc)
     return rows
 
 
 def test_the_recorder_is_one_of_the_counted_loops() -> None:
-    assert {"recorder_idle", "recorder_armed"} <= set(bench.CALLGRIND_LOOPS)
+    assert {"recorder_idle", "recorder_armed"} <= set(bench_native.CALLGRIND_LOOPS)
 
 
 def test_recorder_rows_compare_armed_with_idle_and_with_a_demo_cycle() -> None:
@@ -59,26 +67,27 @@ def test_recorder_rows_say_when_a_goal_is_missed_and_skip_an_old_run() -> None:
 
 # --- The Rig's own cycle, natively (tools/rig_probe.py) ------------------------------------------
 def test_rig_probe_rows_give_the_rigs_instructions_and_its_bytes_kept_per_cycle() -> None:
-    rows = bench.ReportRows()
+    rows = bench_report.ReportRows()
     probe = {"rig": 110_000.4, "engine": 55_000.0, "kept_bytes": 550.0, "bus_bytes": 68.8}
-    bench._rig_probe_rows(rows, probe)
+    bench_report._rig_probe_rows(rows, probe)
     instructions, kept = rows
     assert instructions["measure"].startswith("instructions/cycle (main thread): Rig lockstep cycle vs")
     assert (instructions["ours"], instructions["baseline"]) == ("110000", "55000")
     assert instructions["ratio"] == pytest.approx(2.0, abs=1e-4)
     assert (kept["ours"], kept["baseline"]) == ("550 B", "69 B")
-    empty = bench.ReportRows()
-    bench._rig_probe_rows(empty, None)  # a native.json of an older run, or no valgrind
+    empty = bench_report.ReportRows()
+    bench_report._rig_probe_rows(empty, None)  # a native.json of an older run, or no valgrind
     assert empty == []
 
 
 def test_rig_probe_rows_give_what_tracing_costs_per_cycle_next_to_the_rigs_cycle() -> None:
-    rows = bench.ReportRows()
+    rows = bench_report.ReportRows()
     probe = {"rig": 110_000.0, "engine": 55_000.0, "tracing": 77_000.4, "kept_bytes": 550.0}
-    bench._rig_probe_rows(rows, {**probe, "bus_bytes": 68.8})
+    bench_report._rig_probe_rows(rows, {**probe, "bus_bytes": 68.8})
     _, tracing, kept = rows
+    cycles = bench_native.TRACE_PROBE_CYCLES
     assert tracing["measure"] == (
-        f"instructions/cycle (all threads): tracing a {bench.TRACE_PROBE_CYCLES}-cycle run vs the Rig's cycle"
+        f"instructions/cycle (all threads): tracing a {cycles}-cycle run vs the Rig's cycle"
     )
     assert (tracing["ours"], tracing["baseline"]) == ("77000", "110000")
     assert tracing["ratio"] == pytest.approx(0.7, abs=1e-4)
@@ -105,8 +114,8 @@ LONG_TRACE = {"trace": "long-trace/trace.rrd", "bytes": 39_783_276, "cycles": 60
 
 
 def _long_rows(long_trace: dict[str, Any] | None, first_frame: dict[str, Any]) -> list[dict[str, Any]]:
-    rows = bench.ReportRows()
-    bench._long_trace_rows(rows, long_trace, first_frame)
+    rows = bench_report.ReportRows()
+    bench_report._long_trace_rows(rows, long_trace, first_frame)
     return rows
 
 
@@ -126,13 +135,13 @@ def test_long_run_rows_say_why_when_there_is_no_browser_or_no_long_run() -> None
     size, frame = _long_rows(LONG_TRACE, no_chromium)
     assert size["ours"] == "39.8 MB"
     assert (frame["ours"], frame["baseline"]) == ("not measured", no_chromium["error"])
-    size, frame = _long_rows(None, bench.measure_first_frame(Path("/nonexistent"), None))
-    assert (size["ours"], size["baseline"]) == ("not measured", bench.NO_LONG_TRACE)
-    assert (frame["ours"], frame["baseline"]) == ("not measured", bench.NO_LONG_TRACE)
+    size, frame = _long_rows(None, bench_report.measure_first_frame(Path("/nonexistent"), None))
+    assert (size["ours"], size["baseline"]) == ("not measured", bench_report.NO_LONG_TRACE)
+    assert (frame["ours"], frame["baseline"]) == ("not measured", bench_report.NO_LONG_TRACE)
 
 
 def test_the_first_frame_is_not_measured_without_the_trace(tmp_path: Path) -> None:
-    assert bench.measure_first_frame(tmp_path, LONG_TRACE) == {
+    assert bench_report.measure_first_frame(tmp_path, LONG_TRACE) == {
         "error": f"no trace at {tmp_path / 'long-trace' / 'trace.rrd'}"
     }
 
@@ -175,7 +184,7 @@ def _report(out: Path, bus: dict[str, Any]) -> list[dict[str, Any]]:
 def test_the_report_without_a_long_run_still_comes_whole(tmp_path: Path) -> None:
     """A bus.json from before the long run: the report is written, its rows say so."""
     rows = _report(tmp_path, _bus_json())
-    assert [(r["ours"], r["baseline"]) for r in rows] == [("not measured", bench.NO_LONG_TRACE)] * 2
+    assert [(r["ours"], r["baseline"]) for r in rows] == [("not measured", bench_report.NO_LONG_TRACE)] * 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bus.json", "native.json", "report.json"]
 
 
@@ -209,14 +218,14 @@ def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
     fake.boot()
     try:
         config = SessionConfig(
-            out_dir=out / bench.LONG_TRACE_DIR,
+            out_dir=out / bench_bus_measure.LONG_TRACE_DIR,
             trace=True,
             record=False,
             board=BoardInterface("virtual", channel),
             node_id=table.board.node.default_node_id,
-            period_us=bench.PERIOD_US,
+            period_us=bench_common.PERIOD_US,
         )
-        return bench.traced_run(config, cycles, table)
+        return bench_bus_measure.traced_run(config, cycles, table)
     finally:
         fake.close()
         fake_bus.shutdown()
@@ -225,9 +234,9 @@ def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
 def test_the_long_run_writes_a_whole_trace_against_the_fake_node(tmp_path: Path) -> None:
     from hilrig.observe.reader import Trace
 
-    cycles = 2 * round(bench.LONG_TRACE_STEP_S * 1000) + 100  # two setpoint flips
+    cycles = 2 * round(bench_bus_measure.LONG_TRACE_STEP_S * 1000) + 100  # two setpoint flips
     run = _fake_node_run(tmp_path, cycles)
-    trace = tmp_path / bench.LONG_TRACE_DIR / "trace.rrd"
+    trace = tmp_path / bench_bus_measure.LONG_TRACE_DIR / "trace.rrd"
     assert (run["trace"], run["cycles"], run["last_cycle"]) == (str(trace), cycles, cycles - 1)
     assert run["bytes"] == trace.stat().st_size
     setpoints = Trace.read(trace).scalars["/fields/commands/velocity_setpoint"]
@@ -248,7 +257,7 @@ def test_the_report_step_measures_the_first_frame_of_the_long_runs_trace(tmp_pat
         pytest.skip(str(browser_missing()))
     run = _fake_node_run(tmp_path, 300)
     long_trace = run | {"trace": str(Path(run["trace"]).relative_to(tmp_path))}
-    first_frame = bench.measure_first_frame(tmp_path, long_trace)
+    first_frame = bench_report.measure_first_frame(tmp_path, long_trace)
     assert first_frame.get("seconds", 0) > 0, first_frame
     with Image.open(first_frame["screenshot"]) as screenshot:
         assert plotted_pixels(screenshot) > PLOTTED_PIXELS
@@ -301,16 +310,16 @@ def test_lockstep_rows_put_the_rig_against_both_floors_and_read_an_older_run(tmp
 
 
 def test_each_round_pairs_the_rigs_runs_both_ways_round() -> None:
-    for round_ in range(1, bench.LOCKSTEP_ROUNDS + 1):
-        orders = bench.rig_pair_orders(round_)
-        assert len(orders) == bench.RIG_PAIRS_PER_ROUND
+    for round_ in range(1, bench_bus.LOCKSTEP_ROUNDS + 1):
+        orders = bench_bus.rig_pair_orders(round_)
+        assert len(orders) == bench_bus.RIG_PAIRS_PER_ROUND
         assert all(sorted(order) == ["rig", "rig_traced"] for order in orders)
         firsts = [order[0] for order in orders]
         assert firsts.count("rig") == firsts.count("rig_traced")  # each kind first in half
     # Mirrored in even rounds: each kind also runs first after the previous round's floors.
-    assert bench.rig_pair_orders(1)[0] == ("rig", "rig_traced")
-    assert bench.rig_pair_orders(2)[0] == ("rig_traced", "rig")
-    assert bench.rig_pair_orders(2) == bench.rig_pair_orders(1)[::-1]
+    assert bench_bus.rig_pair_orders(1)[0] == ("rig", "rig_traced")
+    assert bench_bus.rig_pair_orders(2)[0] == ("rig_traced", "rig")
+    assert bench_bus.rig_pair_orders(2) == bench_bus.rig_pair_orders(1)[::-1]
 
 
 # --- A probe that fails costs its own row, never the report --------------------------------------
@@ -321,15 +330,15 @@ FAILING_PROBE = "import sys; print('valgrind: out of memory', file=sys.stderr); 
 
 
 def test_a_probe_that_times_out_or_fails_says_so_with_the_end_of_its_stderr() -> None:
-    with pytest.raises(bench.ProbeError) as timed_out:
-        bench.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=1.0)
+    with pytest.raises(bench_common.ProbeError) as timed_out:
+        bench_common.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=1.0)
     assert "timed out after 1 s" in str(timed_out.value)
     assert "callgrind: still counting" in str(timed_out.value)
-    with pytest.raises(bench.ProbeError) as failed:
-        bench.run_probe([sys.executable, "-c", FAILING_PROBE])
+    with pytest.raises(bench_common.ProbeError) as failed:
+        bench_common.run_probe([sys.executable, "-c", FAILING_PROBE])
     assert "exit status 3" in str(failed.value) and "valgrind: out of memory" in str(failed.value)
-    with pytest.raises(bench.ProbeError, match="could not start"):
-        bench.run_probe(["/nonexistent/fw_board_bench"])
+    with pytest.raises(bench_common.ProbeError, match="could not start"):
+        bench_common.run_probe(["/nonexistent/fw_board_bench"])
 
 
 def _native_step_with_a_rig_probe_that_times_out(out: Path, monkeypatch: pytest.MonkeyPatch) -> int:
@@ -338,13 +347,13 @@ def _native_step_with_a_rig_probe_that_times_out(out: Path, monkeypatch: pytest.
 
     def rig_probe_instructions(mode: str, cycles: int, *, all_threads: bool = False) -> int:
         if mode == "rig":
-            bench.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=0.5)
+            bench_common.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=0.5)
         return cycles * 1000
 
-    monkeypatch.setattr(bench.shutil, "which", lambda name: f"/usr/bin/{name}")
-    monkeypatch.setattr(bench, "callgrind_instructions", lambda out, loop, cycles: 100 + cycles * 2000)
-    monkeypatch.setattr(bench, "rig_probe_instructions", rig_probe_instructions)
-    monkeypatch.setattr(bench, "_rig_memory_per_cycle", lambda: (550.0, 68.8))
+    monkeypatch.setattr(bench_native.shutil, "which", lambda name: f"/usr/bin/{name}")
+    monkeypatch.setattr(bench_native, "callgrind_instructions", lambda out, loop, cycles: 100 + cycles * 2000)
+    monkeypatch.setattr(bench_native, "rig_probe_instructions", rig_probe_instructions)
+    monkeypatch.setattr(bench_native, "_rig_memory_per_cycle", lambda: (550.0, 68.8))
     return bench.main(["native", "--out", str(out)])
 
 
@@ -396,10 +405,10 @@ def test_a_bus_section_that_cannot_be_read_costs_only_its_own_row(tmp_path: Path
     del bus["free_running"]
     _report(tmp_path, bus)
     rows = _report_rows(tmp_path)
-    sdo = rows[bench.SECTION_TITLES["sdo"]]
+    sdo = rows[bench_report.SECTION_TITLES["sdo"]]
     assert (sdo["ours"], sdo["baseline"]) == ("not measured", "KeyError: 'local_node'")
     assert not any(measure.startswith("SDO server turnaround") for measure in rows)  # dropped whole
-    free = rows[bench.SECTION_TITLES["free_running"]]
+    free = rows[bench_report.SECTION_TITLES["free_running"]]
     assert free["baseline"] == "free_running: the firmware never reached operational"
     assert rows["lockstep cycles/s: Rig untraced vs raw-socket floor"]["ours"] == "900/s"
 
@@ -409,7 +418,7 @@ def test_a_missing_part_still_gives_a_report_and_a_failed_exit(tmp_path: Path) -
     native = {"date": "today", "machine": machine, "board_bench_ns": {}, "callgrind": None}
     (tmp_path / "native.json").write_text(json.dumps(native))  # no bus.json: the VM step died
     assert bench.main(["report", "--out", str(tmp_path)]) == 1
-    lockstep = _report_rows(tmp_path)[bench.SECTION_TITLES["lockstep"]]
+    lockstep = _report_rows(tmp_path)[bench_report.SECTION_TITLES["lockstep"]]
     assert lockstep["ours"] == "not measured"
     assert "bus.json is unreadable" in lockstep["baseline"]
     assert "the bus step did not finish" in lockstep["baseline"]

@@ -10,12 +10,9 @@ from hilrig.cli.common import Command, UsageError, node_id
 
 def _configure(parser: argparse.ArgumentParser) -> None:
     """The soak's options (`hilrig soak --help`)."""
-    from hilrig.apps.soak.run import (
-        DEFAULT_EDS_PATH,
-        DEFAULT_FAULT_INTERVAL,
-        DEFAULT_RSS_BOUND_KIB,
-        DEFAULT_SAMPLE_EVERY,
-    )
+    from hilrig.apps.soak.fault_plan import DEFAULT_FAULT_INTERVAL
+    from hilrig.apps.soak.layout import DEFAULT_EDS_PATH
+    from hilrig.apps.soak.memory import DEFAULT_RSS_BOUND_KIB, DEFAULT_SAMPLE_EVERY
     from hilrig.session.firmware import DEFAULT_EXECUTABLE
     from hilrig.table import BOARD_TABLE
 

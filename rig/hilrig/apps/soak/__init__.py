@@ -1,4 +1,7 @@
 """The soak: a million lockstep cycles against the real firmware on a real SocketCAN bus, with
 seeded faults now and then; no cycle may be lost and the firmware's memory must stay flat
-(`hilrig soak`, `make soak`). `run` has the whole of it; see its docstring.
+(`hilrig soak`, `make soak`). `run` is the entry and says the whole of it in its docstring; the
+parts, by concern: what is sent and expected, from the EDS (`layout`), the seeded fault schedule
+(`fault_plan`), the firmware process's memory (`memory`), the lockstep driver (`driver`), and
+the report (`report`).
 """
