@@ -322,6 +322,8 @@ def ctest(build: Path, jobs: int, timeout_s: float, junit: Path) -> tuple[list[s
     for line in result.stdout.splitlines():
         if "***Timeout" in line:
             timed_out.append(line.split(":", 1)[-1].split("*")[0].strip())
+    if result.returncode < 0:  # ctest itself killed by a signal: no verdict on the mutant
+        raise KeyboardInterrupt(f"ctest stopped by signal {-result.returncode}")
     if result.returncode != 0 and not failed:
         failed.append(f"ctest exit {result.returncode}")
     timeout = f"unit tests past {timeout_s:.0f} s: {', '.join(timed_out)}" if timed_out else None
@@ -435,6 +437,10 @@ def scenarios_command(out: Path) -> int:
     kills_path = out / "kills.json"
     kills: Counter[str] = Counter(json.loads(kills_path.read_text()) if kills_path.exists() else {})
     todo = [m for m in plan["mutants"] if _needs_scenarios(out / "mutants" / m)]
+    missing = [m for m in todo if not (out / "mutants" / m / Path(FIRMWARE_BINARY).name).exists()]
+    if missing:  # never a kill: a scenario against no firmware fails whatever the mutant does
+        print(f"mutate: no firmware kept for {', '.join(missing)}: run `run` again to build them", flush=True)
+        todo = [m for m in todo if m not in missing]
     for number, mutant_id in enumerate(todo, 1):
         folder = out / "mutants" / mutant_id
         result = json.loads((folder / "result.json").read_text())
@@ -487,12 +493,21 @@ def build_and_unit(
     if baseline.returncode != 0:
         raise SystemExit(f"mutate: the unmutated sources do not build:\n{baseline.stdout[-3000:]}")
     unit_timeout = baseline_unit_timeout(workspace.build, jobs, workspace.out)
+    if copy_binary is not None and not (workspace.build / copy_binary).exists():
+        copy_binary = None  # a tree without the firmware (the tool's own test): unit tests only
     for number, mutant in enumerate(mutants, 1):
         folder = workspace.mutant_dir(mutant)
         result_path = folder / "result.json"
         digest = source_digest(workspace.source_root, mutant.path)
-        if result_path.exists() and json.loads(result_path.read_text()).get("source_sha1") == digest:
-            continue  # done in an earlier run, on the same source
+        known = json.loads(result_path.read_text()) if result_path.exists() else {}
+        if known.get("source_sha1") == digest:
+            binary = folder / Path(copy_binary).name if copy_binary else None
+            if binary is None or not known.get("compiled") or binary.exists():
+                continue  # done in an earlier run, on the same source
+            with mutated(workspace, mutant):  # its unit results stand; its firmware is needed again
+                if workspace.compile(jobs).returncode == 0:
+                    shutil.copy2(workspace.build / copy_binary, binary)
+            continue
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir(parents=True)
         result: dict[str, object] = {**asdict(mutant), "source_sha1": digest}
@@ -505,7 +520,7 @@ def build_and_unit(
                 result.update(compiled=False, seconds={"build": round(build_s, 1)})
                 print(f"mutate: {number}/{len(mutants)} {mutant.id}: does not compile, dropped", flush=True)
             else:
-                if copy_binary is not None:
+                if copy_binary is not None and (workspace.build / copy_binary).exists():
                     shutil.copy2(workspace.build / copy_binary, folder / Path(copy_binary).name)
                 failed, timeout, unit_s = ctest(workspace.build, jobs, unit_timeout, folder / "ctest.xml")
                 result.update(
@@ -586,7 +601,7 @@ def run_command(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     report.write_json(out / "plan.json", {"mutants": [m.id for m in chosen]})
     workspace = Workspace(out, source_root, tuple(args.sources), tuple(args.cmake_arg or CMAKE_ARGS))
-    build_and_unit(workspace, chosen, args.jobs, None if args.no_scenarios else FIRMWARE_BINARY)
+    build_and_unit(workspace, chosen, args.jobs, FIRMWARE_BINARY)
     if not args.no_scenarios:
         collect_scenarios(out)
         print(
@@ -679,7 +694,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     scen = sub.add_parser("scenarios", help="(inside tools/with-vcan) the scenario layer of a run")
     scen.add_argument("--out", default=str(DEFAULT_OUT))
     args = parser.parse_args(argv)
-    signal.signal(signal.SIGTERM, _interrupted)  # as Ctrl-C: the mutated file goes back first
+    # SIGTERM as Ctrl-C, and Ctrl-C even where the shell started this in the background with
+    # SIGINT ignored: the mutated file goes back and the build's processes are stopped first.
+    signal.signal(signal.SIGTERM, _interrupted)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         if args.command == "run":
             return run_command(args)
