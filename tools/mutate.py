@@ -3,6 +3,7 @@ tests reject? `make mutate` runs it; the verdict is in tools/mutation_report.py.
 
     tools/mutate.py run [--mutants N] [--seed S] [--shard K/N] [--out DIR] [--no-scenarios]
     tools/mutate.py list [--mutants N] [--seed S] [--shard K/N]      the sample, nothing built
+    tools/mutate.py report [--mutants N] [--seed S] [--shard K/N]    the report from the results so far
     tools/mutate.py merge REPORT... --out DIR                         shards' reports as one
     tools/mutate.py scenarios --out DIR                               (inside tools/with-vcan)
 
@@ -436,7 +437,8 @@ def scenarios_command(out: Path) -> int:
     durations = json.loads((REPO / scenario_shards.DURATIONS).read_text())
     kills_path = out / "kills.json"
     kills: Counter[str] = Counter(json.loads(kills_path.read_text()) if kills_path.exists() else {})
-    todo = [m for m in plan["mutants"] if _needs_scenarios(out / "mutants" / m)]
+    equivalent = load_equivalents()
+    todo = [m for m in plan["mutants"] if m not in equivalent and _needs_scenarios(out / "mutants" / m)]
     missing = [m for m in todo if not (out / "mutants" / m / Path(FIRMWARE_BINARY).name).exists()]
     if missing:  # never a kill: a scenario against no firmware fails whatever the mutant does
         print(f"mutate: no firmware kept for {', '.join(missing)}: run `run` again to build them", flush=True)
@@ -641,6 +643,27 @@ def one_line(code: str) -> str:
     return " ".join(code.split("\n")).strip()
 
 
+def report_command(args: argparse.Namespace) -> int:
+    """The report of a sample from the results kept so far, nothing built or run."""
+    shard = scenario_shards.parse_shard(args.shard) if args.shard else None
+    source_root = Path(args.source).resolve()
+    everything = all_mutants(source_root, product_files(source_root, args.product or PRODUCT))
+    chosen = shard_of(sample(everything, args.mutants, args.seed), shard)
+    where = f", shard {shard}" if shard else ""
+    description = f"{len(chosen)} of {len(everything)} mutants (seed {args.seed}{where})"
+    name = f"report-shard-{shard.index}-of-{shard.count}" if shard else "report"
+    config = {
+        "description": description,
+        "seed": args.seed,
+        "mutants": args.mutants,
+        "shard": str(shard) if shard else None,
+    }
+    write_report(
+        Path(args.out).resolve(), name, chosen, source_root, config | {"project_root": str(source_root)}
+    )
+    return 0
+
+
 def list_command(args: argparse.Namespace) -> int:
     shard = scenario_shards.parse_shard(args.shard) if args.shard else None
     source_root = Path(args.source).resolve()
@@ -672,13 +695,21 @@ def _interrupted(signum: int, frame: object) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="tools/mutate.py", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    for name in ("run", "list"):
-        p = sub.add_parser(name, help="run a sample" if name == "run" else "print a sample, build nothing")
+    helps = {
+        "run": "run a sample",
+        "list": "print a sample, build nothing",
+        "report": "a sample's report from the results so far",
+    }
+    for name in ("run", "list", "report"):
+        p = sub.add_parser(name, help=helps[name])
         p.add_argument("--mutants", type=int, default=40, help="how many mutants to sample (default 40)")
         p.add_argument("--seed", type=int, default=1, help="the sample's seed (default 1)")
         p.add_argument("--shard", help="K/N: the K-th of N shards of the sample")
         p.add_argument("--source", default=str(REPO), help=argparse.SUPPRESS)
         p.add_argument("--product", action="append", help=argparse.SUPPRESS)
+    sub.choices["report"].add_argument(
+        "--out", default=str(DEFAULT_OUT), help="the run's folder (default build/mutate)"
+    )
     run = sub.choices["run"]
     run.add_argument("--out", default=str(DEFAULT_OUT), help="workspace and report (default build/mutate)")
     run.add_argument("--jobs", type=int, default=os.cpu_count() or 2, help="build and ctest parallelism")
@@ -703,6 +734,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_command(args)
         if args.command == "list":
             return list_command(args)
+        if args.command == "report":
+            return report_command(args)
         if args.command == "merge":
             return merge_command(args)
         return scenarios_command(Path(args.out))
