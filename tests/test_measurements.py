@@ -94,3 +94,37 @@ def test_every_measurement_tracks_its_physical_truth(make_scenario) -> None:
     report.append(f"motor_velocity: worst {error:.3g} rad/s at cycle {cycle} after 1 s (bound {bound:.3g})")
     assert error <= bound, report[-1]
     print("\n" + "\n".join(report))
+
+
+def test_velocity_is_the_first_order_filter_of_the_encoder_steps(make_scenario) -> None:
+    # The firmware's motor_velocity, from the counts the rig sent: each cycle's step of the
+    # 16-bit counter (modular) over one period, through a first-order low-pass at
+    # velocity_filter_hz (set to 37 Hz, not the default 100, so another cut-off or no filter
+    # gives other values from the first cycle of the step on).
+    cutoff_hz = 37.0
+    s = make_scenario()
+    s.rig.set("velocity_filter_hz", cutoff_hz)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
+    s.rig.set("velocity_setpoint", 3.0)
+    s.rig.run(seconds=0.3)
+    sent_t, counts = s.rig.sent("motor_encoder_counts")
+    got_t, velocity = s.rig.history("motor_velocity")
+    period = s.rig.period_s
+    sent_cycles = np.round(np.asarray(sent_t) / period).astype(int)
+    got = dict(zip(np.round(np.asarray(got_t) / period).astype(int), velocity, strict=True))
+    alpha = np.float32(1.0) - np.exp(np.float32(-2.0 * math.pi * cutoff_hz * period), dtype=np.float32)
+    filtered = np.float32(0.0)
+    compared = 0
+    for (n0, c0), (n1, c1) in zip(
+        zip(sent_cycles, counts, strict=True), zip(sent_cycles[1:], counts[1:], strict=True), strict=False
+    ):
+        step = (int(c1) - int(c0) + 0x8000) % 0x10000 - 0x8000
+        raw = np.float32(step * MOTOR_COUNT_RAD) / np.float32((n1 - n0) * period)
+        filtered = filtered + alpha * (raw - filtered)
+        if n1 in got:
+            assert got[n1] == pytest.approx(float(filtered), rel=1e-4, abs=1e-3), (
+                f"motor_velocity at cycle {n1}: a first-order filter at {cutoff_hz} Hz of the steps gives "
+                f"{float(filtered):.4f} rad/s"
+            )
+            compared += 1
+    assert compared > 250 and max(abs(v) for v in velocity) > 100.0, "the step was seen and compared"
