@@ -739,8 +739,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "merge":
             return merge_command(args)
         return scenarios_command(Path(args.out))
-    except ValueError as error:
-        print(f"mutate: {error}", file=sys.stderr)
+    except (ValueError, OSError, KeyError) as error:  # a bad SHARD, a missing or foreign report
+        print(f"mutate: {type(error).__name__}: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("mutate: stopped; the results so far are kept (run again to go on)", file=sys.stderr)
