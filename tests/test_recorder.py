@@ -4,12 +4,15 @@ every captured sample equal to what the same fields' TPDOs carried in the same c
 
 from __future__ import annotations
 
+import struct
+
 import canopen
 import numpy as np
 import pytest
 from canopen.sdo import SdoClient
 from conftest import EDS, TABLE
 
+from boardproto.cia301 import SdoAbortCode
 from boardproto.table import RecorderObject
 from hilrig.apps.capture import CaptureSettings, RecorderClient
 from hilrig.session.netns import PrivateBus
@@ -99,3 +102,21 @@ def test_a_triggered_capture_equals_the_lockstep_history_cycle_for_cycle(
     finally:
         network.disconnect()  # shuts the bus down too
     assert len(ours) > 64_000 and theirs == ours
+
+
+def test_a_channel_in_use_takes_another_field_but_not_none(node_under_test) -> None:
+    # While a channel is in use (sub-index <= channels in use) it may be pointed at another
+    # field, but not at none (0): a recording's channels all name a field, as a PDO mapping's.
+    assert TABLE.board.recorder is not None
+    channels = TABLE.board.recorder.index_of(RecorderObject.CHANNELS)
+    sdo = node_under_test.node.sdo
+    first, second = TABLE.entry("motor_velocity").index, TABLE.entry("joint_torque").index
+    sdo.download(channels, 1, struct.pack("<H", first))
+    sdo.download(channels, 0, bytes([1]))
+    sdo.download(channels, 1, struct.pack("<H", second))
+    assert struct.unpack("<H", sdo.upload(channels, 1))[0] == second, "the channel in use was re-pointed"
+    with pytest.raises(canopen.SdoAbortedError) as refused:
+        sdo.download(channels, 1, struct.pack("<H", 0))
+    assert refused.value.code == SdoAbortCode.PARAMETER_INCOMPATIBLE
+    assert struct.unpack("<H", sdo.upload(channels, 1))[0] == second, "a refused write changes nothing"
+    sdo.download(channels, 2, struct.pack("<H", 0))  # not in use: none is fine there
