@@ -586,13 +586,25 @@ def write_report(
     return outcomes
 
 
-def run_command(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class Selection:
+    """The mutants a `run`, `report` or `list` call is about, and how its report names them."""
+
+    mutants: list[Mutant]
+    source_root: Path
+    description: str
+    report_name: str
+    config: dict[str, object]
+
+
+def select(args: argparse.Namespace) -> Selection:
+    """The seeded sample (or its shard) of every mutant of the product files; `--mutant ID`s
+    instead, where the command has them."""
     shard = scenario_shards.parse_shard(args.shard) if args.shard else None
     source_root = Path(args.source).resolve()
-    out = Path(args.out).resolve()
     files = product_files(source_root, args.product or PRODUCT)
     everything = all_mutants(source_root, files)
-    if args.mutant:
+    if getattr(args, "mutant", None):
         by_id = {m.id: m for m in everything}
         unknown = [i for i in args.mutant if i not in by_id]
         if unknown:
@@ -605,11 +617,25 @@ def run_command(args: argparse.Namespace) -> int:
         chosen = shard_of(sample(everything, args.mutants, args.seed), shard)
         where = f", shard {shard}" if shard else ""
         description = f"{len(chosen)} of {len(everything)} mutants (seed {args.seed}{where})"
-    print(f"mutate: {description} of {len(files)} product files", flush=True)
+    config = {
+        "description": description,
+        "seed": args.seed,
+        "mutants": args.mutants,
+        "shard": str(shard) if shard else None,
+        "project_root": str(source_root),
+    }
+    name = f"report-shard-{shard.index}-of-{shard.count}" if shard else "report"
+    return Selection(chosen, source_root, f"{description} of {len(files)} product files", name, config)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    chosen = select(args)
+    out = Path(args.out).resolve()
+    print(f"mutate: {chosen.description}", flush=True)
     out.mkdir(parents=True, exist_ok=True)
-    report.write_json(out / "plan.json", {"mutants": [m.id for m in chosen]})
-    workspace = Workspace(out, source_root, tuple(args.sources), tuple(args.cmake_arg or CMAKE_ARGS))
-    build_and_unit(workspace, chosen, args.jobs, FIRMWARE_BINARY)
+    report.write_json(out / "plan.json", {"mutants": [m.id for m in chosen.mutants]})
+    workspace = Workspace(out, chosen.source_root, tuple(args.sources), tuple(args.cmake_arg or CMAKE_ARGS))
+    build_and_unit(workspace, chosen.mutants, args.jobs, FIRMWARE_BINARY)
     if not args.no_scenarios:
         collect_scenarios(out)
         print(
@@ -633,15 +659,7 @@ def run_command(args: argparse.Namespace) -> int:
                 f"mutate: the scenario stage ended with exit {vm.returncode}; the report shows what ran",
                 file=sys.stderr,
             )
-    name = f"report-shard-{shard.index}-of-{shard.count}" if shard else "report"
-    config = {
-        "description": description,
-        "seed": args.seed,
-        "mutants": args.mutants,
-        "shard": str(shard) if shard else None,
-        "project_root": str(source_root),
-    }
-    write_report(out, name, chosen, source_root, config)
+    write_report(out, chosen.report_name, chosen.mutants, chosen.source_root, chosen.config)
     return 0
 
 
@@ -651,30 +669,15 @@ def one_line(code: str) -> str:
 
 def report_command(args: argparse.Namespace) -> int:
     """The report of a sample from the results kept so far, nothing built or run."""
-    shard = scenario_shards.parse_shard(args.shard) if args.shard else None
-    source_root = Path(args.source).resolve()
-    everything = all_mutants(source_root, product_files(source_root, args.product or PRODUCT))
-    chosen = shard_of(sample(everything, args.mutants, args.seed), shard)
-    where = f", shard {shard}" if shard else ""
-    description = f"{len(chosen)} of {len(everything)} mutants (seed {args.seed}{where})"
-    name = f"report-shard-{shard.index}-of-{shard.count}" if shard else "report"
-    config = {
-        "description": description,
-        "seed": args.seed,
-        "mutants": args.mutants,
-        "shard": str(shard) if shard else None,
-    }
+    chosen = select(args)
     write_report(
-        Path(args.out).resolve(), name, chosen, source_root, config | {"project_root": str(source_root)}
+        Path(args.out).resolve(), chosen.report_name, chosen.mutants, chosen.source_root, chosen.config
     )
     return 0
 
 
 def list_command(args: argparse.Namespace) -> int:
-    shard = scenario_shards.parse_shard(args.shard) if args.shard else None
-    source_root = Path(args.source).resolve()
-    everything = all_mutants(source_root, product_files(source_root, args.product or PRODUCT))
-    for mutant in shard_of(sample(everything, args.mutants, args.seed), shard):
+    for mutant in select(args).mutants:
         print(
             f"{mutant.id}  {mutant.path}:{mutant.line}  "
             f"{one_line(mutant.original)}  ->  {one_line(mutant.replacement)}"
