@@ -260,7 +260,8 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
     the real board on it (`physics` as the scenario says), and lockstep scenarios are skipped.
     `extra_args` go to the firmware's command line; `subdir` keeps one run's evidence apart when
     a test makes several runs one after the other (close the previous one first: one node id per
-    bus)."""
+    bus). `before_start(rig)` configures the node over SDO before the rig reads its PDO mapping
+    and starts it (the node is pre-operational, so PDOs may be remapped)."""
     sessions: list[HilSession] = []
 
     def make(
@@ -272,6 +273,7 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
         subdir: str | None = None,
         mode: str = "lockstep",
         physics: bool = True,
+        before_start: Callable[[Rig], None] | None = None,
     ) -> Scenario:
         run_dir = scenario_dir / subdir if subdir else scenario_dir
         realtime = mode == "realtime"
@@ -309,7 +311,9 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
             pytest.fail(f"{DEFAULT_EXECUTABLE} or {EDS} missing: run `make build` first", pytrace=False)
         # The test's own private bus (a test may send frames of its own on it, e.g. a flood).
         private_bus = request.getfixturevalue("private_bus") if board is None else None
-        session = open_session(session_config, table=TABLE, private_bus=private_bus)
+        session = open_session(
+            session_config, table=TABLE, before_start=before_start, private_bus=private_bus
+        )
         sessions.append(session)
         request.node.hil_evidence = _evidence(run_dir, trace)
         return Scenario(

@@ -15,6 +15,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from boardproto.cia301 import (
+    HEARTBEAT_CONSUMER_INDEX,
+    MASTER_NODE_ID,
+    NmtState,
+    heartbeat_cob_id,
+    heartbeat_consumer_entry,
+)
 from hilrig.plants import JointParams
 from hilrig.table import ControlMode, EmcyCode, FaultFlags, LedPattern
 
@@ -141,3 +148,73 @@ def test_thermal_derate_follows_its_line_and_bounds_the_duty(make_scenario) -> N
     bound_binds = [n for n in inside if abs(wanted[n]) > max_duty * derate[n]]
     assert len(bound_binds) >= 3, "expected the derated bound to bind while derating"
     assert all(by_cycle(s, "motor_duty")[n] == 0 for n in derate if n >= cut)
+
+
+# The master's heartbeat, watched through 0x1016: a consumer time and a sending period that no
+# other rule shares (the watchdog counts 37 cycles, the sensors 13 and 29), so a timer started a
+# cycle late, or a loss judged on the period instead of the consumer time, shows.
+MASTER_CONSUMER_MS = 23
+MASTER_EVERY_CYCLES = 7
+SPARE_RPDO = 4  # unused by default: mapped here, every RPDO slot and consumer entry is in use
+SPARE_MAX_DUTY = 0.61
+
+
+def watch_the_master_and_map_max_duty(rig) -> None:
+    """Before the rig reads the node's PDOs (pre-operational): the consumer entry watches the
+    master's heartbeat, and the spare RPDO carries max_duty. Every RPDO and every consumer entry
+    is then in use: the node's receive filter must list them all."""
+    rig.node.wait_until_alive(rig.boot_timeout_s)
+    entry = heartbeat_consumer_entry(MASTER_NODE_ID, MASTER_CONSUMER_MS)
+    rig.node.download(HEARTBEAT_CONSUMER_INDEX, 1, entry.to_bytes(4, "little"))
+    spare = rig.node.remote.rpdo[SPARE_RPDO]
+    spare.read()
+    spare.clear()
+    spare.add_variable("max_duty")
+    spare.trans_type = 255
+    spare.enabled = True
+    spare.save()
+
+
+def test_the_master_heartbeat_beside_every_rpdo_is_heard_until_it_stops(make_scenario) -> None:
+    s = make_scenario(before_start=watch_the_master_and_map_max_duty)
+    assert s.rig.driver.rpdo_of("max_duty") == SPARE_RPDO, "the rig sends max_duty in the spare RPDO"
+    master_heartbeat = heartbeat_cob_id(MASTER_NODE_ID)
+    beating = {"on": True, "last": -1}
+
+    def master(rig) -> None:
+        if beating["on"] and rig.cycle % MASTER_EVERY_CYCLES == 0:
+            rig.send_frame(master_heartbeat, bytes([NmtState.OPERATIONAL]))
+            beating["last"] = rig.cycle  # the frame lands before this cycle's SYNC
+
+    s.rig.before_each_cycle(master)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
+    s.rig.set("velocity_setpoint", 40.0)  # more than the motor reaches: the duty sits on its bound
+    s.rig.run(cycles=3 * MASTER_CONSUMER_MS)
+    capped_from = s.rig.cycle
+    s.rig.set("max_duty", SPARE_MAX_DUTY)  # through the spare RPDO, with the next cycle
+    s.rig.run(cycles=3 * MASTER_CONSUMER_MS)
+    beating["on"] = False
+    last = beating["last"]
+    s.rig.run(cycles=2 * MASTER_CONSUMER_MS)
+    lost_at = last - 1 + MASTER_CONSUMER_MS * 1000 // s.rig.period_us
+
+    default_max_duty = s.rig.table.field("max_duty").default
+    command, duty = by_cycle(s, "motor_duty_command"), by_cycle(s, "motor_duty")
+    flags, safe = by_cycle(s, "fault_flags"), by_cycle(s, "safe_state")
+    for n in range(capped_from - 10, s.rig.cycle):
+        lost = n >= lost_at
+        assert FaultFlags(int(flags[n])) == (FaultFlags.MASTER_HEARTBEAT_LOST if lost else FaultFlags(0)), (
+            f"fault_flags at cycle {n} (last master heartbeat in cycle {last})"
+        )
+        assert safe[n] == (1.0 if lost else 0.0), f"safe_state at cycle {n}"
+        if lost:
+            assert duty[n] == 0, f"motor_duty at cycle {n}, the master lost"
+        else:
+            bound = np.float32(SPARE_MAX_DUTY if n >= capped_from else default_max_duty)
+            assert command[n] == pytest.approx(float(bound), rel=1e-6), (
+                f"duty command at cycle {n}: on its bound, max_duty by the spare RPDO from {capped_from}"
+            )
+    lost = [record for record in s.rig.emcy if record.code == EmcyCode.HEARTBEAT_ERROR]
+    assert [record.object_index for record in lost] == [HEARTBEAT_CONSUMER_INDEX], s.rig.emcy
+    assert lost[0].data[2] == MASTER_NODE_ID, f"the EMCY names the lost node: {lost[0].data.hex()}"
+    assert lost[0].cycle == lost_at, f"{lost[0]}: expected in cycle {lost_at}"
