@@ -16,6 +16,7 @@ import operator
 import os
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
+from typing import Protocol
 
 from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id, sync_counter
 from hilrig.engine.history import (
@@ -30,14 +31,14 @@ from hilrig.engine.history import (
 )
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.observe.paths import BUS_EVENTS_PATH
-from hilrig.plants import JointPlant, JointState, RawSensors, SensorModel
+from hilrig.plants import JointState, RawSensors
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import (
+    Decoder,
     Exchange,
     FrameLink,
     PdoDirection,
     PdoLayout,
-    Unpack,
     can_frame,
     exchanger,
     send_frames,
@@ -49,6 +50,28 @@ SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
 """Fields of the RPDO sent every cycle, like a real master's setpoint stream."""
 LIVENESS_SLICE_S = 0.25
 """While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
+
+
+class Plant(Protocol):
+    """What a driver samples and steps every cycle: `hilrig.plants.JointPlant`, or a stand-in
+    without physics (the soak's sensor pattern). `state` is what the cycle's sensor frame is
+    read from."""
+
+    @property
+    def state(self) -> JointState: ...
+
+    def step(self, dt_s: float, duty: float) -> object: ...
+
+
+class Sensors(Protocol):
+    """What turns a plant state into a cycle's raw sensor values: `hilrig.plants.SensorModel`,
+    or a stand-in."""
+
+    def read(self, state: JointState) -> RawSensors: ...
+
+
+FrameCallback = Callable[[int, bytes], None]
+"""Called with (COB-ID, data) of a frame a driver's link received for a listener (`listen`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -163,6 +186,14 @@ class CycleResult:
             self._tpdos = None
         return self._received  # type: ignore[return-value]
 
+    def values_by_cob_id(self) -> Mapping[int, tuple[Value, ...]]:
+        """The received TPDOs' values by COB-ID: the lockstep exchange's own dict as it collected
+        them (no copy, nothing built: what a checker of every cycle reads), or made from the rows."""
+        got = self._received
+        if isinstance(got, Mapping):
+            return got
+        return {pdo.cob_id: values for pdo, values in got}
+
     @property
     def received(self) -> dict[str, Value]:
         """TPDO values by name (built on first use)."""
@@ -203,6 +234,10 @@ class Driver:
     stream, where the actuator output is, which TPDOs are due at which SYNC.
     `node_entered(state)` must follow every NMT command the rig sends, since the node counts
     SYNCs for its TPDOs from the moment it became operational.
+
+    `keep_history=False`: the history records nothing (`History.keep`), for a run of millions of
+    cycles that is judged as it goes. `listen` hands the frames of other COB-IDs the node sends
+    (its heartbeat, its EMCY) to a callback as they arrive, on the driver's thread.
     """
 
     needs_sync_actuator = True
@@ -211,13 +246,14 @@ class Driver:
     def __init__(
         self,
         node: BoardNode,
-        plant: JointPlant,
-        sensors: SensorModel,
+        plant: Plant,
+        sensors: Sensors,
         *,
         period_us: int,
         tpdo_timeout_s: float = 5.0,
         liveness: Callable[[], None] | None = None,
         activity: Callable[[], ProcessActivity | None] | None = None,
+        keep_history: bool = True,
     ) -> None:
         if period_us <= 0:
             raise ValueError(f"period_us: expected > 0, got {period_us}")
@@ -232,7 +268,7 @@ class Driver:
         self.activity = activity
         """The node's process activity (`hilrig.engine.lockstep.process_activity`), for the hang
         guard to tell a busy host from a stuck firmware; None: wall time only."""
-        self.history = History(period_us)
+        self.history = History(period_us, keep=keep_history)
         self.cycle = 0
         """Cycles completed; also the index of the next cycle."""
         self.sensor_override: Callable[[RawSensors], RawSensors] | None = None
@@ -261,9 +297,10 @@ class Driver:
         self._actuator: tuple[PdoLayout, int] | None = None
         self._due_table: list[frozenset[int]] = [frozenset()]
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
-        self._decoders: dict[int, tuple[int, Unpack, bytearray, bytearray]] = {}
+        self._decoders: dict[int, Decoder] = {}
         """COB-ID -> (length, unpack, cycles, payloads) of every enabled TPDO: what a cycle's
-        exchange decodes, and the history's rows it appends each one to (`History.row_store`)."""
+        exchange decodes, and the history's rows it appends each one to (`History.row_store`);
+        (length, unpack) when the history keeps nothing."""
         self._rpdo_rows: dict[int, tuple[bytearray, bytearray]] = {}
         """COB-ID -> (cycles, payloads) of each enabled RPDO's sent rows in the history, which a
         lockstep cycle files the frames it sent into (`transport.append_frame_rows`)."""
@@ -271,6 +308,7 @@ class Driver:
         """`transport.exchange` bound to the link (configure())."""
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
         self._tpdo_names: frozenset[str] = frozenset()
+        self._listeners: dict[int, list[FrameCallback]] = {}
 
     @property
     def needs_plant_io(self) -> bool:
@@ -350,11 +388,15 @@ class Driver:
         self._due_table = [
             frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
         ]
+        keep = self.history.keep
         self._decoders = {
-            p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p)) for p in enabled_tpdos
+            p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p))
+            if keep
+            else (p.length, p.codec.unpack)
+            for p in enabled_tpdos
         }
-        self._rpdo_rows = {p.cob_id: self.history.row_store(p) for p in enabled_rpdos}
-        self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
+        self._rpdo_rows = {p.cob_id: self.history.row_store(p) for p in enabled_rpdos} if keep else {}
+        self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id, *self._listeners])
         self._exchange = exchanger(self._link)
         self._pending.clear()
 
@@ -409,21 +451,44 @@ class Driver:
         """Any raw frame on the node's bus now (fault injection: floods, malformed frames)."""
         self.link.send(can_frame(cob_id, data))
 
-    def poll(self) -> None:
-        """Take in what arrived since the last cycle without waiting: EMCYs are dispatched now
-        (to `BoardNode.on_emcy`), TPDOs are kept for the next cycle."""
+    def listen(self, cob_id: int, callback: FrameCallback) -> None:
+        """Have `callback(cob_id, data)` called with every frame on `cob_id` (not a TPDO: e.g.
+        the node's heartbeat, or its EMCY besides `BoardNode.on_emcy`) as the link receives
+        it: during a cycle's exchange or a `poll`, on the driver's thread. Before configure():
+        the link it opens receives that COB-ID too."""
+        self._listeners.setdefault(cob_id, []).append(callback)
+
+    def poll(self, timeout_s: float = 0.0) -> None:
+        """Take in what arrived since the last cycle: EMCYs are dispatched now (to
+        `BoardNode.on_emcy`, and any listener), TPDOs are kept for the next cycle. Without
+        waiting, or up to `timeout_s` for a first frame (e.g. the node's heartbeat before the
+        first cycle, with a listener on it)."""
         if self._link is None:
             return
         recv = self._link.recv
-        while (frame := recv(0.0)) is not None:
+        frame = recv(timeout_s)
+        while frame is not None:
             if frame[0] in self._tpdo_by_cob:
                 self._pending.append(frame)
             else:
                 self._other_frame(*frame)
+            frame = recv(0.0)
+
+    def take_late_tpdos(self) -> list[tuple[PdoLayout, bytes]]:
+        """`poll`, then hand the TPDO frames that arrived since the last cycle to the caller
+        instead of keeping them for the next one (which would refuse each: between SYNCs):
+        after a cycle whose due TPDOs did not all come, these are the ones that came late."""
+        self.poll()
+        pending, self._pending = self._pending, []
+        return [(self._tpdo_by_cob[cob_id], data) for cob_id, data in pending]
 
     def _other_frame(self, cob_id: int, data: bytes) -> None:
         if cob_id == self._emcy_cob_id:
             self.node.emcy_received(data)
+        listeners = self._listeners.get(cob_id)
+        if listeners is not None:
+            for callback in listeners:
+                callback(cob_id, data)
 
     def _transmit_rpdos(self, raw: RawSensors | None) -> tuple[PdoRow, ...]:
         """Send one cycle's RPDOs (`_rpdos_of_cycle`) now; return what was sent."""
@@ -494,10 +559,13 @@ __all__ = [
     "TRUTH_NAMES",
     "CycleResult",
     "Driver",
+    "FrameCallback",
     "History",
     "HistoryBlock",
     "HistoryMark",
     "PdoRow",
+    "Plant",
+    "Sensors",
     "resolve_truth_name",
     "sdo_poll_layout",
     "sync_counter",

@@ -175,6 +175,10 @@ HistoryBlock = tuple[PdoLayout, np.ndarray, np.ndarray]
 (rows x names) matrix; `layout.names` name its columns."""
 
 
+def _forget(_state: JointState) -> None:
+    """`History.record_truth` of a history that keeps nothing."""
+
+
 class History:
     """Per-cycle record of what the node sent, what the rig sent, and the plant's truth.
 
@@ -183,14 +187,20 @@ class History:
     Times are cycle * period exactly: the start of the cycle whose SYNC the values belong to.
     Truth rows hold the plant state at that time (the one the cycle's sensor frame was sampled
     from).
+
+    `keep=False` records nothing: no rows, no truth, so a run of any length holds the same
+    memory. For a program that judges every cycle as it goes and asks for no series afterwards
+    (the soak's million cycles); there is nothing to trace or to read back from it.
     """
 
-    def __init__(self, period_us: int) -> None:
+    def __init__(self, period_us: int, *, keep: bool = True) -> None:
         self.period_us = period_us
+        self.keep = keep
+        """Whether rows and truth are recorded (a driver then appends its rows: `row_store`)."""
         self._received = _Direction()
         self._sent = _Direction()
         self._truth: list[JointState] = []
-        self.record_truth: Callable[[JointState], None] = self._truth.append
+        self.record_truth: Callable[[JointState], None] = self._truth.append if keep else _forget
         """Record the plant state of the next cycle (every cycle: the list's own append)."""
 
     def time_of(self, cycle: int) -> float:
@@ -235,14 +245,16 @@ class History:
 
     def record_rows(self, cycle: int, received: Iterable[PdoRow], sent: Iterable[PdoRow]) -> None:
         """Rows of one cycle from their values (what the lockstep driver does from the frames)."""
+        if not self.keep:
+            return
         for direction, pdo_rows in ((self._received, received), (self._sent, sent)):
             for pdo, values in pdo_rows:
                 direction.rows_of(pdo).append(cycle, values)
 
     def row_store(self, pdo: PdoLayout) -> tuple[bytearray, bytearray]:
         """(cycles, payloads) of `pdo`'s rows (received for a TPDO, sent for an RPDO), for a
-        driver that appends to them every cycle: the payload as on the bus, then the cycle
-        (`ROW_CYCLE`), as `transport.append_row` and the C exchange do."""
+        driver that appends to them every cycle while the history `keep`s: the payload as on
+        the bus, then the cycle (`ROW_CYCLE`), as `transport.append_row` and the C exchange do."""
         direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
         rows = direction.rows_of(pdo)
         return rows.cycles, rows.data
