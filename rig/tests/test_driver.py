@@ -258,6 +258,16 @@ def test_late_tpdos_are_handed_back_and_listeners_get_their_frames(checking) -> 
     assert problems == []  # the late one was handed back, not kept for this cycle
 
 
+def test_a_tpdo_while_the_node_is_not_operational_is_refused_as_such(checking) -> None:
+    driver, problems, _ = checking
+    driver.node_entered(NmtState.STOPPED)
+    _link(driver).script = lambda n, frames: frames[:1]  # a node that answers while stopped
+    driver.step()
+    assert [p.what for p in problems] == [
+        "TPDO1 (0x190) arrived while the node is not operational (nothing is due)"
+    ]
+
+
 def test_a_history_that_keeps_nothing_stays_empty(checking) -> None:
     driver = checking[0]
     for _ in range(3):

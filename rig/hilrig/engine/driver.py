@@ -190,9 +190,11 @@ class CycleResult:
         """The received TPDOs' values by COB-ID: the lockstep exchange's own dict as it collected
         them (no copy, nothing built: what a checker of every cycle reads), or made from the rows."""
         got = self._received
+        if type(got) is dict:  # the exchange's (an isinstance of Mapping costs more than the rest)
+            return got
         if isinstance(got, Mapping):
             return got
-        return {pdo.cob_id: values for pdo, values in got}
+        return {pdo.cob_id: values for pdo, values in got}  # type: ignore[union-attr]
 
     @property
     def received(self) -> dict[str, Value]:

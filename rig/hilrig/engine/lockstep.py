@@ -242,7 +242,8 @@ class LockstepDriver(Driver):
             values = got.get(actuator[0].cob_id)
             if values is not None:
                 duty = duty_from_motor_duty(values[actuator[1]])  # an int: the codec's I16
-        append_frame_rows(frames, self._rpdo_rows, n)
+        if self._rpdo_rows:  # none when the history keeps nothing
+            append_frame_rows(frames, self._rpdo_rows, n)
         self.history.record_truth(state)
         return CycleResult(n, t, counter, raw, got, duty, sent, state, self._tpdo_by_cob)
 
@@ -312,6 +313,8 @@ class LockstepDriver(Driver):
             problem = "arrived between SYNCs"
         elif cob_id in got:
             problem = "arrived twice"
+        elif not sync_number:
+            problem = "arrived while the node is not operational (nothing is due)"
         elif cob_id not in due:
             problem = (
                 f"arrived but is not due at SYNC {sync_number} since operational "
