@@ -163,11 +163,14 @@ class CycleChecker:
             self.check_emcy(emcy)
 
     def stopped_cycle(self, result: CycleResult) -> None:
-        """A cycle run while the node was stopped: its RPDOs and SYNC must be ignored."""
+        """A cycle run while the node was stopped: its RPDOs and SYNC must be ignored (a TPDO
+        it answers with anyway is refused: `on_problem`)."""
         frames = len(result.sent_rows) + 1
-        self.tally.frames_sent += frames
-        self.tally.ignored_expected += frames
-        self.tally.syncs_stopped += 1
+        tally = self.tally
+        tally.frames_sent += frames
+        tally.ignored_expected += frames
+        tally.syncs_stopped += 1
+        tally.tpdos_received += len(result.values_by_cob_id())  # event-driven ones, if any
 
     def _status_problem(self, got: tuple[Value, ...], want: tuple[Value, ...]) -> None:
         names = self.layout.status.names
