@@ -1,6 +1,7 @@
 """The lockstep driver's frame handling and its History, against a scripted in-process link
 (exact frames, no threads, no bus): what a cycle takes, what it refuses, and how values are
-stored per PDO."""
+stored per PDO; and the driver of a checker that goes on after a problem (`on_problem`), keeps
+no history and listens to other frames (the soak's)."""
 
 from __future__ import annotations
 
@@ -13,9 +14,9 @@ import canopen
 import numpy as np
 import pytest
 
-from boardproto.cia301 import SYNC_COB_ID, NmtState, emcy_cob_id
+from boardproto.cia301 import SYNC_COB_ID, NmtState, emcy_cob_id, heartbeat_cob_id
 from hilrig.engine.driver import History
-from hilrig.engine.lockstep import LockstepDriver
+from hilrig.engine.lockstep import CycleProblem, LockstepDriver
 from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.errors import LockstepError
 from hilrig.plants import JointParams, JointPlant, SensorModel
@@ -24,8 +25,9 @@ from hilrig.wire.transport import PdoDirection, PdoLayout, compile_pdos, parse_f
 
 NODE_ID = 0x10
 EMCY = emcy_cob_id(NODE_ID)
+HEARTBEAT = heartbeat_cob_id(NODE_ID)
 SENSORS, SETPOINTS = (BOARD_TABLE.rpdo(n).cob_id(NODE_ID) for n in (1, 2))
-TPDO1, TPDO6, TPDO8 = (BOARD_TABLE.tpdo(n).cob_id(NODE_ID) for n in (1, 6, 8))
+TPDO1, TPDO3, TPDO6, TPDO8 = (BOARD_TABLE.tpdo(n).cob_id(NODE_ID) for n in (1, 3, 6, 8))
 
 
 class ScriptedLink:
@@ -69,8 +71,10 @@ class StubNode:
         self.table = RigTable.load()
         self.link = ScriptedLink([p for p in self.tpdos.values() if p.is_cyclic])
         self.emcy: list[bytes] = []
+        self.receive_ids: list[int] = []
 
     def open_link(self, receive_ids: list[int]) -> ScriptedLink:
+        self.receive_ids = receive_ids
         return self.link
 
     def emcy_received(self, data: bytes) -> None:
@@ -200,3 +204,73 @@ def test_history_gives_back_exactly_the_numbers_the_bus_carried() -> None:
     history.take_back(layout, 12)  # not the last row's cycle: nothing to take back
     history.take_back(layout, 13)
     assert history.received("i")[1].tolist() == [-32768, 7, 1]
+
+
+# --- A driver that goes on after a problem, keeps no history, listens (the soak's) ---------
+@pytest.fixture
+def checking() -> tuple[LockstepDriver, list[CycleProblem], list[tuple[int, bytes]]]:
+    params = JointParams()
+    driver = LockstepDriver(
+        StubNode(), JointPlant(params), SensorModel(params, 1), period_us=1000, tpdo_timeout_s=0.5,
+        keep_history=False,
+    )  # type: ignore[arg-type]  # fmt: skip
+    problems: list[CycleProblem] = []
+    heard: list[tuple[int, bytes]] = []
+    driver.on_problem = problems.append
+    driver.listen(HEARTBEAT, lambda cob_id, data: heard.append((cob_id, data)))
+    driver.configure()
+    driver.node_entered(NmtState.OPERATIONAL)
+    return driver, problems, heard
+
+
+def test_with_on_problem_a_refused_tpdo_is_reported_and_the_cycle_takes_the_rest(checking) -> None:
+    driver, problems, _ = checking
+    _link(driver).script = lambda n, frames: [(TPDO1, b"\x00"), *frames, frames[2]]
+    result = driver.step()
+    assert [(p.cycle, p.what, p.refused and p.refused.number) for p in problems] == [
+        (0, "TPDO1 (0x190) arrived with 1 bytes, its mapping has 3", 1),
+        (0, "TPDO3 (0x390) arrived twice", 3),
+    ]
+    assert len(result.values_by_cob_id()) == 7 and driver.cycle == 1 and driver.malformed_frames == 1
+    assert problems[1].error().args == ("cycle 0 (t = 0 s): TPDO3 (0x390) arrived twice",)
+
+
+def test_with_on_problem_missing_tpdos_end_their_cycle_and_the_next_runs(checking) -> None:
+    driver, problems, _ = checking
+    _link(driver).script = lambda n, frames: [f for f in frames if f[0] != TPDO6 or n != 1]
+    result = driver.step()
+    (lost,) = problems
+    assert [p.number for p in lost.missing] == [6] and [p.number for p in lost.received] == [1, 2, 3, 4, 5, 7]
+    assert lost.what == "TPDO6 (0x2D0) did not arrive within 0.5 s" and lost.refused is None
+    assert TPDO6 not in result.values_by_cob_id() and driver.cycle == 1
+    assert len(driver.step().values_by_cob_id()) == 7 and len(problems) == 1
+
+
+def test_late_tpdos_are_handed_back_and_listeners_get_their_frames(checking) -> None:
+    driver, problems, heard = checking
+    assert HEARTBEAT in driver.node.receive_ids  # type: ignore[attr-defined]
+    _link(driver).script = lambda n, frames: [(HEARTBEAT, b"\x05"), *frames]
+    driver.step()
+    _link(driver).out.extend([(TPDO1, bytes(3)), (HEARTBEAT, b"\x05")])
+    assert [(pdo.number, data) for pdo, data in driver.take_late_tpdos()] == [(1, bytes(3))]
+    assert heard == [(HEARTBEAT, b"\x05")] * 2
+    driver.step()
+    assert problems == []  # the late one was handed back, not kept for this cycle
+
+
+def test_a_tpdo_while_the_node_is_not_operational_is_refused_as_such(checking) -> None:
+    driver, problems, _ = checking
+    driver.node_entered(NmtState.STOPPED)
+    _link(driver).script = lambda n, frames: frames[:1]  # a node that answers while stopped
+    driver.step()
+    assert [p.what for p in problems] == [
+        "TPDO1 (0x190) arrived while the node is not operational (nothing is due)"
+    ]
+
+
+def test_a_history_that_keeps_nothing_stays_empty(checking) -> None:
+    driver = checking[0]
+    for _ in range(3):
+        driver.step()
+    history = driver.history
+    assert history.cycles == 0 and history.layouts() == [] and not history.has_received("motor_duty")

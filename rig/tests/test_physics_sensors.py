@@ -161,6 +161,11 @@ def test_raw_sensors_accept_anything_the_wire_type_holds_and_nothing_more() -> N
         dataclasses.replace(raw, motor_current_adc=32768)
     with pytest.raises(TypeError, match="thermistor_adc"):
         dataclasses.replace(raw, thermistor_adc=12.0)  # type: ignore[arg-type]
+    # Built unchecked (values in range by construction): the same reading, equal and frozen.
+    unchecked = RawSensors.in_range(65535, 0, 4095, -32768)
+    assert unchecked == raw and hash(unchecked) == hash(raw)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        unchecked.thermistor_adc = 1  # type: ignore[misc]
 
 
 def test_noiseless_reading_equals_the_ideal_conversions() -> None:

@@ -42,7 +42,7 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--channel", help="use this interface as it is (default: a private namespace vcan0)")
     parser.add_argument("--stop-file", type=Path, help="stop cleanly once this file exists (tools/soak)")
     parser.add_argument(
-        "--pin", action="store_true", help="pin driver and firmware to one CPU (slower with canopen's thread)"
+        "--pin", action="store_true", help="pin soak and firmware to one CPU (slower with canopen's thread)"
     )
     parser.add_argument("--cpu", type=int, help="the CPU to pin to (default: the last one allowed)")
     parser.add_argument(
@@ -68,7 +68,7 @@ COMMANDS = (
         description=(
             "Runs --cycles lockstep cycles (default a million) against the firmware on a private\n"
             "vcan bus (or --channel), with a seeded fault now and then: every TPDO of every cycle is\n"
-            "checked, the firmware's stop line against the driver's tally, its RSS and fds sampled.\n"
+            "checked, the firmware's stop line against the soak's tally, its RSS and fds sampled.\n"
             "Progress every 10 s; the report (OUT/report.json) every minute and at the end. Ctrl-C\n"
             "stops after the cycle at hand and still writes it. Exit 0 passed, 1 failed, 130\n"
             "interrupted. Needs root and vcan:\n\n"

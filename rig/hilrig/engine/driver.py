@@ -1,5 +1,6 @@
 """What the lockstep and the real-time driver share: the node's PDO roles, the RPDO values the rig
-commands, the per-cycle `History`, and the frame link the PDOs travel on (`hilrig.wire.transport`).
+commands, the per-cycle `History` (`hilrig.engine.history`), and the frame link the PDOs travel on
+(`hilrig.wire.transport`).
 
 A driver's small interface (what `Rig` uses): `configure()` after the node's PDO configuration was
 read, `step()` -> `CycleResult`, `cycle`, `t`, `period_us`, `history`, `node_entered(state)`,
@@ -15,30 +16,33 @@ import operator
 import os
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-
-import numpy as np
+from typing import Protocol
 
 from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id, sync_counter
+from hilrig.engine.history import (
+    TRUTH_ALIASES,
+    TRUTH_NAMES,
+    History,
+    HistoryBlock,
+    HistoryMark,
+    PdoRow,
+    Value,
+    resolve_truth_name,
+)
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.observe.paths import BUS_EVENTS_PATH
-from hilrig.plants import STATE_FIELDS, JointPlant, JointState, RawSensors, SensorModel, state_matrix
-from hilrig.table import unknown_name
+from hilrig.plants import JointState, RawSensors
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import (
-    ROW_CYCLE,
+    Decoder,
     Exchange,
     FrameLink,
     PdoDirection,
     PdoLayout,
-    Unpack,
     can_frame,
     exchanger,
     send_frames,
 )
-
-Value = float | int
-PdoRow = tuple[PdoLayout, tuple[Value, ...]]
-"""One PDO of one cycle: its layout and the values it carried, in mapping order."""
 
 ACTUATOR_OUTPUT = "motor_duty"
 """The HIL output that drives the plant; in lockstep its TPDO must be synchronous type 1."""
@@ -46,6 +50,28 @@ SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
 """Fields of the RPDO sent every cycle, like a real master's setpoint stream."""
 LIVENESS_SLICE_S = 0.25
 """While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
+
+
+class Plant(Protocol):
+    """What a driver samples and steps every cycle: `hilrig.plants.JointPlant`, or a stand-in
+    without physics (the soak's sensor pattern). `state` is what the cycle's sensor frame is
+    read from."""
+
+    @property
+    def state(self) -> JointState: ...
+
+    def step(self, dt_s: float, duty: float) -> object: ...
+
+
+class Sensors(Protocol):
+    """What turns a plant state into a cycle's raw sensor values: `hilrig.plants.SensorModel`,
+    or a stand-in."""
+
+    def read(self, state: JointState) -> RawSensors: ...
+
+
+FrameCallback = Callable[[int, bytes], None]
+"""Called with (COB-ID, data) of a frame a driver's link received for a listener (`listen`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,14 +103,6 @@ def process_activity(pid: int) -> ProcessActivity | None:
     return ProcessActivity((utime + stime) / _CLOCK_TICKS, state in (b"S", b"I"))
 
 
-TRUTH_NAMES: tuple[str, ...] = tuple(name for name in JointState.__dataclass_fields__ if name != "time_s")
-"""Ground-truth quantities, named as the JointState attributes (unit in the name)."""
-_UNIT_SUFFIXES = ("_rad_s", "_rad", "_nm", "_a", "_c", "_ohm")
-TRUTH_ALIASES: dict[str, str] = {
-    name[: -len(suffix)]: name for name in TRUTH_NAMES for suffix in _UNIT_SUFFIXES if name.endswith(suffix)
-}
-"""Short names without the unit suffix ("load_velocity" -> "load_velocity_rad_s")."""
-
 SYNC_FRAMES = tuple(can_frame(SYNC_COB_ID, bytes([counter])) for counter in range(1, SYNC_COUNTER_MAX + 1))
 """The SYNC frame of each counter value 1..240 (index counter - 1; cycle n's: index
 n % SYNC_COUNTER_MAX, as `sync_counter(n)` counts)."""
@@ -95,14 +113,6 @@ def sync_frame(counter: int) -> bytes:
     if not 1 <= counter <= SYNC_COUNTER_MAX:
         raise ValueError(f"SYNC counter: expected 1..{SYNC_COUNTER_MAX}, got {counter}")
     return SYNC_FRAMES[counter - 1]
-
-
-def resolve_truth_name(name: str) -> str:
-    if name in TRUTH_NAMES:
-        return name
-    if name in TRUTH_ALIASES:
-        return TRUTH_ALIASES[name]
-    raise unknown_name("ground-truth quantity", name, (*TRUTH_NAMES, *TRUTH_ALIASES))
 
 
 def sdo_poll_layout(names: tuple[str, ...], formats: tuple[str, ...]) -> PdoLayout:
@@ -118,256 +128,6 @@ def sdo_poll_layout(names: tuple[str, ...], formats: tuple[str, ...]) -> PdoLayo
         names=names,
         formats=formats,
     )
-
-
-# --- History --------------------------------------------------------------------------------
-class _PdoRows:
-    """Every cycle one PDO was exchanged in, with the payload it carried: two bytearrays, the
-    cycles (`ROW_CYCLE` each) and the payloads back to back, as on the bus. An append is two
-    copies of a few bytes, with no Python object kept per row (a million-cycle run holds some
-    14 bytes per PDO and cycle, not a tuple of numbers); readers get numpy columns.
-
-    Only ever appended to (a failed cycle's last row is taken back), so a count is a mark that
-    stays valid. A writer appends the payload before the cycle and a reader counts cycles, so a
-    reader on another thread never counts a row without its payload. Readers copy what they
-    read (a slice): a live view on the bytearray would stop it from growing."""
-
-    __slots__ = ("cycles", "data", "dtype", "layout", "names", "record", "width")
-
-    def __init__(self, layout: PdoLayout) -> None:
-        self.layout = layout
-        self.names = layout.names
-        if len(layout.formats) != len(layout.names):
-            raise ValueError(f"{layout.label}: no codec, its rows cannot be stored")
-        self.record = layout.codec
-        self.width = layout.length
-        names = [f"v{i}" for i in range(len(layout.names))]
-        self.dtype = np.dtype({"names": names, "formats": ["<" + code for code in layout.formats]})
-        self.cycles = bytearray()
-        self.data = bytearray()
-
-    @property
-    def count(self) -> int:
-        return len(self.cycles) // ROW_CYCLE.size
-
-    def append(self, cycle: int, values: Iterable[Value]) -> None:
-        self.data += self.record.pack(*values)
-        self.cycles += ROW_CYCLE.pack(cycle)
-
-    def last_cycle(self) -> int:
-        return ROW_CYCLE.unpack_from(self.cycles, len(self.cycles) - ROW_CYCLE.size)[0]
-
-    def drop_last(self) -> None:
-        """Take the last row back (the cycle it belongs to failed)."""
-        del self.cycles[-ROW_CYCLE.size :]
-        del self.data[len(self.data) - self.width :]
-
-    def last(self, position: int) -> tuple[int, Value]:
-        """(cycle, value at `position`) of the last row (there is one)."""
-        row = self.record.unpack_from(self.data, (self.count - 1) * self.width)
-        return self.last_cycle(), row[position]
-
-    def cycle_column(self, begin: int, end: int) -> np.ndarray:
-        """The cycles of rows begin..end (int64)."""
-        size = ROW_CYCLE.size
-        return np.frombuffer(bytes(self.cycles[begin * size : end * size]), dtype=np.int64)
-
-    def records(self, begin: int, end: int) -> np.ndarray:
-        """Rows begin..end as a numpy record array (field `v<i>` is the i-th mapped value)."""
-        return np.frombuffer(bytes(self.data[begin * self.width : end * self.width]), dtype=self.dtype)
-
-    def matrix(self, begin: int, end: int) -> np.ndarray:
-        """Rows begin..end as a float64 (rows x values) array."""
-        records = self.records(begin, end)
-        matrix = np.empty((len(records), len(self.names)), dtype=np.float64)
-        for i, name in enumerate(self.dtype.names or ()):
-            matrix[:, i] = records[name]
-        return matrix
-
-    def column(self, position: int) -> np.ndarray:
-        """Every value at `position`, as the numbers they are: int64, float64 or bool."""
-        return _widened(self.records(0, self.count)[f"v{position}"])
-
-
-def _widened(column: np.ndarray) -> np.ndarray:
-    """A column of a PDO's own type (int16, float32, ...) as int64, float64 or bool: what
-    arithmetic on a series expects, and exactly the numbers the bus carried."""
-    if column.dtype.kind == "b":
-        return column.astype(bool)
-    return column.astype(np.int64 if column.dtype.kind in "iu" else np.float64)
-
-
-class _Direction:
-    """Rows by PDO layout, and where each name is found (a layout and a position)."""
-
-    def __init__(self) -> None:
-        self.rows: dict[PdoLayout, _PdoRows] = {}
-        self.where: dict[str, list[tuple[_PdoRows, int]]] = {}
-        self._by_identity: dict[int, tuple[PdoLayout, _PdoRows]] = {}
-
-    def rows_of(self, pdo: PdoLayout) -> _PdoRows:
-        # By identity first (an int key); equal layouts read again after a restart share rows.
-        known = self._by_identity.get(id(pdo))
-        if known is not None and known[0] is pdo:
-            return known[1]
-        rows = self.rows.get(pdo)
-        if rows is None:
-            rows = self.rows[pdo] = _PdoRows(pdo)
-            for position, name in enumerate(pdo.names):
-                self.where.setdefault(name, []).append((rows, position))
-        self._by_identity[id(pdo)] = (pdo, rows)
-        return rows
-
-    def series(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Cycles and values of `name`, in cycle order, from every PDO that carried it."""
-        places = [(rows, i) for rows, i in self.where.get(name, ()) if rows.count]
-        if not places:
-            return np.zeros(0, dtype=np.int64), np.zeros(0)
-        # Counted once per PDO: the rig may append on while this reads (the tracer's thread).
-        counts = [rows.count for rows, _ in places]
-        cycles = [rows.cycle_column(0, count) for (rows, _), count in zip(places, counts, strict=True)]
-        values = [
-            _widened(rows.records(0, count)[f"v{i}"]) for (rows, i), count in zip(places, counts, strict=True)
-        ]
-        if len(places) == 1:
-            return cycles[0], values[0]
-        every_cycle = np.concatenate(cycles)
-        order = np.argsort(every_cycle, kind="stable")
-        return every_cycle[order], np.concatenate(values)[order]
-
-    def has(self, name: str) -> bool:
-        return any(rows.count for rows, _ in self.where.get(name, ()))
-
-    def latest(self, name: str) -> tuple[int, Value] | None:
-        best: tuple[int, Value] | None = None
-        for rows, i in self.where.get(name, ()):
-            if rows.count:
-                last = rows.last(i)
-                if best is None or last[0] >= best[0]:
-                    best = last
-        return best
-
-
-@dataclass(frozen=True, slots=True)
-class HistoryMark:
-    """Where every PDO's rows and the truth ended at one moment (`History.mark`)."""
-
-    rows: dict[_PdoRows, int]
-    truth: int
-
-
-HistoryBlock = tuple[PdoLayout, np.ndarray, np.ndarray]
-"""(layout, cycles, values): one PDO's rows between two marks, the cycles (int64) and a float64
-(rows x names) matrix; `layout.names` name its columns."""
-
-
-class History:
-    """Per-cycle record of what the node sent, what the rig sent, and the plant's truth.
-
-    Stored per PDO as the bus carried it (`_PdoRows`: a cycle and a payload per row, appended
-    in C for every TPDO a lockstep cycle decodes); a field's series is assembled when asked for.
-    Times are cycle * period exactly: the start of the cycle whose SYNC the values belong to.
-    Truth rows hold the plant state at that time (the one the cycle's sensor frame was sampled
-    from).
-    """
-
-    def __init__(self, period_us: int) -> None:
-        self.period_us = period_us
-        self._received = _Direction()
-        self._sent = _Direction()
-        self._truth: list[JointState] = []
-        self.record_truth: Callable[[JointState], None] = self._truth.append
-        """Record the plant state of the next cycle (every cycle: the list's own append)."""
-
-    def time_of(self, cycle: int) -> float:
-        return cycle * self.period_us / 1e6
-
-    def _times(self, cycles: Iterable[int] | np.ndarray) -> np.ndarray:
-        if not isinstance(cycles, np.ndarray):
-            cycles = np.fromiter(cycles, dtype=np.int64)
-        return cycles * self.period_us / 1e6
-
-    @property
-    def cycles(self) -> int:
-        return len(self._truth)
-
-    def layouts(self) -> list[PdoLayout]:
-        """Every PDO layout with rows here (received, then sent), with or without a row yet."""
-        return [*self._received.rows, *self._sent.rows]
-
-    def mark(self) -> HistoryMark:
-        """Where everything recorded so far ends: what an observer has taken so far (the tracer
-        takes whole batches of columns from here instead of copying every cycle's values)."""
-        rows = {r: r.count for d in (self._received, self._sent) for r in d.rows.values()}
-        return HistoryMark(rows, len(self._truth))
-
-    def blocks_between(self, start: HistoryMark, end: HistoryMark) -> list[HistoryBlock]:
-        """What was recorded after `start` up to `end`, PDO by PDO, as columns (safe from
-        another thread while the rig records on: rows are only appended to)."""
-        blocks = []
-        for rows, stop in end.rows.items():
-            begin = start.rows.get(rows, 0)
-            if stop > begin:
-                blocks.append((rows.layout, rows.cycle_column(begin, stop), rows.matrix(begin, stop)))
-        return blocks
-
-    def truth_between(self, start: HistoryMark, end: HistoryMark) -> tuple[range, list[JointState]]:
-        """The cycles and plant states recorded after `start` up to `end` (one per cycle)."""
-        return range(start.truth, end.truth), self._truth[start.truth : end.truth]
-
-    def times_of(self, cycles: Iterable[int] | np.ndarray) -> np.ndarray:
-        """The times of these cycles [s], as `time_of` gives them."""
-        return self._times(cycles)
-
-    def record_rows(self, cycle: int, received: Iterable[PdoRow], sent: Iterable[PdoRow]) -> None:
-        """Rows of one cycle from their values (what the lockstep driver does from the frames)."""
-        for direction, pdo_rows in ((self._received, received), (self._sent, sent)):
-            for pdo, values in pdo_rows:
-                direction.rows_of(pdo).append(cycle, values)
-
-    def row_store(self, pdo: PdoLayout) -> tuple[bytearray, bytearray]:
-        """(cycles, payloads) of `pdo`'s rows (received for a TPDO, sent for an RPDO), for a
-        driver that appends to them every cycle: the payload as on the bus, then the cycle
-        (`ROW_CYCLE`), as `transport.append_row` and the C exchange do."""
-        direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
-        rows = direction.rows_of(pdo)
-        return rows.cycles, rows.data
-
-    def take_back(self, pdo: PdoLayout, cycle: int) -> None:
-        """Drop `pdo`'s last row if it is `cycle`'s (that cycle failed after the row went in)."""
-        direction = self._sent if pdo.direction is PdoDirection.RPDO else self._received
-        rows = direction.rows_of(pdo)
-        if rows.count and rows.last_cycle() == cycle:
-            rows.drop_last()
-
-    def has_received(self, name: str) -> bool:
-        return self._received.has(name)
-
-    def has_sent(self, name: str) -> bool:
-        return self._sent.has(name)
-
-    def received(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """(t, values) of every cycle a TPDO carried `name`."""
-        cycles, values = self._received.series(name)
-        return self._times(cycles), values
-
-    def sent(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """(t, values) of every cycle the rig sent `name` in an RPDO."""
-        cycles, values = self._sent.series(name)
-        return self._times(cycles), values
-
-    def latest_received(self, name: str) -> Value:
-        latest = self._received.latest(name)
-        if latest is None:
-            raise KeyError(name)
-        return latest[1]
-
-    def truth(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """(t, values) of a ground-truth quantity (JointState attribute or its short alias)."""
-        attribute = resolve_truth_name(name)
-        states = self._truth[:]  # the rig may append on while this reads (the tracer's thread)
-        values = state_matrix(states)[:, STATE_FIELDS.index(attribute)]
-        return self._times(range(len(states))), values
 
 
 # --- One cycle's result ---------------------------------------------------------------------
@@ -426,6 +186,16 @@ class CycleResult:
             self._tpdos = None
         return self._received  # type: ignore[return-value]
 
+    def values_by_cob_id(self) -> Mapping[int, tuple[Value, ...]]:
+        """The received TPDOs' values by COB-ID: the lockstep exchange's own dict as it collected
+        them (no copy, nothing built: what a checker of every cycle reads), or made from the rows."""
+        got = self._received
+        if type(got) is dict:  # the exchange's (an isinstance of Mapping costs more than the rest)
+            return got
+        if isinstance(got, Mapping):
+            return got
+        return {pdo.cob_id: values for pdo, values in got}  # type: ignore[union-attr]
+
     @property
     def received(self) -> dict[str, Value]:
         """TPDO values by name (built on first use)."""
@@ -466,6 +236,10 @@ class Driver:
     stream, where the actuator output is, which TPDOs are due at which SYNC.
     `node_entered(state)` must follow every NMT command the rig sends, since the node counts
     SYNCs for its TPDOs from the moment it became operational.
+
+    `keep_history=False`: the history records nothing (`History.keep`), for a run of millions of
+    cycles that is judged as it goes. `listen` hands the frames of other COB-IDs the node sends
+    (its heartbeat, its EMCY) to a callback as they arrive, on the driver's thread.
     """
 
     needs_sync_actuator = True
@@ -474,13 +248,14 @@ class Driver:
     def __init__(
         self,
         node: BoardNode,
-        plant: JointPlant,
-        sensors: SensorModel,
+        plant: Plant,
+        sensors: Sensors,
         *,
         period_us: int,
         tpdo_timeout_s: float = 5.0,
         liveness: Callable[[], None] | None = None,
         activity: Callable[[], ProcessActivity | None] | None = None,
+        keep_history: bool = True,
     ) -> None:
         if period_us <= 0:
             raise ValueError(f"period_us: expected > 0, got {period_us}")
@@ -495,7 +270,7 @@ class Driver:
         self.activity = activity
         """The node's process activity (`hilrig.engine.lockstep.process_activity`), for the hang
         guard to tell a busy host from a stuck firmware; None: wall time only."""
-        self.history = History(period_us)
+        self.history = History(period_us, keep=keep_history)
         self.cycle = 0
         """Cycles completed; also the index of the next cycle."""
         self.sensor_override: Callable[[RawSensors], RawSensors] | None = None
@@ -524,9 +299,10 @@ class Driver:
         self._actuator: tuple[PdoLayout, int] | None = None
         self._due_table: list[frozenset[int]] = [frozenset()]
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
-        self._decoders: dict[int, tuple[int, Unpack, bytearray, bytearray]] = {}
+        self._decoders: dict[int, Decoder] = {}
         """COB-ID -> (length, unpack, cycles, payloads) of every enabled TPDO: what a cycle's
-        exchange decodes, and the history's rows it appends each one to (`History.row_store`)."""
+        exchange decodes, and the history's rows it appends each one to (`History.row_store`);
+        (length, unpack) when the history keeps nothing."""
         self._rpdo_rows: dict[int, tuple[bytearray, bytearray]] = {}
         """COB-ID -> (cycles, payloads) of each enabled RPDO's sent rows in the history, which a
         lockstep cycle files the frames it sent into (`transport.append_frame_rows`)."""
@@ -534,6 +310,7 @@ class Driver:
         """`transport.exchange` bound to the link (configure())."""
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
         self._tpdo_names: frozenset[str] = frozenset()
+        self._listeners: dict[int, list[FrameCallback]] = {}
 
     @property
     def needs_plant_io(self) -> bool:
@@ -613,11 +390,15 @@ class Driver:
         self._due_table = [
             frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
         ]
+        keep = self.history.keep
         self._decoders = {
-            p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p)) for p in enabled_tpdos
+            p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p))
+            if keep
+            else (p.length, p.codec.unpack)
+            for p in enabled_tpdos
         }
-        self._rpdo_rows = {p.cob_id: self.history.row_store(p) for p in enabled_rpdos}
-        self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id])
+        self._rpdo_rows = {p.cob_id: self.history.row_store(p) for p in enabled_rpdos} if keep else {}
+        self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id, *self._listeners])
         self._exchange = exchanger(self._link)
         self._pending.clear()
 
@@ -672,21 +453,44 @@ class Driver:
         """Any raw frame on the node's bus now (fault injection: floods, malformed frames)."""
         self.link.send(can_frame(cob_id, data))
 
-    def poll(self) -> None:
-        """Take in what arrived since the last cycle without waiting: EMCYs are dispatched now
-        (to `BoardNode.on_emcy`), TPDOs are kept for the next cycle."""
+    def listen(self, cob_id: int, callback: FrameCallback) -> None:
+        """Have `callback(cob_id, data)` called with every frame on `cob_id` (not a TPDO: e.g.
+        the node's heartbeat, or its EMCY besides `BoardNode.on_emcy`) as the link receives
+        it: during a cycle's exchange or a `poll`, on the driver's thread. Before configure():
+        the link it opens receives that COB-ID too."""
+        self._listeners.setdefault(cob_id, []).append(callback)
+
+    def poll(self, timeout_s: float = 0.0) -> None:
+        """Take in what arrived since the last cycle: EMCYs are dispatched now (to
+        `BoardNode.on_emcy`, and any listener), TPDOs are kept for the next cycle. Without
+        waiting, or up to `timeout_s` for a first frame (e.g. the node's heartbeat before the
+        first cycle, with a listener on it)."""
         if self._link is None:
             return
         recv = self._link.recv
-        while (frame := recv(0.0)) is not None:
+        frame = recv(timeout_s)
+        while frame is not None:
             if frame[0] in self._tpdo_by_cob:
                 self._pending.append(frame)
             else:
                 self._other_frame(*frame)
+            frame = recv(0.0)
+
+    def take_late_tpdos(self) -> list[tuple[PdoLayout, bytes]]:
+        """`poll`, then hand the TPDO frames that arrived since the last cycle to the caller
+        instead of keeping them for the next one (which would refuse each: between SYNCs):
+        after a cycle whose due TPDOs did not all come, these are the ones that came late."""
+        self.poll()
+        pending, self._pending = self._pending, []
+        return [(self._tpdo_by_cob[cob_id], data) for cob_id, data in pending]
 
     def _other_frame(self, cob_id: int, data: bytes) -> None:
         if cob_id == self._emcy_cob_id:
             self.node.emcy_received(data)
+        listeners = self._listeners.get(cob_id)
+        if listeners is not None:
+            for callback in listeners:
+                callback(cob_id, data)
 
     def _transmit_rpdos(self, raw: RawSensors | None) -> tuple[PdoRow, ...]:
         """Send one cycle's RPDOs (`_rpdos_of_cycle`) now; return what was sent."""
@@ -757,10 +561,13 @@ __all__ = [
     "TRUTH_NAMES",
     "CycleResult",
     "Driver",
+    "FrameCallback",
     "History",
     "HistoryBlock",
     "HistoryMark",
     "PdoRow",
+    "Plant",
+    "Sensors",
     "resolve_truth_name",
     "sdo_poll_layout",
     "sync_counter",

@@ -12,6 +12,11 @@ One cycle (index n, simulation time t = n * period, exact):
 5. step the plant by one period with the duty from the actuator TPDO (motor_duty).
 
 Every cycle's received values, sent values and the plant's ground truth go into `History`.
+
+A TPDO the rules refuse (twice, not due, between SYNCs, the wrong length) or one the hang guard
+gave up on ends the cycle with a LockstepError: a scenario's verdict. A program that judges each
+cycle and goes on (the soak) sets `on_problem` instead: it gets each problem (`CycleProblem`),
+the refused frame is dropped, and a cycle whose due TPDOs did not all come ends without them.
 """
 
 from __future__ import annotations
@@ -38,7 +43,7 @@ from hilrig.engine.driver import (
 )
 from hilrig.errors import FirmwareError, HostStarvedError, LockstepError
 from hilrig.plants import JointState, RawSensors, duty_from_motor_duty
-from hilrig.wire.transport import append_frame_rows, append_row, send_frames
+from hilrig.wire.transport import PdoLayout, append_frame_rows, append_row, send_frames
 
 _NOTHING_DUE: frozenset[int] = frozenset()
 
@@ -108,6 +113,25 @@ class HangGuard:
         return None
 
 
+@dataclass(frozen=True, slots=True)
+class CycleProblem:
+    """What `LockstepDriver.on_problem` gets instead of a LockstepError: a frame of cycle `cycle`
+    the rules refuse (`refused`: the TPDO it came on; the frame is dropped), or due TPDOs the
+    hang guard gave up on (`missing`; the cycle ended without them)."""
+
+    cycle: int
+    t: float
+    what: str
+    """What went wrong, as the LockstepError would say it after "cycle n (t = ...): "."""
+    refused: PdoLayout | None = None
+    missing: tuple[PdoLayout, ...] = ()
+    received: tuple[PdoLayout, ...] = ()
+    """With `missing`: the due TPDOs that did arrive."""
+
+    def error(self) -> LockstepError:
+        return LockstepError(f"cycle {self.cycle} (t = {self.t:.6g} s): {self.what}")
+
+
 @dataclass(slots=True)
 class CycleStart:
     """What the first phase of a lockstep cycle did: the sensor frame it sampled from `state`,
@@ -137,6 +161,10 @@ class LockstepDriver(Driver):
     raw socket a cycle's RPDOs and SYNC go out, and its due TPDOs come in decoded, in one call
     each (`transport.exchange`); any other frame comes back to `_collect`'s rules at once.
     """
+
+    on_problem: Callable[[CycleProblem], None] | None = None
+    """None: a problem of a cycle raises LockstepError. Set: it gets each problem and the cycle
+    goes on (see the module's docstring)."""
 
     def step(self) -> CycleResult:
         n, state, raw, due, sync_number, sent, frames = self._sample()
@@ -214,7 +242,8 @@ class LockstepDriver(Driver):
             values = got.get(actuator[0].cob_id)
             if values is not None:
                 duty = duty_from_motor_duty(values[actuator[1]])  # an int: the codec's I16
-        append_frame_rows(frames, self._rpdo_rows, n)
+        if self._rpdo_rows:  # none when the history keeps nothing
+            append_frame_rows(frames, self._rpdo_rows, n)
         self.history.record_truth(state)
         return CycleResult(n, t, counter, raw, got, duty, sent, state, self._tpdo_by_cob)
 
@@ -251,7 +280,8 @@ class LockstepDriver(Driver):
                     continue
                 if guard is None:
                     guard = HangGuard(self.tpdo_timeout_s, self.activity, LIVENESS_SLICE_S)
-                self._check_alive(n, t, due, got, guard)
+                if self._check_alive(n, t, due, got, guard):
+                    return got  # given up on, and `on_problem` has it: the cycle ends without them
         except BaseException:
             self._forget_rows(n, got)
             raise
@@ -283,6 +313,8 @@ class LockstepDriver(Driver):
             problem = "arrived between SYNCs"
         elif cob_id in got:
             problem = "arrived twice"
+        elif not sync_number:
+            problem = "arrived while the node is not operational (nothing is due)"
         elif cob_id not in due:
             problem = (
                 f"arrived but is not due at SYNC {sync_number} since operational "
@@ -291,21 +323,25 @@ class LockstepDriver(Driver):
         else:  # a due TPDO after all (not one the exchange decoded itself)
             self._keep(got, n, cob_id, values, data)
             return
-        raise self._error(n, t, f"{pdo.label} {problem}")
+        if self.on_problem is None:
+            raise self._error(n, t, f"{pdo.label} {problem}")
+        self.on_problem(CycleProblem(n, t, f"{pdo.label} {problem}", refused=pdo))
 
     def _keep(
         self, got: dict[int, tuple[Value, ...]], n: int, cob_id: int, values: tuple[Value, ...], data: bytes
     ) -> None:
         """A TPDO of cycle `n` into `got` and its rows (what the exchange does in C)."""
         got[cob_id] = values
-        append_row(self._decoders[cob_id], n, data)
+        decoder = self._decoders[cob_id]
+        if len(decoder) == 4:  # the history keeps rows
+            append_row(decoder, n, data)  # type: ignore[arg-type]
 
     def _check_alive(
         self, n: int, t: float, due: frozenset[int], got: dict[int, tuple[Value, ...]], guard: HangGuard
-    ) -> None:
+    ) -> bool:
         """A quiet slice of a wait for due TPDOs passed: FirmwareError if the node's process
-        died, LockstepError once the hang guard gives up on the firmware, HostStarvedError
-        once it gives up on the host."""
+        died, LockstepError once the hang guard gives up on the firmware (with `on_problem`:
+        that problem to it, and True), HostStarvedError once it gives up on the host."""
         if self.liveness is not None:
             try:
                 self.liveness()  # raises (e.g. FirmwareError) when the node's process died
@@ -322,7 +358,21 @@ class LockstepDriver(Driver):
             verb = "did" if len(missing) == 1 else "do"
             heartbeat = self.node.last_heartbeat
             hint = f"; last heartbeat: {heartbeat.name}" if heartbeat is not None else ""
-            raise self._error(n, t, f"{labels} {verb} not arrive{why}{hint}")
+            what = f"{labels} {verb} not arrive{why}{hint}"
+            if self.on_problem is None:
+                raise self._error(n, t, what)
+            order = sorted(due, key=lambda c: by_cob[c].number)
+            self.on_problem(
+                CycleProblem(
+                    n,
+                    t,
+                    what,
+                    missing=tuple(by_cob[c] for c in order if c in missing),
+                    received=tuple(by_cob[c] for c in order if c in got),
+                )
+            )
+            return True
+        return False
 
     def _forget_rows(self, n: int, got: dict[int, tuple[Value, ...]]) -> None:
         """Take the rows of cycle `n` that `got`'s TPDOs left in the history back out."""
@@ -350,6 +400,7 @@ __all__ = [
     "SETPOINT_STREAM",
     "TRUTH_ALIASES",
     "TRUTH_NAMES",
+    "CycleProblem",
     "CycleResult",
     "CycleStart",
     "HangGuard",

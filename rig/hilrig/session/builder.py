@@ -102,8 +102,8 @@ class SessionConfig:
     start: bool = True
     """Bring the node up (Rig.start) before handing the session over."""
     rig: bool = True
-    """False: no Rig, only the node (`HilSession.node`: canopen for SDO/NMT and the frame link)
-    for a driver of its own (the soak)."""
+    """False: no Rig, only the node (`HilSession.node`: canopen for SDO/NMT and the frame link),
+    for a program that puts the engine's driver on it itself (the soak: no plant, no trace)."""
     host_channel: str | None = None
     """Run the firmware on this interface of the host as it is, instead of a private vcan0."""
     firmware_term_timeout_s: float = 5.0

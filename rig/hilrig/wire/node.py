@@ -151,6 +151,12 @@ def explain_abort(code: int, entry: ObjectEntry | None = None) -> str:
     return text
 
 
+def emcy_object_index(manufacturer: bytes) -> int:
+    """The index of the object an EMCY is about: the board puts it in the first two bytes of
+    the manufacturer-specific error field (`boardproto.cia301.split_emcy`'s `manufacturer`)."""
+    return int.from_bytes(manufacturer[:2], "little")
+
+
 @dataclass(frozen=True)
 class EmcyRecord:
     """An EMCY the node sent, stamped with the lockstep cycle and simulation time it arrived in."""
@@ -167,8 +173,8 @@ class EmcyRecord:
 
     @property
     def object_index(self) -> int:
-        """Index of the object the error is about (the board puts it in the first two bytes)."""
-        return int.from_bytes(self.data[:2], "little")
+        """Index of the object the error is about (`emcy_object_index`)."""
+        return emcy_object_index(self.data)
 
     def __str__(self) -> str:
         return (

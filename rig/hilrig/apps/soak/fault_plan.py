@@ -1,7 +1,7 @@
 """The soak's seeded fault schedule: about one fault per `interval` cycles, every kind once
 during warm-up, the same plan for the same arguments (`plan_faults`). The kinds are spelled as
 `hilrig.session.faults` spells them, one vocabulary for `hilrig sim --fault` and the soak, each
-with the outcome the soak's driver checks.
+with the outcome the soak checks.
 """
 
 from __future__ import annotations

@@ -1,16 +1,17 @@
 """What the soak sends and what it expects, frozen once from the generated EDS: the PDO layout
-(`load_layout`: the sensor and setpoint RPDOs, the cyclic TPDOs due at each SYNC, the status TPDO,
-the objects the SDO fault reads), the EMCYs the faults must bring, and the sensor values of each
-cycle (`SensorPattern`: a constant rotation the checks can predict exactly, no physics).
+(`load_layout`: the sensor and setpoint RPDOs, the cyclic TPDOs, the status TPDO, the objects the
+SDO fault reads), the EMCYs the faults must bring, and the sensor values of each cycle
+(`SensorPattern`: a constant rotation the checks can predict exactly, no physics; it stands in
+for the plant and the sensors of the engine's lockstep driver).
 
 The PDOs are compiled into the same codecs the Rig uses (`hilrig.wire.transport.compile_pdos`);
-the due-at-SYNC rule is `boardproto.cia301.due_at_sync`.
+which TPDOs are due at which SYNC is the engine's to know (`hilrig.engine.driver.Driver`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
-import operator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,20 +20,17 @@ import canopen
 from boardproto.cia301 import (
     NMT_COB_ID,
     SYNC_COB_ID,
-    SYNC_COUNTER_MAX,
     TIME_COB_ID,
     FunctionCode,
-    due_at_sync,
     emcy_cob_id,
     heartbeat_cob_id,
     sdo_request_cob_id,
     sdo_response_cob_id,
 )
-from boardproto.table import ERROR_RESET_CODE
 from hilrig import resources
 from hilrig.engine.driver import SETPOINT_STREAM
 from hilrig.errors import PdoMappingError
-from hilrig.plants import JointParams, thermistor_adc
+from hilrig.plants import ENCODER_MODULUS, JointParams, JointPlant, JointState, RawSensors, thermistor_adc
 from hilrig.table import BOARD_TABLE, ControlMode, EmcyCode, FaultFlags, RigTable
 from hilrig.wire.transport import PdoDirection, PdoLayout, compile_pdos
 
@@ -41,6 +39,8 @@ VELOCITY_MODE = float(ControlMode.VELOCITY)
 """The velocity loop (board.toml), so the controllers and the watchdog run."""
 MOTOR_COUNTS_PER_CYCLE = 25
 """The sensor pattern turns the motor encoder by this many counts per cycle (38 rad/s at 1 kHz)."""
+ENCODER_MASK = ENCODER_MODULUS - 1
+"""Both encoders' 16-bit counters wrap (the firmware unwraps them)."""
 STALE_ENCODER_BITS = tuple(
     BOARD_TABLE.bitset("fault_flags").bit(name) for name in ("motor_encoder_stale", "output_encoder_stale")
 )
@@ -49,7 +49,6 @@ each raises and the object it names (board.toml)."""
 STALE_ENCODER_FLAGS = FaultFlags.MOTOR_ENCODER_STALE | FaultFlags.OUTPUT_ENCODER_STALE
 MAX_EXTRA_STALE_CYCLES = 5
 
-EMCY_ERROR_RESET = ERROR_RESET_CODE
 EMCY_STALE_SENSOR = EmcyCode[(STALE_ENCODER_BITS[0].emcy or "").upper()]
 EMCY_PDO_LENGTH = EmcyCode.PDO_LENGTH_ERROR
 RPDO_COMMUNICATION_BASE = 0x1400
@@ -72,7 +71,7 @@ class SoakLayout:
     sensor: PdoLayout
     setpoint: PdoLayout
     tpdos: tuple[PdoLayout, ...]
-    """Enabled synchronous cyclic TPDOs (types 1..240): the ones due at SYNCs."""
+    """Enabled synchronous cyclic TPDOs (types 1..240, `PdoLayout.is_cyclic`)."""
     status: PdoLayout
     """The TPDO carrying safe_state and fault_flags."""
     encoder_stale_cycles: int
@@ -104,21 +103,6 @@ class SoakLayout:
     def heartbeat_cob_id(self) -> int:
         return heartbeat_cob_id(self.node_id)
 
-    @property
-    def receive_ids(self) -> tuple[int, ...]:
-        """What the driver's frame link lets through: the TPDOs, EMCY, heartbeat (the SDO
-        answers go to canopen's SDO client)."""
-        return (*(p.cob_id for p in self.tpdos), self.emcy_cob_id, self.heartbeat_cob_id)
-
-    @property
-    def due_period(self) -> int:
-        """SYNC numbers repeat their set of due TPDOs with this period (lcm of the types)."""
-        return math.lcm(*(p.transmission_type for p in self.tpdos))
-
-    def due_at(self, sync_number: int) -> tuple[PdoLayout, ...]:
-        """TPDOs due at the sync_number-th SYNC since the node entered operational (1 = first)."""
-        return tuple(p for p in self.tpdos if due_at_sync(p.transmission_type, sync_number))
-
     def status_bytes(self, fault_flags: int) -> bytes:
         """The status TPDO's payload for a latched fault mask (safe_state follows it)."""
         return self.status.pack_named(
@@ -147,7 +131,7 @@ def load_layout(eds: str | Path, node_id: int, table: RigTable | None = None) ->
     inputs = {io.name for io in table.board.hil_inputs}
     sensor = [p for p in rpdos if set(p.names) == inputs]
     setpoint = [p for p in rpdos if set(SETPOINT_STREAM) <= set(p.names)]
-    cyclic = tuple(p for p in tpdos if 1 <= p.transmission_type <= SYNC_COUNTER_MAX)
+    cyclic = tuple(p for p in tpdos if p.is_cyclic)
     status = [p for p in cyclic if "fault_flags" in p.names]
     problems = []
     if not sensor:
@@ -215,6 +199,12 @@ class SensorPattern:
     ratio and counts per revolution, so the spring is never deflected; the thermistor reads the
     ambient temperature and the motor current is zero. The output velocity is the setpoint of
     the velocity loop, so the controllers run near equilibrium for the whole soak.
+
+    It is the plant and the sensors of the engine's lockstep driver (`hilrig.engine.driver.Plant`
+    and `Sensors`): `read` gives the values of firmware cycle `cycle`, which the soak sets before
+    each cycle (SYNCs while the node is stopped are no firmware cycles, so the driver's own cycle
+    count would run ahead); `step` does nothing and `state` is the joint at the pattern's speeds,
+    never advanced (no physics: no truth to record).
     """
 
     def __init__(self, layout: SoakLayout, period_us: int) -> None:
@@ -224,29 +214,36 @@ class SensorPattern:
         self.output_per_motor = output_cpr / (motor_cpr * gear)
         params = JointParams()
         self.thermistor_adc = thermistor_adc(params.ntc_r25_ohm, params.thermistor_pullup_ohm)
+        RawSensors(0, 0, self.thermistor_adc, 0)  # checked once: `raw` builds them unchecked
         dt = period_us / 1e6
         self.motor_velocity_rad_s = MOTOR_COUNTS_PER_CYCLE / motor_cpr * 2 * math.pi / dt
         self.output_velocity_rad_s = self.motor_velocity_rad_s / gear
-        self._sensor = layout.sensor
-        canonical = ("motor_encoder_counts", "output_encoder_counts", "thermistor_adc", "motor_current_adc")
-        unknown = set(layout.sensor.names) - set(canonical)
+        unknown = set(layout.sensor.names) - set(RawSensors.__dataclass_fields__)
         if unknown:
             raise PdoMappingError(
                 f"{layout.sensor.label} maps {sorted(unknown)}: the soak has no pattern for it"
             )
-        self._order = operator.itemgetter(*(canonical.index(n) for n in layout.sensor.names))
-
-    def values(self, cycle: int) -> tuple[int, int, int, int]:
-        """(motor counts, output counts, thermistor ADC, current ADC) of cycle `cycle`."""
-        motor = cycle * MOTOR_COUNTS_PER_CYCLE
-        return (
-            motor & 0xFFFF,
-            round(motor * self.output_per_motor) & 0xFFFF,
-            self.thermistor_adc,
-            0,
+        self.cycle = 1
+        """The firmware cycle whose values `read` gives (1 = the first)."""
+        self._state = dataclasses.replace(
+            JointPlant(params).state,
+            motor_velocity_rad_s=self.motor_velocity_rad_s,
+            load_velocity_rad_s=self.output_velocity_rad_s,
         )
 
-    def frame(self, cycle: int) -> bytes:
-        """The sensor RPDO of cycle `cycle` as a SocketCAN frame."""
-        return self._sensor.frame(self._order(self.values(cycle)))
+    def raw(self, cycle: int) -> RawSensors:
+        """The raw sensor values of firmware cycle `cycle`."""
+        motor = cycle * MOTOR_COUNTS_PER_CYCLE
+        output = round(motor * self.output_per_motor)
+        return RawSensors.in_range(motor & ENCODER_MASK, output & ENCODER_MASK, self.thermistor_adc, 0)
 
+    # The engine's Plant and Sensors.
+    @property
+    def state(self) -> JointState:
+        return self._state
+
+    def step(self, dt_s: float, duty: float) -> JointState:
+        return self._state
+
+    def read(self, state: JointState) -> RawSensors:
+        return self.raw(self.cycle)

@@ -16,9 +16,10 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from hilrig.apps.soak.driver import SoakDriver, SoakProgress, Tally
+from hilrig.apps.soak.checker import Tally
 from hilrig.apps.soak.fault_plan import FaultPlan
 from hilrig.apps.soak.memory import memory_verdict
+from hilrig.apps.soak.soak import Soak, SoakProgress
 
 SERIES_POINTS = 250
 """The report keeps at most this many RSS samples (evenly thinned); the summary uses all."""
@@ -83,7 +84,7 @@ def format_progress(p: SoakProgress) -> str:
 def build_report(
     *,
     args: argparse.Namespace,
-    driver: SoakDriver | None,
+    soak: Soak | None,
     plan: FaultPlan,
     status: RunStatus,
     error: str | None,
@@ -94,17 +95,19 @@ def build_report(
     driver_cpu_s: float,
     cycling_s: float | None = None,
 ) -> dict[str, Any]:
-    """The soak report (JSON-ready). `status` is the run's outcome before the verdicts."""
-    samples = driver.samples if driver is not None else []
+    """The soak report (JSON-ready). `status` is the run's outcome before the verdicts;
+    `driver_cpu_s` is the CPU time of the soak's own process (the rig side)."""
+    samples = soak.samples if soak is not None else []
     verdict = memory_verdict(samples, plan.warmup_cycle, args.rss_bound_kib)
-    tally = driver.tally if driver is not None else Tally()
+    checker = soak.checker if soak is not None else None
+    tally = checker.tally if checker is not None else Tally()
     stop = firmware.get("counters")
     mismatches = compare_counters(tally.expected_counters(), stop) if stop is not None else []
     if stop is None and status is not RunStatus.RUNNING:
         mismatches = ["no stop line from the firmware (killed, or crashed?)"]
-    lost = driver.lost if driver is not None else []
-    problems = driver.problems if driver is not None else []
-    problem_count = driver.problem_count if driver is not None else 0
+    lost = checker.lost if checker is not None else []
+    problems = checker.problems if checker is not None else []
+    problem_count = checker.problem_count if checker is not None else 0
     failures = []
     if lost:
         failures.append(f"{len(lost)} lost cycle(s)")
@@ -116,7 +119,7 @@ def build_report(
         failures.append("firmware counters disagree: " + "; ".join(mismatches))
     if error:
         failures.append(error)
-    velocity_summary = _velocity_summary(driver, driver.velocity_samples if driver is not None else [])
+    velocity_summary = _velocity_summary(soak, soak.velocity_samples if soak is not None else [])
     for part in ("first_tenth", "last_tenth"):
         for key, value in velocity_summary.get(part, {}).items():
             if key.endswith("_max_error_pct") and value > velocity_summary["goal_max_error_pct"]:
@@ -132,7 +135,7 @@ def build_report(
             final = RunStatus.INTERRUPTED
         else:
             final = RunStatus.PASSED
-    cycles = driver.cycle if driver is not None else 0
+    cycles = soak.cycle if soak is not None else 0
     fw_cpu = [s.cpu_s for s in samples]
     return {
         "status": final.value,
@@ -144,8 +147,8 @@ def build_report(
         "problems": problem_count,
         "problem_details": problems[:50],
         "faults": {
-            "injected_by_kind": dict(driver.faults_done) if driver is not None else {},
-            "injected": sum(driver.faults_done.values()) if driver is not None else 0,
+            "injected_by_kind": dict(soak.faults_done) if soak is not None else {},
+            "injected": sum(soak.faults_done.values()) if soak is not None else 0,
             "planned": len(plan.faults),
             "interval": plan.interval,
             "seed": plan.seed,
@@ -180,11 +183,11 @@ def build_report(
             "heartbeats": tally.heartbeats,
             "heartbeat_states": {
                 f"0x{state:02X}": n
-                for state, n in sorted((driver.heartbeat_states if driver else {}).items())
+                for state, n in sorted((checker.heartbeat_states if checker else {}).items())
             },
             "emcy": [
                 f"cycle {c}: 0x{code:04X} about 0x{about:04X}"
-                for c, code, about in (driver.emcy_log if driver else [])
+                for c, code, about in (checker.emcy_log if checker else [])
             ][:300],
         },
         "velocity": velocity_summary,
@@ -200,12 +203,12 @@ def build_report(
     }
 
 
-def _velocity_summary(driver: SoakDriver | None, samples: list[tuple[int, float, float]]) -> dict[str, Any]:
+def _velocity_summary(soak: Soak | None, samples: list[tuple[int, float, float]]) -> dict[str, Any]:
     """The firmware's velocity estimates against the pattern's exact speeds, in the first and the
     last tenth of the run (issue: numbers that stay right after hours): max error in percent."""
-    if driver is None or not samples:
+    if soak is None or not samples:
         return {}
-    expected = {"motor": driver.pattern.motor_velocity_rad_s, "output": driver.pattern.output_velocity_rad_s}
+    expected = {"motor": soak.pattern.motor_velocity_rad_s, "output": soak.pattern.output_velocity_rad_s}
 
     def spread(part: list[tuple[int, float, float]]) -> dict[str, float]:
         summary: dict[str, float] = {}

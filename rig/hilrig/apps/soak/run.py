@@ -4,17 +4,19 @@ faults now and then; no cycle may be lost and the firmware's memory must stay fl
     make soak                                   # SOAK_CYCLES=1000000, through tools/with-vcan
     tools/with-vcan -- .venv/bin/hilrig soak --cycles 20000 --fault-interval 2000
 
-It runs on the rig's own engine pieces, with a lean loop of its own on top (`driver`; no
-physics: a constant rotation the checks can predict exactly):
+It runs on the rig's engine (no physics: a constant rotation the checks can predict exactly):
 
-* The session (`hilrig.session.builder`, without a Rig): the firmware on a private bus, canopen's
-  RemoteNode for SDO and NMT, and the frame link (`hilrig.wire.transport`: one raw socket with kernel
-  receive filters for the node's TPDOs, EMCY and heartbeat).
-* The PDO layout (`layout`: COB-IDs, transmission types, mapped objects and their types) is
-  read once from the generated EDS with canopen and compiled into the same codecs the Rig uses
-  (`hilrig.wire.transport.compile_pdos`); the due-at-SYNC rule is `boardproto.cia301.due_at_sync`.
-* The SDO transfers a fault needs go through canopen's SDO client; the node answers in order, so
-  after the answer everything it sent before is in the link's queue (the barrier).
+* The session (`hilrig.session.builder`, without a Rig): the firmware on a private bus and the
+  node (`hilrig.wire.node.BoardNode`: canopen for SDO and NMT).
+* The cycles are the engine's lockstep driver's (`hilrig.engine.lockstep`, built by `soak.Soak`):
+  its frame link (one raw socket with kernel receive filters for the node's TPDOs, EMCY and
+  heartbeat), its codecs compiled from the EDS's PDO mapping, its due-at-SYNC table, its hang
+  guard; with the sensor pattern as the plant, a history that keeps nothing, and every problem
+  handed to the soak's checker (`checker`) instead of ending the run.
+* The PDO layout the checks need (`layout`: the sensor, setpoint and status PDOs, the objects
+  the SDO fault reads) is read once from the same generated EDS.
+* The SDO transfers a fault needs go through the node; it answers in order, so after the answer
+  everything it sent before is in the link's queue (the barrier).
 * Per cycle: the sensor RPDO (a constant-speed rotation consistent with the gearbox, see
   `layout.SensorPattern`), the setpoint RPDO (the stream the watchdog watches), SYNC with counter;
   then every TPDO due at that SYNC must arrive once, with its mapped length; the status TPDO
@@ -28,7 +30,7 @@ physics: a constant rotation the checks can predict exactly):
   encoder_stale_cycles-th silent cycle, then cleared by writing fault_clear = 1, and an NMT
   stop with SYNCs that must go unanswered, then start (an SDO round trip is the barrier that
   proves nothing was answered while stopped).
-* At the end the firmware's own stop line (SIGTERM) must agree with the driver's tally: control
+* At the end the firmware's own stop line (SIGTERM) must agree with the soak's tally: control
   cycles = SYNCs sent while operational, frames received = frames sent on COB-IDs the node
   accepts (the kernel filter drops the unknown ones before they reach it), frames ignored =
   frames sent while stopped, RPDO length errors = malformed frames, TPDOs and
@@ -40,11 +42,11 @@ physics: a constant rotation the checks can predict exactly):
   (`memory.disable_transparent_huge_pages`): khugepaged would otherwise inflate its RSS by
   megabytes on its own timer (`--keep-thp` to see it).
 
-Pinning the driver and the firmware to one CPU (`--pin`) is off by default: the driver's process
+Pinning the soak and the firmware to one CPU (`--pin`) is off by default: the soak's process
 has canopen's receive thread besides its own, and on one CPU those threads and the firmware wait
 for each other.
 
-Ctrl-C (or SIGTERM, or the `--stop-file` appearing, which is how `tools/soak` reaches a driver
+Ctrl-C (or SIGTERM, or the `--stop-file` appearing, which is how `tools/soak` reaches a soak
 inside the VM) stops after the current cycle; the report is still written. The report is
 written atomically to OUT/report.json, also every minute while running (status "running").
 Exit code: 0 passed, 1 a cycle was lost, memory grew or a check failed, 130 interrupted.
@@ -64,7 +66,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from hilrig.apps.soak.driver import BOOT_TIMEOUT_S, RECEIVE_TIMEOUT_S, SoakDriver, SoakError
+from hilrig.apps.soak.checker import SoakError
 from hilrig.apps.soak.fault_plan import plan_faults
 from hilrig.apps.soak.layout import load_layout
 from hilrig.apps.soak.memory import disable_transparent_huge_pages, sample_process
@@ -75,6 +77,7 @@ from hilrig.apps.soak.report import (
     print_summary,
     write_json_atomic,
 )
+from hilrig.apps.soak.soak import BOOT_TIMEOUT_S, RECEIVE_TIMEOUT_S, Soak
 from hilrig.errors import RigError
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, parse_stop_line
 
@@ -152,7 +155,7 @@ def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
     started_wall = time.time()
     started = time.monotonic()
     cpu_start = os.times()
-    driver: SoakDriver | None = None
+    soak: Soak | None = None
     firmware_info: dict[str, Any] = {"argv": None, "pid": None, "stop_line": None, "counters": None}
     bus_info: dict[str, Any] = {
         "path": os.environ.get("HIL_BUS_PATH", "unknown (not run through tools/with-vcan)")
@@ -164,7 +167,7 @@ def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
         now = os.times()
         return build_report(
             args=args,
-            driver=driver,
+            soak=soak,
             plan=plan,
             status=run_status,
             error=error,
@@ -172,9 +175,7 @@ def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
             bus=bus_info,
             started_wall=started_wall,
             duration_s=time.monotonic() - started,
-            cycling_s=driver.clock() - driver.started_at
-            if driver and driver.started_at is not None
-            else None,
+            cycling_s=soak.clock() - soak.started_at if soak and soak.started_at is not None else None,
             driver_cpu_s=(now.user + now.system) - (cpu_start.user + cpu_start.system),
         )
 
@@ -215,32 +216,31 @@ def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
         if args.pin:
             _pin_this_process(args.cpu)
             _pin(pid, args.cpu)
-        link = session.node.open_link(list(layout.receive_ids))
-        driver = SoakDriver(
-            link,
-            session.node.remote.sdo,
+        soak = Soak(
+            session.node,
             layout,
             plan,
             period_us=args.period_us,
             liveness=fw.check,
+            activity=fw.activity,
             stop_requested=stop,
             on_progress=lambda p: print(format_progress(p), flush=True),
             on_checkpoint=lambda: write_json_atomic(report_path, report(RunStatus.RUNNING)),
             sample_every=args.sample_every,
         )
-        driver.start()
+        soak.start()
         firmware_info["pid"] = _firmware_pid(fw.process)
         firmware_info["startup_s"] = round(time.monotonic() - started, 1)
-        pinned = f", driver and firmware pinned to CPU {args.cpu}" if args.pin else ""
+        pinned = f", soak and firmware pinned to CPU {args.cpu}" if args.pin else ""
         print(
             f"soak: node 0x{args.node_id:02X} up {firmware_info['startup_s']} s after the start "
             f"(firmware pid {pid}{pinned}); cycling",
             flush=True,
         )
-        driver.probe = lambda cycle, elapsed: sample_process(pid, cycle, elapsed)
-        driver.run(args.cycles)
-        driver.finish()
-        if driver.stopped_by_request:
+        soak.probe = lambda cycle, elapsed: sample_process(pid, cycle, elapsed)
+        soak.run(args.cycles)
+        soak.finish()
+        if soak.stopped_by_request:
             status = RunStatus.INTERRUPTED
     except (RigError, OSError) as failure:
         error = f"{type(failure).__name__}: {failure}"
