@@ -1,12 +1,13 @@
 """tools/bench_baseline.py: the engine of a baseline commit beside the checkout's. A commit that
 cannot be measured is a row 'not measured' with the reason; the ratio rows are computed and
 judged against the goal; the baseline's tree is exported once, reused, replaced and removed
-cleanly; and the default baseline's own probe runs from its exported tree, importing nothing of
-the checkout's."""
+cleanly; the `baseline` subcommand writes its rows whatever fails; and the default baseline's own
+probe runs from its exported tree, importing nothing of the checkout's."""
 
 from __future__ import annotations
 
 import importlib
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +17,7 @@ import pytest
 
 TOOLS = Path(__file__).resolve().parent.parent
 sys.path.append(str(TOOLS))  # the tools are scripts on their own folder's path, as when run
+bench = importlib.import_module("bench")
 bench_baseline = importlib.import_module("bench_baseline")
 bench_common = importlib.import_module("bench_common")
 bench_native = importlib.import_module("bench_native")
@@ -188,3 +190,59 @@ def test_a_probe_that_imports_the_checkouts_rig_is_refused(tmp_path: Path) -> No
         bench_baseline.check_probe(tmp_path)
     (tmp_path / "tools" / "rig_probe.py").write_text("import sys\nsys.exit(0)\n")
     bench_baseline.check_probe(tmp_path)
+
+
+# --- In the report, and the `baseline` subcommand ------------------------------------------------
+def test_the_printed_table_says_met_or_missed() -> None:
+    baseline = {"asked": "dbf1cf7", "commit": "dbf1cf7" + "0" * 33, "rig": 100_000.0, "engine": 50_000.0}
+    one_met_one_missed = _rows({"rig": 100_000.0, "engine": 60_000.0}, baseline, {})
+    rig, engine = bench_report.format_table(one_met_one_missed)[2:]
+    assert rig.endswith("100000    1      within 10% (<= 1.1): met")
+    assert engine.endswith("50000     1.2    within 10% (<= 1.1): MISSED")
+
+
+def test_a_native_json_from_before_the_comparison_says_so_in_the_report() -> None:
+    native = {"date": "today", "machine": {}, "board_bench_ns": {}, "callgrind": None}
+    report = bench_report.build_report(native, {}, "native", {"error": "none"})
+    rows = [r for r in report["rows"] if "this checkout vs baseline" in r["measure"]]
+    assert [(r["ours"], r["baseline"]) for r in rows] == [("not measured", bench_baseline.NO_BASELINE)] * 2
+    assert rows[0]["measure"].endswith(f"vs baseline {bench_baseline.DEFAULT_BASELINE}")
+
+
+def test_the_baseline_step_writes_its_rows_when_the_commit_is_missing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(bench_native, "prepare_checkout", lambda: None)
+    monkeypatch.setattr(
+        bench_native, "rig_probe_instructions", lambda mode, cycles, root, **_: 10_000 + cycles * 900
+    )
+    assert bench.main(["baseline", "--out", str(tmp_path), "--baseline", MISSING_COMMIT]) == 1
+    printed = capsys.readouterr().out
+    assert "Rig lockstep cycle, this checkout vs baseline" in printed and "not measured" in printed
+    result = json.loads((tmp_path / "baseline.json").read_text())
+    assert result["rig_probe"] == {"rig": 900.0, "engine": 900.0}
+    assert result["baseline"] == {"asked": MISSING_COMMIT}
+    assert [row["ours"] for row in result["rows"]] == ["not measured"] * 2
+    assert not (tmp_path / "native.json").exists()
+
+
+def test_the_baseline_step_compares_both_trees_counted_alike(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    old_tree = tmp_path / "baseline" / ("cd" * 20)
+    monkeypatch.setattr(bench_native, "prepare_checkout", lambda: None)
+    monkeypatch.setattr(bench_baseline, "prepare_baseline", lambda out, commit: old_tree)
+
+    def instructions(mode: str, cycles: int, root: Path, **_: Any) -> int:
+        per_cycle = {"rig": 1000, "engine": 500}[mode] * (1.0 if root == old_tree else 1.04)
+        return round(1_000_000 + cycles * per_cycle)
+
+    monkeypatch.setattr(bench_native, "rig_probe_instructions", instructions)
+    assert bench.main(["baseline", "--out", str(tmp_path)]) == 0
+    rows = json.loads((tmp_path / "baseline.json").read_text())["rows"]
+    assert [(r["ours"], r["baseline"], r["goal_met"]) for r in rows] == [
+        ("1040", "1000", True),
+        ("520", "500", True),
+    ]
+    assert [r["ratio"] for r in rows] == pytest.approx([1.04, 1.04])
+    assert bench.main(["baseline", "--out", str(tmp_path), "--remove"]) == 0
