@@ -26,7 +26,7 @@ endef
 help: ## list the targets (default)
 	@echo "Hardware-in-the-loop test rig over CAN. Targets:"
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/^([a-z-]+):.*## (.*)/  make \1\t\2/' | expand -t 20
-	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), VIEWER=web, ROBOT=8 (make run), CMAKE_FLAGS=..."
+	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), VIEWER=web, ROBOT=8 (make run), BASELINE=<commit> (make bench), CMAKE_FLAGS=..."
 
 .PHONY: deps
 deps: ## install missing Debian packages (root) and the pinned Python venv
@@ -74,13 +74,24 @@ run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary
 	  $(if $(ROBOT),--modules $(ROBOT) --out $(CURDIR)/$(OUT)/robot,--out $(CURDIR)/$(OUT)/demo) \
 	  $(if $(VIEWER),--viewer $(VIEWER))
 
+# BASELINE=<commit>: the commit whose engine (tools/rig_probe.py rig and engine, under callgrind)
+# the report sets beside this checkout's; empty: tools/bench_baseline.py's DEFAULT_BASELINE, the
+# last commit before the rig's folders became its layers. Its tree is exported once into
+# $(BENCH_BUILD)/baseline/ and reused (tools/bench.py baseline --remove removes it).
+BASELINE ?=
+BASELINE_ARG = $(if $(BASELINE),--baseline '$(BASELINE)')
+
 .PHONY: bench
-bench: deps ## benchmarks, each a ratio measured side by side in one run
+bench: deps ## benchmarks, each a ratio measured side by side in one run (BASELINE=<commit>)
 	$(call configure_and_build,$(BENCH_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_BENCH=ON)
-	@$(PY) tools/bench.py native --out $(BENCH_BUILD)
+	@$(PY) tools/bench.py native --out $(BENCH_BUILD) $(BASELINE_ARG)
 	@HIL_BUS_PATH_FILE=$(CURDIR)/$(BENCH_BUILD)/bus-path.txt \
 	  tools/with-vcan -- $(CURDIR)/$(PY) tools/bench.py bus --out $(CURDIR)/$(BENCH_BUILD)
 	@$(PY) tools/bench.py report --out $(BENCH_BUILD)
+
+.PHONY: bench-baseline
+bench-baseline: deps ## only the engine vs BASELINE's, natively under callgrind (no firmware, no bus)
+	@$(PY) tools/bench.py baseline --out $(BENCH_BUILD) $(BASELINE_ARG)
 
 # The wheels people install for bring-up, no checkout needed (tools/dist.py: built from a staging
 # copy of the sources; the EDS and DBC in the wheel are generated from protocol/board.toml then).

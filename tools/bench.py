@@ -4,6 +4,9 @@
     tools/with-vcan -- tools/bench.py bus --out build/bench
                                                    bus parts, on a private vcan bus (root)
     tools/bench.py report  --out build/bench      one table, printed and written to report.json
+    tools/bench.py baseline --out build/bench [--baseline COMMIT] [--remove]
+                                                   the engine against a baseline commit's alone,
+                                                   natively (make bench-baseline)
 
 What is measured, and against what:
 
@@ -35,6 +38,11 @@ What is measured, and against what:
   same frames, and the bytes the Rig keeps per cycle (tracemalloc) next to the data bytes the bus
   carried. The VM's rates move between runs; these do not, so a change to the
   per-cycle path shows here first.
+* The engine against a baseline commit's (`bench_baseline`; --baseline, make's BASELINE; by
+  default the last commit before the rig's folders became its layers): that commit's own
+  `tools/rig_probe.py rig` and `engine`, from its tree exported once into <out>/baseline/, counted
+  under callgrind as the checkout's are. Goal: the checkout's instructions per cycle within 10 %
+  of the baseline's (new/old <= 1.1), for each.
 * Long runs stay viewable: one traced 60 s lockstep run at 1 kHz (60000 cycles) of the full
   `Rig` against the firmware, the session as in (b); its trace.rrd stays in <out>/long-trace/.
   Reported: the .rrd's size (and bytes per cycle), and, on the host, the time from asking
@@ -62,11 +70,12 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from bench_baseline import DEFAULT_BASELINE
 from bench_bus import LOCKSTEP_ROUNDS, bus_main
 from bench_bus_measure import serve_local_node_main
 from bench_common import LONG_TRACE_CYCLES, ROOT
 from bench_native import native_main
-from bench_report import report_main
+from bench_report import baseline_main, report_main
 
 DEFAULT_OUT = ROOT / "build" / "bench"
 
@@ -76,9 +85,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     commands = parser.add_subparsers(dest="command", required=True)
-    for name in ("native", "bus", "report"):
+    for name in ("native", "bus", "report", "baseline"):
         command = commands.add_parser(name)
         command.add_argument("--out", type=Path, default=DEFAULT_OUT, help="the bench build folder")
+        if name in ("native", "baseline"):
+            command.add_argument(
+                "--baseline",
+                default=DEFAULT_BASELINE,
+                metavar="COMMIT",
+                help="the commit whose engine the checkout's is compared with (default: %(default)s)",
+            )
+        if name == "baseline":
+            command.add_argument(
+                "--remove", action="store_true", help="remove the exported baseline trees, measure nothing"
+            )
         if name == "bus":
             command.add_argument("--cycles", type=int, default=2000, help="lockstep cycles per measurement")
             command.add_argument("--warmup", type=int, default=50)
@@ -113,6 +133,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "native": native_main,
         "bus": bus_main,
         "report": report_main,
+        "baseline": baseline_main,
         "serve-local-node": serve_local_node_main,
     }
     try:

@@ -82,10 +82,12 @@ def run_probe(
     *,
     timeout_s: float = PROBE_TIMEOUT_S,
     env: dict[str, str] | None = None,
+    cwd: Path | None = None,
     show_stdout: bool = False,
 ) -> str:
-    """Runs one probe and returns its stdout ("" when `show_stdout` lets it go to the console);
-    ProbeError when it times out, exits non-zero or cannot start, with its stderr's tail."""
+    """Runs one probe (in `cwd`, else here) and returns its stdout ("" when `show_stdout` lets it
+    go to the console); ProbeError when it times out, exits non-zero or cannot start, with its
+    stderr's tail."""
     shown = " ".join(Path(command[0]).name if n == 0 else part for n, part in enumerate(command))
     try:
         done = subprocess.run(
@@ -95,6 +97,7 @@ def run_probe(
             text=True,
             timeout=timeout_s,
             env=env,
+            cwd=cwd,
             check=False,
         )
     except subprocess.TimeoutExpired as error:

@@ -1,8 +1,9 @@
 """`tools/bench.py native`: the C++ parts and the Rig's own cycle, natively. fw_board_bench
 (Google Benchmark), the instructions of one control cycle under callgrind (`fw_cycle_count`: the
 demo joint, the stand-ins on the core and the naive board, the field recorder idle and armed),
-and `tools/rig_probe.py` under callgrind and tracemalloc. Writes <out>/native.json; a probe that
-fails leaves its error under "not_measured".
+and `tools/rig_probe.py` under callgrind and tracemalloc, the checkout's beside a baseline
+commit's (`bench_baseline`). Writes <out>/native.json; a probe that fails leaves its error under
+"not_measured".
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from bench_baseline import measure_baseline, prepare_checkout
 from bench_common import ROOT, NotMeasured, ProbeError, machine, run_probe, say, write_json_atomically
 
 CALLGRIND_CYCLES = 2000
@@ -79,16 +81,20 @@ TRACE_PROBE_CYCLES = 2000
 """Cycles of the traced run `tools/rig_probe.py` measures: as many as a `make bench` round's."""
 
 
-def rig_probe_instructions(mode: str, cycles: int, *, all_threads: bool = False) -> int:
+def rig_probe_instructions(mode: str, cycles: int, *, all_threads: bool = False, root: Path = ROOT) -> int:
     """Instructions of the main thread (or of all threads) of `tools/rig_probe.py MODE CYCLES`
-    under callgrind."""
-    command = [sys.executable, str(ROOT / "tools" / "rig_probe.py"), mode, str(cycles)]
+    under callgrind; the probe of the tree at `root` (the checkout, or a baseline's export)."""
+    command = [sys.executable, str(root / "tools" / "rig_probe.py"), mode, str(cycles)]
     return _callgrind_total([], command, python=True, all_threads=all_threads)
 
 
-def _rig_probe_per_cycle(mode: str) -> float:
+def rig_probe_per_cycle(mode: str, root: Path = ROOT) -> float:
+    """Instructions per cycle of `tools/rig_probe.py MODE` of the tree at `root`: the difference
+    of two lengths, so start-up cancels out."""
     short, long = RIG_PROBE_CYCLES
-    return (rig_probe_instructions(mode, long) - rig_probe_instructions(mode, short)) / (long - short)
+    return (
+        rig_probe_instructions(mode, long, root=root) - rig_probe_instructions(mode, short, root=root)
+    ) / (long - short)
 
 
 def _tracing_per_cycle() -> float:
@@ -111,16 +117,26 @@ def _rig_memory_per_cycle() -> tuple[float, float]:
     return float(figures[0]), float(figures[1])
 
 
-def rig_probe_costs(not_measured: NotMeasured) -> dict[str, float]:
-    """The Rig's lockstep cycle and the engine's exchange alone, natively (`tools/rig_probe.py`):
-    instructions per cycle of each (callgrind), what tracing costs per cycle, and the Rig's bytes
-    kept per cycle. A probe that fails leaves its key out and its error in `not_measured`."""
+def cycle_costs(not_measured: NotMeasured) -> dict[str, float]:
+    """Instructions per cycle (callgrind) of the checkout's Rig lockstep cycle and of the
+    engine's exchange alone, its probe checked first as a baseline's is (`prepare_checkout`).
+    A probe that fails leaves its key out and its error in `not_measured`."""
+    not_measured.attempt("rig_probe check", prepare_checkout)  # a failure shows in the counts too
     costs: dict[str, float] = {}
     for mode in ("rig", "engine"):
-        cost = not_measured.attempt(f"rig_probe {mode}", lambda mode=mode: _rig_probe_per_cycle(mode))
+        cost = not_measured.attempt(f"rig_probe {mode}", lambda mode=mode: rig_probe_per_cycle(mode))
         if cost is not None:
             costs[mode] = cost
             say(f"  {mode}: {cost:.0f} instructions per cycle")
+    return costs
+
+
+def rig_probe_costs(not_measured: NotMeasured) -> dict[str, float]:
+    """The Rig's lockstep cycle and the engine's exchange alone, natively (`tools/rig_probe.py`):
+    instructions per cycle of each (callgrind, `cycle_costs`), what tracing costs per cycle, and
+    the Rig's bytes kept per cycle. A probe that fails leaves its key out and its error in
+    `not_measured`."""
+    costs = cycle_costs(not_measured)
     tracing = not_measured.attempt("rig_probe tracing", _tracing_per_cycle)
     if tracing is not None:
         costs["tracing"] = tracing
@@ -142,6 +158,7 @@ def native_main(args: argparse.Namespace) -> int:
     if shutil.which("valgrind") is None:
         say("valgrind is missing (apt-get install valgrind, or make deps): no instruction counts")
         result["callgrind"] = None
+        not_measured["baseline"] = "valgrind is missing (apt-get install valgrind, or make deps)"
     else:
         say(f"instruction counts under callgrind ({CALLGRIND_CYCLES} cycles per loop, minus a 0-cycle run)")
         per_cycle = {}
@@ -162,6 +179,7 @@ def native_main(args: argparse.Namespace) -> int:
         result["callgrind"] = {"cycles": CALLGRIND_CYCLES, "instructions_per_cycle": per_cycle}
         say(f"the Rig's own lockstep cycle, natively (tools/rig_probe.py, {RIG_PROBE_CYCLES} cycles)")
         result["rig_probe"] = rig_probe_costs(not_measured)
+        result["baseline"] = measure_baseline(out, args.baseline, not_measured, rig_probe_per_cycle)
     result["not_measured"] = not_measured
     write_json_atomically(out / "native.json", result)
     return 0

@@ -17,17 +17,20 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from bench_baseline import MODES as BASELINE_MODES
+from bench_baseline import baseline_rows, measure_baseline, remove_baseline
 from bench_common import (
     LONG_TRACE_CYCLES,
     NOT_MEASURED,
     PERIOD_US,
+    NotMeasured,
     failure_text,
     machine,
     ratio_of,
     say,
     write_json_atomically,
 )
-from bench_native import TRACE_PROBE_CYCLES
+from bench_native import TRACE_PROBE_CYCLES, cycle_costs, rig_probe_per_cycle
 
 LONG_TRACE_DASHBOARD = "overview"
 
@@ -431,6 +434,7 @@ SECTION_TITLES = {
     "board_bench": "board get/set and cycle (fw_board_bench)",
     "callgrind": "instructions/cycle (callgrind)",
     "rig_probe": "the Rig's own lockstep cycle (tools/rig_probe.py)",
+    "baseline": "the engine's instructions/cycle, this checkout vs a baseline commit",
     "long_trace": "long traced run",
     "bus_load": "bus load at 1 kHz",
     "free_running": "free-running |period error|",
@@ -456,6 +460,9 @@ def build_report(
         "board_bench": lambda: _board_bench_rows(rows, native, not_measured),
         "callgrind": lambda: _instruction_rows(rows, native, not_measured),
         "rig_probe": lambda: _rig_probe_rows(rows, native.get("rig_probe"), not_measured),
+        "baseline": lambda: baseline_rows(
+            rows, native.get("rig_probe"), native.get("baseline"), not_measured
+        ),
         "long_trace": lambda: _long_trace_rows(rows, bus.get("long_trace"), first_frame),
         "bus_load": lambda: _bus_load_rows(rows, bus),
         "free_running": lambda: _free_running_rows(rows, bus, bus_path),
@@ -485,19 +492,7 @@ def format_report(report: dict[str, Any]) -> str:
         f"bus path: {report['bus_path']}",
         "",
     ]
-    header = ["measure", "ours", "baseline", "ratio", "goal"]
-    table = [header]
-    for r in report["rows"]:
-        goal = r["goal"]
-        if r["goal_met"] is not None:
-            goal = f"{goal}: {'met' if r['goal_met'] else 'MISSED'}"
-        ratio = "" if r["ratio"] is None else f"{r['ratio']:.3g}"
-        table.append([r["measure"], r["ours"], r["baseline"], ratio, goal])
-    widths = [max(len(row[i]) for row in table) for i in range(len(header))]
-    for n, row in enumerate(table):
-        lines.append("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
-        if n == 0:
-            lines.append("  ".join("-" * w for w in widths))
+    lines += format_table(report["rows"])
     lines += [
         "",
         "ratios: lockstep = ours/baseline rate and SDO = LocalNode/firmware latency (higher is better);",
@@ -517,17 +512,43 @@ def format_report(report: dict[str, Any]) -> str:
             "free-running timing was measured inside the software-emulated micro-VM: its timers and "
             "scheduling say nothing about a real target, so that row is NOT meaningful here."
         )
-    errors = [r for r in report["rows"] if r["ours"] == NOT_MEASURED and "\n" in r["data"].get("error", "")]
-    for r in errors:  # the whole error of each failed probe, its stderr's tail included
-        lines += [
-            "",
-            f"{NOT_MEASURED}: {r['measure']}:",
-            *(f"    {line}" for line in r["data"]["error"].splitlines()),
-        ]
-    return "\n".join(lines)
+    return "\n".join(lines + format_errors(report["rows"]))
 
 
-NATIVE_SECTIONS = ("board_bench", "callgrind", "rig_probe")
+def format_table(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """The rows as a table's lines: measure, ours, baseline, ratio, and the goal, met or MISSED."""
+    header = ["measure", "ours", "baseline", "ratio", "goal"]
+    table = [header]
+    for r in rows:
+        goal = r["goal"]
+        if r["goal_met"] is not None:
+            goal = f"{goal}: {'met' if r['goal_met'] else 'MISSED'}"
+        ratio = "" if r["ratio"] is None else f"{r['ratio']:.3g}"
+        table.append([r["measure"], r["ours"], r["baseline"], ratio, goal])
+    widths = [max(len(row[i]) for row in table) for i in range(len(header))]
+    lines = []
+    for n, row in enumerate(table):
+        lines.append("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
+        if n == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return lines
+
+
+def format_errors(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """The whole error of each row not measured whose error has more than one line (a failed
+    probe's stderr tail), to print after the table."""
+    lines = []
+    for r in rows:
+        if r["ours"] == NOT_MEASURED and "\n" in r["data"].get("error", ""):
+            lines += [
+                "",
+                f"{NOT_MEASURED}: {r['measure']}:",
+                *(f"    {line}" for line in r["data"]["error"].splitlines()),
+            ]
+    return lines
+
+
+NATIVE_SECTIONS = ("board_bench", "callgrind", "rig_probe", "baseline")
 
 
 def _read_part(path: Path, step: str, sections: Sequence[str]) -> tuple[dict[str, Any], bool]:
@@ -557,3 +578,33 @@ def report_main(args: argparse.Namespace) -> int:
     say(f"report written to {out / 'report.json'}")
     return 0 if native_whole and bus_whole else 1
 
+
+def baseline_main(args: argparse.Namespace) -> int:
+    """`tools/bench.py baseline`: the engine comparison alone, natively (no firmware build, no
+    bus): the checkout's and the baseline commit's `tools/rig_probe.py rig` and `engine` under
+    callgrind, their rows printed and written with the figures to <out>/baseline.json (never to
+    native.json, which holds a whole native step). Exit 1 when a figure is not measured.
+    With --remove: the exported baseline trees removed instead."""
+    out: Path = args.out
+    if args.remove:
+        remove_baseline(out)
+        return 0
+    not_measured = NotMeasured()
+    say("the checkout's engine (tools/rig_probe.py under callgrind)")
+    probe = cycle_costs(not_measured)
+    baseline = measure_baseline(out, args.baseline, not_measured, rig_probe_per_cycle)
+    rows = ReportRows()
+    baseline_rows(rows, probe, baseline, not_measured)
+    print("\n".join(format_table(rows) + format_errors(rows)))
+    result = {
+        "date": datetime.datetime.now().astimezone().isoformat(),
+        "machine": machine(),
+        "rig_probe": probe,
+        "baseline": baseline,
+        "not_measured": not_measured,
+        "rows": rows,
+    }
+    write_json_atomically(out / "baseline.json", result)
+    say(f"written to {out / 'baseline.json'}")
+    measured = all(mode in probe and mode in baseline for mode in BASELINE_MODES)
+    return 0 if measured else 1

@@ -36,6 +36,7 @@ bench_native = importlib.import_module("bench_native")
 bench_bus = importlib.import_module("bench_bus")
 bench_bus_measure = importlib.import_module("bench_bus_measure")
 bench_report = importlib.import_module("bench_report")
+bench_baseline = importlib.import_module("bench_baseline")
 
 
 def _rows(ipc: dict[str, float]) -> list[dict[str, Any]]:
@@ -343,13 +344,19 @@ def test_a_probe_that_times_out_or_fails_says_so_with_the_end_of_its_stderr() ->
 
 def _native_step_with_a_rig_probe_that_times_out(out: Path, monkeypatch: pytest.MonkeyPatch) -> int:
     """`tools/bench.py native` where fw_board_bench is not built, the callgrind counts are
-    stand-ins, and rig_probe.py under callgrind times out for the Rig's cycle."""
+    stand-ins, and rig_probe.py under callgrind times out for the checkout's Rig cycle (not for
+    the baseline's, a stand-in tree)."""
+    baseline_tree = out / "baseline" / ("ab" * 20)
 
-    def rig_probe_instructions(mode: str, cycles: int, *, all_threads: bool = False) -> int:
-        if mode == "rig":
+    def rig_probe_instructions(
+        mode: str, cycles: int, *, all_threads: bool = False, root: Path = bench_common.ROOT
+    ) -> int:
+        if mode == "rig" and root != baseline_tree:
             bench_common.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=0.5)
         return cycles * 1000
 
+    monkeypatch.setattr(bench_native, "prepare_checkout", lambda: None)
+    monkeypatch.setattr(bench_baseline, "prepare_baseline", lambda out, commit: baseline_tree)
     monkeypatch.setattr(bench_native.shutil, "which", lambda name: f"/usr/bin/{name}")
     monkeypatch.setattr(bench_native, "callgrind_instructions", lambda out, loop, cycles: 100 + cycles * 2000)
     monkeypatch.setattr(bench_native, "rig_probe_instructions", rig_probe_instructions)
@@ -383,6 +390,12 @@ def test_a_failing_probe_is_a_row_not_measured_and_the_report_is_still_written(
     )
     assert rows["instructions/cycle: demo joint vs stand-ins on naive board"]["ours"] == "2000"
     assert rows["lockstep cycles/s: Rig untraced vs raw-socket floor"]["ours"] == "900/s"
+    # Against the baseline: the Rig's row says why the checkout's count is missing, the engine's
+    # compares both trees' counts.
+    rig_vs_old, engine_vs_old = (rows[m] for m in rows if "this checkout vs baseline abababab" in m)
+    assert rig_vs_old["ours"] == "not measured" and rig_vs_old["baseline"].endswith("timed out after 0.5 s")
+    assert (engine_vs_old["ours"], engine_vs_old["baseline"]) == ("1000", "1000")
+    assert engine_vs_old["goal_met"] is True
     assert not list(tmp_path.glob(".report.json.*"))  # written atomically: no temporary left
 
 
