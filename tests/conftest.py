@@ -19,13 +19,14 @@ from boardproto.cia301 import NmtState, heartbeat_cob_id
 from hilrig.cli.common import bitrate
 from hilrig.engine.rig import Rig
 from hilrig.engine.robot import MasterHeartbeat
+from hilrig.errors import BusUnavailableError
 from hilrig.expect import Expect
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.plants import JointParams
 from hilrig.session.builder import BoardInterface, HilSession, SessionConfig, open_session
 from hilrig.session.buslog import BusRecorder
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
-from hilrig.session.netns import PrivateBus, private_buses_supported
+from hilrig.session.netns import PrivateBus, require_private_buses
 from hilrig.table import RigTable
 
 REPO = Path(__file__).resolve().parent.parent
@@ -129,12 +130,12 @@ def scenario_dir(request: pytest.FixtureRequest) -> Path:
 @pytest.fixture
 def private_bus() -> Iterator[PrivateBus]:
     """A network namespace with its own vcan0, for this test alone."""
-    if not private_buses_supported():
-        pytest.fail(
-            "bus-level scenarios need root and a kernel with vcan: run them with `make test` "
-            "or `tools/with-vcan -- .venv/bin/pytest tests`",
-            pytrace=False,
+    try:
+        require_private_buses(
+            "a bus-level scenario", "run it with `make test` or `tools/with-vcan -- .venv/bin/pytest tests`"
         )
+    except BusUnavailableError as error:
+        pytest.fail(str(error), pytrace=False)
     with PrivateBus() as bus:
         yield bus
 

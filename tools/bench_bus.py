@@ -132,14 +132,14 @@ def _free_running_run(bench: BusBench, args: argparse.Namespace) -> dict[str, An
 
 def bus_main(args: argparse.Namespace) -> int:
     from hilrig.apps.busload import STANDARD_BITRATES, bus_load, lockstep_traffic
-    from hilrig.session.netns import PrivateBus, private_buses_supported
+    from hilrig.errors import BusUnavailableError
+    from hilrig.session.netns import PrivateBus, require_private_buses
 
     out: Path = args.out
-    if not private_buses_supported():
-        print(
-            "bench: the bus part needs root and a kernel with vcan: run it through tools/with-vcan",
-            file=sys.stderr,
-        )
+    try:
+        require_private_buses("bench: the bus part", "run it through tools/with-vcan")
+    except BusUnavailableError as error:
+        print(error, file=sys.stderr)
         return 1
     bus_path = os.environ.get("HIL_BUS_PATH", "unknown")
     result: dict[str, Any] = {"bus_path": bus_path, "bus_machine": machine()}

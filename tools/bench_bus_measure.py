@@ -135,9 +135,8 @@ class BusBench:
             log_path=self.logs / f"{self._runs:02d}-{what}.log",
             period_us=PERIOD_US,
             executable=self.firmware_exe,
+            mode=mode,
         )
-        if mode != "lockstep":
-            fw.argv[fw.argv.index("--mode") + 1] = mode
         with fw:
             yield fw
 

@@ -28,12 +28,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig
-from hilrig.errors import BusUnavailableError, FirmwareError, LockstepError, RealTimeError, RigError
+from hilrig.errors import FirmwareError, LockstepError, RealTimeError, RigError
 from hilrig.plants import JointParams
 from hilrig.session.builder import SessionConfig, hil_session
 from hilrig.session.faults import FaultEvent, FaultInjector, FaultPlan
 from hilrig.session.firmware import DEFAULT_EXECUTABLE
-from hilrig.session.netns import private_buses_supported
+from hilrig.session.netns import require_private_buses
 from hilrig.table import BOARD_TABLE, ControlMode, RigTable
 from hilrig.wire.node import EmcyRecord
 
@@ -177,10 +177,9 @@ def default_scenario(progress: Progress) -> Scenario:
 def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
     """Firmware + rig in lockstep on a private bus (`hilrig.session.builder`), or the rig in real time
     against `options.board`; the bus log goes to out_dir/bus.log."""
-    if options.board is None and not private_buses_supported():
-        raise BusUnavailableError(
-            "the simulation needs root and a kernel with vcan for its private bus: "
-            "run `make run`, or `tools/with-vcan -- .venv/bin/hilrig sim`"
+    if options.board is None:
+        require_private_buses(
+            "the simulation", "run `make run`, or `tools/with-vcan -- .venv/bin/hilrig sim`"
         )
     scenario = (
         load_scenario(options.scenario_file)

@@ -22,10 +22,10 @@ import numpy as np
 from hilrig.apps.demo import BOOT_TIMEOUT_S, Progress, RunAbortedError, ScenarioFileError
 from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.engine.robot import Robot, TravellingWave
-from hilrig.errors import BusUnavailableError, FirmwareError, LockstepError
+from hilrig.errors import FirmwareError, LockstepError
 from hilrig.session.builder import SessionConfig, hil_session
 from hilrig.session.firmware import DEFAULT_EXECUTABLE
-from hilrig.session.netns import private_buses_supported
+from hilrig.session.netns import require_private_buses
 from hilrig.table import RigTable
 
 if TYPE_CHECKING:
@@ -107,11 +107,9 @@ def gait_scenario(seconds: float, progress: Progress) -> RobotScenario:
 
 def run_robot(options: RobotOptions, progress: Progress = print) -> RobotSummary:
     """The robot session (`hilrig.session.builder`, `modules=`), the scenario, the summary."""
-    if not private_buses_supported():
-        raise BusUnavailableError(
-            "the robot needs root and a kernel with vcan for its private bus: "
-            "run `make run ROBOT=8`, or `tools/with-vcan -- .venv/bin/hilrig sim --modules 8`"
-        )
+    require_private_buses(
+        "the robot", "run `make run ROBOT=8`, or `tools/with-vcan -- .venv/bin/hilrig sim --modules 8`"
+    )
     scenario = (
         load_robot_scenario(options.scenario_file)
         if options.scenario_file is not None

@@ -34,7 +34,7 @@ from hilrig.errors import BusUnavailableError
 from hilrig.plants import JointParams
 from hilrig.session.buslog import RecorderProcess, whole_file_logger
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware
-from hilrig.session.netns import PrivateBus, private_buses_supported
+from hilrig.session.netns import PrivateBus, require_private_buses
 from hilrig.table import RigTable
 from hilrig.wire.node import BoardNode, answer_filters
 from hilrig.wire.transport import socketcan_socket
@@ -198,32 +198,11 @@ def open_session(
     try:
         recorder: RecorderProcess | None = None
         firmware: Firmware | None = None
-        if config.board is None and config.host_channel is None and private_bus is None:
-            if not private_buses_supported():
-                raise BusUnavailableError(
-                    "a HIL session needs root and a kernel with vcan for its private bus: run "
-                    "through tools/with-vcan (make run, make test) or on a host with vcan"
-                )
-            private_bus = stack.enter_context(PrivateBus())
         if config.board is None:
-            launcher = private_bus if private_bus is not None else _HostChannel(config.host_channel or "")
-            if config.record:
-                recorder = RecorderProcess(launcher, out / "bus.log")
-                stack.callback(recorder.close)
-            firmware = Firmware(
-                launcher,
-                node_id=node_id,
-                log_path=out / "firmware.log",
-                params_file=config.params_file,
-                extra_args=config.extra_args,
-                executable=config.executable,
-                mode=FIRMWARE_MODE[mode],
-                period_us=config.firmware_period_us
-                or (config.period_us if mode is TimingMode.LOCKSTEP else 10_000),
-                term_timeout_s=config.firmware_term_timeout_s,
-            )
-            firmware.start()
-            stack.callback(firmware.stop)
+            private_bus, launcher = _launcher(stack, config, private_bus)
+            recorder = _recorder(stack, launcher, config)
+            log_path = out / "firmware.log"
+            firmware = _start_firmware(stack, launcher, config, node_id, log_path, config.params_file)
         # The tracer before the rig's bus: importing rerun takes seconds (minutes on a loaded
         # emulated VM), and a bus opened before it would queue every heartbeat meanwhile for
         # canopen to wade through before the first SDO answer.
@@ -290,34 +269,12 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
     try:
         chain = ChainPhysics(len(node_ids), params=config.params)
         chain.mujoco_steps_per_period(config.period_us / 1e6)  # a period MuJoCo cannot step: now
-        if private_bus is None and config.host_channel is None:
-            if not private_buses_supported():
-                raise BusUnavailableError(
-                    "a HIL session needs root and a kernel with vcan for its private bus: run "
-                    "through tools/with-vcan (make run, make test) or on a host with vcan"
-                )
-            private_bus = stack.enter_context(PrivateBus())
-        launcher = private_bus if private_bus is not None else _HostChannel(config.host_channel or "")
-        recorder: RecorderProcess | None = None
-        if config.record:
-            recorder = RecorderProcess(launcher, out / "bus.log")
-            stack.callback(recorder.close)
-        firmware: list[Firmware] = []
-        for node_id in node_ids:
-            process = Firmware(
-                launcher,
-                node_id=node_id,
-                log_path=out / f"firmware-{node_id}.log",
-                params_file=out / f"params-{node_id}.bin",
-                extra_args=config.extra_args,
-                executable=config.executable,
-                mode=FIRMWARE_MODE[TimingMode.LOCKSTEP],
-                period_us=config.firmware_period_us or config.period_us,
-                term_timeout_s=config.firmware_term_timeout_s,
-            )
-            process.start()
-            stack.callback(process.stop)
-            firmware.append(process)
+        private_bus, launcher = _launcher(stack, config, private_bus)
+        recorder = _recorder(stack, launcher, config)
+        firmware = [
+            _start_firmware(stack, launcher, config, k, out / f"firmware-{k}.log", out / f"params-{k}.bin")
+            for k in node_ids
+        ]
         tracer = _tracer(config, table, blueprint=None)
         if tracer is not None:
             stack.callback(tracer.close)
@@ -368,6 +325,56 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
     return HilSession(
         config, None, modules[0].node, firmware[0], tracer, private_bus, recorder, stack, robot=robot
     )
+
+
+def _launcher(
+    stack: contextlib.ExitStack, config: SessionConfig, private_bus: PrivateBus | None
+) -> tuple[PrivateBus | None, PrivateBus | _HostChannel]:
+    """Where the session's processes run: the caller's private bus, the host's interface
+    (`host_channel`), or a new private bus (closed with the session)."""
+    if private_bus is None and config.host_channel is None:
+        require_private_buses("a HIL session")
+        private_bus = stack.enter_context(PrivateBus())
+    launcher = private_bus if private_bus is not None else _HostChannel(config.host_channel or "")
+    return private_bus, launcher
+
+
+def _recorder(
+    stack: contextlib.ExitStack, launcher: PrivateBus | _HostChannel, config: SessionConfig
+) -> RecorderProcess | None:
+    """The bus log (out_dir/bus.log) from a recorder process of its own, when `record`."""
+    if not config.record:
+        return None
+    recorder = RecorderProcess(launcher, config.out_dir / "bus.log")
+    stack.callback(recorder.close)
+    return recorder
+
+
+def _start_firmware(
+    stack: contextlib.ExitStack,
+    launcher: PrivateBus | _HostChannel,
+    config: SessionConfig,
+    node_id: int,
+    log_path: Path,
+    params_file: Path | None,
+) -> Firmware:
+    """One firmware process of the session, started (stopped with it): its mode and period follow
+    the rig's timing (lockstep: the rig's period; real time: its own 10 ms unless given)."""
+    mode = TimingMode(config.mode)
+    firmware = Firmware(
+        launcher,
+        node_id=node_id,
+        log_path=log_path,
+        params_file=params_file,
+        extra_args=config.extra_args,
+        executable=config.executable,
+        mode=FIRMWARE_MODE[mode],
+        period_us=config.firmware_period_us or (config.period_us if mode is TimingMode.LOCKSTEP else 10_000),
+        term_timeout_s=config.firmware_term_timeout_s,
+    )
+    firmware.start()
+    stack.callback(firmware.stop)
+    return firmware
 
 
 def _record_board(

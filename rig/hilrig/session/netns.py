@@ -29,9 +29,22 @@ from hilrig.wire.transport import deepen_receive_queue as deepen_socket_queue
 _names = itertools.count()
 
 
+NEEDS = "needs root and a kernel with vcan for its private bus"
+"""What a private bus needs, said once for every caller's error (`require_private_buses`)."""
+
+
 def private_buses_supported() -> bool:
     """True when this process may create network namespaces with a vcan inside."""
     return os.geteuid() == 0 and shutil.which("ip") is not None
+
+
+def require_private_buses(
+    what: str, how: str = "run it through tools/with-vcan (make run, make test) or on a host with vcan"
+) -> None:
+    """BusUnavailableError "<what> needs root and a kernel with vcan ...: <how>" unless this
+    process may make private buses."""
+    if not private_buses_supported():
+        raise BusUnavailableError(f"{what} {NEEDS}: {how}")
 
 
 def _ip(*args: str) -> None:
@@ -39,7 +52,7 @@ def _ip(*args: str) -> None:
     if result.returncode != 0:
         raise BusUnavailableError(
             f"`ip {' '.join(args)}` failed: {result.stderr.strip()} "
-            "(private buses need root and a kernel with vcan: run through tools/with-vcan)"
+            f"(a session {NEEDS}: run it through tools/with-vcan)"
         )
 
 
