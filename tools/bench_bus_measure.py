@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import itertools
-import math
 import re
 import shutil
 import statistics
@@ -324,7 +323,7 @@ class BusBench:
             heartbeat_cob_id,
             sync_counter,
         )
-        from hilrig.wire.transport import RawCanLink, can_frame, exchange, open_raw_socket
+        from hilrig.wire.transport import RawCanLink, can_frame, due_table, exchange, open_raw_socket
 
         rpdos, tpdos = self._floor_layout()
         out_frames = [p.frame([0] * len(p.names)) for p in rpdos]
@@ -342,8 +341,9 @@ class BusBench:
 
                 self._await_boot_up(next_cob_id, fw)
                 link.send(can_frame(NMT_COB_ID, bytes([NmtCommand.START, FIRMWARE_NODE_ID])))
-                period = math.lcm(*(p.transmission_type for p in tpdos))
-                due = [frozenset(p.cob_id for p in tpdos if p.due_at_sync(n + 1)) for n in range(period)]
+                due_by_sync = due_table(tpdos)
+                period = len(due_by_sync)
+                due = due_by_sync[1:] + due_by_sync[:1]  # due[n % period]: the TPDOs due at SYNC n + 1
                 decoders = {p.cob_id: (p.length, p.codec.unpack) for p in tpdos}
                 rpdo_frames = b"".join(out_frames)
                 send, recv = link.send, link.recv

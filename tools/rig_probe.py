@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import gc
-import math
 import socket
 import sys
 import tempfile
@@ -95,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     from hilrig.engine.rig import Rig
     from hilrig.session.fake_node import FakeJointNode
     from hilrig.table import RigTable
-    from hilrig.wire.transport import exchange
+    from hilrig.wire.transport import due_table, exchange
 
     table = RigTable.load()
     channel = "rig-probe"
@@ -129,9 +128,9 @@ def main(argv: list[str] | None = None) -> int:
                 # The RPDO frames the Rig sent in its last cycle (its exchange's frames but the
                 # SYNC), and every cyclic TPDO due at each SYNC.
                 out = link.last_out[: -len(SYNC_FRAMES[0])]
-                cyclic = [p for p in tpdos if p.is_cyclic]
-                period = math.lcm(*(p.transmission_type for p in cyclic))
-                due = [frozenset(p.cob_id for p in cyclic if p.due_at_sync(n + 1)) for n in range(period)]
+                due_by_sync = due_table(tpdos)
+                period = len(due_by_sync)
+                due = due_by_sync[1:] + due_by_sync[:1]  # due[n % period]: the TPDOs due at SYNC n + 1
                 decoders = {p.cob_id: (p.length, p.codec.unpack) for p in tpdos}
                 for n in range(args.cycles):
                     got: dict[int, tuple[float | int, ...]] = {}

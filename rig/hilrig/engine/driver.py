@@ -11,7 +11,6 @@ keeps a wall-clock period and takes what has arrived.
 
 from __future__ import annotations
 
-import math
 import operator
 import os
 from collections.abc import Callable, Iterable, Mapping
@@ -40,6 +39,7 @@ from hilrig.wire.transport import (
     PdoDirection,
     PdoLayout,
     can_frame,
+    due_table,
     exchanger,
     send_frames,
 )
@@ -385,11 +385,7 @@ class Driver:
         self._tpdo_by_cob = {p.cob_id: p for p in enabled_tpdos}
         self._tpdo_names = frozenset(n for p in enabled_tpdos for n in p.names)
         self._actuator = (actuator[0], actuator[0].names.index(ACTUATOR_OUTPUT)) if actuator else None
-        cyclic = [p for p in enabled_tpdos if p.is_cyclic]
-        period = math.lcm(*(p.transmission_type for p in cyclic)) if cyclic else 1
-        self._due_table = [
-            frozenset(p.cob_id for p in cyclic if p.due_at_sync(n if n else period)) for n in range(period)
-        ]
+        self._due_table = due_table(enabled_tpdos)
         keep = self.history.keep
         self._decoders = {
             p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p))

@@ -22,6 +22,7 @@ import contextlib
 import enum
 import fcntl
 import functools
+import math
 import os
 import queue
 import socket
@@ -176,6 +177,15 @@ def compile_pdo(direction: PdoDirection, number: int, pdo_map: PdoMap) -> PdoLay
 def compile_pdos(direction: PdoDirection, maps: Mapping[int, PdoMap]) -> dict[int, PdoLayout]:
     """Every PDO of one direction, by number."""
     return {number: compile_pdo(direction, number, pdo_map) for number, pdo_map in maps.items()}
+
+
+def due_table(tpdos: Iterable[PdoLayout]) -> list[frozenset[int]]:
+    """The COB-IDs of the cyclic TPDOs due at each SYNC: entry k is the set due at every SYNC
+    whose number since the node went operational is k modulo the table's length (the least
+    common multiple of their transmission types; one empty entry when none is cyclic)."""
+    cyclic = [p for p in tpdos if p.is_cyclic]
+    period = math.lcm(*(p.transmission_type for p in cyclic)) if cyclic else 1
+    return [frozenset(p.cob_id for p in cyclic if p.due_at_sync(k or period)) for k in range(period)]
 
 
 def can_frame(cob_id: int, data: bytes) -> bytes:
@@ -555,6 +565,7 @@ __all__ = [
     "compile_pdo",
     "compile_pdos",
     "deepen_receive_queue",
+    "due_table",
     "exchange",
     "exchanger",
     "open_link",
