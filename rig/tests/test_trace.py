@@ -23,6 +23,10 @@ from hilrig.observe.paths import (
     BUS_FRAMES_ROOT,
     BUS_RPDOS_PER_CYCLE,
     BUS_TPDOS_PER_CYCLE,
+    DIFF_BASE_ROOT,
+    DIFF_CAND_ROOT,
+    DIFF_EVENTS_PATH,
+    DIFF_ROOT,
     EMCY_PATH,
     NMT_PATH,
     SDO_PATH,
@@ -259,8 +263,10 @@ def test_every_plot_of_every_dashboard_has_one_unit(table: RigTable) -> None:
     for name in BLUEPRINTS:
         for view in _views(blueprint(name, table).root_container):
             contents = view.contents if isinstance(view.contents, list) else []
-            # A robot module's fields are one board's under /modules/<id>.
-            paths = [re.sub(r"^/modules/\d+", "", path) for path in contents if not path.startswith("+ ")]
+            # A robot module's fields are one board's under /modules/<id>; a comparison's under
+            # /base and /cand.
+            shown = [path for path in contents if not path.startswith("+ ")]
+            paths = [re.sub(r"^/(modules/\d+|base|cand)(?=/)", "", path) for path in shown]
             units = {unit_of[path] for path in paths}
             assert len(units) <= 1, f"{name}: {view.name} mixes {sorted(units)}"
 
@@ -293,7 +299,10 @@ def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
     robot = {module_root(n) + path for n in DEFAULT_NODE_IDS for path in one_board}
     robot |= {link_path(k) for k in range(len(DEFAULT_NODE_IDS) + 1)}
     logged = one_board | robot | {BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE, f"{BUS_FRAMES_ROOT}/TPDO1"}
-    dashboards = {"overview", "tuning", "thermal", "faults", "bus", "robot"}
+    # A comparison (`hilrig diff`): both runs' series under /base and /cand, cand - base under /diff.
+    logged |= {root + path for root in (DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT) for path in one_board}
+    logged.add(DIFF_EVENTS_PATH)
+    dashboards = {"overview", "tuning", "thermal", "faults", "bus", "robot", "diff"}
     assert set(blueprint_names()) == dashboards == set(BLUEPRINTS)
     for name in BLUEPRINTS:
         views = list(_views(blueprint(name, table).root_container))
