@@ -5,8 +5,9 @@ changed since the last good run.
 
 Top: the first divergence and each series' own, as text entries on the cycle they happened
 (click one to move the time cursor there). Then per controlled quantity the base run and the
-candidate on one plot, and every difference (cand - base) of the board's fields on one plot,
-which is flat at 0 wherever the runs agree. Paths come from `hilrig.observe.paths`.
+candidate on one plot, and below it their difference (cand - base), flat at 0 wherever the runs
+agree; one unit per plot. Every other series' difference is in the recording under /diff, to
+drag into a view. Paths come from `hilrig.observe.paths`.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ from hilrig.observe.paths import (
     DIFF_CAND_ROOT,
     DIFF_EVENTS_PATH,
     DIFF_ROOT,
-    FIELDS_ROOT,
     EntryTable,
     entity_paths,
 )
@@ -50,19 +50,22 @@ def diff(table: EntryTable) -> rrb.Blueprint:
             axis_x=whole_run,
         )
 
+    def apart(title: str, name: str) -> rrb.TimeSeriesView:
+        return rrb.TimeSeriesView(
+            name=f"{title}: {name}, cand - base",
+            origin="/",
+            contents=[DIFF_ROOT + paths[name]],
+            axis_x=whole_run,
+        )
+
     return rrb.Blueprint(
         rrb.Vertical(
             rrb.TextLogView(
                 name="where the runs part (first divergence of each series)", origin=DIFF_EVENTS_PATH
             ),
-            rrb.Grid(*(both(title, name) for title, name in COMPARED_QUANTITIES)),
-            rrb.TimeSeriesView(
-                name="every board field: cand - base (0 where the runs agree)",
-                origin=DIFF_ROOT + FIELDS_ROOT,
-                contents="$origin/**",
-                axis_x=whole_run,
-            ),
-            row_shares=[1, 4, 2],
+            rrb.Horizontal(*(both(title, name) for title, name in COMPARED_QUANTITIES)),
+            rrb.Horizontal(*(apart(title, name) for title, name in COMPARED_QUANTITIES)),
+            row_shares=[2, 3, 2],
         ),
         rrb.TimePanel(timeline=CYCLE_TIMELINE),
         collapse_panels=False,

@@ -264,9 +264,9 @@ def test_every_plot_of_every_dashboard_has_one_unit(table: RigTable) -> None:
         for view in _views(blueprint(name, table).root_container):
             contents = view.contents if isinstance(view.contents, list) else []
             # A robot module's fields are one board's under /modules/<id>; a comparison's under
-            # /base and /cand.
+            # /base, /cand and /diff.
             shown = [path for path in contents if not path.startswith("+ ")]
-            paths = [re.sub(r"^/(modules/\d+|base|cand)(?=/)", "", path) for path in shown]
+            paths = [re.sub(r"^/(modules/\d+|base|cand|diff)(?=/)", "", path) for path in shown]
             units = {unit_of[path] for path in paths}
             assert len(units) <= 1, f"{name}: {view.name} mixes {sorted(units)}"
 
