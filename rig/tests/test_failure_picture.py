@@ -129,3 +129,33 @@ def test_a_picture_is_written_whole(tmp_path: Path) -> None:
 def test_baseline_names_are_one_file_per_test(tmp_path: Path) -> None:
     kept = baseline_path(tmp_path, "tests/test_joint.py::test_step[a b]")
     assert kept == tmp_path / "test_joint.test_step_a_b_.rrd"
+
+
+BASELINE_SCENARIO = '''
+import os
+from pathlib import Path
+
+
+def test_run(request, tmp_path):
+    trace = tmp_path / "trace.rrd"
+    trace.write_bytes(b"run " + os.environ["RUN"].encode())
+    request.node.hil_trace = trace
+    assert os.environ["RUN"] == "good"
+'''
+
+
+def test_a_baseline_is_kept_when_passing_and_named_when_failing(
+    pytester: pytest.Pytester, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    baseline = tmp_path / "baseline"
+    pytester.makepyfile(test_kept=BASELINE_SCENARIO)
+    monkeypatch.setenv("RUN", "good")
+    pytester.runpytest("-p", "no:cacheprovider", f"--hil-baseline={baseline}").assert_outcomes(passed=1)
+    kept = baseline / "test_kept.test_run.rrd"
+    assert kept.read_bytes() == b"run good"
+
+    monkeypatch.setenv("RUN", "bad")
+    failed = pytester.runpytest("-p", "no:cacheprovider", f"--hil-baseline={baseline}")
+    failed.assert_outcomes(failed=1)
+    failed.stdout.fnmatch_lines([f"*what changed: hilrig diff {kept} *trace.rrd"])
+    assert kept.read_bytes() == b"run good"  # a failing run never replaces the last good one
