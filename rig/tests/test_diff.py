@@ -165,13 +165,19 @@ def test_tolerances_and_nan() -> None:
     assert compare(base, one_nan).first.cycle == 2  # type: ignore[union-attr]
 
 
-def test_events_part_at_their_first_other_entry_and_values_come_first_at_one_cycle() -> None:
-    base = hand_made({"/x": ([0, 3], [0.0, 0.0])}, {"/events/emcy": [(1, "EMCY a"), (3, "EMCY b")]})
-    cand = hand_made({"/x": ([0, 3], [0.0, 1.0])}, {"/events/emcy": [(1, "EMCY a"), (3, "EMCY c")]})
+def test_events_part_at_their_first_other_entry_and_causes_come_first_at_one_cycle() -> None:
+    x, sent = "/fields/sensors/x", "/fields/parameters/kp"
+    base = hand_made(
+        {x: ([0, 3], [0.0, 0.0]), sent: ([3], [1.0])}, {"/events/emcy": [(1, "EMCY a"), (3, "EMCY b")]}
+    )
+    cand = hand_made(
+        {x: ([0, 3], [0.0, 1.0]), sent: ([3], [2.0])}, {"/events/emcy": [(1, "EMCY a"), (3, "EMCY c")]}
+    )
     result = compare(base, cand)
-    assert [(d.path, d.cycle) for d in result.divergences] == [("/x", 3), ("/events/emcy", 3)]
-    assert (result.divergences[1].base, result.divergences[1].cand) == ("EMCY b", "EMCY c")
-    fewer = hand_made({"/x": ([0, 3], [0.0, 0.0])}, {"/events/emcy": [(1, "EMCY a")]})
+    # What the rig sent, then what the node answered, then the events.
+    assert [(d.path, d.cycle) for d in result.divergences] == [(sent, 3), (x, 3), ("/events/emcy", 3)]
+    assert (result.divergences[2].base, result.divergences[2].cand) == ("EMCY b", "EMCY c")
+    fewer = hand_made({x: ([0, 3], [0.0, 0.0]), sent: ([3], [1.0])}, {"/events/emcy": [(1, "EMCY a")]})
     missing = compare(base, fewer).first
     assert missing is not None and (missing.cycle, missing.cand) == (3, "(no entry)")
 

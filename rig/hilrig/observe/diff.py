@@ -4,7 +4,9 @@ Rerun compares no two recordings, so both are read back (`Trace.read`) and compa
 series on the cycle timeline: a series' value at a cycle is its latest row at or before it (the
 frame counts and parameters are logged as their changes), over the cycles both runs reached. A
 value differs when |cand - base| > atol + rtol * max(|base|, |cand|); a text series (events)
-differs at its first entry whose cycle or text is not the other run's.
+differs at its first entry whose cycle or text is not the other run's. Of the series that part
+at one cycle, the first named is the likeliest cause: what the rig sent before what the node
+answered, then the truth, the bus counts, the events.
 
     result = compare(Trace.read(base), Trace.read(cand), Tolerance(atol=1e-9, rtol=1e-6))
     result.first   # Divergence(name="motor_duty_command", cycle=1312, base=0.214, cand=0.198, ...)
@@ -18,6 +20,7 @@ at /diff/divergences on the cycle of its first divergence; the `diff` dashboard 
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -28,12 +31,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hilrig.observe.paths import (
+    BUS_ROOT,
     CYCLE_TIMELINE,
     DIFF_BASE_ROOT,
     DIFF_CAND_ROOT,
     DIFF_EVENTS_PATH,
     DIFF_ROOT,
+    FIELDS_ROOT,
+    HIL_INPUTS_ROOT,
+    HIL_OUTPUTS_ROOT,
+    MODULES_ROOT,
     SIM_TIME_TIMELINE,
+    TRUTH_ROOT,
 )
 from hilrig.observe.reader import Trace
 from hilrig.observe.sinks import APPLICATION_ID
@@ -216,8 +225,7 @@ def compare(
             if found is not None:
                 cycle, base_text, cand_text = found
                 divergences.append(Divergence(path, name, cycle, time_of(cycle), base_text, cand_text))
-    # At one cycle, a value before an event it caused, then in path order (sorted is stable).
-    divergences.sort(key=lambda d: (d.cycle, isinstance(d.base, str) or isinstance(d.cand, str)))
+    divergences.sort(key=lambda d: (d.cycle, _cause_rank(d)))  # then in path order: sorted is stable
     return Comparison(
         compared=common,
         divergences=divergences,
@@ -229,6 +237,24 @@ def compare(
         differences=differences,
         names=names,
     )
+
+
+_CAUSES_FIRST = (
+    (f"{FIELDS_ROOT}/commands/", f"{FIELDS_ROOT}/parameters/", f"{HIL_INPUTS_ROOT}/"),
+    (f"{FIELDS_ROOT}/", f"{HIL_OUTPUTS_ROOT}/"),
+    (f"{TRUTH_ROOT}/",),
+    (f"{BUS_ROOT}/",),
+)
+"""At one cycle, what the rig sent (commands, parameters, sensor inputs) before what the node
+answered, then the plant's truth, the bus counts, and last the events they caused."""
+
+
+def _cause_rank(divergence: Divergence) -> int:
+    if isinstance(divergence.base, str) or isinstance(divergence.cand, str):
+        return len(_CAUSES_FIRST)
+    path = re.sub(rf"^{MODULES_ROOT}/\d+", "", divergence.path)  # a robot's module: its own paths
+    ranks = (rank for rank, roots in enumerate(_CAUSES_FIRST) if path.startswith(roots))
+    return next(ranks, len(_CAUSES_FIRST))
 
 
 def _text_entries(trace: Trace, path: str) -> list[tuple[int, str]]:
