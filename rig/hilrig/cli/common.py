@@ -11,6 +11,7 @@ import argparse
 import contextlib
 import difflib
 import errno
+import os
 import re
 import sys
 import threading
@@ -72,6 +73,31 @@ class Command:
 
 
 # --- Argument types (argparse turns ValueError/ArgumentTypeError into exit code 2) ---------
+@dataclass(frozen=True)
+class ArgKind:
+    """What kind of value an argument type takes, set on the type function as `.kind`: the
+    bad-input table test (rig/tests/test_cli_bad_input.py) feeds every argument of every command
+    the bad values of its kind. `suffixes`: the extensions an input or output file takes;
+    `sniffed`: an input file's content is checked before the command runs (else a wrong
+    extension is its wrong format); `out_of_range`: a value of the right spelling refused."""
+
+    name: str  # "input file", "output file", "number", "port", "name", "viewer"
+    suffixes: tuple[str, ...] = ()
+    sniffed: bool = False
+    out_of_range: str = ""
+
+
+def kind(value: ArgKind) -> Callable[[Callable[[str], Any]], Callable[[str], Any]]:
+    """Decorator: tag an argument type with its ArgKind."""
+
+    def tag(function: Callable[[str], Any]) -> Callable[[str], Any]:
+        function.kind = value  # type: ignore[attr-defined]
+        return function
+
+    return tag
+
+
+@kind(ArgKind("number", out_of_range=str(MAX_NODE_ID + 1)))
 def node_id(text: str) -> int:
     """'16' or '0x10' -> 16; 1..127."""
     try:
@@ -87,6 +113,7 @@ def node_id(text: str) -> int:
     return value
 
 
+@kind(ArgKind("name", out_of_range="socketcn"))
 def interface_name(text: str) -> str:
     """A python-can interface name; unknown ones are refused with the close matches."""
     from can.interfaces import VALID_INTERFACES
@@ -100,6 +127,7 @@ def interface_name(text: str) -> str:
     )
 
 
+@kind(ArgKind("number", out_of_range="-1"))
 def positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -110,6 +138,7 @@ def positive_float(text: str) -> float:
     return value
 
 
+@kind(ArgKind("number", out_of_range="0"))
 def positive_int(text: str) -> int:
     try:
         value = int(text, 0)
@@ -120,14 +149,146 @@ def positive_int(text: str) -> int:
     return value
 
 
-def existing_file(what: str, hint: str) -> Callable[[str], Path]:
+@kind(ArgKind("name", out_of_range="no_such_field"))
+def field_name(text: str) -> str:
+    """A field name; checked against the table when the command runs (`check_names`: --table
+    may name another table)."""
+    return text
+
+
+@kind(ArgKind("name", out_of_range="no_such_field=1"))
+def assignment(text: str) -> str:
+    """NAME=VALUE; checked against the table when the command runs."""
+    return text
+
+
+MAX_PORT = 65535
+
+
+@kind(ArgKind("port", out_of_range=str(MAX_PORT + 1)))
+def port(text: str) -> int:
+    """A TCP port, 1..65535."""
+    try:
+        value = int(text, 0)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= MAX_PORT:
+        raise argparse.ArgumentTypeError(f"expected a TCP port 1..{MAX_PORT}, got {text!r}")
+    return value
+
+
+def unreadable_reason(path: Path) -> str | None:
+    """Why the file at `path` cannot be read ('does not exist', 'is a directory', 'cannot be read:
+    Permission denied'), None if it can. Tried by opening it, so root and ACLs judge as they will
+    when the command reads it."""
+    try:
+        with path.open("rb"):
+            return None
+    except FileNotFoundError:
+        return "does not exist"
+    except IsADirectoryError:
+        return "is a directory, not a file"
+    except OSError as error:
+        return f"cannot be read: {error.strerror or one_line(error)}"
+
+
+def existing_file(
+    what: str,
+    hint: str,
+    *,
+    suffixes: tuple[str, ...] = (),
+    sniff: Callable[[Path], str | None] | None = None,
+) -> Callable[[str], Path]:
+    """An argument type: a file that exists and can be read (else a usage error naming it, with
+    `hint`); with `suffixes`, one of these extensions; with `sniff`, whose content `sniff`
+    accepts (it returns why not, or None)."""
+
+    @kind(ArgKind("input file", suffixes, sniffed=sniff is not None))
     def check(text: str) -> Path:
         path = Path(text)
-        if not path.is_file():
-            raise argparse.ArgumentTypeError(f"{what} {text} does not exist; {hint}")
+        reason = unreadable_reason(path)
+        if reason is None and suffixes and not text.lower().endswith(suffixes):
+            reason = f"does not end in {_either(suffixes)}"
+        if reason is None and sniff is not None:
+            reason = sniff(path)
+        if reason is not None:
+            raise argparse.ArgumentTypeError(f"{what} {text} {reason}; {hint}")
         return path
 
     return check
+
+
+def _either(suffixes: tuple[str, ...]) -> str:
+    """'.log, .blf or .asc'."""
+    return " or ".join(filter(None, (", ".join(suffixes[:-1]), suffixes[-1])))
+
+
+def output_file(what: str, *, suffixes: tuple[str, ...] = ()) -> Callable[[str], Path]:
+    """An argument type: a file to write, in a folder that exists (none is created: a typo
+    would make one anywhere, as root too) and that is no folder itself."""
+
+    @kind(ArgKind("output file", suffixes))
+    def check(text: str) -> Path:
+        path = Path(text)
+        folder = path.parent
+        if suffixes and not text.lower().endswith(suffixes):
+            reason = f"does not end in {_either(suffixes)} (the format follows the extension)"
+        elif path.is_dir() or text.endswith("/"):
+            reason = "is a directory: name the file to write"
+        elif not folder.is_dir():
+            reason = f"cannot be written: folder {folder} does not exist (create it first)"
+        elif not os.access(folder, os.W_OK | os.X_OK, effective_ids=os.access in os.supports_effective_ids):
+            reason = f"cannot be written: folder {folder} is not writable"
+        else:
+            return path
+        raise argparse.ArgumentTypeError(f"{what} {text} {reason}")
+
+    return check
+
+
+@kind(ArgKind("output folder"))
+def output_folder(text: str) -> Path:
+    """An argument type: a folder the command writes into (made if missing, as `make run`'s
+    out/demo is); an existing file there is refused."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a file, not a folder: name a folder to write into")
+    return path
+
+
+# --- What a file's start says about its format (the sniff of `existing_file`) ------------
+def sniff_toml(path: Path) -> str | None:
+    import tomllib
+
+    try:
+        tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        return f"is not TOML ({one_line(error)})"
+    return None
+
+
+_EDS_OBJECT = re.compile(rb"^\s*\[[0-9A-Fa-f]{4}\]", re.MULTILINE)
+_DBC_KEYWORD = re.compile(rb"^\s*(VERSION|NS_|BU_|BO_)\b", re.MULTILINE)
+
+
+def sniff_eds(path: Path) -> str | None:
+    """An EDS (CiA 306) is INI text with a section per object ([1000], [1018]...)."""
+    return None if _EDS_OBJECT.search(path.read_bytes()) else "is not an EDS (no [1000]-style object section)"
+
+
+def sniff_dbc(path: Path) -> str | None:
+    """A DBC has its keywords (VERSION, BU_, BO_...) at line starts."""
+    return None if _DBC_KEYWORD.search(path.read_bytes()) else "is not a DBC (no VERSION, BU_ or BO_ line)"
+
+
+def sniff_executable(path: Path) -> str | None:
+    if not os.access(path, os.X_OK):
+        return "is not executable (chmod +x)"
+    with path.open("rb") as file:
+        start = file.read(4)
+    return (
+        None if start in (b"\x7fELF",) or start.startswith(b"#!") else "is not a program (no ELF or #! start)"
+    )
 
 
 def required_file(path: Path, what: str, hint: str) -> Path:
@@ -142,6 +303,7 @@ _BITRATE = re.compile(r"(?P<number>\d+(?:\.\d+)?)\s*(?P<scale>[kKmM]?)")
 _BITRATE_SCALE = {"": 1, "k": 1_000, "m": 1_000_000}
 
 
+@kind(ArgKind("number", out_of_range="0"))
 def bitrate(text: str) -> int:
     """'125000', '500k', '1M', '2.5M' -> bit/s: every bit rate option and python-can's
     configured bit rates go through this one parser."""
@@ -206,14 +368,31 @@ def can_filter(text: str) -> CanFilter:
 
 
 # --- Option groups ---------------------------------------------------------------------
+@kind(ArgKind("viewer", out_of_range="web:99999"))
 def live_sink(text: str) -> TraceSink:
-    """A `--viewer` value: spawn[:PORT] | web[:PORT[:GRPC_PORT]] | connect[:URL]."""
-    from hilrig.observe.sinks import parse_live_sink
+    """A `--viewer` value: spawn[:PORT] | web[:PORT[:GRPC_PORT]] | connect[:URL]; spawn on a
+    machine without a display is refused (the viewer would die with a windowing error)."""
+    from hilrig.observe.sinks import SinkKind, parse_live_sink
 
     try:
-        return parse_live_sink(text)
+        sink = parse_live_sink(text)
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
+    if sink.kind is SinkKind.SPAWN and not has_display():
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: {NO_DISPLAY}; use web[:PORT] and open the page it prints"
+        )
+    return sink
+
+
+NO_DISPLAY = "no display here for a native viewer (neither DISPLAY nor WAYLAND_DISPLAY is set)"
+
+
+def has_display() -> bool:
+    """Whether a native window can open: on Linux an X or Wayland display must be named."""
+    if not sys.platform.startswith("linux"):
+        return True
+    return any(os.environ.get(name) for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"))
 
 
 LIVE_VIEWER_HELP = (
@@ -225,7 +404,9 @@ LIVE_VIEWER_HELP = (
 def add_table_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--table",
-        type=existing_file("board table", "pass --table PATH/board.toml"),
+        type=existing_file(
+            "board table", "pass --table PATH/board.toml", suffixes=(".toml",), sniff=sniff_toml
+        ),
         default=DEFAULT_TABLE_PATH,
         metavar="TOML",
         help="the board field table (default: protocol/board.toml of this checkout, or the installed "
@@ -318,7 +499,7 @@ def add_node_options(parser: argparse.ArgumentParser, *, sdo_timeout_s: float = 
     )
     group.add_argument(
         "--eds",
-        type=existing_file("EDS", EDS_HINT),
+        type=existing_file("EDS", EDS_HINT, sniff=sniff_eds),
         default=None,
         help="the board's EDS (default: the table's: build/protocol/board.eds in a checkout)",
     )
@@ -465,6 +646,9 @@ def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[can.BusABC]
             "--bus-kwargs KEY=VALUE (see python-can's page of that interface)"
         ) from error
     except Exception as error:  # backends raise what they like: the adapter's problem, in words
+        library = _missing_library(interface, error)
+        if library is not None:
+            raise UsageError(f"cannot use the {interface} interface: {library}") from error
         raise BusUnavailableError(
             f"cannot open {describe_bus(args)}: {one_line(error)}{_bus_hint(args, error)}"
         ) from error
@@ -491,6 +675,26 @@ def _missing_hint(interface: str, error: BaseException) -> str:
         f"it needs the {name} package, which is not installed: pip install {name} "
         f"(or pip install 'python-can[{extra}]')"
     )
+
+
+# The vendor library an interface loads with ctypes when its bus opens (not a Python package).
+INTERFACE_LIBRARIES: dict[str, tuple[str, str]] = {
+    "pcan": ("PEAK's PCAN-Basic library (libpcanbasic.so, from peak-system.com)", "peak_usb"),
+    "kvaser": ("Kvaser's CANlib (libcanlib.so, from Kvaser's linuxcan)", "kvaser_usb"),
+}
+"""interface -> (the library, the Linux kernel driver that serves the same adapters on socketcan)."""
+
+
+def _missing_library(interface: str, error: BaseException) -> str | None:
+    """'it needs ..., which is not installed' when the interface's vendor library is missing:
+    python-can's pcan says 'library not found', its kvaser leaves canlib's functions undefined
+    (a NameError); None for any other failure."""
+    known = INTERFACE_LIBRARIES.get(interface)
+    reason = one_line(error).lower()
+    if known is None or not (isinstance(error, NameError) or "library not found" in reason):
+        return None
+    library, driver = known
+    return f"it needs {library}, which is not installed; or use -i socketcan (the kernel's {driver} driver)"
 
 
 def _bus_hint(args: argparse.Namespace, error: BaseException) -> str:

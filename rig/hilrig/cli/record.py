@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 from hilrig.cli.common import (
     DBC_HINT,
     LIVE_VIEWER_HELP,
+    ArgKind,
     CanFilter,
     Command,
     SyncProducer,
@@ -34,14 +35,18 @@ from hilrig.cli.common import (
     existing_file,
     format_unit,
     format_value,
+    kind,
     live_sink,
     load_dbc,
     load_table,
     node_id,
     open_bus,
+    output_file,
     positive_float,
     positive_int,
     progress,
+    sniff_dbc,
+    unreadable_reason,
 )
 from hilrig.session.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 
@@ -54,14 +59,8 @@ if TYPE_CHECKING:
 PROGRESS_EVERY_S = 1.0
 
 
-def log_path(text: str) -> Path:
-    path = Path(text)
-    if path.suffix.lower() not in LOG_FORMATS:
-        raise argparse.ArgumentTypeError(
-            f"{text}: expected a file ending in {', '.join(LOG_FORMATS)} (the format follows the "
-            "extension: .log is candump, .blf is Vector)"
-        )
-    return path
+log_path = output_file("log", suffixes=tuple(LOG_FORMATS))
+"""record's FILE: the format follows the extension (.log is candump, .blf is Vector)."""
 
 
 class _CountingSink:
@@ -144,7 +143,7 @@ def configure_record(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--dbc",
-        type=existing_file("DBC", DBC_HINT),
+        type=existing_file("DBC", DBC_HINT, suffixes=(".dbc",), sniff=sniff_dbc),
         default=None,
         help="--viewer: the DBC (default: build/protocol/board.dbc)",
     )
@@ -232,7 +231,7 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--dbc",
-        type=existing_file("DBC", DBC_HINT),
+        type=existing_file("DBC", DBC_HINT, suffixes=(".dbc",), sniff=sniff_dbc),
         default=None,
         help="--decode and --trace: the DBC (default: the table's: build/protocol/board.dbc in a checkout)",
     )
@@ -271,23 +270,22 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
     add_bus_options(parser)
 
 
+@kind(ArgKind("input file"))
 def existing_log(text: str) -> Path:
+    """replay's FILE: a file that can be read; its format (the extension) is judged by `read_log`,
+    which says what the content looks like."""
     path = Path(text)
-    if not path.is_file():
+    reason = unreadable_reason(path)
+    if reason is not None:
         from hilrig.session.buslog import readable_formats  # imports python-can: only on this error
 
         raise argparse.ArgumentTypeError(
-            f"log {text} does not exist; record one with `hilrig record FILE` "
-            f"(replay reads {readable_formats()})"
+            f"log {text} {reason}; record one with `hilrig record FILE` (replay reads {readable_formats()})"
         )
     return path
 
 
-def rrd_path(text: str) -> Path:
-    path = Path(text)
-    if path.suffix != ".rrd":
-        raise argparse.ArgumentTypeError(f"{text}: expected a file ending in .rrd (a Rerun recording)")
-    return path
+rrd_path = output_file("trace", suffixes=(".rrd",))
 
 
 def run_replay(args: argparse.Namespace) -> int:
