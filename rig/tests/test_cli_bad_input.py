@@ -3,7 +3,7 @@ exit code 2 (`hilrig --help`'s rule: refused before anything ran), never a trace
 
 The commands and their arguments come from the CLI's own parser, so a command added later is
 covered without a line here: an argument's kind is the `ArgKind` its type carries
-(`hilrig.cli.common.kind`): missing file, directory, unreadable file, wrong format, out-of-range
+(`hilrig.cli.files.kind`): missing file, directory, unreadable file, wrong format, out-of-range
 number, unknown name, port out of range, no display. An argument taking a path unchecked
 (`type=Path`) fails the test: give it `existing_file`, `output_file` or `output_folder`. Natively,
 no bus: every case is refused before a bus is opened.
@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from hilrig.cli import EXIT_USAGE, build_parser, main
-from hilrig.cli.common import ArgKind
+from hilrig.cli.files import ArgKind
 
 Make = Callable[[Path], str]
 """Writes what a case needs under the test's folder; returns the bad argument's text."""

@@ -28,7 +28,7 @@ def test_list_names_every_dashboard(capsys: pytest.CaptureFixture[str]) -> None:
         ([], "name the trace to open"),
         (["missing.rrd"], "trace missing.rrd does not exist"),
         (["{rrd}", "--dashboard", "tunning"], "did you mean 'tuning'"),
-        (["{log}"], "bus.log is not a .rrd file"),
+        (["{log}"], "bus.log does not end in .rrd"),
         (["{empty}"], "empty.rrd is not a Rerun recording"),
     ],
 )

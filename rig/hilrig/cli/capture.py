@@ -35,12 +35,12 @@ from hilrig.cli.common import (
     field_name,
     load_table,
     open_bus,
-    output_file,
     positive_float,
     positive_int,
     progress,
     silent_hint,
 )
+from hilrig.cli.files import output_file
 from hilrig.errors import FieldNameError, RigError, SdoTimeoutError
 from hilrig.table import RigTable
 

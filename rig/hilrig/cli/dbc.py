@@ -6,7 +6,8 @@ import argparse
 import sys
 
 from boardproto import TableError, load_table
-from hilrig.cli.common import Command, UsageError, add_table_option, node_id, output_file, progress
+from hilrig.cli.common import Command, UsageError, add_table_option, node_id, progress
+from hilrig.cli.files import output_file
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

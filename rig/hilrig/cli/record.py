@@ -23,7 +23,6 @@ from typing import TYPE_CHECKING
 from hilrig.cli.common import (
     DBC_HINT,
     LIVE_VIEWER_HELP,
-    ArgKind,
     CanFilter,
     Command,
     SyncProducer,
@@ -35,19 +34,16 @@ from hilrig.cli.common import (
     existing_file,
     format_unit,
     format_value,
-    kind,
     live_sink,
     load_dbc,
     load_table,
     node_id,
     open_bus,
-    output_file,
     positive_float,
     positive_int,
     progress,
-    sniff_dbc,
-    unreadable_reason,
 )
+from hilrig.cli.files import ArgKind, kind, output_file, sniff_dbc, unreadable_reason
 from hilrig.session.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 
 if TYPE_CHECKING:

@@ -123,7 +123,7 @@ def run_set(args: argparse.Namespace) -> int:
     read_only = [name for name, entry in entry_of.items() if entry.access is Access.READ_ONLY]
     if read_only:  # refused here, nothing sent: the table says the node would refuse it
         raise UsageError(
-            f"{', '.join(read_only)}: read-only over the bus (access = \"ro\" in board.toml); "
+            f'{", ".join(read_only)}: read-only over the bus (access = "ro" in board.toml); '
             "`hilrig fields --kind parameter` lists what can be set"
         )
     assignments = [parse_assignment(text, entry_of, table) for text in args.assignments]

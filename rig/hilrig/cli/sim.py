@@ -17,12 +17,10 @@ from hilrig.cli.common import (
     existing_file,
     live_sink,
     node_id,
-    output_folder,
     positive_int,
     progress,
-    sniff_eds,
-    sniff_executable,
 )
+from hilrig.cli.files import output_folder, sniff_eds, sniff_executable
 from hilrig.resources import FIRMWARE_HINT
 from hilrig.table import BOARD_TABLE
 
@@ -218,7 +216,6 @@ def run(args: argparse.Namespace) -> int:
 def _live_sinks(args: argparse.Namespace) -> list[TraceSink]:
     """--viewer, else $HIL_TRACE; none with --no-trace (and both given: a usage error)."""
     from hilrig.observe.sinks import live_sinks_from_environment
-
 
     try:
         live = list(args.viewer) if args.viewer is not None else live_sinks_from_environment()

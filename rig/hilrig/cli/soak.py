@@ -10,12 +10,9 @@ from hilrig.cli.common import (
     UsageError,
     existing_file,
     node_id,
-    output_file,
-    output_folder,
     positive_int,
-    sniff_eds,
-    sniff_executable,
 )
+from hilrig.cli.files import output_file, output_folder, sniff_eds, sniff_executable
 
 
 def _configure(parser: argparse.ArgumentParser) -> None:
