@@ -2,7 +2,8 @@
 the board's files.
 
 C extensions: hilrig.wire._wire, the per-cycle PDO exchange on a raw CAN socket (hilrig.wire.transport's
-fast path), and hilrig.plants._plant, the joint's physics. Its arithmetic must stay bit-identical to
+fast path), and hilrig.plants._plant, the joint's physics, both on the limited API (abi3: one
+wheel for CPython 3.11 and later). Its arithmetic must stay bit-identical to
 the reference trajectories (tests/data/physics_reference.json): no FMA contraction, no fast-math,
 libm's tanh/exp. A missing compiler or CPython header fails here, by name, instead of deep in
 gcc's output.
@@ -94,12 +95,18 @@ setup(
             sources=["hilrig/plants/_plant.c"],
             extra_compile_args=["-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra"],
             libraries=["m"],
+            py_limited_api=SELF_CONTAINED,
         ),
         Extension(
             "hilrig.wire._wire",
             sources=["hilrig/wire/_wire.c"],
             extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror"],
+            py_limited_api=SELF_CONTAINED,
         ),
     ],
     cmdclass={"build_ext": BuildExtensionWithChecks, "build_py": BuildPyWithBoardFiles},
+    # The extensions use the limited API of 3.11 (Py_LIMITED_API in their sources): the wheel
+    # is abi3, for CPython 3.11 and later. The checkout's editable build keeps the version's own
+    # file name, so an earlier in-place build is replaced, never shadowed.
+    options={"bdist_wheel": {"py_limited_api": "cp311"}} if SELF_CONTAINED else {},
 )

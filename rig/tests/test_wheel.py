@@ -134,7 +134,7 @@ def installed(built: Path) -> Installed:
 
 def test_dist_holds_hilrig_alone_requiring_only_what_the_lock_pins(built: Path) -> None:
     assert sorted(p.name for p in built.iterdir()) == [
-        "hilrig-0.1.0-cp311-cp311-linux_x86_64.whl",
+        "hilrig-0.1.0-cp311-abi3-linux_x86_64.whl",  # CPython 3.11 and later (limited API)
         "hilrig-0.1.0.tar.gz",
     ]
     (wheel,) = built.glob("*.whl")
@@ -168,7 +168,7 @@ def test_the_wheel_holds_every_module_the_table_its_eds_and_dbc_and_the_dashboar
     assert sources <= names, f"left out of the wheel: {sorted(sources - names)}"
     assert {"hilrig/data/board.toml", "hilrig/data/board.eds", "hilrig/data/board.dbc"} <= names
     for extension in ("hilrig/plants/_plant.", "hilrig/wire/_wire."):
-        assert any(name.startswith(extension) and name.endswith(".so") for name in names), extension
+        assert f"{extension}abi3.so" in names, extension  # the stable ABI: any CPython 3.11+
     assert not any("/tests/" in name or name.endswith(".c") for name in names)
 
 
