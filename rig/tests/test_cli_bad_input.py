@@ -114,13 +114,15 @@ def bad_inputs(action: argparse.Action) -> list[tuple[str, Make, str, bool]]:
         return []
     suffix = kind.suffixes[0] if kind.suffixes else ""
     if kind.name == "input file":
-        wrong = ("bad" + suffix, GARBAGE) if kind.sniffed else ("bad.xyz", b"x\n")
-        return [
+        cases = [
             ("missing file", _text(f"/nonexistent/gone{suffix}"), "does not exist", False),
             ("directory", _folder(f"folder{suffix}"), "is a directory", False),
             ("unreadable file", _unreadable(f"locked{suffix}"), "cannot be read", False),
-            ("wrong format", _file(*wrong), wrong[0], False),
         ]
+        if kind.sniffed or kind.suffixes:  # a file of no known format has no wrong one
+            wrong = ("bad" + suffix, GARBAGE) if kind.sniffed else ("bad.xyz", b"x\n")
+            cases.append(("wrong format", _file(*wrong), wrong[0], False))
+        return cases
     if kind.name == "output file":
         cases = [
             ("missing folder", _text(f"/nonexistent/out{suffix}"), "/nonexistent does not exist", False),

@@ -266,10 +266,11 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
     add_bus_options(parser)
 
 
-@kind(ArgKind("input file"))
+@kind(ArgKind("input file", suffixes=tuple(LOG_FORMATS)))
 def existing_log(text: str) -> Path:
-    """replay's FILE: a file that can be read; its format (the extension) is judged by `read_log`,
-    which says what the content looks like."""
+    """replay's FILE: a file that can be read; its format (the extension: LOG_FORMATS and what
+    else python-can reads) is judged by `read_log` before the bus opens, which says what the
+    content looks like."""
     path = Path(text)
     reason = unreadable_reason(path)
     if reason is not None:
