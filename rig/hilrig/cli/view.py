@@ -7,9 +7,25 @@ import signal
 from pathlib import Path
 from types import FrameType
 
-from hilrig.cli.common import Command, UsageError, existing_file, positive_int, progress
+from hilrig.cli.common import (
+    NO_DISPLAY,
+    Command,
+    UsageError,
+    existing_file,
+    has_display,
+    port,
+    progress,
+)
 
 DEFAULT_DASHBOARD = "overview"
+RRD_MAGIC = b"RRF"
+"""How a Rerun recording starts (RRF2 today, RRF0/RRF1 before)."""
+
+
+def sniff_rrd(path: Path) -> str | None:
+    with path.open("rb") as file:
+        start = file.read(len(RRD_MAGIC))
+    return None if start == RRD_MAGIC else "is not a Rerun recording (it does not start with RRF)"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -17,7 +33,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument(
         "trace",
-        type=existing_file("trace", "a .rrd from `hilrig sim`, a scenario or `hilrig replay --trace`"),
+        type=existing_file(
+            "trace",
+            "a .rrd from `hilrig sim`, a scenario or `hilrig replay --trace`",
+            suffixes=(".rrd",),
+            sniff=sniff_rrd,
+        ),
         nargs="?",
         metavar="TRACE.rrd",
         help="the recording to open",
@@ -40,14 +61,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--web",
         nargs="?",
         const=DEFAULT_WEB_PORT,
-        type=positive_int,
+        type=port,
         metavar="PORT",
         help=f"serve the web viewer on 127.0.0.1:PORT (default {DEFAULT_WEB_PORT}) instead of a native "
         "window, and print the page to open (no display needed)",
     )
     parser.add_argument(
         "--grpc-port",
-        type=positive_int,
+        type=port,
         default=DEFAULT_GRPC_PORT,
         metavar="PORT",
         help=f"with --web: the port the recording is served from (default {DEFAULT_GRPC_PORT})",
@@ -76,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"{trace}: expected a Rerun recording (.rrd)")
     if args.check:
         return _check(trace, args.dashboard)
+    if args.web is None and not has_display():
+        raise UsageError(f"{NO_DISPLAY}: add --web to serve the web viewer and open the page it prints")
     try:
         process = open_trace(
             trace,
@@ -106,12 +129,16 @@ def _check(trace: Path, dashboard: str | None) -> int:
     from hilrig.observe.blueprints import dashboards
 
     dashboards()  # importable from a checkout on PYTHONPATH alone too
+    from hilrig.errors import LogFileError, one_line
     from hilrig.observe.blueprints import load_blueprint
     from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
     from hilrig.observe.reader import Trace
 
     progress(f"view: reading {trace}")
-    recording = Trace.read(trace)
+    try:
+        recording = Trace.read(trace)
+    except RuntimeError as error:  # rerun's reader: a cut-off or foreign file
+        raise LogFileError(f"{trace}: Rerun cannot read this recording ({one_line(error)})") from None
     fitting = fitting_dashboards(recording)  # robot: for the modules the trace has
     dashboards = {dashboard: fitting.get(dashboard) or load_blueprint(dashboard)} if dashboard else fitting
     gaps = trace_gaps(recording, dashboards)
