@@ -68,7 +68,7 @@ RUN apt-get update \
  && rm -rf /var/lib/apt/lists/*
 
 WORKDIR /src
-# The wheels (make dist), their dependencies at the versions requirements.lock pins (a constraint:
+# The wheel (make dist), its dependencies at the versions requirements.lock pins (a constraint:
 # only what hilrig needs is installed, rerun-sdk with its `rerun` CLI among them).
 COPY requirements.lock /tmp/requirements.lock
 COPY --from=release /dist/ /tmp/dist/

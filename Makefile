@@ -26,7 +26,7 @@ endef
 help: ## list the targets (default)
 	@echo "Hardware-in-the-loop test rig over CAN. Targets:"
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/^([a-z-]+):.*## (.*)/  make \1\t\2/' | expand -t 20
-	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), VIEWER=web, ROBOT=8 (make run), BASELINE=<commit> (make bench), CMAKE_FLAGS=..."
+	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), VIEWER=web, ROBOT=8 (make run), BASELINE=<commit> (make bench), DIST=DIR (make dist), CMAKE_FLAGS=..."
 
 .PHONY: deps
 deps: ## install missing Debian packages (root) and the pinned Python venv
@@ -93,13 +93,16 @@ bench: deps ## benchmarks, each a ratio measured side by side in one run (BASELI
 bench-baseline: deps ## only the engine vs BASELINE's, natively under callgrind (no firmware, no bus)
 	@$(PY) tools/bench.py baseline --out $(BENCH_BUILD) $(BASELINE_ARG)
 
-# The wheels people install for bring-up, no checkout needed (tools/dist.py: built from a staging
-# copy of the sources; the EDS and DBC in the wheel are generated from protocol/board.toml then).
+# The one distribution people install for bring-up, no checkout needed (tools/dist.py: the sdist
+# of a staged copy of the sources, the wheel built from it; the EDS and DBC in the wheel are
+# generated from protocol/board.toml then). Needs only a C compiler and the CPython headers
+# (tools/deps --dist). DIST: relative to the checkout, or absolute.
 DIST ?= dist
 
 .PHONY: dist
-dist: deps ## build the wheels to install anywhere: dist/hilrig-*.whl, dist/boardproto-*.whl
-	@$(PY) tools/dist.py --out $(CURDIR)/$(DIST)
+dist: ## build what installs anywhere: dist/hilrig-*.whl and its sdist (DIST=DIR: elsewhere)
+	@tools/deps --dist
+	@$(PY) tools/dist.py --out $(abspath $(DIST))
 
 # Soak (issue 11): SOAK_CYCLES lockstep cycles against the real firmware on a real bus, a seeded
 # fault now and then; fails if a cycle is lost or the firmware's memory grows. SOAK_ARGS are passed

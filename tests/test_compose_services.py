@@ -6,13 +6,16 @@ against that firmware, streaming live to the viewer as the file's HIL_TRACE says
 viewer holds the rig's fields: `rerun download` of the viewer's stream is read back.
 
 Paths in the commands are relative to the image's /src, which is this repository; the processes
-run in this test's output folder so the rig's out/ lands there.
+run in this test's output folder so the rig's out/ lands there. The file is interpolated as
+compose does in a shell with nothing set (tools/compose_file.py), and the rig starts, as its
+depends_on says, once the firmware's and the viewer's healthchecks pass: run in the namespace
+against those processes.
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
+import importlib.util
 import os
 import signal
 import socket
@@ -31,21 +34,27 @@ from hilrig.session.netns import PrivateBus
 pytestmark = [pytest.mark.bus, pytest.mark.realtime]  # wall-clock time: runs alone
 
 COMPOSE = REPO / "docker-compose.yml"
+_SPEC = importlib.util.spec_from_file_location("compose_file", REPO / "tools" / "compose_file.py")
+assert _SPEC is not None and _SPEC.loader is not None
+compose_file = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(compose_file)
 HANG_GUARD_S = 600.0  # the software-emulated VM starts rerun and Python slowly; not a timing check
 VIEWER_GRPC_PORT = 9876  # the port of the viewer's command and of the rig's HIL_TRACE
 
 
 def compose_services() -> dict[str, dict[str, Any]]:
-    """The services of the compose file (JSON-compatible YAML, comments above the brace)."""
-    lines = [line for line in COMPOSE.read_text().splitlines() if not line.lstrip().startswith("#")]
-    services: dict[str, dict[str, Any]] = json.loads("\n".join(lines))["services"]
+    """The services of the compose file, interpolated with nothing set (the defaults)."""
+    services: dict[str, dict[str, Any]] = compose_file.services(COMPOSE, {})
     return services
 
 
 def as_processes(command: list[str]) -> list[str]:
-    """A service's command with the image's /src-relative programs made absolute."""
+    """A service's command (or healthcheck, CMD ...) with the image's /src-relative programs made
+    absolute; in the image hilrig is the wheel, whose generators are hilrig.boardproto."""
+    command = command[1:] if command[0] == "CMD" else command
     program = command[0]
-    return [str(REPO / program) if "/" in program else program, *command[1:]]
+    rest = [arg.replace("hilrig.boardproto.", "boardproto.") for arg in command[1:]]
+    return [str(REPO / program) if "/" in program else program, *rest]
 
 
 class Services:
@@ -97,6 +106,21 @@ def services(private_bus: PrivateBus, scenario_dir: Path) -> Iterator[Services]:
         running.stop()
 
 
+def wait_until_healthy(
+    bus: PrivateBus, service: dict[str, Any], process: subprocess.Popen[bytes], what: str
+) -> None:
+    """Run the service's healthcheck in the namespace until it passes (compose's depends_on:
+    condition service_healthy), while the service runs."""
+    deadline = time.monotonic() + HANG_GUARD_S
+    check = bus.command(as_processes(service["healthcheck"]["test"]))
+    environment = {**os.environ, **service.get("environment", {})}
+    while subprocess.run(check, env=environment, capture_output=True, check=False).returncode != 0:
+        assert process.poll() is None, f"{what} exited with {process.returncode} before it was healthy"
+        assert time.monotonic() < deadline, f"{what} never passed its healthcheck"
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            process.wait(timeout=0.5)  # a pause that ends at once if the process dies
+
+
 def wait_for_port(bus: PrivateBus, port: int, process: subprocess.Popen[bytes], what: str) -> None:
     deadline = time.monotonic() + HANG_GUARD_S
     while True:
@@ -120,6 +144,8 @@ def test_the_compose_services_run_what_they_say(services: Services, scenario_dir
     firmware = services.start("firmware", compose["firmware"])
     viewer = services.start("viewer", compose["viewer"])
     wait_for_port(services.bus, VIEWER_GRPC_PORT, viewer, "the viewer")
+    wait_until_healthy(services.bus, compose["viewer"], viewer, "the viewer")
+    wait_until_healthy(services.bus, compose["firmware"], firmware, "the firmware")
     assert f"127.0.0.1:{VIEWER_GRPC_PORT}" in compose["rig"]["environment"]["HIL_TRACE"]
 
     rig = services.start("rig", compose["rig"])

@@ -8,7 +8,11 @@ from collections.abc import Iterable
 
 
 def one_line(error: BaseException) -> str:
-    """The error's message on one line (what the command line prints); its type if it has none."""
+    """The error's message on one line (what the command line prints); its type if it has none.
+    A plain OSError about a file reads 'FILE: Permission denied', not '[Errno 13] ...'."""
+    plain = isinstance(error, OSError) and type(error).__module__ == "builtins"
+    if plain and error.filename and error.strerror:
+        return f"{error.filename}: {error.strerror}"
     return " ".join(str(error).split()) or type(error).__name__
 
 

@@ -89,7 +89,7 @@ def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFix
         ),
         (["scan", "--interface", "pcann"], "did you mean pcan"),
         (["scan", "--listen", "0"], "expected a finite number > 0"),
-        (["record", "bus.txt"], "expected a file ending in .log, .blf"),
+        (["record", "bus.txt"], "bus.txt does not end in .log, .blf, .asc, .csv or .trc"),
         (["replay", "no-such.log", "--decode"], "log no-such.log does not exist; record one"),
         (["watch", "--once", "--count", "3"], "not allowed with argument"),
         (
@@ -103,7 +103,7 @@ def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFix
             ["sim", "--fault", "freeze:thermistor@1"],
             "unknown sensor 'thermistor'; sensors: motor_encoder_counts",
         ),
-        (["replay", "--trace", "x.txt", "x.log"], "x.txt: expected a file ending in .rrd"),
+        (["replay", "--trace", "x.txt", "x.log"], "x.txt does not end in .rrd"),
         (["sim", "--fault", "kill@1+1"], "kill happens once, at its start; drop the +DURATION"),
         (["frobnicate"], "invalid choice: 'frobnicate'"),
         ([], "the following arguments are required: COMMAND"),

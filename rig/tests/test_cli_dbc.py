@@ -54,6 +54,7 @@ def test_without_a_node_id_the_dbc_is_the_tables_default(capsys: pytest.CaptureF
 
 def test_writes_the_file_whole_and_says_so(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     target = tmp_path / "dbc" / "board-33.dbc"
+    target.parent.mkdir()  # a folder that does not exist is refused (rig/tests/test_cli_refusals.py)
     code, out, err = run(capsys, "dbc", "--node-id", "33", "-o", str(target))
     assert (code, out) == (0, "")
     assert err == f"hilrig dbc: wrote {target}: {len(frame_ids(33))} PDO frames of node 0x21\n"

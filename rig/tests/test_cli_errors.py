@@ -41,7 +41,7 @@ def replay(name: str, content: str | bytes, *options: str) -> Setup:
 
 
 def corrupt_dbc(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    dbc = write("bad.dbc", "xyz")(tmp_path)
+    dbc = write("bad.dbc", 'VERSION ""\nBO_ garbage\n')(tmp_path)  # starts like one
     return [*replay("bus.log", CANDUMP_LOG)(tmp_path, monkeypatch), "--dbc", str(dbc)]
 
 
@@ -112,13 +112,33 @@ CASES: dict[str, tuple[Setup, int, list[str]]] = {
         ["board.dbc does not exist; run `make build`, or give --dbc"],
     ),
     "corrupt DBC": (corrupt_dbc, EXIT_USAGE, ["bad.dbc is not a DBC cantools can read"]),
+    "no DBC at all": (
+        with_file("--dbc", "bad.dbc", "xyz", "replay", "--decode"),
+        EXIT_USAGE,
+        ["bad.dbc is not a DBC (no VERSION, BU_ or BO_ line)"],
+    ),
     "missing default EDS": (
         missing_default_eds,
         EXIT_USAGE,
         ["board.eds does not exist; run `make build`, or give --eds"],
     ),
-    "corrupt EDS": (
+    "no EDS at all": (
         with_file("--eds", "bad.eds", "garbage\n", "get", "velocity_kp", "-i", "virtual", "-c", "errors-eds"),
+        EXIT_USAGE,
+        ["bad.eds is not an EDS (no [1000]-style object section)", "run `make build`, or give --eds"],
+    ),
+    "corrupt EDS": (
+        with_file(
+            "--eds",
+            "bad.eds",
+            "[1000]\nParameterName\n",
+            "get",
+            "velocity_kp",
+            "-i",
+            "virtual",
+            "-c",
+            "errors-eds",
+        ),
         EXIT_USAGE,
         ["bad.eds is not an EDS canopen can read", "run `make build`, or give --eds"],
     ),

@@ -28,16 +28,18 @@ def test_list_names_every_dashboard(capsys: pytest.CaptureFixture[str]) -> None:
         ([], "name the trace to open"),
         (["missing.rrd"], "trace missing.rrd does not exist"),
         (["{rrd}", "--dashboard", "tunning"], "did you mean 'tuning'"),
-        (["{log}"], "expected a Rerun recording (.rrd)"),
+        (["{log}"], "bus.log does not end in .rrd"),
+        (["{empty}"], "empty.rrd is not a Rerun recording"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(
     argv: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    rrd, log = tmp_path / "t.rrd", tmp_path / "bus.log"
-    rrd.write_bytes(b"")
+    rrd, log, empty = tmp_path / "t.rrd", tmp_path / "bus.log", tmp_path / "empty.rrd"
+    rrd.write_bytes(b"RRF2")  # how a recording starts
     log.write_text("")
-    code = main(["view", *(a.format(rrd=rrd, log=log) for a in argv)])
+    empty.write_bytes(b"")
+    code = main(["view", *(a.format(rrd=rrd, log=log, empty=empty) for a in argv)])
     err = capsys.readouterr().err
     assert code == 2
     assert len(err.splitlines()) == 1 and message in err, err

@@ -1,26 +1,41 @@
 """docker-compose.yml and the Dockerfile are checked without a Docker engine (none runs here).
 
 The compose file is written in YAML's JSON-compatible flow style (comments only above the opening
-brace), so the standard library parses it exactly as a YAML parser would. When the docker CLI has
-the compose plugin, `docker compose config --quiet` (no daemon needed) checks it against the
-Compose specification as well. The Dockerfile's stages are read instruction by instruction: dev
-(the full work tree), release (builds the firmware and the wheels), runtime (slim).
+brace), so the standard library parses it exactly as a YAML parser would, and interpolated as
+compose interpolates it (tools/compose_file.py). When the docker CLI has the compose plugin,
+`docker compose config --quiet` (no daemon needed) checks it against the Compose specification as
+well. What compose promises is checked as the processes it runs: the viewer on the loopback
+unless VIEWER_BIND says otherwise, each service the rig waits for with a healthcheck that tells a
+running service from a missing one (the viewer's run against the viewer's own command, the
+firmware's against python-can's virtual bus), the files written as the invoking user, the
+channel from CAN_CHANNEL. The Dockerfile's stages are read instruction by instruction: dev (the
+full work tree), release (builds the firmware and the wheel), runtime (slim).
 """
 
 from __future__ import annotations
 
-import json
+import contextlib
+import importlib.util
+import os
 import re
 import shutil
+import socket
 import subprocess
+import threading
+import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import can
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
+_SPEC = importlib.util.spec_from_file_location("compose_file", REPO / "tools" / "compose_file.py")
+assert _SPEC is not None and _SPEC.loader is not None
+compose_file = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(compose_file)
 COMPOSE = REPO / "docker-compose.yml"
 DOCKERFILE = REPO / "Dockerfile"
 FIRMWARE_MAIN = REPO / "firmware" / "platform" / "linux" / "main.cpp"
@@ -37,17 +52,17 @@ SERVICE_KEYS = {
     "volumes",
     "privileged",
     "profiles",
+    "user",
+    "healthcheck",
 }
+HANG_GUARD_S = 120.0  # rerun's start on a loaded machine; not a timing check
 
 
 def _compose() -> dict[str, Any]:
-    lines = COMPOSE.read_text().splitlines()
-    body = [line for line in lines if not line.lstrip().startswith("#")]
-    first = next(i for i, line in enumerate(lines) if not line.lstrip().startswith("#"))
-    assert all(not line.lstrip().startswith("#") for line in lines[first:]), (
-        "comments only above the opening brace: JSON has none"
-    )
-    return json.loads("\n".join(body))
+    """The compose file as `docker compose` reads it in a shell with nothing set."""
+    compose: dict[str, Any] = compose_file.load(COMPOSE)
+    compose["services"] = compose_file.services(COMPOSE, {})
+    return compose
 
 
 def test_compose_parses_and_uses_only_known_keys() -> None:
@@ -106,7 +121,10 @@ def test_commands_name_what_the_repository_has() -> None:
     targets = set(re.findall(r"^([a-z-]+):", makefile, re.MULTILINE))
     for name, service in _compose()["services"].items():
         command = service["command"]
-        if command[0] == "make":
+        if command[:2] == ["sh", "-c"]:  # make, then hand ./out to the invoking user
+            made = re.match(r"make ([a-z -]+);", command[2])
+            assert made and set(made[1].split()) <= targets, f"{name}: {command[2]}"
+        elif command[0] == "make":
             assert set(command[1:]) <= targets, f"{name}: make {command[1:]} is not a Makefile target"
         elif command[0].startswith("build/bin/"):
             assert command[0] == "build/bin/joint-firmware", f"{name}: unexpected program {command[0]}"
@@ -123,8 +141,10 @@ def test_commands_name_what_the_repository_has() -> None:
         else:
             assert command[0] == ".venv/bin/rerun", f"{name}: unexpected program {command[0]}"
         for volume in service.get("volumes", []):
-            host, _, container = volume.partition(":")
-            assert host.startswith("./") and container.startswith("/src/"), volume
+            assert volume["type"] == "bind", volume
+            assert volume["source"].startswith("./") and volume["target"].startswith("/src/"), volume
+            # A missing ./out is refused, not made by the daemon as root.
+            assert volume["bind"]["create_host_path"] is False, volume
 
 
 def test_dockerignore_keeps_host_builds_out_of_the_image() -> None:
@@ -147,6 +167,156 @@ def test_docker_compose_config_when_the_cli_has_compose() -> None:
         cwd=REPO,
     )
     assert result.returncode == 0, result.stderr
+
+
+# --- What compose promises, as the processes it runs ------------------------------------------
+def test_the_viewer_listens_on_the_loopback_unless_asked_otherwise() -> None:
+    def bind(environ: dict[str, str]) -> str:
+        command = compose_file.services(COMPOSE, environ)["viewer"]["command"]
+        return str(command[command.index("--bind") + 1])
+
+    assert bind({}) == "127.0.0.1"
+    assert bind({"VIEWER_BIND": "0.0.0.0"}) == "0.0.0.0"
+
+
+def test_every_service_the_rig_waits_for_is_healthy_first() -> None:
+    services = _compose()["services"]
+    for name, service in services.items():
+        depends_on = service.get("depends_on", {})
+        assert isinstance(depends_on, dict), f"{name}: depends_on with conditions, not a start order"
+        for dependency, condition in depends_on.items():
+            assert condition == {"condition": "service_healthy"}, f"{name} -> {dependency}: {condition}"
+            check = services[dependency].get("healthcheck")
+            assert check is not None and check["test"][0] == "CMD", f"{dependency} has no healthcheck"
+    assert set(services["rig"]["depends_on"]) == {"firmware", "viewer"}
+
+
+def test_what_the_services_write_is_the_invoking_users() -> None:
+    services = compose_file.services(COMPOSE, {"UID": "1234", "GID": "5678"})
+    for name, service in services.items():
+        if service.get("privileged"):  # root for namespaces and vcan: it hands ./out back
+            assert "chown -R 1234:5678 /src/out" in service["command"][-1], name
+        else:
+            assert service["user"] == "1234:5678", name
+    assert compose_file.services(COMPOSE, {})["rig"]["user"] == "1000:1000"  # nothing exported
+
+
+def test_the_channel_is_can_channel(monkeypatch: pytest.MonkeyPatch) -> None:
+    services = compose_file.services(COMPOSE, {"CAN_CHANNEL": "can7"})
+    text = repr(services)
+    assert "vcan0" not in text, "a hard-coded channel"
+    firmware = services["firmware"]["command"]
+    assert firmware[firmware.index("--can") + 1] == "can7"
+    rig = services["rig"]
+    from hilrig.cli import build_parser
+    from hilrig.cli.common import bus_config
+
+    for key, value in rig["environment"].items():  # the rig's bus, as hilrig resolves it there
+        monkeypatch.setenv(key, value)
+    monkeypatch.setenv("CAN_CONFIG", "{}")
+    args = build_parser(rig["command"][1:]).parse_args(rig["command"][1:])
+    assert bus_config(args)["channel"] == "can7"
+    assert "vcan0" in repr(compose_file.services(COMPOSE, {})["firmware"]["command"])  # the default
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port: int = probe.getsockname()[1]
+        return port
+
+
+def _in_checkout(command: list[str]) -> list[str]:
+    """A healthcheck's or service's command as it runs here: the image's /src is this checkout."""
+    program = command[1] if command[0] == "CMD" else command[0]
+    rest = command[2:] if command[0] == "CMD" else command[1:]
+    return [str(REPO / program) if "/" in program else program, *rest]
+
+
+def _listening_addresses(port: int) -> set[str]:
+    """The local addresses a TCP socket listens on at `port` (/proc/net/tcp, IPv4)."""
+    found = set()
+    for line in Path("/proc/net/tcp").read_text().splitlines()[1:]:
+        local, state = line.split()[1], line.split()[3]
+        address, _, hex_port = local.partition(":")
+        if state == "0A" and int(hex_port, 16) == port:  # LISTEN
+            found.add(socket.inet_ntoa(bytes.fromhex(address)[::-1]))
+    return found
+
+
+def test_the_viewers_healthcheck_tells_a_running_viewer_from_none(tmp_path: Path) -> None:
+    environ = {"VIEWER_GRPC_PORT": str(_free_port()), "VIEWER_PORT": str(_free_port())}
+    viewer = compose_file.services(COMPOSE, environ)["viewer"]
+    check = _in_checkout(viewer["healthcheck"]["test"])
+
+    def healthy() -> bool:
+        return subprocess.run(check, capture_output=True, check=False, timeout=30).returncode == 0
+
+    assert not healthy(), "healthy before the viewer runs"
+    log = (tmp_path / "viewer.log").open("wb")
+    process = subprocess.Popen(
+        _in_checkout(viewer["command"]),
+        cwd=tmp_path,
+        env={**os.environ, **viewer["environment"]},
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        process_group=0,
+    )
+    try:
+        deadline = time.monotonic() + HANG_GUARD_S
+        while not healthy():
+            assert process.poll() is None, (tmp_path / "viewer.log").read_text()
+            assert time.monotonic() < deadline, "the viewer never became healthy"
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                process.wait(timeout=0.2)  # a pause that ends at once if the viewer dies
+        assert _listening_addresses(int(environ["VIEWER_GRPC_PORT"])) == {"127.0.0.1"}
+    finally:
+        os.killpg(process.pid, 15)
+        process.wait(timeout=30)
+        log.close()
+    assert not healthy(), "healthy after the viewer stopped"
+
+
+def test_the_firmwares_healthcheck_is_healthy_while_a_heartbeat_is_heard(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Run on python-can's virtual bus in this process (the image has a real channel): exit 0
+    with the node's heartbeat going, 1 on a silent bus. In the image hilrig is the wheel, whose
+    generators are hilrig.boardproto; here they are the checkout's boardproto."""
+    from boardproto.cia301 import heartbeat_cob_id
+    from hilrig.table import BOARD_TABLE
+
+    boot_up = can.Message(
+        arbitration_id=heartbeat_cob_id(BOARD_TABLE.node.default_node_id), data=bytes(1), is_extended_id=False
+    )
+
+    firmware = compose_file.services(COMPOSE, {})["firmware"]
+    command = firmware["healthcheck"]["test"]
+    assert command[1:3] == [".venv/bin/python", "-c"]
+    code = command[3].replace("hilrig.boardproto.", "boardproto.")
+    monkeypatch.setenv("CAN_INTERFACE", "virtual")
+
+    def exit_code(channel: str) -> int:
+        monkeypatch.setenv("CAN_CHANNEL", channel)
+        with pytest.raises(SystemExit) as ended:
+            exec(compile(code, "healthcheck", "exec"), {"__name__": "__main__"})
+        return int(ended.value.code)
+
+    stop = threading.Event()
+
+    def heartbeat() -> None:
+        with can.Bus(interface="virtual", channel="compose-heartbeat") as bus:
+            while not stop.wait(0.05):
+                bus.send(boot_up)
+
+    sender = threading.Thread(target=heartbeat)
+    sender.start()
+    try:
+        assert exit_code("compose-heartbeat") == 0
+    finally:
+        stop.set()
+        sender.join()
+    assert exit_code("compose-silent") == 1
 
 
 # --- The Dockerfile's stages ---------------------------------------------------------------------

@@ -114,7 +114,7 @@ def test_the_default_out_is_beside_the_candidate(runs: dict[str, Path], tmp_path
     ("arguments", "message"),
     [
         (["nowhere.rrd", "{base}"], "trace nowhere.rrd does not exist"),
-        (["{text}", "{base}"], "is no readable Rerun recording"),
+        (["{text}", "{base}"], "is not a Rerun recording"),
         (["{base}", "{base}", "--atol", "-1"], "expected a finite number >= 0"),
         (["{base}", "{base}", "-o", "{base}"], "would overwrite a recording being compared"),
     ],

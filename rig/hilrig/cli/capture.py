@@ -32,6 +32,7 @@ from hilrig.cli.common import (
     add_node_options,
     board_node,
     check_names,
+    field_name,
     load_table,
     open_bus,
     positive_float,
@@ -39,6 +40,7 @@ from hilrig.cli.common import (
     progress,
     silent_hint,
 )
+from hilrig.cli.files import output_file
 from hilrig.errors import FieldNameError, RigError, SdoTimeoutError
 from hilrig.table import RigTable
 
@@ -56,7 +58,9 @@ def percent(text: str) -> int:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("names", nargs="+", metavar="FIELD", help="board fields to record, in column order")
+    parser.add_argument(
+        "names", type=field_name, nargs="+", metavar="FIELD", help="board fields to record, in column order"
+    )
     parser.add_argument(
         "--samples",
         type=positive_int,
@@ -92,9 +96,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="share of the samples kept from before the trigger (default 0)",
     )
     parser.add_argument(
-        "-o", "--csv", type=Path, default=Path("capture.csv"), help="the CSV to write (default: capture.csv)"
+        "-o",
+        "--csv",
+        type=output_file("CSV", suffixes=(".csv",)),
+        default=Path("capture.csv"),
+        help="the CSV to write (default: capture.csv)",
     )
-    parser.add_argument("--rrd", type=Path, help="also write the recording as a Rerun .rrd")
+    parser.add_argument(
+        "--rrd",
+        type=output_file("trace", suffixes=(".rrd",)),
+        help="also write the recording as a Rerun .rrd",
+    )
     parser.add_argument(
         "--period-us",
         type=positive_int,

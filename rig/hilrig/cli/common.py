@@ -11,6 +11,7 @@ import argparse
 import contextlib
 import difflib
 import errno
+import os
 import re
 import sys
 import threading
@@ -22,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Self, TextIO
 from boardproto.cia301 import MAX_NODE_ID, MIN_NODE_ID, is_node_id
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
+from hilrig.cli.files import ArgKind, existing_file, kind, sniff_eds, sniff_toml
 from hilrig.errors import BusUnavailableError, FieldNameError, RigError, one_line
 from hilrig.resources import DBC_HINT, EDS_HINT
 from hilrig.table import DEFAULT_TABLE_PATH, ObjectEntry, RigTable
@@ -72,6 +74,7 @@ class Command:
 
 
 # --- Argument types (argparse turns ValueError/ArgumentTypeError into exit code 2) ---------
+@kind(ArgKind("number", out_of_range=str(MAX_NODE_ID + 1)))
 def node_id(text: str) -> int:
     """'16' or '0x10' -> 16; 1..127."""
     try:
@@ -87,6 +90,7 @@ def node_id(text: str) -> int:
     return value
 
 
+@kind(ArgKind("name", out_of_range="socketcn"))
 def interface_name(text: str) -> str:
     """A python-can interface name; unknown ones are refused with the close matches."""
     from can.interfaces import VALID_INTERFACES
@@ -100,6 +104,7 @@ def interface_name(text: str) -> str:
     )
 
 
+@kind(ArgKind("number", out_of_range="-1"))
 def positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -110,6 +115,7 @@ def positive_float(text: str) -> float:
     return value
 
 
+@kind(ArgKind("number", out_of_range="0"))
 def positive_int(text: str) -> int:
     try:
         value = int(text, 0)
@@ -120,14 +126,32 @@ def positive_int(text: str) -> int:
     return value
 
 
-def existing_file(what: str, hint: str) -> Callable[[str], Path]:
-    def check(text: str) -> Path:
-        path = Path(text)
-        if not path.is_file():
-            raise argparse.ArgumentTypeError(f"{what} {text} does not exist; {hint}")
-        return path
+@kind(ArgKind("name", out_of_range="no_such_field"))
+def field_name(text: str) -> str:
+    """A field name; checked against the table when the command runs (`check_names`: --table
+    may name another table)."""
+    return text
 
-    return check
+
+@kind(ArgKind("name", out_of_range="no_such_field=1"))
+def assignment(text: str) -> str:
+    """NAME=VALUE; checked against the table when the command runs."""
+    return text
+
+
+MAX_PORT = 65535
+
+
+@kind(ArgKind("port", out_of_range=str(MAX_PORT + 1)))
+def port(text: str) -> int:
+    """A TCP port, 1..65535."""
+    try:
+        value = int(text, 0)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= MAX_PORT:
+        raise argparse.ArgumentTypeError(f"expected a TCP port 1..{MAX_PORT}, got {text!r}")
+    return value
 
 
 def required_file(path: Path, what: str, hint: str) -> Path:
@@ -142,6 +166,7 @@ _BITRATE = re.compile(r"(?P<number>\d+(?:\.\d+)?)\s*(?P<scale>[kKmM]?)")
 _BITRATE_SCALE = {"": 1, "k": 1_000, "m": 1_000_000}
 
 
+@kind(ArgKind("number", out_of_range="0"))
 def bitrate(text: str) -> int:
     """'125000', '500k', '1M', '2.5M' -> bit/s: every bit rate option and python-can's
     configured bit rates go through this one parser."""
@@ -206,14 +231,31 @@ def can_filter(text: str) -> CanFilter:
 
 
 # --- Option groups ---------------------------------------------------------------------
+@kind(ArgKind("viewer", out_of_range="web:99999"))
 def live_sink(text: str) -> TraceSink:
-    """A `--viewer` value: spawn[:PORT] | web[:PORT[:GRPC_PORT]] | connect[:URL]."""
-    from hilrig.observe.sinks import parse_live_sink
+    """A `--viewer` value: spawn[:PORT] | web[:PORT[:GRPC_PORT]] | connect[:URL]; spawn on a
+    machine without a display is refused (the viewer would die with a windowing error)."""
+    from hilrig.observe.sinks import SinkKind, parse_live_sink
 
     try:
-        return parse_live_sink(text)
+        sink = parse_live_sink(text)
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
+    if sink.kind is SinkKind.SPAWN and not has_display():
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: {NO_DISPLAY}; use web[:PORT] and open the page it prints"
+        )
+    return sink
+
+
+NO_DISPLAY = "no display here for a native viewer (neither DISPLAY nor WAYLAND_DISPLAY is set)"
+
+
+def has_display() -> bool:
+    """Whether a native window can open: on Linux an X or Wayland display must be named."""
+    if not sys.platform.startswith("linux"):
+        return True
+    return any(os.environ.get(name) for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"))
 
 
 LIVE_VIEWER_HELP = (
@@ -225,7 +267,9 @@ LIVE_VIEWER_HELP = (
 def add_table_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--table",
-        type=existing_file("board table", "pass --table PATH/board.toml"),
+        type=existing_file(
+            "board table", "pass --table PATH/board.toml", suffixes=(".toml",), sniff=sniff_toml
+        ),
         default=DEFAULT_TABLE_PATH,
         metavar="TOML",
         help="the board field table (default: protocol/board.toml of this checkout, or the installed "
@@ -318,7 +362,7 @@ def add_node_options(parser: argparse.ArgumentParser, *, sdo_timeout_s: float = 
     )
     group.add_argument(
         "--eds",
-        type=existing_file("EDS", EDS_HINT),
+        type=existing_file("EDS", EDS_HINT, sniff=sniff_eds),
         default=None,
         help="the board's EDS (default: the table's: build/protocol/board.eds in a checkout)",
     )
@@ -465,6 +509,9 @@ def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[can.BusABC]
             "--bus-kwargs KEY=VALUE (see python-can's page of that interface)"
         ) from error
     except Exception as error:  # backends raise what they like: the adapter's problem, in words
+        library = _missing_library(interface, error)
+        if library is not None:
+            raise UsageError(f"cannot use the {interface} interface: {library}") from error
         raise BusUnavailableError(
             f"cannot open {describe_bus(args)}: {one_line(error)}{_bus_hint(args, error)}"
         ) from error
@@ -491,6 +538,26 @@ def _missing_hint(interface: str, error: BaseException) -> str:
         f"it needs the {name} package, which is not installed: pip install {name} "
         f"(or pip install 'python-can[{extra}]')"
     )
+
+
+# The vendor library an interface loads with ctypes when its bus opens (not a Python package).
+INTERFACE_LIBRARIES: dict[str, tuple[str, str]] = {
+    "pcan": ("PEAK's PCAN-Basic library (libpcanbasic.so, from peak-system.com)", "peak_usb"),
+    "kvaser": ("Kvaser's CANlib (libcanlib.so, from Kvaser's linuxcan)", "kvaser_usb"),
+}
+"""interface -> (the library, the Linux kernel driver that serves the same adapters on socketcan)."""
+
+
+def _missing_library(interface: str, error: BaseException) -> str | None:
+    """'it needs ..., which is not installed' when the interface's vendor library is missing:
+    python-can's pcan says 'library not found', its kvaser leaves canlib's functions undefined
+    (a NameError); None for any other failure."""
+    known = INTERFACE_LIBRARIES.get(interface)
+    reason = one_line(error).lower()
+    if known is None or not (isinstance(error, NameError) or "library not found" in reason):
+        return None
+    library, driver = known
+    return f"it needs {library}, which is not installed; or use -i socketcan (the kernel's {driver} driver)"
 
 
 def _bus_hint(args: argparse.Namespace, error: BaseException) -> str:

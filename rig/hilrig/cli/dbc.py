@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from boardproto import TableError, load_table
 from hilrig.cli.common import Command, UsageError, add_table_option, node_id, progress
+from hilrig.cli.files import output_file
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -21,7 +21,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "-o",
         "--output",
-        type=Path,
+        type=output_file("DBC"),
         default=None,
         metavar="FILE",
         help="write the DBC to FILE (whole or not at all) instead of to stdout",

@@ -1,7 +1,7 @@
 """`hilrig diff BASE.rrd CAND.rrd`: what changed since the last good run, as one recording.
 
-Exit codes as `diff` has them: 0 the runs agree, 1 they differ (the first divergence is printed),
-2 a file is missing or no recording.
+Exit codes as `diff` has them: 0 the runs agree, 1 they differ (the first divergence is printed)
+or a recording cannot be read whole, 2 a file is missing or no recording at all.
 """
 
 from __future__ import annotations
@@ -9,11 +9,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hilrig.cli.common import Command, UsageError, existing_file, progress
+from hilrig.cli.common import Command, UsageError, existing_file, port, progress
+from hilrig.cli.files import ArgKind, kind, output_file
+from hilrig.cli.view import sniff_rrd
 
 DEFAULT_OUT_NAME = "diff.rrd"
 
 
+@kind(ArgKind("number", out_of_range="-1"))
 def non_negative_float(text: str) -> float:
     try:
         value = float(text)
@@ -28,13 +31,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
     from hilrig.observe.diff import Tolerance
     from hilrig.observe.sinks import DEFAULT_WEB_PORT
 
-    recording = existing_file("trace", "a .rrd from `hilrig sim`, a scenario or `hilrig replay --trace`")
+    recording = existing_file(
+        "trace",
+        "a .rrd from `hilrig sim`, a scenario or `hilrig replay --trace`",
+        suffixes=(".rrd",),
+        sniff=sniff_rrd,
+    )
     parser.add_argument("base", type=recording, metavar="BASE.rrd", help="the last good run")
     parser.add_argument("cand", type=recording, metavar="CAND.rrd", help="the run to compare with it")
     parser.add_argument(
         "-o",
         "--out",
-        type=Path,
+        type=output_file("comparison", suffixes=(".rrd",)),
         default=None,
         metavar="OUT.rrd",
         help=f"the comparison's recording (default: {DEFAULT_OUT_NAME} beside CAND)",
@@ -68,21 +76,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--web",
         nargs="?",
         const=DEFAULT_WEB_PORT,
-        type=int,
+        type=port,
         metavar="PORT",
         help=f"serve it to the web viewer on 127.0.0.1:PORT (default {DEFAULT_WEB_PORT}) when done",
     )
 
 
 def _read(path: Path, what: str) -> object:
+    from hilrig.errors import LogFileError, one_line
     from hilrig.observe.reader import Trace
 
-    if path.suffix != ".rrd":
-        raise UsageError(f"{what} {path}: expected a Rerun recording (.rrd)")
     try:
         return Trace.read(path)
-    except RuntimeError as error:  # Rerun's reader: not an .rrd, or cut short
-        raise UsageError(f"{what} {path} is no readable Rerun recording ({error})") from None
+    except RuntimeError as error:  # Rerun's reader: a cut-off or foreign file
+        raise LogFileError(f"{what} {path}: Rerun cannot read this recording ({one_line(error)})") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -139,7 +146,8 @@ COMMANDS = (
         "print the first cycle where any series differs beyond the tolerance (and the next\n"
         "few), and write one recording with both runs on the same cycle timeline (BASE under\n"
         "/base, CAND under /cand, CAND - BASE under /diff) that opens with the diff\n"
-        "dashboard. Exit 0 when the runs agree, 1 when they differ, 2 for a bad file.\n\n"
+        "dashboard. Exit 0 when the runs agree, 1 when they differ (or a recording is cut\n"
+        "short), 2 for a file that is missing or no recording.\n\n"
         "  hilrig diff out/good/trace.rrd out/demo/trace.rrd\n"
         "  hilrig diff base.rrd cand.rrd --atol 1e-4 -o out/diff.rrd --web",
         configure=configure,

@@ -43,6 +43,7 @@ from hilrig.cli.common import (
     positive_int,
     progress,
 )
+from hilrig.cli.files import ArgKind, kind, output_file, sniff_dbc, unreadable_reason
 from hilrig.session.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 
 if TYPE_CHECKING:
@@ -54,14 +55,8 @@ if TYPE_CHECKING:
 PROGRESS_EVERY_S = 1.0
 
 
-def log_path(text: str) -> Path:
-    path = Path(text)
-    if path.suffix.lower() not in LOG_FORMATS:
-        raise argparse.ArgumentTypeError(
-            f"{text}: expected a file ending in {', '.join(LOG_FORMATS)} (the format follows the "
-            "extension: .log is candump, .blf is Vector)"
-        )
-    return path
+log_path = output_file("log", suffixes=tuple(LOG_FORMATS))
+"""record's FILE: the format follows the extension (.log is candump, .blf is Vector)."""
 
 
 class _CountingSink:
@@ -144,7 +139,7 @@ def configure_record(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--dbc",
-        type=existing_file("DBC", DBC_HINT),
+        type=existing_file("DBC", DBC_HINT, suffixes=(".dbc",), sniff=sniff_dbc),
         default=None,
         help="--viewer: the DBC (default: build/protocol/board.dbc)",
     )
@@ -232,7 +227,7 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--dbc",
-        type=existing_file("DBC", DBC_HINT),
+        type=existing_file("DBC", DBC_HINT, suffixes=(".dbc",), sniff=sniff_dbc),
         default=None,
         help="--decode and --trace: the DBC (default: the table's: build/protocol/board.dbc in a checkout)",
     )
@@ -271,23 +266,23 @@ def configure_replay(parser: argparse.ArgumentParser) -> None:
     add_bus_options(parser)
 
 
+@kind(ArgKind("input file", suffixes=tuple(LOG_FORMATS)))
 def existing_log(text: str) -> Path:
+    """replay's FILE: a file that can be read; its format (the extension: LOG_FORMATS and what
+    else python-can reads) is judged by `read_log` before the bus opens, which says what the
+    content looks like."""
     path = Path(text)
-    if not path.is_file():
+    reason = unreadable_reason(path)
+    if reason is not None:
         from hilrig.session.buslog import readable_formats  # imports python-can: only on this error
 
         raise argparse.ArgumentTypeError(
-            f"log {text} does not exist; record one with `hilrig record FILE` "
-            f"(replay reads {readable_formats()})"
+            f"log {text} {reason}; record one with `hilrig record FILE` (replay reads {readable_formats()})"
         )
     return path
 
 
-def rrd_path(text: str) -> Path:
-    path = Path(text)
-    if path.suffix != ".rrd":
-        raise argparse.ArgumentTypeError(f"{text}: expected a file ending in .rrd (a Rerun recording)")
-    return path
+rrd_path = output_file("trace", suffixes=(".rrd",))
 
 
 def run_replay(args: argparse.Namespace) -> int:

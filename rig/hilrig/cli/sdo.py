@@ -7,13 +7,15 @@ import math
 import sys
 
 from boardproto import Field, UnknownNameError
-from boardproto.table import BitSet, ValueEnum
+from boardproto.table import Access, BitSet, ValueEnum
 from hilrig.cli.common import (
     Command,
     UsageError,
     add_node_options,
+    assignment,
     board_node,
     check_names,
+    field_name,
     format_unit,
     format_value,
     load_table,
@@ -74,13 +76,16 @@ def parse_assignment(
 
 
 def configure_get(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("names", nargs="+", metavar="NAME", help="field names (see `hilrig fields`)")
+    parser.add_argument(
+        "names", type=field_name, nargs="+", metavar="NAME", help="field names (see `hilrig fields`)"
+    )
     add_node_options(parser)
 
 
 def configure_set(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "assignments",
+        type=assignment,
         nargs="+",
         metavar="NAME=VALUE",
         help="e.g. velocity_kp=0.2; applied in order, stops at the first refusal",
@@ -115,6 +120,12 @@ def run_set(args: argparse.Namespace) -> int:
     table = load_table(args)
     names = [text.partition("=")[0].strip() for text in args.assignments]
     entry_of = {entry.name: entry for entry in check_names(table, [n for n in names if n])}
+    read_only = [name for name, entry in entry_of.items() if entry.access is Access.READ_ONLY]
+    if read_only:  # refused here, nothing sent: the table says the node would refuse it
+        raise UsageError(
+            f'{", ".join(read_only)}: read-only over the bus (access = "ro" in board.toml); '
+            "`hilrig fields --kind parameter` lists what can be set"
+        )
     assignments = [parse_assignment(text, entry_of, table) for text in args.assignments]
     with open_bus(args) as bus, board_node(args, bus, table) as node:
         for number, (name, value) in enumerate(assignments):

@@ -20,6 +20,7 @@ from hilrig.cli.common import (
     positive_int,
     progress,
 )
+from hilrig.cli.files import output_folder, sniff_eds, sniff_executable
 from hilrig.resources import FIRMWARE_HINT
 from hilrig.table import BOARD_TABLE
 
@@ -63,14 +64,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_folder,
         default=Path("out/demo"),
         metavar="DIR",
         help="where bus.log, firmware.log and summary.txt go (default: out/demo)",
     )
     parser.add_argument(
         "--scenario",
-        type=existing_file("scenario", "pass a .py file that defines `def scenario(rig): ...`"),
+        type=existing_file(
+            "scenario", "pass a .py file that defines `def scenario(rig): ...`", suffixes=(".py",)
+        ),
         metavar="FILE.py",
         help="run `scenario(rig)` from this file instead of the velocity and torque profiles "
         "(with --modules: `scenario(robot)` instead of the gait)",
@@ -111,7 +114,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=1, help="sensor noise seed (default: 1)")
     parser.add_argument(
         "--firmware",
-        type=existing_file("firmware", FIRMWARE_HINT),
+        type=existing_file("firmware", FIRMWARE_HINT, sniff=sniff_executable),
         default=None,
         help="the joint-firmware executable (default: build/bin/joint-firmware of the checkout, or of the "
         "working directory when hilrig is installed)",
@@ -126,7 +129,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--eds",
-        type=existing_file("EDS", EDS_HINT),
+        type=existing_file("EDS", EDS_HINT, sniff=sniff_eds),
         default=None,
         help="the board's EDS (default: build/protocol/board.eds)",
     )
@@ -213,7 +216,6 @@ def run(args: argparse.Namespace) -> int:
 def _live_sinks(args: argparse.Namespace) -> list[TraceSink]:
     """--viewer, else $HIL_TRACE; none with --no-trace (and both given: a usage error)."""
     from hilrig.observe.sinks import live_sinks_from_environment
-
 
     try:
         live = list(args.viewer) if args.viewer is not None else live_sinks_from_environment()

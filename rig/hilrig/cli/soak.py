@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hilrig.cli.common import Command, UsageError, node_id
+from hilrig.cli.common import (
+    Command,
+    UsageError,
+    existing_file,
+    node_id,
+    positive_int,
+)
+from hilrig.cli.files import output_file, output_folder, sniff_eds, sniff_executable
 
 
 def _configure(parser: argparse.ArgumentParser) -> None:
@@ -17,17 +24,17 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     from hilrig.table import BOARD_TABLE
 
     parser.add_argument(
-        "--cycles", type=int, default=1_000_000, help="firmware cycles to run (default 1000000)"
+        "--cycles", type=positive_int, default=1_000_000, help="firmware cycles to run (default 1000000)"
     )
     parser.add_argument(
-        "--out", type=Path, default=Path("build/soak"), help="report.json and firmware.log go here"
+        "--out", type=output_folder, default=Path("build/soak"), help="report.json and firmware.log go here"
     )
     parser.add_argument("--seed", type=int, default=11, help="seed of the fault plan (default 11)")
     parser.add_argument(
-        "--fault-interval", type=int, default=DEFAULT_FAULT_INTERVAL, help="cycles between faults"
+        "--fault-interval", type=positive_int, default=DEFAULT_FAULT_INTERVAL, help="cycles between faults"
     )
     parser.add_argument(
-        "--sample-every", type=int, default=DEFAULT_SAMPLE_EVERY, help="cycles between RSS samples"
+        "--sample-every", type=positive_int, default=DEFAULT_SAMPLE_EVERY, help="cycles between RSS samples"
     )
     parser.add_argument(
         "--rss-bound-kib", type=int, default=DEFAULT_RSS_BOUND_KIB, help="allowed growth after warm-up"
@@ -36,11 +43,19 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--node-id", type=node_id, default=default_node, help=f"default 0x{default_node:02X} (board.toml's)"
     )
-    parser.add_argument("--period-us", type=int, default=1000)
-    parser.add_argument("--eds", type=Path, default=DEFAULT_EDS_PATH)
-    parser.add_argument("--firmware", type=Path, default=DEFAULT_EXECUTABLE)
+    parser.add_argument("--period-us", type=positive_int, default=1000)
+    parser.add_argument(
+        "--eds", type=existing_file("EDS", "run `make build`", sniff=sniff_eds), default=DEFAULT_EDS_PATH
+    )
+    parser.add_argument(
+        "--firmware",
+        type=existing_file("firmware", "run `make build`", sniff=sniff_executable),
+        default=DEFAULT_EXECUTABLE,
+    )
     parser.add_argument("--channel", help="use this interface as it is (default: a private namespace vcan0)")
-    parser.add_argument("--stop-file", type=Path, help="stop cleanly once this file exists (tools/soak)")
+    parser.add_argument(
+        "--stop-file", type=output_file("stop file"), help="stop cleanly once this file exists (tools/soak)"
+    )
     parser.add_argument(
         "--pin", action="store_true", help="pin soak and firmware to one CPU (slower with canopen's thread)"
     )

@@ -7,9 +7,25 @@ import signal
 from pathlib import Path
 from types import FrameType
 
-from hilrig.cli.common import Command, UsageError, existing_file, positive_int, progress
+from hilrig.cli.common import (
+    NO_DISPLAY,
+    Command,
+    UsageError,
+    existing_file,
+    has_display,
+    port,
+    progress,
+)
 
 DEFAULT_DASHBOARD = "overview"
+RRD_MAGIC = b"RRF"
+"""How a Rerun recording starts (RRF2 today, RRF0/RRF1 before)."""
+
+
+def sniff_rrd(path: Path) -> str | None:
+    with path.open("rb") as file:
+        start = file.read(len(RRD_MAGIC))
+    return None if start == RRD_MAGIC else "is not a Rerun recording (it does not start with RRF)"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -17,7 +33,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument(
         "trace",
-        type=existing_file("trace", "a .rrd from `hilrig sim`, a scenario or `hilrig replay --trace`"),
+        type=existing_file(
+            "trace",
+            "a .rrd from `hilrig sim`, a scenario or `hilrig replay --trace`",
+            suffixes=(".rrd",),
+            sniff=sniff_rrd,
+        ),
         nargs="?",
         metavar="TRACE.rrd",
         help="the recording to open",
@@ -41,14 +62,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--web",
         nargs="?",
         const=DEFAULT_WEB_PORT,
-        type=positive_int,
+        type=port,
         metavar="PORT",
         help=f"serve the web viewer on 127.0.0.1:PORT (default {DEFAULT_WEB_PORT}) instead of a native "
         "window, and print the page to open (no display needed)",
     )
     parser.add_argument(
         "--grpc-port",
-        type=positive_int,
+        type=port,
         default=DEFAULT_GRPC_PORT,
         metavar="PORT",
         help=f"with --web: the port the recording is served from (default {DEFAULT_GRPC_PORT})",
@@ -93,8 +114,10 @@ def default_dashboard(trace: Path) -> str:
                 return "robot"
             if not chunk.is_static:
                 break
-    except RuntimeError as error:  # Rerun's reader: no .rrd, or cut short
-        raise UsageError(f"{trace} is no readable Rerun recording ({error})") from None
+    except RuntimeError as error:  # Rerun's reader: a cut-off or foreign file
+        from hilrig.errors import LogFileError, one_line
+
+        raise LogFileError(f"{trace}: Rerun cannot read this recording ({one_line(error)})") from None
     return DEFAULT_DASHBOARD
 
 
@@ -105,6 +128,8 @@ def show(trace: Path, dashboard: str, *, web_port: int | None, grpc_port: int | 
     from hilrig.observe.sinks import DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
     from hilrig.observe.viewer import open_trace
 
+    if web_port is None and not has_display():
+        raise UsageError(f"{NO_DISPLAY}: add --web to serve the web viewer and open the page it prints")
     try:
         process = open_trace(
             trace,
@@ -135,12 +160,16 @@ def _check(trace: Path, dashboard: str | None) -> int:
     from hilrig.observe.blueprints import dashboards
 
     dashboards()  # importable from a checkout on PYTHONPATH alone too
+    from hilrig.errors import LogFileError, one_line
     from hilrig.observe.blueprints import load_blueprint
     from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
     from hilrig.observe.reader import Trace
 
     progress(f"view: reading {trace}")
-    recording = Trace.read(trace)
+    try:
+        recording = Trace.read(trace)
+    except RuntimeError as error:  # rerun's reader: a cut-off or foreign file
+        raise LogFileError(f"{trace}: Rerun cannot read this recording ({one_line(error)})") from None
     fitting = fitting_dashboards(recording)  # robot: for the modules the trace has
     dashboards = {dashboard: fitting.get(dashboard) or load_blueprint(dashboard)} if dashboard else fitting
     gaps = trace_gaps(recording, dashboards)

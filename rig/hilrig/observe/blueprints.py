@@ -19,8 +19,9 @@ if TYPE_CHECKING:
 
 
 def dashboards() -> ModuleType:
-    """The `dashboards` package: installed beside hilrig by the wheel (and mapped by the editable
-    install); in a checkout run from PYTHONPATH alone, loaded from the checkout's dashboards/."""
+    """The `dashboards` package: in the wheel hilrig.dashboards (tools/dist.py points this import
+    there), in the checkout's venv the editable install's mapping of dashboards/; in a checkout run
+    from PYTHONPATH alone, loaded from the checkout's dashboards/."""
     try:
         import dashboards  # type: ignore[import-not-found]
 

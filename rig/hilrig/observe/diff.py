@@ -289,7 +289,6 @@ def write_comparison(
     whole: to a temporary file beside `out`, renamed when complete."""
     import rerun as rr
 
-    out.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".rrd", dir=out.parent)
     os.close(handle)
     try:

@@ -90,13 +90,15 @@ class TraceSink:
                 raise ValueError("trace sink 'rrd' needs a path: rrd:out/trace.rrd")
             return cls.rrd(arg)
         if sink_kind is SinkKind.SPAWN:
-            return cls.spawn(int(arg)) if arg else cls.spawn()
+            return cls.spawn(_port(arg)) if arg else cls.spawn()
         if sink_kind is SinkKind.CONNECT:
             return cls.connect(arg) if arg else cls.connect()
         if not arg:
             return cls.serve_web()
         web_port, _, grpc_port = arg.partition(":")
-        return cls.serve_web(int(web_port), int(grpc_port)) if grpc_port else cls.serve_web(int(web_port))
+        if grpc_port:
+            return cls.serve_web(_port(web_port), _port(grpc_port))
+        return cls.serve_web(_port(web_port))
 
     def __str__(self) -> str:
         """The spelling `parse` reads: 'rrd:out/trace.rrd', 'spawn:9876', 'web:9090', 'connect:URL'."""
@@ -107,6 +109,14 @@ class TraceSink:
         if self.kind is SinkKind.WEB:
             return f"web:{self.port}:{self.url}"
         return f"{self.kind.value}:{self.port}"
+
+
+def _port(text: str) -> int:
+    """A TCP port, 1..65535; ValueError otherwise."""
+    port = int(text)
+    if not 1 <= port <= 65535:
+        raise ValueError(f"port {port} is out of range 1..65535")
+    return port
 
 
 LIVE_TRACE_ENV = "HIL_TRACE"

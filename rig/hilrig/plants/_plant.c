@@ -35,6 +35,7 @@
  * enums below, mirrored in plant.py / sensors.py).
  */
 #define PY_SSIZE_T_CLEAN
+#define Py_LIMITED_API 0x030B0000 /* the stable ABI of CPython 3.11+: one wheel for them all (abi3) */
 #include <Python.h>
 
 #include <math.h>
@@ -137,17 +138,17 @@ static module_state *get_state(PyObject *module) { return (module_state *)PyModu
 /* --- Argument helpers ------------------------------------------------------------------ */
 static int read_coefficients(PyObject *tuple, double *out, Py_ssize_t count, const char *what)
 {
-    if (!PyTuple_CheckExact(tuple) || PyTuple_GET_SIZE(tuple) != count) {
+    if (!PyTuple_CheckExact(tuple) || PyTuple_Size(tuple) != count) {
         PyErr_Format(PyExc_TypeError, "%s: expected a tuple of %zd floats, got %R", what, count, tuple);
         return -1;
     }
     for (Py_ssize_t i = 0; i < count; i++) {
-        PyObject *item = PyTuple_GET_ITEM(tuple, i);
+        PyObject *item = PyTuple_GetItem(tuple, i); /* borrowed */
         if (!PyFloat_CheckExact(item)) {
             PyErr_Format(PyExc_TypeError, "%s[%zd]: expected float, got %R", what, i, item);
             return -1;
         }
-        out[i] = PyFloat_AS_DOUBLE(item);
+        out[i] = PyFloat_AsDouble(item);
     }
     return 0;
 }
@@ -177,7 +178,8 @@ static int read_fields(PyObject *object, PyObject *const *names, int count, doub
  * only for values this module computed (users' instances still go through validation). */
 static PyObject *new_frozen(PyTypeObject *type, PyObject *const *names, PyObject **values, int count)
 {
-    PyObject *object = type->tp_alloc(type, 0);
+    allocfunc alloc = (allocfunc)PyType_GetSlot(type, Py_tp_alloc);
+    PyObject *object = alloc != NULL ? alloc(type, 0) : NULL;
     for (int i = 0; i < count; i++) {
         if (object != NULL && values[i] != NULL && PyObject_GenericSetAttr(object, names[i], values[i]) < 0) {
             Py_CLEAR(object);
@@ -478,22 +480,25 @@ static PyObject *state_values(PyObject *module, PyObject *const *args, Py_ssize_
         PyErr_SetString(PyExc_TypeError, "state_values: expected (states)");
         return NULL;
     }
-    PyObject *states = PySequence_Fast(args[0], "state_values: expected a list or tuple of JointState");
-    if (states == NULL) return NULL;
-    Py_ssize_t count = PySequence_Fast_GET_SIZE(states);
-    PyObject *const *items = PySequence_Fast_ITEMS(states);
+    PyObject *states = args[0];
+    int is_list = PyList_Check(states);
+    if (!is_list && !PyTuple_Check(states)) {
+        PyErr_SetString(PyExc_TypeError, "state_values: expected a list or tuple of JointState");
+        return NULL;
+    }
+    Py_ssize_t count = is_list ? PyList_Size(states) : PyTuple_Size(states);
     PyObject *bytes = PyBytes_FromStringAndSize(NULL, count * F_COUNT * (Py_ssize_t)sizeof(double));
     if (bytes != NULL) {
-        double *out = (double *)PyBytes_AS_STRING(bytes);
+        double *out = (double *)PyBytes_AsString(bytes);
         module_state *st = get_state(module);
         for (Py_ssize_t i = 0; i < count; i++) {
-            if (read_fields(items[i], st->joint_state_names, F_COUNT, &out[i * F_COUNT]) < 0) {
+            PyObject *item = is_list ? PyList_GetItem(states, i) : PyTuple_GetItem(states, i); /* borrowed */
+            if (item == NULL || read_fields(item, st->joint_state_names, F_COUNT, &out[i * F_COUNT]) < 0) {
                 Py_CLEAR(bytes);
                 break;
             }
         }
     }
-    Py_DECREF(states);
     return bytes;
 }
 

@@ -26,6 +26,7 @@
  * signal (Ctrl-C) during a wait raises as Python's own socket calls do.
  */
 #define PY_SSIZE_T_CLEAN
+#define Py_LIMITED_API 0x030B0000 /* the stable ABI of CPython 3.11+: one wheel for them all (abi3) */
 #include <Python.h>
 
 #include <errno.h>
@@ -142,11 +143,11 @@ static Py_ssize_t count_missing(PyObject *due, PyObject *got) {
 
 /* Append `size` bytes to a bytearray (amortized: bytearray over-allocates as a list does). */
 static int append_bytes(PyObject *array, const void *bytes, Py_ssize_t size) {
-    Py_ssize_t before = PyByteArray_GET_SIZE(array);
+    Py_ssize_t before = PyByteArray_Size(array);
     if (PyByteArray_Resize(array, before + size) < 0) {
         return -1;
     }
-    memcpy(PyByteArray_AS_STRING(array) + before, bytes, (size_t)size);
+    memcpy(PyByteArray_AsString(array) + before, bytes, (size_t)size);
     return 0;
 }
 
@@ -166,13 +167,13 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
     if (decoder == NULL) {
         return NULL;
     }
-    Py_ssize_t items = PyTuple_Check(decoder) ? PyTuple_GET_SIZE(decoder) : 0;
+    Py_ssize_t items = PyTuple_Check(decoder) ? PyTuple_Size(decoder) : 0;
     if (items != 2 && items != 4) {
         PyErr_SetString(PyExc_TypeError,
                         "exchange: a decoder is a (length, unpack) or (length, unpack, cycles, payloads) tuple");
         return NULL;
     }
-    Py_ssize_t expected = PyLong_AsSsize_t(PyTuple_GET_ITEM(decoder, 0));
+    Py_ssize_t expected = PyLong_AsSsize_t(PyTuple_GetItem(decoder, 0));
     if (expected == -1 && PyErr_Occurred()) {
         return NULL;
     }
@@ -183,12 +184,12 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
     if (payload == NULL) {
         return NULL;
     }
-    PyObject *values = PyObject_CallOneArg(PyTuple_GET_ITEM(decoder, 1), payload);
+    PyObject *values = PyObject_CallFunctionObjArgs(PyTuple_GetItem(decoder, 1), payload, NULL);
     Py_DECREF(payload);
     if (values == NULL || items == 2) {
         return values;
     }
-    PyObject *cycles = PyTuple_GET_ITEM(decoder, 2), *rows = PyTuple_GET_ITEM(decoder, 3);
+    PyObject *cycles = PyTuple_GetItem(decoder, 2), *rows = PyTuple_GetItem(decoder, 3);
     if (cycle == NULL || !PyByteArray_CheckExact(cycles) || !PyByteArray_CheckExact(rows)) {
         Py_DECREF(values);
         PyErr_SetString(PyExc_TypeError, "exchange: rows need their cycle, and bytearrays to go in");
@@ -417,17 +418,17 @@ static PyObject *append_rows(PyObject *module, PyObject *const *args, Py_ssize_t
             status = PyErr_Occurred() ? -1 : 0;
             continue;
         }
-        if (!PyTuple_Check(store) || PyTuple_GET_SIZE(store) != 2 ||
-            !PyByteArray_CheckExact(PyTuple_GET_ITEM(store, 0)) ||
-            !PyByteArray_CheckExact(PyTuple_GET_ITEM(store, 1))) {
+        if (!PyTuple_Check(store) || PyTuple_Size(store) != 2 ||
+            !PyByteArray_CheckExact(PyTuple_GetItem(store, 0)) ||
+            !PyByteArray_CheckExact(PyTuple_GetItem(store, 1))) {
             PyErr_SetString(PyExc_TypeError, "append_rows: a row store is a (cycles, payloads) tuple of bytearrays");
             status = -1;
             break;
         }
         Py_ssize_t length = frame[4] <= 8 ? frame[4] : 8;
         /* The payload first, then the cycle, as `exchange` appends (a reader counts cycles). */
-        if (append_bytes(PyTuple_GET_ITEM(store, 1), frame + 8, length) < 0 ||
-            append_bytes(PyTuple_GET_ITEM(store, 0), &cycle, sizeof cycle) < 0) {
+        if (append_bytes(PyTuple_GetItem(store, 1), frame + 8, length) < 0 ||
+            append_bytes(PyTuple_GetItem(store, 0), &cycle, sizeof cycle) < 0) {
             status = -1;
         }
     }

@@ -1,0 +1,158 @@
+"""Argument types of files, and the kinds argument types carry.
+
+`ArgKind` tags each argument type with the kind of value it takes (`kind`); the bad-input table
+test (rig/tests/test_cli_bad_input.py) feeds every argument of every command the bad inputs of its
+kind. An input file is checked before the command runs: it exists, is no folder, can be read, has
+its extension and, where a cheap look at it tells, its format (`sniff_*`); an output file's
+folder must exist (none is made: a typo would make one anywhere, as root too).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hilrig.errors import one_line
+
+
+@dataclass(frozen=True)
+class ArgKind:
+    """What kind of value an argument type takes, set on the type function as `.kind`: the
+    bad-input table test (rig/tests/test_cli_bad_input.py) feeds every argument of every command
+    the bad values of its kind. `suffixes`: the extensions an input or output file takes;
+    `sniffed`: an input file's content is checked before the command runs (else a wrong
+    extension is its wrong format); `out_of_range`: a value of the right spelling refused."""
+
+    name: str  # "input file", "output file", "number", "port", "name", "viewer"
+    suffixes: tuple[str, ...] = ()
+    sniffed: bool = False
+    out_of_range: str = ""
+
+
+def kind(value: ArgKind) -> Callable[[Callable[[str], Any]], Callable[[str], Any]]:
+    """Decorator: tag an argument type with its ArgKind."""
+
+    def tag(function: Callable[[str], Any]) -> Callable[[str], Any]:
+        function.kind = value  # type: ignore[attr-defined]
+        return function
+
+    return tag
+
+
+def unreadable_reason(path: Path) -> str | None:
+    """Why the file at `path` cannot be read ('does not exist', 'is a directory', 'cannot be read:
+    Permission denied'), None if it can. Tried by opening it, so root and ACLs judge as they will
+    when the command reads it."""
+    try:
+        with path.open("rb"):
+            return None
+    except FileNotFoundError:
+        return "does not exist"
+    except IsADirectoryError:
+        return "is a directory, not a file"
+    except OSError as error:
+        return f"cannot be read: {error.strerror or one_line(error)}"
+
+
+def existing_file(
+    what: str,
+    hint: str,
+    *,
+    suffixes: tuple[str, ...] = (),
+    sniff: Callable[[Path], str | None] | None = None,
+) -> Callable[[str], Path]:
+    """An argument type: a file that exists and can be read (else a usage error naming it, with
+    `hint`); with `suffixes`, one of these extensions; with `sniff`, whose content `sniff`
+    accepts (it returns why not, or None)."""
+
+    @kind(ArgKind("input file", suffixes, sniffed=sniff is not None))
+    def check(text: str) -> Path:
+        path = Path(text)
+        reason = unreadable_reason(path)
+        if reason is None and suffixes and not text.lower().endswith(suffixes):
+            reason = f"does not end in {_either(suffixes)}"
+        if reason is None and sniff is not None:
+            reason = sniff(path)
+        if reason is not None:
+            raise argparse.ArgumentTypeError(f"{what} {text} {reason}; {hint}")
+        return path
+
+    return check
+
+
+def _either(suffixes: tuple[str, ...]) -> str:
+    """'.log, .blf or .asc'."""
+    return " or ".join(filter(None, (", ".join(suffixes[:-1]), suffixes[-1])))
+
+
+def output_file(what: str, *, suffixes: tuple[str, ...] = ()) -> Callable[[str], Path]:
+    """An argument type: a file to write, in a folder that exists (none is created: a typo
+    would make one anywhere, as root too) and that is no folder itself."""
+
+    @kind(ArgKind("output file", suffixes))
+    def check(text: str) -> Path:
+        path = Path(text)
+        folder = path.parent
+        if suffixes and not text.lower().endswith(suffixes):
+            reason = f"does not end in {_either(suffixes)} (the format follows the extension)"
+        elif path.is_dir() or text.endswith("/"):
+            reason = "is a directory: name the file to write"
+        elif not folder.is_dir():
+            reason = f"cannot be written: folder {folder} does not exist (create it first)"
+        elif not os.access(folder, os.W_OK | os.X_OK, effective_ids=os.access in os.supports_effective_ids):
+            reason = f"cannot be written: folder {folder} is not writable"
+        else:
+            return path
+        raise argparse.ArgumentTypeError(f"{what} {text} {reason}")
+
+    return check
+
+
+@kind(ArgKind("output folder"))
+def output_folder(text: str) -> Path:
+    """An argument type: a folder the command writes into (made if missing, as `make run`'s
+    out/demo is); an existing file there is refused."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a file, not a folder: name a folder to write into")
+    return path
+
+
+# --- What a file's start says about its format (the sniff of `existing_file`) ------------
+def sniff_toml(path: Path) -> str | None:
+    import tomllib
+
+    try:
+        tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        return f"is not TOML ({one_line(error)})"
+    return None
+
+
+_EDS_OBJECT = re.compile(rb"^\s*\[[0-9A-Fa-f]{4}\]", re.MULTILINE)
+_DBC_KEYWORD = re.compile(rb"^\s*(VERSION|NS_|BU_|BO_)\b", re.MULTILINE)
+
+
+def sniff_eds(path: Path) -> str | None:
+    """An EDS (CiA 306) is INI text with a section per object ([1000], [1018]...)."""
+    return None if _EDS_OBJECT.search(path.read_bytes()) else "is not an EDS (no [1000]-style object section)"
+
+
+def sniff_dbc(path: Path) -> str | None:
+    """A DBC has its keywords (VERSION, BU_, BO_...) at line starts."""
+    return None if _DBC_KEYWORD.search(path.read_bytes()) else "is not a DBC (no VERSION, BU_ or BO_ line)"
+
+
+def sniff_executable(path: Path) -> str | None:
+    if not os.access(path, os.X_OK):
+        return "is not executable (chmod +x)"
+    with path.open("rb") as file:
+        start = file.read(4)
+    return (
+        None if start in (b"\x7fELF",) or start.startswith(b"#!") else "is not a program (no ELF or #! start)"
+    )
