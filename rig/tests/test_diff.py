@@ -130,6 +130,16 @@ def test_bad_input_is_one_line_and_exit_2(
     assert len(err) == 1 and message in err[0], err
 
 
+def test_view_without_a_display_says_to_add_web(
+    runs: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
+        monkeypatch.delenv(name, raising=False)
+    argv = ["diff", str(runs["base"]), str(runs["kp"]), "-o", str(tmp_path / "d.rrd"), "--view", *WALL_CLOCK]
+    assert hilrig(argv) == 2
+    assert "add --web" in capsys.readouterr().err
+
+
 def hand_made(
     series: dict[str, tuple[list[int], list[float]]], texts: dict[str, list[tuple[int, str]]] | None = None
 ) -> Trace:

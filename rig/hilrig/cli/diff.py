@@ -106,6 +106,11 @@ def run(args: argparse.Namespace) -> int:
     comparison = compare(base, cand, tolerance, names=series_names(table, base, cand), ignore=args.ignore)
     for line in comparison.summary():
         print(line)
+    if args.view and args.web is None:
+        from hilrig.cli.common import NO_DISPLAY, has_display
+
+        if not has_display():  # before the work: say it at once
+            raise UsageError(f"{NO_DISPLAY}: add --web to serve the web viewer and open the page it prints")
     out: Path = args.out if args.out is not None else args.cand.parent / DEFAULT_OUT_NAME
     if out.resolve() in (args.base.resolve(), args.cand.resolve()):
         raise UsageError(f"--out {out} would overwrite a recording being compared; name another file")

@@ -94,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"{trace}: expected a Rerun recording (.rrd)")
     if args.check:
         return _check(trace, args.dashboard)
+    if args.web is None and not has_display():  # before the trace is read: say it at once
+        raise UsageError(f"{NO_DISPLAY}: add --web to serve the web viewer and open the page it prints")
     dashboard = args.dashboard or default_dashboard(trace)
     return show(trace, dashboard, web_port=args.web, grpc_port=args.grpc_port)
 
