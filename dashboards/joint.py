@@ -15,6 +15,7 @@ from collections.abc import Callable
 
 import rerun.blueprint as rrb
 
+from dashboards.diff import diff
 from dashboards.robot import robot
 from hilrig.observe.paths import (
     BUS_EVENTS_PATH,
@@ -204,6 +205,7 @@ BLUEPRINTS: dict[str, Callable[[EntryTable], rrb.Blueprint]] = {
     "faults": faults,
     "bus": bus,
     "robot": robot,
+    "diff": diff,
 }
 """Blueprint builders by name; `blueprint(name)` is the way to get one."""
 

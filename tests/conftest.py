@@ -21,6 +21,7 @@ from hilrig.engine.rig import Rig
 from hilrig.engine.robot import MasterHeartbeat
 from hilrig.errors import BusUnavailableError
 from hilrig.expect import Expect
+from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.plants import JointParams
 from hilrig.session.builder import BoardInterface, HilSession, SessionConfig, open_session
@@ -317,9 +318,12 @@ def make_scenario(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterato
         )
         sessions.append(session)
         request.node.hil_evidence = _evidence(run_dir, trace)
+        request.node.hil_trace = session.trace_path  # hilrig's plugin: --hil-baseline
         return Scenario(
             rig=session.rig,
-            expect=Expect(session.rig, evidence=request.node.hil_evidence),
+            expect=Expect(
+                session.rig, evidence=request.node.hil_evidence, picture=FailurePictures(run_dir / "pictures")
+            ),
             firmware=session.firmware,
             trace=session.trace_path,
             bus_log=session.bus_log,
@@ -369,6 +373,7 @@ def make_robot(scenario_dir: Path, request: pytest.FixtureRequest) -> Iterator:
         request.node.hil_evidence = _evidence(scenario_dir, trace) + logs
         session = open_session(config, table=TABLE, private_bus=request.getfixturevalue("private_bus"))
         sessions.append(session)
+        request.node.hil_trace = session.trace_path  # hilrig's plugin: --hil-baseline
         return session
 
     yield make

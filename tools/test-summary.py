@@ -1,7 +1,9 @@
 """Summarise a test run from the JUnit XML files of its stages.
 
 Prints how many C++ tests, Python unit tests and bus-level scenarios ran, which bus path the
-scenarios used, one line per failure, and closes with the plain "N passed, N failed" line.
+scenarios used, one line per failure with the pictures it left (the [[ATTACHMENT|path]] lines
+hilrig's pytest plugin writes into the failure's system-out), and closes with the plain
+"N passed, N failed" line.
 Exits non-zero when a stage is missing, collected nothing, or had failures.
 
     python tools/test-summary.py out/test-results [--shard K/N] [--bus-only]
@@ -13,6 +15,7 @@ in shard 1 only. --bus-only: the bus-level stage alone (`make durations`).
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -40,6 +43,11 @@ class StageResult:
     failed: int = 0
     skipped: int = 0
     failures: list[str] = field(default_factory=list)
+    attachments: dict[str, list[str]] = field(default_factory=dict)
+    """Per failure, the files it attached (pictures of the failed checks)."""
+
+
+ATTACHMENT = re.compile(r"\[\[ATTACHMENT\|(?P<path>[^\]]+)\]\]")
 
 
 def read_junit(path: Path) -> StageResult:
@@ -49,6 +57,9 @@ def read_junit(path: Path) -> StageResult:
         if case.find("failure") is not None or case.find("error") is not None:
             result.failed += 1
             result.failures.append(name)
+            out = "".join(element.text or "" for element in case.iter("system-out"))
+            if found := [match["path"] for match in ATTACHMENT.finditer(out)]:
+                result.attachments[name] = found
         elif case.find("skipped") is not None:
             result.skipped += 1
         else:
@@ -92,6 +103,7 @@ def main(argv: list[str]) -> int:
             stage.failed += part.failed
             stage.skipped += part.skipped
             stage.failures += part.failures
+            stage.attachments |= part.attachments
         ran = stage.passed + stage.failed
         line = f"{title:22} {ran:4d} ran: {stage.passed} passed, {stage.failed} failed"
         if stage.skipped:
@@ -99,6 +111,8 @@ def main(argv: list[str]) -> int:
         print(line)
         for name in stage.failures:
             print(f"    FAILED {name}")
+            for attached in stage.attachments.get(name, []):
+                print(f"        picture: {attached}")
         if stage.failed or (ran == 0 and not (title == BROWSER_STAGE and shard is not None)):
             ok = False
         if title == BUS_STAGE:

@@ -2,7 +2,9 @@
 
 Every check works in simulation time, on what the rig recorded, so it is exact and repeatable.
 A failure raises `ScenarioAssertion` (an AssertionError) whose message shows the numbers, the
-simulation time and cycle, and the paths of the scenario's trace and bus log:
+simulation time and cycle, and the paths of the scenario's trace and bus log; given a `picture`
+(`hilrig.observe.picture.FailurePictures`), it also draws the field against what was expected
+and the moment it failed, and names the PNG (`ScenarioAssertion.pictures`):
 
     expect = Expect(rig, evidence="trace out/scenarios/x/trace.rrd, bus log .../bus.log")
     expect.settles_within("output_velocity", target=5.0, tolerance=0.02, by_s=1.5)
@@ -15,15 +17,41 @@ simulation time and cycle, and the paths of the scenario's trace and bus log:
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 
 
 class ScenarioAssertion(AssertionError):
-    """A scenario expectation did not hold; the message carries the numbers and the evidence."""
+    """A scenario expectation did not hold; the message carries the numbers and the evidence,
+    `pictures` the PNGs drawn of it."""
+
+    def __init__(self, message: str, pictures: tuple[Path, ...] = ()) -> None:
+        super().__init__(message)
+        self.pictures = pictures
+
+
+@dataclass(frozen=True)
+class FailedCheck:
+    """What a picture of a failed check shows: the series looked at, the band of values it was
+    expected in (from `band_from_s` on; None for a check with no band), and when it failed."""
+
+    check: str
+    name: str
+    t: np.ndarray
+    v: np.ndarray
+    band: tuple[float, float] | None
+    band_from_s: float
+    at_s: float | None
+    message: str
+
+
+Picture = Callable[[FailedCheck], Path | None]
+"""Draws a failed check and returns the PNG's path (None: it could not be drawn)."""
 
 
 class History(Protocol):
@@ -39,10 +67,28 @@ class Expect:
 
     rig: History
     evidence: str = ""
+    picture: Picture | None = None
 
-    def _fail(self, message: str) -> ScenarioAssertion:
+    def _fail(
+        self,
+        message: str,
+        series: tuple[np.ndarray, np.ndarray] | None = None,
+        *,
+        name: str = "",
+        band: tuple[float, float] | None = None,
+        band_from_s: float = 0.0,
+        at_s: float | None = None,
+    ) -> ScenarioAssertion:
+        pictures: tuple[Path, ...] = ()
+        if self.picture is not None and series is not None:
+            caller = inspect.currentframe()
+            check = caller.f_back.f_code.co_name if caller and caller.f_back else "check"  # settles_within...
+            drawn = self.picture(FailedCheck(check, name, *series, band, band_from_s, at_s, message))
+            if drawn is not None:
+                pictures = (drawn,)
+                message += f"; picture {drawn}"
         suffix = f"; {self.evidence}" if self.evidence else ""
-        return ScenarioAssertion(message + suffix)
+        return ScenarioAssertion(message + suffix, pictures)
 
     def _series(self, name: str, after_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         t, v = self.rig.history(name)
@@ -68,7 +114,8 @@ class Expect:
             i = int(np.argmax(late))
             raise self._fail(
                 f"{name}: expected to settle within {tolerance:.1%} of {target:g} (±{band:g}) by "
-                f"t = {by_s:.3f} s, got {v[i]:.4g} at {self._at(t[i])}"
+                f"t = {by_s:.3f} s, got {v[i]:.4g} at {self._at(t[i])}",
+                (t, v), name=name, band=(target - band, target + band), band_from_s=by_s, at_s=float(t[i]),
             )
         if not outside.any():
             return float(t[0])
@@ -81,9 +128,12 @@ class Expect:
         i = int(np.argmax(direction * v))
         overshoot = max(0.0, direction * (v[i] - target) / abs(target))
         if overshoot >= limit:
+            bound = target + direction * limit * abs(target)
             raise self._fail(
                 f"{name}: expected overshoot below {limit:.1%} of {target:g}, got {overshoot:.1%} "
-                f"(peak {v[i]:.4g}) at {self._at(t[i])}"
+                f"(peak {v[i]:.4g}) at {self._at(t[i])}",
+                (t, v), name=name, band=(min(target, bound), max(target, bound)), band_from_s=after_s,
+                at_s=float(t[i]),
             )
         return overshoot
 
@@ -94,7 +144,8 @@ class Expect:
         if bad.any():
             i = int(np.argmax(bad))
             raise self._fail(
-                f"{name}: expected within [{low:g}, {high:g}], got {v[i]:.4g} at {self._at(t[i])}"
+                f"{name}: expected within [{low:g}, {high:g}], got {v[i]:.4g} at {self._at(t[i])}",
+                (t, v), name=name, band=(low, high), band_from_s=after_s, at_s=float(t[i]),
             )
 
     def average_rate_within(
@@ -117,7 +168,8 @@ class Expect:
             raise self._fail(
                 f"{name}: expected to change at {target:g}/s on average within {tolerance:.1%} (±{band:g}), "
                 f"got {rate:.4g}/s (least-squares slope of {t.size} samples from t = {t[0]:.3f} s to "
-                f"{self._at(t[-1])})"
+                f"{self._at(t[-1])})",
+                (t, v), name=name, at_s=float(t[-1]),
             )
         return rate
 
@@ -135,11 +187,15 @@ class Expect:
         for ti, vi in zip(t, v, strict=True):
             if condition(float(vi)):
                 if by_s is not None and ti > by_s + 1e-12:
-                    raise self._fail(f"{name}: expected {what} by t = {by_s:.3f} s, first at {self._at(ti)}")
+                    raise self._fail(
+                        f"{name}: expected {what} by t = {by_s:.3f} s, first at {self._at(ti)}",
+                        (t, v), name=name, at_s=float(ti),
+                    )
                 return float(ti)
         raise self._fail(
             f"{name}: expected {what} after t = {after_s:.3f} s, never happened "
-            f"(last value {v[-1]:.4g} at {self._at(t[-1])})"
+            f"(last value {v[-1]:.4g} at {self._at(t[-1])})",
+            (t, v), name=name, at_s=float(t[-1]),
         )
 
     def never(
@@ -149,4 +205,7 @@ class Expect:
         t, v = self._series(name, after_s)
         for ti, vi in zip(t, v, strict=True):
             if condition(float(vi)):
-                raise self._fail(f"{name}: expected never {what}, got {vi:.4g} at {self._at(ti)}")
+                raise self._fail(
+                    f"{name}: expected never {what}, got {vi:.4g} at {self._at(ti)}",
+                    (t, v), name=name, at_s=float(ti),
+                )

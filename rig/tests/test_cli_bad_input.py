@@ -154,7 +154,8 @@ def all_cases() -> list[Case]:
                     continue  # only a command's first positional is fed alone (none other is typed yet)
                 option = action.option_strings[-1] if action.option_strings else None
                 cases.append(Case(command, name, option, label, make, expected, no_display))
-        if any(a.option_strings == ["--web"] for a in parser._actions):
+        required = [a for a in positionals if a.nargs in (None, 1)]
+        if any(a.option_strings == ["--web"] for a in parser._actions) and len(required) <= 1:
             # Opens a native window unless --web: without a display it says to add --web.
             trace = _file("trace.rrd", b"RRF2 a recording")
             cases.append(Case(command, "TRACE", None, "no display", trace, "add --web", True))

@@ -23,6 +23,10 @@ from hilrig.observe.paths import (
     BUS_FRAMES_ROOT,
     BUS_RPDOS_PER_CYCLE,
     BUS_TPDOS_PER_CYCLE,
+    DIFF_BASE_ROOT,
+    DIFF_CAND_ROOT,
+    DIFF_EVENTS_PATH,
+    DIFF_ROOT,
     EMCY_PATH,
     NMT_PATH,
     SDO_PATH,
@@ -259,8 +263,10 @@ def test_every_plot_of_every_dashboard_has_one_unit(table: RigTable) -> None:
     for name in BLUEPRINTS:
         for view in _views(blueprint(name, table).root_container):
             contents = view.contents if isinstance(view.contents, list) else []
-            # A robot module's fields are one board's under /modules/<id>.
-            paths = [re.sub(r"^/modules/\d+", "", path) for path in contents if not path.startswith("+ ")]
+            # A robot module's fields are one board's under /modules/<id>; a comparison's under
+            # /base, /cand and /diff.
+            shown = [path for path in contents if not path.startswith("+ ")]
+            paths = [re.sub(r"^/(modules/\d+|base|cand|diff)(?=/)", "", path) for path in shown]
             units = {unit_of[path] for path in paths}
             assert len(units) <= 1, f"{name}: {view.name} mixes {sorted(units)}"
 
@@ -293,7 +299,10 @@ def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
     robot = {module_root(n) + path for n in DEFAULT_NODE_IDS for path in one_board}
     robot |= {link_path(k) for k in range(len(DEFAULT_NODE_IDS) + 1)}
     logged = one_board | robot | {BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE, f"{BUS_FRAMES_ROOT}/TPDO1"}
-    dashboards = {"overview", "tuning", "thermal", "faults", "bus", "robot"}
+    # A comparison (`hilrig diff`): both runs' series under /base and /cand, cand - base under /diff.
+    logged |= {root + path for root in (DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT) for path in one_board}
+    logged.add(DIFF_EVENTS_PATH)
+    dashboards = {"overview", "tuning", "thermal", "faults", "bus", "robot", "diff"}
     assert set(blueprint_names()) == dashboards == set(BLUEPRINTS)
     for name in BLUEPRINTS:
         views = list(_views(blueprint(name, table).root_container))
@@ -445,3 +454,49 @@ def test_the_truth_paths_name_every_quantity_of_the_joint_state() -> None:
 
     state = tuple(f.name for f in fields(JointState) if f.name != "time_s")
     assert (*state, TRUE_SPRING_STIFFNESS) == TRUTH_QUANTITIES
+
+
+def test_a_robot_module_names_and_colours_its_own_series(tmp_path: Path) -> None:
+    """On one plot of every module, each module's series carry its number and its colour: the
+    commanded ones lighter, the truth darker (tracer rooted at /modules/<id>)."""
+    import rerun as rr
+
+    from hilrig.observe.batches import MODULE_COLOURS
+
+    table = RigTable.load()
+    path = tmp_path / "robot.rrd"
+    channel = f"hilrig-trace-{next(_channels)}"
+    rig_bus, fake_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
+    fake = FakeJointNode(fake_bus, table=table)
+    tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=10, background=False, root="/modules/3")
+    rig = Rig(
+        rig_bus, table=table, params=JointParams.fast_thermal(), seed=3, tpdo_timeout_s=0.5, tracer=tracer
+    )
+    fake.boot()
+    try:
+        rig.start()
+        rig.set("velocity_setpoint", 2.0)
+        rig.run(cycles=5)
+    finally:
+        rig.close()
+        fake.close()
+        tracer.close()
+        rig_bus.shutdown()
+        fake_bus.shutdown()
+    colours: dict[str, int] = {}
+    for chunk in rr.chunk.RrdReader(path).stream():
+        batch = chunk.to_record_batch()
+        if chunk.is_static and "SeriesLines:colors" in batch.schema.names:
+            colours[chunk.entity_path] = batch.column("SeriesLines:colors").to_pylist()[0][0]
+    names = Trace.read(path).series_names
+    measured, commanded = (
+        "/modules/3/fields/virtual_sensors/output_velocity",
+        "/modules/3/fields/commands/velocity_setpoint",
+    )
+    truth = "/modules/3/truth/load_velocity_rad_s"
+    assert names[measured] == "module 3 output_velocity [rad/s]"
+    assert names[truth] == "module 3 true load_velocity_rad_s [rad/s]"
+    red, green, blue = MODULE_COLOURS[2]
+    assert colours[measured] == (red << 24) | (green << 16) | (blue << 8) | 0xFF
+    lighter, darker = colours[commanded] >> 24, colours[truth] >> 24
+    assert darker < red < lighter

@@ -1,8 +1,9 @@
 """Every dashboard in the web viewer, in headless Chromium, on traces of the real firmware: the
-ones two scenarios of the bus stage wrote (tools/run-tests runs this after that stage, natively).
+ones three scenarios of the bus stage wrote (tools/run-tests runs this after that stage, natively).
 
-For each trace, every dashboard made for it (`hilrig.observe.dashboard_check.fitting_dashboards`: the five of
-one joint, or `robot`) is shown one after another in one page (`hilrig.observe.browser.check_dashboards`):
+For each trace, every dashboard made for it (`hilrig.observe.dashboard_check.fitting_dashboards`:
+the five of one joint, `robot`, or `diff` for a comparison of two runs) is shown one after another
+in one page (`hilrig.observe.browser.check_dashboards`):
 the viewer shows exactly the dashboard's views, none hidden or reporting an error, the recording
 whole, something plotted, no console error; and every series each view names has data in the
 trace. Screenshots: $HIL_OUT_DIR/viewer/<trace>/<dashboard>.png.
@@ -24,11 +25,13 @@ from hilrig.observe.reader import Trace
 REPO = Path(__file__).resolve().parents[2]
 FIRMWARE_TRACES = {
     # tests/test_trace_recording.py: each control mode, an SDO abort, an EMCY, fields polled.
-    "joint": "test_every_series_every_dashboard_names_has_data_on_a_firmware_trace",
+    "joint": "test_every_series_every_dashboard_names_has_data_on_a_firmware_trace/trace.rrd",
     # tests/test_robot.py: 8 modules in a travelling wave, the chain in 3D.
-    "robot": "test_travelling_wave_tracked_by_all_eight_modules",
+    "robot": "test_travelling_wave_tracked_by_all_eight_modules/trace.rrd",
+    # tests/test_determinism.py: `hilrig diff` of two runs with another velocity_kp.
+    "diff": "test_same_seed_same_trace_bit_for_bit_other_seed_other_noise/diff.rrd",
 }
-"""Trace name -> the scenario of the bus stage whose trace.rrd it is."""
+"""Trace name -> the recording of the bus stage it is (under its scenario's folder)."""
 
 
 def output_root() -> Path:
@@ -38,8 +41,8 @@ def output_root() -> Path:
 @pytest.mark.timeout(600)
 @pytest.mark.parametrize("name", FIRMWARE_TRACES)
 def test_every_dashboard_shows_the_firmware_trace_whole(name: str) -> None:
-    scenario = FIRMWARE_TRACES[name]
-    trace_path = output_root() / "scenarios" / scenario / "trace.rrd"
+    scenario, _, file_name = FIRMWARE_TRACES[name].partition("/")
+    trace_path = output_root() / "scenarios" / scenario / file_name
     if not trace_path.exists():
         if os.environ.get("HIL_SHARD"):
             pytest.skip(f"{scenario} ran in another shard (HIL_SHARD={os.environ['HIL_SHARD']})")

@@ -82,17 +82,26 @@ TORQUE_PROFILE = (
     Step("torque_setpoint", 0.5, 0.4),
     Step("torque_setpoint", 2.5, 0.4),
     Step("torque_setpoint", 1.0, 0.4),
-    Step("torque_setpoint", 3.0, 0.4),
+    Step("torque_setpoint", 3.0, 1.5),
     Step("torque_setpoint", 0.0, 0.3),
 )
 """Spring torque [N*m] against the demo's viscous load: steps the spring-constant estimator can
-learn from (quasi-static motion at several deflections)."""
+learn from (quasi-static motion at several deflections), the last high one held until the hot
+winding passes thermal_warning_c and the firmware derates the drive (the thermal dashboard)."""
+DEMO_AMBIENT_C = 79.0
+"""The demo joint sits in a hot enclosure: its winding starts a kelvin below the firmware's
+thermal warning (80 degC by default), so the torque profile shows the derate within seconds."""
 
 
 def demo_params() -> JointParams:
     """The demo joint: a load with strong viscous friction (constant torque gives a steady speed,
-    so torque steps are quasi-static) and a winding that heats in seconds, not minutes."""
-    return dataclasses.replace(JointParams.fast_thermal(), load_viscous_friction_nm_s_per_rad=1.0)
+    so torque steps are quasi-static), a winding that heats in seconds, not minutes, in a hot
+    enclosure (`DEMO_AMBIENT_C`)."""
+    return dataclasses.replace(
+        JointParams.fast_thermal(),
+        load_viscous_friction_nm_s_per_rad=1.0,
+        ambient_temperature_c=DEMO_AMBIENT_C,
+    )
 
 
 @dataclass(frozen=True)

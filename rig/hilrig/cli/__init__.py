@@ -10,6 +10,7 @@
     hilrig capture motor_velocity --samples 2000   # the board's recorder: every cycle, uploaded
     hilrig scan                               # which nodes are on the bus
     hilrig record bus.log / replay bus.log --decode
+    hilrig diff good/trace.rrd out/demo/trace.rrd   # the first cycle the runs differ
     hilrig bus-load --bitrate 500k            # will the PDO exchange fit a real bus?
     hilrig sim --out out/demo                 # firmware + physics in lockstep, a summary
     hilrig soak --cycles 1000000              # the long run: no cycle lost, memory flat
@@ -53,6 +54,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "record",
     "sim",
     "view",
+    "diff",
     "busload",
     "soak",
     "completion",

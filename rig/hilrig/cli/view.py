@@ -48,7 +48,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--dashboard",
         default=None,
         metavar="NAME",
-        help=f"the layout to show (default: {DEFAULT_DASHBOARD}; --list names them all)",
+        help=f"the layout to show (default: diff for `hilrig diff`'s, robot for a robot's, else "
+        f"{DEFAULT_DASHBOARD}; --list names them all)",
     )
     parser.add_argument("--list", action="store_true", help="print the dashboards' names and exit")
     parser.add_argument(
@@ -76,20 +77,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hilrig.errors import RigError
     from hilrig.observe.blueprints import blueprint_names
-    from hilrig.observe.sinks import DEFAULT_WEB_PORT
-    from hilrig.observe.viewer import open_trace
 
     names = blueprint_names()
     if args.list:
         print("\n".join(names))
         return 0
-    dashboard: str = args.dashboard or DEFAULT_DASHBOARD
-    if dashboard not in names:
+    if args.dashboard is not None and args.dashboard not in names:
         from hilrig.table import unknown_name
 
-        raise UsageError(str(unknown_name("dashboard", dashboard, names)))
+        raise UsageError(str(unknown_name("dashboard", args.dashboard, names)))
     trace: Path | None = args.trace
     if trace is None:
         raise UsageError("name the trace to open: hilrig view TRACE.rrd (or --list the dashboards)")
@@ -97,20 +94,56 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"{trace}: expected a Rerun recording (.rrd)")
     if args.check:
         return _check(trace, args.dashboard)
-    if args.web is None and not has_display():
+    if args.web is None and not has_display():  # before the trace is read: say it at once
+        raise UsageError(f"{NO_DISPLAY}: add --web to serve the web viewer and open the page it prints")
+    dashboard = args.dashboard or default_dashboard(trace)
+    return show(trace, dashboard, web_port=args.web, grpc_port=args.grpc_port)
+
+
+def default_dashboard(trace: Path) -> str:
+    """The dashboard made for the kind of recording: `diff` for a comparison (`hilrig diff`),
+    `robot` for a robot's trace, the overview otherwise. Looks at the first entity it logs."""
+    import rerun as rr
+
+    from hilrig.observe.paths import DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT, MODULES_ROOT, ROBOT_ROOT
+
+    try:
+        for chunk in rr.chunk.RrdReader(trace).stream():
+            root = "/" + chunk.entity_path.lstrip("/").split("/", 1)[0]
+            if root in (DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT):
+                return "diff"
+            if root in (MODULES_ROOT, ROBOT_ROOT):
+                return "robot"
+            if not chunk.is_static:
+                break
+    except RuntimeError as error:  # Rerun's reader: a cut-off or foreign file
+        from hilrig.errors import LogFileError, one_line
+
+        raise LogFileError(f"{trace}: Rerun cannot read this recording ({one_line(error)})") from None
+    return DEFAULT_DASHBOARD
+
+
+def show(trace: Path, dashboard: str, *, web_port: int | None, grpc_port: int | None) -> int:
+    """`trace` in a native viewer (web_port None) or served to the web viewer, with `dashboard`;
+    returns when the person closes it (or presses Ctrl-C)."""
+    from hilrig.errors import RigError
+    from hilrig.observe.sinks import DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
+    from hilrig.observe.viewer import open_trace
+
+    if web_port is None and not has_display():
         raise UsageError(f"{NO_DISPLAY}: add --web to serve the web viewer and open the page it prints")
     try:
         process = open_trace(
             trace,
             dashboard,
-            web=args.web is not None,
-            web_port=args.web or DEFAULT_WEB_PORT,
-            grpc_port=args.grpc_port,
+            web=web_port is not None,
+            web_port=web_port or DEFAULT_WEB_PORT,
+            grpc_port=grpc_port or DEFAULT_GRPC_PORT,
         )
     except OSError as error:  # a port in use
         raise RigError(str(error)) from None
     assert not isinstance(process, list)
-    if args.web is None:
+    if web_port is None:
         progress(f"view: {trace} in a native viewer ({dashboard}); close its window to end")
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:

@@ -22,6 +22,8 @@ from hilrig.observe.paths import (
     BUS_RPDOS_PER_CYCLE,
     BUS_TPDOS_PER_CYCLE,
     CYCLE_TIMELINE,
+    FIELDS_ROOT,
+    MODULES_ROOT,
     SIM_TIME_TIMELINE,
     TRUE_SPRING_STIFFNESS,
     TRUTH_QUANTITIES,
@@ -374,6 +376,9 @@ class RecordBatches:
             series_name = name if name is not None else self._series_name(path)
             fields.append(_component_field(pa, path, self._line_names, pa.string()))
             arrays.append(pa.array([series_name], pa.string()))
+            if self._module is not None:
+                fields.append(_component_field(pa, path, self._line_colors, pa.uint32()))
+                arrays.append(pa.array([self._module_colour(path)], pa.uint32()))
             if counts or path in self._held:
                 fields.append(_component_field(pa, path, self._line_mode, self._step_after.type))
                 arrays.append(self._step_after)
@@ -412,11 +417,44 @@ class RecordBatches:
 
     def _series_name(self, path: str) -> str:
         name = path.rsplit("/", 1)[-1]
+        module = f"module {self._module} " if self._module is not None else ""
         if path.removeprefix(self.root).startswith(TRUTH_ROOT):
-            return f"true {name} [{truth_unit(name)}]"
+            return f"{module}true {name} [{truth_unit(name)}]"
         every = self._polled.get(name)
         polled = f" (SDO, every {every} cycles)" if every is not None else ""
-        return f"{name} [{self.table.entry(name).unit}]{polled}"
+        return f"{module}{name} [{self.table.entry(name).unit}]{polled}"
+
+    def _module_colour(self, path: str) -> int:
+        """A robot module's colour (RGBA): what the rig commands in a lighter shade of it and the
+        plant's truth in a darker one, so one plot of every module's commanded and measured angle
+        (or measured and true torque) tells them apart."""
+        assert self._module is not None
+        rgb = MODULE_COLOURS[(self._module - 1) % len(MODULE_COLOURS)]
+        own = path.removeprefix(self.root)
+        if own.startswith(f"{FIELDS_ROOT}/commands/"):
+            rgb = tuple(round(c + (255 - c) * SHADE) for c in rgb)  # type: ignore[assignment]
+        elif own.startswith(TRUTH_ROOT):
+            rgb = tuple(round(c * (1 - SHADE)) for c in rgb)  # type: ignore[assignment]
+        red, green, blue = rgb
+        return (red << 24) | (green << 16) | (blue << 8) | 0xFF
+
+
+MODULE_COLOURS: tuple[tuple[int, int, int], ...] = (
+    (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
+    (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207), (57, 59, 121), (140, 109, 49),
+    (132, 60, 57), (99, 121, 57), (123, 65, 115), (0, 0, 0),
+)
+"""One colour per module of a robot (node id 1 the first): sixteen that stay apart."""
+SHADE = 0.5
+"""How far towards white a module's commanded series is drawn, towards black its truth."""
+
+
+def module_of(root: str) -> int | None:
+    """3 for a tracer rooted at /modules/3; None for one board's."""
+    prefix = MODULES_ROOT + "/"
+    if root.startswith(prefix) and root[len(prefix):].isdigit():
+        return int(root[len(prefix):])
+    return None
 
 
 

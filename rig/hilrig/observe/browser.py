@@ -69,6 +69,17 @@ BLUEPRINT_AREA = (204, 40, 1296, 848)
 """(left, top, right, bottom) in VIEWPORT pixels: where the blueprint's views are, between the
 blueprint tree (left, 200 px), the selection panel (right, 300 px), the top bar and the time
 panel (bottom, 150 px). The panels keep their pixel sizes whatever the layout inside."""
+SETTLE_POLL_S = 0.5
+"""Between two screenshots compared for a picture that holds still."""
+
+
+def _views_box(image: Image) -> tuple[int, int, int, int]:
+    """The part of a screenshot with the dashboard's views: without the top bar (its latency
+    counter ticks), the side panels and the time panel."""
+    width, height = image.size
+    return (width * 13 // 100, height * 4 // 100, width * 81 // 100, height * 85 // 100)
+
+
 PLOTTED_PIXELS = 1000
 """`plotted_pixels` above which something is plotted. Measured at VIEWPORT over the 0.4 s
 fake-node trace of rig/tests/test_web_viewer.py: 3500 (faults) to 6100 (tuning), the series
@@ -491,14 +502,20 @@ class ViewerPage:
         return Image.open(path).convert("RGB")
 
     def screenshot_until_plotted(self, path: Path) -> tuple[Image, int]:
-        """Screenshots until something is plotted (the state can be a frame ahead of the canvas):
-        the last one and its `plotted_pixels`, which stay below PLOTTED_PIXELS if time ran out."""
+        """Screenshots until something is plotted and the picture holds still (the state can be
+        a frame ahead of the canvas, and a plot fits its axes to the data over a few frames after
+        the first curve is drawn: taken then, curves leave the plot): the last one and its
+        `plotted_pixels`, which stay below PLOTTED_PIXELS if time ran out."""
         deadline = time.monotonic() + self.wait_s
+        previous: bytes | None = None
         while True:
             image = self.screenshot(path)
             plotted = plotted_pixels(image)
-            if plotted > PLOTTED_PIXELS or time.monotonic() > deadline:
+            pixels = image.crop(_views_box(image)).tobytes()
+            if (plotted > PLOTTED_PIXELS and pixels == previous) or time.monotonic() > deadline:
                 return image, plotted
+            previous = pixels
+            time.sleep(SETTLE_POLL_S)
 
     # --- switching dashboards ---------------------------------------------------------------
     def show_dashboard(

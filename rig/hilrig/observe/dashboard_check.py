@@ -12,6 +12,7 @@ from collections.abc import Iterator, Mapping
 import rerun.blueprint as rrb
 
 from dashboards.joint import ORIGIN_SUBTREE
+from hilrig.observe.paths import DIFF_BASE_ROOT, DIFF_CAND_ROOT
 from hilrig.observe.reader import Trace
 
 
@@ -63,18 +64,29 @@ def robot_node_ids(trace: Trace) -> tuple[int, ...]:
     return tuple(sorted(ids))
 
 
+def is_comparison(trace: Trace) -> bool:
+    """A recording `hilrig diff` wrote (both runs under /base and /cand)."""
+    return any(entity.startswith((DIFF_BASE_ROOT + "/", DIFF_CAND_ROOT + "/")) for entity in trace.rows)
+
+
+TRACE_SPECIFIC = ("robot", "diff")
+"""Dashboards made for one kind of recording only: a robot's trace, a comparison of two runs."""
+
+
 def fitting_dashboards(trace: Trace) -> dict[str, rrb.Blueprint]:
-    """The dashboards made for this kind of trace, by name: `robot` (for the trace's own modules)
-    for a robot's, every other one for one board's."""
+    """The dashboards made for this kind of trace, by name: `diff` for a comparison, `robot` (for
+    the trace's own modules) for a robot's, every other one for one board's."""
     from dashboards.joint import BLUEPRINTS
     from dashboards.robot import robot
     from hilrig.table import RigTable
 
     table = RigTable.load()
+    if is_comparison(trace):
+        return {"diff": BLUEPRINTS["diff"](table)}
     node_ids = robot_node_ids(trace)
     if node_ids:
         return {"robot": robot(table, node_ids)}
-    return {name: build(table) for name, build in BLUEPRINTS.items() if name != "robot"}
+    return {name: build(table) for name, build in BLUEPRINTS.items() if name not in TRACE_SPECIFIC}
 
 
 def trace_gaps(trace: Trace, dashboards: Mapping[str, rrb.Blueprint] | None = None) -> list[str]:
@@ -84,4 +96,4 @@ def trace_gaps(trace: Trace, dashboards: Mapping[str, rrb.Blueprint] | None = No
     return [gap for name, layout in dashboards.items() for gap in missing_series(layout, trace, name=name)]
 
 
-__all__ = ["fitting_dashboards", "missing_series", "robot_node_ids", "trace_gaps", "views"]
+__all__ = ["fitting_dashboards", "is_comparison", "missing_series", "robot_node_ids", "trace_gaps", "views"]

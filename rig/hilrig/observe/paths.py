@@ -80,6 +80,13 @@ BUS_RPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/rpdos"
 ROBOT_ROOT = "/robot"
 """A robot's 3D view: /robot/links/<k> (a capsule moved by the chain's pose of link k),
 /robot/ground; its own events (a module lost...) at /events/robot."""
+DIFF_BASE_ROOT = "/base"
+DIFF_CAND_ROOT = "/cand"
+DIFF_ROOT = "/diff"
+"""A comparison of two traces (`hilrig diff`): the base run's series under /base, the
+candidate's under /cand, each at its own path below, and cand - base under /diff."""
+DIFF_EVENTS_PATH = f"{DIFF_ROOT}/divergences"
+"""Where a comparison says, per series, the first cycle it differs beyond the tolerance."""
 TRUE_SPRING_STIFFNESS = "spring_stiffness_nm_per_rad"
 """Extra truth series: the plant's spring constant, to plot next to spring_constant_estimate.
 A parameter: a step series with rows where it changes and at the last cycle of each batch."""

@@ -36,7 +36,7 @@ from boardproto.cia301 import NmtState
 from boardproto.table import BitSet, ValueEnum
 from hilrig.engine.driver import CycleResult, History, HistoryMark
 from hilrig.engine.observers import RigObserver
-from hilrig.observe.batches import Clock, RecordBatches, Value, _Batch, _CycleRow, _HistorySpan
+from hilrig.observe.batches import Clock, RecordBatches, Value, _Batch, _CycleRow, _HistorySpan, module_of
 from hilrig.observe.blueprints import load_blueprint
 from hilrig.observe.chain import ChainTrace
 from hilrig.observe.paths import (
@@ -138,6 +138,7 @@ class Tracer(RecordBatches, RigObserver):
         self._min_max = rr.components.AggregationPolicyBatch(
             rr.components.AggregationPolicy.MinMax
         ).as_arrow_array()
+        self._line_colors = rr.SeriesLines.descriptor_colors()
         self.table = table
         self.sinks: tuple[TraceSink, ...] = (sink,) if isinstance(sink, TraceSink) else tuple(sink)
         if not self.sinks and share is None:
@@ -147,6 +148,8 @@ class Tracer(RecordBatches, RigObserver):
         self.root = root
         """Prefix of every entity path this tracer writes ("" for one board; a robot's modules
         each have their own, e.g. /modules/3, on one recording)."""
+        self._module = module_of(root)
+        """A robot's module: its series are named "module 3 ..." and drawn in its own colour."""
         self.batch_cycles = batch_cycles
         self.max_latency_s = max_latency_s if max_latency_s is not None else default_latency(self.sinks)
         self._next_hand_over = time.monotonic() + (self.max_latency_s or 0.0)

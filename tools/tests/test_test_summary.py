@@ -1,0 +1,47 @@
+"""tools/test-summary.py: the run's closing lines from the stages' JUnit XML, each failure with
+the pictures its scenario attached."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+TOOLS = Path(__file__).resolve().parent.parent
+
+
+def load_summary() -> ModuleType:
+    sys.path.insert(0, str(TOOLS))  # its own import of scenario_shards
+    try:
+        spec = importlib.util.spec_from_file_location("test_summary_tool", TOOLS / "test-summary.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module  # its dataclasses look their module up
+        spec.loader.exec_module(module)
+        return module
+    finally:
+        sys.path.remove(str(TOOLS))
+
+
+def junit(*cases: str) -> str:
+    return f'<testsuites><testsuite name="pytest">{"".join(cases)}</testsuite></testsuites>'
+
+
+def test_a_failure_lists_the_pictures_it_attached(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    summary = load_summary()
+    (tmp_path / "cpp.xml").write_text(junit('<testcase classname="Cia301" name="codes"/>'))
+    (tmp_path / "python-unit.xml").write_text(junit('<testcase classname="t" name="a"/>'))
+    (tmp_path / "browser.xml").write_text(junit('<testcase classname="b" name="joint"/>'))
+    failed = (
+        '<testcase classname="tests.test_joint" name="test_step"><failure message="x"/>'
+        "<system-out>[[ATTACHMENT|/out/p/output_velocity-settles_within.png]]\n</system-out></testcase>"
+    )
+    (tmp_path / "scenarios.xml").write_text(junit(failed, '<testcase classname="tests.t" name="ok"/>'))
+    assert summary.main(["test-summary.py", str(tmp_path)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    at = out.index("    FAILED tests.test_joint::test_step")
+    assert out[at + 1] == "        picture: /out/p/output_velocity-settles_within.png"
+    assert out[-1] == "4 passed, 1 failed"
