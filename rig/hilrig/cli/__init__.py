@@ -9,6 +9,7 @@
     hilrig watch --sync-period-ms 10          # live table of the TPDO fields
     hilrig capture motor_velocity --samples 2000   # the board's recorder: every cycle, uploaded
     hilrig scan                               # which nodes are on the bus
+    hilrig lss number --chain                 # new boards: node ids over LSS, stored
     hilrig record bus.log / replay bus.log --decode
     hilrig bus-load --bitrate 500k            # will the PDO exchange fit a real bus?
     hilrig sim --out out/demo                 # firmware + physics in lockstep, a summary
@@ -50,6 +51,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "watch",
     "capture",
     "scan",
+    "lss",
     "record",
     "sim",
     "view",
