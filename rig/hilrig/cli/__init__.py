@@ -10,6 +10,7 @@
     hilrig capture motor_velocity --samples 2000   # the board's recorder: every cycle, uploaded
     hilrig scan                               # which nodes are on the bus
     hilrig lss number --chain                 # new boards: node ids over LSS, stored
+    hilrig params save board.dcf              # the stored parameters as a DCF (load: the reverse)
     hilrig record bus.log / replay bus.log --decode
     hilrig bus-load --bitrate 500k            # will the PDO exchange fit a real bus?
     hilrig sim --out out/demo                 # firmware + physics in lockstep, a summary
@@ -52,6 +53,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "capture",
     "scan",
     "lss",
+    "params",
     "record",
     "sim",
     "view",
