@@ -150,11 +150,16 @@ def _set(
     had = lss.inquire_node_id()
     with lss.boot_up_watch(args.node_id) as watch:
         lss.assign(args.node_id, store=not args.no_store)
-        if had not in (args.node_id, NODE_ID_UNCONFIGURED):
+        given = (
+            f"serial 0x{args.serial:08X}: node id 0x{args.node_id:02X} {'set' if args.no_store else 'stored'}"
+        )
+        if had == args.node_id:  # a configured node boots only at its next reset communication
+            print(f"{given}; it had it already")
+            return 0
+        if had != NODE_ID_UNCONFIGURED:
             print(
-                f"serial 0x{args.serial:08X}: node id 0x{args.node_id:02X} "
-                f"{'stored' if not args.no_store else 'set'}; it keeps 0x{had:02X} until its next reset "
-                f"communication (`hilrig nmt reset-comm 0x{had:02X}`)"
+                f"{given}; it keeps 0x{had:02X} until its next reset communication "
+                f"(`hilrig nmt reset-comm 0x{had:02X}`)"
             )
             return 0
         watch.wait(args.boot_timeout)
