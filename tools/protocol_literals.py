@@ -50,6 +50,7 @@ sys.path.insert(0, str(REPO / "protocol"))
 
 from boardproto import load_table  # noqa: E402
 from boardproto.cia301 import FunctionCode, SdoAbortCode  # noqa: E402
+from boardproto.cia305 import MASTER_COB_ID, SLAVE_COB_ID  # noqa: E402
 
 SCANNED_DIRECTORIES = ("firmware", "protocol", "rig", "tests", "tools")
 PYTHON_SUFFIXES = (".py",)
@@ -58,7 +59,9 @@ MARKER_TEXT = "protocol-literal:"
 MARKER = f"# {MARKER_TEXT}"
 C_MARKER = f"// {MARKER_TEXT}"
 THIS_FILE = Path(__file__).resolve()
-HOMES = frozenset({REPO / "protocol" / "boardproto" / "cia301.py"})
+HOMES = frozenset(
+    {REPO / "protocol" / "boardproto" / "cia301.py", REPO / "protocol" / "boardproto" / "cia305.py"}
+)
 """Files that are the home of the values: they state them, nothing to find there."""
 NAMED_VALUE_DIRECTORIES = ("rig", "tests", "tools")
 """Where the control-mode and fault-flag rules apply (the board's named values' users)."""
@@ -68,6 +71,7 @@ SPEC_CONFORMANCE_DIRECTORIES = ("tests",)
 # NMT's COB-ID is 0: a literal 0 is far too common to flag; NMT frames are spelled NMT_COB_ID.
 COB_ID_BASES = frozenset(int(code) for code in FunctionCode if code != FunctionCode.NMT)
 PER_NODE_BASES = COB_ID_BASES - {int(FunctionCode.TIME)}  # TIME has no node id
+LSS_COB_IDS = frozenset({MASTER_COB_ID, SLAVE_COB_ID})  # CiA 305, boardproto.cia305
 NODE_ID_MASK = 0x7F
 # Words that make an expression about the control mode / the fault flags.
 CONTROL_MODE_WORDS = ("control_mode", "velocity_mode", "torque_mode", "position_mode", "disabled_mode")
@@ -102,7 +106,7 @@ def _emcy_codes() -> frozenset[int]:
 
 
 def _is_cob_id(value: int, spelled: str) -> bool:
-    if value in COB_ID_BASES:
+    if value in COB_ID_BASES or value in LSS_COB_IDS:
         return True
     digits = spelled[2:].replace("_", "")
     return len(digits) == 3 and (value & ~NODE_ID_MASK) in PER_NODE_BASES and value & NODE_ID_MASK != 0

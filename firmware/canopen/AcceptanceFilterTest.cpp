@@ -38,7 +38,7 @@ class AcceptanceFilterTest : public NodeTest {
   static constexpr std::uint32_t kRpdo3 = cia301::cob_id(cia301::FunctionCode::Rpdo3, kNodeId);
   static constexpr std::uint32_t kRpdo4 = cia301::cob_id(cia301::FunctionCode::Rpdo4, kNodeId);
   // board.toml's defaults: RPDO1..3 enabled, RPDO4 not; no heartbeat consumed.
-  const Ids kDefaultIds = {0x000, cia301::kSyncCobId, kRpdo1, kRpdo2, kRpdo3, kSdoRx};
+  const Ids kDefaultIds = {0x000, cia301::kSyncCobId, kRpdo1, kRpdo2, kRpdo3, kSdoRx, cia305::kMasterCobId};
 
   void SetUp() override {
     node.set_acceptance_listener(&listener);  // before start(), as the platform does

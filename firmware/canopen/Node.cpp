@@ -36,13 +36,17 @@ Node::Node(std::uint8_t node_id, CanPort& port, FieldAccess& fields, HilIo& hil,
       hil_(hil),
       storage_(storage),
       serial_number_(serial_number),
-      sdo_(object_access(*this)) {
+      sdo_(object_access(*this)),
+      lss_({board::kNode.vendor_id, board::kNode.product_code, board::kNode.revision, serial_number},
+           node_id) {
   for (std::size_t i = 0; i < board::kHilInputCount; ++i) {
     hil_inputs_[i] = hil_input_power_on_value(board::kHilInputs[i]);
   }
 }
 
 void Node::start(std::uint32_t now_us) {
+  (void)lss_.load();  // a node id stored by LSS wins over the one the node was built with
+  started_ = true;
   parameter_load_ = load_stored_parameters();
   reset_communication(now_us);
 }
@@ -64,7 +68,15 @@ ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
   ++counters_.frames_received;
   constexpr std::uint32_t kFlags =
       CanFrame::kExtendedFlag | CanFrame::kRemoteFlag | CanFrame::kErrorFlag;
-  if ((frame.id & kFlags) != 0 || frame.len > 8 || state_ == NmtState::Initialising) {
+  if ((frame.id & kFlags) != 0 || frame.len > 8 || !started_) {
+    ++counters_.frames_ignored;
+    return result;
+  }
+  if (frame.id == cia305::kMasterCobId) {  // LSS, in every state
+    handle_lss(frame, now_us);
+    return result;
+  }
+  if (state_ == NmtState::Initialising) {  // no node id yet: LSS only (CiA 305)
     ++counters_.frames_ignored;
     return result;
   }
@@ -101,6 +113,10 @@ ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
 std::size_t Node::accepted_ids(std::span<std::uint32_t, kMaxAcceptedIds> out) const {
   // The same rules process() and handle_heartbeat() apply, read from the same state.
   std::size_t count = 0;
+  if (!cia301::is_node_id(node_id_)) {  // no node id yet: LSS only
+    out[count++] = cia305::kMasterCobId;
+    return count;
+  }
   out[count++] = cia301::kNmtCobId;
   out[count++] = sync_cob_id_ & kStandardIdMask;
   out[count++] = cia301::cob_id(FunctionCode::SdoRequest, node_id_);
@@ -113,6 +129,7 @@ std::size_t Node::accepted_ids(std::span<std::uint32_t, kMaxAcceptedIds> out) co
       out[count++] = cia301::cob_id(FunctionCode::Heartbeat, HeartbeatConsumer::node_id_of(entry));
     }
   }
+  out[count++] = cia305::kMasterCobId;
   std::sort(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count));
   return static_cast<std::size_t>(std::unique(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count)) -
                                   out.begin());
@@ -171,7 +188,15 @@ void Node::enter(NmtState state) {
 }
 
 void Node::reset_communication(std::uint32_t now_us) {
+  node_id_ = lss_.activate_pending_node_id();  // an id LSS configured takes effect here
   sdo_.reset();
+  if (!cia301::is_node_id(node_id_)) {  // none yet: LSS only, no boot-up (CiA 305)
+    state_ = NmtState::Initialising;
+    heartbeat_consumer_.reset();
+    tell_heartbeat_listener(false);
+    tell_acceptance_listener();
+    return;
+  }
   sync_cob_id_ = cia301::kSyncCobId;
   sync_overflow_ = 0;
   configuration_date_ = 0;
@@ -298,6 +323,18 @@ void Node::handle_sdo(const CanFrame& frame, std::uint32_t now_us) {
   if (answered) send(cia301::cob_id(FunctionCode::SdoResponse, node_id_), response);
   counters_.sdo_aborts_sent += sdo_.aborts_sent() - aborts_before;
   send_sdo_segments(now_us);
+}
+
+void Node::handle_lss(const CanFrame& frame, std::uint32_t now_us) {
+  if (frame.len != cia305::kFrameBytes) {  // LSS frames always carry 8 bytes (CiA 305)
+    ++counters_.frames_malformed;
+    return;
+  }
+  ++counters_.lss_requests;
+  const LssOutcome outcome = lss_.process(std::span<const std::uint8_t>(frame.data.data(), frame.len));
+  if (outcome.answer) send(cia305::kSlaveCobId, outcome.answer_data);
+  // A node without an id got one: it starts as after reset communication, with its boot-up.
+  if (outcome.action == LssAction::ActivateNodeId) reset_communication(now_us);
 }
 
 void Node::send_sdo_segments(std::uint32_t now_us) {

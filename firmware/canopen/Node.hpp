@@ -18,6 +18,7 @@
 #include "Emcy.hpp"
 #include "HeartbeatConsumer.hpp"
 #include "Interfaces.hpp"
+#include "LssSlave.hpp"
 #include "ParameterImage.hpp"
 #include "Recorder.hpp"
 #include "SdoAbort.hpp"
@@ -92,6 +93,7 @@ struct NodeCounters {
                                           // except a block-upload segment, offered again later
   std::uint32_t field_writes_refused = 0; // FieldAccess::write refused (SDO, RPDO, defaults)
   std::uint32_t default_pdo_errors = 0;   // default PDO mappings the OD could not resolve
+  std::uint32_t lss_requests = 0;         // LSS frames (cia305::kMasterCobId) served or not
 };
 
 // The clock of the node's timeouts on its peers: the heartbeat consumer's (0x1016) and the SDO
@@ -117,18 +119,31 @@ class Node final {
   // (8-byte frames take 111..135 us), and below SocketCAN's default transmit queue of 10
   // frames: a 127-segment sub-block neither holds up the control loop nor overflows the driver.
   static constexpr std::size_t kSdoSegmentsPerCall = 8;
-  // accepted_ids() at most: NMT, SYNC, the SDO request, every RPDO, every 0x1016 entry.
-  static constexpr std::size_t kMaxAcceptedIds = 3 + board::kRpdoCount + board::kHeartbeatConsumers;
+  // accepted_ids() at most: NMT, SYNC, the SDO request, every RPDO, every 0x1016 entry, LSS.
+  static constexpr std::size_t kMaxAcceptedIds = 4 + board::kRpdoCount + board::kHeartbeatConsumers;
 
-  // `node_id` 1..127. All references must outlive the node; it owns none of them. Nothing is
-  // sent or written before start().
+  // `node_id` 1..127, or cia305::kNodeIdUnconfigured (0xFF): no node id yet, LSS only until a
+  // master configures one (CiA 305). A node id stored by LSS (set_lss_storage) replaces it at
+  // start(). All references must outlive the node; it owns none of them. Nothing is sent or
+  // written before start().
   Node(std::uint8_t node_id, CanPort& port, FieldAccess& fields, HilIo& hil,
        ParameterStorage& storage, std::uint32_t serial_number = 0);
   Node(const Node&) = delete;
   Node& operator=(const Node&) = delete;
 
-  // Initialising -> applies stored parameters -> boot-up message -> pre-operational.
+  // Initialising -> applies stored parameters -> boot-up message -> pre-operational. Without a
+  // node id the node stays initialising and serves LSS only: no boot-up, no NMT, no heartbeat,
+  // until LSS gives it one (then it resets communication and sends its boot-up).
   void start(std::uint32_t now_us);
+
+  // Where LSS store configuration keeps the node id and bit timing (a storage of its own, apart
+  // from 0x1010's). Set before start(); without it LSS answers "storing not supported".
+  void set_lss_storage(ParameterStorage* storage) { lss_.set_storage(storage); }
+  // The chain enable input of LssSlave (high by default): while low, LSS requests are ignored.
+  void set_lss_enabled(bool enabled) { lss_.set_enabled(enabled); }
+  const LssSlave& lss() const { return lss_; }
+  // True once started with a node id (the chain enable output of LssSlave's doc).
+  bool has_node_id() const { return started_ && cia301::is_node_id(node_id_); }
 
   // One received frame. Never blocks; answers (SDO, ...) are sent from inside.
   ProcessResult process(const CanFrame& frame, std::uint32_t now_us);
@@ -307,6 +322,7 @@ class Node final {
   void check_sdo_timeout(std::uint32_t server_now_us);
   void tell_heartbeat_listener(bool event);
   void handle_sdo(const CanFrame& frame, std::uint32_t now_us);
+  void handle_lss(const CanFrame& frame, std::uint32_t now_us);
   void tell_acceptance_listener();
   void send_sdo_segments(std::uint32_t now_us);
   bool segment_send_refused_ = false;  // the last segment the port was given, it refused
@@ -334,6 +350,8 @@ class Node final {
   ParameterStorage& storage_;
   std::uint32_t serial_number_;
   SdoServer sdo_;
+  LssSlave lss_;
+  bool started_ = false;
 
   NmtState state_ = NmtState::Initialising;
   std::uint32_t sync_cob_id_ = cia301::kSyncCobId;

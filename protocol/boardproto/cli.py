@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from boardproto.cia301_header import generate_cia301_header
+from boardproto.cia305_header import generate_cia305_header
 from boardproto.cpp_header import generate_header
 from boardproto.dbc import generate_dbc
 from boardproto.eds import generate_eds
@@ -22,6 +23,7 @@ EXIT_BAD_INPUT = 2
 OUTPUTS: dict[str, Callable[[BoardTable], str]] = {
     "include/board/fields.hpp": generate_header,
     "include/board/cia301.hpp": lambda _table: generate_cia301_header(),
+    "include/board/cia305.hpp": lambda _table: generate_cia305_header(),
     "board.eds": generate_eds,
     "board.dbc": generate_dbc,
     "field_vectors.csv": generate_field_vectors,

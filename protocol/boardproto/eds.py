@@ -66,7 +66,7 @@ NOT_SUPPORTED = (
     "Not supported: node guarding and life guarding (0x100C/0x100D; optional, deprecated by",
     "CiA 301 in favour of the heartbeat, which the node produces). Remote frames (RTR): every",
     "TPDO COB-ID has bit 30 set; transmission types 252/253 are refused. SYNC producer, TIME,",
-    "multiple SDO servers, SDO client, LSS. Error behaviour 0x1029: a heartbeat event (0x1016)",
+    "multiple SDO servers, SDO client. Error behaviour 0x1029: a heartbeat event (0x1016)",
     "leaves the NMT state as it is; the node sends an EMCY and the application goes safe.",
 )
 SUPPORTED_BITRATES = frozenset({125_000, 250_000, 500_000, 1_000_000})
@@ -448,7 +448,7 @@ def build_object_dictionary(table: BoardTable) -> ObjectDictionary:
     info.group_messaging = False
     info.nr_of_RXPDO = len(table.rpdos)
     info.nr_of_TXPDO = len(table.tpdos)
-    info.LSS_supported = False
+    info.LSS_supported = True  # CiA 305 LSS slave (firmware/canopen/LssSlave.hpp)
     od.comments = "\n".join((GENERATED_BANNER.removeprefix("// "), *NOT_SUPPORTED))
 
     _add_communication_objects(od, table)

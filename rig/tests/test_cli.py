@@ -106,6 +106,12 @@ def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFix
         (["replay", "--trace", "x.txt", "x.log"], "x.txt does not end in .rrd"),
         (["sim", "--fault", "kill@1+1"], "kill happens once, at its start; drop the +DURATION"),
         (["frobnicate"], "invalid choice: 'frobnicate'"),
+        (["lss", "set", "5"], "the following arguments are required: --serial"),
+        (["lss", "set", "5", "--serial", "twelve"], "expected a number (decimal or 0x hex), got 'twelve'"),
+        (["lss", "set", "200", "--serial", "1"], "expected a node id 1..127"),
+        (["lss", "number", "--first-id", "0"], "expected a node id 1..127"),
+        (["params", "load", "nowhere.dcf"], "nowhere.dcf: no such file (`hilrig params save nowhere.dcf`"),
+        (["params", "save"], "the following arguments are required: FILE.dcf"),
         ([], "the following arguments are required: COMMAND"),
     ],
 )

@@ -14,7 +14,8 @@
 //     head & 0x0F    frame length 0..15 (9..15 are invalid lengths the engine must drop)
 //     head >> 4      identifier class: 0 NMT, 1 SYNC 0x080, 2 SDO request 0x600+id,
 //                    3 SDO request to another node, 4..7 RPDO 1..4 default ids 0x200/0x300/
-//                    0x400/0x500+id, 8 TPDO1 id, 9 SDO response id, 10..13 raw 11-bit id (LE),
+//                    0x400/0x500+id, 8 LSS request 0x7E5, 9 SDO response id, 10..13 raw 11-bit
+//                    id (LE),
 //                    14 raw id + RTR flag, 15 raw id + extended flag
 //     dt             time step before the frame: < 128 -> dt * 8 us; else (dt-128)^2 * 100 us
 //                    (up to 1.6 s: reaches heartbeat, SDO timeout and RPDO deadlines)
@@ -47,6 +48,11 @@
 //      every step (no answer ever leaves while the filter lags), and a frame the filter would
 //      drop (outside the set, or remote, or 29-bit) only counts as received and ignored: no
 //      other counter, no state change, nothing sent. So the filter changes nothing on the bus.
+//   8. LSS (CiA 305): an 8-byte LSS request gets at most one answer, with the command specifier
+//      CiA 305 pairs with the request; configure node-id succeeds exactly for 1..127 and 0xFF;
+//      anything else gets none. A node without a node id (LSS took it away, then a reset
+//      communication) accepts LSS only and sends nothing but LSS answers. The ids of the frame
+//      classes follow the node's id as LSS changes it.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -64,11 +70,7 @@
 
 namespace {
 
-constexpr std::uint8_t kNodeId = 0x10;
-constexpr std::uint32_t kSdoRx = cia301::cob_id(cia301::FunctionCode::SdoRequest, kNodeId);
-constexpr std::uint32_t kSdoTx = cia301::cob_id(cia301::FunctionCode::SdoResponse, kNodeId);
-constexpr std::uint32_t kEmcy = cia301::cob_id(cia301::FunctionCode::SyncEmcy, kNodeId);
-constexpr std::uint32_t kErrorControl = cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId);
+constexpr std::uint8_t kNodeId = 0x10;  // at start; LSS and a reset communication may change it
 constexpr std::size_t kMaxFrames = 4096;
 
 [[noreturn]] void fail(const char* what, unsigned long a = 0, unsigned long b = 0) {
@@ -240,6 +242,7 @@ struct Sent {
   std::uint32_t heartbeats = 0;
   std::uint32_t other = 0;  // EMCY and TPDOs (a TPDO may legally use an EMCY-range id)
   std::uint32_t emcy_frames = 0;
+  std::vector<co::CanFrame> lss;  // answers on cia305::kSlaveCobId
 };
 
 class Harness {
@@ -298,18 +301,21 @@ class Harness {
   }
 
  private:
-  static std::uint32_t frame_id(std::uint8_t cls, Input& in) {
+  // The node's id now (LSS may give it another, or none: 0xFF).
+  std::uint8_t id() const { return node_.node_id(); }
+
+  std::uint32_t frame_id(std::uint8_t cls, Input& in) const {
     switch (cls) {
       case 0: return 0x000;
       case 1: return cia301::kSyncCobId;
-      case 2: return kSdoRx;
+      case 2: return cia301::cob_id(cia301::FunctionCode::SdoRequest, id());
       case 3: return cia301::cob_id(cia301::FunctionCode::SdoRequest, 1);
-      case 4: return cia301::cob_id(cia301::FunctionCode::Rpdo1, kNodeId);
-      case 5: return cia301::cob_id(cia301::FunctionCode::Rpdo2, kNodeId);
-      case 6: return cia301::cob_id(cia301::FunctionCode::Rpdo3, kNodeId);
-      case 7: return cia301::cob_id(cia301::FunctionCode::Rpdo4, kNodeId);
-      case 8: return cia301::cob_id(cia301::FunctionCode::Tpdo1, kNodeId);
-      case 9: return kSdoTx;
+      case 4: return cia301::cob_id(cia301::FunctionCode::Rpdo1, id());
+      case 5: return cia301::cob_id(cia301::FunctionCode::Rpdo2, id());
+      case 6: return cia301::cob_id(cia301::FunctionCode::Rpdo3, id());
+      case 7: return cia301::cob_id(cia301::FunctionCode::Rpdo4, id());
+      case 8: return cia305::kMasterCobId;
+      case 9: return cia301::cob_id(cia301::FunctionCode::SdoResponse, id());
       default: break;
     }
     const std::uint32_t raw = (in.byte() | (in.byte() << 8)) & 0x7FFu;
@@ -324,10 +330,13 @@ class Harness {
     while (port_.frames.pop_sent(f)) {
       check(f.len <= 8, "sent a frame longer than 8 bytes", f.id, f.len);
       check((f.id & ~0x7FFu) == 0, "sent a frame with flags or a non 11-bit id", f.id);
-      if (f.id == kSdoTx) {
+      if (f.id == cia305::kSlaveCobId) {
+        check(f.len == 8, "LSS answer not 8 bytes long", f.len);
+        sent.lss.push_back(f);
+      } else if (f.id == cia301::cob_id(cia301::FunctionCode::SdoResponse, id())) {
         check(f.len == 8, "SDO response not 8 bytes long", f.len);
         sent.sdo.push_back(f);
-      } else if (f.id == kErrorControl) {
+      } else if (f.id == cia301::cob_id(cia301::FunctionCode::Heartbeat, id())) {
         check(f.len == 1, "boot-up/heartbeat not 1 byte long", f.len);
         if (f.data[0] == 0) {
           ++sent.boot_ups;
@@ -338,7 +347,7 @@ class Harness {
         }
       } else {
         ++sent.other;
-        if (f.id == kEmcy && f.len == 8) {
+        if (f.id == cia301::cob_id(cia301::FunctionCode::SyncEmcy, id()) && f.len == 8) {
           ++sent.emcy_frames;
           const std::uint16_t code = static_cast<std::uint16_t>(f.data[0] | (f.data[1] << 8));
           if (code != 0) {
@@ -351,6 +360,7 @@ class Harness {
     totals_.boot_ups += sent.boot_ups;
     totals_.heartbeats += sent.heartbeats;
     totals_.other += sent.other;
+    totals_.lss += static_cast<std::uint32_t>(sent.lss.size());
     totals_.sdo += sent.sdo.size();
     for (const co::CanFrame& r : sent.sdo) {
       if (r.data[0] == 0x80) ++totals_.sdo_aborts;
@@ -413,7 +423,7 @@ class Harness {
 
   void process_and_check(const co::CanFrame& frame) {
     const co::NmtState before = node_.state();
-    const bool served = frame.id == kSdoRx && frame.len == 8 &&
+    const bool served = frame.id == cia301::cob_id(cia301::FunctionCode::SdoRequest, id()) && frame.len == 8 &&
                         (before == co::NmtState::PreOperational ||
                          before == co::NmtState::Operational);
     const std::uint8_t cs = frame.data[0] >> 5;
@@ -450,11 +460,43 @@ class Harness {
             frame.data[0], sent.sdo.size());
       check_response(frame, sent.sdo.front());
     }
-    // NMT stop and both resets end any transfer without an answer.
-    if (node_.state() == co::NmtState::Stopped || sent.boot_ups != 0) {
+    check_lss(frame, sent);
+    // NMT stop, both resets and losing the node id end any transfer without an answer.
+    if (node_.state() == co::NmtState::Stopped || sent.boot_ups != 0 || !node_.has_node_id()) {
       sdo_.open = SdoModel::Open::None;
     }
     check_counters();
+  }
+
+  // Invariant 8: LSS (CiA 305).
+  void check_lss(const co::CanFrame& frame, const Sent& sent) {
+    const bool lss_request = frame.id == cia305::kMasterCobId && frame.len == 8;
+    check(sent.lss.size() <= (lss_request ? 1u : 0u), "LSS answers to a frame that asks for none", frame.id,
+          sent.lss.size());
+    if (!sent.lss.empty()) {
+      using C = co::LssCommand;
+      const auto asked = static_cast<C>(frame.data[0]);
+      const auto answered = static_cast<C>(sent.lss.front().data[0]);
+      C expected = asked;
+      if (asked == C::SwitchStateSelectiveSerial) expected = C::SwitchStateSelectiveResponse;
+      if (asked == C::IdentifyRemoteSerialHigh || asked == C::Fastscan) expected = C::IdentifySlave;
+      if (asked == C::IdentifyNonConfiguredRemote) expected = C::IdentifyNonConfiguredSlave;
+      check(answered == expected, "LSS answer with the wrong command specifier", frame.data[0],
+            sent.lss.front().data[0]);
+      if (asked == C::ConfigureNodeId) {
+        const std::uint8_t wanted = frame.data[1];
+        const bool valid = cia301::is_node_id(wanted) || wanted == cia305::kNodeIdUnconfigured;
+        check((sent.lss.front().data[1] == 0) == valid, "configure node-id answered wrongly", wanted,
+              sent.lss.front().data[1]);
+      }
+    }
+    if (!node_.has_node_id()) {
+      check(sent.sdo.empty() && sent.boot_ups == 0 && sent.heartbeats == 0 && sent.other == 0,
+            "a node without a node id sent something else than an LSS answer", frame.id);
+      std::array<std::uint32_t, co::Node::kMaxAcceptedIds> ids{};
+      check(node_.accepted_ids(ids) == 1 && ids[0] == cia305::kMasterCobId,
+            "a node without a node id accepts more than LSS");
+    }
   }
 
   // Invariant 7: a frame the acceptance filter would have dropped made no difference.
@@ -463,6 +505,7 @@ class Harness {
     const co::NodeCounters& after = node_.counters();
     check(after.frames_ignored == before.frames_ignored + 1,
           "a frame outside the accepted set was not just ignored", frame.id, frame.len);
+    check(after.lss_requests == before.lss_requests, "the node served LSS outside its accepted set", frame.id);
     check(after.frames_malformed == before.frames_malformed && after.nmt_commands == before.nmt_commands &&
               after.syncs_received == before.syncs_received && after.sdo_requests == before.sdo_requests &&
               after.rpdos_received == before.rpdos_received &&
@@ -470,7 +513,7 @@ class Harness {
               after.heartbeats_consumed == before.heartbeats_consumed,
           "the node acted on a frame outside its accepted set", frame.id, frame.len);
     check(node_.state() == state_before, "a frame outside the accepted set changed the NMT state", frame.id);
-    check(sent.sdo.empty() && sent.boot_ups == 0 && sent.heartbeats == 0 && sent.other == 0,
+    check(sent.sdo.empty() && sent.boot_ups == 0 && sent.heartbeats == 0 && sent.other == 0 && sent.lss.empty(),
           "a frame outside the accepted set was answered", frame.id);
   }
 
@@ -763,7 +806,7 @@ class Harness {
     check(c.frames_received == frames_, "frames_received", c.frames_received, frames_);
     const std::uint32_t outcomes = c.frames_ignored + c.frames_malformed + c.nmt_commands +
                                    c.syncs_received + c.sdo_requests + c.rpdos_received +
-                                   c.rpdo_length_errors + c.heartbeats_consumed;
+                                   c.rpdo_length_errors + c.heartbeats_consumed + c.lss_requests;
     check(outcomes == c.frames_received, "a frame counted in no or in two outcome counters",
           outcomes, c.frames_received);
     check(c.sdo_requests == sdo_requests_, "sdo_requests", c.sdo_requests, sdo_requests_);
@@ -774,6 +817,8 @@ class Harness {
     check(c.tpdos_sent + c.emcy_sent == totals_.other, "tpdos_sent + emcy_sent",
           c.tpdos_sent + c.emcy_sent, totals_.other);
     check(c.send_failures == 0, "send failures on a port that never refuses", c.send_failures);
+    check(node_.lss().counters().answers == totals_.lss, "LSS answers", node_.lss().counters().answers,
+          totals_.lss);
     check(c.heartbeat_events <= c.heartbeats_consumed, "a heartbeat event no heartbeat armed",
           c.heartbeat_events, c.heartbeats_consumed);
     const std::uint8_t reg = node_.error_register();
@@ -801,7 +846,7 @@ class Harness {
   std::uint32_t frames_ = 0;
   std::uint32_t sdo_requests_ = 0;
   struct {
-    std::uint32_t boot_ups = 0, heartbeats = 0, other = 0, sdo = 0, sdo_aborts = 0;
+    std::uint32_t boot_ups = 0, heartbeats = 0, other = 0, sdo = 0, sdo_aborts = 0, lss = 0;
   } totals_;
   SdoModel sdo_;
 };

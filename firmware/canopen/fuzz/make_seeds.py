@@ -14,13 +14,21 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "protocol"))  # works without the venv
 
 from boardproto.cia301 import heartbeat_cob_id, sdo_request_cob_id
+from boardproto.cia305 import (
+    FASTSCAN_CONFIRM,
+    NODE_ID_UNCONFIGURED,
+    LssCommand,
+    LssState,
+    command_frame,
+    fastscan_frame,
+)
 
 NODE_ID = 0x10
 NO_REFUSAL = 63  # config byte: refuse no field, storage empty
 CONTROL_CLOCK = 0x80  # protocol-literal: a config bit: the heartbeat consumer counts control cycles
 
 # Identifier classes of FrameFuzzer.cpp.
-NMT, SYNC, SDO, RPDO1, RPDO2, RPDO3, RAW_ID = 0, 1, 2, 4, 5, 6, 10
+NMT, SYNC, SDO, RPDO1, RPDO2, RPDO3, LSS, RAW_ID = 0, 1, 2, 4, 5, 6, 8, 10
 MASTER_ID = 0x01
 CONSUMER_HEARTBEAT = 0x1016
 
@@ -39,6 +47,11 @@ def raw(can_id: int, data: bytes = b"", dt: int = 0) -> bytes:
     """A frame on any 11-bit identifier (class 10: the id follows the time step, LE)."""
     assert len(data) <= 8
     return bytes([(RAW_ID << 4) | len(data), dt]) + struct.pack("<H", can_id) + data
+
+
+def lss(data: bytes, dt: int = 0) -> bytes:
+    """An LSS request (class 8: on the master's LSS COB-ID)."""
+    return frame(LSS, data, dt)
 
 
 def master_heartbeat(dt: int = 0) -> bytes:
@@ -187,6 +200,29 @@ def seeds() -> dict[str, bytes]:
         + frame(SYNC, dt=125)
         + master_heartbeat()
         + b"".join(frame(SYNC, dt=125) for _ in range(3)),
+        # LSS: into configuration, inquire, a new id (taken at reset communication), then none
+        # at all (LSS only), fastscan of the node without an id, and an id again.
+        "lss_new_id_then_none_then_fastscan": bytes([NO_REFUSAL])
+        + lss(command_frame(LssCommand.SWITCH_STATE_GLOBAL, LssState.CONFIGURATION))
+        + lss(command_frame(LssCommand.INQUIRE_NODE_ID))
+        + lss(command_frame(LssCommand.INQUIRE_SERIAL))
+        + lss(command_frame(LssCommand.CONFIGURE_NODE_ID, 0x11))
+        + lss(command_frame(LssCommand.STORE_CONFIGURATION))
+        + lss(command_frame(LssCommand.SWITCH_STATE_GLOBAL, LssState.WAITING))
+        + frame(NMT, bytes([0x82, NODE_ID]))
+        + sdo(0x40, 0x18, 0x10, 0x04)
+        + lss(command_frame(LssCommand.SWITCH_STATE_GLOBAL, LssState.CONFIGURATION))
+        + lss(command_frame(LssCommand.CONFIGURE_NODE_ID, NODE_ID_UNCONFIGURED))
+        + frame(NMT, bytes([0x82, 0]))
+        + lss(command_frame(LssCommand.SWITCH_STATE_GLOBAL, LssState.WAITING))
+        + lss(command_frame(LssCommand.IDENTIFY_NON_CONFIGURED_REMOTE))
+        + lss(fastscan_frame(0, FASTSCAN_CONFIRM, 0, 0))
+        + lss(fastscan_frame(0, 31, 0, 0))
+        + lss(fastscan_frame(0, 0, 0, 1))
+        + lss(command_frame(LssCommand.SWITCH_STATE_GLOBAL, LssState.CONFIGURATION))
+        + lss(command_frame(LssCommand.CONFIGURE_NODE_ID, 0x12))
+        + lss(command_frame(LssCommand.SWITCH_STATE_GLOBAL, LssState.WAITING))
+        + sdo(0x40, 0x18, 0x10, 0x04),
         "store_then_reset_node": bytes([NO_REFUSAL | 0x40])
         + sdo(0x23, 0x00, 0x25, 0x00, *struct.pack("<f", 0.5))
         + sdo(0x23, 0x10, 0x10, 0x01, *b"save")

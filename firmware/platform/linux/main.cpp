@@ -17,13 +17,19 @@
 #include <cerrno>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "FileParameterStorage.hpp"
+#include "canopen/ParameterImage.hpp"
 #include "SocketCanPort.hpp"
+#include "board/cia305.hpp"
 #include "board/fields.hpp"
 #include "canopen/FlagEmcy.hpp"
 #include "canopen/Node.hpp"
@@ -48,7 +54,48 @@ struct Options {
   bool print_schedule = false;
   std::uint32_t rogue_write_cycle = 0;  // test-only fault injection; 0 = off
   bool acceptance_filter = true;
+  std::optional<std::uint32_t> serial_number;  // 0x1018:4; unset: serial_number_default()
+  std::string lss_store;  // LSS store configuration's file (node id, bit timing)
+  std::string chain_in;   // emulated chain enable input: high while this file exists
+  std::string chain_out;  // emulated chain enable output: this file exists while we have an id
 };
+
+// 0x1018:4 when --serial is not given: stable for one board (the same machine and the same
+// non-volatile files give the same serial after a restart), different for boards whose files
+// differ. CRC-32 of /etc/machine-id and the absolute path of the LSS store (or the parameter
+// file, or the interface and node id when nothing is stored).
+std::uint32_t serial_number_default(const Options& options) {
+  std::string seed;
+  if (std::ifstream machine_id{"/etc/machine-id"}; machine_id) std::getline(machine_id, seed);
+  std::error_code error;
+  const std::string& file = !options.lss_store.empty() ? options.lss_store : options.params_file;
+  if (!file.empty()) {
+    seed += ":" + std::filesystem::absolute(file, error).string();
+  } else {
+    seed += ":" + options.can_interface + ":" + std::to_string(options.node_id);
+  }
+  std::vector<std::byte> bytes(seed.size());
+  std::memcpy(bytes.data(), seed.data(), seed.size());
+  return co::parameter_image::crc32(bytes);
+}
+
+// The emulated chain enable line (LssSlave's doc): a file per wire, which exists while the wire
+// is high. The upstream module's output file is this module's input file.
+bool chain_input_high(const std::string& path) { return path.empty() || ::access(path.c_str(), F_OK) == 0; }
+
+void set_chain_output(const std::string& path, bool high) {
+  if (path.empty()) return;
+  if (high) {
+    const std::string temporary = path + ".tmp";
+    if (std::FILE* file = std::fopen(temporary.c_str(), "w")) {
+      std::fputs("1\n", file);
+      std::fclose(file);
+      std::rename(temporary.c_str(), path.c_str());
+    }
+  } else {
+    std::remove(path.c_str());
+  }
+}
 
 // Exit codes: 0 clean stop, 1 start-up failure (bus, schedule), 2 bad command line.
 constexpr int kExitStartupFailure = 1;
@@ -80,9 +127,31 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
       "firmware keeps its own period with an absolute-deadline timer, as on a real board.",
       "joint-firmware"};
   app.add_option("--can", options.can_interface, "SocketCAN interface")->capture_default_str();
-  app.add_option("--node-id", options.node_id, "CANopen node id (1..127)")
-      ->check(CLI::Range(1, 127))
+  app.add_option("--node-id", options.node_id,
+                 "CANopen node id (1..127), or 0xFF: none yet, LSS only (CiA 305) until a master\n"
+                 "configures one; an id stored by LSS (--lss-store) wins over this one")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            char* end = nullptr;
+            const long value = std::strtol(text.c_str(), &end, 0);
+            const bool ok = end != text.c_str() && *end == '\0' &&
+                            ((value >= 1 && value <= 127) || value == cia305::kNodeIdUnconfigured);
+            return ok ? std::string{} : "node id " + text + " is not 1..127 or 0xFF";
+          },
+          "1..127|0xFF"))
       ->capture_default_str();
+  app.add_option("--serial", options.serial_number,
+                 "serial number (0x1018:4), the part of the LSS address that tells boards of one\n"
+                 "product apart (fastscan finds them by it). Default: a CRC-32 of /etc/machine-id\n"
+                 "and the absolute path of --lss-store (else --params), stable across restarts")
+      ->envname("HIL_SERIAL");
+  app.add_option("--lss-store", options.lss_store,
+                 "file for LSS store configuration (node id, bit timing); loaded at start-up");
+  app.add_option("--chain-in", options.chain_in,
+                 "emulated chain enable input of a modular robot: LSS is served only while this\n"
+                 "file exists (the upstream module's --chain-out). Default: always enabled");
+  app.add_option("--chain-out", options.chain_out,
+                 "emulated chain enable output: this file exists while the node has a node id");
   std::string mode = "lockstep";
   app.add_option("--mode", mode, "lockstep: one cycle per SYNC; free: own timer")
       ->check(CLI::IsMember({"lockstep", "free"}))
@@ -322,7 +391,13 @@ int run(const Options& options) {
   } else {
     storage = std::make_unique<linuxhw::FileParameterStorage>(options.params_file);
   }
-  co::Node node{static_cast<std::uint8_t>(options.node_id), port, field_access, hil_io, *storage};
+  const std::uint32_t serial_number = options.serial_number.value_or(serial_number_default(options));
+  co::Node node{static_cast<std::uint8_t>(options.node_id), port, field_access, hil_io, *storage, serial_number};
+  std::unique_ptr<linuxhw::FileParameterStorage> lss_storage;
+  if (!options.lss_store.empty()) {
+    lss_storage = std::make_unique<linuxhw::FileParameterStorage>(options.lss_store);
+    node.set_lss_storage(lss_storage.get());
+  }
   app->board.set_fault_hook({report_ownership_violation, &node});
   // Newly latched fault bits become EMCY frames and cleared ones error resets, as board.toml's
   // [[bitset]] fault_flags says (each bit's emcy and about).
@@ -367,13 +442,17 @@ int run(const Options& options) {
     timerfd_settime(timer_fd, TFD_TIMER_ABSTIME, &spec, nullptr);
   }
 
+  node.set_lss_enabled(chain_input_high(options.chain_in));
   node.start(now_us());
+  bool chain_output = node.has_node_id();
+  set_chain_output(options.chain_out, chain_output);
   if (app->rogue_writer) {
     std::fprintf(stderr, "joint-firmware: FAULT INJECTION: rogue write of motor_duty_command at cycle %u\n",
                  options.rogue_write_cycle);
   }
-  std::fprintf(stderr, "joint-firmware: node %d on %s%s, %s mode, period %u us, parameters %s (%s)\n",
-               options.node_id, options.can_interface.c_str(),
+  std::fprintf(stderr, "joint-firmware: node %d%s, serial 0x%08X, on %s%s, %s mode, period %u us, parameters %s (%s)\n",
+               node.node_id(), node.has_node_id() ? "" : " (none yet: LSS only)", serial_number,
+               options.can_interface.c_str(),
                options.acceptance_filter ? "" : " (no acceptance filter: every frame)",
                options.mode == Mode::Lockstep ? "lockstep" : "free-running", options.period_us,
                options.params_file.empty() ? "not stored" : options.params_file.c_str(),
@@ -404,6 +483,9 @@ int run(const Options& options) {
     if ((fds[1].revents & POLLIN) != 0) {
       running = false;
     }
+    // The chain enable input, read before the frames that woke us: a module whose upstream
+    // neighbour just got its id answers the master's next LSS request.
+    if (!node.has_node_id()) node.set_lss_enabled(chain_input_high(options.chain_in));
     if (timer_fd >= 0 && (fds[2].revents & POLLIN) != 0) {
       std::uint64_t expirations = 0;
       if (::read(timer_fd, &expirations, sizeof(expirations)) == sizeof(expirations) && expirations > 0) {
@@ -426,6 +508,12 @@ int run(const Options& options) {
       }
     }
     node.poll(now_us());
+    if (node.has_node_id() != chain_output) {
+      chain_output = node.has_node_id();
+      set_chain_output(options.chain_out, chain_output);
+      std::fprintf(stderr, "joint-firmware: node id %d%s\n", node.node_id(),
+                   chain_output ? " configured over LSS" : " gone (LSS only)");
+    }
   }
 
   const co::NodeCounters& counters = node.counters();

@@ -9,6 +9,8 @@
     hilrig watch --sync-period-ms 10          # live table of the TPDO fields
     hilrig capture motor_velocity --samples 2000   # the board's recorder: every cycle, uploaded
     hilrig scan                               # which nodes are on the bus
+    hilrig lss number --chain                 # new boards: node ids over LSS, stored
+    hilrig params save board.dcf              # the stored parameters as a DCF (load: the reverse)
     hilrig record bus.log / replay bus.log --decode
     hilrig diff good/trace.rrd out/demo/trace.rrd   # the first cycle the runs differ
     hilrig bus-load --bitrate 500k            # will the PDO exchange fit a real bus?
@@ -51,6 +53,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "watch",
     "capture",
     "scan",
+    "lss",
+    "params",
     "record",
     "sim",
     "view",

@@ -27,6 +27,7 @@ from boardproto.cia301 import (
     sdo_request_cob_id,
     sdo_response_cob_id,
 )
+from boardproto.cia305 import MASTER_COB_ID as LSS_MASTER_COB_ID
 from hilrig import resources
 from hilrig.engine.driver import SETPOINT_STREAM
 from hilrig.errors import PdoMappingError
@@ -168,7 +169,7 @@ def load_layout(eds: str | Path, node_id: int, table: RigTable | None = None) ->
     used = {NMT_COB_ID, SYNC_COB_ID, TIME_COB_ID}
     used |= {p.cob_id for p in (*compile_pdos(PdoDirection.RPDO, node.rpdo.map).values(), *tpdos)}
     used |= {emcy_cob_id(node_id), sdo_response_cob_id(node_id), sdo_request_cob_id(node_id)}
-    used |= {heartbeat_cob_id(node_id)}
+    used |= {heartbeat_cob_id(node_id), LSS_MASTER_COB_ID}  # LSS: every node listens (CiA 305)
     used |= {int(base) + node_id for base in FunctionCode if FunctionCode.TPDO1 <= base <= FunctionCode.RPDO4}
     return SoakLayout(
         node_id=node_id,
