@@ -428,6 +428,20 @@ def test_command_defaults_to_all_four_bitrates(table_path: Path, capsys: pytest.
         assert label in out
 
 
+def test_command_without_options_explains_rather_than_fails(capsys: pytest.CaptureFixture[str]) -> None:
+    # The board's default mapping at 1 kHz fits no standard bit rate: the survey says so, exit 0.
+    code, out, err = bus_load_command(capsys)
+    assert (code, err) == (0, "")
+    assert out.count("OVERLOAD") == 4
+    assert out.splitlines()[-1] == (
+        "at 1000 Hz the exchange fits none of these bit rates; give -b BITRATE for the bus you mean "
+        "(exit code 1 when it does not fit)"
+    )
+    code, out, err = bus_load_command(capsys, "--rate-hz", "200")
+    assert (code, err) == (0, "")
+    assert "the exchange fits 500 kbit/s, 1 Mbit/s; give -b" in out.splitlines()[-1]
+
+
 def test_command_warns_above_70_percent_with_exit_code_0(
     table_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

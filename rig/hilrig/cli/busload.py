@@ -114,7 +114,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """0 it fits (a WARNING line above 70 % is still 0), 1 above 100 % on a bit rate asked for."""
+    """0 it fits (a WARNING line above 70 % is still 0), 1 above 100 % on a bit rate asked for
+    (-b); without -b the survey of the standard bit rates only reports, exit code 0."""
     bitrates = args.bitrate or list(STANDARD_BITRATES)
     if args.data_bitrate is not None and any(rate > args.data_bitrate for rate in bitrates):
         raise UsageError(
@@ -169,6 +170,14 @@ def run(args: argparse.Namespace) -> int:
         )
     )
     overloaded = [load.rates.label for load in loads if load.overloaded]
+    if overloaded and args.bitrate is None:
+        # The survey of the standard bit rates asked about no bus: it explains, it does not fail.
+        fits = ", ".join(load.rates.label for load in loads if not load.overloaded)
+        print(
+            f"at {args.rate_hz:g} Hz the exchange fits {fits or 'none of these bit rates'}; "
+            "give -b BITRATE for the bus you mean (exit code 1 when it does not fit)"
+        )
+        return 0
     if overloaded:
         sys.stdout.flush()  # the report first, then the verdict
         print(
@@ -190,7 +199,8 @@ COMMANDS = (
         "--bitrate, the data phase at --data-bitrate). Formulas: `pydoc hilrig.apps.busload`.\n"
         f"Above {100 * WARNING_LOAD:.0f} % a WARNING line (exit code 0); above "
         f"{100 * FULL_LOAD:.0f} % on average or in the\nbusiest cycle it does not fit: an OVERLOAD "
-        "line and exit code 1.\n\n"
+        "line and exit code 1 for a bit rate given with -b\n(without -b every standard bit rate is "
+        "reported, exit code 0).\n\n"
         "  hilrig bus-load                                # the default mapping, 1 kHz, all bit rates\n"
         "  hilrig bus-load --rate-hz 200 --bitrate 500k   # will it fit a 500 kbit/s bus at 200 Hz?\n"
         "  hilrig bus-load -b 500k --data-bitrate 2M      # the same frames as CAN FD, 2 Mbit/s data\n"
