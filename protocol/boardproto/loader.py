@@ -198,7 +198,7 @@ _BIT_REQUIRED_KEYS = frozenset({"name", "bit", "description"})
 _BIT_OPTIONAL_KEYS = frozenset({"emcy", "about"})
 _EMCY_KEYS = frozenset({"name", "code", "error_register", "description"})
 # 0x1016 consumer heartbeat time entries: each is fixed RAM in the node and a stored value; a
-# joint watches one master. Raise it when a board has to watch more nodes.
+# module of a chain watches the master and its two neighbours, plus a spare.
 MAX_HEARTBEAT_CONSUMERS = 4
 MAX_FLAG_BITS = 24  # a bitset travels in a REAL32 field: integers are exact up to 2**24
 _PDO_SLOT_KEYS = frozenset({"rpdo_slots", "tpdo_slots"})

@@ -17,7 +17,15 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
-from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id, sync_counter
+from boardproto.cia301 import (
+    SYNC_COB_ID,
+    SYNC_COUNTER_MAX,
+    ErrorBehaviour,
+    NmtState,
+    emcy_cob_id,
+    split_emcy,
+    sync_counter,
+)
 from hilrig.engine.history import (
     TRUTH_ALIASES,
     TRUTH_NAMES,
@@ -31,6 +39,7 @@ from hilrig.engine.history import (
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.observe.paths import BUS_EVENTS_PATH
 from hilrig.plants import JointState, RawSensors
+from hilrig.table import EmcyCode
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import (
     Decoder,
@@ -432,6 +441,16 @@ class Driver:
     def operational(self) -> bool:
         return self._operational
 
+    def _heartbeat_event(self) -> None:
+        """The node reported a heartbeat event (its EMCY heartbeat_error): it changes its NMT
+        state right after, by its error behaviour 0x1029:01 (CiA 301), before that cycle's TPDOs,
+        which then do not come."""
+        behaviour = self.node.error_behaviour
+        if behaviour is ErrorBehaviour.STOPPED:
+            self.node_entered(NmtState.STOPPED)
+        elif behaviour is ErrorBehaviour.PRE_OPERATIONAL and self._operational:
+            self.node_entered(NmtState.PRE_OPERATIONAL)
+
     # --- Values -------------------------------------------------------------------------
     def latest(self, name: str) -> Value:
         """Latest value the node sent for `name` in a TPDO."""
@@ -483,6 +502,8 @@ class Driver:
     def _other_frame(self, cob_id: int, data: bytes) -> None:
         if cob_id == self._emcy_cob_id:
             self.node.emcy_received(data)
+            if split_emcy(data).code == EmcyCode.HEARTBEAT_ERROR:
+                self._heartbeat_event()
         listeners = self._listeners.get(cob_id)
         if listeners is not None:
             for callback in listeners:

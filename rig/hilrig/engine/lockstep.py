@@ -277,6 +277,8 @@ class LockstepDriver(Driver):
                 out = b""
                 if frame is not False:
                     self._take(got, n, t, due, sync_number, *frame)  # type: ignore[misc]
+                    if due and not self._operational:  # it left operational (a heartbeat event)
+                        due = frozenset(got)
                     continue
                 if guard is None:
                     guard = HangGuard(self.tpdo_timeout_s, self.activity, LIVENESS_SLICE_S)

@@ -27,8 +27,10 @@ from canopen.pdo import PdoMap
 from canopen.sdo import SdoAbortedError, SdoClient, SdoCommunicationError
 
 from boardproto.cia301 import (
+    ERROR_BEHAVIOUR_INDEX,
     STANDARD_ID_MASK,
     SYNC_COUNTER_MAX,
+    ErrorBehaviour,
     NmtCommand,
     NmtState,
     SdoAbortCode,
@@ -225,6 +227,8 @@ class BoardNode:
         self.network.add_node(self.remote)
         self.rpdos: dict[int, PdoLayout] = {}
         self.tpdos: dict[int, PdoLayout] = {}
+        self.error_behaviour = ErrorBehaviour.PRE_OPERATIONAL
+        """What a heartbeat event does to the node's NMT state (0x1029:01), read with the PDOs."""
         self.link: FrameLink | None = None
         """The fast frame link of the per-cycle PDO exchange (`open_link`), None before."""
         self._emcy_callbacks: list[Callable[[EmcyError], None]] = []
@@ -390,9 +394,20 @@ class BoardNode:
     def read_pdo_configuration(self, *, from_node: bool) -> None:
         """Load every PDO's COB-ID, type and mapping into canopen's maps.
 
-        from_node=True reads them over SDO (what the node really does, e.g. after a remap);
-        False takes the EDS defaults without bus traffic.
+        from_node=True reads them over SDO (what the node really does, e.g. after a remap),
+        and its error behaviour (0x1029:01) with them; False takes the EDS defaults without bus
+        traffic.
         """
+        self.error_behaviour = ErrorBehaviour.PRE_OPERATIONAL  # also CiA 301's for a node without 0x1029
+        if from_node:
+            try:
+                raw = self.upload(ERROR_BEHAVIOUR_INDEX, 1, "read error behaviour 0x1029:01")
+            except SdoAbortError:
+                pass
+            else:
+                value = int.from_bytes(raw, "little")
+                if value in {int(known) for known in ErrorBehaviour}:  # else a profile's own: unknown
+                    self.error_behaviour = ErrorBehaviour(value)
         for pdo in (self.remote.rpdo, self.remote.tpdo):
             try:
                 pdo.read(from_od=not from_node)
