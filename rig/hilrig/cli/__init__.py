@@ -54,6 +54,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "sim",
     "view",
     "busload",
+    "busstat",
     "soak",
     "completion",
 )

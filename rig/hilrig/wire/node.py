@@ -40,7 +40,7 @@ from boardproto.cia301 import (
     split_emcy,
 )
 from hilrig.errors import NodeSilentError, SdoAbortError, SdoTimeoutError
-from hilrig.table import ObjectEntry, RigTable
+from hilrig.table import EmcyCode, ObjectEntry, RigTable
 from hilrig.wire.transport import (
     FrameLink,
     PdoDirection,
@@ -161,7 +161,9 @@ def emcy_object_index(manufacturer: bytes) -> int:
 
 @dataclass(frozen=True)
 class EmcyRecord:
-    """An EMCY the node sent, stamped with the lockstep cycle and simulation time it arrived in."""
+    """An EMCY the node sent, stamped with the lockstep cycle and simulation time it arrived in.
+    The one decoder of an EMCY into words: its code's CiA 301 class (canopen's table), the
+    board's own name for it (board.toml's [[emcy]]), the register and the object it is about."""
 
     code: int
     register: int
@@ -169,20 +171,43 @@ class EmcyRecord:
     cycle: int
     time_s: float
 
+    @classmethod
+    def from_frame(cls, data: bytes, cycle: int = 0, time_s: float = 0.0) -> EmcyRecord:
+        """The record of an EMCY frame's data (`boardproto.cia301.split_emcy`)."""
+        parts = split_emcy(data)
+        return cls(parts.code, parts.register, parts.manufacturer, cycle, time_s)
+
     @property
     def description(self) -> str:
+        """CiA 301's meaning of the code: its error class ('Monitoring', 'Temperature'...)."""
         return EmcyError(self.code, self.register, self.data, 0.0).get_desc()
+
+    @property
+    def board_name(self) -> str | None:
+        """The board's name for the code (board.toml's [[emcy]] name), None for another code."""
+        try:
+            return EmcyCode(self.code).name.lower()
+        except ValueError:
+            return None
 
     @property
     def object_index(self) -> int:
         """Index of the object the error is about (`emcy_object_index`)."""
         return emcy_object_index(self.data)
 
-    def __str__(self) -> str:
+    @property
+    def summary(self) -> str:
+        """The EMCY in words, without when: 'EMCY 0x8130 heartbeat_error (Monitoring) register
+        0x11 about 0x1016, bytes 16 10 7f 00 00'."""
+        name = self.board_name
+        named = f" {name}" if name is not None else ""
         return (
-            f"EMCY 0x{self.code:04X} ({self.description}) register 0x{self.register:02X} "
-            f"about 0x{self.object_index:04X} at t = {self.time_s:.6g} s (cycle {self.cycle})"
+            f"EMCY 0x{self.code:04X}{named} ({self.description}) register 0x{self.register:02X} "
+            f"about 0x{self.object_index:04X}, bytes {self.data.hex(' ')}"
         )
+
+    def __str__(self) -> str:
+        return f"{self.summary} at t = {self.time_s:.6g} s (cycle {self.cycle})"
 
 
 TpdoCallback = Callable[[PdoLayout, dict[str, float | int]], None]
