@@ -512,3 +512,20 @@ def test_replay_decode_names_an_emcy_by_cia_301_and_by_the_board(
         f"about 0x1016, bytes 16 10 7f 00 00 from node 0x{node:02X}"
     )
 
+
+def test_pdo_apply_writes_a_profile_and_stores_it(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    lean = RigTable.load().board.pdo_profile("lean")
+    code, out, err = run(capsys, "pdo", "apply", "lean", *on_bus(channel))
+    assert code == 0, err
+    tpdo2 = next(p for p in lean.tpdos if p.number == 2)
+    tpdo2_id = tpdo2.cob_id(RigTable.load().board.node.default_node_id)
+    assert (
+        f"TPDO2 (0x{tpdo2_id:03X}): every 10th SYNC from SYNC counter 1: motor_velocity, output_velocity"
+        in out.splitlines()
+    )
+    assert not any(line.startswith("RPDO3") for line in out.splitlines()), "RPDO3 is off in lean"
+    assert "profile lean stored (0x1010:02)" in err
+    assert fake.local.sdo[tpdo2.communication_index][6].raw == tpdo2.sync_start == 1
+    assert fake.local.sdo[0x1019].raw == lean.sync_counter_overflow

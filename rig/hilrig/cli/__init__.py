@@ -55,6 +55,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "view",
     "busload",
     "busstat",
+    "pdo",
     "soak",
     "completion",
 )

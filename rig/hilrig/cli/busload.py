@@ -6,6 +6,7 @@ import argparse
 import math
 import sys
 
+from boardproto import UnknownNameError
 from boardproto.cia301 import MAX_NODE_ID_WITH_PDO_5_TO_8, heartbeat_cob_id
 from hilrig.apps.busload import (
     DEFAULT_MASTER_HEARTBEAT_MS,
@@ -88,6 +89,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     add_table_option(parser)
     parser.add_argument(
+        "--profile",
+        default=None,
+        metavar="NAME",
+        help="a PDO profile of the table ([[pdo_profile]]: full, lean...) instead of its default mapping",
+    )
+    parser.add_argument(
         "-n",
         "--node-id",
         type=node_id,
@@ -127,6 +134,11 @@ def run(args: argparse.Namespace) -> int:
     if args.modules is not None and args.node_id is not None:
         raise UsageError("--node-id names one node: with --modules N the node ids are 1..N")
     table = RigTable.load(args.table).board  # a bad table: TableError, exit code 2
+    if args.profile is not None:
+        try:
+            table = table.with_pdo_profile(args.profile)
+        except UnknownNameError as error:
+            raise UsageError(f"--profile: {error}") from None
     buses = [BusRates(rate, args.data_bitrate, args.fd) for rate in bitrates]
     node_ids: range | None = None
     master_heartbeat_ms: int | None = None
@@ -154,7 +166,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:  # COB-IDs that collide: the table's, for this many modules
         raise UsageError(f"{error}; fewer --modules or other COB-ID bases in the table") from None
     kind = " as CAN FD frames" if buses[0].is_fd else ""
-    print(f"bus load of {heading}{kind}, table {args.table}")
+    profile = f", PDO profile {args.profile}" if args.profile is not None else ""
+    print(f"bus load of {heading}{kind}, table {args.table}{profile}")
     loads = report(traffic, args.rate_hz, buses, sys.stdout)
     highest = [
         highest_rate_hz(
@@ -205,6 +218,7 @@ COMMANDS = (
         "  hilrig bus-load --rate-hz 200 --bitrate 500k   # will it fit a 500 kbit/s bus at 200 Hz?\n"
         "  hilrig bus-load -b 500k --data-bitrate 2M      # the same frames as CAN FD, 2 Mbit/s data\n"
         "  hilrig bus-load --table my_board.toml          # another board's table\n"
+        "  hilrig bus-load --profile lean -b 1M           # the table's PDO profile 'lean'\n"
         "  hilrig bus-load --modules 8 -b 1M              # a robot: 8 modules (node ids 1..8) on one bus\n\n"
         "--modules N: N identical modules with the table's PDOs (COB-IDs base + node id), one SYNC\n"
         "per cycle for all and the master's heartbeat (--master-heartbeat-ms, default "

@@ -47,6 +47,7 @@ from hilrig.wire.transport import (
     FrameLink,
     PdoDirection,
     PdoLayout,
+    SyncStarts,
     can_frame,
     due_table,
     exchanger,
@@ -307,6 +308,7 @@ class Driver:
         self._emcy_cob_id = emcy_cob_id(node.node_id)
         self._actuator: tuple[PdoLayout, int] | None = None
         self._due_table: list[frozenset[int]] = [frozenset()]
+        self._sync_starts = SyncStarts(())
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
         self._decoders: dict[int, Decoder] = {}
         """COB-ID -> (length, unpack, cycles, payloads) of every enabled TPDO: what a cycle's
@@ -395,6 +397,7 @@ class Driver:
         self._tpdo_names = frozenset(n for p in enabled_tpdos for n in p.names)
         self._actuator = (actuator[0], actuator[0].names.index(ACTUATOR_OUTPUT)) if actuator else None
         self._due_table = due_table(enabled_tpdos)
+        self._sync_starts = SyncStarts(enabled_tpdos)
         keep = self.history.keep
         self._decoders = {
             p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p))
@@ -436,6 +439,7 @@ class Driver:
         """Tell the driver the node's NMT state changed (the rig sent the command)."""
         self._operational = state is NmtState.OPERATIONAL
         self._syncs_since_operational = 0
+        self._sync_starts.reset()
 
     @property
     def operational(self) -> bool:

@@ -30,6 +30,7 @@ from boardproto.cia301 import (
     ERROR_BEHAVIOUR_INDEX,
     STANDARD_ID_MASK,
     SYNC_COUNTER_MAX,
+    SYNC_COUNTER_OVERFLOW_INDEX,
     ErrorBehaviour,
     NmtCommand,
     NmtState,
@@ -407,6 +408,11 @@ class BoardNode:
     def _upload(self, index: int, subindex: int, what: str, entry: ObjectEntry | None = None) -> bytes:
         return self._call_sdo(what, entry, lambda: self.remote.sdo.upload(index, subindex))
 
+    def call_sdo(self, what: str, transfer: Callable[[], _T]) -> _T:
+        """Run canopen SDO traffic (e.g. a `PdoMap.save`); an abort is SdoAbortError in words,
+        no answer SdoTimeoutError, each starting with `what`."""
+        return self._call_sdo(what, None, transfer)
+
     def _call_sdo(self, what: str, entry: ObjectEntry | None, transfer: Callable[[], _T]) -> _T:
         try:
             return transfer()
@@ -442,12 +448,21 @@ class BoardNode:
                 ) from error
             except SdoCommunicationError as error:
                 raise SdoTimeoutError(f"read PDO configuration: no answer ({error})") from error
+        counting = from_node and self._counts_syncs()
         self.rpdos = compile_pdos(PdoDirection.RPDO, self.remote.rpdo.map)
-        self.tpdos = compile_pdos(PdoDirection.TPDO, self.remote.tpdo.map)
+        self.tpdos = compile_pdos(PdoDirection.TPDO, self.remote.tpdo.map, sync_counter=counting)
         for number, pdo_map in self.remote.tpdo.map.items():
             if number not in self._wired_tpdos:  # read() may run again; wire each map once
                 pdo_map.add_callback(self._on_tpdo)
                 self._wired_tpdos.add(number)
+
+    def _counts_syncs(self) -> bool:
+        """Whether the node counts SYNCs (0x1019 != 0), so its TPDOs' start values count; a
+        node without 0x1019 does not."""
+        try:
+            return self.upload(SYNC_COUNTER_OVERFLOW_INDEX, 0, "read 0x1019")[:1] not in (b"", b"\0")
+        except SdoAbortError:
+            return False
 
     def on_tpdo(self, callback: TpdoCallback) -> None:
         self._tpdo_callbacks.append(callback)
