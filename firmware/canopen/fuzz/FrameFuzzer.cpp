@@ -408,6 +408,8 @@ class Harness {
     } else {
       check_sdo_timeout(sent);
     }
+    // A heartbeat event with 0x1029 = 2 stops the node from poll() too, ending any transfer.
+    if (node_.state() == co::NmtState::Stopped) sdo_.open = SdoModel::Open::None;
     check_counters();
   }
 
@@ -450,7 +452,8 @@ class Harness {
             frame.data[0], sent.sdo.size());
       check_response(frame, sent.sdo.front());
     }
-    // NMT stop and both resets end any transfer without an answer.
+    // NMT stop (or a heartbeat event with 0x1029 = 2) and both resets end any transfer
+    // without an answer.
     if (node_.state() == co::NmtState::Stopped || sent.boot_ups != 0) {
       sdo_.open = SdoModel::Open::None;
     }
