@@ -20,6 +20,7 @@ pytestmark = pytest.mark.bus
 
 HILRIG = str(REPO / ".venv" / "bin" / "hilrig")
 TABLE = load_table(REPO / "protocol" / "board.toml")
+RPDO1 = TABLE.rpdo(1).cob_id(NODE_ID)
 # Hang guards for the software-emulated VM, not timing checks.
 CALL_TIMEOUT_S = 300
 SDO_TIMEOUT = ["--sdo-timeout", "5"]
@@ -150,6 +151,33 @@ def test_watch_record_and_replay_decode(
     assert by_name["velocity_ki"][1:4] == [f"{TABLE.field('velocity_ki').default:g}", "1/rad", "SDO"]
     assert by_name["winding_temperature"][2:4] == ["degC", "TPDO8"]
     float(by_name["winding_temperature"][1])  # a number, not "-"
+
+    # An EMCY while `watch` runs shows under its table: RPDO1 one byte short (the node is still
+    # operational from `record --nmt-start`) is refused with EMCY pdo_length_error.
+    # 120 tables of 0.5 s: the hang guard, should the EMCY never come.
+    watch = [HILRIG, "watch", "--count", "120", "--interval", "0.5", "motor_duty", *SDO_TIMEOUT]
+    live = subprocess.Popen(
+        private_bus.command(watch),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert live.stdout is not None
+        shown: list[str] = []
+        for line in live.stdout:  # the first table: it listens; each later one ends in the EMCYs
+            shown.append(line.rstrip("\n"))
+            if line.startswith("node ") and len(shown) == 1:
+                short = can.Message(arbitration_id=RPDO1, data=b"\x00", is_extended_id=False)
+                node_under_test.bus.send(short)
+            if line.startswith("EMCY"):
+                break
+    finally:
+        live.kill()
+        live.wait(timeout=CALL_TIMEOUT_S)
+    assert shown[-1].startswith("EMCY 0x8210 pdo_length_error (Monitoring) register 0x11 about 0x1400"), (
+        "\n".join(shown) + live.stderr.read() if live.stderr else ""
+    )
 
     decoded = subprocess.run(
         [HILRIG, "replay", str(log), "--decode"],

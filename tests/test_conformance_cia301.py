@@ -184,8 +184,8 @@ class TestPdo_7_2_2:
         for pdo in TABLE.tpdos:
             cob_id = upload(node_under_test, pdo.communication_index, 1)
             assert cob_id & NO_RTR, f"{pdo.name}: COB-ID {cob_id:#010x} claims RTR is allowed"
-        # Configuring "RTR allowed" is refused: the node would not keep the promise.
-        assert download(node_under_test, 0x1800, 1, NOT_VALID | TPDO1, 4) == 0x06090030
+        # An enabled TPDO "RTR allowed" is refused: the node would not keep the promise.
+        assert download(node_under_test, 0x1800, 1, TPDO1, 4) == 0x06090030
         start_operational(node_under_test)
         answers: list[int] = []
         node_under_test.network.subscribe(TPDO1, lambda can_id, data, ts: answers.append(len(data)))
@@ -196,6 +196,11 @@ class TestPdo_7_2_2:
         upload(node_under_test, 0x1000)
         assert not [n for n in answers if n > 0], "a data frame on TPDO1 answered the remote frame"
         assert sync_and_collect(node_under_test, None, TPDO1), "TPDO1 still comes at SYNC"
+        # CANopenNode's way to disable a TPDO (its tests write 0x80000184: bit 30 clear): taken,
+        # and kept as "no RTR".
+        assert download(node_under_test, 0x1800, 1, NOT_VALID | TPDO1, 4) == 0
+        assert upload(node_under_test, 0x1800, 1) == NO_RTR | NOT_VALID | TPDO1
+        assert not sync_and_collect(node_under_test, None, TPDO1), "TPDO1 is disabled"
 
 
 class TestSync_7_2_5:

@@ -9,8 +9,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from hilrig.apps.pdo_profile import apply_pdo_profile
+from hilrig.cli import main
 from hilrig.plants import JointParams
-from hilrig.table import ControlMode, EmcyCode, FaultFlags
+from hilrig.table import ControlMode, EmcyCode, FaultFlags, RigTable
 
 pytestmark = pytest.mark.bus
 
@@ -28,11 +30,13 @@ def latched_faults(rig) -> FaultFlags:
     return FaultFlags(int(rig.field("fault_flags")))
 
 
-def test_velocity_step_settles_within_2_percent(make_scenario) -> None:
+def test_velocity_step_settles_within_2_percent(make_scenario, capsys: pytest.CaptureFixture[str]) -> None:
     # The loop regulates the gearbox side (motor_velocity / gear ratio): collocated, so it
     # settles fast and clean. The load behind the spring follows with the spring-load ring
     # (about 70 rad/s, lightly damped), so its band is reached later: both are stated here.
     s = make_scenario()
+    # The master sends every RPDO every cycle, as `bus-load` counts a master (RPDO3 unchanged).
+    s.rig.before_each_cycle(lambda rig: rig.set("position_setpoint", 0.0))
     s.rig.set("control_mode", ControlMode.VELOCITY)
     s.rig.set("velocity_setpoint", 4.0)
     s.rig.run(seconds=1.5)
@@ -45,6 +49,62 @@ def test_velocity_step_settles_within_2_percent(make_scenario) -> None:
     print(
         f"\nvelocity step 0 -> 4 rad/s: gearbox side settled (2 %) at {settled:.3f} s, overshoot "
         f"{overshoot:.1%}; load side within 5 % from {settled_load:.3f} s, overshoot {overshoot_load:.1%}"
+    )
+    # What the demo's bus really carried (`hilrig busstat` of its log, per SYNC at the control
+    # rate) is what `hilrig bus-load` computes for the same mapping, within 5 %.
+    s.close()  # firmware stopped, bus log whole
+    rate = f"{1e6 / s.rig.period_us:g}"
+    with capsys.disabled():
+        print(capsys.readouterr().out, end="")
+    code = main(["busstat", str(s.bus_log), "-b", "1M", "--rate-hz", rate])
+    measured = capsys.readouterr().out.splitlines()[2]  # 'load of 1 Mbit/s: N % nominal, W % worst case, ...'
+    code_load = main(["bus-load", "-b", "1M", "--rate-hz", rate])
+    computed = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("1 Mbit/s"))
+    assert (code, code_load) == (0, 1), "measured; the full mapping does not fit 1 Mbit/s at 1 kHz"
+    worst = float(measured.split(", ")[1].split()[0])
+    assert worst == pytest.approx(float(computed.split()[4]), rel=0.05), (
+        f"busstat: {measured}; bus-load: {computed}"
+    )
+
+
+def test_the_demo_under_the_lean_profile(
+    make_scenario, scenario_dir, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `hilrig pdo apply lean` before the rig starts: the actuator every SYNC, the traced fields
+    # every 10th SYNC in turns, control_mode by SDO (no RPDO carries it in this profile).
+    lean = RigTable.load().board.pdo_profile("lean")
+    s = make_scenario(
+        trace=False,
+        params_file=scenario_dir / "params.bin",  # the profile is stored (0x1010:02)
+        before_start=lambda rig: (
+            rig.node.wait_until_alive(rig.boot_timeout_s),
+            apply_pdo_profile(rig.node, lean),
+        ),
+    )
+    assert s.rig.driver.rpdo_of("control_mode") is None
+    s.rig.set("control_mode", ControlMode.VELOCITY)
+    s.rig.set("velocity_setpoint", 4.0)
+    s.rig.run(seconds=0.6)
+    cycles = s.rig.cycle
+    t_duty, _ = s.rig.history("motor_duty")
+    t_velocity, velocity = s.rig.history("motor_velocity")
+    assert (len(t_duty), len(t_velocity)) == (cycles, cycles // 10), "TPDO1 every SYNC, TPDO2 every 10th"
+    assert velocity[-1] == pytest.approx(4.0 * GEAR_RATIO, rel=0.02), (
+        "the loop runs as under the full profile"
+    )
+    s.close()
+    rate = f"{1e6 / s.rig.period_us:g}"
+    with capsys.disabled():
+        print(capsys.readouterr().out, end="")
+    assert main(["busstat", str(s.bus_log), "-b", "1M", "--rate-hz", rate]) == 0
+    measured = capsys.readouterr().out.splitlines()[2]
+    assert main(["bus-load", "--profile", "lean", "-b", "1M", "--rate-hz", rate]) == 0
+    computed = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("1 Mbit/s"))
+    busiest = float(measured.split(", ")[2].split()[2])
+    assert busiest <= 70.0, measured
+    worst = float(measured.split(", ")[1].split()[0])
+    assert worst == pytest.approx(float(computed.split()[4]), rel=0.05), (
+        f"busstat: {measured}; bus-load: {computed}"
     )
 
 

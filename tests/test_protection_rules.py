@@ -16,8 +16,10 @@ import numpy as np
 import pytest
 
 from boardproto.cia301 import (
+    ERROR_BEHAVIOUR_INDEX,
     HEARTBEAT_CONSUMER_INDEX,
     MASTER_NODE_ID,
+    ErrorBehaviour,
     NmtState,
     heartbeat_cob_id,
     heartbeat_consumer_entry,
@@ -159,13 +161,22 @@ SPARE_RPDO = 4  # unused by default: mapped here, every RPDO slot and consumer e
 SPARE_MAX_DUTY = 0.61
 
 
-def watch_the_master_and_map_max_duty(rig) -> None:
-    """Before the rig reads the node's PDOs (pre-operational): the consumer entry watches the
-    master's heartbeat, and the spare RPDO carries max_duty. Every RPDO and every consumer entry
-    is then in use: the node's receive filter must list them all."""
+def watch_the_master(rig, behaviour: ErrorBehaviour = ErrorBehaviour.PRE_OPERATIONAL) -> None:
+    """Before the rig reads the node's PDOs (pre-operational): the consumer entries watch the
+    master's heartbeat (and three other nodes: every entry in use, so the node's receive filter
+    must list them all); the node's error behaviour (0x1029:01) is `behaviour`."""
     rig.node.wait_until_alive(rig.boot_timeout_s)
-    entry = heartbeat_consumer_entry(MASTER_NODE_ID, MASTER_CONSUMER_MS)
-    rig.node.download(HEARTBEAT_CONSUMER_INDEX, 1, entry.to_bytes(4, "little"))
+    others = (MASTER_NODE_ID - 1, MASTER_NODE_ID - 2, MASTER_NODE_ID - 3)
+    for sub, node_id in enumerate((MASTER_NODE_ID, *others), start=1):
+        entry = heartbeat_consumer_entry(node_id, MASTER_CONSUMER_MS)
+        rig.node.download(HEARTBEAT_CONSUMER_INDEX, sub, entry.to_bytes(4, "little"))
+    rig.node.download(ERROR_BEHAVIOUR_INDEX, 1, bytes([behaviour]))
+
+
+def watch_the_master_and_map_max_duty(rig) -> None:
+    """`watch_the_master` with 0x1029 "no change" (the node stays operational), and the spare
+    RPDO carries max_duty. Every RPDO is then in use too."""
+    watch_the_master(rig, ErrorBehaviour.NO_CHANGE)
     spare = rig.node.remote.rpdo[SPARE_RPDO]
     spare.read()
     spare.clear()
@@ -218,3 +229,33 @@ def test_the_master_heartbeat_beside_every_rpdo_is_heard_until_it_stops(make_sce
     assert [record.object_index for record in lost] == [HEARTBEAT_CONSUMER_INDEX], s.rig.emcy
     assert lost[0].data[2] == MASTER_NODE_ID, f"the EMCY names the lost node: {lost[0].data.hex()}"
     assert lost[0].cycle == lost_at, f"{lost[0]}: expected in cycle {lost_at}"
+    assert s.rig.driver.operational, "0x1029 = 1: the node stays operational"
+
+
+def test_the_master_heartbeat_lost_enters_pre_operational_by_default(make_scenario) -> None:
+    s = make_scenario(before_start=watch_the_master)
+    assert s.rig.node.error_behaviour is ErrorBehaviour.PRE_OPERATIONAL
+    master_heartbeat = heartbeat_cob_id(MASTER_NODE_ID)
+    beating = {"on": True, "last": -1}
+
+    def master(rig) -> None:
+        if beating["on"] and rig.cycle % MASTER_EVERY_CYCLES == 0:
+            rig.send_frame(master_heartbeat, bytes([NmtState.OPERATIONAL]))
+            beating["last"] = rig.cycle
+
+    s.rig.before_each_cycle(master)
+    moving(s, setpoint=40.0)
+    beating["on"] = False
+    last = beating["last"]
+    s.rig.run(cycles=2 * MASTER_CONSUMER_MS)
+    lost_at = last - 1 + MASTER_CONSUMER_MS * 1000 // s.rig.period_us
+    lost = [record for record in s.rig.emcy if record.code == EmcyCode.HEARTBEAT_ERROR]
+    assert [record.cycle for record in lost] == [lost_at], s.rig.emcy
+    duty = by_cycle(s, "motor_duty")
+    assert duty[lost_at - 1] != 0 and max(duty) == lost_at - 1, "TPDOs stop with the event's cycle"
+    assert not s.rig.driver.operational
+    states = [s.rig.node.remote.nmt.wait_for_heartbeat(timeout=30) for _ in range(2)]
+    assert states[-1] == "PRE-OPERATIONAL", f"heartbeats said {states}"
+    assert s.rig.node.read("motor_duty") == 0, "the latched fault holds the duty at 0"
+    # Pre-operational, the node takes no RPDO: the encoders go stale too.
+    assert FaultFlags.MASTER_HEARTBEAT_LOST in FaultFlags(int(s.rig.node.read("fault_flags")))

@@ -101,7 +101,75 @@ TEST_F(HeartbeatConsumerTest, SilenceForTheConsumerTimeIsOneEventWithItsEmcy) {
   for (int i = 0; i < 20; ++i) advance_us(100'000);
   EXPECT_TRUE(all_sent().empty()) << "one event per loss";
   EXPECT_EQ(node.counters().heartbeat_events, 1u);
-  EXPECT_EQ(node.state(), NmtState::PreOperational) << "no 0x1029 error behaviour";
+  EXPECT_EQ(node.state(), NmtState::PreOperational) << "0x1029 = 0 acts in operational only";
+}
+
+TEST_F(HeartbeatConsumerTest, InOperationalAnEventEntersPreOperationalByDefault) {
+  EXPECT_EQ(upload(cia301::kErrorBehaviourIndex, 1), 0u) << "CiA 301's default";
+  watch_master();
+  nmt(NmtCommand::Start);
+  master_heartbeat();
+  advance_us(kConsumerTimeUs);
+  EXPECT_EQ(next_sent(), heartbeat_emcy(kCommunicationError)) << "the EMCY first";
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  EXPECT_EQ(listener.heard.back(), (HeardStatus{1, true}));
+}
+
+TEST_F(HeartbeatConsumerTest, ErrorBehaviourNoChangeKeepsOperational) {
+  ASSERT_EQ(download(cia301::kErrorBehaviourIndex, 1, 1, 1), SdoAbort::None);
+  watch_master();
+  nmt(NmtCommand::Start);
+  master_heartbeat();
+  advance_us(kConsumerTimeUs);
+  EXPECT_EQ(next_sent(), heartbeat_emcy(kCommunicationError));
+  EXPECT_EQ(node.state(), NmtState::Operational);
+  EXPECT_EQ(listener.heard.back(), (HeardStatus{1, true})) << "the application still goes safe";
+}
+
+TEST_F(HeartbeatConsumerTest, ErrorBehaviourStoppedStopsAfterTheEmcy) {
+  ASSERT_EQ(download(cia301::kErrorBehaviourIndex, 1, 2, 1), SdoAbort::None);
+  watch_master();
+  master_heartbeat();
+  advance_us(kConsumerTimeUs);  // from pre-operational too
+  EXPECT_EQ(next_sent(), heartbeat_emcy(kCommunicationError));
+  EXPECT_EQ(node.state(), NmtState::Stopped);
+}
+
+TEST_F(HeartbeatConsumerTest, ErrorBehaviourObjectRangeAndStorage) {
+  constexpr std::uint16_t kErrorBehaviour = cia301::kErrorBehaviourIndex;
+  EXPECT_EQ(upload(kErrorBehaviour, 0), 1u);
+  EXPECT_EQ(download(kErrorBehaviour, 0, 2, 1), SdoAbort::ReadOnly);
+  EXPECT_EQ(upload_abort(kErrorBehaviour, 2), SdoAbort::SubIndexDoesNotExist);
+  EXPECT_EQ(download(kErrorBehaviour, 1, 3, 1), SdoAbort::ValueRangeExceeded);
+  EXPECT_EQ(download(kErrorBehaviour, 1, 1, 1), SdoAbort::None);
+  reset(NmtCommand::ResetCommunication);
+  EXPECT_EQ(upload(kErrorBehaviour, 1), 0u) << "not stored: back to the default";
+  ASSERT_EQ(download(kErrorBehaviour, 1, 1, 1), SdoAbort::None);
+  ASSERT_EQ(download(0x1010, 2, Node::kStoreSignature, 4), SdoAbort::None);
+  reset(NmtCommand::ResetNode);
+  EXPECT_EQ(upload(kErrorBehaviour, 1), 1u);
+  ASSERT_EQ(download(0x1011, 2, Node::kRestoreSignature, 4), SdoAbort::None);
+  reset(NmtCommand::ResetCommunication);
+  EXPECT_EQ(upload(kErrorBehaviour, 1), 0u);
+}
+
+// A module of a chain: the master, two neighbours and a spare; each node id at most once.
+TEST_F(HeartbeatConsumerTest, FourEntriesWatchFourNodesAndRefuseADuplicate) {
+  static_assert(board::kHeartbeatConsumers >= 4);
+  ASSERT_EQ(download(kConsumerHeartbeat, 1, consumer_entry(0x7F, kConsumerTimeMs), 4), SdoAbort::None);
+  ASSERT_EQ(download(kConsumerHeartbeat, 2, consumer_entry(0x0F, kConsumerTimeMs), 4), SdoAbort::None);
+  ASSERT_EQ(download(kConsumerHeartbeat, 3, consumer_entry(0x11, kConsumerTimeMs), 4), SdoAbort::None);
+  EXPECT_EQ(download(kConsumerHeartbeat, 4, consumer_entry(0x0F, 2 * kConsumerTimeMs), 4),
+            SdoAbort::ParameterIncompatible);
+  EXPECT_EQ(upload(kConsumerHeartbeat, 4), 0u);
+  ASSERT_EQ(download(kConsumerHeartbeat, 4, consumer_entry(kMasterId, kConsumerTimeMs), 4), SdoAbort::None);
+  for (const std::uint8_t id : {std::uint8_t{0x7F}, std::uint8_t{0x0F}, std::uint8_t{0x11}, kMasterId}) {
+    receive(cia301::cob_id(cia301::FunctionCode::Heartbeat, id), {0x05});
+  }
+  EXPECT_EQ(node.counters().heartbeats_consumed, 4u);
+  advance_us(kConsumerTimeUs);
+  EXPECT_EQ(node.lost_heartbeats(), 4u);
+  EXPECT_EQ(node.counters().heartbeat_events, 4u);
 }
 
 TEST_F(HeartbeatConsumerTest, EveryHeartbeatRestartsTheTimerWhateverItsState) {

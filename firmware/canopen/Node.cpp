@@ -203,6 +203,7 @@ void Node::reset_communication(std::uint32_t now_us) {
   configuration_time_ = 0;
   heartbeat_ms_ = board::kNode.heartbeat_ms;
   heartbeat_consumer_.reset();
+  communication_error_ = cia301::ErrorBehaviour::PreOperational;
   load_default_pdos();
   state_ = NmtState::PreOperational;  // stored PDO mappings replay under pre-operational rules
   load_stored_communication();
@@ -288,7 +289,16 @@ void Node::check_heartbeat_timeouts(std::uint32_t consumer_now_us) {
     ++counters_.heartbeat_events;
     report_emcy(emcy::heartbeat_error(lost_node_id));
   });
-  if (event) tell_heartbeat_listener(true);
+  if (!event) return;
+  tell_heartbeat_listener(true);
+  // CiA 301 7.5.2.32: after the EMCY (a stopped node sends none), the NMT state follows 0x1029.
+  switch (communication_error_) {
+    case cia301::ErrorBehaviour::PreOperational:
+      if (state_ == NmtState::Operational) enter(NmtState::PreOperational);
+      break;
+    case cia301::ErrorBehaviour::NoChange: break;
+    case cia301::ErrorBehaviour::Stopped: enter(NmtState::Stopped); break;
+  }
 }
 
 void Node::check_sdo_timeout(std::uint32_t server_now_us) {
@@ -445,7 +455,8 @@ void Node::load_stored_communication() {
       case 0x1005:
       case 0x1017:
       case 0x1019:
-      case 0x1020: (void)write_communication(stored.index, stored.sub, stored.raw, 0); break;
+      case 0x1020:
+      case cia301::kErrorBehaviourIndex: (void)write_communication(stored.index, stored.sub, stored.raw, 0); break;
       case HeartbeatConsumer::kIndex:
         // An image from a firmware with more entries: the ones this one has are kept.
         if (stored.sub >= 1 && stored.sub <= HeartbeatConsumer::kEntries) {
@@ -522,6 +533,7 @@ std::size_t Node::collect_communication(std::span<StoredValue> out) const {
   add(0x1019, 0);
   add(0x1020, 1);
   add(0x1020, 2);
+  add(cia301::kErrorBehaviourIndex, 1);
   for (std::size_t i = 0; i < rpdos_.size(); ++i) {
     const auto communication = static_cast<std::uint16_t>(tables::kRpdoCommunicationBase + i);
     for (const int sub : {1, 2, 3, 5}) add(communication, static_cast<std::uint8_t>(sub));

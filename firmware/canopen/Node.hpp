@@ -215,8 +215,8 @@ class Node final {
   // Told whenever the heartbeat consumer's state changes (a heartbeat event, a heartbeat back,
   // 0x1016 rewritten, a reset). Optional; must outlive the node. A heartbeat event also reports
   // EMCY heartbeat_error naming the lost node; the node never clears it itself: whoever acts on
-  // the event (the application's fault latch) clears it. The NMT state stays as it is (no
-  // 0x1029 error behaviour).
+  // the event (the application's fault latch) clears it. The NMT state then follows 0x1029:01
+  // (error behaviour; default: operational enters pre-operational).
   void set_heartbeat_listener(HeartbeatListener* listener) { heartbeat_listener_ = listener; }
 
   NmtState state() const { return state_; }
@@ -361,6 +361,8 @@ class Node final {
   std::uint16_t heartbeat_ms_ = 0;
   std::uint32_t last_heartbeat_us_ = 0;
   HeartbeatConsumer heartbeat_consumer_;
+  // 0x1029:01: what a heartbeat event does to the NMT state (CiA 301 default: pre-operational).
+  cia301::ErrorBehaviour communication_error_ = cia301::ErrorBehaviour::PreOperational;
   TimeoutClock timeout_clock_ = TimeoutClock::WallTime;
   std::uint32_t control_time_us_ = 0;  // TimeoutClock::ControlCycles; wraps
   std::uint8_t told_lost_heartbeats_ = 0;  // what the listener last heard

@@ -77,6 +77,10 @@ SdoAbort Node::find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) c
       if (sub == 0) return record(DataType::Unsigned8, false);
       if (sub <= kIdentityHighestSub) return record(DataType::Unsigned32, false);
       return SdoAbort::SubIndexDoesNotExist;
+    case cia301::kErrorBehaviourIndex:  // sub 1 only: communication errors
+      if (sub == 0) return record(DataType::Unsigned8, false);
+      if (sub == 1) return record(DataType::Unsigned8, true);
+      return SdoAbort::SubIndexDoesNotExist;
     default: break;
   }
 
@@ -163,6 +167,8 @@ std::uint32_t Node::read_communication(std::uint16_t index, std::uint8_t sub) co
         case 3: return board::kNode.revision;
         default: return serial_number_;
       }
+    case cia301::kErrorBehaviourIndex:
+      return sub == 0 ? 1u : static_cast<std::uint32_t>(communication_error_);
     default: break;
   }
   std::size_t n = 0;
@@ -368,6 +374,13 @@ SdoAbort Node::write_communication(std::uint16_t index, std::uint8_t sub, std::u
     case 0x1020:
       // Written by a configuration tool, then stored with 0x1010 (CiA 301, 7.5.2.23).
       (sub == 1 ? configuration_date_ : configuration_time_) = value;
+      return SdoAbort::None;
+    case cia301::kErrorBehaviourIndex:
+      // 0 pre-operational, 1 no change, 2 stopped; 3..127 reserved, 128..255 profile-defined.
+      if (value > static_cast<std::uint32_t>(cia301::ErrorBehaviour::Stopped)) {
+        return SdoAbort::ValueRangeExceeded;
+      }
+      communication_error_ = static_cast<cia301::ErrorBehaviour>(value);
       return SdoAbort::None;
     default: break;
   }

@@ -25,10 +25,10 @@ inline constexpr std::uint16_t kFieldsOnlyFormatVersion = 1;
 inline constexpr std::size_t kHeaderBytes = 12;
 inline constexpr std::size_t kEntryBytes = 7;
 inline constexpr std::size_t kFieldsOnlyEntryBytes = 6;
-// 0x1005, 0x1017, 0x1019, 0x1020:01/02; 0x1016:01..n; per RPDO sub 1/2/3/5 + mapping sub
-// 0..8; per TPDO also sub 6.
+// 0x1005, 0x1017, 0x1019, 0x1020:01/02, 0x1029:01; 0x1016:01..n; per RPDO sub 1/2/3/5 +
+// mapping sub 0..8; per TPDO also sub 6.
 inline constexpr std::size_t kMaxCommunicationEntries =
-    5 + board::kHeartbeatConsumers + board::kRpdoCount * (4 + 9) + board::kTpdoCount * (5 + 9);
+    6 + board::kHeartbeatConsumers + board::kRpdoCount * (4 + 9) + board::kTpdoCount * (5 + 9);
 inline constexpr std::size_t kMaxEntries = board::kFieldCount + kMaxCommunicationEntries;
 inline constexpr std::size_t kCapacity = kHeaderBytes + kEntryBytes * kMaxEntries;
 

@@ -13,7 +13,9 @@ namespace {
 constexpr std::uint32_t kInvalidBit = 0x8000'0000u;
 // TPDO: 1 = no RTR allowed. The node does not answer remote frames (CiA AN 802 advises
 // against RTR; a remote-requested TPDO would also arrive between two SYNCs and break the
-// lockstep rig's one-frame-per-cycle accounting), so a TPDO COB-ID always has it set.
+// lockstep rig's one-frame-per-cycle accounting), so a TPDO COB-ID always has it set. A write
+// that disables the PDO (bit 31) is taken whatever bit 30 says and stored with it set, as
+// CANopenNode does (its tests disable TPDO1 with 0x80000184).
 constexpr std::uint32_t kRtrBit = 0x4000'0000u;
 constexpr std::uint8_t kLastSynchronousType = 240;
 constexpr std::uint8_t kEventManufacturer = 254;
@@ -60,14 +62,14 @@ SdoAbort Node::write_pdo_communication(Pdo& pdo, bool is_rpdo, std::uint8_t sub,
       // bit 29 (29-bit id) and bits 11..28 must be zero; the id may change only while the
       // PDO is invalid; an enabled PDO needs a usable id and a mapping.
       if ((value & 0x3FFF'F800u) != 0) return SdoAbort::ValueRangeExceeded;
-      // A TPDO cannot be configured "RTR allowed": the node would not keep that promise.
-      if (!is_rpdo && (value & kRtrBit) == 0) return SdoAbort::ValueRangeExceeded;
+      // An enabled TPDO cannot be "RTR allowed": the node would not keep that promise.
+      if (!is_rpdo && valid && (value & kRtrBit) == 0) return SdoAbort::ValueRangeExceeded;
       if (valid && pdo.valid() && can_id != pdo.can_id()) return SdoAbort::ValueRangeExceeded;
       if (valid && (cia301::is_restricted_cob_id(can_id) || pdo.mapping_count == 0)) {
         return SdoAbort::ValueRangeExceeded;
       }
       const bool enabling = valid && !pdo.valid();
-      pdo.cob_id = value & (kInvalidBit | kRtrBit | cia301::kStandardIdMask);
+      pdo.cob_id = (value & (kInvalidBit | kRtrBit | cia301::kStandardIdMask)) | (is_rpdo ? 0u : kRtrBit);
       if (enabling) {
         pdo.received_once = false;
         pdo.sent_once = false;

@@ -390,11 +390,25 @@ TEST_F(PdoTest, DefaultTpdoCobIdsSayNoRtrAndRpdoCobIdsLeaveBit30Clear) {
   }
 }
 
-TEST_F(PdoTest, TpdoCobIdWithRtrAllowedIsRefused) {
-  const auto refused = le32(kTpdo1 | kInvalid);  // bit 30 clear: "RTR allowed"
+TEST_F(PdoTest, EnablingATpdoWithRtrAllowedIsRefused) {
+  ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1 | kInvalid, 4), SdoAbort::None);
+  const auto refused = le32(kTpdo1);  // valid, bit 30 clear: "RTR allowed"
   EXPECT_EQ(sdo({0x23, 0x00, 0x18, 0x01, refused[0], refused[1], refused[2], refused[3]}),
             abort_data(0x1800, 1, SdoAbort::ValueRangeExceeded));
-  EXPECT_EQ(upload(0x1800, 1), kNoRtr | kTpdo1) << "unchanged";
+  EXPECT_EQ(upload(0x1800, 1), kNoRtr | kTpdo1 | kInvalid) << "unchanged";
+}
+
+// CANopenNode's tests disable TPDO1 with 0x80000184 (bit 30 clear); masters expect it taken.
+TEST_F(PdoTest, DisablingATpdoIsTakenWhateverBit30SaysAndStoredAsNoRtr) {
+  nmt(NmtCommand::Start);
+  const auto disable = le32(kInvalid | kTpdo1);
+  EXPECT_EQ(sdo({0x23, 0x00, 0x18, 0x01, disable[0], disable[1], disable[2], disable[3]}),
+            (std::array<std::uint8_t, 8>{0x60, 0x00, 0x18, 0x01, 0, 0, 0, 0}));
+  EXPECT_EQ(upload(0x1800, 1), kNoRtr | kInvalid | kTpdo1);
+  all_sent();
+  sync();
+  for (const CanFrame& frame : all_sent()) EXPECT_NE(frame.id, kTpdo1) << "TPDO1 is disabled";
+  EXPECT_EQ(download(0x1800, 1, kNoRtr | kTpdo1, 4), SdoAbort::None) << "enabled again as before";
 }
 
 TEST_F(PdoTest, RemoteFrameOnATpdoIdGetsNoAnswer) {

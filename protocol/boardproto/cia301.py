@@ -260,6 +260,27 @@ HEARTBEAT_CONSUMER_INDEX = 0x1016
 """Consumer heartbeat time: one UNSIGNED32 per watched node (sub-index 1..n)."""
 
 
+STORE_PARAMETERS_INDEX = 0x1010
+"""Store parameters: sub 1 all, 2 communication, 3 application; written with STORE_SIGNATURE."""
+STORE_COMMUNICATION = 2
+STORE_SIGNATURE = int.from_bytes(b"save", "little")
+"""What a write to 0x1010 must carry (CiA 301 7.5.2.13: the ASCII "save", little-endian)."""
+SYNC_COUNTER_OVERFLOW_INDEX = 0x1019
+"""Synchronous counter overflow value: 0 = SYNC without counter, 2..240 the counter's period."""
+
+ERROR_BEHAVIOUR_INDEX = 0x1029
+"""Error behaviour: sub 1 (UNSIGNED8) says what a communication error (a heartbeat event of 0x1016)
+does to the NMT state; absent or 0 means pre-operational (CiA 301 7.5.2.32)."""
+
+
+class ErrorBehaviour(enum.IntEnum):
+    """Values of 0x1029 sub 1 (CiA 301 7.5.2.32); 3..127 are reserved."""
+
+    PRE_OPERATIONAL = 0  # enter pre-operational, if operational (the default)
+    NO_CHANGE = 1  # the NMT state stays
+    STOPPED = 2  # enter stopped
+
+
 def heartbeat_consumer_entry(node_id: int, time_ms: int) -> int:
     """One 0x1016 entry: the node id to watch in bits 16..23, its consumer time [ms] in bits
     0..15 (CiA 301 7.5.2.31); a heartbeat later than that from the node is a heartbeat event."""
@@ -311,6 +332,7 @@ def transmission_text(transmission_type: int) -> str:
 
 __all__ = [
     "EMCY_ERROR_RESET",
+    "ERROR_BEHAVIOUR_INDEX",
     "EVENT_DRIVEN_TYPES",
     "FUNCTION_CODE_MASK",
     "HEARTBEAT_CONSUMER_INDEX",
@@ -328,12 +350,17 @@ __all__ = [
     "RESTRICTED_COB_ID_RANGES",
     "RPDO_FUNCTIONS",
     "STANDARD_ID_MASK",
+    "STORE_COMMUNICATION",
+    "STORE_PARAMETERS_INDEX",
+    "STORE_SIGNATURE",
     "SYNC_COB_ID",
     "SYNC_COUNTER_MAX",
+    "SYNC_COUNTER_OVERFLOW_INDEX",
     "TIME_COB_ID",
     "TPDO_FUNCTIONS",
     "EmcyFrame",
     "EmcyLayout",
+    "ErrorBehaviour",
     "FunctionCode",
     "NmtCommand",
     "NmtState",

@@ -123,6 +123,12 @@ enum class NmtCommand : std::uint8_t {{
 inline constexpr std::uint8_t kHeartbeatStateMask = {_hex(cia301.HEARTBEAT_STATE_MASK, 2)};
 // Consumer heartbeat time: one UNSIGNED32 per watched node (sub-index 1..n).
 inline constexpr std::uint16_t kHeartbeatConsumerIndex = {_hex(cia301.HEARTBEAT_CONSUMER_INDEX, 4)};
+// Error behaviour: sub 1 says what a heartbeat event does to the NMT state (CiA 301, 7.5.2.32).
+inline constexpr std::uint16_t kErrorBehaviourIndex = {_hex(cia301.ERROR_BEHAVIOUR_INDEX, 4)};
+
+enum class ErrorBehaviour : std::uint8_t {{
+{_enumerators(list(cia301.ErrorBehaviour), 2)}
+}};
 
 // ---------------------------------------------------------------------------
 // SYNC and PDO transmission types (CiA 301, 7.2.5, 7.5.2.35).

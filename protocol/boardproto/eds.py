@@ -30,7 +30,7 @@ from canopen.objectdictionary import (
     export_od,
 )
 
-from boardproto.cia301 import SYNC_COB_ID, FunctionCode, emcy_cob_id
+from boardproto.cia301 import ERROR_BEHAVIOUR_INDEX, SYNC_COB_ID, ErrorBehaviour, FunctionCode, emcy_cob_id
 from boardproto.cpp_header import GENERATED_BANNER
 from boardproto.table import (
     BoardTable,
@@ -66,8 +66,8 @@ NOT_SUPPORTED = (
     "Not supported: node guarding and life guarding (0x100C/0x100D; optional, deprecated by",
     "CiA 301 in favour of the heartbeat, which the node produces). Remote frames (RTR): every",
     "TPDO COB-ID has bit 30 set; transmission types 252/253 are refused. SYNC producer, TIME,",
-    "multiple SDO servers, SDO client. Error behaviour 0x1029: a heartbeat event (0x1016)",
-    "leaves the NMT state as it is; the node sends an EMCY and the application goes safe.",
+    "multiple SDO servers, SDO client. Error behaviour 0x1029: sub 1 (communication errors,",
+    "a heartbeat event of 0x1016) only; no device profile or manufacturer error classes.",
 )
 SUPPORTED_BITRATES = frozenset({125_000, 250_000, 500_000, 1_000_000})
 
@@ -293,6 +293,14 @@ def _add_communication_objects(od: ObjectDictionary, table: BoardTable) -> None:
     overflow = _variable("Synchronous counter overflow value", 0x1019, 0, DataType.UNSIGNED8, "rw", 0)
     overflow.min, overflow.max = 0, 240  # 1 and 241..255 are reserved: refused
     od.add_object(overflow)
+    default_behaviour = ErrorBehaviour.PRE_OPERATIONAL
+    communication_error = _variable(
+        "Communication error", ERROR_BEHAVIOUR_INDEX, 1, DataType.UNSIGNED8, "rw", default_behaviour
+    )
+    communication_error.min, communication_error.max = min(ErrorBehaviour), max(ErrorBehaviour)
+    behaviour = _array("Error behaviour", ERROR_BEHAVIOUR_INDEX, "Highest sub-index supported", 1, "ro", [])
+    behaviour.add_member(communication_error)
+    od.add_object(behaviour)
     identity = ODRecord("Identity object", 0x1018)
     for subindex, name, value in (
         (0, "Highest sub-index supported", 4),

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
-from boardproto.cia301 import RPDO_FUNCTIONS, TPDO_FUNCTIONS, predefined_pdo_base
+from boardproto.cia301 import LAST_SYNCHRONOUS_TYPE, RPDO_FUNCTIONS, TPDO_FUNCTIONS, predefined_pdo_base
 from boardproto.table import (
     HIL_IO_TYPES,
     RECORDER_ENUMS,
@@ -169,6 +169,7 @@ _TOP_LEVEL_KEYS = frozenset(
         "pdo",
         "rpdo",
         "tpdo",
+        "pdo_profile",
         "recorder",
     }
 )
@@ -198,7 +199,7 @@ _BIT_REQUIRED_KEYS = frozenset({"name", "bit", "description"})
 _BIT_OPTIONAL_KEYS = frozenset({"emcy", "about"})
 _EMCY_KEYS = frozenset({"name", "code", "error_register", "description"})
 # 0x1016 consumer heartbeat time entries: each is fixed RAM in the node and a stored value; a
-# joint watches one master. Raise it when a board has to watch more nodes.
+# module of a chain watches the master and its two neighbours, plus a spare.
 MAX_HEARTBEAT_CONSUMERS = 4
 MAX_FLAG_BITS = 24  # a bitset travels in a REAL32 field: integers are exact up to 2**24
 _PDO_SLOT_KEYS = frozenset({"rpdo_slots", "tpdo_slots"})
@@ -210,7 +211,9 @@ MAX_RECORDER_VALUES = 1 << 22
 # Recorder objects carry enum values in UNSIGNED8 objects.
 _RECORDER_ENUM_RANGE = range(0, 0x100)  # protocol-literal: the UNSIGNED8 range
 _PDO_REQUIRED_KEYS = frozenset({"number", "transmission_type", "map"})
-_PDO_OPTIONAL_KEYS = frozenset({"enabled", "inhibit_time_100us", "event_timer_ms", "cob_id_base"})
+_PDO_OPTIONAL_KEYS = frozenset(
+    {"enabled", "inhibit_time_100us", "event_timer_ms", "cob_id_base", "sync_start"}
+)
 
 
 class _Entry:
@@ -678,6 +681,7 @@ def _load_pdo(
         inhibit_time_100us=entry.integer("inhibit_time_100us", 0, 0xFFFF, default=0),
         event_timer_ms=entry.integer("event_timer_ms", 0, 0xFFFF, default=0),
         entries=tuple(mapped),
+        sync_start=entry.integer("sync_start", 0, LAST_SYNCHRONOUS_TYPE, default=0),  # boardproto.profiles
     )
 
 
@@ -754,6 +758,9 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
         pdo_section.integer("tpdo_slots", 0, MAX_PDO_SLOTS),
         entries_by_name,
     )
+    from boardproto.profiles import load_pdo_profiles  # built on this module's helpers
+
+    profiles = load_pdo_profiles(source, document, (len(rpdos), len(tpdos)), entries_by_name, (rpdos, tpdos))
 
     recorder = (
         _load_recorder(source, document["recorder"], all_entries, enums) if "recorder" in document else None
@@ -771,6 +778,7 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
         bitsets=tuple(bitsets),
         emcy_codes=tuple(emcy),
         recorder=recorder,
+        pdo_profiles=profiles,
     )
 
 

@@ -6,6 +6,7 @@ guarantees their invariants (unique names and indices, ranges, PDO sizes).
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import enum
 import functools
@@ -460,6 +461,7 @@ class Pdo:
     inhibit_time_100us: int
     event_timer_ms: int
     entries: tuple[PdoEntry, ...]
+    sync_start: int = 0  # TPDO sub 6: the SYNC counter of its first transmission (0: none)
 
     @property
     def name(self) -> str:
@@ -495,6 +497,23 @@ class Pdo:
         """Bits 31 (not valid) and 30 (TPDO: no RTR) of the default COB-ID."""
         rtr = RTR_NOT_ALLOWED if self.direction is PdoDirection.TPDO else 0
         return rtr | (0 if self.enabled else PDO_NOT_VALID)
+
+
+FULL_PDO_PROFILE = "full"
+"""The profile that is the table's own [[rpdo]]/[[tpdo]] mapping (the firmware's default)."""
+
+
+@dataclass(frozen=True)
+class PdoProfile:
+    """Another mapping of the same PDO slots (board.toml's [[pdo_profile]]), written to a board
+    over SDO (`hilrig pdo apply NAME`); `sync_counter_overflow` is 0x1019's value with it (the
+    SYNC start values of its TPDOs count on the SYNC counter)."""
+
+    name: str
+    description: str
+    rpdos: tuple[Pdo, ...]  # every RPDO slot, number 1..n in order
+    tpdos: tuple[Pdo, ...]
+    sync_counter_overflow: int = 0
 
 
 class UnknownNameError(KeyError):
@@ -535,6 +554,16 @@ class BoardTable:
     bitsets: tuple[BitSet, ...] = ()
     emcy_codes: tuple[EmcyCode, ...] = ()
     recorder: Recorder | None = None
+    pdo_profiles: tuple[PdoProfile, ...] = ()  # the first is FULL_PDO_PROFILE: rpdos/tpdos above
+
+    def pdo_profile(self, name: str) -> PdoProfile:
+        """The [[pdo_profile]] `name`; UnknownNameError listing the close ones."""
+        return _lookup("PDO profile", {p.name: p for p in self.pdo_profiles}, name)
+
+    def with_pdo_profile(self, name: str) -> BoardTable:
+        """This table with the PDO mapping of profile `name` in place of its own."""
+        profile = self.pdo_profile(name)
+        return dataclasses.replace(self, rpdos=profile.rpdos, tpdos=profile.tpdos)
 
     @cached_property
     def _fields_by_name(self) -> dict[str, Field]:

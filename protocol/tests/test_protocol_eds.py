@@ -10,7 +10,14 @@ import pytest
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable, datatypes, import_od
 
 from boardproto import BoardTable, Pdo
-from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, emcy_cob_id
+from boardproto.cia301 import (
+    ERROR_BEHAVIOUR_INDEX,
+    SYNC_COB_ID,
+    ErrorBehaviour,
+    FunctionCode,
+    cob_id,
+    emcy_cob_id,
+)
 from boardproto.eds import generate_eds
 
 
@@ -108,6 +115,12 @@ def test_communication_objects(od: canopen.ObjectDictionary, table: BoardTable) 
     for sub in range(1, node.heartbeat_consumers + 1):
         entry = _variable(od, 0x1016, sub)
         assert (entry.data_type, entry.access_type, entry.default) == (datatypes.UNSIGNED32, "rw", 0)
+    behaviour = od[ERROR_BEHAVIOUR_INDEX]
+    assert isinstance(behaviour, ODArray) and sorted(behaviour.subindices) == [0, 1]
+    communication_error = _variable(od, ERROR_BEHAVIOUR_INDEX, 1)
+    assert (communication_error.data_type, communication_error.access_type) == (datatypes.UNSIGNED8, "rw")
+    assert communication_error.default == ErrorBehaviour.PRE_OPERATIONAL  # CiA 301's default
+    assert (communication_error.min, communication_error.max) == (0, ErrorBehaviour.STOPPED)
     identity = od[0x1018]
     assert isinstance(identity, ODRecord)
     assert [identity[s].default for s in (1, 2, 3)] == [

@@ -420,3 +420,57 @@ def test_refuses_unknown_error_register(edit_values: TableEditor) -> None:
         "unknown error_register 'temprature'",
         "one of: generic, current, voltage, temperature",
     )
+
+
+PROFILE = """
+[[pdo_profile]]
+name = "turns"
+description = "TPDO1 every 10th SYNC, from counter 3"
+sync_counter_overflow = {overflow}
+
+[[pdo_profile.tpdo]]
+number = 1
+transmission_type = 10
+sync_start = 3
+map = ["motor_duty"]
+"""
+
+
+def test_a_pdo_profile_maps_the_same_slots_and_full_is_the_default(
+    minimal_table: str, write_table: TableWriter
+) -> None:
+    table = load_table(write_table(minimal_table + PROFILE.format(overflow=240)))
+    assert [p.name for p in table.pdo_profiles] == ["full", "turns"]
+    assert table.with_pdo_profile("full").tpdos == table.tpdos
+    turns = table.with_pdo_profile("turns")
+    assert [(p.enabled, p.transmission_type, p.sync_start) for p in turns.tpdos] == [
+        (True, 10, 3),
+        (False, 255, 0),
+    ]
+    assert not any(p.enabled for p in turns.rpdos), "a slot the profile does not list is disabled"
+    assert turns.fields == table.fields
+    with pytest.raises(KeyError, match="did you mean 'turns'"):
+        table.pdo_profile("turn")
+
+
+def test_refuses_a_sync_start_outside_a_profile_or_off_the_counter(
+    minimal_table: str, write_table: TableWriter
+) -> None:
+    refused(
+        write_table(minimal_table + PROFILE.format(overflow=25)),
+        "turns",
+        "sync_counter_overflow that type 10 divides",
+    )
+    refused(
+        write_table(
+            minimal_table.replace("transmission_type = 1\n", "transmission_type = 1\nsync_start = 1\n")
+        ),
+        "TPDO1: sync_start only in a [[pdo_profile]]",
+    )
+    refused(
+        write_table(
+            minimal_table
+            + PROFILE.format(overflow=240).replace("transmission_type = 10", "transmission_type = 254")
+        ),
+        "sync_start needs a TPDO of transmission type 1..240",
+    )

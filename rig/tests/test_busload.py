@@ -428,6 +428,20 @@ def test_command_defaults_to_all_four_bitrates(table_path: Path, capsys: pytest.
         assert label in out
 
 
+def test_command_without_options_explains_rather_than_fails(capsys: pytest.CaptureFixture[str]) -> None:
+    # The board's default mapping at 1 kHz fits no standard bit rate: the survey says so, exit 0.
+    code, out, err = bus_load_command(capsys)
+    assert (code, err) == (0, "")
+    assert out.count("OVERLOAD") == 4
+    assert out.splitlines()[-1] == (
+        "at 1000 Hz the exchange fits none of these bit rates; give -b BITRATE for the bus you mean "
+        "(exit code 1 when it does not fit)"
+    )
+    code, out, err = bus_load_command(capsys, "--rate-hz", "200")
+    assert (code, err) == (0, "")
+    assert "the exchange fits 500 kbit/s, 1 Mbit/s; give -b" in out.splitlines()[-1]
+
+
 def test_command_warns_above_70_percent_with_exit_code_0(
     table_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -542,3 +556,28 @@ def test_command_reports_a_bad_table_in_one_line(tmp_path: Path, capsys: pytest.
     code, out, err = bus_load_command(capsys, "--table", str(bad))
     assert (code, out) == (2, "")
     assert err.count("\n") == 1 and str(bad) in err
+
+
+def test_the_lean_profile_fits_1_mbit_at_1_khz_within_70_percent_in_its_busiest_cycle(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    lean = load_table(DEFAULT_TABLE_PATH).with_pdo_profile("lean")
+    load = bus_load(lockstep_traffic(lean, 1000.0), 1000.0, 1_000_000)
+    # Every SYNC: RPDO1 and RPDO2 (135 bits each), SYNC (65), TPDO1 (85), a heartbeat (65); the
+    # seven 8-byte TPDOs every 10th SYNC take turns (start values 1..7): one of them (135) at most.
+    assert load.peak_cycle_worst_case == pytest.approx((2 * 135 + 65 + 85 + 65 + 135) / 1000)
+    assert load.peak_cycle_worst_case <= 0.70
+    code, out, err = bus_load_command(capsys, "--profile", "lean", "--rate-hz", "1000", "-b", "1M")
+    assert (code, err) == (0, "")
+    assert "PDO profile lean" in out.splitlines()[0]
+    assert [line.split()[-2] for line in out.splitlines() if line.startswith("1 Mbit/s")] == ["62.0"]
+
+
+def test_turns_by_sync_counter_that_meet_count_together() -> None:
+    # Two TPDOs every 10th SYNC from counters 1 and 11: the same turn (11 - 1 is a multiple of 10).
+    frames = [
+        Traffic("TPDO2", cob_id(FunctionCode.TPDO2, 1), 8, 100.0, True, sync_phase=(10, 1)),
+        Traffic("TPDO3", cob_id(FunctionCode.TPDO3, 1), 8, 100.0, True, sync_phase=(10, 11)),
+        Traffic("TPDO4", cob_id(FunctionCode.TPDO4, 1), 8, 100.0, True, sync_phase=(10, 2)),
+    ]
+    assert bus_load(frames, 1000.0, 1_000_000).peak_cycle_worst_case == pytest.approx(2 * 135 / 1000)

@@ -28,7 +28,7 @@ from hilrig.apps.demo import ScenarioFileError, load_scenario
 from hilrig.cli import COMMAND_MODULES, commands, main
 from hilrig.session.buslog import whole_file_logger
 from hilrig.session.fake_node import FakeJointNode
-from hilrig.table import LedPattern, RigTable
+from hilrig.table import EmcyCode, LedPattern, RigTable
 
 DEFAULT_KP = RigTable.load().field("velocity_kp").default  # from board.toml, not a copy
 NODE_ID = RigTable.load().board.node.default_node_id  # the fake node's: board.toml's default
@@ -478,3 +478,60 @@ def test_bus_load_is_a_command_warns_above_70_and_fails_above_100_percent(
     code, out, err = run(capsys, "bus-load", "--rate-hz", "100", "--bitrate", "200k")
     assert (code, err) == (0, "")
     assert "WARNING: 200 kbit/s" in out  # about 69 % worst case, 78 % in the busiest cycle
+
+
+def test_watch_shows_the_latest_emcys_under_the_table() -> None:
+    import io
+
+    from canopen.emcy import EmcyError
+
+    from hilrig.cli.watch import EMCY_LINES, Board, Screen
+
+    board = Board([RigTable.load().entry("motor_duty")])
+    about_rpdo1 = bytes([0x00, 0x14, 0, 0, 0])  # the board's manufacturer bytes: the object, LE
+    for n in range(EMCY_LINES + 1):
+        board.on_emcy(EmcyError(EmcyCode.PDO_LENGTH_ERROR, 0x11, about_rpdo1, board.started + n))
+    out = io.StringIO()
+    Screen(out, in_place=False).draw("title", board.rows(), board.emcy_lines())
+    lines = out.getvalue().splitlines()
+    assert lines[2].split()[0] == "motor_duty"
+    assert lines[3:] == [
+        "EMCY 0x8210 pdo_length_error (Monitoring) register 0x11 about 0x1400, bytes 00 14 00 00 00"
+        f" at {n}.0 s"
+        for n in range(1, EMCY_LINES + 1)
+    ], "the latest EMCY_LINES, oldest first"
+
+
+def test_replay_decode_names_an_emcy_by_cia_301_and_by_the_board(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    log = tmp_path / "emcy.log"
+    node = RigTable.load().board.node.default_node_id
+    emcy = bytes([0x30, 0x81, 0x11, 0x16, 0x10, 0x7F, 0, 0])  # heartbeat of node 0x7F lost
+    with can.Logger(str(log)) as logger:
+        frame = can.Message(arbitration_id=emcy_cob_id(node), data=emcy, is_extended_id=False)
+        logger.on_message_received(frame)
+    code, out, err = run(capsys, "replay", str(log), "--decode")
+    assert (code, err) == (0, "")
+    assert out.strip() == (
+        f"0.000000  0x{emcy_cob_id(node):03X}  EMCY 0x8130 heartbeat_error (Monitoring) register 0x11 "
+        f"about 0x1016, bytes 16 10 7f 00 00 from node 0x{node:02X}"
+    )
+
+
+def test_pdo_apply_writes_a_profile_and_stores_it(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str
+) -> None:
+    lean = RigTable.load().board.pdo_profile("lean")
+    code, out, err = run(capsys, "pdo", "apply", "lean", *on_bus(channel))
+    assert code == 0, err
+    tpdo2 = next(p for p in lean.tpdos if p.number == 2)
+    tpdo2_id = tpdo2.cob_id(RigTable.load().board.node.default_node_id)
+    assert (
+        f"TPDO2 (0x{tpdo2_id:03X}): every 10th SYNC from SYNC counter 1: motor_velocity, output_velocity"
+        in out.splitlines()
+    )
+    assert not any(line.startswith("RPDO3") for line in out.splitlines()), "RPDO3 is off in lean"
+    assert "profile lean stored (0x1010:02)" in err
+    assert fake.local.sdo[tpdo2.communication_index][6].raw == tpdo2.sync_start == 1
+    assert fake.local.sdo[0x1019].raw == lean.sync_counter_overflow

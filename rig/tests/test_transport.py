@@ -355,3 +355,31 @@ def test_a_signal_during_the_c_exchanges_wait_raises_in_python() -> None:
         signal.signal(signal.SIGALRM, previous)
         link.close()
         peer.close()
+
+
+
+def test_sync_starts_follow_the_node_start_at_their_counter_then_every_nth() -> None:
+    from boardproto.cia301 import FunctionCode, cob_id
+    from hilrig.wire.transport import SyncStarts
+
+    def tpdo(node: int, kind: int, start: int) -> PdoLayout:
+        tpdo1 = cob_id(FunctionCode.TPDO1, node)
+        return PdoLayout(PdoDirection.TPDO, 1, tpdo1, True, kind, ("motor_duty",), ("h",), sync_start=start)
+
+    first, second = cob_id(FunctionCode.TPDO1, 2), cob_id(FunctionCode.TPDO1, 3)
+    turns = SyncStarts([tpdo(2, 10, 3), tpdo(3, 10, 4), tpdo(1, 1, 0)])
+    assert turns, "two TPDOs take turns"
+    counters = [*range(5, 241), *range(1, 30)]  # entered operational at counter 5; 240 wraps to 1
+    due = {k: sorted(turns.due(c)) for k, c in enumerate(counters)}
+    first_at = counters.index(3, 1)
+    assert not any(due[k] for k in range(first_at)), "nothing before counter 3 comes round"
+    assert {k: d for k, d in due.items() if d} == {
+        first_at: [first],
+        first_at + 1: [second],
+        first_at + 10: [first],
+        first_at + 11: [second],
+        first_at + 20: [first],
+        first_at + 21: [second],
+    }, "then every 10th SYNC"
+    turns.reset()
+    assert turns.due(13) == frozenset(), "after a reset, each waits for its counter again"

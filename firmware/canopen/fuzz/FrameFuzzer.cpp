@@ -418,6 +418,8 @@ class Harness {
     } else {
       check_sdo_timeout(sent);
     }
+    // A heartbeat event with 0x1029 = 2 stops the node from poll() too, ending any transfer.
+    if (node_.state() == co::NmtState::Stopped) sdo_.open = SdoModel::Open::None;
     check_counters();
   }
 
@@ -461,7 +463,8 @@ class Harness {
       check_response(frame, sent.sdo.front());
     }
     check_lss(frame, sent);
-    // NMT stop, both resets and losing the node id end any transfer without an answer.
+    // NMT stop (or a heartbeat event with 0x1029 = 2), both resets and losing the node id end
+    // any transfer without an answer.
     if (node_.state() == co::NmtState::Stopped || sent.boot_ups != 0 || !node_.has_node_id()) {
       sdo_.open = SdoModel::Open::None;
     }

@@ -220,6 +220,10 @@ class Traffic:
     in_peak_cycle: bool  # sent in the cycle where every synchronous TPDO is due
     count: int = 1
     highest_can_id: int | None = None  # None: every frame of the kind has `can_id`
+    sync_phase: tuple[int, int] | None = None
+    """A TPDO with a SYNC start value: (type n, start value s), due at the SYNC counters c with
+    (c - s) % n == 0 only, so it falls into the busiest cycle only where its turn is; None: any
+    cycle may hold it (`in_peak_cycle` says)."""
 
     def __post_init__(self) -> None:
         if self.count < 1:
@@ -278,10 +282,27 @@ def bus_load(traffic: Iterable[Traffic], rate_hz: float, bitrate: int | BusRates
 
 def _peak_cycle_seconds(traffic: Iterable[Traffic], rates: BusRates) -> float:
     """Bus time of the busiest cycle (worst-case stuffing): every frame of `traffic` that can
-    fall into it, once each."""
-    return sum(
-        t.count * rates.frame_seconds(t.data_bytes, worst_case=True) for t in traffic if t.in_peak_cycle
+    fall into it, once each; of the TPDOs that take turns by SYNC counter (`sync_phase`), those
+    of the counter where most of them meet."""
+    items = list(traffic)
+    anywhere = sum(
+        t.count * rates.frame_seconds(t.data_bytes, worst_case=True)
+        for t in items
+        if t.in_peak_cycle and t.sync_phase is None
     )
+    turns = [t for t in items if t.sync_phase is not None]
+    if not turns:
+        return anywhere
+    period = math.lcm(*(t.sync_phase[0] for t in turns if t.sync_phase is not None))
+    busiest = max(
+        sum(
+            t.count * rates.frame_seconds(t.data_bytes, worst_case=True)
+            for t in turns
+            if t.sync_phase is not None and (counter - t.sync_phase[1]) % t.sync_phase[0] == 0
+        )
+        for counter in range(1, period + 1)
+    )
+    return anywhere + busiest
 
 
 def _tpdo_per_second(pdo: Pdo, rate_hz: float) -> float:
@@ -314,7 +335,10 @@ def _node_traffic(table: BoardTable, rate_hz: float, node: int) -> tuple[list[Tr
             # In the busiest cycle every synchronous TPDO is due at once (and an event-driven
             # one may fire too).
             per_second = _tpdo_per_second(pdo, rate_hz)
-            sent.append(Traffic(pdo.name, pdo.cob_id(node), pdo.length_bytes, per_second, True))
+            phase = (pdo.transmission_type, pdo.sync_start) if pdo.sync_start else None
+            sent.append(
+                Traffic(pdo.name, pdo.cob_id(node), pdo.length_bytes, per_second, True, sync_phase=phase)
+            )
     if table.node.heartbeat_ms:
         sent.append(
             Traffic(
@@ -346,6 +370,7 @@ def _grouped(per_node: Sequence[Sequence[Traffic]]) -> list[Traffic]:
                 first.in_peak_cycle,
                 count=len(kinds),
                 highest_can_id=max(can_ids),
+                sync_phase=first.sync_phase,
             )
         )
     return grouped

@@ -60,6 +60,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "view",
     "diff",
     "busload",
+    "busstat",
+    "pdo",
     "soak",
     "completion",
 )

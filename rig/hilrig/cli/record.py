@@ -363,9 +363,9 @@ def describe_frame(cob_id: int, data: bytes, node: int) -> str:
         SYNC_COB_ID,
         FunctionCode,
         function_of,
-        split_emcy,
     )
     from hilrig.cli.scan import state_name
+    from hilrig.wire.node import EmcyRecord
 
     function, sender = function_of(cob_id)
     if cob_id == NMT_COB_ID and len(data) >= 2:
@@ -373,7 +373,7 @@ def describe_frame(cob_id: int, data: bytes, node: int) -> str:
     if cob_id == SYNC_COB_ID:
         return f"SYNC {data[0]}" if data else "SYNC"
     if function == FunctionCode.SYNC_EMCY:
-        return f"EMCY node 0x{sender:02X} code 0x{split_emcy(data).code:04X}"
+        return f"{EmcyRecord.from_frame(bytes(data)).summary} from node 0x{sender:02X}"
     if function == FunctionCode.HEARTBEAT and len(data) == 1:
         return f"heartbeat node 0x{sender:02X} {state_name(data[0] & HEARTBEAT_STATE_MASK)}"
     if function == FunctionCode.SDO_RESPONSE:

@@ -1,7 +1,8 @@
-"""`hilrig watch`: a live table of the fields the node streams in its TPDOs.
+"""`hilrig watch`: a live table of the fields the node streams in its TPDOs, and its EMCYs.
 
 The table is redrawn in place with ANSI cursor movement (no curses). Fields not carried by any
-enabled TPDO are read by SDO at each refresh instead. In lockstep the firmware runs a control
+enabled TPDO are read by SDO at each refresh instead. Under the table, the node's latest EMCYs,
+each with its CiA 301 class and the board's name for its code. In lockstep the firmware runs a control
 cycle and sends its synchronous TPDOs only on SYNC, and a node without a master stays
 pre-operational (no PDOs at all): for bring-up of a board on its own, `--nmt-start` puts it
 operational and `--sync-period-ms P` makes this command the SYNC producer.
@@ -40,14 +41,18 @@ from hilrig.cli.common import (
 )
 from hilrig.errors import NodeSilentError, RigError, SdoTimeoutError
 from hilrig.table import ObjectEntry
+from hilrig.wire.node import EmcyRecord
 
 if TYPE_CHECKING:
+    from canopen.emcy import EmcyError
+
     from hilrig.apps.log_trace import LiveBusTrace
     from hilrig.table import RigTable
     from hilrig.wire.node import BoardNode
     from hilrig.wire.transport import PdoLayout
 
 CLEAR_LINE = "\x1b[2K"
+EMCY_LINES = 5  # the latest EMCYs shown under the table
 
 
 def cursor_up(lines: int) -> str:
@@ -71,6 +76,8 @@ class Board:
         self.entries = entries
         self.named = named or {}  # names of the values of fields that have them (board.toml)
         self.readings = {e.name: Reading() for e in entries}
+        self.emcy: list[tuple[float, EmcyRecord]] = []  # (wall time, EMCY), the latest EMCY_LINES
+        self.started = time.time()
         self._lock = threading.Lock()
         self.changed = threading.Condition(self._lock)
 
@@ -82,6 +89,16 @@ class Board:
                     reading.value, reading.source = value, pdo.label
                     reading.updates += 1
             self.changed.notify_all()
+
+    def on_emcy(self, error: EmcyError) -> None:
+        """An EMCY the node sent (canopen's receive thread)."""
+        record = EmcyRecord(error.code, error.register, bytes(error.data), cycle=0, time_s=0.0)
+        with self._lock:
+            self.emcy = [*self.emcy, (error.timestamp, record)][-EMCY_LINES:]
+
+    def emcy_lines(self) -> list[str]:
+        with self._lock:
+            return [f"{record.summary} at {at - self.started:.1f} s" for at, record in self.emcy]
 
     def store(self, name: str, value: float, source: str) -> None:
         with self._lock:
@@ -123,13 +140,13 @@ class Screen:
         self.in_place = in_place
         self._lines = 0
 
-    def draw(self, title: str, rows: list[list[str]]) -> None:
+    def draw(self, title: str, rows: list[list[str]], notes: list[str] | None = None) -> None:
         from io import StringIO
 
         text = StringIO()
         text.write(title + "\n")
         print_table(rows, ["name", "value", "unit", "via", "updates"], out=text, right=frozenset({1, 4}))
-        lines = text.getvalue().splitlines()
+        lines = text.getvalue().splitlines() + (notes or [])
         if self.in_place:
             prefix = cursor_up(self._lines) if self._lines else ""
             self.out.write(prefix + "".join(f"{CLEAR_LINE}{line}\n" for line in lines))
@@ -218,6 +235,7 @@ def run(args: argparse.Namespace) -> int:
         polled = [e.name for e in entries if e.name not in streamed]
         board = Board(entries, table.board.named_values)
         node.on_tpdo(board.on_tpdo)
+        node.on_emcy(board.on_emcy)
         live = _live_trace(args, node, table) if args.viewer else None
         if args.nmt_start:
             node.nmt(NmtCommand.START)
@@ -303,7 +321,7 @@ def _loop(
                 board.store(name, node.read(name), "SDO")
             except SdoTimeoutError as error:
                 raise NodeSilentError(f"{error}; {silent_hint(node.node_id)}") from error
-        screen.draw(_title(args, node, started), board.rows())
+        screen.draw(_title(args, node, started), board.rows(), board.emcy_lines())
         frames += 1
         if args.once:
             missing = board.missing()

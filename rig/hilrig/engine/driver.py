@@ -17,7 +17,15 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
-from boardproto.cia301 import SYNC_COB_ID, SYNC_COUNTER_MAX, NmtState, emcy_cob_id, sync_counter
+from boardproto.cia301 import (
+    SYNC_COB_ID,
+    SYNC_COUNTER_MAX,
+    ErrorBehaviour,
+    NmtState,
+    emcy_cob_id,
+    split_emcy,
+    sync_counter,
+)
 from hilrig.engine.history import (
     TRUTH_ALIASES,
     TRUTH_NAMES,
@@ -31,6 +39,7 @@ from hilrig.engine.history import (
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.observe.paths import BUS_EVENTS_PATH
 from hilrig.plants import JointState, RawSensors
+from hilrig.table import EmcyCode
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import (
     Decoder,
@@ -38,6 +47,7 @@ from hilrig.wire.transport import (
     FrameLink,
     PdoDirection,
     PdoLayout,
+    SyncStarts,
     can_frame,
     due_table,
     exchanger,
@@ -298,6 +308,7 @@ class Driver:
         self._emcy_cob_id = emcy_cob_id(node.node_id)
         self._actuator: tuple[PdoLayout, int] | None = None
         self._due_table: list[frozenset[int]] = [frozenset()]
+        self._sync_starts = SyncStarts(())
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
         self._decoders: dict[int, Decoder] = {}
         """COB-ID -> (length, unpack, cycles, payloads) of every enabled TPDO: what a cycle's
@@ -386,6 +397,7 @@ class Driver:
         self._tpdo_names = frozenset(n for p in enabled_tpdos for n in p.names)
         self._actuator = (actuator[0], actuator[0].names.index(ACTUATOR_OUTPUT)) if actuator else None
         self._due_table = due_table(enabled_tpdos)
+        self._sync_starts = SyncStarts(enabled_tpdos)
         keep = self.history.keep
         self._decoders = {
             p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p))
@@ -427,10 +439,21 @@ class Driver:
         """Tell the driver the node's NMT state changed (the rig sent the command)."""
         self._operational = state is NmtState.OPERATIONAL
         self._syncs_since_operational = 0
+        self._sync_starts.reset()
 
     @property
     def operational(self) -> bool:
         return self._operational
+
+    def _heartbeat_event(self) -> None:
+        """The node reported a heartbeat event (its EMCY heartbeat_error): it changes its NMT
+        state right after, by its error behaviour 0x1029:01 (CiA 301), before that cycle's TPDOs,
+        which then do not come."""
+        behaviour = self.node.error_behaviour
+        if behaviour is ErrorBehaviour.STOPPED:
+            self.node_entered(NmtState.STOPPED)
+        elif behaviour is ErrorBehaviour.PRE_OPERATIONAL and self._operational:
+            self.node_entered(NmtState.PRE_OPERATIONAL)
 
     # --- Values -------------------------------------------------------------------------
     def latest(self, name: str) -> Value:
@@ -483,6 +506,8 @@ class Driver:
     def _other_frame(self, cob_id: int, data: bytes) -> None:
         if cob_id == self._emcy_cob_id:
             self.node.emcy_received(data)
+            if split_emcy(data).code == EmcyCode.HEARTBEAT_ERROR:
+                self._heartbeat_event()
         listeners = self._listeners.get(cob_id)
         if listeners is not None:
             for callback in listeners:

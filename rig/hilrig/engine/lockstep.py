@@ -214,6 +214,8 @@ class LockstepDriver(Driver):
         if self._operational:
             sync_number = self._syncs_since_operational = self._syncs_since_operational + 1
             due = self._due_table[sync_number % len(self._due_table)]
+            if self._sync_starts:  # TPDOs with a SYNC start value: by the counter
+                due = due | self._sync_starts.due(sync_counter(n))
         else:
             sync_number = 0
             due = _NOTHING_DUE
@@ -277,6 +279,8 @@ class LockstepDriver(Driver):
                 out = b""
                 if frame is not False:
                     self._take(got, n, t, due, sync_number, *frame)  # type: ignore[misc]
+                    if due and not self._operational:  # it left operational (a heartbeat event)
+                        due = frozenset(got)
                     continue
                 if guard is None:
                     guard = HangGuard(self.tpdo_timeout_s, self.activity, LIVENESS_SLICE_S)

@@ -27,8 +27,11 @@ from canopen.pdo import PdoMap
 from canopen.sdo import SdoAbortedError, SdoClient, SdoCommunicationError
 
 from boardproto.cia301 import (
+    ERROR_BEHAVIOUR_INDEX,
     STANDARD_ID_MASK,
     SYNC_COUNTER_MAX,
+    SYNC_COUNTER_OVERFLOW_INDEX,
+    ErrorBehaviour,
     NmtCommand,
     NmtState,
     SdoAbortCode,
@@ -38,7 +41,7 @@ from boardproto.cia301 import (
     split_emcy,
 )
 from hilrig.errors import NodeSilentError, SdoAbortError, SdoTimeoutError
-from hilrig.table import ObjectEntry, RigTable
+from hilrig.table import EmcyCode, ObjectEntry, RigTable
 from hilrig.wire.transport import (
     FrameLink,
     PdoDirection,
@@ -159,7 +162,9 @@ def emcy_object_index(manufacturer: bytes) -> int:
 
 @dataclass(frozen=True)
 class EmcyRecord:
-    """An EMCY the node sent, stamped with the lockstep cycle and simulation time it arrived in."""
+    """An EMCY the node sent, stamped with the lockstep cycle and simulation time it arrived in.
+    The one decoder of an EMCY into words: its code's CiA 301 class (canopen's table), the
+    board's own name for it (board.toml's [[emcy]]), the register and the object it is about."""
 
     code: int
     register: int
@@ -167,20 +172,43 @@ class EmcyRecord:
     cycle: int
     time_s: float
 
+    @classmethod
+    def from_frame(cls, data: bytes, cycle: int = 0, time_s: float = 0.0) -> EmcyRecord:
+        """The record of an EMCY frame's data (`boardproto.cia301.split_emcy`)."""
+        parts = split_emcy(data)
+        return cls(parts.code, parts.register, parts.manufacturer, cycle, time_s)
+
     @property
     def description(self) -> str:
+        """CiA 301's meaning of the code: its error class ('Monitoring', 'Temperature'...)."""
         return EmcyError(self.code, self.register, self.data, 0.0).get_desc()
+
+    @property
+    def board_name(self) -> str | None:
+        """The board's name for the code (board.toml's [[emcy]] name), None for another code."""
+        try:
+            return EmcyCode(self.code).name.lower()
+        except ValueError:
+            return None
 
     @property
     def object_index(self) -> int:
         """Index of the object the error is about (`emcy_object_index`)."""
         return emcy_object_index(self.data)
 
-    def __str__(self) -> str:
+    @property
+    def summary(self) -> str:
+        """The EMCY in words, without when: 'EMCY 0x8130 heartbeat_error (Monitoring) register
+        0x11 about 0x1016, bytes 16 10 7f 00 00'."""
+        name = self.board_name
+        named = f" {name}" if name is not None else ""
         return (
-            f"EMCY 0x{self.code:04X} ({self.description}) register 0x{self.register:02X} "
-            f"about 0x{self.object_index:04X} at t = {self.time_s:.6g} s (cycle {self.cycle})"
+            f"EMCY 0x{self.code:04X}{named} ({self.description}) register 0x{self.register:02X} "
+            f"about 0x{self.object_index:04X}, bytes {self.data.hex(' ')}"
         )
+
+    def __str__(self) -> str:
+        return f"{self.summary} at t = {self.time_s:.6g} s (cycle {self.cycle})"
 
 
 TpdoCallback = Callable[[PdoLayout, dict[str, float | int]], None]
@@ -225,6 +253,8 @@ class BoardNode:
         self.network.add_node(self.remote)
         self.rpdos: dict[int, PdoLayout] = {}
         self.tpdos: dict[int, PdoLayout] = {}
+        self.error_behaviour = ErrorBehaviour.PRE_OPERATIONAL
+        """What a heartbeat event does to the node's NMT state (0x1029:01), read with the PDOs."""
         self.link: FrameLink | None = None
         """The fast frame link of the per-cycle PDO exchange (`open_link`), None before."""
         self._emcy_callbacks: list[Callable[[EmcyError], None]] = []
@@ -378,6 +408,11 @@ class BoardNode:
     def _upload(self, index: int, subindex: int, what: str, entry: ObjectEntry | None = None) -> bytes:
         return self._call_sdo(what, entry, lambda: self.remote.sdo.upload(index, subindex))
 
+    def call_sdo(self, what: str, transfer: Callable[[], _T]) -> _T:
+        """Run canopen SDO traffic (e.g. a `PdoMap.save`); an abort is SdoAbortError in words,
+        no answer SdoTimeoutError, each starting with `what`."""
+        return self._call_sdo(what, None, transfer)
+
     def _call_sdo(self, what: str, entry: ObjectEntry | None, transfer: Callable[[], _T]) -> _T:
         try:
             return transfer()
@@ -390,9 +425,20 @@ class BoardNode:
     def read_pdo_configuration(self, *, from_node: bool) -> None:
         """Load every PDO's COB-ID, type and mapping into canopen's maps.
 
-        from_node=True reads them over SDO (what the node really does, e.g. after a remap);
-        False takes the EDS defaults without bus traffic.
+        from_node=True reads them over SDO (what the node really does, e.g. after a remap),
+        and its error behaviour (0x1029:01) with them; False takes the EDS defaults without bus
+        traffic.
         """
+        self.error_behaviour = ErrorBehaviour.PRE_OPERATIONAL  # also CiA 301's for a node without 0x1029
+        if from_node:
+            try:
+                raw = self.upload(ERROR_BEHAVIOUR_INDEX, 1, "read error behaviour 0x1029:01")
+            except SdoAbortError:
+                pass
+            else:
+                value = int.from_bytes(raw, "little")
+                if value in {int(known) for known in ErrorBehaviour}:  # else a profile's own: unknown
+                    self.error_behaviour = ErrorBehaviour(value)
         for pdo in (self.remote.rpdo, self.remote.tpdo):
             try:
                 pdo.read(from_od=not from_node)
@@ -402,12 +448,21 @@ class BoardNode:
                 ) from error
             except SdoCommunicationError as error:
                 raise SdoTimeoutError(f"read PDO configuration: no answer ({error})") from error
+        counting = from_node and self._counts_syncs()
         self.rpdos = compile_pdos(PdoDirection.RPDO, self.remote.rpdo.map)
-        self.tpdos = compile_pdos(PdoDirection.TPDO, self.remote.tpdo.map)
+        self.tpdos = compile_pdos(PdoDirection.TPDO, self.remote.tpdo.map, sync_counter=counting)
         for number, pdo_map in self.remote.tpdo.map.items():
             if number not in self._wired_tpdos:  # read() may run again; wire each map once
                 pdo_map.add_callback(self._on_tpdo)
                 self._wired_tpdos.add(number)
+
+    def _counts_syncs(self) -> bool:
+        """Whether the node counts SYNCs (0x1019 != 0), so its TPDOs' start values count; a
+        node without 0x1019 does not."""
+        try:
+            return self.upload(SYNC_COUNTER_OVERFLOW_INDEX, 0, "read 0x1019")[:1] not in (b"", b"\0")
+        except SdoAbortError:
+            return False
 
     def on_tpdo(self, callback: TpdoCallback) -> None:
         self._tpdo_callbacks.append(callback)

@@ -86,6 +86,9 @@ class PdoLayout:
     """struct code of each mapped object (little-endian, as CANopen); empty: no codec."""
     addresses: tuple[tuple[int, int], ...] = ()
     """(index, subindex) of each mapped object."""
+    sync_start: int = 0
+    """A TPDO's SYNC start value (sub 6) when the node counts SYNCs (0x1019 != 0): first sent
+    at the SYNC whose counter is it (`SyncStarts`); 0: none."""
     codec: struct.Struct = field(init=False, repr=False, compare=False)
     length: int = field(init=False, compare=False)
     """Bytes in the frame, from the mapping."""
@@ -159,9 +162,13 @@ def _formats(pdo_map: PdoMap, label: str) -> tuple[str, ...]:
     return tuple(formats)
 
 
-def compile_pdo(direction: PdoDirection, number: int, pdo_map: PdoMap) -> PdoLayout:
-    """A PdoLayout with its codec from one of canopen's PDO maps (after `pdo.read()`)."""
+def compile_pdo(
+    direction: PdoDirection, number: int, pdo_map: PdoMap, *, sync_counter: bool = False
+) -> PdoLayout:
+    """A PdoLayout with its codec from one of canopen's PDO maps (after `pdo.read()`);
+    `sync_counter`: the node counts SYNCs (0x1019 != 0), so a TPDO's start value counts."""
     label = f"{direction.value}{number}"
+    start = pdo_map.sync_start_value if sync_counter and direction is PdoDirection.TPDO else 0
     return PdoLayout(
         direction=direction,
         number=number,
@@ -171,21 +178,63 @@ def compile_pdo(direction: PdoDirection, number: int, pdo_map: PdoMap) -> PdoLay
         names=tuple(var.name for var in pdo_map.map),
         formats=_formats(pdo_map, label),
         addresses=tuple((var.index, var.subindex) for var in pdo_map.map),
+        sync_start=start or 0,
     )
 
 
-def compile_pdos(direction: PdoDirection, maps: Mapping[int, PdoMap]) -> dict[int, PdoLayout]:
+def compile_pdos(
+    direction: PdoDirection, maps: Mapping[int, PdoMap], *, sync_counter: bool = False
+) -> dict[int, PdoLayout]:
     """Every PDO of one direction, by number."""
-    return {number: compile_pdo(direction, number, pdo_map) for number, pdo_map in maps.items()}
+    return {
+        number: compile_pdo(direction, number, pdo_map, sync_counter=sync_counter)
+        for number, pdo_map in maps.items()
+    }
 
 
 def due_table(tpdos: Iterable[PdoLayout]) -> list[frozenset[int]]:
     """The COB-IDs of the cyclic TPDOs due at each SYNC: entry k is the set due at every SYNC
     whose number since the node went operational is k modulo the table's length (the least
-    common multiple of their transmission types; one empty entry when none is cyclic)."""
-    cyclic = [p for p in tpdos if p.is_cyclic]
+    common multiple of their transmission types; one empty entry when none is cyclic). TPDOs
+    with a SYNC start value are not in it: `SyncStarts` has them."""
+    cyclic = [p for p in tpdos if p.is_cyclic and not p.sync_start]
     period = math.lcm(*(p.transmission_type for p in cyclic)) if cyclic else 1
     return [frozenset(p.cob_id for p in cyclic if p.due_at_sync(k or period)) for k in range(period)]
+
+
+class SyncStarts:
+    """The cyclic TPDOs with a SYNC start value, as the node sends them: after it entered
+    operational (`reset`), one goes out first at the SYNC whose counter equals its start value,
+    then at every n-th SYNC (n its transmission type), whatever the counter says."""
+
+    def __init__(self, tpdos: Iterable[PdoLayout]) -> None:
+        self._pdos = [p for p in tpdos if p.is_cyclic and p.sync_start]
+        self._since: dict[int, int] = {}  # COB-ID -> SYNCs since it last went out, once started
+
+    def __bool__(self) -> bool:
+        return bool(self._pdos)
+
+    def reset(self) -> None:
+        self._since.clear()
+
+    def due(self, counter: int) -> frozenset[int]:
+        """The COB-IDs due at the next SYNC, which carries `counter`; call once per SYNC."""
+        due = []
+        for pdo in self._pdos:
+            since = self._since.get(pdo.cob_id)
+            if since is None:  # not started: it starts at the SYNC of its counter
+                if counter != pdo.sync_start:
+                    continue
+                since = 0
+            else:
+                since += 1
+                if since < pdo.transmission_type:
+                    self._since[pdo.cob_id] = since
+                    continue
+                since = 0
+            due.append(pdo.cob_id)
+            self._since[pdo.cob_id] = since
+        return frozenset(due)
 
 
 def can_frame(cob_id: int, data: bytes) -> bytes:
@@ -558,6 +607,7 @@ __all__ = [
     "PdoDirection",
     "PdoLayout",
     "RawCanLink",
+    "SyncStarts",
     "Unpack",
     "append_frame_rows",
     "append_row",
