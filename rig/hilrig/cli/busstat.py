@@ -78,14 +78,17 @@ def run(args: argparse.Namespace) -> int:
     from hilrig.apps.busstat import measure, report
     from hilrig.session.buslog import read_log
 
-    if args.bitrate is None:
-        raise UsageError("give the bus's bit rate with -b (e.g. -b 1M): the load is a share of it")
+    no_bitrate = UsageError("give the bus's bit rate with -b (e.g. -b 1M): the load is a share of it")
+    if args.bitrate is None and args.file is None:
+        raise no_bitrate
     table = load_table(args)
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
     names = {t.can_id: t.name for t in lockstep_traffic(table.board, args.rate_hz or DEFAULT_RATE_HZ, node)}
     tpdos = [pdo.cob_id(node) for pdo in table.board.tpdos if pdo.enabled]
     if args.file is not None:
-        with read_log(args.file) as logged:
+        with read_log(args.file) as logged:  # a format it does not read is said first
+            if args.bitrate is None:
+                raise no_bitrate
             stats = measure(logged, tpdos, args.rate_hz)
         where = str(args.file)
     else:

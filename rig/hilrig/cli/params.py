@@ -11,26 +11,40 @@ every one back. A DCF of another product is refused before anything is written.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from hilrig.cli.common import (
     Command,
     add_node_options,
     board_node,
     describe_bus,
+    existing_file,
     load_table,
     open_bus,
     progress,
     resolved_node_id,
 )
+from hilrig.cli.files import output_file
+
+DCF_SUFFIXES = (".dcf", ".eds")
+"""What a parameter set is read from and written as (a DCF is an EDS with values)."""
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     save = actions.add_parser("save", help="write the board's stored objects and their values to a DCF")
-    save.add_argument("file", type=Path, metavar="FILE.dcf", help="the DCF to write (replaced whole)")
+    save.add_argument(
+        "file",
+        type=output_file("DCF", suffixes=DCF_SUFFIXES),
+        metavar="FILE.dcf",
+        help="the DCF to write (replaced whole)",
+    )
     load = actions.add_parser("load", help="write a DCF's values to the board, store and verify them")
-    load.add_argument("file", type=Path, metavar="FILE.dcf", help="the DCF to read")
+    load.add_argument(
+        "file",
+        type=existing_file("DCF", "`hilrig params save FILE.dcf` writes one", suffixes=DCF_SUFFIXES),
+        metavar="FILE.dcf",
+        help="the DCF to read",
+    )
     load.add_argument("--no-store", action="store_true", help="write and verify, but do not store (0x1010)")
     for sub in (save, load):
         add_node_options(sub, sdo_timeout_s=1.0)
@@ -43,8 +57,6 @@ def run(args: argparse.Namespace) -> int:
     table = load_table(args)
     node_id = resolved_node_id(args, table)
     if args.action == "load":
-        if not args.file.is_file():
-            raise UsageError(f"{args.file}: no such file (`hilrig params save {args.file}` writes one)")
         try:
             dcf = read_dcf(args.file, node_id)
         except DcfError as error:
