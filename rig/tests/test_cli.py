@@ -110,7 +110,7 @@ def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFix
         (["lss", "set", "5", "--serial", "twelve"], "expected a number (decimal or 0x hex), got 'twelve'"),
         (["lss", "set", "200", "--serial", "1"], "expected a node id 1..127"),
         (["lss", "number", "--first-id", "0"], "expected a node id 1..127"),
-        (["params", "load", "nowhere.dcf"], "nowhere.dcf: no such file (`hilrig params save nowhere.dcf`"),
+        (["params", "load", "nowhere.dcf"], "DCF nowhere.dcf does not exist; `hilrig params save FILE.dcf`"),
         (["params", "save"], "the following arguments are required: FILE.dcf"),
         ([], "the following arguments are required: COMMAND"),
     ],

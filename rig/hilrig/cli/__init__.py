@@ -7,6 +7,7 @@
     hilrig sdo read 0x1018:1                  # any object by index, value and hex
     hilrig nmt start --wait                   # NMT, and the state the heartbeat then shows
     hilrig watch --sync-period-ms 10          # live table of the TPDO fields
+    hilrig monitor                            # every frame live, decoded with the board's names
     hilrig capture motor_velocity --samples 2000   # the board's recorder: every cycle, uploaded
     hilrig scan                               # which nodes are on the bus
     hilrig lss number --chain                 # new boards: node ids over LSS, stored
@@ -51,6 +52,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "sdo_raw",
     "nmt",
     "watch",
+    "monitor",
     "capture",
     "scan",
     "lss",

@@ -391,7 +391,7 @@ def _decode(args: argparse.Namespace) -> int:
         check_names(table, args.field)
     database = load_dbc(dbc_path(args))
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
-    decoder = _FrameDecoder(NodeDbc(database, table, node), table, node, set(args.field or ()))
+    decoder = FrameDecoder(NodeDbc(database, table, node), table, node, set(args.field or ()))
     first: float | None = None
     frames = 0
     with read_log(args.file) as logged:
@@ -412,8 +412,9 @@ def _decode(args: argparse.Namespace) -> int:
     return 0
 
 
-class _FrameDecoder:
-    """One logged frame in words: its fields decoded by the DBC, or the CiA 301 service."""
+class FrameDecoder:
+    """One frame in words: its fields decoded by the DBC, or the CiA 301 service (replay
+    --decode, hilrig monitor)."""
 
     def __init__(self, dbc: NodeDbc, table: RigTable, node: int, wanted: set[str]) -> None:
         self.dbc = dbc

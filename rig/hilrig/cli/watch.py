@@ -132,6 +132,10 @@ class Board:
             ]
 
 
+WATCH_COLUMNS = (["name", "value", "unit", "via", "updates"], frozenset({1, 4}))
+"""The table's column names, and those set right."""
+
+
 class Screen:
     """Draws the table; on a terminal each frame overwrites the previous one."""
 
@@ -140,12 +144,19 @@ class Screen:
         self.in_place = in_place
         self._lines = 0
 
-    def draw(self, title: str, rows: list[list[str]], notes: list[str] | None = None) -> None:
+    def draw(
+        self,
+        title: str,
+        rows: list[list[str]],
+        notes: list[str] | None = None,
+        headers: tuple[list[str], frozenset[int]] = WATCH_COLUMNS,
+    ) -> None:
+        """The title, the rows under `headers` (their names, and the columns set right), the notes."""
         from io import StringIO
 
         text = StringIO()
         text.write(title + "\n")
-        print_table(rows, ["name", "value", "unit", "via", "updates"], out=text, right=frozenset({1, 4}))
+        print_table(rows, headers[0], out=text, right=headers[1])
         lines = text.getvalue().splitlines() + (notes or [])
         if self.in_place:
             prefix = cursor_up(self._lines) if self._lines else ""
