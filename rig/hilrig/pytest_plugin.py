@@ -13,14 +13,14 @@
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
+from hilrig.files import replacing
 
 ATTACHMENT = "[[ATTACHMENT|{path}]]"
 """How a JUnit reader finds a file to attach in a test's system-out."""
@@ -51,15 +51,8 @@ def baseline_path(folder: Path, nodeid: str) -> Path:
 
 def _keep(trace: Path, kept: Path) -> None:
     """Copy whole: to a temporary file beside, renamed when complete."""
-    kept.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{kept.name}.", dir=kept.parent)
-    os.close(handle)
-    try:
+    with replacing(kept) as temporary:
         shutil.copyfile(trace, temporary)
-        os.replace(temporary, kept)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 @pytest.hookimpl(hookwrapper=True)

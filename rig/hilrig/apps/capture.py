@@ -24,11 +24,9 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import os
 import struct
-import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
@@ -37,6 +35,7 @@ from boardproto import Field
 from boardproto.recording import Recording, decode_recording
 from boardproto.table import Recorder, RecorderObject, RecorderStatusSub, RecorderTriggerSub
 from hilrig.errors import RigError
+from hilrig.files import replacing
 from hilrig.table import RigTable
 
 if TYPE_CHECKING:
@@ -253,26 +252,11 @@ def _float32_text(value: float) -> str:
     return str(np.float32(value))
 
 
-@contextlib.contextmanager
-def _replacing(path: Path, mode: str = "w") -> Iterator[Path]:
-    """A temporary file beside `path` that replaces it when the block ends without an error."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    descriptor, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(descriptor)
-    try:
-        yield Path(temporary)
-        os.chmod(temporary, 0o644)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-
-
 def write_csv(recording: Recording, table: RigTable, path: str | Path, *, period_s: float) -> None:
     """One row per sample: cycle, time (cycle * period, as the trace's sim_time), one column per
     channel headed 'name [unit]'. Written whole or not at all (temporary file, then rename)."""
     fields = channel_fields(recording, table)
-    with _replacing(Path(path)) as temporary, temporary.open("w", newline="") as file:
+    with replacing(Path(path)) as temporary, temporary.open("w", newline="") as file:
         writer = csv.writer(file, lineterminator="\n")
         writer.writerow(["cycle", "time [s]", *(column_header(f) for f in fields)])
         for k, row in enumerate(recording.samples):
@@ -301,7 +285,7 @@ def write_rrd(recording: Recording, table: RigTable, path: str | Path, *, period
     from hilrig.observe.tracer import Tracer
 
     target = Path(path)
-    with _replacing(target) as temporary:
+    with replacing(target) as temporary:
         tracer = Tracer(TraceSink.rrd(temporary), table, background=False, recording_name=target.stem)
         try:
             log_recording(tracer, recording, table, period_s=period_s)

@@ -19,9 +19,7 @@ at /diff/divergences on the cycle of its first divergence; the `diff` dashboard 
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from fnmatch import fnmatch
@@ -30,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hilrig.files import replacing
 from hilrig.observe.paths import (
     BUS_ROOT,
     CYCLE_TIMELINE,
@@ -289,11 +288,9 @@ def write_comparison(
     whole: to a temporary file beside `out`, renamed when complete."""
     import rerun as rr
 
-    handle, temporary = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".rrd", dir=out.parent)
-    os.close(handle)
-    try:
+    with replacing(out) as temporary:
         recording = rr.RecordingStream(APPLICATION_ID, recording_id=f"diff-{out.stem}")
-        recording.set_sinks(rr.FileSink(temporary))
+        recording.set_sinks(rr.FileSink(str(temporary)))
         period = comparison.period_s
 
         def send(path: str, cycles: np.ndarray, values: np.ndarray, label: str) -> None:
@@ -323,10 +320,6 @@ def write_comparison(
             recording.send_blueprint(blueprint, make_active=False, make_default=True)
         recording.flush()
         recording.disconnect()
-        os.replace(temporary, out)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
     return out
 
 

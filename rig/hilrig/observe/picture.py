@@ -11,14 +11,13 @@ in the image (`rig/tests/test_failure_picture.py`).
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from hilrig.expect import FailedCheck
+from hilrig.files import replacing
 
 CURVE = "#1f3fbf"
 """The field's samples."""
@@ -84,15 +83,8 @@ def draw(failed: FailedCheck, path: Path) -> Path:
     title = failed.message.split("; ")[0]
     axes.set_title("\n".join(textwrap.wrap(title, 100)), fontsize=9)
     figure.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-    os.close(handle)
-    try:
+    with replacing(path) as temporary:
         figure.savefig(temporary, format="png")
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
     return path
 
 

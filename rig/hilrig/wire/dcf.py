@@ -30,6 +30,7 @@ from canopen.sdo import SdoAbortedError
 
 from boardproto.cia301 import NODE_ID_MASK, SdoAbortCode
 from hilrig.errors import RigError
+from hilrig.files import replacing
 from hilrig.table import RigTable
 
 STORE_PARAMETERS = 0x1010
@@ -113,9 +114,8 @@ def save_dcf(remote: canopen.RemoteNode, table: RigTable, path: Path) -> canopen
         except SdoAbortedError as error:
             raise DcfError(f"reading {_describe(var)}: {_abort_text(error)}") from None
         var.value_raw = _relative(var, remote.id)
-    temporary = path.with_name(f".{path.name}.tmp")
-    canopen.export_od(od, str(temporary), doc_type="dcf")
-    temporary.replace(path)
+    with replacing(path) as temporary:
+        canopen.export_od(od, str(temporary), doc_type="dcf")
     return od
 
 

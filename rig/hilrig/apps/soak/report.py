@@ -10,7 +10,6 @@ import datetime
 import enum
 import json
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
@@ -20,6 +19,7 @@ from hilrig.apps.soak.checker import Tally
 from hilrig.apps.soak.fault_plan import FaultPlan
 from hilrig.apps.soak.memory import memory_verdict
 from hilrig.apps.soak.soak import Soak, SoakProgress
+from hilrig.files import replacing
 
 SERIES_POINTS = 250
 """The report keeps at most this many RSS samples (evenly thinned); the summary uses all."""
@@ -56,10 +56,8 @@ def compare_counters(expected: dict[str, int], actual: dict[str, int]) -> list[s
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     """Write `data` as JSON to `path` via a temporary file and rename: never half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(data, indent=2) + "\n")
-    os.replace(tmp, path)
+    with replacing(path) as temporary:
+        temporary.write_text(json.dumps(data, indent=2) + "\n")
 
 
 def format_duration(seconds: float) -> str:
