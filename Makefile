@@ -74,6 +74,17 @@ run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary
 	  $(if $(ROBOT),--modules $(ROBOT) --out $(CURDIR)/$(OUT)/robot,--out $(CURDIR)/$(OUT)/demo) \
 	  $(if $(VIEWER),--viewer $(VIEWER))
 
+# The README's pictures of every dashboard (docs/dashboards/), from fresh runs in one VM: the demo,
+# a 4-module robot, and the demo with another seed for the diff; then headless Chromium natively.
+SHOTS := $(OUT)/screenshots
+.PHONY: screenshots
+screenshots: build ## one picture per dashboard for the README (docs/dashboards/), from fresh make run traces
+	@HIL_OUT_DIR=$(CURDIR)/$(SHOTS) tools/with-vcan -- bash -c '$(PY) tools/run-demo.py --out $(CURDIR)/$(SHOTS)/demo \
+	  && $(PY) tools/run-demo.py --modules 4 --seconds 2 --out $(CURDIR)/$(SHOTS)/robot \
+	  && $(PY) tools/run-demo.py --seed 2 --out $(CURDIR)/$(SHOTS)/demo-seed2'
+	@$(PY) tools/screenshots.py --demo $(SHOTS)/demo/trace.rrd --robot $(SHOTS)/robot/trace.rrd \
+	  --other $(SHOTS)/demo-seed2/trace.rrd --out docs/dashboards
+
 # BASELINE=<commit>: the commit whose engine (tools/rig_probe.py rig and engine, under callgrind)
 # the report sets beside this checkout's; empty: tools/bench_baseline.py's DEFAULT_BASELINE, the
 # last commit before the rig's folders became its layers. Its tree is exported once into

@@ -8,18 +8,24 @@ import threading
 import can
 import pytest
 
+from boardproto.cia301 import SYNC_COB_ID, NmtState, emcy_cob_id, heartbeat_cob_id
 from hilrig.cli import main
+from hilrig.table import BOARD_TABLE
 
 NODE = 0x10
 
 
+SYNC, TPDO1 = SYNC_COB_ID, BOARD_TABLE.tpdo(1).cob_id(NODE)
+EMCY, HEARTBEAT = emcy_cob_id(NODE), heartbeat_cob_id(NODE)
+
+
 def frames() -> list[can.Message]:
     return [
-        can.Message(arbitration_id=0x080, data=bytes([7]), is_extended_id=False),  # SYNC, counter 7
-        can.Message(arbitration_id=0x190, data=bytes(8), is_extended_id=False),  # TPDO1 of node 0x10
-        # EMCY 0x8130 (heartbeat consumer) from node 0x10, error register 0x11
-        can.Message(arbitration_id=0x090, data=bytes([0x30, 0x81, 0x11]) + bytes(5), is_extended_id=False),
-        can.Message(arbitration_id=0x710, data=bytes([0x05]), is_extended_id=False),  # heartbeat: operational
+        can.Message(arbitration_id=SYNC, data=bytes([7]), is_extended_id=False),  # counter 7
+        can.Message(arbitration_id=TPDO1, data=bytes(8), is_extended_id=False),
+        # EMCY 0x8130 (heartbeat consumer), error register 0x11
+        can.Message(arbitration_id=EMCY, data=bytes([0x30, 0x81, 0x11]) + bytes(5), is_extended_id=False),
+        can.Message(arbitration_id=HEARTBEAT, data=bytes([NmtState.OPERATIONAL]), is_extended_id=False),
         can.Message(is_error_frame=True),
     ]
 
@@ -49,9 +55,10 @@ def test_monitor_shows_each_id_decoded_with_the_boards_names(capsys: pytest.Capt
     assert out[0].startswith("monitor: virtual") and "error frames " in out[0]
     assert int(out[0].rsplit(" ", 1)[1]) > 0, out[0]
     by_id = {line.split()[0]: line for line in out[2:]}  # under the title and the header
-    assert set(by_id) == {"0x080", "0x090", "0x190", "0x710"}, out
-    assert by_id["0x080"].endswith("SYNC 7")
-    assert "TPDO1" in by_id["0x190"] and "motor_duty=" in by_id["0x190"]
-    assert "0x8130 heartbeat_error" in by_id["0x090"]
-    assert by_id["0x710"].endswith("heartbeat node 0x10 operational")
+    row = {can_id: by_id[f"0x{can_id:03X}"] for can_id in (SYNC, TPDO1, EMCY, HEARTBEAT)}
+    assert len(by_id) == 4, out
+    assert row[SYNC].endswith("SYNC 7")
+    assert "TPDO1" in row[TPDO1] and "motor_duty=" in row[TPDO1]
+    assert "0x8130 heartbeat_error" in row[EMCY]
+    assert row[HEARTBEAT].endswith("heartbeat node 0x10 operational")
     assert heard == [], "the monitor sent frames"
