@@ -79,9 +79,7 @@ run: build ## the main job: firmware + rig on a vcan bus, demo scenario, summary
 SHOTS := $(OUT)/screenshots
 .PHONY: screenshots
 screenshots: build ## one picture per dashboard for the README (docs/dashboards/), from fresh make run traces
-	@HIL_OUT_DIR=$(CURDIR)/$(SHOTS) tools/with-vcan -- bash -c '$(PY) tools/run-demo.py --out $(CURDIR)/$(SHOTS)/demo \
-	  && $(PY) tools/run-demo.py --modules 4 --seconds 2 --out $(CURDIR)/$(SHOTS)/robot \
-	  && $(PY) tools/run-demo.py --seed 2 --out $(CURDIR)/$(SHOTS)/demo-seed2'
+	@HIL_OUT_DIR=$(CURDIR)/$(SHOTS) tools/with-vcan -- $(CURDIR)/tools/screenshot-runs $(CURDIR)/$(SHOTS)
 	@$(PY) tools/screenshots.py --demo $(SHOTS)/demo/trace.rrd --robot $(SHOTS)/robot/trace.rrd \
 	  --other $(SHOTS)/demo-seed2/trace.rrd --out docs/dashboards
 
