@@ -29,6 +29,8 @@ from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 from canopen.sdo import SdoAbortedError
 
 from boardproto.cia301 import NODE_ID_MASK, SdoAbortCode
+from boardproto.loader import MAX_PDO_SLOTS
+from boardproto.table import PDO_NOT_VALID, PdoDirection
 from hilrig.errors import RigError
 from hilrig.files import replacing
 from hilrig.table import RigTable
@@ -41,10 +43,6 @@ NOT_STORED = frozenset({0x1003, STORE_PARAMETERS, 0x1011})
 """Writable communication objects that are commands, not settings."""
 IDENTITY = 0x1018
 COMMUNICATION_END = 0x2000
-PDO_COMMUNICATION = ((0x1400, 0x1600), (0x1800, 0x1A00))
-"""(first communication record, first mapping record) of the RPDOs and of the TPDOs."""
-PDO_BLOCK = 0x200  # protocol-literal: 512 PDO records per direction (CiA 301), not a COB-ID
-PDO_INVALID = 0x8000_0000
 
 
 class DcfError(RigError):
@@ -78,9 +76,10 @@ def stored_objects(od: canopen.ObjectDictionary, table: RigTable) -> list[ODVari
 
 def _pdo_of(index: int) -> tuple[int, int] | None:
     """(communication index, mapping index) of the PDO whose record `index` is, else None."""
-    for communication, mapping in PDO_COMMUNICATION:
+    for direction in PdoDirection:
+        communication, mapping = direction.communication_index, direction.mapping_index
         for base in (communication, mapping):
-            if base <= index < base + PDO_BLOCK:
+            if base <= index < base + MAX_PDO_SLOTS:
                 number = index - base
                 return communication + number, mapping + number
     return None
@@ -196,7 +195,7 @@ def _write_pdo(
     count = variables.get((mapping, 0))
     order: list[tuple[ODVariable, int | float]] = []
     if cob_id is not None:
-        order.append((cob_id, int(cob_id.value) | PDO_INVALID))
+        order.append((cob_id, int(cob_id.value) | PDO_NOT_VALID))
     order += [(v, v.value) for key, v in sorted(variables.items()) if key[0] == communication and key[1] != 1]
     if count is not None:
         order.append((count, 0))
