@@ -46,7 +46,8 @@ def test_monitor_shows_each_id_decoded_with_the_boards_names(capsys: pytest.Capt
     sender = threading.Thread(target=send)
     sender.start()
     try:
-        code = main(["monitor", "-i", "virtual", "-c", channel, "--duration", "1.5", "-n", "0x10"])
+        # Ten rounds of the five frames: the sender goes on until the monitor has counted them.
+        code = main(["monitor", "-i", "virtual", "-c", channel, "--count", "50", "-n", "0x10"])
     finally:
         done.set()
         sender.join()

@@ -28,6 +28,7 @@ from hilrig.cli.common import (
     node_id,
     open_bus,
     positive_float,
+    positive_int,
     progress,
 )
 from hilrig.resources import DBC_HINT
@@ -59,6 +60,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="S",
         help="stop after S seconds (default: until Ctrl-C)",
+    )
+    parser.add_argument(
+        "--count",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="stop after N frames (default: until Ctrl-C or --duration)",
     )
     parser.add_argument(
         "-n",
@@ -111,9 +119,11 @@ def run(args: argparse.Namespace) -> int:
         progress(f"monitor: listening on {where} (Ctrl-C ends)")
         next_draw = started + REDRAW_S
         try:
-            while deadline is None or time.monotonic() < deadline:
+            frames = 0
+            while (deadline is None or time.monotonic() < deadline) and frames != args.count:
                 message = bus.recv(timeout=REDRAW_S)
                 if message is not None:
+                    frames += 1
                     errors += _take(message, decoder, seen)
                 now = time.monotonic()
                 if screen.in_place and now >= next_draw:
@@ -149,7 +159,8 @@ COMMANDS = (
         description=(__doc__ or "").split("\n\n", 1)[1].strip() + "\n\n"
         "  hilrig monitor                          # python-can's configured bus, until Ctrl-C\n"
         "  hilrig monitor -c can0 -b 1M -n 0x21    # the board at node 0x21\n"
-        "  hilrig monitor --duration 5 | less      # piped: the table once, after 5 s",
+        "  hilrig monitor --duration 5 | less      # piped: the table once, after 5 s\n"
+        "  hilrig monitor --count 1000             # the first 1000 frames",
         configure=configure,
         run=run,
     ),
