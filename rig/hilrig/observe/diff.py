@@ -185,7 +185,9 @@ def compare(
     says what to call a series (a field's name for its path), its path otherwise; a series whose
     path or name matches a glob of `ignore` is left out (events stamped by a wall clock)."""
     names = dict(names or {})
-    period = _period(base) if _period(base) is not None else _period(cand)
+    period = _period(base)
+    if period is None:
+        period = _period(cand)
 
     def time_of(cycle: int) -> float | None:
         return cycle * period if period is not None else None
