@@ -16,10 +16,11 @@ from canopen.objectdictionary import ODVariable
 from conftest import BOOT_TIMEOUT_S, EDS, REPO, SCENARIO_SDO_TIMEOUT_S
 
 from boardproto.cia301 import NODE_ID_MASK
+from boardproto.table import PDO_NOT_VALID
 from hilrig.session.firmware import Firmware
 from hilrig.session.netns import PrivateBus
 from hilrig.table import RigTable
-from hilrig.wire.dcf import PDO_INVALID, read_dcf, stored_objects
+from hilrig.wire.dcf import read_dcf, stored_objects
 from hilrig.wire.lss import BootUpWatch
 
 pytestmark = pytest.mark.bus
@@ -103,7 +104,7 @@ def test_a_dcf_saved_from_one_board_and_loaded_into_another_equals_it(
         tuned.sdo[TABLE.field("velocity_kp").index].raw = 0.1875
         tuned.sdo[0x1017].raw = 77
         tpdo1_cob_id = tuned.sdo[0x1800][1].raw  # TPDO1 keeps only its first mapped object:
-        tuned.sdo[0x1800][1].raw = tpdo1_cob_id | PDO_INVALID  # CiA 301: invalid first,
+        tuned.sdo[0x1800][1].raw = tpdo1_cob_id | PDO_NOT_VALID  # CiA 301: invalid first,
         tuned.sdo[0x1A00][0].raw = 1  # the mapping,
         tuned.sdo[0x1800][1].raw = tpdo1_cob_id  # valid again
         kp = TABLE.field("velocity_kp").index

@@ -52,7 +52,7 @@ MAX_EXTRA_STALE_CYCLES = 5
 
 EMCY_STALE_SENSOR = EmcyCode[(STALE_ENCODER_BITS[0].emcy or "").upper()]
 EMCY_PDO_LENGTH = EmcyCode.PDO_LENGTH_ERROR
-RPDO_COMMUNICATION_BASE = 0x1400
+RPDO_COMMUNICATION_BASE = BOARD_TABLE.rpdo(1).communication_index
 
 
 # --- The PDO layout, from the EDS --------------------------------------------------------------
