@@ -25,9 +25,9 @@ from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.plants import JointParams
 from hilrig.session.builder import BoardInterface, HilSession, SessionConfig, open_session
-from hilrig.session.buslog import BusRecorder
+from hilrig.session.buslog import BusRecorder, warm_recorders
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
-from hilrig.session.netns import PrivateBus, require_private_buses
+from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
 from hilrig.table import RigTable
 
 REPO = Path(__file__).resolve().parent.parent
@@ -83,6 +83,14 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         return
     average = sum(durations.values()) / len(durations) if durations else 0.0
     items.sort(key=lambda item: -durations.get(item.nodeid, average))  # stable: ties keep their order
+
+
+@pytest.fixture(scope="session", autouse=True)
+def warm_recorder_server() -> None:
+    """Start the warm recorder server at the first test of a session (of each xdist worker): it
+    imports python-can once, in the background, for every scenario's bus log after it."""
+    if private_buses_supported():
+        warm_recorders()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

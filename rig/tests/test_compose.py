@@ -219,11 +219,16 @@ def test_the_channel_is_can_channel(monkeypatch: pytest.MonkeyPatch) -> None:
     assert "vcan0" in repr(compose_file.services(COMPOSE, {})["firmware"]["command"])  # the default
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
+def _free_ports(count: int) -> list[int]:
+    """`count` distinct free ports: every probe stays bound until all are picked (the kernel
+    may hand a port it just got back to the next probe)."""
+    with contextlib.ExitStack() as probes:
+        ports = []
+        for _ in range(count):
+            probe = probes.enter_context(socket.socket())
+            probe.bind(("127.0.0.1", 0))
+            ports.append(int(probe.getsockname()[1]))
+        return ports
 
 
 def _in_checkout(command: list[str]) -> list[str]:
@@ -245,7 +250,8 @@ def _listening_addresses(port: int) -> set[str]:
 
 
 def test_the_viewers_healthcheck_tells_a_running_viewer_from_none(tmp_path: Path) -> None:
-    environ = {"VIEWER_GRPC_PORT": str(_free_port()), "VIEWER_PORT": str(_free_port())}
+    grpc_port, web_port = _free_ports(2)
+    environ = {"VIEWER_GRPC_PORT": str(grpc_port), "VIEWER_PORT": str(web_port)}
     viewer = compose_file.services(COMPOSE, environ)["viewer"]
     check = _in_checkout(viewer["healthcheck"]["test"])
 

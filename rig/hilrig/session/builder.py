@@ -396,6 +396,8 @@ def _record_board(
 class _HostChannel:
     """A launcher for processes on an interface of this host (no namespace)."""
 
+    namespace_file = None  # this host's own network namespace
+
     def __init__(self, channel: str) -> None:
         self.channel = channel
 

@@ -10,23 +10,20 @@ then). So the named file is always a whole log, also after Ctrl-C or SIGTERM; a 
 `read_log` is the one way the command line reads a log: python-can's `can.LogReader` (format by
 extension, also gzipped), with every problem of the file said in one line that names it.
 
-`RecorderProcess` runs that logger in a process of its own (`python -m hilrig.session.buslog`): every
+`RecorderProcess` runs that logger in a process of its own, forked from a warm server: every
 frame becomes a python-can Message there, and in the rig's own process those would compete with
 the lockstep loop for the interpreter lock.
 """
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import gzip
 import os
 import re
 import signal
-import subprocess
-import sys
 import threading
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -189,74 +186,99 @@ def _log_queued(bus: can.BusABC, logger: can.Listener) -> None:
 
 class _Launcher(Protocol):
     channel: str
+    namespace_file: Path | None
+    """The network namespace the channel lives in (None: this process's own)."""
 
-    def popen(self, argv: list[str], **kwargs: Any) -> subprocess.Popen[Any]: ...
+
+RECORDER_PRELOAD = ("can", "hilrig.wire.transport", "hilrig.session.buslog")
+"""What the warm recorder server imports once, so that each recorder forked from it starts at
+once: a fresh interpreter importing python-can takes seconds in the emulated VM, per scenario."""
+
+
+def warm_recorders() -> None:
+    """Start the recorder server now (multiprocessing's forkserver with `RECORDER_PRELOAD`), in
+    the background: a test session calls it at its start, so the first scenario does not wait
+    for the imports. Idempotent; `RecorderProcess` calls it too."""
+    import multiprocessing
+    import multiprocessing.forkserver
+
+    multiprocessing.set_forkserver_preload(list(RECORDER_PRELOAD))
+    multiprocessing.forkserver.ensure_running()
 
 
 class RecorderProcess:
     """Everything on `launcher`'s bus into a whole log at `path`, recorded by a process of its
-    own (`python -m hilrig.session.buslog`) started inside the bus's namespace; ready once the
-    constructor returns. `close()` stops it (SIGTERM: the log is renamed whole) and returns the
-    number of frames it wrote."""
+    own, ready once the constructor returns. The process is forked from a warm server
+    (`warm_recorders`) and moves into the bus's network namespace itself. `close()` stops it
+    (SIGTERM: the log is renamed whole) and returns the number of frames it wrote."""
 
     READY_TIMEOUT_S = 120.0
-    """Hang guard for the start (importing python-can takes seconds in the emulated VM)."""
+    """Hang guard for the start (the server's first start imports python-can: seconds in the
+    emulated VM)."""
+    STOP_TIMEOUT_S = 60.0
 
     def __init__(self, launcher: _Launcher, path: Path) -> None:
+        import multiprocessing
+
         self.path = path
         self.frames: int | None = None
         path.parent.mkdir(parents=True, exist_ok=True)
-        argv = [sys.executable, "-m", "hilrig.session.buslog", "--channel", launcher.channel]
-        argv += ["--out", str(path)]
-        self.process = launcher.popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
-        assert self.process.stdout is not None
-        ready: list[str] = []
-        reader = threading.Thread(target=lambda: ready.append(self.process.stdout.readline()), daemon=True)
-        reader.start()
-        reader.join(self.READY_TIMEOUT_S)
-        if not ready or ready[0].strip() != "ready":
+        warm_recorders()
+        context = multiprocessing.get_context("forkserver")
+        self._said, told = context.Pipe(duplex=False)
+        self.process = context.Process(
+            target=_record_process,
+            args=(launcher.namespace_file, launcher.channel, path, told),
+            name=f"bus recorder {path}",
+            daemon=True,  # also stopped (SIGTERM, log whole) if the rig's process ends first
+        )
+        self.process.start()
+        told.close()
+        said = self._said.recv() if self._said.poll(self.READY_TIMEOUT_S) else None
+        if said != "ready":
             self.process.kill()
-            self.process.wait()
+            self.process.join()
             raise RuntimeError(
-                f"bus recorder for {path} did not start (exit {self.process.returncode}, said {ready[:1]!r})"
+                f"bus recorder for {path} did not start (exit {self.process.exitcode}, said {said!r})"
             )
 
     def close(self) -> int | None:
         """Stop the recorder; the frames it wrote (None if it did not say)."""
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-        out, _ = self.process.communicate(timeout=60)
-        for line in out.splitlines():
-            if line.startswith("frames "):
-                self.frames = int(line.split()[1])
+        if self.process.is_alive():
+            self.process.terminate()  # SIGTERM: the recorder logs what is queued, then renames
+        try:
+            if self._said.poll(self.STOP_TIMEOUT_S):
+                said = self._said.recv()
+                if isinstance(said, int):
+                    self.frames = said
+        except EOFError:
+            pass  # it ended without saying (killed): no count
+        self.process.join(self.STOP_TIMEOUT_S)
+        self._said.close()
         return self.frames
 
 
-def record_main(argv: Sequence[str] | None = None) -> int:
+def _record_process(namespace_file: Path | None, channel: str, out: Path, tell: Any) -> None:
     """The recorder process: every frame of a SocketCAN channel into python-can's logger until
     SIGTERM/SIGINT. Frames are read from a raw socket with kernel timestamps (`hilrig.wire.transport`):
     python-can's own receive path would double the per-frame cost, and inside the emulated VM the
-    recorder must keep up with the lockstep rig."""
+    recorder must keep up with the lockstep rig. Says "ready" on `tell`, then the frame count."""
     import can
 
-    from hilrig.wire.transport import RawCanLink, open_raw_socket
+    from hilrig.wire.transport import RawCanLink, open_raw_socket, setns_network
 
-    parser = argparse.ArgumentParser(
-        prog="python -m hilrig.session.buslog", description=RecorderProcess.__doc__
-    )
-    parser.add_argument("--channel", required=True, help="SocketCAN interface, e.g. vcan0")
-    parser.add_argument("--out", type=Path, required=True, help="the log (format by extension)")
-    args = parser.parse_args(argv)
     stop = threading.Event()
     for number in (signal.SIGTERM, signal.SIGINT):
         signal.signal(number, lambda *_: stop.set())
-    link = RawCanLink(open_raw_socket(args.channel, None))
+    if namespace_file is not None:
+        with namespace_file.open("rb") as namespace:
+            setns_network(namespace.fileno())
+    link = RawCanLink(open_raw_socket(channel, None))
     link.enable_timestamps()
     message = can.Message
-    channel = args.channel
     frames = 0
-    with contextlib.closing(link), whole_file_logger(args.out) as logger:
-        print("ready", flush=True)
+    with contextlib.closing(link), whole_file_logger(out) as logger:
+        tell.send("ready")
         while True:
             got = link.recv_stamped(0.05)
             if got is None:
@@ -278,8 +300,7 @@ def record_main(argv: Sequence[str] | None = None) -> int:
                 )
             )
             frames += 1
-    print(f"frames {frames}", flush=True)
-    return 0
+    tell.send(frames)
 
 
 _EFF_FLAG, _RTR_FLAG, _ERR_FLAG = 0x8000_0000, 0x4000_0000, 0x2000_0000
@@ -329,9 +350,7 @@ __all__ = [
     "master_side",
     "node_cob_ids",
     "partial_path",
+    "warm_recorders",
     "whole_file_logger",
 ]
 
-
-if __name__ == "__main__":
-    sys.exit(record_main())

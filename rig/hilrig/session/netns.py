@@ -18,6 +18,7 @@ import os
 import shutil
 import subprocess
 from collections.abc import Iterator, Sequence
+from pathlib import Path
 from typing import Any, Self
 
 import can
@@ -102,7 +103,7 @@ class PrivateBus:
         """Run the body with the calling thread inside the namespace."""
         with (
             open("/proc/thread-self/ns/net", "rb") as home,
-            open(f"/var/run/netns/{self.name}", "rb") as target,
+            self.namespace_file.open("rb") as target,
         ):
             setns_network(target.fileno())
             try:
@@ -116,6 +117,11 @@ class PrivateBus:
             bus = can.Bus(interface="socketcan", channel=self.channel, **kwargs)
         deepen_receive_queue(bus)
         return bus
+
+    @property
+    def namespace_file(self) -> Path:
+        """The namespace's file (what `setns` takes): a process moves itself in with it."""
+        return Path("/var/run/netns") / self.name
 
     def command(self, argv: Sequence[str]) -> list[str]:
         """``argv`` prefixed so that it runs inside the namespace."""
