@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import subprocess
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -16,6 +17,7 @@ import canopen
 import pytest
 
 from boardproto.cia301 import NmtState, heartbeat_cob_id
+from hilrig.cli import forked
 from hilrig.cli.common import bitrate
 from hilrig.engine.rig import Rig
 from hilrig.engine.robot import MasterHeartbeat
@@ -24,8 +26,9 @@ from hilrig.expect import Expect
 from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.plants import JointParams
+from hilrig.session import warm
 from hilrig.session.builder import BoardInterface, HilSession, SessionConfig, open_session
-from hilrig.session.buslog import BusRecorder, warm_recorders
+from hilrig.session.buslog import BusRecorder
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
 from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
 from hilrig.table import RigTable
@@ -85,12 +88,26 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     items.sort(key=lambda item: -durations.get(item.nodeid, average))  # stable: ties keep their order
 
 
+CLI_TIMEOUT_S = 300.0
+"""Hang guard for one `hilrig` command in the emulated VM, not a timing check."""
+
+
 @pytest.fixture(scope="session", autouse=True)
-def warm_recorder_server() -> None:
-    """Start the warm recorder server at the first test of a session (of each xdist worker): it
-    imports python-can once, in the background, for every scenario's bus log after it."""
+def warm_helper_server() -> None:
+    """Start the warm server for helper processes at the first test of a session (of each xdist
+    worker): it imports python-can, canopen and the CLI once, in the background, for every
+    scenario's bus recorder and `hilrig` command after it (`hilrig.session.warm`)."""
     if private_buses_supported():
-        warm_recorders()
+        warm.preload(*forked.CLI_PRELOAD)
+        warm.start()
+
+
+def run_hilrig(
+    private_bus: PrivateBus, *argv: str, timeout_s: float = CLI_TIMEOUT_S
+) -> subprocess.CompletedProcess[str]:
+    """`hilrig ARGV` on this test's private bus: exit code, stdout and stderr as the console
+    script gives them, from a process forked from the warm server (`hilrig.cli.forked`)."""
+    return forked.run(argv, namespace_file=private_bus.namespace_file, timeout_s=timeout_s)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -10,10 +10,11 @@ from pathlib import Path
 import can
 import cantools
 import pytest
-from conftest import NODE_ID, REPO, NodeUnderTest
+from conftest import NODE_ID, REPO, NodeUnderTest, run_hilrig
 
 from boardproto import load_table
 from boardproto.cia301 import SYNC_COB_ID
+from hilrig.cli import forked
 from hilrig.session.netns import PrivateBus
 
 pytestmark = pytest.mark.bus
@@ -26,14 +27,7 @@ CALL_TIMEOUT_S = 300
 SDO_TIMEOUT = ["--sdo-timeout", "5"]
 
 
-def hilrig(private_bus: PrivateBus, *argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        private_bus.command([HILRIG, *argv]),
-        capture_output=True,
-        text=True,
-        timeout=CALL_TIMEOUT_S,
-        check=False,
-    )
+hilrig = run_hilrig
 
 
 def test_scan_get_and_set_against_the_firmware(
@@ -181,13 +175,7 @@ def test_watch_record_and_replay_decode(
         "\n".join(shown) + live.stderr.read() if live.stderr else ""
     )
 
-    decoded = subprocess.run(
-        [HILRIG, "replay", str(log), "--decode"],
-        capture_output=True,
-        text=True,
-        timeout=CALL_TIMEOUT_S,
-        check=False,
-    )
+    decoded = forked.run(["replay", str(log), "--decode"], timeout_s=CALL_TIMEOUT_S)
     assert decoded.returncode == 0, decoded.stderr
     lines = decoded.stdout.splitlines()
     assert len(lines) == 60

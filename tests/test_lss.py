@@ -4,14 +4,13 @@ master (`network.lss`) giving a board its id, as a user of that library would.""
 
 from __future__ import annotations
 
-import subprocess
 from collections.abc import Iterator
 from contextlib import ExitStack
 from pathlib import Path
 
 import canopen
 import pytest
-from conftest import BOOT_TIMEOUT_S, REPO, SCENARIO_SDO_TIMEOUT_S
+from conftest import BOOT_TIMEOUT_S, REPO, SCENARIO_SDO_TIMEOUT_S, run_hilrig
 
 from boardproto import load_table
 from boardproto.cia305 import NODE_ID_UNCONFIGURED
@@ -21,13 +20,11 @@ from hilrig.wire.lss import BootUpWatch, LssAddress, LssCommissioner, read_ident
 
 pytestmark = pytest.mark.bus
 
-HILRIG = str(REPO / ".venv" / "bin" / "hilrig")
 NODE = load_table(REPO / "protocol" / "board.toml").node
 # LSS answers "no" by silence: how long a question waits. On a real bus an answer takes a
 # millisecond; in the emulated VM four ASan firmware processes and the rig share two CPUs, and an
 # answer 0.5 s late was seen.
 LSS_TIMEOUT_S = 2.0
-CALL_TIMEOUT_S = 300  # a hang guard for the VM, not a timing check
 # Serial numbers out of chain order (fastscan alone would number them 4, 1, 3, 2), with one 1 bit
 # each: every 1 bit costs fastscan a silent LSS_TIMEOUT_S.
 CHAIN_SERIALS = (0x08, 0x01, 0x04, 0x02)
@@ -50,26 +47,10 @@ def test_four_modules_are_numbered_in_chain_order_and_keep_their_ids(
     with UnconfiguredChain(private_bus, scenario_dir, CHAIN_SERIALS) as chain:
         lss = LssCommissioner(network, timeout_s=LSS_TIMEOUT_S)
         assert lss.identify_non_configured()
-        numbered = subprocess.run(
-            private_bus.command(
-                [
-                    HILRIG,
-                    "lss",
-                    "number",
-                    "--chain",
-                    "--count",
-                    "4",
-                    "--timeout",
-                    str(LSS_TIMEOUT_S),
-                    "--boot-timeout",
-                    "30",
-                ]
-            ),
-            capture_output=True,
-            text=True,
-            timeout=CALL_TIMEOUT_S,
-            check=False,
-        )
+        numbered = run_hilrig(
+            private_bus, "lss", "number", "--chain", "--count", "4",
+            "--timeout", str(LSS_TIMEOUT_S), "--boot-timeout", "30",
+        )  # fmt: skip
         assert numbered.returncode == 0, numbered.stderr
         rows = [line.split()[:3] for line in numbered.stdout.splitlines()[1:]]
         assert rows == [[f"0x{k:02X}", f"0x{serial:08X}", "yes"] for k, serial in enumerate(CHAIN_SERIALS, 1)]

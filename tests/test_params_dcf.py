@@ -13,7 +13,7 @@ from pathlib import Path
 import canopen
 import pytest
 from canopen.objectdictionary import ODVariable
-from conftest import BOOT_TIMEOUT_S, EDS, REPO, SCENARIO_SDO_TIMEOUT_S
+from conftest import BOOT_TIMEOUT_S, EDS, SCENARIO_SDO_TIMEOUT_S, run_hilrig
 
 from boardproto.cia301 import NODE_ID_MASK
 from boardproto.table import PDO_NOT_VALID
@@ -25,9 +25,7 @@ from hilrig.wire.lss import BootUpWatch
 
 pytestmark = pytest.mark.bus
 
-HILRIG = str(REPO / ".venv" / "bin" / "hilrig")
 TABLE = RigTable.load()
-CALL_TIMEOUT_S = 300  # a hang guard for the VM, not a timing check
 TUNED, FRESH = 1, 2
 
 
@@ -42,13 +40,7 @@ def network(private_bus: PrivateBus) -> Iterator[canopen.Network]:
 
 
 def hilrig(private_bus: PrivateBus, *argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        private_bus.command([HILRIG, *argv, "--sdo-timeout", str(SCENARIO_SDO_TIMEOUT_S)]),
-        capture_output=True,
-        text=True,
-        timeout=CALL_TIMEOUT_S,
-        check=False,
-    )
+    return run_hilrig(private_bus, *argv, "--sdo-timeout", str(SCENARIO_SDO_TIMEOUT_S))
 
 
 def normalized(var: ODVariable, value: object, node_id: int) -> object:

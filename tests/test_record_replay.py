@@ -5,14 +5,13 @@ answers. What a team does to reproduce a field failure from a customer's log."""
 
 from __future__ import annotations
 
-import subprocess
 import threading
 from pathlib import Path
 
 import can
 import cantools
 import pytest
-from conftest import BOOT_TIMEOUT_S, NODE_ID, REPO
+from conftest import BOOT_TIMEOUT_S, NODE_ID, REPO, run_hilrig
 
 from boardproto.cia301 import emcy_cob_id, heartbeat_cob_id
 from hilrig.session.buslog import BusRecorder, node_cob_ids
@@ -23,7 +22,6 @@ from hilrig.table import ControlMode, RigTable
 
 pytestmark = pytest.mark.bus
 
-HILRIG = str(REPO / ".venv" / "bin" / "hilrig")
 DBC = REPO / "build" / "protocol" / "board.dbc"
 TABLE = RigTable.load()
 HEARTBEAT_ID = heartbeat_cob_id(NODE_ID)
@@ -80,12 +78,8 @@ def test_a_recorded_run_replays_into_a_fresh_firmware_with_identical_decoded_fie
         if not booted.wait(BOOT_TIMEOUT_S):
             firmware.check()
             pytest.fail(f"no boot-up within {BOOT_TIMEOUT_S} s; {firmware.log_path}")
-        replay = subprocess.run(
-            private_bus.command([HILRIG, "replay", str(first.bus_log), "--as-master"]),
-            capture_output=True,
-            text=True,
-            timeout=REPLAY_TIMEOUT_S,
-            check=False,
+        replay = run_hilrig(
+            private_bus, "replay", str(first.bus_log), "--as-master", timeout_s=REPLAY_TIMEOUT_S
         )
         assert replay.returncode == 0, replay.stderr
         firmware.check()

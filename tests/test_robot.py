@@ -4,11 +4,11 @@ Lockstep and seeded: every number here is reproducible."""
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_hilrig
 
 from hilrig.engine.robot import MasterHeartbeat, Robot, RobotObserver, TravellingWave
 from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
@@ -17,8 +17,6 @@ from hilrig.table import EmcyCode, FaultFlags, RigTable
 
 pytestmark = pytest.mark.bus
 
-REPO = Path(__file__).resolve().parent.parent
-HILRIG = str(REPO / ".venv" / "bin" / "hilrig")
 TABLE = RigTable.load()
 GAIT = TravellingWave()
 SETTLE_S = GAIT.ramp_s + 0.5
@@ -147,13 +145,7 @@ def test_two_modules_with_one_node_id_are_refused(make_robot, scenario_dir: Path
 
 def test_scan_lists_every_module_with_its_identity(make_robot, private_bus) -> None:
     make_robot(4, trace=False, start=False)
-    scan = subprocess.run(
-        private_bus.command([HILRIG, "scan", "--listen", "3", "--sdo-timeout", "5"]),
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
+    scan = run_hilrig(private_bus, "scan", "--listen", "3", "--sdo-timeout", "5")
     assert scan.returncode == 0, scan.stderr
     node = TABLE.board.node
     rows = [line.split() for line in scan.stdout.splitlines()[1:]]

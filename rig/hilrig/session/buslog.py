@@ -190,41 +190,26 @@ class _Launcher(Protocol):
     """The network namespace the channel lives in (None: this process's own)."""
 
 
-RECORDER_PRELOAD = ("can", "hilrig.wire.transport", "hilrig.session.buslog")
-"""What the warm recorder server imports once, so that each recorder forked from it starts at
-once: a fresh interpreter importing python-can takes seconds in the emulated VM, per scenario."""
-
-
-def warm_recorders() -> None:
-    """Start the recorder server now (multiprocessing's forkserver with `RECORDER_PRELOAD`), in
-    the background: a test session calls it at its start, so the first scenario does not wait
-    for the imports. Idempotent; `RecorderProcess` calls it too."""
-    import multiprocessing
-    import multiprocessing.forkserver
-
-    multiprocessing.set_forkserver_preload(list(RECORDER_PRELOAD))
-    multiprocessing.forkserver.ensure_running()
-
-
 class RecorderProcess:
     """Everything on `launcher`'s bus into a whole log at `path`, recorded by a process of its
-    own, ready once the constructor returns. The process is forked from a warm server
-    (`warm_recorders`) and moves into the bus's network namespace itself. `close()` stops it
-    (SIGTERM: the log is renamed whole) and returns the number of frames it wrote."""
+    own, ready once the constructor returns. The process is forked from the warm server
+    (`hilrig.session.warm`, which has python-can imported) and moves into the bus's network
+    namespace itself. `close()` stops it (SIGTERM: the log is renamed whole) and returns the
+    number of frames it wrote; if the rig's process dies first (even by SIGKILL), the recorder
+    ends by itself, its log whole, instead of recording an abandoned bus forever."""
 
     READY_TIMEOUT_S = 120.0
-    """Hang guard for the start (the server's first start imports python-can: seconds in the
+    """Hang guard for the start (the server's own start imports python-can: seconds in the
     emulated VM)."""
     STOP_TIMEOUT_S = 60.0
 
     def __init__(self, launcher: _Launcher, path: Path) -> None:
-        import multiprocessing
+        from hilrig.session import warm
 
         self.path = path
         self.frames: int | None = None
         path.parent.mkdir(parents=True, exist_ok=True)
-        warm_recorders()
-        context = multiprocessing.get_context("forkserver")
+        context = warm.context()
         self._said, told = context.Pipe(duplex=False)
         self.process = context.Process(
             target=_record_process,
@@ -263,16 +248,18 @@ def _record_process(namespace_file: Path | None, channel: str, out: Path, tell: 
     SIGTERM/SIGINT. Frames are read from a raw socket with kernel timestamps (`hilrig.wire.transport`):
     python-can's own receive path would double the per-frame cost, and inside the emulated VM the
     recorder must keep up with the lockstep rig. Says "ready" on `tell`, then the frame count."""
+    import multiprocessing
+
     import can
 
-    from hilrig.wire.transport import RawCanLink, open_raw_socket, setns_network
+    from hilrig.session.warm import enter_namespace
+    from hilrig.wire.transport import RawCanLink, open_raw_socket
 
     stop = threading.Event()
     for number in (signal.SIGTERM, signal.SIGINT):
         signal.signal(number, lambda *_: stop.set())
-    if namespace_file is not None:
-        with namespace_file.open("rb") as namespace:
-            setns_network(namespace.fileno())
+    enter_namespace(namespace_file)
+    parent = multiprocessing.parent_process()
     link = RawCanLink(open_raw_socket(channel, None))
     link.enable_timestamps()
     message = can.Message
@@ -283,6 +270,8 @@ def _record_process(namespace_file: Path | None, channel: str, out: Path, tell: 
             got = link.recv_stamped(0.05)
             if got is None:
                 if stop.is_set():  # stopped and nothing queued any more
+                    break
+                if parent is not None and not parent.is_alive():  # the rig died (SIGKILL): end whole
                     break
                 continue
             can_id, data, stamp = got
@@ -350,7 +339,6 @@ __all__ = [
     "master_side",
     "node_cob_ids",
     "partial_path",
-    "warm_recorders",
     "whole_file_logger",
 ]
 
