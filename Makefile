@@ -37,6 +37,17 @@ build: deps ## build the firmware, its tests and the protocol files (build/)
 	$(call configure_and_build,$(BUILD),-DCMAKE_BUILD_TYPE=RelWithDebInfo -DHIL_SANITIZE=ON -DHIL_TESTS=ON)
 	@echo "build: firmware build/bin/joint-firmware, protocol files build/protocol/board.{eds,dbc}"
 
+# The microcontroller build (issue 45): the core, the CANopen engine and the joint cross-built for a
+# Cortex-M4F (cmake/arm-none-eabi.cmake): the firmware image within its flash and RAM budget, and
+# the core and CANopen unit tests as images for qemu's mps2-an386. Its own tree, so build/ (the
+# host's ASan build) is untouched. `make test` runs its tests, `make bench` reports its size.
+CORTEX_M_BUILD := build/cortex-m
+
+.PHONY: cortex-m
+cortex-m: deps ## cross-build the firmware and its unit tests for a Cortex-M4F (build/cortex-m)
+	$(call configure_and_build,$(CORTEX_M_BUILD),-DCMAKE_TOOLCHAIN_FILE=$(CURDIR)/cmake/arm-none-eabi.cmake -DCMAKE_BUILD_TYPE=MinSizeRel -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF)
+	@echo "build: Cortex-M firmware image $(CORTEX_M_BUILD)/bin/joint-firmware.elf, test images $(CORTEX_M_BUILD)/bin/cm_*_tests.elf"
+
 # Shards for CI (one job each): SHARD=K/N runs shard K of N of the bus-level scenarios, split by
 # pytest-split from tests/.test_durations; shard 1 also runs the C++ and Python unit stages.
 # Checked before anything builds: a malformed SHARD stops make with one line.
@@ -49,7 +60,7 @@ endif
 endif
 
 .PHONY: test
-test: build ## run everything: C++ tests, Python tests, bus-level scenarios (SHARD=K/N: one CI job of N)
+test: build cortex-m ## run everything: C++ tests, Python tests, bus-level scenarios (SHARD=K/N: one CI job of N)
 	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests $(if $(SHARD),--shard $(SHARD))
 
 # The durations come from the JUnit XML run-tests writes rather than pytest-split's
@@ -91,7 +102,7 @@ BASELINE ?=
 BASELINE_ARG = $(if $(BASELINE),--baseline '$(BASELINE)')
 
 .PHONY: bench
-bench: deps ## benchmarks, each a ratio measured side by side in one run (BASELINE=<commit>)
+bench: deps cortex-m ## benchmarks, each a ratio measured side by side in one run (BASELINE=<commit>)
 	$(call configure_and_build,$(BENCH_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_BENCH=ON)
 	@$(PY) tools/bench.py native --out $(BENCH_BUILD) $(BASELINE_ARG)
 	@HIL_BUS_PATH_FILE=$(CURDIR)/$(BENCH_BUILD)/bus-path.txt \

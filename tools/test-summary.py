@@ -30,6 +30,7 @@ BROWSER_STAGE = "dashboards in browser"
 that shard made (so it may check none), and not run with the bus stage alone."""
 STAGES = (
     ("cpp.xml", "C++ unit tests"),
+    ("cortex-m.xml", "Cortex-M unit tests"),
     ("python-unit.xml", "Python unit tests"),
     ("scenarios*.xml", BUS_STAGE),
     ("browser*.xml", BROWSER_STAGE),

@@ -205,7 +205,7 @@ TEST_F(AcceptanceFilterTest, FramesOutsideTheSetAreOnlyEverCountedAsIgnored) {
     all_sent();
     for (std::uint32_t id = 0; id < 0x800; ++id) {
       const bool in_set = std::find(accepted_ids.begin(), accepted_ids.end(), id) != accepted_ids.end();
-      for (const std::uint32_t flags : {0u, CanFrame::kRemoteFlag, CanFrame::kExtendedFlag}) {
+      for (const std::uint32_t flags : {std::uint32_t{0}, CanFrame::kRemoteFlag, CanFrame::kExtendedFlag}) {
         if (in_set && flags == 0) continue;
         for (std::uint8_t len = 0; len <= 8; ++len) {
           CanFrame frame;

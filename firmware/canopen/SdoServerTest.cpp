@@ -275,7 +275,7 @@ TEST_F(SdoServerTest, SyncCobIdRejectsProducerAndExtendedBits) {
 
 TEST_F(SdoServerTest, SyncCobIdRefusesRestrictedIdsSoSdoStaysReachable) {
   // Regression (fuzz_canopen_frames): 0x1005 = 0x600+id made every later SDO request a SYNC.
-  for (const std::uint32_t id : {kSdoRx, 0x000u, 0x07Fu, 0x101u, kSdoTx, 0x6E0u, cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId)}) {
+  for (const std::uint32_t id : std::initializer_list<std::uint32_t>{kSdoRx, 0x000u, 0x07Fu, 0x101u, kSdoTx, 0x6E0u, cia301::cob_id(cia301::FunctionCode::Heartbeat, kNodeId)}) {
     EXPECT_EQ(download(0x1005, 0, id, 4), SdoAbort::ValueRangeExceeded)
         << "COB-ID 0x" << std::hex << id;
   }

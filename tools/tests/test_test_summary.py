@@ -33,6 +33,7 @@ def junit(*cases: str) -> str:
 def test_a_failure_lists_the_pictures_it_attached(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     summary = load_summary()
     (tmp_path / "cpp.xml").write_text(junit('<testcase classname="Cia301" name="codes"/>'))
+    (tmp_path / "cortex-m.xml").write_text(junit('<testcase classname="cortex_m" name="core"/>'))
     (tmp_path / "python-unit.xml").write_text(junit('<testcase classname="t" name="a"/>'))
     (tmp_path / "browser.xml").write_text(junit('<testcase classname="b" name="joint"/>'))
     failed = (
@@ -44,4 +45,4 @@ def test_a_failure_lists_the_pictures_it_attached(tmp_path: Path, capsys: pytest
     out = capsys.readouterr().out.splitlines()
     at = out.index("    FAILED tests.test_joint::test_step")
     assert out[at + 1] == "        picture: /out/p/output_velocity-settles_within.png"
-    assert out[-1] == "4 passed, 1 failed"
+    assert out[-1] == "5 passed, 1 failed"

@@ -85,9 +85,12 @@ class HilRegisters {
   // looked: the count moved.
   class Heartbeat final : public HeartbeatInput {
    public:
+    // 32 bits in all, so the register is lock-free on a 32-bit microcontroller too (a Cortex-M
+    // has no 64-bit atomics). The sensor only asks whether the count moved since it last looked,
+    // once a cycle: 16 bits wrap after 65536 events, never between two looks.
     struct Status {
-      std::uint32_t events;  // heartbeat events since construction (wraps)
-      std::uint32_t lost_entries;
+      std::uint16_t events;  // heartbeat events since construction (wraps)
+      std::uint16_t lost_entries;
     };
     void write(std::uint8_t lost_entries, bool event) {
       if (event) ++events_;
@@ -102,8 +105,8 @@ class HilRegisters {
 
    private:
     core::LatestValueRegister<Status> register_;
-    std::uint32_t events_ = 0;       // producer-only
-    std::uint32_t seen_events_ = 0;  // consumer-only
+    std::uint16_t events_ = 0;       // producer-only
+    std::uint16_t seen_events_ = 0;  // consumer-only
   };
 
   class Duty final : public DutyOutput {

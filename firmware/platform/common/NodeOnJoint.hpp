@@ -1,0 +1,102 @@
+// The CANopen node's views of the demo joint's application, for every platform's main (the
+// Cortex-M one uses them; platform/linux/main.cpp still has its own copies of the same classes,
+// to be replaced by these): the node reads the board and writes only the bus-writable fields,
+// through the bus writer; its raw HIL I/O and heartbeat news go through the joint's driver
+// registers, never the board (the interrupt policy). `Application` has `board`
+// (core::MessageBoard), `bus_writer` (BusWriter) and `registers` (joint::HilRegisters); each view
+// follows the application in its std::optional, which NMT reset node rebuilds.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+
+#include "board/fields.hpp"
+#include "canopen/Emcy.hpp"
+#include "canopen/Interfaces.hpp"
+#include "canopen/Node.hpp"
+#include "core/MessageBoard.hpp"
+#include "core/MessageBoardUser.hpp"
+#include "joint/drivers/HilRegisters.hpp"
+
+namespace platform {
+
+// The node's write access to the board: an external writer of the bus-writable fields.
+class BusWriter final : public core::ExternalWriter {
+ public:
+  explicit BusWriter(core::MessageBoard& board)
+      : ExternalWriter(board, "canopen_node", {.writes = core::kBusWritableFields}) {}
+
+  core::SetResult write(board::FieldId id, float value) { return boardSet(id, value); }
+};
+
+// The board's refused writes become EMCY frames naming the field (board.toml's [[emcy]]
+// ownership_violation); `context` is the co::Node.
+inline void report_ownership_violation(void* context, const core::WriteViolation& violation) {
+  static_cast<co::Node*>(context)->report_emcy(co::emcy::ownership_violation(violation.field));
+}
+
+template <class Application>
+class BoardFieldAccess final : public co::FieldAccess {
+ public:
+  explicit BoardFieldAccess(std::optional<Application>& app) : app_{app} {}
+  float read(board::FieldId id) override { return app_->board.get(id); }
+  co::WriteResult write(board::FieldId id, float value) override {
+    return app_->bus_writer.write(id, value) == core::SetResult::Ok ? co::WriteResult::Accepted
+                                                                     : co::WriteResult::Refused;
+  }
+
+ private:
+  std::optional<Application>& app_;
+};
+
+template <class Application>
+class HilIoOnRegisters final : public co::HilIo {
+ public:
+  explicit HilIoOnRegisters(std::optional<Application>& app) : app_{app} {}
+  void write_input(board::HilInputId id, std::int32_t raw) override {
+    joint::HilRegisters& registers = app_->registers;
+    switch (id) {
+      case board::HilInputId::motor_encoder_counts:
+        registers.write_motor_encoder(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::output_encoder_counts:
+        registers.write_output_encoder(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::thermistor_adc:
+        registers.write_thermistor_adc(static_cast<std::uint16_t>(raw));
+        break;
+      case board::HilInputId::motor_current_adc:
+        registers.write_motor_current(static_cast<std::int16_t>(raw));
+        break;
+      case board::HilInputId::kCount:
+        break;
+    }
+  }
+  std::int32_t read_output(board::HilOutputId id) override {
+    switch (id) {
+      case board::HilOutputId::motor_duty: return app_->registers.motor_duty_raw();
+      case board::HilOutputId::led_pattern: return app_->registers.led_pattern_raw();
+      case board::HilOutputId::kCount: break;
+    }
+    return 0;
+  }
+
+ private:
+  std::optional<Application>& app_;
+};
+
+// The node's heartbeat consumer (0x1016) news into the joint's register; the HeartbeatSensor
+// drains it in its update().
+template <class Application>
+class HeartbeatOnRegisters final : public co::HeartbeatListener {
+ public:
+  explicit HeartbeatOnRegisters(std::optional<Application>& app) : app_{app} {}
+  void heartbeat_status(std::uint8_t lost_entries, bool event) override {
+    app_->registers.write_heartbeat_status(lost_entries, event);
+  }
+
+ private:
+  std::optional<Application>& app_;
+};
+
+}  // namespace platform

@@ -1,0 +1,173 @@
+// joint-firmware.elf: the demo joint's firmware for a Cortex-M4F. The same pieces as the Linux
+// target (platform/linux/main.cpp): the message board, the scheduler with the demo joint's
+// components, the CANopen node and its views of them (platform/common/NodeOnJoint.hpp), the
+// hardware-in-the-loop registers; here on an interrupt-fed CAN port (InterruptCanPort.hpp) and
+// the SysTick timer, free-running: one control cycle per tick. No heap (StartupArena.hpp), no
+// exceptions, no RTTI, no operating system.
+//
+// Not yet on a real board: the CAN controller's registers and interrupts, and a flash sector
+// for the stored parameters (README, "The firmware on a microcontroller").
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <new>
+#include <optional>
+#include <span>
+
+#include "InterruptCanPort.hpp"
+#include "NodeOnJoint.hpp"
+#include "StartupArena.hpp"
+#include "board/fields.hpp"
+#include "canopen/FlagEmcy.hpp"
+#include "canopen/Node.hpp"
+#include "canopen/Recorder.hpp"
+#include "core/CycleCounter.hpp"
+#include "core/MessageBoard.hpp"
+#include "core/Scheduler.hpp"
+#include "joint/DemoJoint.hpp"
+#include "joint/drivers/HilRegisters.hpp"
+
+extern "C" [[noreturn]] void hil_fault(const char* what);
+
+namespace {
+
+// The mps2-an386's core clock (qemu's as well); an STM32G474 would say 170 MHz here.
+constexpr std::uint32_t kCoreClockHz = 25'000'000;
+constexpr std::uint32_t kPeriodUs = 1000;  // one control cycle per SysTick
+// 0x1018:4. A real board derives it from the chip's unique id (an STM32G4's 96-bit UID).
+constexpr std::uint32_t kSerialNumber = 0x4D34'0001u;
+
+// SysTick (Armv7-M System Control Space).
+volatile std::uint32_t& syst_csr() { return *reinterpret_cast<volatile std::uint32_t*>(0xE000'E010u); }
+volatile std::uint32_t& syst_rvr() { return *reinterpret_cast<volatile std::uint32_t*>(0xE000'E014u); }
+volatile std::uint32_t& syst_cvr() { return *reinterpret_cast<volatile std::uint32_t*>(0xE000'E018u); }
+
+std::atomic<std::uint32_t> g_ticks{0};  // periods since start; SysTick_Handler counts them
+
+std::uint32_t now_us() { return g_ticks.load(std::memory_order_relaxed) * kPeriodUs; }
+
+// Frames the controller's interrupts hand over; 32 each way: a block-upload sub-block's worth.
+cortexm::InterruptCanPort<32, 32> g_port;
+
+// No parameter memory yet: 0x1010 answers "cannot store" (a real board: a flash sector).
+class NoParameterStorage final : public co::ParameterStorage {
+ public:
+  bool save(std::span<const std::byte>) override { return false; }
+  std::size_t load(std::span<std::byte>) override { return 0; }
+};
+
+// Everything NMT reset node resets, built in place (as on Linux).
+struct Application {
+  Application() : demo_joint{board, registers.drivers(), static_cast<float>(kPeriodUs) * 1e-6f} {}
+  Application(const Application&) = delete;
+  Application& operator=(const Application&) = delete;
+
+  bool start() {
+    return scheduler.add(bus_writer) && demo_joint.add_to(scheduler) && scheduler.start().ok();
+  }
+
+  core::MessageBoard board;
+  core::Scheduler scheduler{board};
+  platform::BusWriter bus_writer{board};
+  joint::HilRegisters registers;
+  joint::DemoJoint demo_joint;
+};
+
+std::optional<Application> g_app;
+
+// Builds the application from an empty start-up arena and seals it.
+void start_application() {
+  cortexm::arena::reopen_empty();
+  g_app.emplace();
+  if (!g_app->start()) hil_fault("the application did not start");
+  cortexm::arena::seal();
+}
+
+class ApplicationRebuild final : public co::ApplicationReset {
+ public:
+  ApplicationRebuild(co::Node& node, co::FlagEmcyReporter& fault_emcy) : node_{node}, fault_emcy_{fault_emcy} {}
+  void reset_application() override {
+    g_app.reset();
+    start_application();
+    g_app->board.set_fault_hook({platform::report_ownership_violation, &node_});
+    fault_emcy_.forget();
+  }
+
+ private:
+  co::Node& node_;
+  co::FlagEmcyReporter& fault_emcy_;
+};
+
+// The field recorder's sample memory is static, constructed in main(): as a constant-initialized
+// global it would sit in .data, its 64 KiB of zeros copied from flash at every reset.
+alignas(co::Recorder) std::byte g_recorder_storage[sizeof(co::Recorder)];
+platform::BoardFieldAccess<Application> g_field_access{g_app};
+platform::HilIoOnRegisters<Application> g_hil_io{g_app};
+platform::HeartbeatOnRegisters<Application> g_heartbeat_on_registers{g_app};
+NoParameterStorage g_storage;
+
+#ifdef HIL_BOOT_CHECK_CYCLES
+// The boot check (cm_firmware_boot_check, run in `make test`): this image with one addition,
+// after HIL_BOOT_CHECK_CYCLES control cycles it ends qemu through semihosting (SYS_EXIT,
+// application exit: status 0). A fault never gets there: hil_fault spins, the runner times out.
+[[noreturn]] void end_boot_check() {
+  register std::uint32_t operation asm("r0") = 0x18;  // SYS_EXIT
+  register std::uint32_t reason asm("r1") = 0x20026;  // ADP_Stopped_ApplicationExit
+  asm volatile("bkpt 0xab" : : "r"(operation), "r"(reason) : "memory");
+  hil_fault("semihosting exit returned");
+}
+#endif
+
+}  // namespace
+
+extern "C" void SysTick_Handler() { g_ticks.fetch_add(1, std::memory_order_relaxed); }
+
+extern "C" void hil_platform_init() {}
+
+extern "C" [[noreturn]] void hil_fault(const char*) {
+  // A real board logs the reason to a no-init RAM word and lets its watchdog reset it.
+  asm volatile("cpsid i" ::: "memory");
+  for (;;) {
+  }
+}
+
+int main() {
+  co::Recorder& recorder = *new (g_recorder_storage) co::Recorder;
+  start_application();
+  co::Node node{board::kNode.default_node_id, g_port, g_field_access, g_hil_io, g_storage, kSerialNumber};
+  g_app->board.set_fault_hook({platform::report_ownership_violation, &node});
+  co::FlagEmcyReporter fault_emcy{node, board::kFaultFlagsInfo};
+  ApplicationRebuild application_rebuild{node, fault_emcy};
+  node.set_application_reset(&application_rebuild);
+  node.set_recorder(&recorder);
+  node.set_heartbeat_listener(&g_heartbeat_on_registers);
+  node.set_timeout_clock(co::TimeoutClock::WallTime);
+
+  syst_rvr() = kCoreClockHz / 1'000'000u * kPeriodUs - 1;
+  syst_cvr() = 0;
+  syst_csr() = 0b111;  // processor clock, interrupt on, counter on
+  node.start(now_us());
+
+  core::CycleCounter cycles;
+  std::uint32_t ticks_done = g_ticks.load(std::memory_order_relaxed);
+  for (;;) {
+    co::CanFrame frame;
+    while (g_port.receive(frame) == co::ReceiveResult::Received) {
+      if (node.process(frame, now_us()).sync) node.transmit_synchronous_pdos(now_us());
+    }
+    // Ticks missed while the last cycle ran still count as time (CycleCounter).
+    const std::uint32_t ticks = g_ticks.load(std::memory_order_relaxed);
+    if (ticks != ticks_done) {
+      const std::uint32_t cycle = cycles.advance(ticks - ticks_done);
+      ticks_done = ticks;
+      g_app->scheduler.run_cycle(cycle);
+      fault_emcy.update(static_cast<std::uint32_t>(g_app->board.get(board::FieldId::fault_flags)));
+      recorder.sample(cycle, [](board::FieldId id) { return g_app->board.get(id); });
+#ifdef HIL_BOOT_CHECK_CYCLES
+      if (cycles.run() == HIL_BOOT_CHECK_CYCLES) end_boot_check();
+#endif
+    }
+    node.poll(now_us());
+    if (!node.sdo_segments_due()) asm volatile("wfi");  // the next tick or frame wakes the core
+  }
+}
