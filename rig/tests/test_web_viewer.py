@@ -126,6 +126,56 @@ def test_web_viewer_shows_the_recording_with_every_dashboard(trace: Path) -> Non
         )
 
 
+@pytest.fixture
+def one_broken_series(tmp_path: Path) -> Path:
+    """A recording with two series of 200 rows each (cycle and sim_time, as the rig's): a sine, and one whose
+    every value is NaN (it has rows, so it has data, but it draws nothing)."""
+    import numpy as np
+    import rerun as rr
+
+    path = tmp_path / "broken.rrd"
+    stream = rr.RecordingStream(APPLICATION_ID, recording_id="one-broken-series")
+    stream.save(str(path))
+    cycles = np.arange(200)
+    for entity, values in (("/check/drawn", np.sin(cycles / 20.0)), ("/check/broken", np.full(200, np.nan))):
+        stream.send_columns(
+            entity,
+            indexes=[
+                rr.TimeColumn(CYCLE_TIMELINE, sequence=cycles),
+                rr.TimeColumn(SIM_TIME_TIMELINE, duration=cycles / 1000.0),
+            ],
+            columns=rr.Scalars.columns(scalars=values),
+        )
+    stream.flush()
+    stream.disconnect()
+    return path
+
+
+@pytest.mark.skipif(NO_BROWSER is not None, reason=str(NO_BROWSER))
+@pytest.mark.timeout(600)
+def test_the_series_check_fails_for_a_series_with_data_that_draws_nothing(one_broken_series: Path) -> None:
+    """The per-series pixel check of the browser stage (`check_series`): of two series that both
+    have data, the one that draws nothing in its view is named, the other one is not."""
+    import rerun.blueprint as rrb
+
+    from hilrig.observe.dashboard_check import missing_series
+    from hilrig.observe.reader import Trace
+    from hilrig.observe.series_check import SERIES_PIXELS, check_series
+
+    layout = rrb.Blueprint(
+        rrb.TimeSeriesView(name="two series", origin="/check", contents=["/check/drawn", "/check/broken"]),
+        rrb.TimePanel(timeline=CYCLE_TIMELINE),
+        collapse_panels=False,
+    )
+    trace = Trace.read(one_broken_series)
+    assert missing_series(layout, trace) == [], "both have data: the data check cannot see it"
+    out = output_dir() / "series-check"
+    with served_trace(one_broken_series, "overview") as served, ViewerPage(served) as viewer:
+        drawn = check_series(viewer, layout, trace, out, name="broken", trace_path=one_broken_series)
+    assert drawn.pixels[("two series", "/check/drawn")] >= SERIES_PIXELS, drawn.pixels
+    assert drawn.missing() == ["broken / two series: /check/broken drew 0 pixels in its view"]
+
+
 # --- Without a browser ------------------------------------------------------------------------
 def _varint(value: int) -> bytes:
     out = bytearray()
