@@ -247,3 +247,34 @@ def test_plotted_pixels_count_colour_among_the_views_not_in_the_panels() -> None
     assert plotted_pixels(image) == 0
     image.paste((40, 160, 60), (left + 10, top + 200, left + 410, top + 203))  # a series line
     assert plotted_pixels(image) == 400 * 3
+
+
+def test_a_series_colour_counts_inside_the_views_rectangle_only() -> None:
+    from hilrig.observe.series_check import COLOUR_TOLERANCE, SERIES_PALETTE, colour_pixels
+
+    red, green = SERIES_PALETTE[0], SERIES_PALETTE[1]
+    image = Image.new("RGB", (VIEWPORT["width"], VIEWPORT["height"]), (30, 30, 30))
+    left, top, _, _ = BLUEPRINT_AREA
+    image.paste(red, (0, 0, left, top))  # outside the view: not its pixels
+    image.paste(red, (left + 10, top + 50, left + 110, top + 54))  # its line, 100 x 4
+    near = tuple(c - COLOUR_TOLERANCE if c else c for c in red)
+    image.paste(near, (left + 10, top + 60, left + 20, top + 61))  # anti-aliased, still it: 10
+    assert colour_pixels(image, BLUEPRINT_AREA, red) == 400 + 10
+    assert colour_pixels(image, BLUEPRINT_AREA, green) == 0
+
+
+def test_the_series_of_a_view_are_the_ones_it_names_or_those_under_its_origin_with_data() -> None:
+    import rerun.blueprint as rrb
+
+    from hilrig.observe.reader import Trace
+    from hilrig.observe.series_check import series_of
+
+    trace = Trace()
+    trace.scalars["/bus/tpdo_delay/TPDO2"] = [0.3]
+    trace.scalars["/bus/tpdo_delay/TPDO1"] = [0.2]
+    trace.scalars["/bus/tpdo_delay/TPDO9"] = []  # named, never logged: nothing to draw
+    trace.scalars["/bus/load"] = [50.0]
+    subtree = rrb.TimeSeriesView(name="delays", origin="/bus/tpdo_delay")
+    assert series_of(subtree, trace) == ["/bus/tpdo_delay/TPDO1", "/bus/tpdo_delay/TPDO2"]
+    named = rrb.TimeSeriesView(name="load", origin="/", contents=["/bus/load", "+ /events/**"])
+    assert series_of(named, trace) == ["/bus/load"]

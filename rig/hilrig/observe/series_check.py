@@ -42,9 +42,9 @@ SERIES_PALETTE: tuple[tuple[int, int, int], ...] = (
     (128, 0, 255), (255, 96, 160), (0, 128, 0), (160, 80, 0), (255, 220, 140), (0, 255, 140),
     (200, 0, 80), (120, 255, 0), (180, 140, 255), (255, 120, 80),
 )
-"""One colour per series of a view (a view names at most 16: an 8-module robot's angles): clear
-colours apart from each other by 40 or more in some channel, none near the viewer's own accent
-blue (`hilrig.observe.browser.UI_ACCENT_HUE`) or its greys."""
+"""One colour per series of a view shown (a view of more series is shown 16 at a time; an 8-module
+robot's angles are 16): clear colours apart from each other by 40 or more in some channel, none
+near the viewer's own accent blue (`hilrig.observe.browser.UI_ACCENT_HUE`) or its greys."""
 LINE_WIDTH = 4.0
 """Points: the middle of a line this wide is its own colour exactly, whatever the anti-aliasing."""
 COLOUR_TOLERANCE = 10
@@ -163,28 +163,30 @@ def check_series(
     out_dir.mkdir(parents=True, exist_ok=True)
     drawn = SeriesDrawn(name)
     for number, view in enumerate(_time_series_views(blueprint), start=1):
-        series = series_of(view, trace)[: len(SERIES_PALETTE)]
-        if not series:
-            continue
-        key = (str(view.origin), tuple(series))
+        every = series_of(view, trace)
+        key = (str(view.origin), tuple(every))
         if key in checked:
             drawn.pixels.update({(str(view.name), entity): n for entity, n in checked[key].items()})
             continue
-        viewer.show_dashboard(alone(view, series, blueprint.time_panel), whole)
-        path = out_dir / f"{number}.png"
-        image = _still_screenshot(viewer, path)
-        drawn.screenshots.append(path)
-        for k, entity in enumerate(series):
-            count = colour_pixels(image, BLUEPRINT_AREA, SERIES_PALETTE[k])
-            if count < SERIES_PIXELS:  # hidden under the others, or not drawn: look at it alone
-                # Named apart from the view with all its series: the wait knows the switch by it.
-                by_itself = alone(view, [entity], blueprint.time_panel, name=f"{view.name}: {entity}")
-                viewer.show_dashboard(by_itself, whole)
-                single = out_dir / f"{number}-{k + 1}.png"
-                count = colour_pixels(_still_screenshot(viewer, single), BLUEPRINT_AREA, SERIES_PALETTE[0])
-                drawn.screenshots.append(single)
-            drawn.pixels[(str(view.name), entity)] = count
-        checked[key] = {entity: drawn.pixels[(str(view.name), entity)] for entity in series}
+        for first in range(0, len(every), len(SERIES_PALETTE)):  # as many colours at a time
+            series = every[first : first + len(SERIES_PALETTE)]
+            # Each showing named apart from the one before: the wait knows the switch by it.
+            name = str(view.name) if not first else f"{view.name} (series {first + 1} on)"
+            viewer.show_dashboard(alone(view, series, blueprint.time_panel, name=name), whole)
+            path = out_dir / (f"{number}.png" if not first else f"{number}-from-{first + 1}.png")
+            image = _still_screenshot(viewer, path)
+            drawn.screenshots.append(path)
+            for k, entity in enumerate(series):
+                count = colour_pixels(image, BLUEPRINT_AREA, SERIES_PALETTE[k])
+                if count < SERIES_PIXELS:  # hidden under the others, or not drawn: look at it alone
+                    by_itself = alone(view, [entity], blueprint.time_panel, name=f"{view.name}: {entity}")
+                    viewer.show_dashboard(by_itself, whole)
+                    single = out_dir / f"{number}-{first + k + 1}.png"
+                    alone_shot = _still_screenshot(viewer, single)
+                    count = colour_pixels(alone_shot, BLUEPRINT_AREA, SERIES_PALETTE[0])
+                    drawn.screenshots.append(single)
+                drawn.pixels[(str(view.name), entity)] = count
+        checked[key] = {entity: drawn.pixels[(str(view.name), entity)] for entity in every}
     return drawn
 
 
