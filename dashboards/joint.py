@@ -18,10 +18,9 @@ import rerun.blueprint as rrb
 from dashboards.diff import diff
 from dashboards.robot import robot
 from hilrig.observe.paths import (
+    BUS_DELAY_ROOT,
     BUS_EVENTS_PATH,
-    BUS_FRAMES_ROOT,
-    BUS_RPDOS_PER_CYCLE,
-    BUS_TPDOS_PER_CYCLE,
+    BUS_LOAD_PATH,
     CYCLE_TIMELINE,
     EMCY_PATH,
     EVENTS_ROOT,
@@ -29,8 +28,10 @@ from hilrig.observe.paths import (
     SDO_PATH,
     SIM_TIME_TIMELINE,
     TRUE_SPRING_STIFFNESS,
+    BusProblem,
     EntryTable,
     entity_paths,
+    problem_path,
     truth_path,
 )
 
@@ -159,16 +160,20 @@ def faults(table: EntryTable) -> rrb.Blueprint:
 
 
 def bus(table: EntryTable) -> rrb.Blueprint:
-    """What went over the bus each cycle: frames per PDO (COB-ID) and per direction, which PDOs
-    the node uses and any TPDO late, missing or malformed, SDO aborts, EMCY and NMT."""
+    """What the bus carried, measured (`hilrig.observe.busmeter`): its load per 10 ms window in %
+    of the bit rate, each TPDO's delay after its SYNC, the TPDOs late, missing or malformed and
+    the error frames counted and as events (with which PDOs the node uses), SDO aborts, EMCY
+    and NMT. The same from a live run and from `hilrig replay LOG --trace`."""
     return _blueprint(rrb.Vertical(
         rrb.Horizontal(
-            _plot("frames per cycle, by PDO (COB-ID); one SYNC each cycle besides", origin=BUS_FRAMES_ROOT),
-            _plot("frames per cycle: TPDOs (node to rig), RPDOs (rig to node)",
-                  [BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE]),
+            _plot("bus load per 10 ms [% of the bit rate, worst-case bit stuffing]", [BUS_LOAD_PATH]),
+            _plot("each TPDO's delay after its SYNC [ms]", origin=BUS_DELAY_ROOT),
         ),
         rrb.Horizontal(
-            rrb.TextLogView(name="PDOs in use; late, missing or malformed TPDOs", origin=BUS_EVENTS_PATH),
+            _plot("late, missing, malformed TPDOs and error frames [count so far]",
+                  [problem_path(problem) for problem in BusProblem]),
+            rrb.TextLogView(name="PDOs in use; late, missing, malformed TPDOs; error frames",
+                            origin=BUS_EVENTS_PATH),
             rrb.TextLogView(name="SDO aborts", origin=SDO_PATH),
             rrb.TextLogView(name="EMCY and NMT",
                             origin="/", contents=[f"+ {EMCY_PATH}/**", f"+ {NMT_PATH}/**"]),

@@ -19,8 +19,10 @@ from hilrig.engine.rig import Rig
 from hilrig.errors import FieldNameError, LockstepError, SdoAbortError
 from hilrig.observe.blueprints import blueprint_names, load_blueprint
 from hilrig.observe.paths import (
+    BUS_DELAY_ROOT,
     BUS_EVENTS_PATH,
     BUS_FRAMES_ROOT,
+    BUS_LOAD_PATH,
     BUS_RPDOS_PER_CYCLE,
     BUS_TPDOS_PER_CYCLE,
     DIFF_BASE_ROOT,
@@ -32,10 +34,13 @@ from hilrig.observe.paths import (
     SDO_PATH,
     TRUE_SPRING_STIFFNESS,
     TRUTH_QUANTITIES,
+    BusProblem,
+    delay_path,
     entity_paths,
     frames_path,
     link_path,
     module_root,
+    problem_path,
     truth_path,
     truth_unit,
 )
@@ -46,6 +51,7 @@ from hilrig.observe.viewer import open_trace
 from hilrig.plants import JointParams
 from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
+from hilrig.wire.framebits import frame_bits_worst_case
 
 PARAMS = JointParams.fast_thermal()
 CYCLES = 47  # not a multiple of the batch: the last, partial batch must be written by close()
@@ -259,7 +265,8 @@ def test_every_plot_of_every_dashboard_has_one_unit(table: RigTable) -> None:
 
     unit_of = {path: table.entry(name).unit for name, path in entity_paths(table).items()}
     unit_of |= {truth_path(q): truth_unit(q) for q in TRUTH_QUANTITIES}
-    unit_of |= {BUS_TPDOS_PER_CYCLE: "frames", BUS_RPDOS_PER_CYCLE: "frames"}
+    unit_of |= {BUS_TPDOS_PER_CYCLE: "frames", BUS_RPDOS_PER_CYCLE: "frames", BUS_LOAD_PATH: "%"}
+    unit_of |= {problem_path(problem): "frames" for problem in BusProblem}
     for name in BLUEPRINTS:
         for view in _views(blueprint(name, table).root_container):
             contents = view.contents if isinstance(view.contents, list) else []
@@ -299,6 +306,7 @@ def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
     robot = {module_root(n) + path for n in DEFAULT_NODE_IDS for path in one_board}
     robot |= {link_path(k) for k in range(len(DEFAULT_NODE_IDS) + 1)}
     logged = one_board | robot | {BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE, f"{BUS_FRAMES_ROOT}/TPDO1"}
+    logged |= {BUS_LOAD_PATH, delay_path("TPDO1"), *(problem_path(problem) for problem in BusProblem)}
     # A comparison (`hilrig diff`): both runs' series under /base and /cand, cand - base under /diff.
     logged |= {root + path for root in (DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT) for path in one_board}
     logged.add(DIFF_EVENTS_PATH)
@@ -441,7 +449,10 @@ def test_a_dashboard_check_names_every_series_without_data(traced: Run, table: R
     # first cycle, RPDO3's control_mode included: a name is no row, so the gap is still reported.
     assert (paths["control_mode"] in trace.series_names) == (not isinstance(traced.tracer, _RowsOnly))
     bus = missing_series(blueprint("bus", table), trace, name="bus")
-    assert bus == [], bus
+    if isinstance(traced.tracer, _RowsOnly):  # a cycle's rows say what came, not when it came
+        assert bus == [f"bus / each TPDO's delay after its SYNC [ms]: nothing under {BUS_DELAY_ROOT}"], bus
+    else:
+        assert bus == [], bus
 
 
 def test_the_truth_paths_name_every_quantity_of_the_joint_state() -> None:
@@ -500,3 +511,30 @@ def test_a_robot_module_names_and_colours_its_own_series(tmp_path: Path) -> None
     assert colours[measured] == (red << 24) | (green << 16) | (blue << 8) | 0xFF
     lighter, darker = colours[commanded] >> 24, colours[truth] >> 24
     assert darker < red < lighter
+
+
+def test_bus_load_per_10_ms_and_each_tpdos_delay_after_its_sync_are_in_the_trace(traced: Run) -> None:
+    """From a lockstep run's History (`hilrig.observe.busmeter`): the worst-case bits of each
+    cycle's SYNC, RPDOs and TPDOs, per 10 ms window in % of 1 Mbit/s; each TPDO's delay after its
+    SYNC by the exchange's clock, one per cycle it came in. A tracer not shown the History (the
+    real-time driver's rows) has the load and counts, not the delays."""
+    _scenario(traced)
+    trace = Trace.read(traced.path)
+    node = traced.rig.node
+    tpdos = [p for p in node.tpdos.values() if p.enabled and p.names]
+    streamed = [p for p in node.rpdos.values() if p.enabled and p.names and p.number in (1, 2)]
+    bits = [0] * ((CYCLES + 9) // 10)
+    for c in range(CYCLES):
+        frames = [1] + [p.length for p in streamed] + [p.length for p in tpdos if p.due_at_sync(c + 1)]
+        bits[c // 10] += sum(frame_bits_worst_case(n) for n in frames)
+    assert trace.cycles[BUS_LOAD_PATH] == list(range(0, CYCLES, 10))
+    assert trace.scalars[BUS_LOAD_PATH] == pytest.approx([b / (0.010 * 1_000_000) * 100 for b in bits])
+    assert trace.series_names[BUS_LOAD_PATH] == "bus load [% of 1 Mbit/s]"
+    for pdo in tpdos if not isinstance(traced.tracer, _RowsOnly) else ():
+        path = delay_path(f"TPDO{pdo.number}")
+        assert trace.cycles[path] == [c for c in range(CYCLES) if pdo.due_at_sync(c + 1)], pdo.label
+        assert all(0 < delay < 500 for delay in trace.scalars[path]), (pdo.label, trace.scalars[path])
+    for problem in BusProblem:  # the fake node answers every SYNC in time
+        assert trace.scalars[problem_path(problem)] == [0.0] * len(bits), problem
+    if isinstance(traced.tracer, _RowsOnly):
+        assert not any(path.startswith(BUS_DELAY_ROOT) for path in trace.scalars)

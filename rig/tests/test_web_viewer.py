@@ -126,6 +126,56 @@ def test_web_viewer_shows_the_recording_with_every_dashboard(trace: Path) -> Non
         )
 
 
+@pytest.fixture
+def one_broken_series(tmp_path: Path) -> Path:
+    """A recording with two series of 200 rows each (cycle and sim_time, as the rig's): a sine, and one whose
+    every value is NaN (it has rows, so it has data, but it draws nothing)."""
+    import numpy as np
+    import rerun as rr
+
+    path = tmp_path / "broken.rrd"
+    stream = rr.RecordingStream(APPLICATION_ID, recording_id="one-broken-series")
+    stream.save(str(path))
+    cycles = np.arange(200)
+    for entity, values in (("/check/drawn", np.sin(cycles / 20.0)), ("/check/broken", np.full(200, np.nan))):
+        stream.send_columns(
+            entity,
+            indexes=[
+                rr.TimeColumn(CYCLE_TIMELINE, sequence=cycles),
+                rr.TimeColumn(SIM_TIME_TIMELINE, duration=cycles / 1000.0),
+            ],
+            columns=rr.Scalars.columns(scalars=values),
+        )
+    stream.flush()
+    stream.disconnect()
+    return path
+
+
+@pytest.mark.skipif(NO_BROWSER is not None, reason=str(NO_BROWSER))
+@pytest.mark.timeout(600)
+def test_the_series_check_fails_for_a_series_with_data_that_draws_nothing(one_broken_series: Path) -> None:
+    """The per-series pixel check of the browser stage (`check_series`): of two series that both
+    have data, the one that draws nothing in its view is named, the other one is not."""
+    import rerun.blueprint as rrb
+
+    from hilrig.observe.dashboard_check import missing_series
+    from hilrig.observe.reader import Trace
+    from hilrig.observe.series_check import SERIES_PIXELS, check_series
+
+    layout = rrb.Blueprint(
+        rrb.TimeSeriesView(name="two series", origin="/check", contents=["/check/drawn", "/check/broken"]),
+        rrb.TimePanel(timeline=CYCLE_TIMELINE),
+        collapse_panels=False,
+    )
+    trace = Trace.read(one_broken_series)
+    assert missing_series(layout, trace) == [], "both have data: the data check cannot see it"
+    out = output_dir() / "series-check"
+    with served_trace(one_broken_series, "overview") as served, ViewerPage(served) as viewer:
+        drawn = check_series(viewer, layout, trace, out, name="broken", trace_path=one_broken_series)
+    assert drawn.pixels[("two series", "/check/drawn")] >= SERIES_PIXELS, drawn.pixels
+    assert drawn.missing() == ["broken / two series: /check/broken drew 0 pixels in its view"]
+
+
 # --- Without a browser ------------------------------------------------------------------------
 def _varint(value: int) -> bytes:
     out = bytearray()
@@ -197,3 +247,34 @@ def test_plotted_pixels_count_colour_among_the_views_not_in_the_panels() -> None
     assert plotted_pixels(image) == 0
     image.paste((40, 160, 60), (left + 10, top + 200, left + 410, top + 203))  # a series line
     assert plotted_pixels(image) == 400 * 3
+
+
+def test_a_series_colour_counts_inside_the_views_rectangle_only() -> None:
+    from hilrig.observe.series_check import COLOUR_TOLERANCE, SERIES_PALETTE, colour_pixels
+
+    red, green = SERIES_PALETTE[0], SERIES_PALETTE[1]
+    image = Image.new("RGB", (VIEWPORT["width"], VIEWPORT["height"]), (30, 30, 30))
+    left, top, _, _ = BLUEPRINT_AREA
+    image.paste(red, (0, 0, left, top))  # outside the view: not its pixels
+    image.paste(red, (left + 10, top + 50, left + 110, top + 54))  # its line, 100 x 4
+    near = tuple(c - COLOUR_TOLERANCE if c else c for c in red)
+    image.paste(near, (left + 10, top + 60, left + 20, top + 61))  # anti-aliased, still it: 10
+    assert colour_pixels(image, BLUEPRINT_AREA, red) == 400 + 10
+    assert colour_pixels(image, BLUEPRINT_AREA, green) == 0
+
+
+def test_the_series_of_a_view_are_the_ones_it_names_or_those_under_its_origin_with_data() -> None:
+    import rerun.blueprint as rrb
+
+    from hilrig.observe.reader import Trace
+    from hilrig.observe.series_check import series_of
+
+    trace = Trace()
+    trace.scalars["/bus/tpdo_delay/TPDO2"] = [0.3]
+    trace.scalars["/bus/tpdo_delay/TPDO1"] = [0.2]
+    trace.scalars["/bus/tpdo_delay/TPDO9"] = []  # named, never logged: nothing to draw
+    trace.scalars["/bus/load"] = [50.0]
+    subtree = rrb.TimeSeriesView(name="delays", origin="/bus/tpdo_delay")
+    assert series_of(subtree, trace) == ["/bus/tpdo_delay/TPDO1", "/bus/tpdo_delay/TPDO2"]
+    named = rrb.TimeSeriesView(name="load", origin="/", contents=["/bus/load", "+ /events/**"])
+    assert series_of(named, trace) == ["/bus/load"]

@@ -89,6 +89,10 @@ from boardproto.cia301 import (
     SYNC_COB_ID,
     heartbeat_cob_id,
 )
+from hilrig.wire.framebits import MAX_DATA_BYTES as MAX_DATA_BYTES  # the frame arithmetic's home
+from hilrig.wire.framebits import frame_bits_nominal as frame_bits_nominal
+from hilrig.wire.framebits import frame_bits_worst_case as frame_bits_worst_case
+from hilrig.wire.framebits import stuff_bits_worst_case as stuff_bits_worst_case
 
 STANDARD_BITRATES: tuple[int, ...] = (125_000, 250_000, 500_000, 1_000_000)
 """Classic CAN bit rates the command reports by default, in bit/s."""
@@ -101,39 +105,11 @@ FULL_LOAD = 1.0
 DEFAULT_RATE_HZ = 1000.0
 SYNC_DATA_BYTES = 1  # the SYNC counter
 HEARTBEAT_DATA_BYTES = 1
-MAX_DATA_BYTES = 8
 DEFAULT_MASTER_NODE_ID = MASTER_NODE_ID
 """The rig as the master of a robot: its heartbeat goes on `heartbeat_cob_id` of this id."""
 DEFAULT_MASTER_HEARTBEAT_MS = MASTER_HEARTBEAT_MS
 RATE_STEPS_PER_HZ = 10
 """`highest_rate_hz` answers to 0.1 Hz."""
-
-_FIXED_BITS = 47  # every bit of a 2.0A data frame except the data field
-_STUFFABLE_FIXED_BITS = 34  # SOF .. CRC without the data field
-
-
-def _check_data_bytes(data_bytes: int) -> None:
-    if not 0 <= data_bytes <= MAX_DATA_BYTES:
-        raise ValueError(f"a classic CAN frame carries 0..8 data bytes, got {data_bytes}")
-
-
-def frame_bits_nominal(data_bytes: int) -> int:
-    """Bits of a classic CAN 2.0A data frame with `data_bytes` bytes, no stuff bits, including
-    the 3-bit intermission before the next frame: 47 + 8n."""
-    _check_data_bytes(data_bytes)
-    return _FIXED_BITS + 8 * data_bytes
-
-
-def stuff_bits_worst_case(data_bytes: int) -> int:
-    """Largest number of stuff bits in such a frame: floor((34 + 8n - 1) / 4)."""
-    _check_data_bytes(data_bytes)
-    return (_STUFFABLE_FIXED_BITS + 8 * data_bytes - 1) // 4
-
-
-def frame_bits_worst_case(data_bytes: int) -> int:
-    """Nominal bits plus the worst-case stuff bits: 47 + 8n + floor((34 + 8n - 1) / 4)."""
-    return frame_bits_nominal(data_bytes) + stuff_bits_worst_case(data_bytes)
-
 
 FD_DATA_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
 """The data field lengths of a CAN FD frame (DLC 0..15); a payload is padded to the next one."""

@@ -7,8 +7,8 @@ measures it, so the two can be held side by side::
     hilrig busstat -c can0 -b 1M --duration 10      # a live bus, for 10 s
 
 Each frame counts with the bits of its data length, nominal and with worst-case stuffing, by
-`hilrig.apps.busload`'s formulas (classic CAN 2.0A; an extended id or FD frame counts as a
-classic one of its length, the safe side is not claimed for it).
+`hilrig.wire.framebits` (the formulas of `hilrig.apps.busload`; classic CAN 2.0A; an extended
+id or FD frame counts as a classic one of its length, the safe side is not claimed for it).
 
 Time base: without a rate, the frames' own timestamps (first to last frame): a real bus. With
 `rate_hz`, the SYNCs: the frames from the first SYNC to the last one are `SYNCs - 1` cycles of
@@ -27,16 +27,10 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, TextIO
 
 from boardproto.cia301 import SYNC_COB_ID, FunctionCode, function_of
-from hilrig.apps.busload import MAX_DATA_BYTES, frame_bits_nominal, frame_bits_worst_case
+from hilrig.wire.framebits import frame_bits
 
 if TYPE_CHECKING:
     import can
-
-
-def frame_bits(data_bytes: int, *, worst_case: bool) -> int:
-    """A frame's bits by `hilrig.apps.busload` (more than 8 bytes: an FD frame, counted as 8)."""
-    n = min(data_bytes, MAX_DATA_BYTES)
-    return frame_bits_worst_case(n) if worst_case else frame_bits_nominal(n)
 
 
 @dataclass

@@ -4,7 +4,10 @@ A log from `hilrig record` (a real board on can0, or any scenario's bus.log) bec
 kind of Rerun trace a live run makes: every PDO field decoded with the generated DBC, grouped by
 SYNC into cycles (the RPDOs before SYNC n and the TPDOs after it are cycle n, as the lockstep
 rig and a SYNC-driven board see them), on the `cycle` timeline and the wall-clock timeline of
-the recording; EMCY, SDO aborts and NMT state changes from heartbeats as text log entries.
+the recording; EMCY, SDO aborts and NMT state changes from heartbeats as text log entries;
+and the bus measurements a live run's trace has (`hilrig.observe.busmeter`: load per 10 ms
+window, each TPDO's delay after its SYNC by the log's timestamps, late, missing and malformed
+TPDOs and error frames as events and counts).
 """
 
 from __future__ import annotations
@@ -63,10 +66,21 @@ def trace_log(
 ) -> LogTraceStats:
     """Send the frames of a log into `tracer` (made with clock="wall": `t` is the log's own
     timestamps); returns what was done. The caller closes the tracer."""
+    from hilrig.observe.busmeter import BusMeter, PdoSpec
     from hilrig.observe.paths import EMCY_PATH
     from hilrig.observe.sinks import Severity
 
     stats = LogTraceStats()
+    meter = BusMeter(
+        {
+            pdo.cob_id(node_id): PdoSpec(
+                pdo.name, pdo.length_bytes, pdo in table.board.tpdos, pdo.transmission_type
+            )
+            for pdo in (*table.board.tpdos, *table.board.rpdos)
+            if pdo.enabled and pdo.entries
+        },
+        bitrate=tracer.bitrate,
+    )
     tpdo_ids = {pdo.cob_id(node_id) for pdo in table.board.tpdos}
     emcy_id, sdo_answer_id = emcy_cob_id(node_id), sdo_response_cob_id(node_id)
     heartbeat_id = heartbeat_cob_id(node_id)
@@ -87,9 +101,13 @@ def trace_log(
         stats.frames += 1
         if progress is not None and stats.frames % 10_000 == 0:
             progress(stats.frames)
-        if message.is_extended_id or message.is_error_frame or message.is_remote_frame:
-            continue
+            tracer.log_bus(meter.take())
         t = message.timestamp
+        if message.is_error_frame:
+            meter.frame(t, max(cycle, 0), message.arbitration_id, 0, error=True)
+            continue
+        if message.is_extended_id or message.is_remote_frame:
+            continue
         first_t = t if first_t is None else first_t
         cob_id, data = message.arbitration_id, bytes(message.data)
         at_cycle = max(cycle, 0)
@@ -97,7 +115,9 @@ def trace_log(
             close_cycle()
             cycle, cycle_t = cycle + 1, t
             open_sent, sent, received = sent, {}, {}
+            meter.frame(t, cycle, cob_id, len(data))
             continue
+        meter.frame(t, at_cycle, cob_id, len(data))
         if cob_id == emcy_id and len(data) == EmcyLayout.FRAME_BYTES:
             emcy = split_emcy(data)
             record = EmcyRecord(emcy.code, emcy.register, emcy.manufacturer, at_cycle, t - first_t)
@@ -137,6 +157,7 @@ def trace_log(
         else:
             sent.update(fields)
     close_cycle()
+    tracer.log_bus(meter.take(final=True))
     return stats
 
 

@@ -400,7 +400,7 @@ class Driver:
         self._sync_starts = SyncStarts(enabled_tpdos)
         keep = self.history.keep
         self._decoders = {
-            p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p))
+            p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p), self.history.arrival_store(p))
             if keep
             else (p.length, p.codec.unpack)
             for p in enabled_tpdos

@@ -12,7 +12,7 @@ import numpy as np
 
 from hilrig.plants import STATE_FIELDS, JointState, state_matrix
 from hilrig.table import unknown_name
-from hilrig.wire.transport import ROW_CYCLE, PdoDirection, PdoLayout
+from hilrig.wire.transport import ARRIVAL, ROW_CYCLE, PdoDirection, PdoLayout
 
 Value = float | int
 PdoRow = tuple[PdoLayout, tuple[Value, ...]]
@@ -101,6 +101,13 @@ class _PdoRows:
     def column(self, position: int) -> np.ndarray:
         """Every value at `position`, as the numbers they are: int64, float64 or bool."""
         return _widened(self.records(0, self.count)[f"v{position}"])
+
+
+def _at_cycles(table: np.ndarray, cycles: np.ndarray) -> np.ndarray:
+    """The second column of `table` ((cycle, value) rows, cycles ascending) at each of `cycles`,
+    as float64; NaN where the table has no row of that cycle."""
+    row = np.minimum(np.searchsorted(table[:, 0], cycles), len(table) - 1)
+    return np.where(table[row, 0] == cycles, table[row, 1].astype(np.float64), np.nan)
 
 
 def _widened(column: np.ndarray) -> np.ndarray:
@@ -200,6 +207,11 @@ class History:
         self._received = _Direction()
         self._sent = _Direction()
         self._truth: list[JointState] = []
+        self._arrivals: dict[PdoLayout, bytearray] = {}
+        """Per TPDO, (cycle, CLOCK_MONOTONIC ns) of each arrival (`ARRIVAL`), as the exchange
+        appends them (`arrival_store`)."""
+        self._syncs = bytearray()
+        """(cycle, CLOCK_MONOTONIC ns) of each cycle's SYNC as it was sent (`note_sync`)."""
         self.record_truth: Callable[[JointState], None] = self._truth.append if keep else _forget
         """Record the plant state of the next cycle (every cycle: the list's own append)."""
 
@@ -265,6 +277,29 @@ class History:
         rows = direction.rows_of(pdo)
         if rows.count and rows.last_cycle() == cycle:
             rows.drop_last()
+        arrivals = self._arrivals.get(pdo)
+        if arrivals and ARRIVAL.unpack_from(arrivals, len(arrivals) - ARRIVAL.size)[0] == cycle:
+            del arrivals[-ARRIVAL.size :]
+
+    def arrival_store(self, pdo: PdoLayout) -> bytearray:
+        """Where the exchange appends (cycle, CLOCK_MONOTONIC ns) of each of `pdo`'s arrivals
+        (`transport.ARRIVAL`), beside its rows (`row_store`)."""
+        return self._arrivals.setdefault(pdo, bytearray())
+
+    def note_sync(self, cycle: int, monotonic_ns: int) -> None:
+        """When cycle `cycle`'s SYNC went out (CLOCK_MONOTONIC ns): what `delays_of` measures from."""
+        if self.keep:
+            self._syncs += ARRIVAL.pack(cycle, monotonic_ns)
+
+    def delays_of(self, pdo: PdoLayout, cycles: np.ndarray) -> np.ndarray | None:
+        """`pdo`'s delay after its cycle's SYNC [s] in each of `cycles` (cycles it arrived in), by
+        the exchange's clock; NaN where either time is not known; None when none is kept."""
+        arrivals = self._arrivals.get(pdo)
+        if not arrivals or not self._syncs or not len(cycles):
+            return None
+        arrived = np.frombuffer(bytes(arrivals), dtype=np.int64).reshape(-1, 2)
+        synced = np.frombuffer(bytes(self._syncs), dtype=np.int64).reshape(-1, 2)
+        return (_at_cycles(arrived, cycles) - _at_cycles(synced, cycles)) / 1e9
 
     def has_received(self, name: str) -> bool:
         return self._received.has(name)

@@ -22,6 +22,7 @@ the refused frame is dropped, and a cycle whose due TPDOs did not all come ends 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -169,7 +170,9 @@ class LockstepDriver(Driver):
     def step(self) -> CycleResult:
         n, state, raw, due, sync_number, sent, frames = self._sample()
         t, counter = self.history.time_of(n), sync_counter(n)
-        # The RPDOs, then the SYNC, in the exchange's one call (`_collect`).
+        # The RPDOs, then the SYNC, in the exchange's one call (`_collect`); the TPDOs' delays
+        # after it are their arrivals (`History.arrival_store`) less this.
+        self.history.note_sync(n, time.monotonic_ns())
         got = self._collect(n, t, due, sync_number, frames + SYNC_FRAMES[counter - 1])
         result = self._record(n, t, counter, state, raw, sent, frames, got)
         self.plant.step(self.period_s, result.duty)
@@ -337,7 +340,7 @@ class LockstepDriver(Driver):
         """A TPDO of cycle `n` into `got` and its rows (what the exchange does in C)."""
         got[cob_id] = values
         decoder = self._decoders[cob_id]
-        if len(decoder) == 4:  # the history keeps rows
+        if len(decoder) >= 4:  # the history keeps rows
             append_row(decoder, n, data)  # type: ignore[arg-type]
 
     def _check_alive(

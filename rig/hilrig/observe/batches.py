@@ -18,7 +18,10 @@ import numpy as np
 
 from boardproto.table import BitSet, ValueEnum
 from hilrig.engine.driver import CycleResult, History, HistoryMark
+from hilrig.observe.busmeter import BusMeter, Measured, PdoSpec
 from hilrig.observe.paths import (
+    BUS_EVENTS_PATH,
+    BUS_LOAD_PATH,
     BUS_RPDOS_PER_CYCLE,
     BUS_TPDOS_PER_CYCLE,
     CYCLE_TIMELINE,
@@ -29,8 +32,11 @@ from hilrig.observe.paths import (
     TRUTH_QUANTITIES,
     TRUTH_ROOT,
     WALL_TIME_TIMELINE,
+    BusProblem,
+    delay_path,
     frames_path,
     label_path,
+    problem_path,
     truth_path,
     truth_unit,
 )
@@ -120,6 +126,7 @@ class RecordBatches:
         if states:  # the spring constant's changes go with the frame counts' (mostly the same rows)
             stiffness = self._spring_stiffness_series(len(every_cycle))
             self._send_frames(frames, every_cycle, times, also=stiffness)
+            self._measure_span(frames, every_cycle, times)
 
     def _send_batch(self, batch: list[_CycleRow | CycleResult]) -> None:
         """Rows (log_cycle, or cycles of a Rig not followed through its History): pivoted into
@@ -163,7 +170,9 @@ class RecordBatches:
                     cycles_of.setdefault(pdo, []).append(result.cycle)
             frames = [(pdo, np.asarray(c, dtype=np.int64)) for pdo, c in cycles_of.items()]
             every_cycle = np.asarray([r.cycle for r in results], dtype=np.int64)
-            self._send_frames(frames, every_cycle, np.asarray([r.time_s for r in results]))
+            result_times = np.asarray([r.time_s for r in results])
+            self._send_frames(frames, every_cycle, result_times)
+            self._measure_span(frames, every_cycle, result_times)
 
     def _send_parts(self, parts: Sequence[_Part], also: Sequence[_RowSet] = ()) -> None:
         """Each part's fields, and the series of `also`, sent by `_send_row_sets` (series over the
@@ -249,6 +258,66 @@ class RecordBatches:
             named = [(self.root + frames_path(pdo), _frames_series_name(pdo), True) for pdo in pdos]
             self._name_many([*named, *self._bus_totals_series()])  # named ahead, for a Rig's History
         self._send_changes(every_cycle, times, series)
+
+    def _measure_span(
+        self, blocks: Sequence[tuple[PdoLayout, np.ndarray]], every_cycle: np.ndarray, times: np.ndarray
+    ) -> None:
+        """The bus measurements of consecutive cycles: each one's SYNC and the PDO frames it
+        carried (`hilrig.observe.busmeter`), at the cycle's time; with a History, the TPDOs'
+        delays after the SYNC as the exchange measured them (`History.delays_of`). One board only
+        (a robot's modules share one bus: no module sees it whole)."""
+        if self._module is not None or not len(every_cycle):
+            return
+        tpdo, history = PdoDirection.TPDO, self._history
+        if self._bus_meter is None:
+            self._bus_meter = BusMeter({}, bitrate=self.bitrate)
+        meter = self._bus_meter
+        meter.pdos.update(  # the node's PDOs as last read (a restarted node's may be others)
+            (layout.cob_id, PdoSpec(
+                f"{layout.direction.value}{layout.number}", layout.length, layout.direction is tpdo,
+                layout.transmission_type,
+            ))
+            for layout in (history.layouts() if history is not None else [pdo for pdo, _ in blocks])
+            if layout.enabled and layout.cob_id
+        )
+
+        def delays(layout: PdoLayout, cycles: np.ndarray) -> np.ndarray | None:
+            if history is None or layout.direction is not tpdo:
+                return None
+            return history.delays_of(layout, cycles)
+
+        frames = [
+            (layout.cob_id, cycles, delays(layout, cycles))
+            for layout, cycles in blocks
+            if layout.enabled and layout.cob_id
+        ]
+        meter.span(every_cycle, times, frames)
+        self._send_bus(meter.take())
+
+    def _send_bus(self, measured: Measured) -> None:
+        """Bus measurements (`hilrig.observe.busmeter`) into the recording: the load and the counts
+        per window, each TPDO's delays, each problem as a text log entry."""
+        root = self.root
+        if measured.window_cycles:
+            series = [(root + path, values) for path, values in measured.series()]
+            self._name_many(
+                [(root + BUS_LOAD_PATH, f"bus load [% of {self.bitrate / 1e6:g} Mbit/s]", False)]
+                + [(root + problem_path(p), f"{p.value.replace('_', ' ')} [frames]", True)
+                   for p in BusProblem]
+            )
+            self._send_group(measured.window_cycles, measured.window_times, series)
+        for label, (cycles, times, delays) in measured.delays.items():
+            path = root + delay_path(label)
+            self._name_many([(path, f"{label} after SYNC [ms]", False)])
+            self._send_group(cycles, times, [(path, np.asarray(delays, dtype=np.float64))])
+        for event in measured.events:
+            level = Severity.ERROR if event.problem is BusProblem.ERROR_FRAME else Severity.WARN
+            self._send_text(root + BUS_EVENTS_PATH, event.text, level, t=event.t, cycle=event.cycle)
+
+    def _end_bus(self) -> None:
+        """The end of the recording: the lockstep meter's open window too."""
+        if self._bus_meter is not None:
+            self._send_bus(self._bus_meter.take(final=True))
 
     def _bus_totals_series(self) -> list[tuple[str, str, bool]]:
         """(path, series name, counts) of the frames per cycle of each direction (`_name_many`)."""

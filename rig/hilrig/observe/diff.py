@@ -42,6 +42,7 @@ from hilrig.observe.paths import (
     MODULES_ROOT,
     SIM_TIME_TIMELINE,
     TRUTH_ROOT,
+    WALL_CLOCK_SERIES,
 )
 from hilrig.observe.reader import Trace
 from hilrig.observe.sinks import APPLICATION_ID
@@ -183,8 +184,10 @@ def compare(
 ) -> Comparison:
     """Every scalar and text series of both traces compared (see the module docstring); `names`
     says what to call a series (a field's name for its path), its path otherwise; a series whose
-    path or name matches a glob of `ignore` is left out (events stamped by a wall clock)."""
+    path or name matches a glob of `ignore` is left out (events stamped by a wall clock), and so
+    are the series a wall clock measured (`WALL_CLOCK_SERIES`: the TPDOs' delays after SYNC)."""
     names = dict(names or {})
+    ignore = (*ignore, *WALL_CLOCK_SERIES)
     period = _period(base)
     if period is None:
         period = _period(cand)

@@ -11,6 +11,9 @@ and data cannot drift apart; it imports nothing of hilrig but the exception tree
                              plus spring_stiffness_nm_per_rad from the plant parameters
     /bus/frames/<PDO>        frames of that PDO's COB-ID in each cycle (TPDO5: 1 every 10th),
                              /bus/per_cycle/{tpdos,rpdos} their sums per direction
+    /bus/load                the bus load per 10 ms window [% of the bit rate]
+    /bus/tpdo_delay/<TPDO>   each TPDO's delay after its SYNC [ms]
+    /bus/problems/<kind>     late, missing, malformed TPDOs and error frames, counted so far
     /events/nmt, /events/emcy, /events/sdo, /events/bus    text log entries with a level
     <field or HIL path>/label  for a field whose values have names in board.toml (control_mode,
                              fault_flags, led_pattern): a text entry at each change of value,
@@ -25,6 +28,7 @@ real-time mode `wall_time` (timestamp) replaces `sim_time`.
 from __future__ import annotations
 
 from collections.abc import Iterable
+from enum import Enum
 from typing import Any, Protocol
 
 from boardproto import BoardTable, Field, IoDirection, Kind
@@ -75,6 +79,38 @@ it."""
 BUS_EVENTS_PATH = f"{EVENTS_ROOT}/bus"
 """Which PDOs the node uses; TPDOs late, missing or malformed (the driver's events)."""
 BUS_FRAMES_ROOT = f"{BUS_ROOT}/frames"
+BUS_LOAD_PATH = f"{BUS_ROOT}/load"
+"""Bus load per 10 ms window, % of the bit rate (`hilrig.observe.busmeter`)."""
+BUS_DELAY_ROOT = f"{BUS_ROOT}/tpdo_delay"
+"""/bus/tpdo_delay/<TPDO label>: each TPDO's delay after its SYNC, ms."""
+BUS_PROBLEMS_ROOT = f"{BUS_ROOT}/problems"
+"""/bus/problems/{late,missing,malformed,error_frames}: counts so far, per load window."""
+
+
+WALL_CLOCK_SERIES = (f"{BUS_DELAY_ROOT}/*",)
+"""Globs of the series measured by the rig's wall clock, not by the simulation: the TPDOs' delays
+differ from run to run of one seed, so `hilrig diff` leaves them out."""
+
+
+class BusProblem(Enum):
+    """What the bus's counts count (`hilrig.observe.busmeter`), by series name."""
+
+    LATE = "late"
+    MISSING = "missing"
+    MALFORMED = "malformed"
+    ERROR_FRAME = "error_frames"
+
+
+def problem_path(problem: BusProblem) -> str:
+    """'/bus/problems/missing': the count of that problem up to each load window."""
+    return f"{BUS_PROBLEMS_ROOT}/{problem.value}"
+
+
+def delay_path(label: str) -> str:
+    """'/bus/tpdo_delay/TPDO1': that TPDO's delay after its SYNC [ms]."""
+    return f"{BUS_DELAY_ROOT}/{label}"
+
+
 BUS_TPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/tpdos"
 BUS_RPDOS_PER_CYCLE = f"{BUS_ROOT}/per_cycle/rpdos"
 ROBOT_ROOT = "/robot"

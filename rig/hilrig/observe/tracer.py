@@ -38,6 +38,7 @@ from hilrig.engine.driver import CycleResult, History, HistoryMark
 from hilrig.engine.observers import RigObserver
 from hilrig.observe.batches import Clock, RecordBatches, Value, _Batch, _CycleRow, _HistorySpan, module_of
 from hilrig.observe.blueprints import load_blueprint
+from hilrig.observe.busmeter import TRACE_BITRATE, BusMeter, Measured
 from hilrig.observe.chain import ChainTrace
 from hilrig.observe.paths import (
     CYCLE_TIMELINE,
@@ -90,6 +91,7 @@ class Tracer(RecordBatches, RigObserver):
     files alone). background: pivot and send batches in a thread (True) or
     inline on the caller's thread at each batch boundary (False). clock: "simulation" (lockstep:
     `sim_time` timeline) or "wall" (real-time mode: `t` is Unix time, `wall_time` timeline).
+    bitrate: what the bus load is a share of (the virtual bus has none of its own).
 
     As a `RigObserver` it gets every cycle result (kept as it is until its batch is sent, so a
     traced cycle costs one list append) and event. `log_cycle` takes one cycle's values as
@@ -111,6 +113,7 @@ class Tracer(RecordBatches, RigObserver):
         recording_name: str | None = None,
         root: str = "",
         share: Tracer | None = None,
+        bitrate: int = TRACE_BITRATE,
     ) -> None:
         import rerun as rr  # slow (about 12 s in the emulated VM): only when tracing
 
@@ -151,6 +154,9 @@ class Tracer(RecordBatches, RigObserver):
         self._module = module_of(root)
         """A robot's module: its series are named "module 3 ..." and drawn in its own colour."""
         self.batch_cycles = batch_cycles
+        self.bitrate = bitrate
+        """The bit rate the bus load is a share of (`hilrig.observe.busmeter`)."""
+        self._bus_meter: BusMeter | None = None  # a lockstep run's, made with its first span
         self.max_latency_s = max_latency_s if max_latency_s is not None else default_latency(self.sinks)
         self._next_hand_over = time.monotonic() + (self.max_latency_s or 0.0)
         self.clock: Clock = clock
@@ -394,6 +400,14 @@ class Tracer(RecordBatches, RigObserver):
     def log_text(self, path: str, text: str, level: Severity, *, t: float, cycle: int | None) -> None:
         """A text log entry at `path` (rare events: sent at once, not batched)."""
         self._check_open()
+        self._send_text(path, text, level, t=t, cycle=cycle)
+
+    def log_bus(self, measured: Measured) -> None:
+        """Bus measurements of frames the caller metered (`hilrig.observe.busmeter`: a replayed
+        log's), sent in order with the batches."""
+        self.submit(functools.partial(self._send_bus, measured))
+
+    def _send_text(self, path: str, text: str, level: Severity, *, t: float, cycle: int | None) -> None:
         rr = self._rr
         indexes = [self._time_column([t])]
         if cycle is not None:
@@ -410,6 +424,7 @@ class Tracer(RecordBatches, RigObserver):
         if self._closed:
             return
         self._hand_over()
+        self.submit(self._end_bus)  # the bus's last, open load window
         self._closed = True
         self._look_at = 0  # a cycle after this is an error (`_counted`)
         if self._worker is not None and self._queue is not None:

@@ -141,6 +141,12 @@ static Py_ssize_t count_missing(PyObject *due, PyObject *got) {
     return PyErr_Occurred() ? -1 : missing;
 }
 
+static int64_t monotonic_ns(void) {
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (int64_t)now.tv_sec * 1000000000 + now.tv_nsec;
+}
+
 /* Append `size` bytes to a bytearray (amortized: bytearray over-allocates as a list does). */
 static int append_bytes(PyObject *array, const void *bytes, Py_ssize_t size) {
     Py_ssize_t before = PyByteArray_Size(array);
@@ -154,7 +160,7 @@ static int append_bytes(PyObject *array, const void *bytes, Py_ssize_t size) {
 /* The values of a due TPDO of the usual length (a new reference), or NULL without an error set
  * when the frame is not that (then it goes back to Python), or NULL with an error set. */
 static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ssize_t length, PyObject *due,
-                              PyObject *decoders, PyObject *got, const int64_t *cycle) {
+                              PyObject *decoders, PyObject *got, const int64_t *cycle, int64_t received_at) {
     int wanted = PySet_Contains(due, cob_id);
     if (wanted <= 0) {
         return NULL;
@@ -168,9 +174,9 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
         return NULL;
     }
     Py_ssize_t items = PyTuple_Check(decoder) ? PyTuple_Size(decoder) : 0;
-    if (items != 2 && items != 4) {
-        PyErr_SetString(PyExc_TypeError,
-                        "exchange: a decoder is a (length, unpack) or (length, unpack, cycles, payloads) tuple");
+    if (items != 2 && items != 4 && items != 5) {
+        PyErr_SetString(PyExc_TypeError, "exchange: a decoder is a (length, unpack), (length, unpack, cycles, "
+                                         "payloads) or (length, unpack, cycles, payloads, arrivals) tuple");
         return NULL;
     }
     Py_ssize_t expected = PyLong_AsSsize_t(PyTuple_GetItem(decoder, 0));
@@ -201,13 +207,18 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
         Py_DECREF(values);
         return NULL;
     }
+    if (items == 5) { /* when it came: (cycle, CLOCK_MONOTONIC ns), two native int64 */
+        PyObject *arrivals = PyTuple_GetItem(decoder, 4);
+        int64_t arrival[2] = {*cycle, received_at};
+        if (!PyByteArray_CheckExact(arrivals) || append_bytes(arrivals, arrival, sizeof arrival) < 0) {
+            Py_DECREF(values);
+            if (!PyErr_Occurred()) {
+                PyErr_SetString(PyExc_TypeError, "exchange: arrivals go in a bytearray");
+            }
+            return NULL;
+        }
+    }
     return values;
-}
-
-static int64_t monotonic_ns(void) {
-    struct timespec now;
-    clock_gettime(CLOCK_MONOTONIC, &now);
-    return (int64_t)now.tv_sec * 1000000000 + now.tv_nsec;
 }
 
 /* How long a wait on each socket looks for a frame before it sleeps, by file descriptor; adapted
@@ -271,7 +282,9 @@ PyDoc_STRVAR(exchange_doc,
              "of `got` and has the length of its decoder (`decoders[cob_id] = (length,\n"
              "unpack)`) is decoded into `got[cob_id] = unpack(data)`; a decoder `(length, unpack,\n"
              "cycles, payloads)` also appends `cycle` (a native int64) and the data to those two\n"
-             "bytearrays. Returns:\n"
+             "bytearrays; `(length, unpack, cycles, payloads, arrivals)` also the cycle and the\n"
+             "CLOCK_MONOTONIC nanoseconds it was received at (two native int64) to `arrivals`.\n"
+             "Returns:\n"
              "  (cob_id, data)  the first frame that is anything else, at once (Python judges it);\n"
              "  False           the socket's receive timeout passed with a due COB-ID missing;\n"
              "  None            every due COB-ID is in `got` and nothing more is queued.\n"
@@ -320,8 +333,10 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
     for (;;) {
         ssize_t received;
         int error;
+        int64_t received_at;
         Py_BEGIN_ALLOW_THREADS
         received = receive(fd, frame, missing > 0, spin_ns, &error);
+        received_at = monotonic_ns();
         Py_END_ALLOW_THREADS
         if (received < 0) {
             if (error == EINTR) {
@@ -349,7 +364,7 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
         if (cob_id == NULL) {
             return NULL;
         }
-        PyObject *values = usual_values(cob_id, frame + 8, length, due, decoders, got, cycle);
+        PyObject *values = usual_values(cob_id, frame + 8, length, due, decoders, got, cycle, received_at);
         if (values != NULL) {
             int stored = PyDict_SetItem(got, cob_id, values);
             Py_DECREF(values);

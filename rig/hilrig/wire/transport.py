@@ -27,6 +27,7 @@ import os
 import queue
 import socket
 import struct
+import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
@@ -254,10 +255,15 @@ def parse_frame(frame: bytes) -> tuple[int, bytes]:
 Frame = tuple[int, bytes]
 """(COB-ID, data) of a received standard data frame."""
 Unpack = Callable[[bytes], tuple[Value, ...]]
-Decoder = tuple[int, Unpack] | tuple[int, Unpack, bytearray, bytearray]
+Decoder = (
+    tuple[int, Unpack]
+    | tuple[int, Unpack, bytearray, bytearray]
+    | tuple[int, Unpack, bytearray, bytearray, bytearray]
+)
 Decoders = Mapping[int, Decoder]
 """By COB-ID: (length, unpack), or (length, unpack, cycles, payloads) to have each decoded TPDO
-also appended to those rows (a PDO's history), tagged with the exchange's cycle (`append_row`)."""
+also appended to those rows (a PDO's history), tagged with the exchange's cycle (`append_row`),
+or (..., arrivals) to have its cycle and arrival time (`ARRIVAL`) appended there too."""
 """COB-ID -> (payload length, unpack) of each TPDO a cycle may wait for."""
 
 
@@ -295,11 +301,24 @@ to them as cycle `cycle`'s, payload first, as `append_row` and the C exchange fi
 lockstep cycle files the RPDOs it sent, one call into C (touching no socket: any link)."""
 
 
-def append_row(decoder: tuple[int, Unpack, bytearray, bytearray], cycle: int, data: bytes) -> None:
+ARRIVAL = struct.Struct("=qq")
+"""(cycle, CLOCK_MONOTONIC ns) of a TPDO's arrival, as `hilrig.wire._wire` appends it."""
+
+
+def append_row(
+    decoder: tuple[int, Unpack, bytearray, bytearray] | tuple[int, Unpack, bytearray, bytearray, bytearray],
+    cycle: int,
+    data: bytes,
+    received_ns: int | None = None,
+) -> None:
     """Append `data` (a TPDO's payload) as cycle `cycle`'s to the rows a decoder carries (what
-    the C exchange does for each TPDO it decodes): the payload first, then the cycle."""
+    the C exchange does for each TPDO it decodes): the payload first, then the cycle; and with
+    a decoder that keeps arrivals, when it came (`received_ns`, default now)."""
     decoder[3].extend(data)
     decoder[2].extend(ROW_CYCLE.pack(cycle))
+    if len(decoder) == 5:
+        arrived = time.monotonic_ns() if received_ns is None else received_ns
+        decoder[4].extend(ARRIVAL.pack(cycle, arrived))
 
 
 Exchange = Callable[
@@ -340,15 +359,16 @@ def exchange(
         frame = link.recv(timeout_s if missing else 0.0)
         if frame is None:
             return False if missing else None
+        arrived = time.monotonic_ns()
         cob_id, data = frame
         if cob_id in due and cob_id not in got:
             decoder = decoders.get(cob_id)
             if decoder is not None and len(data) == decoder[0]:
                 got[cob_id] = decoder[1](data)
-                if len(decoder) == 4:
+                if len(decoder) >= 4:
                     if cycle is None:
                         raise TypeError("exchange: rows need their cycle")
-                    append_row(decoder, cycle, data)  # type: ignore[arg-type]
+                    append_row(decoder, cycle, data, arrived)  # type: ignore[arg-type]
                 missing = not due.issubset(got)
                 continue
         return frame
