@@ -9,6 +9,7 @@ SHELL := /bin/bash
 PY      := .venv/bin/python
 BUILD   := build
 BENCH_BUILD := build/bench
+RELEASE_BUILD := build/release
 OUT     ?= out
 JOBS    ?= $(shell nproc)
 CMAKE_FLAGS ?=
@@ -35,7 +36,8 @@ deps: ## install missing Debian packages (root) and the pinned Python venv
 .PHONY: build
 build: deps ## build the firmware, its tests and the protocol files (build/)
 	$(call configure_and_build,$(BUILD),-DCMAKE_BUILD_TYPE=RelWithDebInfo -DHIL_SANITIZE=ON -DHIL_TESTS=ON)
-	@echo "build: firmware build/bin/joint-firmware, protocol files build/protocol/board.{eds,dbc}"
+	$(call configure_and_build,$(RELEASE_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF)
+	@echo "build: firmware build/bin/joint-firmware, protocol files build/protocol/board.{eds,dbc}, program download images $(RELEASE_BUILD)/images/"
 
 # The microcontroller build (issue 45): the core, the CANopen engine and the joint cross-built for a
 # Cortex-M4F (cmake/arm-none-eabi.cmake): the firmware image within its flash and RAM budget, and

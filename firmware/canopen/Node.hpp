@@ -20,6 +20,7 @@
 #include "Interfaces.hpp"
 #include "LssSlave.hpp"
 #include "ParameterImage.hpp"
+#include "ProgramDownload.hpp"
 #include "Recorder.hpp"
 #include "SdoAbort.hpp"
 #include "SdoServer.hpp"
@@ -219,6 +220,19 @@ class Node final {
   // (error behaviour; default: operational enters pre-operational).
   void set_heartbeat_listener(HeartbeatListener* listener) { heartbeat_listener_ = listener; }
 
+  // CiA 302-3 program download (0x1F50, 0x1F51, 0x1F56, 0x1F57) into `store`; without one
+  // a download is refused (0x08000020, flash status "flash secured"). Must outlive the node.
+  void set_program_store(ProgramStore* store) { program_.set_store(store); }
+  const ProgramDownload& program() const { return program_; }
+  // 0x1F51 Start arrived with a complete, checked image staged, and its answer has been sent:
+  // the platform now runs that image (on Linux: re-executes the process from it).
+  bool program_start_requested() const { return program_.start_requested(); }
+
+  // 0x100A (manufacturer software version); board.toml's unless the platform knows better
+  // (the Linux target reads the version stamped into its executable). `version` must outlive
+  // the node.
+  void set_software_version(std::string_view version) { software_version_ = version; }
+
   NmtState state() const { return state_; }
   std::uint8_t node_id() const { return node_id_; }
   std::uint8_t error_register() const { return error_register_; }
@@ -228,7 +242,7 @@ class Node final {
   std::uint8_t lost_heartbeats() const { return heartbeat_consumer_.lost_entries(); }
 
  private:
-  enum class Target : std::uint8_t { Communication, Field, HilInput, HilOutput, Recorder };
+  enum class Target : std::uint8_t { Communication, Field, HilInput, HilOutput, Recorder, Program };
   // One (index, sub-index) of the object dictionary as the SDO server and PDOs see it.
   struct Entry {
     board::DataType type = board::DataType::Unsigned32;
@@ -295,6 +309,7 @@ class Node final {
   SdoAbort write_communication(std::uint16_t index, std::uint8_t sub, std::uint32_t value,
                                std::uint32_t now_us);
   SdoAbort write_field(board::FieldId id, float value);
+  SdoAbort write_program_control(std::uint32_t value);
   SdoAbort write_hil_input(board::HilInputId id, std::uint32_t raw);
   std::int32_t hil_input_value(board::HilInputId id) const;
 
@@ -382,6 +397,8 @@ class Node final {
   ParameterLoad parameter_load_ = ParameterLoad::NotAttempted;
   ApplicationReset* application_reset_ = nullptr;
   Recorder* recorder_ = nullptr;
+  ProgramDownload program_{board::kNode.product_code};
+  std::string_view software_version_ = board::kNode.software_version;
   std::array<std::byte, parameter_image::kCapacity> image_{};
   std::array<parameter_image::StoredValue, parameter_image::kMaxEntries> staged_{};
   NodeCounters counters_;

@@ -49,6 +49,38 @@ class MemoryStorage final : public ParameterStorage {
   std::uint32_t saves = 0;
 };
 
+// co::ProgramStore in memory (program download tests), with what it was given.
+class MemoryProgramStore final : public ProgramStore {
+ public:
+  bool open_staging() override {
+    staging.clear();
+    open = true;
+    return true;
+  }
+  bool write_staging(std::span<const std::uint8_t> bytes) override {
+    staging.insert(staging.end(), bytes.begin(), bytes.end());
+    return !fail_writes;
+  }
+  bool commit_staging() override {
+    kept = staging;
+    open = false;
+    return true;
+  }
+  void discard_staging() override {
+    staging.clear();
+    kept.clear();
+    open = false;
+    ++discards;
+  }
+  std::uint32_t running_image_crc32() override { return 0xC0FF'EE00u; }
+
+  std::vector<std::uint8_t> staging;
+  std::vector<std::uint8_t> kept;
+  bool open = false;
+  bool fail_writes = false;
+  int discards = 0;
+};
+
 CanFrame make_frame(std::uint32_t id, std::initializer_list<std::uint8_t> data);
 // The 8 data bytes of an SDO abort frame.
 std::array<std::uint8_t, 8> abort_data(std::uint16_t index, std::uint8_t sub, SdoAbort code);

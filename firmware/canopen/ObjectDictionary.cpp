@@ -102,6 +102,26 @@ SdoAbort Node::find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) c
     return SdoAbort::SubIndexDoesNotExist;
   }
 
+  if (index == cia302::kProgramDataIndex || index == cia302::kProgramControlIndex ||
+      index == cia302::kSoftwareIdIndex || index == cia302::kFlashStatusIndex) {
+    if (sub == 0) {
+      entry = {DataType::Unsigned8, 1, true, false, Target::Program, 0};
+      return SdoAbort::None;
+    }
+    if (sub != cia302::kProgramNumber) return SdoAbort::SubIndexDoesNotExist;
+    switch (index) {
+      case cia302::kProgramDataIndex:  // write-only, any size: streamed (check_writable)
+        entry = {DataType::Domain, 0, false, true, Target::Program, 0};
+        break;
+      case cia302::kProgramControlIndex:
+        entry = {DataType::Unsigned8, 1, true, true, Target::Program, 0};
+        break;
+      default:
+        entry = {DataType::Unsigned32, 4, true, false, Target::Program, 0};
+        break;
+    }
+    return SdoAbort::None;
+  }
   if (recorder_ != nullptr && Recorder::is_recorder_object(index)) {
     DataType type = DataType::Unsigned8;
     bool writable = false;
@@ -138,7 +158,7 @@ std::string_view Node::string_value(std::uint16_t index) const {
   switch (index) {
     case 0x1008: return board::kNode.device_name;
     case 0x1009: return board::kNode.hardware_version;
-    case 0x100A: return board::kNode.software_version;
+    case 0x100A: return software_version_;
     default: return {};
   }
 }
@@ -208,6 +228,14 @@ ObjectAccess Node::object_access(Node& node) {
                     std::span<const std::uint8_t> data, std::uint32_t now_us) {
     return static_cast<Node*>(self)->write(index, sub, data, now_us);
   };
+  access.stream_open = [](void* self, std::uint16_t, std::uint8_t, std::size_t announced_size) {
+    return static_cast<Node*>(self)->program_.open(announced_size);
+  };
+  access.stream_append = [](void* self, std::span<const std::uint8_t> data) {
+    return static_cast<Node*>(self)->program_.append(data);
+  };
+  access.stream_close = [](void* self, std::uint32_t) { return static_cast<Node*>(self)->program_.close(); };
+  access.stream_cancel = [](void* self) { static_cast<Node*>(self)->program_.cancel(); };
   access.read_at = [](void* self, std::uint16_t index, std::uint8_t sub, std::size_t offset,
                       std::span<std::uint8_t> out, std::size_t& length, std::size_t& total_size) {
     return static_cast<Node*>(self)->read_at(index, sub, offset, out, length, total_size);
@@ -219,7 +247,7 @@ SdoAbort Node::check_writable(std::uint16_t index, std::uint8_t sub, std::size_t
   Entry entry;
   if (const SdoAbort found = find_entry(index, sub, entry); found != SdoAbort::None) return found;
   if (!entry.writable) return SdoAbort::ReadOnly;
-  size = entry.size;
+  size = entry.target == Target::Program && entry.type == DataType::Domain ? SdoServer::kStreamedSize : entry.size;
   return SdoAbort::None;
 }
 
@@ -240,6 +268,9 @@ SdoAbort Node::read(std::uint16_t index, std::uint8_t sub, std::span<std::uint8_
       break;
     case Target::HilOutput:
       raw = static_cast<std::uint32_t>(hil_.read_output(static_cast<board::HilOutputId>(entry.id)));
+      break;
+    case Target::Program:
+      raw = program_.read(index, sub);
       break;
     case Target::Recorder:
       if (entry.type == DataType::Domain) {
@@ -287,6 +318,8 @@ SdoAbort Node::write(std::uint16_t index, std::uint8_t sub, std::span<const std:
   Entry entry;
   if (const SdoAbort found = find_entry(index, sub, entry); found != SdoAbort::None) return found;
   if (!entry.writable) return SdoAbort::ReadOnly;
+  // Program data takes block downloads only (SdoServer streams them, never through here).
+  if (entry.target == Target::Program && entry.type == DataType::Domain) return SdoAbort::UnsupportedAccess;
   if (data.size() > entry.size) return SdoAbort::LengthTooHigh;
   if (data.size() < entry.size) return SdoAbort::LengthTooLow;
   const std::uint32_t raw = tables::get_le(data);
@@ -297,9 +330,20 @@ SdoAbort Node::write(std::uint16_t index, std::uint8_t sub, std::span<const std:
       return write_hil_input(static_cast<board::HilInputId>(entry.id), raw);
     case Target::HilOutput: return SdoAbort::ReadOnly;
     case Target::Recorder: return recorder_->write(index, sub, raw);
+    case Target::Program: return write_program_control(raw);  // 0x1F50 is streamed, never here
     case Target::Communication: break;
   }
   return write_communication(index, sub, raw, now_us);
+}
+
+SdoAbort Node::write_program_control(std::uint32_t value) {
+  const SdoAbort result = program_.control(value);
+  // Stop stops the application on the bus as NMT would: no PDOs until it is started again.
+  if (result == SdoAbort::None && value == static_cast<std::uint32_t>(cia302::ProgramControl::Stop) &&
+      state_ == NmtState::Operational) {
+    enter(NmtState::PreOperational);
+  }
+  return result;
 }
 
 SdoAbort Node::write_field(board::FieldId id, float value) {

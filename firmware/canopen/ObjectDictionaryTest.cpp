@@ -22,6 +22,7 @@ using Address = std::pair<std::uint16_t, std::uint8_t>;
 struct EdsEntry {
   std::uint16_t data_type = 0;
   std::string default_value;
+  bool write_only = false;  // AccessType=wo: an upload is refused (0x06010001), a download is not
 };
 
 std::string hex(Address a) {
@@ -66,6 +67,7 @@ std::map<Address, EdsEntry> read_eds(const std::string& path) {
     if (!entries.contains(*current)) continue;
     if (key == "DataType") entries[*current].data_type = static_cast<std::uint16_t>(std::stoul(value, nullptr, 0));
     if (key == "DefaultValue") entries[*current].default_value = value;
+    if (key == "AccessType") entries[*current].write_only = value == "wo";
   }
   return entries;
 }
@@ -99,6 +101,11 @@ class ObjectDictionaryTest : public NodeTest {
     return response;
   }
   static bool answered(const std::array<std::uint8_t, 8>& response) { return response[0] != 0x80; }
+  // Answered, or refused as write-only: the object exists for SDO either way.
+  static bool exists_for_sdo(const std::array<std::uint8_t, 8>& response) {
+    return answered(response) ||
+           tables::get_le(std::span<const std::uint8_t>(response).subspan(4, 4)) == to_code(SdoAbort::WriteOnly);
+  }
 
   // The value the EDS says the object has at power-on, for the node under test.
   static std::optional<std::uint32_t> eds_default(const EdsEntry& entry) {
@@ -134,6 +141,10 @@ class ObjectDictionaryTest : public NodeTest {
 TEST_F(ObjectDictionaryTest, EveryObjectInTheEdsAnswersWithItsListedSize) {
   for (const auto& [address, entry] : eds) {
     const auto response = upload_response(address);
+    if (entry.write_only) {
+      EXPECT_TRUE(exists_for_sdo(response) && !answered(response)) << hex(address) << ": write-only in the EDS";
+      continue;
+    }
     ASSERT_TRUE(answered(response)) << hex(address) << " is in the EDS but the node aborts 0x"
                                     << std::hex << tables::get_le(std::span<const std::uint8_t>(response).subspan(4, 4));
     const std::size_t expected = size_of_eds_type(entry.data_type);
@@ -161,7 +172,7 @@ TEST_F(ObjectDictionaryTest, EveryObjectTheNodeAnswersIsInTheEds) {
     if (!exists) continue;
     for (std::uint32_t sub = 0; sub <= 0xFF; ++sub) {
       const Address a{i, static_cast<std::uint8_t>(sub)};
-      EXPECT_EQ(answered(upload_response(a)), eds.contains(a)) << hex(a);
+      EXPECT_EQ(exists_for_sdo(upload_response(a)), eds.contains(a)) << hex(a);
     }
   }
 }

@@ -45,8 +45,10 @@ std::uint32_t image_crc(std::span<const std::byte> image) {
 
 }  // namespace
 
-std::uint32_t crc32(std::span<const std::byte> bytes) {
-  std::uint32_t c = 0xFFFF'FFFFu;
+std::uint32_t crc32(std::span<const std::byte> bytes) { return crc32(bytes, 0); }
+
+std::uint32_t crc32(std::span<const std::byte> bytes, std::uint32_t previous) {
+  std::uint32_t c = previous ^ 0xFFFF'FFFFu;
   for (std::byte b : bytes) c = kCrcTable[(c ^ std::to_integer<std::uint32_t>(b)) & 0xFF] ^ (c >> 8);
   return c ^ 0xFFFF'FFFFu;
 }

@@ -49,6 +49,9 @@ enum class Check : std::uint8_t {
 
 // CRC-32 as in zlib/Ethernet (reflected polynomial 0xEDB88320).
 std::uint32_t crc32(std::span<const std::byte> bytes);
+// The CRC-32 of a value given piece by piece: `previous` is the result for the bytes before
+// these (0 for none), as zlib's crc32(bytes, previous).
+std::uint32_t crc32(std::span<const std::byte> bytes, std::uint32_t previous);
 
 // Writes `values` (at most kMaxEntries) in the current format; returns the image size.
 std::size_t encode(std::span<const StoredValue> values, std::span<std::byte, kCapacity> out);

@@ -45,7 +45,8 @@ SdoAbort Node::resolve_mapping(std::uint32_t entry, bool is_rpdo, MappedObject& 
     case Target::HilInput: mappable = is_rpdo; break;
     case Target::HilOutput: mappable = !is_rpdo; break;
     case Target::Communication: mappable = !is_rpdo && index == 0x1001; break;  // error register
-    case Target::Recorder: break;  // settings and a recording: SDO only
+    case Target::Recorder:  // settings and a recording: SDO only
+    case Target::Program: break;  // program download (CiA 302-3): SDO only
   }
   // Whole objects only: the bit length must be the object's.
   if (!mappable || bits != object.size * 8u) return SdoAbort::ObjectCannotBeMapped;

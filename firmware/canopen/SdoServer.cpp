@@ -75,6 +75,7 @@ bool SdoServer::abort(std::uint16_t index, std::uint8_t sub, SdoAbort code,
   response = {0x80};
   put_multiplexer(response, index, sub);
   put_u32(response, 4, to_code(code));
+  cancel_stream();
   state_ = State::Idle;
   ++aborts_sent_;
   last_abort_ = code;
@@ -90,12 +91,29 @@ bool SdoServer::handle(std::span<const std::uint8_t, 8> request, std::uint32_t n
   if (state_ == State::BlockDownloading && request[0] != kClientAbort) {
     return block_download_segment(request, now_us, response);
   }
+  if (state_ == State::BlockDownloadDraining) {
+    // The next segment of the aborted sub-block is dropped, not read as a request: seqnos 32..63
+    // would otherwise look like expedited downloads to whatever index the data spells. (A client
+    // that reads the abort early and whose next request's first byte happens to equal the next
+    // seqno loses that request; it times out and repeats it.)
+    const std::uint8_t sequence = request[0] & kSequenceMask;
+    if (request[0] != kClientAbort && sequence == sequence_ + 1) {
+      sequence_ = sequence;
+      last_activity_us_ = now_us;
+      if (sequence >= block_segments_ || (request[0] & kNoMoreSegmentsBit) != 0) state_ = State::Idle;
+      return false;
+    }
+    state_ = State::Idle;  // anything else is the client's next request
+  }
   switch (request[0] >> 5) {
     case kDownloadSegment: return download_segment(request, now_us, response);
     case kInitiateDownload: return initiate_download(request, now_us, response);
     case kInitiateUpload: return initiate_upload(request, now_us, response);
     case kUploadSegment: return upload_segment(request, now_us, response);
-    case kAbortTransfer: state_ = State::Idle; return false;  // the client gave up: no answer
+    case kAbortTransfer:  // the client gave up: no answer
+      cancel_stream();
+      state_ = State::Idle;
+      return false;
     case kBlockUpload: return block_upload(request, now_us, response);
     case kBlockDownload: return block_download(request, now_us, response);
     default:  // 7 is not defined
@@ -108,6 +126,7 @@ bool SdoServer::handle(std::span<const std::uint8_t, 8> request, std::uint32_t n
 bool SdoServer::initiate_download(std::span<const std::uint8_t, 8> request, std::uint32_t now_us,
                                   std::array<std::uint8_t, 8>& response) {
   // A new initiate request ends any transfer still open: its client has moved on.
+  cancel_stream();
   state_ = State::Idle;
   const std::uint16_t index = request_index(request);
   const std::uint8_t sub = request[3];
@@ -134,6 +153,9 @@ bool SdoServer::initiate_download(std::span<const std::uint8_t, 8> request, std:
   std::size_t object_size = 0;
   const SdoAbort writable = objects_.check_writable(objects_.context, index, sub, object_size);
   if (writable != SdoAbort::None) return abort(index, sub, writable, response);
+  // A streamed object takes block downloads only (python-canopen, CANopenNode and Lely all
+  // send large domains by block).
+  if (object_size == kStreamedSize) return abort(index, sub, SdoAbort::UnsupportedAccess, response);
   std::size_t announced = 0;
   if (size_indicated) {
     announced = get_u32(request, 4);
@@ -223,6 +245,7 @@ SdoAbort SdoServer::read_upload(std::size_t offset, std::span<std::uint8_t> out)
 
 bool SdoServer::initiate_upload(std::span<const std::uint8_t, 8> request, std::uint32_t now_us,
                                 std::array<std::uint8_t, 8>& response) {
+  cancel_stream();
   state_ = State::Idle;
   const std::uint16_t index = request_index(request);
   const std::uint8_t sub = request[3];
@@ -280,7 +303,21 @@ bool SdoServer::block_download(std::span<const std::uint8_t, 8> request, std::ui
   return end_block_download(request, now_us, response);
 }
 
+void SdoServer::cancel_stream() {
+  if (!streaming_) return;
+  streaming_ = false;
+  stream_pending_ = false;
+  objects_.stream_cancel(objects_.context);
+}
+
+SdoAbort SdoServer::append_stream(std::span<const std::uint8_t> data) {
+  if (data.empty()) return SdoAbort::None;
+  crc_ = crc16_ccitt(crc_, data);
+  return objects_.stream_append(objects_.context, data);
+}
+
 std::uint8_t SdoServer::download_block_segments() const {
+  if (streaming_) return kMaxBlockSegments;  // no end in sight: as many as CiA 301 allows
   // As many segments as the value still needs: the whole of it fits one sub-block (the buffer
   // holds any object a download accepts), and a client never sends a segment it cannot hold.
   const std::size_t left = object_size_ - std::min(received_, object_size_);
@@ -291,19 +328,31 @@ std::uint8_t SdoServer::download_block_segments() const {
 bool SdoServer::initiate_block_download(std::span<const std::uint8_t, 8> request,
                                         std::uint32_t now_us,
                                         std::array<std::uint8_t, 8>& response) {
+  cancel_stream();
   state_ = State::Idle;
   const std::uint16_t index = request_index(request);
   const std::uint8_t sub = request[3];
   std::size_t object_size = 0;
   const SdoAbort writable = objects_.check_writable(objects_.context, index, sub, object_size);
   if (writable != SdoAbort::None) return abort(index, sub, writable, response);
+  const bool size_indicated = (request[0] & kBlockSizeIndicatedBit) != 0;
   std::size_t announced = 0;
-  if ((request[0] & kBlockSizeIndicatedBit) != 0) {
-    announced = get_u32(request, 4);
-    if (announced > object_size) return abort(index, sub, SdoAbort::LengthTooHigh, response);
-    if (announced < object_size) return abort(index, sub, SdoAbort::LengthTooLow, response);
+  if (object_size == kStreamedSize) {
+    if (objects_.stream_open == nullptr) return abort(index, sub, SdoAbort::UnsupportedAccess, response);
+    announced = size_indicated ? get_u32(request, 4) : 0;
+    const SdoAbort opened = objects_.stream_open(objects_.context, index, sub, announced);
+    if (opened != SdoAbort::None) return abort(index, sub, opened, response);
+    streaming_ = true;
+    stream_pending_ = false;
+    crc_ = 0;
+  } else {
+    if (size_indicated) {
+      announced = get_u32(request, 4);
+      if (announced > object_size) return abort(index, sub, SdoAbort::LengthTooHigh, response);
+      if (announced < object_size) return abort(index, sub, SdoAbort::LengthTooLow, response);
+    }
+    if (object_size > buffer_.size()) return abort(index, sub, SdoAbort::OutOfMemory, response);
   }
-  if (object_size > buffer_.size()) return abort(index, sub, SdoAbort::OutOfMemory, response);
 
   state_ = State::BlockDownloading;
   index_ = index;
@@ -332,7 +381,25 @@ bool SdoServer::block_download_segment(std::span<const std::uint8_t, 8> request,
   }
   last_activity_us_ = now_us;
   bool value_complete = false;
-  if (sequence == sequence_ + 1) {
+  if (sequence == sequence_ + 1 && streaming_) {
+    // The segment before this one was all data: hand it on, keep this one until we know.
+    if (stream_pending_) {
+      const SdoAbort appended = append_stream(std::span<const std::uint8_t>(buffer_).first(kSegmentBytes));
+      if (appended != SdoAbort::None) {
+        abort(index_, sub_, appended, response);
+        if (sequence < block_segments_ && !last) {
+          state_ = State::BlockDownloadDraining;
+          sequence_ = sequence;
+        }
+        return true;
+      }
+    }
+    std::copy_n(request.begin() + 1, kSegmentBytes, buffer_.begin());
+    stream_pending_ = true;
+    received_ += kSegmentBytes;
+    sequence_ = sequence;
+    value_complete = last;
+  } else if (sequence == sequence_ + 1) {
     if (received_ >= object_size_) return abort(index_, sub_, SdoAbort::LengthTooHigh, response);
     // Bytes past the object can only be the last segment's padding: not kept.
     const std::size_t kept = std::min(kSegmentBytes, object_size_ - received_);
@@ -362,6 +429,25 @@ bool SdoServer::end_block_download(std::span<const std::uint8_t, 8> request, std
   }
   const std::size_t unused = (request[0] >> 2) & 0x7u;
   const std::size_t size = received_ - unused;  // received_ >= 7: one segment at least
+  if (streaming_) {
+    const SdoAbort appended =
+        append_stream(std::span<const std::uint8_t>(buffer_).first(kSegmentBytes - unused));
+    if (appended != SdoAbort::None) return abort(index_, sub_, appended, response);
+    stream_pending_ = false;
+    if (announced_size_ != 0 && size != announced_size_) {
+      return abort(index_, sub_, SdoAbort::LengthMismatch, response);
+    }
+    if (crc_used_) {
+      const auto client_crc = static_cast<std::uint16_t>(request[1] | (request[2] << 8));
+      if (crc_ != client_crc) return abort(index_, sub_, SdoAbort::CrcError, response);
+    }
+    streaming_ = false;  // closed: no cancel after this, whatever close answers
+    const SdoAbort closed = objects_.stream_close(objects_.context, now_us);
+    if (closed != SdoAbort::None) return abort(index_, sub_, closed, response);
+    state_ = State::Idle;
+    response = {static_cast<std::uint8_t>(0xA0 | kBlockEnd)};
+    return true;
+  }
   if (size > object_size_) return abort(index_, sub_, SdoAbort::LengthTooHigh, response);
   if (announced_size_ != 0 && size != announced_size_) {
     return abort(index_, sub_, SdoAbort::LengthMismatch, response);
@@ -404,6 +490,7 @@ bool SdoServer::block_upload(std::span<const std::uint8_t, 8> request, std::uint
 bool SdoServer::initiate_block_upload(std::span<const std::uint8_t, 8> request,
                                       std::uint32_t now_us,
                                       std::array<std::uint8_t, 8>& response) {
+  cancel_stream();
   state_ = State::Idle;
   const std::uint16_t index = request_index(request);
   const std::uint8_t sub = request[3];
@@ -511,6 +598,11 @@ bool SdoServer::block_upload_ack(std::span<const std::uint8_t, 8> request, std::
 }
 
 bool SdoServer::check_timeout(std::uint32_t now_us, std::array<std::uint8_t, 8>& response) {
+  if (state_ == State::BlockDownloadDraining) {
+    // Aborted already: no second abort. A client silent this long sends no more of the sub-block.
+    if (now_us - last_activity_us_ >= kSegmentTimeoutUs) state_ = State::Idle;
+    return false;
+  }
   if (state_ == State::Idle) return false;
   // Unsigned difference: correct across the 32-bit wrap of now_us.
   if (now_us - last_activity_us_ < kSegmentTimeoutUs) return false;

@@ -3,7 +3,9 @@
 // Block transfer (7.2.4.3.9 to 7.2.4.3.16), with the CRC-16 CiA 301 defines (CCITT polynomial
 // 0x1021, initial value 0) whenever the client asks for it:
 // - Download: the value is kept whole until the end request, because the object dictionary's
-//   write takes it in one call; a value larger than kBufferBytes is refused (OutOfMemory). The
+//   write takes it in one call; a value larger than kBufferBytes is refused (OutOfMemory). An
+//   object written by stream (a DOMAIN such as CiA 302-3's program data) takes any size: its
+//   bytes are handed on as the segments arrive, the server keeps one segment and a running CRC. The
 //   server asks for as many segments as the value still needs (blksize 1..10). A segment out of
 //   sequence is ignored and the sub-block acknowledged with the last good one, so the client
 //   repeats from there.
@@ -49,6 +51,16 @@ struct ObjectAccess {
   SdoAbort (*read_at)(void* context, std::uint16_t index, std::uint8_t sub, std::size_t offset,
                       std::span<std::uint8_t> out, std::size_t& length,
                       std::size_t& total_size) = nullptr;
+  // Optional: a DOMAIN written as it arrives, of any size (check_writable reports
+  // SdoServer::kStreamedSize for it). Only a block download writes one; each byte is handed over
+  // once, in order: stream_open, stream_append for every piece, then stream_close once all
+  // arrived and the block CRC matched, or stream_cancel when the transfer ends any other way
+  // (either side aborted, the client fell silent, a reset). `announced_size` 0: not indicated.
+  SdoAbort (*stream_open)(void* context, std::uint16_t index, std::uint8_t sub,
+                          std::size_t announced_size) = nullptr;
+  SdoAbort (*stream_append)(void* context, std::span<const std::uint8_t> data) = nullptr;
+  SdoAbort (*stream_close)(void* context, std::uint32_t now_us) = nullptr;
+  void (*stream_cancel)(void* context) = nullptr;
 };
 
 class SdoServer {
@@ -58,6 +70,8 @@ class SdoServer {
   // Largest value a download can carry, and the largest upload copied at its initiate request
   // (the longest string object fits).
   static constexpr std::size_t kBufferBytes = 64;
+  // check_writable's size of an object written by stream (ObjectAccess::stream_open).
+  static constexpr std::size_t kStreamedSize = SIZE_MAX;
   // CiA 301 bounds of blksize, the segments of one sub-block.
   static constexpr std::uint8_t kMaxBlockSegments = 127;
   // Segments a block download asks for at most: the whole buffer in one sub-block.
@@ -88,6 +102,7 @@ class SdoServer {
 
   // Forgets any transfer in progress without answering (NMT stop or reset).
   void reset() {
+    cancel_stream();
     state_ = State::Idle;
     segment_ready_ = false;
   }
@@ -110,6 +125,8 @@ class SdoServer {
     BlockUploadStarting,  // block upload: initiate answered, waiting for the start request
     BlockUploading,       // block upload: sending a sub-block, then waiting for its ack
     BlockUploadEnding,    // block upload: end sent, waiting for the client's end response
+    BlockDownloadDraining,  // block download aborted mid sub-block: its remaining segments,
+                            // which the client sends before it reads the abort, are dropped
   };
 
   bool abort(std::uint16_t index, std::uint8_t sub, SdoAbort code,
@@ -138,6 +155,9 @@ class SdoServer {
   bool block_upload_ack(std::span<const std::uint8_t, 8> request, std::uint32_t now_us,
                         std::array<std::uint8_t, 8>& response);
   std::uint8_t download_block_segments() const;
+  // A streamed download that ends without stream_close: the object hears stream_cancel.
+  void cancel_stream();
+  SdoAbort append_stream(std::span<const std::uint8_t> data);
   bool sub_block_sent() const;
   // Upload source: opens the value (snapshot in buffer_ when it fits) and reads it by offset.
   SdoAbort open_upload(std::uint16_t index, std::uint8_t sub);
@@ -168,6 +188,12 @@ class SdoServer {
   bool last_segment_sent_ = false;       // upload: the sub-block ended with the value's end
   std::array<std::uint8_t, 8> segment_{};  // upload: the frame peek_segment() offered
   bool segment_ready_ = false;
+
+  // Streamed block download: the last segment received is held back (in buffer_, which a
+  // streamed value does not use) until the next one, or the end request, which says how many of
+  // its bytes are padding, shows how much of it is data.
+  bool streaming_ = false;
+  bool stream_pending_ = false;
 
   std::uint32_t aborts_sent_ = 0;
   SdoAbort last_abort_ = SdoAbort::None;

@@ -152,6 +152,7 @@ class SdoAbortCode(enum.IntEnum):
         0x0604_0043,
         "settings that do not fit together (a recorder without channels...)",
     )
+    HARDWARE_ERROR = 0x0606_0000, "access failed: hardware error (e.g. writing the staged image)"
     LENGTH_MISMATCH = 0x0607_0010, "data length does not match the object's type"
     LENGTH_TOO_HIGH = 0x0607_0012, "data longer than the object's type"
     LENGTH_TOO_LOW = 0x0607_0013, "data shorter than the object's type"

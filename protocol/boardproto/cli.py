@@ -8,10 +8,12 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from boardproto.cia301_header import generate_cia301_header
+from boardproto.cia302_header import generate_cia302_header
 from boardproto.cia305_header import generate_cia305_header
 from boardproto.cpp_header import generate_header
 from boardproto.dbc import generate_dbc
 from boardproto.eds import generate_eds
+from boardproto.image import ImageBuildError, build_image, write_image
 from boardproto.loader import TableError, load_table
 from boardproto.outputs import write_if_changed
 from boardproto.table import BoardTable
@@ -23,6 +25,7 @@ EXIT_BAD_INPUT = 2
 OUTPUTS: dict[str, Callable[[BoardTable], str]] = {
     "include/board/fields.hpp": generate_header,
     "include/board/cia301.hpp": lambda _table: generate_cia301_header(),
+    "include/board/cia302.hpp": lambda _table: generate_cia302_header(),
     "include/board/cia305.hpp": lambda _table: generate_cia305_header(),
     "board.eds": generate_eds,
     "board.dbc": generate_dbc,
@@ -50,6 +53,24 @@ def _parser() -> argparse.ArgumentParser:
     )
     generate.add_argument("--out-dir", type=Path, required=True, help="output directory, e.g. build/protocol")
     generate.add_argument("--quiet", action="store_true", help="do not list the files that were rewritten")
+    image = commands.add_parser(
+        "image",
+        help="wrap a built firmware executable into a program download image (CiA 302-3)",
+        description="Write OUT: the image header of boardproto.cia302 (the table's product code, "
+        "the executable's 0x100A version, payload length and CRC-32), then the executable.",
+    )
+    image.add_argument("--table", type=Path, required=True, help="the field table, e.g. protocol/board.toml")
+    image.add_argument(
+        "--firmware", type=Path, required=True, help="the executable, e.g. build/bin/joint-firmware"
+    )
+    image.add_argument("--out", type=Path, required=True, help="the image file to write")
+    image.add_argument(
+        "--version-suffix",
+        default="",
+        help="stamp the executable's version plus this suffix into the copy (a second image of one build)",
+    )
+    image.add_argument("--strip", action="store_true", help="strip symbols and debug information first")
+    image.add_argument("--quiet", action="store_true", help="do not say what was written")
     return parser
 
 
@@ -62,6 +83,19 @@ def generate(table_path: Path, out_dir: Path) -> list[Path]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     arguments = _parser().parse_args(argv)
+    if arguments.command == "image":
+        try:
+            table = load_table(arguments.table)
+            image = build_image(
+                table, arguments.firmware, version_suffix=arguments.version_suffix, strip=arguments.strip
+            )
+        except (TableError, ImageBuildError, OSError) as error:
+            print(f"boardproto: error: {error}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        write_image(arguments.out, image)
+        if not arguments.quiet:
+            print(f"boardproto: wrote {arguments.out} ({len(image)} bytes)")
+        return 0
     try:
         written = generate(arguments.table, arguments.out_dir)
     except TableError as error:

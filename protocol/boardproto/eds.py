@@ -30,6 +30,7 @@ from canopen.objectdictionary import (
     export_od,
 )
 
+from boardproto import cia302
 from boardproto.cia301 import ERROR_BEHAVIOUR_INDEX, SYNC_COB_ID, ErrorBehaviour, FunctionCode, emcy_cob_id
 from boardproto.cpp_header import GENERATED_BANNER
 from boardproto.table import (
@@ -329,6 +330,25 @@ def _add_communication_objects(od: ObjectDictionary, table: BoardTable) -> None:
     for pdo in table.pdos:
         for record in _pdo_records(pdo, node.default_node_id):
             od.add_object(record)
+    for program_object in _program_download_objects():
+        od.add_object(program_object)
+
+
+def _program_download_objects() -> list[ODArray]:
+    """CiA 302-3 program download (boardproto.cia302): one program, sub PROGRAM_NUMBER."""
+    objects = []
+    running = int(cia302.ProgramControl.START)
+    for index, name, data_type, access, default in (
+        (cia302.PROGRAM_DATA_INDEX, "Program data", DataType.DOMAIN, "wo", None),
+        (cia302.PROGRAM_CONTROL_INDEX, "Program control", DataType.UNSIGNED8, "rw", running),
+        # The running image's CRC-32: no value an EDS could know.
+        (cia302.SOFTWARE_ID_INDEX, "Program software identification", DataType.UNSIGNED32, "ro", None),
+        (cia302.FLASH_STATUS_INDEX, "Flash status identification", DataType.UNSIGNED32, "ro", 0),
+    ):
+        member = _variable(name, index, cia302.PROGRAM_NUMBER, data_type, access, default)
+        highest = "Highest sub-index supported"
+        objects.append(_array(name, index, highest, cia302.PROGRAM_NUMBER, "ro", [member]))
+    return objects
 
 
 def _limited(variable: ODVariable, low: float, high: float) -> ODVariable:

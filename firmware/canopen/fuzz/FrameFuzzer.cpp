@@ -48,6 +48,12 @@
 //      every step (no answer ever leaves while the filter lags), and a frame the filter would
 //      drop (outside the set, or remote, or 29-bit) only counts as received and ignored: no
 //      other counter, no state change, nothing sent. So the filter changes nothing on the bus.
+//   9. Program download (CiA 302-3, a store in memory): the staging area is open exactly while
+//      the node reports a download in progress; a download that ends any other way than a
+//      completed, checked image (refused header, abort, timeout, reset) leaves nothing staged,
+//      and the store keeps an image only while the node says it has one. A block
+//      download the server aborts mid sub-block (a refused image header) drops the rest of that
+//      sub-block's segments unanswered.
 //   8. LSS (CiA 305): an 8-byte LSS request gets at most one answer, with the command specifier
 //      CiA 305 pairs with the request; configure node-id succeeds exactly for 1..127 and 0xFF;
 //      anything else gets none. A node without a node id (LSS took it away, then a reset
@@ -217,6 +223,7 @@ struct SdoModel {
     BlockUploadStart,  // initiate answered: the start request is due
     BlockUpload,       // the server sends a sub-block, the client acknowledges
     BlockUploadEnd,    // the server ended: the client's end is due
+    BlockDownloadDrain,  // aborted mid sub-block: its remaining segments go unanswered
   };
   Open open = Open::None;
   std::uint8_t multiplexer[3] = {};
@@ -233,6 +240,40 @@ struct SdoModel {
   bool sub_block_open() const {
     return open == Open::BlockUpload && sequence < block_size && !last_sent;
   }
+};
+
+// co::ProgramStore in memory, checking invariant 9 from the store's side.
+class MemoryProgramStore final : public co::ProgramStore {
+ public:
+  bool open_staging() override {
+    check(!open, "staging opened twice without an end");
+    staging.clear();
+    kept.clear();
+    open = true;
+    return true;
+  }
+  bool write_staging(std::span<const std::uint8_t> bytes) override {
+    check(open, "payload written outside a download");
+    staging.insert(staging.end(), bytes.begin(), bytes.end());
+    return true;
+  }
+  bool commit_staging() override {
+    check(open, "commit outside a download");
+    kept = staging;
+    staging.clear();
+    open = false;
+    return true;
+  }
+  void discard_staging() override {
+    staging.clear();
+    kept.clear();
+    open = false;
+  }
+  std::uint32_t running_image_crc32() override { return 0x600D'C0DEu; }
+
+  std::vector<std::uint8_t> staging;
+  std::vector<std::uint8_t> kept;
+  bool open = false;
 };
 
 // Everything the node sent since the last drain, sorted by what it is.
@@ -265,6 +306,7 @@ class Harness {
     }
     recorder_.reset();  // static: what an earlier input left must not matter
     node_.set_recorder(&recorder_);
+    node_.set_program_store(&program_store_);
     port_.watch(node_);
     node_.set_acceptance_listener(&port_);
     node_.start(now_us_);
@@ -389,6 +431,11 @@ class Harness {
   // What the clock's move sent (a poll on wall time, a control cycle on control time): the
   // timeout abort if one was due, else no SDO frame. Takes the abort out of `sent`.
   void check_sdo_timeout(Sent& sent) {
+    if (sdo_.open == SdoModel::Open::BlockDownloadDrain) {  // aborted already: nothing more sent
+      check(sent.sdo.empty(), "an SDO frame sent while an aborted sub-block drains", sent.sdo.size());
+      if (sdo_timeout_due()) sdo_.open = SdoModel::Open::None;
+      return;
+    }
     if (!sdo_timeout_due()) {
       check(sent.sdo.empty(), "an SDO frame sent with no transfer timing out",
             sent.sdo.empty() ? 0 : sent.sdo.front().data[0]);
@@ -447,7 +494,19 @@ class Harness {
     if (result.sync && control_clock_) check_sdo_timeout(sent);  // the cycle's timeout abort
     if (filtered_out) check_filtered_out(frame, before, counters_before, sent);
 
-    if (served && sdo_.open == SdoModel::Open::BlockDownload && frame.data[0] != 0x80) {
+    const bool drained = served && sdo_.open == SdoModel::Open::BlockDownloadDrain &&
+                         frame.data[0] != 0x80 && (frame.data[0] & 0x7F) == sdo_.sequence + 1;
+    if (served && sdo_.open == SdoModel::Open::BlockDownloadDrain && !drained) {
+      sdo_.open = SdoModel::Open::None;  // the client's next request
+    }
+    if (drained) {
+      check(sent.sdo.empty(), "segment of an aborted sub-block answered", frame.data[0]);
+      sdo_.sequence = frame.data[0] & 0x7F;
+      sdo_.last_activity_us = timeout_now();
+      if (sdo_.sequence >= sdo_.block_size || (frame.data[0] & 0x80) != 0) {
+        sdo_.open = SdoModel::Open::None;
+      }
+    } else if (served && sdo_.open == SdoModel::Open::BlockDownload && frame.data[0] != 0x80) {
       check_block_download_segment(frame.data, sent.sdo);
     } else if (!served || cs == 4) {  // not for the server, or a client abort: nothing to answer
       check(sent.sdo.empty(), "SDO response to a request that must not be answered",
@@ -469,6 +528,22 @@ class Harness {
       sdo_.open = SdoModel::Open::None;
     }
     check_counters();
+    check_program_store();
+  }
+
+  // Invariant 9.
+  void check_program_store() const {
+    const co::ProgramDownload& program = node_.program();
+    check(program_store_.open == program.transfer_in_progress(), "staging open while no download runs",
+          program_store_.open, program.transfer_in_progress());
+    if (!program.transfer_in_progress()) {
+      check(program_store_.staging.empty(), "bytes of an ended download left staged",
+            program_store_.staging.size());
+    }
+    if (!program.image_kept()) {
+      check(program_store_.kept.empty(), "an image kept that the node does not know of",
+            program_store_.kept.size());
+    }
   }
 
   // Invariant 8: LSS (CiA 305).
@@ -599,9 +674,17 @@ class Harness {
     }
     const bool in_sequence = sequence == sdo_.sequence + 1;
     if (!frames.empty() && frames.front().data[0] == 0x80) {
-      // Only new data can be too much for the object.
+      // Only new data can be too much for the object, or (a streamed one) refused by it.
       check(in_sequence, "segment out of sequence aborted instead of ignored", sequence, sdo_.sequence);
-      expect_abort(frames, co::SdoAbort::LengthTooHigh, "segment abort other than length too high");
+      const bool streamed = sdo_.multiplexer[0] == (cia302::kProgramDataIndex & 0xFF) &&
+                            sdo_.multiplexer[1] == (cia302::kProgramDataIndex >> 8);
+      expect_abort(frames, streamed ? co::SdoAbort::None : co::SdoAbort::LengthTooHigh,
+                   "segment abort other than length too high");
+      if (streamed && sequence < sdo_.block_size && !last) {
+        sdo_.open = SdoModel::Open::BlockDownloadDrain;
+        sdo_.sequence = sequence;
+        sdo_.last_activity_us = timeout_now();
+      }
       return;
     }
     if (in_sequence) sdo_.sequence = sequence;
@@ -834,6 +917,7 @@ class Harness {
   RecordingHil hil_;
   VectorStorage storage_;
   co::Node node_{kNodeId, port_, board_, hil_, storage_, 0x1234'5678};
+  MemoryProgramStore program_store_;
   // Static, as on the platform (64 KiB of samples; not zeroed per input, reset() is enough).
   static inline co::Recorder recorder_;
   static constexpr std::size_t kFrozenCheckBytes = 4096;

@@ -9,11 +9,19 @@ from __future__ import annotations
 import binascii
 import struct
 import sys
+import zlib
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "protocol"))  # works without the venv
 
 from boardproto.cia301 import heartbeat_cob_id, sdo_request_cob_id
+from boardproto.cia302 import (
+    PROGRAM_CONTROL_INDEX,
+    PROGRAM_DATA_INDEX,
+    PROGRAM_NUMBER,
+    ImageHeader,
+    ProgramControl,
+)
 from boardproto.cia305 import (
     FASTSCAN_CONFIRM,
     NODE_ID_UNCONFIGURED,
@@ -22,6 +30,7 @@ from boardproto.cia305 import (
     command_frame,
     fastscan_frame,
 )
+from boardproto.loader import load_table
 
 NODE_ID = 0x10
 NO_REFUSAL = 63  # config byte: refuse no field, storage empty
@@ -68,9 +77,9 @@ def crc16(data: bytes) -> tuple[int, int]:
     return crc & 0xFF, crc >> 8
 
 
-def block_download(index: int, value: bytes, crc_of: bytes | None = None) -> bytes:
+def block_download(index: int, value: bytes, crc_of: bytes | None = None, sub: int = 0) -> bytes:
     """Initiate (CRC, size), one sub-block of segments, end with the CRC of `crc_of`."""
-    records = sdo(0xC6, index & 0xFF, index >> 8, 0x00, *struct.pack("<I", len(value)))
+    records = sdo(0xC6, index & 0xFF, index >> 8, sub, *struct.pack("<I", len(value)))
     chunks = [value[i : i + 7] for i in range(0, len(value), 7)]
     for seqno, chunk in enumerate(chunks, start=1):
         last = 0x80 if seqno == len(chunks) else 0  # protocol-literal: block segment's 'no more' bit
@@ -124,7 +133,18 @@ def recorder_recording(samples: int, trigger_level: float | None = None) -> byte
     return records
 
 
+def program_download(product_code: int, payload: bytes) -> bytes:
+    """0x1F51 stop and clear, the image (header + payload) into 0x1F50:01 in one sub-block, start."""
+    header = ImageHeader(product_code, "9.9.9", len(payload), zlib.crc32(payload))
+    records = download(PROGRAM_CONTROL_INDEX, PROGRAM_NUMBER, ProgramControl.STOP, 1)
+    records += download(PROGRAM_CONTROL_INDEX, PROGRAM_NUMBER, ProgramControl.CLEAR, 1)
+    records += block_download(PROGRAM_DATA_INDEX, header.pack() + payload, sub=PROGRAM_NUMBER)
+    return records + download(PROGRAM_CONTROL_INDEX, PROGRAM_NUMBER, ProgramControl.START, 1)
+
+
 def seeds() -> dict[str, bytes]:
+    table = Path(__file__).resolve().parents[3] / "protocol" / "board.toml"
+    product_code = load_table(table).node.product_code
     upload_1008 = sdo(0x40, 0x08, 0x10, 0x00)
     segments = b"".join(sdo(0x60 | (0x10 * (n % 2))) for n in range(3))
     velocity = struct.pack("<f", 1.5)
@@ -223,6 +243,9 @@ def seeds() -> dict[str, bytes]:
         + lss(command_frame(LssCommand.CONFIGURE_NODE_ID, 0x12))
         + lss(command_frame(LssCommand.SWITCH_STATE_GLOBAL, LssState.WAITING))
         + sdo(0x40, 0x18, 0x10, 0x04),
+        "program_download": bytes([NO_REFUSAL]) + program_download(product_code, bytes(range(200))),
+        "program_download_wrong_board": bytes([NO_REFUSAL])
+        + program_download(product_code ^ 1, bytes(range(200))),
         "store_then_reset_node": bytes([NO_REFUSAL | 0x40])
         + sdo(0x23, 0x00, 0x25, 0x00, *struct.pack("<f", 0.5))
         + sdo(0x23, 0x10, 0x10, 0x01, *b"save")

@@ -27,6 +27,8 @@
 #include <vector>
 
 #include "FileParameterStorage.hpp"
+#include "FileProgramStore.hpp"
+#include "SoftwareVersion.hpp"
 #include "canopen/ParameterImage.hpp"
 #include "SocketCanPort.hpp"
 #include "board/cia305.hpp"
@@ -58,6 +60,7 @@ struct Options {
   std::string lss_store;  // LSS store configuration's file (node id, bit timing)
   std::string chain_in;   // emulated chain enable input: high while this file exists
   std::string chain_out;  // emulated chain enable output: this file exists while we have an id
+  std::string image_dir;  // CiA 302-3 program download: staged and running images
 };
 
 // 0x1018:4 when --serial is not given: stable for one board (the same machine and the same
@@ -152,6 +155,11 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
                  "file exists (the upstream module's --chain-out). Default: always enabled");
   app.add_option("--chain-out", options.chain_out,
                  "emulated chain enable output: this file exists while the node has a node id");
+  app.add_option("--image-dir", options.image_dir,
+                 "directory of program download (CiA 302-3, 0x1F50..0x1F57): a downloaded image is\n"
+                 "staged there and, on 0x1F51 start, run from there (the process re-executes\n"
+                 "itself with the same arguments). Without it a download is refused (flash secured)")
+      ->check(CLI::ExistingDirectory);
   std::string mode = "lockstep";
   app.add_option("--mode", mode, "lockstep: one cycle per SYNC; free: own timer")
       ->check(CLI::IsMember({"lockstep", "free"}))
@@ -369,7 +377,9 @@ co::Recorder g_recorder;
 
 void print_to_stdout(void*, std::string_view text) { std::fwrite(text.data(), 1, text.size(), stdout); }
 
-int run(const Options& options) {
+// `exec_path`: set when 0x1F51 started a downloaded image; main() execv()s it once everything
+// here is closed.
+int run(const Options& options, std::string& exec_path) {
   std::optional<Application> app;
   app.emplace(options);
   if (!app->start()) return kExitStartupFailure;
@@ -393,6 +403,12 @@ int run(const Options& options) {
   }
   const std::uint32_t serial_number = options.serial_number.value_or(serial_number_default(options));
   co::Node node{static_cast<std::uint8_t>(options.node_id), port, field_access, hil_io, *storage, serial_number};
+  node.set_software_version(linuxhw::software_version());
+  std::unique_ptr<linuxhw::FileProgramStore> program_store;
+  if (!options.image_dir.empty()) {
+    program_store = std::make_unique<linuxhw::FileProgramStore>(options.image_dir);
+    node.set_program_store(program_store.get());
+  }
   std::unique_ptr<linuxhw::FileParameterStorage> lss_storage;
   if (!options.lss_store.empty()) {
     lss_storage = std::make_unique<linuxhw::FileParameterStorage>(options.lss_store);
@@ -450,8 +466,10 @@ int run(const Options& options) {
     std::fprintf(stderr, "joint-firmware: FAULT INJECTION: rogue write of motor_duty_command at cycle %u\n",
                  options.rogue_write_cycle);
   }
-  std::fprintf(stderr, "joint-firmware: node %d%s, serial 0x%08X, on %s%s, %s mode, period %u us, parameters %s (%s)\n",
-               node.node_id(), node.has_node_id() ? "" : " (none yet: LSS only)", serial_number,
+  const std::string_view version = linuxhw::software_version();
+  std::fprintf(stderr, "joint-firmware: node %d%s, version %.*s, serial 0x%08X, on %s%s, %s mode, period %u us, parameters %s (%s)\n",
+               node.node_id(), node.has_node_id() ? "" : " (none yet: LSS only)",
+               static_cast<int>(version.size()), version.data(), serial_number,
                options.can_interface.c_str(),
                options.acceptance_filter ? "" : " (no acceptance filter: every frame)",
                options.mode == Mode::Lockstep ? "lockstep" : "free-running", options.period_us,
@@ -506,6 +524,19 @@ int run(const Options& options) {
         }
         node.transmit_synchronous_pdos(now_us());
       }
+      // 0x1F51 start with a checked image staged; its SDO answer is out.
+      if (node.program_start_requested()) break;
+    }
+    if (node.program_start_requested()) {
+      exec_path = program_store->promote_staged();
+      if (exec_path.empty()) {
+        std::fprintf(stderr, "joint-firmware: cannot start the downloaded image: %s\n",
+                     program_store->last_error().c_str());
+        return kExitStartupFailure;
+      }
+      std::fprintf(stderr, "joint-firmware: starting the downloaded image %s\n", exec_path.c_str());
+      running = false;
+      continue;
     }
     node.poll(now_us());
     if (node.has_node_id() != chain_output) {
@@ -537,5 +568,11 @@ int main(int argc, char** argv) {
   if (const std::optional<int> exit_code = parse_command_line(argc, argv, options)) {
     return *exit_code;
   }
-  return run(options);
+  std::string exec_path;
+  const int exit_code = run(options, exec_path);
+  if (exec_path.empty()) return exit_code;
+  // Same arguments, new image: it starts as after a power cycle and sends its boot-up.
+  ::execv(exec_path.c_str(), argv);
+  std::fprintf(stderr, "joint-firmware: cannot execute %s: %s\n", exec_path.c_str(), std::strerror(errno));
+  return kExitStartupFailure;
 }

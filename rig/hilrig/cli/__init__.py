@@ -12,6 +12,7 @@
     hilrig scan                               # which nodes are on the bus
     hilrig lss number --chain                 # new boards: node ids over LSS, stored
     hilrig params save board.dcf              # the stored parameters as a DCF (load: the reverse)
+    hilrig flash build/release/images/joint-firmware.img   # program download (CiA 302-3), restart, version
     hilrig record bus.log / replay bus.log --decode
     hilrig diff good/trace.rrd out/demo/trace.rrd   # the first cycle the runs differ
     hilrig bus-load --bitrate 500k            # will the PDO exchange fit a real bus?
@@ -57,6 +58,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "scan",
     "lss",
     "params",
+    "flash",
     "record",
     "sim",
     "view",

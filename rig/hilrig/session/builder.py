@@ -371,6 +371,7 @@ def _start_firmware(
         mode=FIRMWARE_MODE[mode],
         period_us=config.firmware_period_us or (config.period_us if mode is TimingMode.LOCKSTEP else 10_000),
         term_timeout_s=config.firmware_term_timeout_s,
+        image_dir=log_path.parent / f"images-{node_id}",
     )
     firmware.start()
     stack.callback(firmware.stop)

@@ -61,6 +61,7 @@ def firmware_argv(
     extra_args: Sequence[str] = (),
     *,
     mode: str = "lockstep",
+    image_dir: Path | None = None,
 ) -> list[str]:
     """The firmware's command line in `mode` ("lockstep" or "free"; options exactly as the firmware defines),
     then `extra_args` as given (e.g. a fault-injection option of `joint-firmware --help`)."""
@@ -77,6 +78,8 @@ def firmware_argv(
     ]
     if params_file is not None:
         argv += ["--params", str(params_file)]
+    if image_dir is not None:
+        argv += ["--image-dir", str(image_dir)]
     return [*argv, *extra_args]
 
 
@@ -92,7 +95,9 @@ def _check_mode(mode: str) -> str:
 
 class Firmware:
     """One firmware process. stdout and stderr go to `log_path`; stop() is SIGTERM, then
-    SIGKILL after `term_timeout_s`. `extra_args` go last on its command line."""
+    SIGKILL after `term_timeout_s`. `extra_args` go last on its command line. `image_dir`: the
+    firmware's program download directory (--image-dir, created here): an image flashed into it
+    (CiA 302-3) re-executes the process in place, same pid, so stop() and kill() still reach it."""
 
     def __init__(
         self,
@@ -106,11 +111,20 @@ class Firmware:
         executable: Path = DEFAULT_EXECUTABLE,
         term_timeout_s: float = 5.0,
         mode: str = "lockstep",
+        image_dir: Path | None = None,
     ) -> None:
         self.launcher = launcher
         self.mode = mode
+        self.image_dir = image_dir
         self.argv = firmware_argv(
-            executable, launcher.channel, node_id, period_us, params_file, extra_args, mode=mode
+            executable,
+            launcher.channel,
+            node_id,
+            period_us,
+            params_file,
+            extra_args,
+            mode=mode,
+            image_dir=image_dir,
         )
         self.executable = executable
         self.log_path = log_path
@@ -126,6 +140,8 @@ class Firmware:
                 f"{self.executable} does not exist: build the firmware first (cmake --build build)"
             )
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
+        if self.image_dir is not None:
+            self.image_dir.mkdir(parents=True, exist_ok=True)
         self._log = self.log_path.open("ab" if append_log else "wb")
         try:
             self.process = self.launcher.popen(

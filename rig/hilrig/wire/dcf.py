@@ -29,6 +29,7 @@ from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 from canopen.sdo import SdoAbortedError
 
 from boardproto.cia301 import NODE_ID_MASK, SdoAbortCode
+from boardproto.cia302 import PROGRAM_CONTROL_INDEX, PROGRAM_DATA_INDEX
 from boardproto.loader import MAX_PDO_SLOTS
 from boardproto.table import PDO_NOT_VALID, PdoDirection
 from hilrig.errors import RigError
@@ -39,8 +40,8 @@ STORE_PARAMETERS = 0x1010
 STORE_ALL = 1
 STORE_SIGNATURE = int.from_bytes(b"save", "little")
 """CiA 301: writing the ASCII bytes "save" to 0x1010 stores; any other value is refused."""
-NOT_STORED = frozenset({0x1003, STORE_PARAMETERS, 0x1011})
-"""Writable communication objects that are commands, not settings."""
+NOT_STORED = frozenset({0x1003, STORE_PARAMETERS, 0x1011, PROGRAM_DATA_INDEX, PROGRAM_CONTROL_INDEX})
+"""Writable communication objects that are commands, not settings (program download's too)."""
 IDENTITY = 0x1018
 COMMUNICATION_END = 0x2000
 

@@ -12,10 +12,11 @@ the node over SDO), never by hand::
 
 from __future__ import annotations
 
+import contextlib
 import struct
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
@@ -74,12 +75,37 @@ class SocketSdoClient(SdoClient):
     def __init__(self, rx_cobid: int, tx_cobid: int, od: canopen.ObjectDictionary, link: RawCanLink) -> None:
         super().__init__(rx_cobid, tx_cobid, od)
         self.link = link
+        self._batch: bytearray | None = None
+
+    @contextlib.contextmanager
+    def batched(self) -> Iterator[None]:
+        """Requests are held and sent together (one system call) when an answer is awaited or
+        the block ends: a block download's sub-block of up to 127 segments, which no answer
+        separates, leaves as one write instead of one per frame."""
+        self._batch = bytearray()
+        try:
+            yield
+        finally:
+            self._flush()
+            self._batch = None
+
+    def _flush(self) -> None:
+        if self._batch:
+            frames, self._batch = bytes(self._batch), bytearray()
+            try:
+                self.link.send_frames(frames)
+            except OSError as error:
+                what = f"SDO requests to 0x{self.rx_cobid:03X} not sent"
+                raise can.CanOperationError(f"{what}: {error}") from error
 
     def on_response(self, can_id: int, data: bytes, timestamp: float) -> None:
         """Answers are read from the socket (`read_response`): the copy canopen's network
         passes on (before its bus is narrowed: `BoardNode.receive_only_answers`) is not kept."""
 
     def send_request(self, request: bytes | bytearray) -> None:
+        if self._batch is not None:
+            self._batch += can_frame(self.rx_cobid, bytes(request))
+            return
         try:
             self.link.send(can_frame(self.rx_cobid, bytes(request)))
         except OSError as error:  # as python-can's SocketCAN bus reports a failed send
@@ -88,6 +114,7 @@ class SocketSdoClient(SdoClient):
     def read_response(self) -> bytes:
         """The next answer: SdoAbortedError for an abort frame, SdoCommunicationError when none
         comes within RESPONSE_TIMEOUT (canopen's own contract)."""
+        self._flush()
         try:
             frame = self.link.recv(self.RESPONSE_TIMEOUT)
         except OSError as error:  # as python-can's SocketCAN bus reports a failed receive
@@ -100,6 +127,7 @@ class SocketSdoClient(SdoClient):
         return response
 
     def request_response(self, sdo_request: bytes | bytearray) -> bytes:
+        self._flush()
         # Answers still queued belong to an earlier request (one that timed out, or a block
         # transfer cut short): drop them, as canopen empties its queue here.
         while self.link.recv(0.0) is not None:
