@@ -8,8 +8,14 @@
 
 #include <cstdint>
 
+#include "board/cia301.hpp"
+
 namespace cortexm {
 namespace {
+
+// Two modules' TPDO1: frames as a robot's bus carries them.
+constexpr std::uint32_t kFirst = cia301::cob_id(cia301::FunctionCode::Tpdo1, 1);
+constexpr std::uint32_t kSecond = cia301::cob_id(cia301::FunctionCode::Tpdo1, 2);
 
 co::CanFrame frame_with(std::uint32_t id) {
   co::CanFrame frame;
@@ -23,12 +29,12 @@ TEST(InterruptCanPortTest, ReceivedFramesReachTheEngineInOrder) {
   InterruptCanPort<4, 4> port;
   co::CanFrame frame;
   EXPECT_EQ(port.receive(frame), co::ReceiveResult::Empty);
-  port.push_received(frame_with(0x181));
-  port.push_received(frame_with(0x182));
+  port.push_received(frame_with(kFirst));
+  port.push_received(frame_with(kSecond));
   ASSERT_EQ(port.receive(frame), co::ReceiveResult::Received);
-  EXPECT_EQ(frame, frame_with(0x181));
+  EXPECT_EQ(frame, frame_with(kFirst));
   ASSERT_EQ(port.receive(frame), co::ReceiveResult::Received);
-  EXPECT_EQ(frame, frame_with(0x182));
+  EXPECT_EQ(frame, frame_with(kSecond));
   EXPECT_EQ(port.receive(frame), co::ReceiveResult::Empty);
   EXPECT_EQ(port.receive_overruns(), 0u);
 }
