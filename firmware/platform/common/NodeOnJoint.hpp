@@ -1,6 +1,5 @@
-// The CANopen node's views of the demo joint's application, for every platform's main (the
-// Cortex-M one uses them; platform/linux/main.cpp still has its own copies of the same classes,
-// to be replaced by these): the node reads the board and writes only the bus-writable fields,
+// The CANopen node's views of the demo joint's application, for every platform's main (Linux and
+// Cortex-M): the node reads the board and writes only the bus-writable fields,
 // through the bus writer; its raw HIL I/O and heartbeat news go through the joint's driver
 // registers, never the board (the interrupt policy). `Application` has `board`
 // (core::MessageBoard), `bus_writer` (BusWriter) and `registers` (joint::HilRegisters); each view

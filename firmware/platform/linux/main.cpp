@@ -28,6 +28,7 @@
 
 #include "FileParameterStorage.hpp"
 #include "FileProgramStore.hpp"
+#include "NodeOnJoint.hpp"
 #include "SoftwareVersion.hpp"
 #include "canopen/ParameterImage.hpp"
 #include "SocketCanPort.hpp"
@@ -204,28 +205,12 @@ std::uint32_t now_us() {
                                     static_cast<std::uint64_t>(now.tv_nsec) / 1000u);
 }
 
-// The CANopen node on the board: owner of every bus-writable field (commands, parameters).
-class BusWriter final : public core::ExternalWriter {
- public:
-  explicit BusWriter(core::MessageBoard& board)
-      : ExternalWriter(board, "canopen_node", {.writes = core::kBusWritableFields}) {}
-
-  core::SetResult write(board::FieldId id, float value) { return boardSet(id, value); }
-};
-
 // Without --params nothing is stored; 0x1010 answers "cannot store" through the node.
 class NoParameterStorage final : public co::ParameterStorage {
  public:
   bool save(std::span<const std::byte>) override { return false; }
   std::size_t load(std::span<std::byte>) override { return 0; }
 };
-
-// The board's refused writes become EMCY frames naming the field (board.toml's [[emcy]]
-// ownership_violation, the field's object index in the manufacturer bytes). The fault bit it
-// latches names no object, so the FlagEmcyReporter leaves this report to the hook.
-void report_ownership_violation(void* context, const core::WriteViolation& violation) {
-  static_cast<co::Node*>(context)->report_emcy(co::emcy::ownership_violation(violation.field));
-}
 
 // Fault injection for HIL tests (--inject-rogue-write-at-cycle): a module that declares no
 // writes, so it owns nothing, and at one cycle writes a field another component owns. It exists
@@ -274,75 +259,10 @@ struct Application {
 
   core::MessageBoard board;
   core::Scheduler scheduler{board};
-  BusWriter bus_writer{board};
+  platform::BusWriter bus_writer{board};
   joint::HilRegisters registers;
   joint::DemoJoint demo_joint;
   std::optional<RogueWriter> rogue_writer;
-};
-
-// The node's view of the board: reads anything, writes only what the node owns. Always the
-// current application's board (reset node replaces it).
-class BoardFieldAccess final : public co::FieldAccess {
- public:
-  explicit BoardFieldAccess(std::optional<Application>& app) : app_{app} {}
-  float read(board::FieldId id) override { return app_->board.get(id); }
-  co::WriteResult write(board::FieldId id, float value) override {
-    return app_->bus_writer.write(id, value) == core::SetResult::Ok ? co::WriteResult::Accepted
-                                                                     : co::WriteResult::Refused;
-  }
-
- private:
-  std::optional<Application>& app_;
-};
-
-// Raw hardware-in-the-loop I/O between the node's PDOs and the joint's driver registers. The
-// receive path writes registers only; the sensors drain them in their update().
-class HilIoOnRegisters final : public co::HilIo {
- public:
-  explicit HilIoOnRegisters(std::optional<Application>& app) : app_{app} {}
-  void write_input(board::HilInputId id, std::int32_t raw) override {
-    joint::HilRegisters& registers = app_->registers;
-    switch (id) {
-      case board::HilInputId::motor_encoder_counts:
-        registers.write_motor_encoder(static_cast<std::uint16_t>(raw));
-        break;
-      case board::HilInputId::output_encoder_counts:
-        registers.write_output_encoder(static_cast<std::uint16_t>(raw));
-        break;
-      case board::HilInputId::thermistor_adc:
-        registers.write_thermistor_adc(static_cast<std::uint16_t>(raw));
-        break;
-      case board::HilInputId::motor_current_adc:
-        registers.write_motor_current(static_cast<std::int16_t>(raw));
-        break;
-      case board::HilInputId::kCount:
-        break;
-    }
-  }
-  std::int32_t read_output(board::HilOutputId id) override {
-    switch (id) {
-      case board::HilOutputId::motor_duty: return app_->registers.motor_duty_raw();
-      case board::HilOutputId::led_pattern: return app_->registers.led_pattern_raw();
-      case board::HilOutputId::kCount: break;
-    }
-    return 0;
-  }
-
- private:
-  std::optional<Application>& app_;
-};
-
-// The node's heartbeat consumer (0x1016) news into the joint's register; the HeartbeatSensor
-// drains it in its update() (the node never writes the board).
-class HeartbeatOnRegisters final : public co::HeartbeatListener {
- public:
-  explicit HeartbeatOnRegisters(std::optional<Application>& app) : app_{app} {}
-  void heartbeat_status(std::uint8_t lost_entries, bool event) override {
-    app_->registers.write_heartbeat_status(lost_entries, event);
-  }
-
- private:
-  std::optional<Application>& app_;
 };
 
 // NMT reset node: a fresh application in place of the old one, wired to the node again.
@@ -359,7 +279,7 @@ class ApplicationRebuild final : public co::ApplicationReset {
     app_.emplace(options_);
     // The same components started before; a failure here is a firmware bug, not a user error.
     if (!app_->start()) failed_ = true;
-    app_->board.set_fault_hook({report_ownership_violation, node_});
+    app_->board.set_fault_hook({platform::report_ownership_violation, node_});
     fault_emcy_->forget();
   }
   bool failed() const { return failed_; }
@@ -393,8 +313,8 @@ int run(const Options& options, std::string& exec_path) {
     std::fprintf(stderr, "joint-firmware: %s\n", error.c_str());
     return kExitStartupFailure;
   }
-  BoardFieldAccess field_access{app};
-  HilIoOnRegisters hil_io{app};
+  platform::BoardFieldAccess<Application> field_access{app};
+  platform::HilIoOnRegisters<Application> hil_io{app};
   std::unique_ptr<co::ParameterStorage> storage;
   if (options.params_file.empty()) {
     storage = std::make_unique<NoParameterStorage>();
@@ -414,7 +334,7 @@ int run(const Options& options, std::string& exec_path) {
     lss_storage = std::make_unique<linuxhw::FileParameterStorage>(options.lss_store);
     node.set_lss_storage(lss_storage.get());
   }
-  app->board.set_fault_hook({report_ownership_violation, &node});
+  app->board.set_fault_hook({platform::report_ownership_violation, &node});
   // Newly latched fault bits become EMCY frames and cleared ones error resets, as board.toml's
   // [[bitset]] fault_flags says (each bit's emcy and about).
   co::FlagEmcyReporter fault_emcy{node, board::kFaultFlagsInfo};
@@ -422,7 +342,7 @@ int run(const Options& options, std::string& exec_path) {
   application_rebuild.attach(node, fault_emcy);
   node.set_application_reset(&application_rebuild);
   node.set_recorder(&g_recorder);
-  HeartbeatOnRegisters heartbeat_on_registers{app};
+  platform::HeartbeatOnRegisters<Application> heartbeat_on_registers{app};
   node.set_heartbeat_listener(&heartbeat_on_registers);
   // The socket takes the node's accepted set at start() and whenever the bus changes it; the
   // node tells it before it answers, so a master never talks to a filter that lags.
