@@ -44,6 +44,9 @@ from hilrig.wire.transport import RawCanLink, can_frame  # noqa: E402
 
 MODES = ("rig", "engine", "memory", "traced", "tracer-idle", "robot")
 WARMUP_CYCLES = 20
+ROBOT_START_TIMEOUT_S = 600.0
+"""A robot's modules start side by side, each fake node answering from a thread of its own:
+under callgrind, which runs one thread at a time, an answer takes far longer than on a bus."""
 
 
 class AnsweringLink(RawCanLink):
@@ -195,7 +198,15 @@ def robot_probe(cycles: int, modules: int) -> int:
             stack.callback(ours.close)
             stack.callback(peer.close)
             link = AnsweringLink(ours, peer, answers)
-            rig = Rig(rig_bus, table=table, node_id=node_id, plant=chain.plants[k], seed=1000 + k)
+            rig = Rig(
+                rig_bus,
+                table=table,
+                node_id=node_id,
+                plant=chain.plants[k],
+                seed=1000 + k,
+                sdo_timeout_s=ROBOT_START_TIMEOUT_S,
+                boot_timeout_s=ROBOT_START_TIMEOUT_S,
+            )
             rig.node.open_link = lambda receive_ids, link=link: link  # type: ignore[method-assign]
             stack.callback(rig.close)
             rigs.append(rig)
