@@ -12,7 +12,7 @@ the node over SDO), never by hand::
 
 from __future__ import annotations
 
-import copy
+import pickle
 import struct
 import threading
 import time
@@ -112,15 +112,16 @@ class SocketSdoClient(SdoClient):
 
 
 _TEMPLATE_NODE_ID = 1
-_templates: dict[tuple[str, int, int], canopen.ObjectDictionary] = {}
+_templates: dict[tuple[str, int, int], tuple[bytes, bool]] = {}
 _templates_lock = threading.Lock()
 
 
 def node_dictionary(eds: str | Path, node_id: int) -> canopen.ObjectDictionary:
     """The object dictionary of the EDS at `eds` for node `node_id`, as `canopen.import_od` makes
-    it: the file parsed once per process (and per version of it), then a copy for each node with
-    its node-relative values ($NODEID: the COB-IDs) moved to `node_id`. Parsing an EDS costs
-    about twenty copies of the dictionary, and a robot has a node per module."""
+    it: the file parsed once per process (and per version of it), then a copy for each node (a
+    pickle of the parsed one, loaded) with its node-relative values ($NODEID: the COB-IDs) moved
+    to `node_id`. Parsing an EDS costs about a hundred such copies, and a robot has a node per
+    module."""
     path = Path(eds)
     try:
         stat = path.stat()
@@ -130,10 +131,10 @@ def node_dictionary(eds: str | Path, node_id: int) -> canopen.ObjectDictionary:
     with _templates_lock:
         template = _templates.get(key)
         if template is None:
-            template = canopen.import_od(str(path), _TEMPLATE_NODE_ID)
-            _templates[key] = template
-    od = copy.deepcopy(template)
-    if template.node_id is not None:  # the EDS names a node id (DeviceComissioning): this one
+            parsed = canopen.import_od(str(path), _TEMPLATE_NODE_ID)
+            template = _templates[key] = (pickle.dumps(parsed), parsed.node_id is not None)
+    od: canopen.ObjectDictionary = pickle.loads(template[0])
+    if template[1]:  # the EDS names a node id (DeviceComissioning): this one, as import_od does
         od.node_id = node_id
     shift = node_id - _TEMPLATE_NODE_ID
     if shift:
