@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from boardproto.cia301 import FunctionCode, NmtCommand, NmtState, SdoAbortCode, cob_id
+from boardproto.cia301 import STANDARD_ID_MASK, FunctionCode, NmtCommand, NmtState, SdoAbortCode, cob_id
 from hilrig.errors import FieldNameError
 from hilrig.table import RigTable
 from hilrig.wire.node import explain_abort
@@ -151,5 +151,5 @@ def test_a_nodes_dictionary_is_the_one_canopen_reads_from_the_eds_for_that_node(
     canopens = canopen.import_od(str(DEFAULT_EDS_PATH), node_id)
     assert entries(ours) == entries(canopens)
     assert ours.node_id == canopens.node_id
-    assert ours[0x1800][1].default & 0x7FF == 0x180 + node_id
+    assert ours[0x1800][1].default & STANDARD_ID_MASK == cob_id(FunctionCode.TPDO1, node_id)
     assert node_dictionary(DEFAULT_EDS_PATH, node_id) is not ours, "each node its own, to change freely"
