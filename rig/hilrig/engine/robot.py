@@ -276,6 +276,9 @@ class Robot(CycleRunner):
         self._exchange_call: Exchange | None = None
         self._owners: dict[int, list[int]] = {}  # COB-ID -> the modules (indexes) receiving it
         self._decoders: dict[int, Decoder] = {}  # every module's TPDOs'
+        self._tpdo_ids: list[tuple[int, ...]] = []  # each module's TPDO COB-IDs, by index
+        self._shared_by: list[LockstepDriver] = []  # the drivers sharing the link, as shared
+        self._polled_tpdos = False  # `poll` handed a module a TPDO, which its next cycle takes
         self._init_timeline()
 
     # --- Life cycle ---------------------------------------------------------------------
@@ -375,7 +378,7 @@ class Robot(CycleRunner):
     def _step(self) -> None:
         n = self._cycle
         drivers = self._drivers
-        if self._link is None or not all(drivers[k].shares_link for k in self._live):
+        if self._link is None or not all([driver.shares_link for driver in self._shared_by]):
             self._share_link()  # first cycle, or a module configured again since (its own link)
         # Every module's RPDOs, the master's heartbeat when due and one SYNC go out together, at
         # the start of the one exchange that takes every module's due TPDOs in (`_exchange`).
@@ -420,6 +423,9 @@ class Robot(CycleRunner):
         for driver in drivers:
             driver.share_link(link, exchange, self.poll)
         self._link, self._exchange_call, self._owners = link, exchange, owners
+        self._tpdo_ids = [tuple(driver.tpdo_cob_ids) for driver in drivers]
+        self._shared_by = [drivers[k] for k in self._live]
+        self._polled_tpdos = True  # what the drivers polled on their own links, for the next cycle
         self._decoders = {
             cob_id: decoder
             for driver in drivers
@@ -438,6 +444,7 @@ class Robot(CycleRunner):
         while frame is not None:
             for k in owners.get(frame[0], ()):
                 drivers[k].accept_polled(*frame)
+                self._polled_tpdos = True  # (or an EMCY, dispatched already: a look for nothing)
             frame = link.recv(0.0)
 
     def _exchange(
@@ -455,13 +462,15 @@ class Robot(CycleRunner):
         guards: dict[int, HangGuard] = {}
         k = -1  # the module a LockstepError is of
         try:
-            for k, start in starts.items():
-                pending = drivers[k].take_pending()
-                if pending and out:
-                    send_frames(self._link, out)  # the SYNC is on the bus, as when no frame was pending
-                    out = b""
-                for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
-                    drivers[k].take(got, start, cob_id, data, between_syncs=True)
+            if self._polled_tpdos:
+                self._polled_tpdos = False
+                for k, start in starts.items():
+                    pending = drivers[k].take_pending()
+                    if pending and out:
+                        send_frames(self._link, out)  # the SYNC is on the bus, as when nothing was pending
+                        out = b""
+                    for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
+                        drivers[k].take(got, start, cob_id, data, between_syncs=True)
             while True:
                 frame = self._exchange_call(out, due, self._decoders, got, LIVENESS_SLICE_S, n)
                 if frame is None:
@@ -490,7 +499,7 @@ class Robot(CycleRunner):
                     except FirmwareError as error:
                         del starts[k]
                         driver.forget_rows(n, got)
-                        for cob_id in driver.tpdo_cob_ids:
+                        for cob_id in self._tpdo_ids[k]:
                             got.pop(cob_id, None)
                         due = due - start.due
                         self._lose(k, start, error)
@@ -507,9 +516,10 @@ class Robot(CycleRunner):
             for k in starts:
                 drivers[k].forget_rows(n, got)
             raise
-        return {
-            k: {cob_id: got[cob_id] for cob_id in drivers[k].tpdo_cob_ids if cob_id in got} for k in starts
-        }
+        if len(starts) == 1:
+            return dict.fromkeys(starts, got)  # one module's: all of it
+        tpdo_ids = self._tpdo_ids
+        return {k: {cob_id: got[cob_id] for cob_id in tpdo_ids[k] if cob_id in got} for k in starts}
 
     def _lose(self, k: int, start: CycleStart, error: FirmwareError) -> None:
         module = self.modules[k]
