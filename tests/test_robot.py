@@ -115,6 +115,53 @@ def test_one_module_killed_mid_gait(make_robot) -> None:
     assert [text for text, _ in trace.texts["/modules/3/events/lost"]] == [str(lost)]
 
 
+def test_sixteen_modules_track_the_gait_and_one_lost_mid_gait_leaves_the_rest_tracking(make_robot) -> None:
+    # The seed lab's snake: 16 modules (node ids 1..16) on one bus, two waves along the body.
+    # As short as the physics allows: the wave's ramp and the chain's catching up (SETTLE_S),
+    # a fifth of a second of tracking by all sixteen, then a middle module killed, and as long
+    # again of the other fifteen tracking without it. Untraced: the trace of a robot is proved
+    # by the eight-module gait.
+    session = make_robot(16, trace=False)
+    robot = session.robot
+    assert robot.node_ids == tuple(range(1, 17))
+    events = EventLog()
+    robot.add_observer(events)
+    GAIT.drive(robot)
+    kill_s, end_s, victim = SETTLE_S + 0.2, SETTLE_S + 0.4, 9
+    robot.at(kill_s, lambda r: r.kill(victim))
+    robot.run(seconds=end_s)
+    kill_cycle = round(kill_s / robot.period_s)
+    before = {n: tracking_error(robot, n, SETTLE_S, kill_s - robot.period_s) for n in robot.node_ids}
+    after = {n: tracking_error(robot, n, kill_s) for n in robot.node_ids if n != victim}
+    print(f"\n16 modules, max |commanded - measured| in [{SETTLE_S:g}, {kill_s:g}) s: "
+          + ", ".join(f"{n}: {e:.4f}" for n, e in before.items())
+          + f"; after node {victim} was lost: " + ", ".join(f"{n}: {e:.4f}" for n, e in after.items()))
+    for node_id, error in before.items():
+        assert error <= TRACKING_TOLERANCE_RAD, f"node {node_id} tracks within {error:.3f} rad"
+    # Designed behaviour: the lost module is named with the cycle its TPDOs were due in, its
+    # bridge is off from then on (the joint goes limp, its link still moves with the chain), and
+    # the other modules keep following the wave: a module depends on the master, not on its
+    # neighbours.
+    assert list(robot.lost) == [victim]
+    lost = robot.lost[victim]
+    assert lost.cycle == kill_cycle, lost
+    assert "SIGKILL" in lost.reason, lost.reason
+    assert events.events == [(kill_cycle, str(lost))]
+    dead = robot.module(victim)
+    t, _ = dead.history("output_position")
+    assert t[-1] == pytest.approx((kill_cycle - 1) * robot.period_s), "nothing from the dead node"
+    t, duty = dead.truth("applied_duty")
+    assert np.all(duty[t > kill_cycle * robot.period_s] == 0.0), "the dead module's bridge is off"
+    for node_id, error in after.items():
+        assert error <= TRACKING_TOLERANCE_RAD, f"node {node_id} after the loss: {error:.3f} rad"
+    # The encoders report what the mechanics did, for every module still alive.
+    for node_id in robot.node_ids:
+        if node_id != victim:
+            _, measured = robot.module(node_id).history("output_position")
+            _, truth = robot.module(node_id).truth("load_angle")
+            assert abs(measured[-1] - truth[-2]) < 0.01, f"node {node_id}: {measured[-1]} vs {truth[-2]}"
+
+
 def test_master_heartbeat_lost_every_module_safe_within_the_consumer_time(make_robot) -> None:
     master = MasterHeartbeat()
     session = make_robot(4, master=master)

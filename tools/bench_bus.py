@@ -15,7 +15,7 @@ from typing import Any
 from bench_bus_measure import BusBench
 from bench_common import NotMeasured, machine, ratio_of, say, write_json_atomically
 
-ROBOT_SIZES = (1, 4, 8)
+ROBOT_SIZES = (1, 4, 8, 16)
 """Robots measured side by side: how the cost of a lockstep cycle grows with the modules."""
 
 
@@ -94,14 +94,25 @@ def _lockstep_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _robot_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
-    say(f"robot: {ROBOT_SIZES} modules, {args.robot_cycles} gait cycles each, two rounds alternating")
+    say(
+        f"robot: {ROBOT_SIZES} modules, {args.robot_cycles} gait cycles each, beside the raw "
+        "N-node floor, two rounds alternating"
+    )
     robot_rates: dict[str, list[float]] = {str(n): [] for n in ROBOT_SIZES}
-    for _ in range(2):
+    floor_rates: dict[str, list[float]] = {str(n): [] for n in ROBOT_SIZES}
+    for round_ in range(2):
         for n in ROBOT_SIZES:
-            rate, done = bench.robot_rate(n, args.robot_cycles, args.budget_s)
-            robot_rates[str(n)].append(rate)
-            say(f"  {n} modules: {rate:.0f} cycles/s ({done} cycles)")
-    return {"cycles": args.robot_cycles, "cycles_per_s": robot_rates}
+            # Robot and floor back to back, each first in one round: their ratio is the figure.
+            order = ("robot", "floor") if round_ % 2 == 0 else ("floor", "robot")
+            for kind in order:
+                if kind == "robot":
+                    rate, done = bench.robot_rate(n, args.robot_cycles, args.budget_s)
+                    robot_rates[str(n)].append(rate)
+                else:
+                    rate, done = bench.robot_floor_rate(n, args.robot_cycles, args.budget_s)
+                    floor_rates[str(n)].append(rate)
+                say(f"  {n} modules, {kind}: {rate:.0f} cycles/s ({done} cycles)")
+    return {"cycles": args.robot_cycles, "cycles_per_s": robot_rates, "floor_cycles_per_s": floor_rates}
 
 
 def _long_trace_run(bench: BusBench, args: argparse.Namespace) -> dict[str, Any] | None:

@@ -227,6 +227,78 @@ class BusBench:
             session.close()
         return done / elapsed, done
 
+    def robot_floor_rate(self, modules: int, cycles: int, budget_s: float) -> tuple[float, int]:
+        """(cycles per second, cycles measured) of the raw N-node floor: the frames of a robot's
+        cycle (every module's RPDOs, one SYNC, every due TPDO of every module) exchanged with
+        `modules` real firmware processes (node ids 1..N, lockstep) over one raw socket through
+        the engine's own exchange (`transport.exchange`, one call into C per cycle): no physics,
+        no history, no checks, no trace."""
+        from boardproto.cia301 import NMT_COB_ID, SYNC_COUNTER_MAX, NmtCommand, heartbeat_cob_id
+        from hilrig.engine.driver import SYNC_FRAMES
+        from hilrig.engine.robot import module_ids
+        from hilrig.wire.transport import RawCanLink, can_frame, due_table, exchange, open_raw_socket
+
+        node_ids = module_ids(modules)
+        layouts = [self._floor_layout(node_id) for node_id in node_ids]
+        rpdo_frames = b"".join(p.frame([0] * len(p.names)) for rpdos, _ in layouts for p in rpdos)
+        tpdos = [p for _, node_tpdos in layouts for p in node_tpdos]
+        due_by_sync = due_table(tpdos)  # every module's the same types: one table for all
+        period = len(due_by_sync)
+        due = due_by_sync[1:] + due_by_sync[:1]  # due[n % period]: the TPDOs due at SYNC n + 1
+        decoders = {p.cob_id: (p.length, p.codec.unpack) for p in tpdos}
+        boot_ups = {heartbeat_cob_id(node_id) for node_id in node_ids}
+        with self.bus.entered():
+            sock = open_raw_socket(self.bus.channel, [*decoders, *boot_ups])
+        link = RawCanLink(sock)
+        self._runs += 1
+        try:
+            with contextlib.ExitStack() as stack:
+                processes = [
+                    stack.enter_context(self._module_firmware(node_id, f"{self._runs:02d}-floor{modules}"))
+                    for node_id in node_ids
+                ]
+                waiting, deadline = set(boot_ups), time.monotonic() + 30 + 5 * modules
+                while waiting:
+                    frame = link.recv(0.25)
+                    if frame is not None:
+                        waiting.discard(frame[0])
+                    elif time.monotonic() > deadline:
+                        raise RuntimeError(f"robot floor: no boot-up from {sorted(waiting)} in time")
+                    for fw in processes:
+                        fw.check()
+                link.send(can_frame(NMT_COB_ID, bytes([NmtCommand.START, 0])))  # 0: every node
+                warmup, start, done = 20, 0.0, 0
+                for n in range(warmup + cycles):
+                    if n == warmup:
+                        start = time.perf_counter()
+                    elif n > warmup and n % 50 == 0 and time.perf_counter() - start > budget_s:
+                        break
+                    out, got = rpdo_frames + SYNC_FRAMES[n % SYNC_COUNTER_MAX], {}
+                    while (taken := exchange(link, out, due[n % period], decoders, got, 5.0)) is not None:
+                        out = b""
+                        if taken is False:
+                            for fw in processes:
+                                fw.check()
+                            raise RuntimeError(f"robot floor: cycle {n}: a TPDO did not come within 5 s")
+                    if n >= warmup:
+                        done += 1
+                elapsed = time.perf_counter() - start
+        finally:
+            link.close()
+        return done / elapsed, done
+
+    def _module_firmware(self, node_id: int, what: str) -> Any:
+        from hilrig.session.firmware import Firmware
+
+        return Firmware(
+            self.bus,
+            node_id=node_id,
+            log_path=self.logs / f"{what}-{node_id:02d}.log",
+            period_us=PERIOD_US,
+            executable=self.firmware_exe,
+            mode="lockstep",
+        )
+
     # --- SDO: block vs segmented upload of the recorder's 64 KiB -------------------------------
     def recorder_upload(self, rounds: int, budget_s: float) -> dict[str, Any]:
         """Upload throughput of one full recording (8 channels x the samples that fit: the
@@ -266,16 +338,17 @@ class BusBench:
             session.close()
         return {"bytes": size, **{f"{kind}_bytes_per_s": values for kind, values in rates.items()}}
 
-    def _floor_layout(self) -> tuple[list[Any], list[Any]]:
+    def _floor_layout(self, node_id: int = FIRMWARE_NODE_ID) -> tuple[list[Any], list[Any]]:
         """The RPDOs the rig sends every cycle (sensors, setpoint stream) and the enabled cyclic
-        TPDOs, compiled from the EDS exactly as the rig compiles them (`hilrig.wire.transport`)."""
+        TPDOs of node `node_id`, compiled from the EDS exactly as the rig compiles them
+        (`hilrig.wire.transport`)."""
         import canopen
 
         from hilrig.engine.driver import SETPOINT_STREAM
         from hilrig.wire.transport import PdoDirection, compile_pdos
 
         network = canopen.Network()  # never connected: the PDO maps only need a home
-        node = canopen.RemoteNode(FIRMWARE_NODE_ID, str(self.eds))
+        node = canopen.RemoteNode(node_id, str(self.eds))
         network.add_node(node)
         node.rpdo.read(from_od=True)
         node.tpdo.read(from_od=True)

@@ -286,25 +286,60 @@ def _lockstep_rows(row: ReportRows, bus: dict[str, Any]) -> None:
         )
 
 
+ROBOT_FLOOR_GOAL = 0.5
+"""Robot cycles/s against the raw N-node floor, for every N."""
+ROBOT_PER_MODULE_GOAL = 1.2
+"""A module's share of the cycle's cost at the largest robot against at one module."""
+
+
 def _robot_rows(row: ReportRows, bus: dict[str, Any]) -> None:
-    """How a robot's lockstep cycle grows with its modules."""
+    """How a robot's lockstep cycle grows with its modules, and how far it is from the raw
+    N-node floor (the same frames with N firmware processes over one raw socket)."""
     robot = bus.get("robot")
-    if robot:
-        rates = {int(n): max(values) for n, values in robot["cycles_per_s"].items()}
-        one = rates.get(1)
-        for n, rate in sorted(rates.items()):
-            # Cost per cycle relative to one module: how it grows with N (N: linear in the modules).
-            growth = one / rate if one and rate else float("nan")
-            # ratio: the cycle's cost against one module's; / N: what each module adds
+    if not robot:
+        return
+    rates = {int(n): max(values) for n, values in robot["cycles_per_s"].items() if values}
+    floors = {int(n): max(values) for n, values in robot.get("floor_cycles_per_s", {}).items() if values}
+    one = rates.get(1)
+    for n, rate in sorted(rates.items()):
+        modules = f"{n} module{'s' if n > 1 else ''}"
+        floor = floors.get(n)
+        if floor is not None:
+            ratio = ratio_of(rate, floor)
             row(
-                f"robot lockstep cycles/s, {n} module{'s' if n > 1 else ''} vs 1 (cycle cost ratio)",
+                f"robot lockstep cycles/s, {modules}: robot vs raw {n}-node floor",
                 f"{rate:.0f}/s",
-                f"{one:.0f}/s" if one else "-",
-                growth,
-                "" if n == 1 else f"{growth / n:.2f}x per module",
-                None,
-                **({"cycles": robot["cycles"], "cycles_per_s": robot["cycles_per_s"]} if n == 1 else {}),
+                f"{floor:.0f}/s",
+                ratio,
+                f">= {ROBOT_FLOOR_GOAL:g}",
+                ratio >= ROBOT_FLOOR_GOAL,
+                **({"floor_cycles_per_s": robot["floor_cycles_per_s"]} if n == 1 else {}),
             )
+        # Cost per cycle relative to one module: how it grows with N (N: linear in the modules).
+        growth = one / rate if one and rate else float("nan")
+        per_module = growth / n
+        largest = n == max(rates) and n > 1
+        row(
+            f"robot lockstep cycles/s, {modules} vs 1 (cycle cost ratio)",
+            f"{rate:.0f}/s",
+            f"{one:.0f}/s" if one else "-",
+            growth,
+            "" if n == 1 else f"{per_module:.2f}x per module"
+            + (f" (goal <= {ROBOT_PER_MODULE_GOAL:g})" if largest else ""),
+            per_module <= ROBOT_PER_MODULE_GOAL if largest else None,
+            **({"cycles": robot["cycles"], "cycles_per_s": robot["cycles_per_s"]} if n == 1 else {}),
+        )
+    if len(floors) > 1 and 1 in floors:
+        n = max(floors)
+        per_module = floors[1] / floors[n] / n
+        row(
+            f"raw N-node floor cycles/s, {n} modules vs 1 (cost per module)",
+            f"{floors[n]:.0f}/s",
+            f"{floors[1]:.0f}/s",
+            per_module,
+            "what the bus and the firmware alone allow",
+            None,
+        )
 
 
 def _recorder_upload_rows(row: ReportRows, bus: dict[str, Any]) -> None:

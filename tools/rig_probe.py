@@ -8,6 +8,8 @@ The VM's cycles per second move by 10-20 % between runs of the same code; these 
                                               # the data bytes the bus carried
     python tools/rig_probe.py traced CYCLES   # the full Rig traced to a .rrd, close() included
     python tools/rig_probe.py tracer-idle CYCLES  # the same Tracer made and closed, not attached
+    python tools/rig_probe.py robot CYCLES --modules N  # a `Robot` of N modules on the MuJoCo
+                                              # chain following the gait, untraced
 
 `make bench` runs the first two under callgrind at two lengths, so start-up cancels out, and
 reports instructions per cycle of the main thread; and the last two at one length, counting every
@@ -27,6 +29,7 @@ motor), so `traced` counts what tracing costs at the least.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import socket
 import sys
@@ -39,8 +42,11 @@ sys.path[:0] = [str(REPO / "rig"), str(REPO / "protocol")]
 
 from hilrig.wire.transport import RawCanLink, can_frame  # noqa: E402
 
-MODES = ("rig", "engine", "memory", "traced", "tracer-idle")
+MODES = ("rig", "engine", "memory", "traced", "tracer-idle", "robot")
 WARMUP_CYCLES = 20
+ROBOT_START_TIMEOUT_S = 600.0
+"""A robot's modules start side by side, each fake node answering from a thread of its own:
+under callgrind, which runs one thread at a time, an answer takes far longer than on a bus."""
 
 
 class AnsweringLink(RawCanLink):
@@ -50,7 +56,8 @@ class AnsweringLink(RawCanLink):
     def __init__(self, ours: socket.socket, peer: socket.socket, answers: dict[int, bytes]) -> None:
         super().__init__(ours)
         self._peer = peer
-        self._answers = answers
+        self.answers = answers
+        """The frame the node answers with, by COB-ID."""
         self.last_out = b""
         """The frames the last exchange that sent any sent: a cycle's RPDOs, then its SYNC."""
         self.data_bytes = 0
@@ -61,7 +68,7 @@ class AnsweringLink(RawCanLink):
             self.last_out = out
             self.data_bytes += sum(out[offset] for offset in range(4, len(out), 16))  # can_dlc
         for cob_id in due:
-            answer = self._answers[cob_id]
+            answer = self.answers[cob_id]
             self._peer.send(answer)
             self.data_bytes += answer[4]
         result = super().exchange(out, due, decoders, got, timeout_s, cycle)
@@ -84,9 +91,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("mode", choices=MODES)
     parser.add_argument("cycles", type=int)
+    parser.add_argument("--modules", type=int, default=1, help="robot: its modules (node ids 1..N)")
     args = parser.parse_args(argv)
     if args.cycles < 0:
         parser.error("cycles: expected >= 0")
+    if args.mode == "robot":
+        return robot_probe(args.cycles, args.modules)
 
     import can
 
@@ -155,6 +165,61 @@ def main(argv: list[str] | None = None) -> int:
             ours.close()
             peer.close()
             folder.cleanup()
+    return 0
+
+
+def robot_probe(cycles: int, modules: int) -> int:
+    """A `Robot` of `modules` modules on the MuJoCo chain, each module's rig over its own
+    answering link (its peer a node that answers at once), following the gait for `cycles`
+    cycles after the warm-up: the robot engine's own cost per cycle, as `rig` is one Rig's."""
+    import can
+
+    from hilrig.engine.rig import Rig
+    from hilrig.engine.robot import Robot, TravellingWave, module_ids
+    from hilrig.plants.chain import ChainPhysics
+    from hilrig.session.fake_node import FakeJointNode
+    from hilrig.table import RigTable
+
+    table = RigTable.load()
+    channel = "rig-probe-robot"
+    node_ids = module_ids(modules)
+    chain = ChainPhysics(modules)
+    with contextlib.ExitStack() as stack:
+        rigs: list[Rig] = []
+        fakes = []
+        answers: dict[int, bytes] = {}  # every module's: a robot may exchange them all on one link
+        for k, node_id in enumerate(node_ids):
+            node_bus = stack.enter_context(can.Bus(interface="virtual", channel=channel))
+            fake = FakeJointNode(node_bus, table=table, node_id=node_id)
+            fake.boot()
+            fakes.append(fake)
+            rig_bus = stack.enter_context(can.Bus(interface="virtual", channel=channel))
+            ours, peer = _socket_pair()
+            stack.callback(ours.close)
+            stack.callback(peer.close)
+            link = AnsweringLink(ours, peer, answers)
+            rig = Rig(
+                rig_bus,
+                table=table,
+                node_id=node_id,
+                plant=chain.plants[k],
+                seed=1000 + k,
+                sdo_timeout_s=ROBOT_START_TIMEOUT_S,
+                boot_timeout_s=ROBOT_START_TIMEOUT_S,
+            )
+            rig.node.open_link = lambda receive_ids, link=link: link  # type: ignore[method-assign]
+            stack.callback(rig.close)
+            rigs.append(rig)
+        robot = Robot(rigs, chain)
+        robot.start()
+        TravellingWave().drive(robot)  # its gains over SDO, from the fake nodes
+        for fake, rig in zip(fakes, rigs, strict=True):
+            fake.close()  # from here on the link's peer is the node
+            tpdos = [p for p in rig.node.tpdos.values() if p.enabled and p.names]
+            answers.update({p.cob_id: can_frame(p.cob_id, bytes(p.length)) for p in tpdos})
+        robot.run(cycles=WARMUP_CYCLES)
+        gc.collect()
+        robot.run(cycles=cycles)
     return 0
 
 

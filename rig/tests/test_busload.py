@@ -21,6 +21,7 @@ from hilrig.apps.busload import (
     highest_rate_hz,
     lockstep_traffic,
     report,
+    robot_load_line,
     stuff_bits_worst_case,
 )
 from hilrig.cli import main
@@ -581,3 +582,26 @@ def test_turns_by_sync_counter_that_meet_count_together() -> None:
         Traffic("TPDO4", cob_id(FunctionCode.TPDO4, 1), 8, 100.0, True, sync_phase=(10, 2)),
     ]
     assert bus_load(frames, 1000.0, 1_000_000).peak_cycle_worst_case == pytest.approx(2 * 135 / 1000)
+
+
+def test_a_sixteen_module_robots_line_says_what_a_real_bus_would_carry_per_profile() -> None:
+    # `hilrig sim --modules 16` prints this beside the run on the virtual bus (no bit rate): the
+    # same arithmetic as `hilrig bus-load --modules 16 [--profile lean] -b 1M`.
+    table = load_table(DEFAULT_TABLE_PATH)
+    node_ids = list(range(1, 17))
+    assert robot_load_line(table, node_ids, 1000.0, profile="full", master_heartbeat_ms=20) == (
+        "profile full, 16 modules at 1000 Hz on 1 Mbit/s: 2109.5 % worst case, busiest cycle "
+        "2413.0 % OVERLOAD; within 70.0 % up to 29 Hz"
+    )
+    assert robot_load_line(table, node_ids, 1000.0, profile="lean", master_heartbeat_ms=20) == (
+        "profile lean, 16 modules at 1000 Hz on 1 Mbit/s: 727.1 % worst case, busiest cycle "
+        "901.0 % OVERLOAD; within 70.0 % up to 77.6 Hz"
+    )
+    lean = table.with_pdo_profile("lean")
+    traffic = lockstep_traffic(lean, 1000.0, node_ids=node_ids, master_heartbeat_ms=20)
+    load = bus_load(traffic, 1000.0, 1_000_000)
+    assert round(100 * load.worst_case, 1) == 727.1
+    assert highest_rate_hz(lean, 1_000_000, node_ids=node_ids, master_heartbeat_ms=20) == 77.6
+    assert robot_load_line(table, [1], 1000.0, profile="lean").startswith(
+        "profile lean, 1 module at 1000 Hz on 1 Mbit/s: 51."
+    )

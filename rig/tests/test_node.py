@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from boardproto.cia301 import FunctionCode, NmtCommand, NmtState, SdoAbortCode, cob_id
+from boardproto.cia301 import STANDARD_ID_MASK, FunctionCode, NmtCommand, NmtState, SdoAbortCode, cob_id
 from hilrig.errors import FieldNameError
 from hilrig.table import RigTable
 from hilrig.wire.node import explain_abort
@@ -129,3 +129,27 @@ def test_a_node_narrowed_to_answers_hears_its_sdo_answers_and_heartbeats_only(ta
         node.close()
         ours.shutdown()
         board.shutdown()
+
+
+@pytest.mark.parametrize("node_id", [1, 9, 16, 63, 127])
+def test_a_nodes_dictionary_is_the_one_canopen_reads_from_the_eds_for_that_node(node_id: int) -> None:
+    # Parsed once, copied per node (a robot has a node per module): every entry as canopen's own
+    # import for that node id, the COB-IDs relative to it ($NODEID) included.
+    import canopen
+
+    from hilrig.engine.rig import DEFAULT_EDS_PATH
+    from hilrig.wire.node import node_dictionary
+
+    def entries(od: canopen.ObjectDictionary) -> dict[tuple[int, int], tuple[object, ...]]:
+        return {
+            (v.index, v.subindex): (v.name, v.data_type, v.default, v.value, v.relative, v.min, v.max)
+            for entry in od.values()
+            for v in (entry.subindices.values() if hasattr(entry, "subindices") else (entry,))
+        }
+
+    ours = node_dictionary(DEFAULT_EDS_PATH, node_id)
+    canopens = canopen.import_od(str(DEFAULT_EDS_PATH), node_id)
+    assert entries(ours) == entries(canopens)
+    assert ours.node_id == canopens.node_id
+    assert ours[0x1800][1].default & STANDARD_ID_MASK == cob_id(FunctionCode.TPDO1, node_id)
+    assert node_dictionary(DEFAULT_EDS_PATH, node_id) is not ours, "each node its own, to change freely"

@@ -435,3 +435,38 @@ def test_a_missing_part_still_gives_a_report_and_a_failed_exit(tmp_path: Path) -
     assert lockstep["ours"] == "not measured"
     assert "bus.json is unreadable" in lockstep["baseline"]
     assert "the bus step did not finish" in lockstep["baseline"]
+
+
+def test_robot_rows_put_each_robot_against_its_n_node_floor_and_judge_the_cost_per_module(
+    tmp_path: Path,
+) -> None:
+    bus = _bus_json(
+        robot={
+            "cycles": 500,
+            "cycles_per_s": {"1": [600.0, 700.0], "4": [200.0], "8": [100.0], "16": [40.0]},
+            "floor_cycles_per_s": {"1": [1000.0], "4": [400.0], "8": [180.0], "16": [100.0]},
+        }
+    )
+    _report(tmp_path, bus)
+    rows = _report_rows(tmp_path)
+    floor16 = rows["robot lockstep cycles/s, 16 modules: robot vs raw 16-node floor"]
+    assert (floor16["ours"], floor16["baseline"], floor16["ratio"]) == ("40/s", "100/s", 0.4)
+    assert floor16["goal"] == ">= 0.5" and floor16["goal_met"] is False
+    assert rows["robot lockstep cycles/s, 4 modules: robot vs raw 4-node floor"]["goal_met"] is True
+    cost16 = rows["robot lockstep cycles/s, 16 modules vs 1 (cycle cost ratio)"]
+    assert cost16["ratio"] == 700.0 / 40.0
+    assert cost16["goal"] == f"{700.0 / 40.0 / 16:.2f}x per module (goal <= 1.2)"
+    assert cost16["goal_met"] is (700.0 / 40.0 / 16 <= 1.2)
+    assert rows["robot lockstep cycles/s, 8 modules vs 1 (cycle cost ratio)"]["goal_met"] is None
+    floor_growth = rows["raw N-node floor cycles/s, 16 modules vs 1 (cost per module)"]
+    assert floor_growth["ratio"] == 1000.0 / 100.0 / 16
+    older = _bus_json(robot={"cycles": 500, "cycles_per_s": {"1": [700.0], "8": [47.0]}})  # no floor yet
+    _report(tmp_path, older)
+    rows = _report_rows(tmp_path)
+    assert not any("floor" in measure for measure in rows if measure.startswith("robot"))
+    assert rows["robot lockstep cycles/s, 8 modules vs 1 (cycle cost ratio)"]["ours"] == "47/s"
+
+
+def test_the_rig_probe_runs_a_robot_of_several_modules_against_answering_peers() -> None:
+    probe = load_tool("rig_probe")
+    assert probe.main(["robot", "30", "--modules", "3"]) == 0

@@ -478,6 +478,34 @@ def highest_rate_hz(
     return fitting / RATE_STEPS_PER_HZ
 
 
+def robot_load_line(
+    table: BoardTable,
+    node_ids: Sequence[int],
+    rate_hz: float,
+    *,
+    profile: str,
+    master_heartbeat_ms: float | None = None,
+    bitrate: int = 1_000_000,
+) -> str:
+    """One line: what a real bus at `bitrate` would carry for a robot of `node_ids` at `rate_hz`
+    under PDO profile `profile` of the table (as `lockstep_traffic(..., node_ids=...)` and
+    `bus_load` count it, worst-case stuffing), and the highest rate that stays within 70 %;
+    e.g. for the summary of a robot run on the virtual bus, which has no bit rate."""
+    mapped = table.with_pdo_profile(profile)
+    traffic = lockstep_traffic(mapped, rate_hz, node_ids=node_ids, master_heartbeat_ms=master_heartbeat_ms)
+    load = bus_load(traffic, rate_hz, bitrate)
+    highest = highest_rate_hz(
+        mapped, bitrate, node_ids=node_ids, master_heartbeat_ms=master_heartbeat_ms
+    )
+    verdict = " OVERLOAD" if load.overloaded else " WARNING" if load.warning else ""
+    return (
+        f"profile {profile}, {len(node_ids)} module{'s' if len(node_ids) > 1 else ''} at {rate_hz:g} Hz "
+        f"on {_bitrate_label(bitrate)}: "
+        f"{_percent(load.worst_case)} worst case, busiest cycle {_percent(load.peak_cycle_worst_case)}"
+        f"{verdict}; within {_percent(WARNING_LOAD)} up to {highest:g} Hz"
+    )
+
+
 # --- report -----------------------------------------------------------------------------
 
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from boardproto.table import FULL_PDO_PROFILE
 from hilrig.apps.demo import BOOT_TIMEOUT_S, Progress, RunAbortedError, ScenarioFileError
 from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.engine.robot import Robot, TravellingWave
@@ -73,6 +74,9 @@ class RobotSummary:
     out_dir: Path
     trace: Path | None
     viewer_url: str | None
+    bus_load: tuple[str, ...] = ()
+    """What a real 1 Mbit/s bus would carry for these modules at this rate (`robot_load_line`):
+    one line per PDO profile of the table, the one in use marked."""
 
 
 def load_robot_scenario(path: Path) -> RobotScenario:
@@ -152,6 +156,7 @@ def run_robot(options: RobotOptions, progress: Progress = print) -> RobotSummary
         viewer_url = session.tracer.web_url if session.tracer is not None else None
         cycles = robot.cycle
         simulated_s = robot.t
+        bus_load = _bus_load(robot, config)
     return RobotSummary(
         cycles=cycles,
         simulated_s=simulated_s,
@@ -162,6 +167,28 @@ def run_robot(options: RobotOptions, progress: Progress = print) -> RobotSummary
         out_dir=options.out_dir,
         trace=options.out_dir / "trace.rrd" if options.trace else None,
         viewer_url=viewer_url,
+        bus_load=bus_load,
+    )
+
+
+def _bus_load(robot: Robot, config: SessionConfig) -> tuple[str, ...]:
+    """The bus load lines of the summary, one per PDO profile of the table: the modules run the
+    firmware's default mapping (profile full: the session writes none); the others (lean: made
+    to fit a real bus) show what it would take."""
+    from hilrig.apps.busload import robot_load_line
+
+    table = RigTable.load().board
+    master_ms = config.master.period_ms if config.master is not None else None
+    return tuple(
+        robot_load_line(
+            table,
+            robot.node_ids,
+            1e6 / robot.period_us,
+            profile=profile.name,
+            master_heartbeat_ms=master_ms,
+        )
+        + (" (in use)" if profile.name == FULL_PDO_PROFILE else "")
+        for profile in table.pdo_profiles
     )
 
 
@@ -197,6 +224,7 @@ def format_robot_summary(summary: RobotSummary) -> str:
         if module.lost:
             text += f"; {module.lost}"
         rows.append(("joints" if i == 0 else "", text))
+    rows += [(("real bus load" if i == 0 else ""), line) for i, line in enumerate(summary.bus_load)]
     rows += [
         ("head travelled", f"{summary.head_travel_m:.3f} m (MuJoCo, start to end)"),
         ("bus log", f"{summary.out_dir / 'bus.log'} (`hilrig replay ... --decode`)"),

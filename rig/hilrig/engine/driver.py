@@ -322,6 +322,8 @@ class Driver:
         self._pending: list[tuple[int, bytes]] = []  # TPDO frames polled between cycles
         self._tpdo_names: frozenset[str] = frozenset()
         self._listeners: dict[int, list[FrameCallback]] = {}
+        self._shared_poll: Callable[[float], None] | None = None
+        """Set while the driver takes part in a shared link (`share_link`)."""
 
     @property
     def needs_plant_io(self) -> bool:
@@ -406,9 +408,38 @@ class Driver:
             for p in enabled_tpdos
         }
         self._rpdo_rows = {p.cob_id: self.history.row_store(p) for p in enabled_rpdos} if keep else {}
-        self._link = self.node.open_link([*self._tpdo_by_cob, self._emcy_cob_id, *self._listeners])
+        self._link = self.node.open_link(self.receive_ids())
         self._exchange = exchanger(self._link)
+        self._shared_poll = None
         self._pending.clear()
+
+    def receive_ids(self) -> list[int]:
+        """The COB-IDs the driver's link receives: its enabled TPDOs, its EMCY, its listeners'."""
+        return [*self._tpdo_by_cob, self._emcy_cob_id, *self._listeners]
+
+    def share_link(self, link: FrameLink, exchange: Exchange, poll: Callable[[float], None]) -> None:
+        """Take part in a link several drivers share (a robot's: one raw socket for every
+        module's frames) instead of the driver's own, which is closed: frames go out on `link`,
+        and `poll()` calls `poll(timeout_s)` (the owner of the link reads it and hands each
+        frame to the driver whose COB-ID it is: `accept_polled`). Until the next configure()."""
+        if self._link is not None and self._link is not link:
+            self._link.close()
+        self._link = link
+        self._exchange = exchange
+        self._shared_poll = poll
+
+    @property
+    def shares_link(self) -> bool:
+        """Whether the driver takes part in a shared link (`share_link`) now."""
+        return self._shared_poll is not None
+
+    def accept_polled(self, cob_id: int, data: bytes) -> None:
+        """A frame of this driver's read between cycles: a TPDO is kept for the next cycle,
+        anything else is dispatched now (what `poll` does with each frame)."""
+        if cob_id in self._tpdo_by_cob:
+            self._pending.append((cob_id, data))
+        else:
+            self._other_frame(cob_id, data)
 
     def rpdo_of(self, name: str) -> int | None:
         """Number of the (non-sensor) RPDO that carries `name`, None if no RPDO does."""
@@ -423,7 +454,8 @@ class Driver:
         number, position = self._field_rpdo[name]
         self._rpdo_values[number][position] = value
         self._rpdo_frames.pop(number, None)
-        self._steady_stream = None
+        if number in self._stream_rpdos:  # another RPDO (a gait's setpoint) leaves the stream as it is
+            self._steady_stream = None
         self._dirty_rpdos.add(number)
 
     def resend_rpdos(self) -> None:
@@ -486,13 +518,13 @@ class Driver:
         first cycle, with a listener on it)."""
         if self._link is None:
             return
+        if self._shared_poll is not None:
+            self._shared_poll(timeout_s)
+            return
         recv = self._link.recv
         frame = recv(timeout_s)
         while frame is not None:
-            if frame[0] in self._tpdo_by_cob:
-                self._pending.append(frame)
-            else:
-                self._other_frame(*frame)
+            self.accept_polled(*frame)
             frame = recv(0.0)
 
     def take_late_tpdos(self) -> list[tuple[PdoLayout, bytes]]:
@@ -549,7 +581,7 @@ class Driver:
             frames += entry[1]
             sent.append((entry[0], entry[2]))
             dirty.discard(number)
-        if not paused:  # every stream RPDO is packed now
+        if not paused and self._steady_stream is None:  # every stream RPDO is packed now
             stream_entries = [packed[number] for number in self._stream_order]
             self._steady_stream = (
                 b"".join(e[1] for e in stream_entries),

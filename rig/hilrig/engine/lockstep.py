@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 from hilrig.engine.driver import (
@@ -44,7 +44,7 @@ from hilrig.engine.driver import (
 )
 from hilrig.errors import FirmwareError, HostStarvedError, LockstepError
 from hilrig.plants import JointState, RawSensors, duty_from_motor_duty
-from hilrig.wire.transport import PdoLayout, append_frame_rows, append_row, send_frames
+from hilrig.wire.transport import Decoder, PdoLayout, append_frame_rows, append_row, send_frames
 
 _NOTHING_DUE: frozenset[int] = frozenset()
 
@@ -204,6 +204,46 @@ class LockstepDriver(Driver):
         return self._record(
             start.cycle, start.t, start.counter, start.state, start.raw, start.sent, start.frames, got
         )
+
+    # A robot exchanges every module's frames at once on one shared link (`Driver.share_link`)
+    # and has each module judge its own frames of the cycle with these.
+    @property
+    def tpdo_cob_ids(self) -> Iterable[int]:
+        """COB-IDs of the node's enabled TPDOs."""
+        return self._tpdo_by_cob.keys()
+
+    @property
+    def decoders(self) -> Mapping[int, Decoder]:
+        """The exchange's decoders of the node's TPDOs (`transport.Decoders`), by COB-ID."""
+        return self._decoders
+
+    def take_pending(self) -> list[tuple[int, bytes]]:
+        """The TPDO frames polled since the last cycle (the cycle must `take` them)."""
+        pending, self._pending = self._pending, []
+        return pending
+
+    def take(
+        self,
+        got: dict[int, tuple[Value, ...]],
+        start: CycleStart,
+        cob_id: int,
+        data: bytes,
+        between_syncs: bool = False,
+    ) -> None:
+        """One of the node's frames in the cycle `start` began that the exchange did not decode
+        itself, judged as the node's own cycle judges it (a LockstepError for a TPDO the rules
+        refuse); a TPDO taken goes into `got` and its rows."""
+        self._take(got, start.cycle, start.t, start.due, start.sync_number, cob_id, data, between_syncs)
+
+    def check_alive(self, start: CycleStart, got: dict[int, tuple[Value, ...]], guard: HangGuard) -> bool:
+        """A quiet slice of the cycle's wait passed with TPDOs of the node due at its SYNC not in
+        `got`: `_check_alive` (FirmwareError when its process died)."""
+        return self._check_alive(start.cycle, start.t, start.due, got, guard)
+
+    def forget_rows(self, n: int, got: Iterable[int]) -> None:
+        """Take the rows of cycle `n` back out of the history for the node's TPDOs in `got`
+        (COB-IDs, any node's)."""
+        self._forget_rows(n, [cob_id for cob_id in got if cob_id in self._tpdo_by_cob])
 
     def _sample(self) -> tuple[int, JointState, RawSensors, frozenset[int], int, tuple[PdoRow, ...], bytes]:
         """A cycle's first phase, nothing sent yet: (cycle, the plant's state, the sensor frame
@@ -381,7 +421,7 @@ class LockstepDriver(Driver):
             return True
         return False
 
-    def _forget_rows(self, n: int, got: dict[int, tuple[Value, ...]]) -> None:
+    def _forget_rows(self, n: int, got: Iterable[int]) -> None:
         """Take the rows of cycle `n` that `got`'s TPDOs left in the history back out."""
         by_cob = self._tpdo_by_cob
         for cob_id in got:

@@ -44,14 +44,21 @@ from boardproto.cia301 import (
     heartbeat_cob_id,
     heartbeat_consumer_entry,
 )
-from hilrig.engine.driver import BUS_EVENTS_PATH, CycleResult, sync_counter, sync_frame
-from hilrig.engine.lockstep import CycleStart, LockstepDriver
+from hilrig.engine.driver import (
+    BUS_EVENTS_PATH,
+    LIVENESS_SLICE_S,
+    SYNC_FRAMES,
+    CycleResult,
+    Value,
+    sync_counter,
+)
+from hilrig.engine.lockstep import CycleStart, HangGuard, LockstepDriver
 from hilrig.engine.rig import Rig
 from hilrig.engine.timeline import CycleRunner
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.plants import JointPlant
 from hilrig.table import ControlMode
-from hilrig.wire.transport import can_frame
+from hilrig.wire.transport import Decoder, Exchange, FrameLink, can_frame, exchanger, send_frames
 
 if TYPE_CHECKING:
     from hilrig.plants.chain import ChainGeometry
@@ -265,6 +272,13 @@ class Robot(CycleRunner):
         self.observers: list[RobotObserver] = []
         self._cycle = 0
         self._live: list[int] = list(range(len(self.modules)))  # indexes of modules not lost
+        self._link: FrameLink | None = None  # every module's, from the first cycle (`_share_link`)
+        self._exchange_call: Exchange | None = None
+        self._owners: dict[int, list[int]] = {}  # COB-ID -> the modules (indexes) receiving it
+        self._decoders: dict[int, Decoder] = {}  # every module's TPDOs'
+        self._tpdo_ids: list[tuple[int, ...]] = []  # each module's TPDO COB-IDs, by index
+        self._shared_by: list[LockstepDriver] = []  # the drivers sharing the link, as shared
+        self._polled_tpdos = False  # `poll` handed a module a TPDO, which its next cycle takes
         self._init_timeline()
 
     # --- Life cycle ---------------------------------------------------------------------
@@ -364,24 +378,18 @@ class Robot(CycleRunner):
     def _step(self) -> None:
         n = self._cycle
         drivers = self._drivers
-        live = tuple(self._live)  # _lose() takes a module out of self._live mid-cycle
-        starts: list[CycleStart] = [drivers[k].begin_cycle() for k in live]
-        link = drivers[0].link  # any module's link: one raw socket on the shared bus
+        if self._link is None or not all([driver.shares_link for driver in self._shared_by]):
+            self._share_link()  # first cycle, or a module configured again since (its own link)
+        # Every module's RPDOs, the master's heartbeat when due and one SYNC go out together, at
+        # the start of the one exchange that takes every module's due TPDOs in (`_exchange`).
+        starts = {k: drivers[k].begin_cycle(send=False) for k in self._live}
+        out = b"".join([start.unsent for start in starts.values()])
         if self.master_heartbeat_on and n % self._heartbeat_every == 0:
-            link.send(self._heartbeat_frame)
-        link.send(sync_frame(sync_counter(n)))
+            out += self._heartbeat_frame
+        got = self._exchange(n, starts, out + SYNC_FRAMES[sync_counter(n) - 1])
         results: list[CycleResult | None] = [None] * len(drivers)
-        for k, start in zip(live, starts, strict=True):
-            driver = drivers[k]
-            try:
-                got = driver.collect_cycle(start)
-            except FirmwareError as error:
-                self._lose(k, start, error)
-                continue
-            except LockstepError as error:  # alive, but a TPDO late, missing or malformed
-                self.modules[k].log_event(BUS_EVENTS_PATH, str(error))
-                raise
-            results[k] = driver.end_cycle(start, got)
+        for k, start in starts.items():  # the modules lost in this cycle are no longer in `starts`
+            results[k] = drivers[k].end_cycle(start, got[k])
         duties = [result.duty if result is not None else 0.0 for result in results]
         for k, driver in enumerate(drivers):
             if results[k] is None:  # lost: the limp joint still has a truth
@@ -398,6 +406,120 @@ class Robot(CycleRunner):
             self.modules[k].after_cycle(result)
         for observer in self.observers:
             observer.on_robot_cycle(self, n, n * self._period_us / 1e6)
+
+    # --- The shared link --------------------------------------------------------------------
+    def _share_link(self) -> None:
+        """One link for every module's per-cycle frames (on SocketCAN one raw socket with the
+        kernel filters of all of them): the modules' drivers send on it and poll through the
+        robot (`poll`), and a cycle's RPDOs, SYNC and due TPDOs of all modules are one exchange
+        (`transport.exchange`, one call into C on a raw socket), not one per module."""
+        drivers = self._drivers
+        owners: dict[int, list[int]] = {}
+        for k, driver in enumerate(drivers):
+            for cob_id in driver.receive_ids():
+                owners.setdefault(cob_id, []).append(k)
+        link = self.modules[0].node.open_link(list(owners))
+        exchange = exchanger(link)
+        for driver in drivers:
+            driver.share_link(link, exchange, self.poll)
+        self._link, self._exchange_call, self._owners = link, exchange, owners
+        self._tpdo_ids = [tuple(driver.tpdo_cob_ids) for driver in drivers]
+        self._shared_by = [drivers[k] for k in self._live]
+        self._polled_tpdos = True  # what the drivers polled on their own links, for the next cycle
+        self._decoders = {
+            cob_id: decoder
+            for driver in drivers
+            for cob_id, decoder in driver.decoders.items()
+        }
+
+    def poll(self, timeout_s: float = 0.0) -> None:
+        """Take in what arrived on the shared link since the last cycle, each frame handed to
+        the module(s) whose COB-ID it is (`Driver.accept_polled`): what every module's
+        `Driver.poll` does while the link is shared."""
+        link = self._link
+        if link is None:
+            return
+        drivers, owners = self._drivers, self._owners
+        frame = link.recv(timeout_s)
+        while frame is not None:
+            for k in owners.get(frame[0], ()):
+                drivers[k].accept_polled(*frame)
+                self._polled_tpdos = True  # (or an EMCY, dispatched already: a look for nothing)
+            frame = link.recv(0.0)
+
+    def _exchange(
+        self, n: int, starts: dict[int, CycleStart], out: bytes
+    ) -> dict[int, dict[int, tuple[Value, ...]]]:
+        """Send `out` (every module's RPDOs, the SYNC), then take every module's TPDOs due at
+        this SYNC in one exchange (the wall-clock bound is only each module's hang guard), each
+        other frame judged by the module whose COB-ID it is (`LockstepDriver.take`, as a
+        module's own cycle judges it). A module whose process died is lost (`_lose`, out of
+        `starts`); a TPDO late, missing or malformed of a live one is its LockstepError. Returns
+        each module's TPDO values by COB-ID, each also in its history's rows."""
+        drivers, owners = self._drivers, self._owners
+        due = frozenset().union(*[start.due for start in starts.values()])
+        got: dict[int, tuple[Value, ...]] = {}
+        guards: dict[int, HangGuard] = {}
+        k = -1  # the module a LockstepError is of
+        try:
+            if self._polled_tpdos:
+                self._polled_tpdos = False
+                for k, start in starts.items():
+                    pending = drivers[k].take_pending()
+                    if pending and out:
+                        send_frames(self._link, out)  # the SYNC is on the bus, as when nothing was pending
+                        out = b""
+                    for cob_id, data in pending:  # polled between cycles: late or duplicate, unless acyclic
+                        drivers[k].take(got, start, cob_id, data, between_syncs=True)
+            while True:
+                frame = self._exchange_call(out, due, self._decoders, got, LIVENESS_SLICE_S, n)
+                if frame is None:
+                    break
+                out = b""
+                if frame is not False:
+                    for k in owners.get(frame[0], ()):  # type: ignore[index]
+                        start = starts.get(k)
+                        if start is None:
+                            continue  # a module lost in this cycle
+                        driver = drivers[k]
+                        driver.take(got, start, *frame)  # type: ignore[misc]
+                        if start.due and not driver.operational:  # it left operational (a heartbeat event)
+                            due = due - start.due.difference(got)
+                    continue
+                for k, start in list(starts.items()):  # a quiet slice: whose TPDOs are missing?
+                    if start.due.issubset(got):
+                        continue
+                    driver = drivers[k]
+                    guard = guards.get(k)
+                    if guard is None:
+                        guard = HangGuard(driver.tpdo_timeout_s, driver.activity, LIVENESS_SLICE_S)
+                        guards[k] = guard
+                    try:
+                        given_up = driver.check_alive(start, got, guard)
+                    except FirmwareError as error:
+                        del starts[k]
+                        driver.forget_rows(n, got)
+                        for cob_id in self._tpdo_ids[k]:
+                            got.pop(cob_id, None)
+                        due = due - start.due
+                        self._lose(k, start, error)
+                        continue
+                    if given_up:  # `on_problem` has it: the cycle ends without them
+                        due = due - start.due.difference(got)
+        except LockstepError as error:  # alive, but a TPDO late, missing or malformed
+            if k >= 0:
+                self.modules[k].log_event(BUS_EVENTS_PATH, str(error))
+            for k in starts:
+                drivers[k].forget_rows(n, got)
+            raise
+        except BaseException:
+            for k in starts:
+                drivers[k].forget_rows(n, got)
+            raise
+        if len(starts) == 1:
+            return dict.fromkeys(starts, got)  # one module's: all of it
+        tpdo_ids = self._tpdo_ids
+        return {k: {cob_id: got[cob_id] for cob_id in tpdo_ids[k] if cob_id in got} for k in starts}
 
     def _lose(self, k: int, start: CycleStart, error: FirmwareError) -> None:
         module = self.modules[k]

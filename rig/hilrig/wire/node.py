@@ -13,6 +13,7 @@ the node over SDO), never by hand::
 from __future__ import annotations
 
 import contextlib
+import pickle
 import struct
 import threading
 import time
@@ -136,6 +137,43 @@ class SocketSdoClient(SdoClient):
 
     def close(self) -> None:
         self.link.close()
+
+
+_TEMPLATE_NODE_ID = 1
+_templates: dict[tuple[str, int, int], tuple[bytes, bool]] = {}
+_templates_lock = threading.Lock()
+
+
+def node_dictionary(eds: str | Path, node_id: int) -> canopen.ObjectDictionary:
+    """The object dictionary of the EDS at `eds` for node `node_id`, as `canopen.import_od` makes
+    it: the file parsed once per process (and per version of it), then a copy for each node (a
+    pickle of the parsed one, loaded) with its node-relative values ($NODEID: the COB-IDs) moved
+    to `node_id`. Parsing an EDS costs about a hundred such copies, and a robot has a node per
+    module."""
+    path = Path(eds)
+    try:
+        stat = path.stat()
+    except OSError:
+        return canopen.import_od(str(path), node_id)  # canopen's own error for a missing file
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+    with _templates_lock:
+        template = _templates.get(key)
+        if template is None:
+            parsed = canopen.import_od(str(path), _TEMPLATE_NODE_ID)
+            template = _templates[key] = (pickle.dumps(parsed), parsed.node_id is not None)
+    od: canopen.ObjectDictionary = pickle.loads(template[0])
+    if template[1]:  # the EDS names a node id (DeviceComissioning): this one, as import_od does
+        od.node_id = node_id
+    shift = node_id - _TEMPLATE_NODE_ID
+    if shift:
+        for entry in od.values():
+            members = entry.subindices.values() if hasattr(entry, "subindices") else (entry,)
+            for var in members:
+                if var.relative and isinstance(var.default, int):
+                    var.default += shift
+                if "$NODEID" in (getattr(var, "value_raw", None) or "") and isinstance(var.value, int):
+                    var.value += shift
+    return od
 
 
 class _BoardRemoteNode(canopen.RemoteNode):
@@ -271,7 +309,9 @@ class BoardNode:
             sdo_link = RawCanLink(open_raw_socket(bus.channel, [sdo_response_cob_id(node_id)], beside=sock))
         try:
             self.remote = _BoardRemoteNode(
-                node_id, eds if isinstance(eds, canopen.ObjectDictionary) else str(eds), sdo_link
+                node_id,
+                eds if isinstance(eds, canopen.ObjectDictionary) else node_dictionary(eds, node_id),
+                sdo_link,
             )
         except BaseException:  # e.g. no EDS at that path: nothing left open
             if sdo_link is not None:
