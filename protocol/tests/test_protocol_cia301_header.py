@@ -6,16 +6,14 @@ from __future__ import annotations
 
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
+from header_check import compile_header_check
 
 from boardproto import cia301
 from boardproto.cia301_header import GENERATED_BANNER, cpp_name, generate_cia301_header
 from boardproto.cpp_header import cpp_string
-
-WARNING_FLAGS = "-std=c++20 -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Werror -fsyntax-only"
 
 
 @pytest.fixture(scope="module")
@@ -114,14 +112,7 @@ def _value_asserts() -> str:
 
 @pytest.mark.skipif(shutil.which("g++") is None, reason="needs g++")
 def test_compiles_to_the_python_values(generated_dir: Path, tmp_path: Path) -> None:
-    source = tmp_path / "check.cpp"
-    source.write_text(f'#include "board/cia301.hpp"\nusing namespace cia301;\n{_value_asserts()}\n')
-    result = subprocess.run(
-        ["g++", *WARNING_FLAGS.split(), f"-I{generated_dir / 'include'}", str(source)],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    result = compile_header_check(generated_dir, tmp_path, "cia301.hpp", "cia301", _value_asserts())
     assert result.returncode == 0, result.stderr
 
 

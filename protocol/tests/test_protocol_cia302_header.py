@@ -6,17 +6,15 @@ the project's flags. And the image header's own rules: a round trip, and each re
 from __future__ import annotations
 
 import shutil
-import subprocess
 import zlib
 from pathlib import Path
 
 import pytest
+from header_check import compile_header_check
 
 from boardproto import cia302
 from boardproto.cia301_header import cpp_name
 from boardproto.cia302_header import GENERATED_BANNER, generate_cia302_header
-
-WARNING_FLAGS = "-std=c++20 -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Werror -fsyntax-only"
 
 
 def test_the_generate_command_writes_it_with_the_banner(generated_dir: Path) -> None:
@@ -53,14 +51,7 @@ def _value_asserts() -> str:
 
 @pytest.mark.skipif(shutil.which("g++") is None, reason="needs g++")
 def test_compiles_to_the_python_values(generated_dir: Path, tmp_path: Path) -> None:
-    source = tmp_path / "check.cpp"
-    source.write_text(f'#include "board/cia302.hpp"\nusing namespace cia302;\n{_value_asserts()}\n')
-    result = subprocess.run(
-        ["g++", *WARNING_FLAGS.split(), f"-I{generated_dir / 'include'}", str(source)],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    result = compile_header_check(generated_dir, tmp_path, "cia302.hpp", "cia302", _value_asserts())
     assert result.returncode == 0, result.stderr
 
 

@@ -5,16 +5,14 @@ it says it is generated, and it compiles with the project's flags."""
 from __future__ import annotations
 
 import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
+from header_check import compile_header_check
 
 from boardproto import cia305
 from boardproto.cia301_header import cpp_name
 from boardproto.cia305_header import GENERATED_BANNER, generate_cia305_header
-
-WARNING_FLAGS = "-std=c++20 -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Werror -fsyntax-only"
 
 
 def test_the_generate_command_writes_it_with_the_banner(generated_dir: Path) -> None:
@@ -47,14 +45,7 @@ def _value_asserts() -> str:
 
 @pytest.mark.skipif(shutil.which("g++") is None, reason="needs g++")
 def test_compiles_to_the_python_values(generated_dir: Path, tmp_path: Path) -> None:
-    source = tmp_path / "check.cpp"
-    source.write_text(f'#include "board/cia305.hpp"\nusing namespace cia305;\n{_value_asserts()}\n')
-    result = subprocess.run(
-        ["g++", *WARNING_FLAGS.split(), f"-I{generated_dir / 'include'}", str(source)],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    result = compile_header_check(generated_dir, tmp_path, "cia305.hpp", "cia305", _value_asserts())
     assert result.returncode == 0, result.stderr
 
 
