@@ -296,6 +296,9 @@ class Driver:
         self._actuator: Callable[[Mapping[int, tuple[Value, ...]]], Outputs] = _no_outputs
         """A cycle's TPDO values by COB-ID -> the plant's actuator fields (None: not all came)."""
         self._actuator_pdos: tuple[PdoLayout, ...] = ()
+        self._actuator_one: tuple[int, int] | None = None
+        """(COB-ID, position) of a plant's one actuator field: what a lockstep cycle reads
+        itself, without `_actuator`'s call (the usual case); None: call `_actuator`."""
         self._due_table: list[frozenset[int]] = [frozenset()]
         self._sync_starts = SyncStarts(())
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
@@ -394,6 +397,8 @@ class Driver:
         complete = len(actuator_at) == len(self.plant.actuator_fields)
         self._actuator = _outputs_getter(actuator_at) if complete and actuator_at else _no_outputs
         self._actuator_pdos = tuple(dict.fromkeys(pdo for pdo, _ in actuator_at)) if complete else ()
+        one = complete and len(actuator_at) == 1
+        self._actuator_one = (actuator_at[0][0].cob_id, actuator_at[0][1]) if one else None
         self._due_table = due_table(enabled_tpdos)
         self._sync_starts = SyncStarts(enabled_tpdos)
         keep = self.history.keep
