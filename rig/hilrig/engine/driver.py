@@ -55,7 +55,9 @@ from hilrig.wire.transport import (
 )
 
 SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
-"""Fields of the RPDO sent every cycle, like a real master's setpoint stream."""
+"""Fields of the RPDO sent every cycle, like a real master's setpoint stream (the demo joint's
+watchdog watches it). Those of them a board's table has must be in an enabled RPDO; a board with
+none of them has no stream: its RPDOs go out when a scenario changes a value."""
 LIVENESS_SLICE_S = 0.25
 """While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
 
@@ -354,8 +356,9 @@ class Driver:
             sharing = [p.label for p in enabled_rpdos if p.cob_id == cob_id]
             if len(sharing) > 1:  # the node could not tell their frames apart, nor could the history
                 problems.append(f"{' and '.join(sharing)} share a COB-ID")
-        stream = [p for p in enabled_rpdos if set(SETPOINT_STREAM) & set(p.names)]
-        for name in SETPOINT_STREAM:
+        streamed = [name for name in SETPOINT_STREAM if name in table.names]
+        stream = [p for p in enabled_rpdos if set(streamed) & set(p.names)]
+        for name in streamed:
             if not any(name in p.names for p in stream):
                 problems.append(f"setpoint {name} is in no enabled RPDO")
         enabled_tpdos = [p for p in self.node.tpdos.values() if p.enabled and p.names]
