@@ -28,7 +28,8 @@ REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "other-project"
 OUT = REPO / "build" / "other-project"
 CMAKE_BUILD = Path(os.environ.get("HILFW_BUILD", REPO / "build"))
-"""The configured CMake build tree whose install rules hold the firmware package (`make build`)."""
+"""The configured CMake build tree whose install rules hold the firmware package: `make build`'s,
+or $HILFW_BUILD (a tree configured by hand, e.g. a worktree whose build/ links another's)."""
 OWN_PACKAGES = ("hilrig", "boardproto", "dashboards", "__editable__", "__pycache__")
 """Entries of the project venv's site-packages the fresh venv must not see (prefixes)."""
 
