@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from hilrig.cli import main as hilrig
-from hilrig.engine.lockstep import TRUTH_NAMES
 from hilrig.table import ControlMode
 
 pytestmark = pytest.mark.bus
@@ -35,7 +34,7 @@ def record_run(make_scenario, *, seed: int, subdir: str, velocity_kp: float = 0.
     sent = {n for p in s.rig.node.rpdos.values() if p.enabled for n in p.names}
     series = {f"tpdo:{name}": s.rig.history(name) for name in sorted(received)}
     series |= {f"rpdo:{name}": s.rig.sent(name) for name in sorted(sent)}
-    series |= {f"truth:{name}": s.rig.truth(name) for name in TRUTH_NAMES}
+    series |= {f"truth:{name}": s.rig.truth(name) for name in s.rig.plant.truth_fields}
     s.close()
     return series
 

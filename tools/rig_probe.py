@@ -183,7 +183,7 @@ def robot_probe(cycles: int, modules: int) -> int:
     table = RigTable.load()
     channel = "rig-probe-robot"
     node_ids = module_ids(modules)
-    chain = ChainPhysics(modules)
+    chain = ChainPhysics(modules, seed=1)
     with contextlib.ExitStack() as stack:
         rigs: list[Rig] = []
         fakes = []
@@ -202,8 +202,7 @@ def robot_probe(cycles: int, modules: int) -> int:
                 rig_bus,
                 table=table,
                 node_id=node_id,
-                plant=chain.plants[k],
-                seed=1000 + k,
+                plant=chain.models[k],
                 sdo_timeout_s=ROBOT_START_TIMEOUT_S,
                 boot_timeout_s=ROBOT_START_TIMEOUT_S,
             )

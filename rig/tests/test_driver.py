@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 import struct
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import canopen
 import numpy as np
@@ -18,8 +18,9 @@ from boardproto.cia301 import SYNC_COB_ID, NmtState, emcy_cob_id, heartbeat_cob_
 from hilrig.engine.driver import History
 from hilrig.engine.lockstep import CycleProblem, LockstepDriver
 from hilrig.engine.rig import DEFAULT_EDS_PATH
-from hilrig.errors import LockstepError
-from hilrig.plants import JointParams, JointPlant, SensorModel
+from hilrig.errors import LockstepError, PdoMappingError
+from hilrig.plants import JointParams, RawSensors
+from hilrig.plants.joint import JointModel
 from hilrig.table import BOARD_TABLE, RigTable
 from hilrig.wire.transport import PdoDirection, PdoLayout, compile_pdos, parse_frame
 
@@ -85,9 +86,7 @@ class StubNode:
 def driver() -> LockstepDriver:
     params = JointParams()
     node = StubNode()
-    driver = LockstepDriver(
-        node, JointPlant(params), SensorModel(params, 1), period_us=1000, tpdo_timeout_s=0.5
-    )  # type: ignore[arg-type]
+    driver = LockstepDriver(node, JointModel.of(params, 1), period_us=1000, tpdo_timeout_s=0.5)  # type: ignore[arg-type]
     driver.configure()
     driver.node_entered(NmtState.OPERATIONAL)
     return driver
@@ -211,7 +210,7 @@ def test_history_gives_back_exactly_the_numbers_the_bus_carried() -> None:
 def checking() -> tuple[LockstepDriver, list[CycleProblem], list[tuple[int, bytes]]]:
     params = JointParams()
     driver = LockstepDriver(
-        StubNode(), JointPlant(params), SensorModel(params, 1), period_us=1000, tpdo_timeout_s=0.5,
+        StubNode(), JointModel.of(params, 1), period_us=1000, tpdo_timeout_s=0.5,
         keep_history=False,
     )  # type: ignore[arg-type]  # fmt: skip
     problems: list[CycleProblem] = []
@@ -274,3 +273,94 @@ def test_a_history_that_keeps_nothing_stays_empty(checking) -> None:
         driver.step()
     history = driver.history
     assert history.cycles == 0 and history.layouts() == [] and not history.has_received("motor_duty")
+
+
+# --- Any plant: the driver knows it by the interface ----------------------------------------
+class TwoOutputPlant:
+    """A plant of the interface consuming fields of two TPDOs, recording what it is given."""
+
+    sensor_fields = tuple(RawSensors.__dataclass_fields__)
+    actuator_fields = ("motor_duty", "joint_torque")
+    truth_fields = ("steps",)
+
+    def __init__(self) -> None:
+        self.applied: list[tuple[float | int, ...] | None] = []
+        self.steps: list[float] = []
+
+    def sense(self) -> RawSensors:
+        return RawSensors(1, 2, 3, -4)
+
+    def truth(self) -> int:
+        return len(self.steps)
+
+    def truth_matrix(self, snapshots: Sequence[int]) -> np.ndarray:
+        return np.asarray(snapshots, dtype=np.float64).reshape(-1, 1)
+
+    def truth_parameters(self) -> dict[str, float]:
+        return {}
+
+    def apply(self, outputs: tuple[float | int, ...] | None) -> None:
+        self.applied.append(outputs)
+
+    def step(self, dt_s: float) -> None:
+        self.steps.append(dt_s)
+
+
+def test_a_plant_gets_its_actuator_fields_from_the_tpdos_that_carry_them() -> None:
+    plant = TwoOutputPlant()
+    driver = LockstepDriver(StubNode(), plant, period_us=500, tpdo_timeout_s=0.5)  # type: ignore[arg-type]
+    driver.configure()
+    driver.node_entered(NmtState.OPERATIONAL)
+    tpdos = {p.cob_id: p for p in driver.node.tpdos.values()}
+    sent = {c: tpdos[c].unpack(bytes(range(tpdos[c].length))) for c in (TPDO1, TPDO3)}
+    result = driver.step()
+    expected = (sent[TPDO1][0], sent[TPDO3][0])
+    assert result.outputs == expected and plant.applied == [expected] and plant.steps == [0.0005]
+    rpdo1, frame = driver.node.rpdos[1], RawSensors(1, 2, 3, -4)
+    assert _link(driver).sent[0] == (SENSORS, rpdo1.codec.pack(*(getattr(frame, n) for n in rpdo1.names)))
+    assert driver.history.truth("steps")[1].tolist() == [0.0]
+
+    driver.on_problem = lambda problem: None  # TPDO3 missing: the cycle ends without it
+    _link(driver).script = lambda n, frames: [f for f in frames if f[0] != TPDO3]
+    driver.tpdo_timeout_s = 0.0
+    assert driver.step().outputs is None and plant.applied[-1] is None  # not every field came
+
+
+def test_a_plant_whose_field_no_tpdo_carries_is_refused_naming_it() -> None:
+    plant = TwoOutputPlant()
+    plant.actuator_fields = ("motor_duty", "gear_ratio")  # type: ignore[assignment]
+    driver = LockstepDriver(StubNode(), plant, period_us=1000)  # type: ignore[arg-type]
+    with pytest.raises(PdoMappingError, match="HIL output gear_ratio is in no enabled TPDO"):
+        driver.configure()
+
+
+class TableWithout:
+    """The demo table less some of its fields (a board without a setpoint stream)."""
+
+    def __init__(self, table: RigTable, *left_out: str) -> None:
+        self._table = table
+        self.names = tuple(name for name in table.names if name not in left_out)
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._table, name)
+
+
+def test_a_board_without_the_setpoint_fields_has_no_stream_and_sends_rpdos_when_changed() -> None:
+    node = StubNode()
+    node.table = TableWithout(node.table, "velocity_setpoint", "torque_setpoint")  # type: ignore[assignment]
+    driver = LockstepDriver(node, JointModel.of(JointParams(), 1), period_us=1000)  # type: ignore[arg-type]
+    driver.configure()
+    driver.node_entered(NmtState.OPERATIONAL)
+    driver.step()
+    assert [c for c, _ in _link(driver).sent] == [SENSORS, SYNC_COB_ID]  # the sensors alone
+    _link(driver).sent.clear()
+    driver.set_rpdo_value("position_setpoint", 0.5)
+    driver.step()
+    changed = BOARD_TABLE.rpdo(3).cob_id(NODE_ID)
+    assert [c for c, _ in _link(driver).sent] == [SENSORS, changed, SYNC_COB_ID]
+
+
+def test_a_setpoint_field_of_the_table_in_no_rpdo_is_refused_naming_it(driver) -> None:
+    driver.node.rpdos[2] = dataclasses.replace(driver.node.rpdos[2], enabled=False)
+    with pytest.raises(PdoMappingError, match="setpoint velocity_setpoint is in no enabled RPDO"):
+        driver.configure()

@@ -105,9 +105,9 @@ def test_physics_is_stepped_by_the_measured_time_on_an_absolute_grid(
     steps: list[float] = []
     plant_step = late_bench.rig.plant.step
 
-    def spy_step(dt_s: float, duty: float) -> object:
+    def spy_step(dt_s: float) -> None:
         steps.append(dt_s)
-        return plant_step(dt_s, duty)
+        plant_step(dt_s)
 
     monkeypatch.setattr(late_bench.rig.plant, "step", spy_step)
     late_bench.rig.run(cycles=5)

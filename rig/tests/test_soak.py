@@ -56,6 +56,7 @@ from hilrig.engine.driver import CycleResult
 from hilrig.engine.lockstep import CycleProblem
 from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.errors import SdoAbortError
+from hilrig.plants.interface import Plant
 from hilrig.session.firmware import parse_stop_line
 from hilrig.table import FaultFlags, RigTable
 from hilrig.wire.node import explain_abort
@@ -133,12 +134,15 @@ def test_sensor_frame_decodes_with_the_dbc_to_the_pattern(layout: SoakLayout, db
     assert pattern.motor_velocity_rad_s == pytest.approx(25 / 4096 * 2 * math.pi * 1000)
 
 
-def test_the_pattern_is_the_drivers_plant_and_sensors_without_physics(layout: SoakLayout) -> None:
+def test_the_pattern_is_the_drivers_plant_without_physics(layout: SoakLayout) -> None:
     pattern = SensorPattern(layout, period_us=1000)
-    state = pattern.state
+    assert isinstance(pattern, Plant)
+    state = pattern.truth()
     pattern.cycle = 7
-    assert pattern.read(state) == pattern.raw(7)
-    assert pattern.step(1e-3, 0.5) is state  # nothing moves: the values follow `cycle` only
+    assert pattern.sense() == pattern.raw(7)
+    pattern.apply((5000,))
+    pattern.step(1e-3)
+    assert pattern.truth() is state  # nothing moves: the values follow `cycle` only
     assert state.motor_velocity_rad_s == pattern.motor_velocity_rad_s
 
 

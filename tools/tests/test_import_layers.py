@@ -26,13 +26,14 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("observe", ("hilrig.observe",)),
     ("session", ("hilrig.session",)),
     ("apps", ("hilrig.apps",)),
-    ("cli", ("hilrig.cli", "hilrig.__main__", "dashboards.__main__")),
+    ("cli", ("hilrig.cli", "hilrig.__main__", "dashboards.__main__", "hilrig.pytest_plugin")),
     ("tools", ("tools",)),
 )
 """Base: the table, the errors, where the board's files are, the condition waiter and the entity
 paths (a leaf every layer may name). The dashboards sit right above it: they build Rerun layouts
 on the entity paths, and the tracer and the session load them. `python -m hilrig` and `python -m
-dashboards` are entry points on top of the CLI."""
+dashboards` are entry points on top of the CLI; the pytest plugin is one beside it (it runs the
+`hilrig` command on a scenario's bus)."""
 
 DASHBOARDS_MAY_IMPORT = frozenset({"hilrig.observe.paths"})
 """The one module of hilrig the dashboards import (entry points aside: `dashboards.__main__` is

@@ -67,7 +67,7 @@ def test_a_module_whose_process_died_is_lost_at_that_cycle_and_the_others_run_on
             stack.callback(peer.close)
             link = QuietWhenAsked(ours, peer, answers)
             bus = stack.enter_context(can.Bus(interface="virtual", channel="lost"))
-            rig = Rig(bus, table=table, node_id=node_id, plant=chain.plants[k], seed=k)
+            rig = Rig(bus, table=table, node_id=node_id, plant=chain.models[k])
             rig.node.open_link = lambda receive_ids, link=link: link  # type: ignore[method-assign]
             stack.callback(rig.close)
             rigs.append(rig)

@@ -4,7 +4,9 @@ commands, the per-cycle `History` (`hilrig.engine.history`), and the frame link 
 
 A driver's small interface (what `Rig` uses): `configure()` after the node's PDO configuration was
 read, `step()` -> `CycleResult`, `cycle`, `t`, `period_us`, `history`, `node_entered(state)`,
-`poll()` (dispatch what arrived between cycles), `set_rpdo_value`, `latest`. The lockstep driver
+`poll()` (dispatch what arrived between cycles), `set_rpdo_value`, `latest`. The hardware is a
+`hilrig.plants.interface.Plant`: its sensor fields go out in the sensor RPDO(s), its actuator
+fields come from the TPDOs that carry them. The lockstep driver
 (`hilrig.engine.lockstep`) waits for every TPDO due at its SYNC; the real-time one (`hilrig.engine.realtime`)
 keeps a wall-clock period and takes what has arrived.
 """
@@ -13,9 +15,9 @@ from __future__ import annotations
 
 import operator
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any
 
 from boardproto.cia301 import (
     SYNC_COB_ID,
@@ -27,8 +29,6 @@ from boardproto.cia301 import (
     sync_counter,
 )
 from hilrig.engine.history import (
-    TRUTH_ALIASES,
-    TRUTH_NAMES,
     History,
     HistoryBlock,
     HistoryMark,
@@ -38,7 +38,7 @@ from hilrig.engine.history import (
 )
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.observe.paths import BUS_EVENTS_PATH
-from hilrig.plants import JointState, RawSensors
+from hilrig.plants.interface import Plant
 from hilrig.table import EmcyCode
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import (
@@ -54,30 +54,20 @@ from hilrig.wire.transport import (
     send_frames,
 )
 
-ACTUATOR_OUTPUT = "motor_duty"
-"""The HIL output that drives the plant; in lockstep its TPDO must be synchronous type 1."""
 SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
-"""Fields of the RPDO sent every cycle, like a real master's setpoint stream."""
+"""Fields of the RPDO sent every cycle, like a real master's setpoint stream (the demo joint's
+watchdog watches it). Those of them a board's table has must be in an enabled RPDO; a board with
+none of them has no stream: its RPDOs go out when a scenario changes a value."""
 LIVENESS_SLICE_S = 0.25
 """While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
 
 
-class Plant(Protocol):
-    """What a driver samples and steps every cycle: `hilrig.plants.JointPlant`, or a stand-in
-    without physics (the soak's sensor pattern). `state` is what the cycle's sensor frame is
-    read from."""
-
-    @property
-    def state(self) -> JointState: ...
-
-    def step(self, dt_s: float, duty: float) -> object: ...
-
-
-class Sensors(Protocol):
-    """What turns a plant state into a cycle's raw sensor values: `hilrig.plants.SensorModel`,
-    or a stand-in."""
-
-    def read(self, state: JointState) -> RawSensors: ...
+SensorFrame = Any
+"""A plant's sensor readings of one cycle (`Plant.sense`): an attribute per sensor field."""
+Truth = Any
+"""A plant's truth snapshot of one cycle (`Plant.truth`)."""
+Outputs = tuple[Value, ...] | None
+"""The plant's actuator fields of one cycle as the node sent them (None: it sent none)."""
 
 
 FrameCallback = Callable[[int, bytes], None]
@@ -153,7 +143,7 @@ class CycleResult:
         "_received",
         "_tpdos",
         "cycle",
-        "duty",
+        "outputs",
         "raw",
         "sent_rows",
         "sync_counter",
@@ -166,11 +156,11 @@ class CycleResult:
         cycle: int,
         time_s: float,
         sync_counter: int,
-        raw: RawSensors | None,
+        raw: SensorFrame | None,
         received_rows: tuple[PdoRow, ...] | Mapping[int, tuple[Value, ...]],
-        duty: float,
+        outputs: Outputs,
         sent_rows: tuple[PdoRow, ...] = (),
-        truth: JointState | None = None,
+        truth: Truth | None = None,
         tpdos: Mapping[int, PdoLayout] | None = None,
     ) -> None:
         self.cycle = cycle
@@ -180,7 +170,8 @@ class CycleResult:
         """None when no sensor frame was sampled (real time, physics off)."""
         self._received = received_rows
         self._tpdos = tpdos
-        self.duty = duty
+        self.outputs = outputs
+        """The plant's actuator fields the cycle applies (`Plant.apply`); None: none came."""
         self.sent_rows = sent_rows
         self.truth = truth
         """The plant state the cycle's sensor frame was sampled from (None without physics)."""
@@ -226,7 +217,7 @@ class CycleResult:
     def __repr__(self) -> str:
         return (
             f"CycleResult(cycle={self.cycle}, time_s={self.time_s}, sync_counter={self.sync_counter}, "
-            f"received_rows={self.received_rows!r}, duty={self.duty}, sent_rows={self.sent_rows!r})"
+            f"received_rows={self.received_rows!r}, outputs={self.outputs}, sent_rows={self.sent_rows!r})"
         )
 
 
@@ -242,8 +233,8 @@ class Driver:
     """The node's PDO roles and the rig's RPDO values, over the node's frame link.
 
     `configure()` (after the node's PDO configuration was read) checks the mapping the driver
-    relies on and compiles the per-cycle work: which RPDOs carry the sensors and the setpoint
-    stream, where the actuator output is, which TPDOs are due at which SYNC.
+    relies on and compiles the per-cycle work: which RPDOs carry the plant's sensor fields and
+    the setpoint stream, where the plant's actuator fields are, which TPDOs are due at which SYNC.
     `node_entered(state)` must follow every NMT command the rig sends, since the node counts
     SYNCs for its TPDOs from the moment it became operational.
 
@@ -259,7 +250,6 @@ class Driver:
         self,
         node: BoardNode,
         plant: Plant,
-        sensors: Sensors,
         *,
         period_us: int,
         tpdo_timeout_s: float = 5.0,
@@ -271,7 +261,6 @@ class Driver:
             raise ValueError(f"period_us: expected > 0, got {period_us}")
         self.node = node
         self.plant = plant
-        self.sensors = sensors
         self.period_us = period_us
         self.period_s = period_us / 1e6
         """The period in seconds (what the plant is stepped by every cycle)."""
@@ -280,10 +269,10 @@ class Driver:
         self.activity = activity
         """The node's process activity (`hilrig.engine.lockstep.process_activity`), for the hang
         guard to tell a busy host from a stuck firmware; None: wall time only."""
-        self.history = History(period_us, keep=keep_history)
+        self.history = History(period_us, keep=keep_history, plant=plant)
         self.cycle = 0
         """Cycles completed; also the index of the next cycle."""
-        self.sensor_override: Callable[[RawSensors], RawSensors] | None = None
+        self.sensor_override: Callable[[SensorFrame], SensorFrame] | None = None
         """Fault injection hook: gets each cycle's raw sensors, returns what is sent."""
         self.paused_rpdos: set[int] = set()
         """RPDO numbers not sent at all (e.g. a silent setpoint stream for the watchdog)."""
@@ -299,14 +288,19 @@ class Driver:
         """The setpoint stream's frames (joined) and rows as `_rpdos_of_cycle` last sent them: what
         every cycle sends again while no RPDO changed (None: work it out again)."""
         self._stream_order: list[int] = []  # the setpoint stream's RPDOs, in sending order
-        self._sensor_rpdos: list[tuple[PdoLayout, Callable[[RawSensors], tuple[Value, ...]]]] = []
+        self._sensor_rpdos: list[tuple[PdoLayout, Callable[[SensorFrame], tuple[Value, ...]]]] = []
         self._stream_rpdos: set[int] = set()
         self._dirty_rpdos: set[int] = set()
         self._field_rpdo: dict[str, tuple[int, int]] = {}  # name -> (RPDO number, position)
         self._rpdo_layouts: dict[int, PdoLayout] = {}
         self._tpdo_by_cob: dict[int, PdoLayout] = {}
         self._emcy_cob_id = emcy_cob_id(node.node_id)
-        self._actuator: tuple[PdoLayout, int] | None = None
+        self._actuator: Callable[[Mapping[int, tuple[Value, ...]]], Outputs] = _no_outputs
+        """A cycle's TPDO values by COB-ID -> the plant's actuator fields (None: not all came)."""
+        self._actuator_pdos: tuple[PdoLayout, ...] = ()
+        self._actuator_one: tuple[int, int] | None = None
+        """(COB-ID, position) of a plant's one actuator field: what a lockstep cycle reads
+        itself, without `_actuator`'s call (the usual case); None: call `_actuator`."""
         self._due_table: list[frozenset[int]] = [frozenset()]
         self._sync_starts = SyncStarts(())
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
@@ -327,7 +321,7 @@ class Driver:
 
     @property
     def needs_plant_io(self) -> bool:
-        """Whether configure() requires the sensor RPDO(s) and the actuator TPDO."""
+        """Whether configure() requires the sensor RPDO(s) and the actuator TPDO(s)."""
         return True
 
     @property
@@ -344,15 +338,16 @@ class Driver:
     # --- Configuration ------------------------------------------------------------------
     def configure(self) -> None:
         """Work out which PDOs carry what, from the node's mapping; PdoMappingError if the
-        sensor inputs, the setpoint stream or the actuator output is not where it must be."""
+        plant's sensor inputs, the setpoint stream or its actuator outputs are not where they
+        must be."""
         table = self.node.table
         problems: list[str] = []
         enabled_rpdos = [p for p in self.node.rpdos.values() if p.enabled and p.names]
         sensor_rpdos = [p for p in enabled_rpdos if any(table.is_hil_input(n) for n in p.names)]
         mapped_inputs = {n for p in sensor_rpdos for n in p.names}
-        for io in table.board.hil_inputs if self.needs_plant_io else ():
-            if io.name not in mapped_inputs:
-                problems.append(f"HIL input {io.name} is in no enabled RPDO")
+        for name in self.plant.sensor_fields if self.needs_plant_io else ():
+            if name not in mapped_inputs:
+                problems.append(f"HIL input {name} is in no enabled RPDO")
         for pdo in sensor_rpdos:
             extra = [n for n in pdo.names if not table.is_hil_input(n)]
             if extra:
@@ -361,19 +356,25 @@ class Driver:
             sharing = [p.label for p in enabled_rpdos if p.cob_id == cob_id]
             if len(sharing) > 1:  # the node could not tell their frames apart, nor could the history
                 problems.append(f"{' and '.join(sharing)} share a COB-ID")
-        stream = [p for p in enabled_rpdos if set(SETPOINT_STREAM) & set(p.names)]
-        for name in SETPOINT_STREAM:
+        streamed = [name for name in SETPOINT_STREAM if name in table.names]
+        stream = [p for p in enabled_rpdos if set(streamed) & set(p.names)]
+        for name in streamed:
             if not any(name in p.names for p in stream):
                 problems.append(f"setpoint {name} is in no enabled RPDO")
-        actuator = [p for p in self.node.tpdos.values() if p.enabled and ACTUATOR_OUTPUT in p.names]
-        if not actuator:
-            if self.needs_plant_io:
-                problems.append(f"HIL output {ACTUATOR_OUTPUT} is in no enabled TPDO")
-        elif self.needs_sync_actuator and actuator[0].transmission_type != 1:
-            problems.append(
-                f"{actuator[0].label} carries {ACTUATOR_OUTPUT} with transmission type "
-                f"{actuator[0].transmission_type}; lockstep needs 1 (every SYNC)"
-            )
+        enabled_tpdos = [p for p in self.node.tpdos.values() if p.enabled and p.names]
+        actuator_at: list[tuple[PdoLayout, int]] = []
+        for name in self.plant.actuator_fields:
+            carrier = next((p for p in enabled_tpdos if name in p.names), None)
+            if carrier is None:
+                if self.needs_plant_io:
+                    problems.append(f"HIL output {name} is in no enabled TPDO")
+                continue
+            if self.needs_sync_actuator and carrier.transmission_type != 1:
+                problems.append(
+                    f"{carrier.label} carries {name} with transmission type "
+                    f"{carrier.transmission_type}; lockstep needs 1 (every SYNC)"
+                )
+            actuator_at.append((carrier, carrier.names.index(name)))
         if problems:
             raise PdoMappingError(f"node 0x{self.node.node_id:02X} PDO mapping: " + "; ".join(problems))
 
@@ -394,10 +395,13 @@ class Driver:
             for position, name in enumerate(pdo.names):
                 self._field_rpdo[name] = (pdo.number, position)
         self._stream_order = [number for number in self._rpdo_values if number in self._stream_rpdos]
-        enabled_tpdos = [p for p in self.node.tpdos.values() if p.enabled and p.names]
         self._tpdo_by_cob = {p.cob_id: p for p in enabled_tpdos}
         self._tpdo_names = frozenset(n for p in enabled_tpdos for n in p.names)
-        self._actuator = (actuator[0], actuator[0].names.index(ACTUATOR_OUTPUT)) if actuator else None
+        complete = len(actuator_at) == len(self.plant.actuator_fields)
+        self._actuator = _outputs_getter(actuator_at) if complete and actuator_at else _no_outputs
+        self._actuator_pdos = tuple(dict.fromkeys(pdo for pdo, _ in actuator_at)) if complete else ()
+        one = complete and len(actuator_at) == 1
+        self._actuator_one = (actuator_at[0][0].cob_id, actuator_at[0][1]) if one else None
         self._due_table = due_table(enabled_tpdos)
         self._sync_starts = SyncStarts(enabled_tpdos)
         keep = self.history.keep
@@ -545,14 +549,14 @@ class Driver:
             for callback in listeners:
                 callback(cob_id, data)
 
-    def _transmit_rpdos(self, raw: RawSensors | None) -> tuple[PdoRow, ...]:
+    def _transmit_rpdos(self, raw: SensorFrame | None) -> tuple[PdoRow, ...]:
         """Send one cycle's RPDOs (`_rpdos_of_cycle`) now; return what was sent."""
         sent, frames = self._rpdos_of_cycle(raw)
         if frames:
             send_frames(self.link, frames)
         return sent
 
-    def _rpdos_of_cycle(self, raw: RawSensors | None) -> tuple[tuple[PdoRow, ...], bytes]:
+    def _rpdos_of_cycle(self, raw: SensorFrame | None) -> tuple[tuple[PdoRow, ...], bytes]:
         """One cycle's RPDOs (the sensor frame from `raw` unless None, the setpoint stream, any
         RPDO a scenario changed): what they carry, and their frames joined, in sending order (the
         caller sends them: `send_frames`, or ahead of the SYNC in a cycle's exchange)."""
@@ -597,30 +601,60 @@ class Driver:
         return pdo.unpack(data)
 
 
-def _getter(names: tuple[str, ...]) -> Callable[[RawSensors], tuple[Value, ...]]:
-    """Values of `names` from a RawSensors, always as a tuple."""
+def _getter(names: tuple[str, ...]) -> Callable[[SensorFrame], tuple[Value, ...]]:
+    """Values of `names` from a plant's sensor frame, always as a tuple."""
     get = operator.attrgetter(*names)
     if len(names) == 1:
         return lambda raw: (get(raw),)
     return get  # type: ignore[return-value]
 
 
+TpdoValues = Mapping[int, tuple[Value, ...]]
+"""A cycle's TPDO values by COB-ID."""
+
+
+def _no_outputs(_got: TpdoValues) -> Outputs:
+    """The actuator getter of a node whose mapping carries no (or not every) actuator field."""
+    return None
+
+
+def _outputs_getter(at: Sequence[tuple[PdoLayout, int]]) -> Callable[[TpdoValues], Outputs]:
+    """A cycle's TPDO values by COB-ID -> the actuator fields at (TPDO, position) each, as a
+    tuple, or None when a TPDO carrying one did not come (one lookup for the usual one field)."""
+    if len(at) == 1:
+        cob_id, position = at[0][0].cob_id, at[0][1]
+
+        def one(got: Mapping[int, tuple[Value, ...]]) -> Outputs:
+            values = got.get(cob_id)
+            return None if values is None else (values[position],)
+
+        return one
+    where = [(pdo.cob_id, position) for pdo, position in at]
+
+    def several(got: Mapping[int, tuple[Value, ...]]) -> Outputs:
+        try:
+            return tuple([got[cob_id][position] for cob_id, position in where])
+        except KeyError:
+            return None
+
+    return several
+
+
 __all__ = [
-    "ACTUATOR_OUTPUT",
     "BUS_EVENTS_PATH",
     "SETPOINT_STREAM",
     "SYNC_FRAMES",
-    "TRUTH_ALIASES",
-    "TRUTH_NAMES",
     "CycleResult",
     "Driver",
     "FrameCallback",
     "History",
     "HistoryBlock",
     "HistoryMark",
+    "Outputs",
     "PdoRow",
     "Plant",
-    "Sensors",
+    "SensorFrame",
+    "Truth",
     "resolve_truth_name",
     "sdo_poll_layout",
     "sync_counter",

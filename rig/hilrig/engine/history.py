@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hilrig.plants import STATE_FIELDS, JointState, state_matrix
+from hilrig.plants.interface import Plant
 from hilrig.table import unknown_name
 from hilrig.wire.transport import ARRIVAL, ROW_CYCLE, PdoDirection, PdoLayout
 
@@ -18,21 +18,29 @@ Value = float | int
 PdoRow = tuple[PdoLayout, tuple[Value, ...]]
 """One PDO of one cycle: its layout and the values it carried, in mapping order."""
 
-TRUTH_NAMES: tuple[str, ...] = tuple(name for name in JointState.__dataclass_fields__ if name != "time_s")
-"""Ground-truth quantities, named as the JointState attributes (unit in the name)."""
-_UNIT_SUFFIXES = ("_rad_s", "_rad", "_nm", "_a", "_c", "_ohm")
-TRUTH_ALIASES: dict[str, str] = {
-    name[: -len(suffix)]: name for name in TRUTH_NAMES for suffix in _UNIT_SUFFIXES if name.endswith(suffix)
-}
-"""Short names without the unit suffix ("load_velocity" -> "load_velocity_rad_s")."""
+_UNIT_SUFFIXES = ("_rad_s", "_rad", "_nm", "_a", "_c", "_ohm", "_v", "_m_s2", "_m", "_w", "_k")
+"""The SI suffixes a truth name may be given without ("load_velocity" -> "load_velocity_rad_s")."""
 
 
-def resolve_truth_name(name: str) -> str:
-    if name in TRUTH_NAMES:
+def truth_aliases(names: Iterable[str]) -> dict[str, str]:
+    """Short names without the unit suffix, of the truth quantities `names`."""
+    aliases: dict[str, str] = {}
+    for name in names:
+        suffix = next((s for s in _UNIT_SUFFIXES if name.endswith(s)), None)
+        if suffix is not None:
+            aliases.setdefault(name[: -len(suffix)], name)
+    return aliases
+
+
+def resolve_truth_name(name: str, names: tuple[str, ...]) -> str:
+    """`name` as one of the truth quantities `names` (itself, or by its short alias);
+    FieldNameError-like with the close matches when it is neither."""
+    if name in names:
         return name
-    if name in TRUTH_ALIASES:
-        return TRUTH_ALIASES[name]
-    raise unknown_name("ground-truth quantity", name, (*TRUTH_NAMES, *TRUTH_ALIASES))
+    aliases = truth_aliases(names)
+    if name in aliases:
+        return aliases[name]
+    raise unknown_name("ground-truth quantity", name, (*names, *aliases))
 
 
 class _PdoRows:
@@ -182,7 +190,7 @@ HistoryBlock = tuple[PdoLayout, np.ndarray, np.ndarray]
 (rows x names) matrix; `layout.names` name its columns."""
 
 
-def _forget(_state: JointState) -> None:
+def _forget(_state: object) -> None:
     """`History.record_truth` of a history that keeps nothing."""
 
 
@@ -192,27 +200,28 @@ class History:
     Stored per PDO as the bus carried it (`_PdoRows`: a cycle and a payload per row, appended
     in C for every TPDO a lockstep cycle decodes); a field's series is assembled when asked for.
     Times are cycle * period exactly: the start of the cycle whose SYNC the values belong to.
-    Truth rows hold the plant state at that time (the one the cycle's sensor frame was sampled
-    from).
+    Truth rows hold the plant's truth snapshot at that time (the one the cycle's sensor frame
+    was sampled from); `plant` (`hilrig.plants.interface.Plant`) reads them into series.
 
     `keep=False` records nothing: no rows, no truth, so a run of any length holds the same
     memory. For a program that judges every cycle as it goes and asks for no series afterwards
     (the soak's million cycles); there is nothing to trace or to read back from it.
     """
 
-    def __init__(self, period_us: int, *, keep: bool = True) -> None:
+    def __init__(self, period_us: int, *, keep: bool = True, plant: Plant | None = None) -> None:
         self.period_us = period_us
+        self.plant = plant
         self.keep = keep
         """Whether rows and truth are recorded (a driver then appends its rows: `row_store`)."""
         self._received = _Direction()
         self._sent = _Direction()
-        self._truth: list[JointState] = []
+        self._truth: list[object] = []
         self._arrivals: dict[PdoLayout, bytearray] = {}
         """Per TPDO, (cycle, CLOCK_MONOTONIC ns) of each arrival (`ARRIVAL`), as the exchange
         appends them (`arrival_store`)."""
         self._syncs = bytearray()
         """(cycle, CLOCK_MONOTONIC ns) of each cycle's SYNC as it was sent (`note_sync`)."""
-        self.record_truth: Callable[[JointState], None] = self._truth.append if keep else _forget
+        self.record_truth: Callable[[object], None] = self._truth.append if keep else _forget
         """Record the plant state of the next cycle (every cycle: the list's own append)."""
 
     def time_of(self, cycle: int) -> float:
@@ -247,8 +256,8 @@ class History:
                 blocks.append((rows.layout, rows.cycle_column(begin, stop), rows.matrix(begin, stop)))
         return blocks
 
-    def truth_between(self, start: HistoryMark, end: HistoryMark) -> tuple[range, list[JointState]]:
-        """The cycles and plant states recorded after `start` up to `end` (one per cycle)."""
+    def truth_between(self, start: HistoryMark, end: HistoryMark) -> tuple[range, list[object]]:
+        """The cycles and truth snapshots recorded after `start` up to `end` (one per cycle)."""
         return range(start.truth, end.truth), self._truth[start.truth : end.truth]
 
     def times_of(self, cycles: Iterable[int] | np.ndarray) -> np.ndarray:
@@ -323,21 +332,28 @@ class History:
             raise KeyError(name)
         return latest[1]
 
+    def truth_name(self, name: str) -> str:
+        """`name` as one of the plant's truth quantities (itself or its short alias)."""
+        if self.plant is None:
+            raise ValueError("this history has no plant, so no truth")
+        return resolve_truth_name(name, self.plant.truth_fields)
+
     def truth(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """(t, values) of a ground-truth quantity (JointState attribute or its short alias)."""
-        attribute = resolve_truth_name(name)
+        """(t, values) of a ground-truth quantity of the plant (`Plant.truth_fields`, or a name
+        without its unit suffix)."""
+        attribute = self.truth_name(name)
+        assert self.plant is not None
         states = self._truth[:]  # the rig may append on while this reads (the tracer's thread)
-        values = state_matrix(states)[:, STATE_FIELDS.index(attribute)]
+        values = self.plant.truth_matrix(states)[:, self.plant.truth_fields.index(attribute)]
         return self._times(range(len(states))), values
 
 
 __all__ = [
-    "TRUTH_ALIASES",
-    "TRUTH_NAMES",
     "History",
     "HistoryBlock",
     "HistoryMark",
     "PdoRow",
     "Value",
     "resolve_truth_name",
+    "truth_aliases",
 ]

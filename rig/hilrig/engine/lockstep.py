@@ -2,14 +2,15 @@
 
 One cycle (index n, simulation time t = n * period, exact):
 
-1. sample the plant: raw sensor values (`RawSensors`) -> the RPDO(s) mapping the HIL inputs;
+1. sample the plant (`hilrig.plants.interface.Plant`): its sensor frame -> the RPDO(s) mapping
+   the HIL inputs, and its truth;
 2. send the setpoint stream (the RPDO carrying velocity_setpoint, every cycle like a real
    master; the firmware's watchdog watches it) and any other RPDO a scenario changed;
 3. send SYNC with counter (n mod 240) + 1;
 4. wait for every synchronous TPDO due at this SYNC (type k: every k-th SYNC since the node
    entered operational); the wall-clock bound is only a hang guard (`HangGuard`), and one that
    a busy host does not trip where the firmware process can be watched;
-5. step the plant by one period with the duty from the actuator TPDO (motor_duty).
+5. apply the plant's actuator fields from the TPDOs that carry them, step it by one period.
 
 Every cycle's received values, sent values and the plant's ground truth go into `History`.
 
@@ -27,23 +28,21 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 from hilrig.engine.driver import (
-    ACTUATOR_OUTPUT,
     LIVENESS_SLICE_S,
     SETPOINT_STREAM,
     SYNC_FRAMES,
-    TRUTH_ALIASES,
-    TRUTH_NAMES,
     CycleResult,
     Driver,
     History,
     PdoRow,
     ProcessActivity,
+    SensorFrame,
+    Truth,
     Value,
     resolve_truth_name,
     sync_counter,
 )
 from hilrig.errors import FirmwareError, HostStarvedError, LockstepError
-from hilrig.plants import JointState, RawSensors, duty_from_motor_duty
 from hilrig.wire.transport import Decoder, PdoLayout, append_frame_rows, append_row, send_frames
 
 _NOTHING_DUE: frozenset[int] = frozenset()
@@ -141,8 +140,8 @@ class CycleStart:
     cycle: int
     t: float
     counter: int
-    raw: RawSensors
-    state: JointState
+    raw: SensorFrame
+    state: Truth
     due: frozenset[int]
     sync_number: int
     sent: tuple[PdoRow, ...]
@@ -175,7 +174,7 @@ class LockstepDriver(Driver):
         self.history.note_sync(n, time.monotonic_ns())
         got = self._collect(n, t, due, sync_number, frames + SYNC_FRAMES[counter - 1])
         result = self._record(n, t, counter, state, raw, sent, frames, got)
-        self.plant.step(self.period_s, result.duty)
+        self.plant.step(self.period_s)
         self.cycle = n + 1
         return result
 
@@ -199,8 +198,8 @@ class LockstepDriver(Driver):
         return self._collect(start.cycle, start.t, start.due, start.sync_number, start.unsent)
 
     def end_cycle(self, start: CycleStart, got: dict[int, tuple[Value, ...]]) -> CycleResult:
-        """Record the cycle in the history; the result's duty is what the physics applies next
-        (the caller steps the plant and advances `cycle`)."""
+        """Record the cycle in the history and apply its actuator outputs to the plant (the
+        caller steps the plant and advances `cycle`)."""
         return self._record(
             start.cycle, start.t, start.counter, start.state, start.raw, start.sent, start.frames, got
         )
@@ -245,13 +244,14 @@ class LockstepDriver(Driver):
         (COB-IDs, any node's)."""
         self._forget_rows(n, [cob_id for cob_id in got if cob_id in self._tpdo_by_cob])
 
-    def _sample(self) -> tuple[int, JointState, RawSensors, frozenset[int], int, tuple[PdoRow, ...], bytes]:
+    def _sample(self) -> tuple[int, Truth, SensorFrame, frozenset[int], int, tuple[PdoRow, ...], bytes]:
         """A cycle's first phase, nothing sent yet: (cycle, the plant's state, the sensor frame
         sampled from it, the TPDOs (COB-IDs) due at its SYNC, that SYNC's number since the node
         went operational, the RPDOs' rows, their frames joined in sending order)."""
         n = self.cycle
-        state = self.plant.state
-        raw = self.sensors.read(state)
+        plant = self.plant
+        raw = plant.sense()
+        state = plant.truth()
         if self.sensor_override is not None:
             raw = self.sensor_override(raw)
         if self._operational:
@@ -270,27 +270,27 @@ class LockstepDriver(Driver):
         n: int,
         t: float,
         counter: int,
-        state: JointState,
-        raw: RawSensors,
+        state: Truth,
+        raw: SensorFrame,
         sent: tuple[PdoRow, ...],
         frames: bytes,
         got: dict[int, tuple[Value, ...]],
     ) -> CycleResult:
         """A cycle's last phase: its RPDOs and truth into the history (its TPDOs are in already,
-        appended as they were decoded: `_collect`), and the result, whose duty is what the
-        physics applies next."""
-        duty = 0.0
-        actuator = self._actuator
-        if actuator is not None:
-            # Without the actuator TPDO (node not operational) the bridge is off, as a motor
-            # driver whose command stream stopped would be.
-            values = got.get(actuator[0].cob_id)
-            if values is not None:
-                duty = duty_from_motor_duty(values[actuator[1]])  # an int: the codec's I16
+        appended as they were decoded: `_collect`), its actuator outputs applied to the plant
+        (None when the TPDOs carrying them did not come: the node not operational), and the
+        result."""
+        one = self._actuator_one
+        if one is not None:
+            values = got.get(one[0])
+            outputs = None if values is None else (values[one[1]],)
+        else:
+            outputs = self._actuator(got)
+        self.plant.apply(outputs)
         if self._rpdo_rows:  # none when the history keeps nothing
             append_frame_rows(frames, self._rpdo_rows, n)
         self.history.record_truth(state)
-        return CycleResult(n, t, counter, raw, got, duty, sent, state, self._tpdo_by_cob)
+        return CycleResult(n, t, counter, raw, got, outputs, sent, state, self._tpdo_by_cob)
 
     def _collect(
         self, n: int, t: float, due: frozenset[int], sync_number: int, out: bytes = b""
@@ -442,11 +442,8 @@ def cycles_for(seconds: float, period_us: int) -> int:
 
 
 __all__ = [
-    "ACTUATOR_OUTPUT",
     "HANG_CAP_FACTOR",
     "SETPOINT_STREAM",
-    "TRUTH_ALIASES",
-    "TRUTH_NAMES",
     "CycleProblem",
     "CycleResult",
     "CycleStart",

@@ -13,15 +13,16 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from boardproto.cia301 import NmtState
     from hilrig.engine.driver import CycleResult, History
-    from hilrig.plants import JointParams
+    from hilrig.plants.interface import Plant
     from hilrig.wire.node import EmcyRecord
 
 
 class RigObserver:
     """Base of everything that watches a `Rig`: override what you need."""
 
-    def on_params(self, params: JointParams) -> None:
-        """The plant's parameters, once, when the observer is attached."""
+    def on_plant(self, plant: Plant) -> None:
+        """The rig's plant (`hilrig.plants.interface.Plant`: its truth's names and columns, its
+        truth parameters), once, when the observer is attached."""
 
     def on_history(self, history: History) -> None:
         """The rig's per-cycle history, once, when the observer is attached: an observer that

@@ -40,7 +40,7 @@ from hilrig.engine.driver import (
     sync_frame,
 )
 from hilrig.errors import RealTimeError
-from hilrig.plants import JointPlant, SensorModel, duty_from_motor_duty
+from hilrig.plants.interface import Plant
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import PdoLayout
 
@@ -48,8 +48,8 @@ from hilrig.wire.transport import PdoLayout
 class WallHistory(History):
     """`History` whose cycle times are the measured tick times, not cycle * period."""
 
-    def __init__(self, period_us: int) -> None:
-        super().__init__(period_us)
+    def __init__(self, period_us: int, *, plant: Plant | None = None) -> None:
+        super().__init__(period_us, plant=plant)
         self._tick_times: list[float] = []
 
     def record_tick(self, t: float) -> None:
@@ -82,13 +82,12 @@ class RealTimeDriver(Driver):
     loses nothing and needs no receive thread.
     """
 
-    needs_sync_actuator = False  # any TPDO carrying motor_duty will do, synchronous or not
+    needs_sync_actuator = False  # any TPDO carrying the actuator fields will do, synchronous or not
 
     def __init__(
         self,
         node: BoardNode,
-        plant: JointPlant,
-        sensors: SensorModel,
+        plant: Plant,
         *,
         period_us: int = 10_000,
         physics: bool = True,
@@ -99,10 +98,8 @@ class RealTimeDriver(Driver):
         wait: Callable[[float], object] | None = None,
     ) -> None:
         self.physics = physics
-        super().__init__(
-            node, plant, sensors, period_us=period_us, tpdo_timeout_s=tpdo_timeout_s, liveness=liveness
-        )
-        self.history: WallHistory = WallHistory(period_us)
+        super().__init__(node, plant, period_us=period_us, tpdo_timeout_s=tpdo_timeout_s, liveness=liveness)
+        self.history: WallHistory = WallHistory(period_us, plant=plant)
         self.clock = clock
         self.wait = wait if wait is not None else threading.Event().wait  # never set: a bounded sleep
         self.max_step_periods = max_step_periods
@@ -114,7 +111,7 @@ class RealTimeDriver(Driver):
         self._grid = 0  # index of the next tick on the grid t0 + k * period
         self._elapsed = 0.0
         self._last_rx = 0.0
-        self._duty = 0.0
+        self._outputs: tuple[Value, ...] | None = None
 
     @property
     def needs_plant_io(self) -> bool:
@@ -174,24 +171,24 @@ class RealTimeDriver(Driver):
                 f"tick {n} (t = {elapsed:.6g} s): no TPDO from node 0x{self.node.node_id:02X} for "
                 f"{now - self._last_rx:.3g} s"
             )
-        actuator = self._actuator
         if not self._operational:
-            self._duty = 0.0  # the bridge is off, as a motor driver whose commands stopped
-        elif actuator is not None:
-            for pdo, values in received:
-                if pdo is actuator[0]:
-                    self._duty = duty_from_motor_duty(int(values[actuator[1]]))
+            self._outputs = None  # the plant's safe default, as a driver whose commands stopped
+        elif self._actuator_pdos:
+            got = {pdo.cob_id: values for pdo, values in received if pdo in self._actuator_pdos}
+            if len(got) == len(self._actuator_pdos):  # otherwise the last tick's hold
+                self._outputs = self._actuator(got)
 
         raw = None
         if self.physics:
             step_s = min(dt, self.max_step_periods * self.period_s)
             self.physics_lost_s += dt - step_s
             if step_s > 0.0:
-                self.plant.step(step_s, self._duty)
-            raw = self.sensors.read(self.plant.state)
+                self.plant.apply(self._outputs)
+                self.plant.step(step_s)
+            raw = self.plant.sense()
             if self.sensor_override is not None:
                 raw = self.sensor_override(raw)
-        state = self.plant.state
+        state = self.plant.truth() if self.physics else None
         sent = self._transmit_rpdos(raw)
         counter = sync_counter(n)
         self.link.send(sync_frame(counter))
@@ -210,9 +207,9 @@ class RealTimeDriver(Driver):
             sync_counter=counter,
             raw=raw,
             received_rows=received,
-            duty=self._duty,
+            outputs=self._outputs,
             sent_rows=sent,
-            truth=state if self.physics else None,
+            truth=state,
         )
 
     def _wait_for_tick(self) -> float:

@@ -39,7 +39,8 @@ from hilrig.engine.driver import (
     CycleResult,
     Driver,
     ProcessActivity,
-    resolve_truth_name,
+    SensorFrame,
+    Truth,
     sdo_poll_layout,
 )
 from hilrig.engine.lockstep import LockstepDriver
@@ -47,7 +48,8 @@ from hilrig.engine.observers import RigObserver
 from hilrig.engine.realtime import RealTimeDriver
 from hilrig.engine.timeline import CycleRunner
 from hilrig.errors import FieldAccessError, LockstepError, NoValueError, RealTimeError, SdoAbortError
-from hilrig.plants import JointParams, JointPlant, JointState, RawSensors, SensorModel
+from hilrig.plants import default_plant
+from hilrig.plants.interface import Plant
 from hilrig.table import RigTable
 from hilrig.wire.node import BoardNode, EmcyRecord
 
@@ -68,14 +70,16 @@ class TimingMode(enum.StrEnum):
 
 
 class Rig(CycleRunner):
-    """Lockstep rig: the plant, the sensor models and one board node on the caller's bus.
+    """Lockstep rig: the plant (`hilrig.plants.interface.Plant`) and one board node on the
+    caller's bus.
 
     Construction connects to the bus (starts canopen's receive thread) but sends nothing;
     `start()` (or entering the `with` block) brings the node up: waits for its boot-up or
     heartbeat, checks its identity, reads and verifies its PDO mapping, puts it operational.
 
     bus: python-can bus the caller owns and shuts down. node_id: default from board.toml.
-    eds: the generated EDS. params/seed: plant parameters and sensor noise seed.
+    eds: the generated EDS. plant: the hardware model; default: the demo joint
+    (`hilrig.plants.default_plant`) of `params` (its parameters) and `seed` (its sensor noise).
     period_us: control period (the firmware's --period-us). liveness: called while waiting
     for TPDOs, raises when the node's process died (e.g. `Firmware.check`). activity: the
     node's process activity (e.g. `Firmware.activity`), so that the lockstep hang guard tells a
@@ -85,8 +89,8 @@ class Rig(CycleRunner):
     mode: "lockstep" or "realtime" (`TimingMode`); in real time `period_us` is the rig's own
     tick, which need not equal the node's period. physics: False only in real time (observe
     and command a real board; `truth()` and `state` then have nothing to show).
-    plant: the joint's plant when someone else owns it (a robot's chain, whose mechanics step
-    every joint together); default: a JointPlant of `params` of the rig's own.
+    A robot's module gets its plant from the robot's chain, whose mechanics step every module
+    together.
     """
 
     def __init__(
@@ -95,7 +99,7 @@ class Rig(CycleRunner):
         *,
         node_id: int | None = None,
         eds: str | Path = DEFAULT_EDS_PATH,
-        params: JointParams | None = None,
+        params: object | None = None,
         seed: int = 0,
         period_us: int = 1000,
         table: RigTable | None = None,
@@ -107,7 +111,7 @@ class Rig(CycleRunner):
         tracer: RigObserver | None = None,
         mode: TimingMode | str = TimingMode.LOCKSTEP,
         physics: bool = True,
-        plant: JointPlant | None = None,
+        plant: Plant | None = None,
     ) -> None:
         self.mode = TimingMode(mode)  # a typo raises ValueError here, not mid-scenario
         self.physics = physics
@@ -116,19 +120,15 @@ class Rig(CycleRunner):
                 "physics=False needs mode='realtime': in lockstep the node waits for the physics"
             )
         self.table = table if table is not None else RigTable.load()
-        if params is None:
-            params = plant.params if plant is not None else JointParams()
-        self.params = params
         self.boot_timeout_s = boot_timeout_s
         node_id = node_id if node_id is not None else self.table.board.node.default_node_id
         self.node = BoardNode(bus, node_id, eds, self.table, sdo_timeout_s=sdo_timeout_s)
-        self.plant = plant if plant is not None else JointPlant(self.params)
+        self.plant: Plant = plant if plant is not None else default_plant(params, seed)
         self.driver: Driver
         if self.mode is TimingMode.REALTIME:
             self.driver = RealTimeDriver(
                 self.node,
                 self.plant,
-                SensorModel(self.params, seed),
                 period_us=period_us,
                 physics=physics,
                 tpdo_timeout_s=tpdo_timeout_s,
@@ -138,7 +138,6 @@ class Rig(CycleRunner):
             self.driver = LockstepDriver(
                 self.node,
                 self.plant,
-                SensorModel(self.params, seed),
                 period_us=period_us,
                 tpdo_timeout_s=tpdo_timeout_s,
                 liveness=liveness,
@@ -160,7 +159,7 @@ class Rig(CycleRunner):
 
     def add_observer(self, observer: RigObserver) -> None:
         """Let `observer` watch every later cycle and event (`hilrig.engine.observers`)."""
-        observer.on_params(self.params)
+        observer.on_plant(self.plant)
         observer.on_history(self.driver.history)
         if self._polled is not None:
             observer.on_polled(self._polled[0].names, self._polled[1])
@@ -378,19 +377,20 @@ class Rig(CycleRunner):
     def truth(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """(t, values) of a ground-truth quantity of the plant, e.g. "load_velocity" (or its
         full name "load_velocity_rad_s"), one row per cycle at the cycle's start."""
-        resolve_truth_name(name)
+        self.driver.history.truth_name(name)
         if not self.physics:
             raise NoValueError(f"{name}: the rig runs without physics, so there is no ground truth")
         return self.driver.history.truth(name)
 
     @property
-    def state(self) -> JointState:
-        """The plant's present state (at rig.t)."""
-        return self.plant.state
+    def state(self) -> Truth:
+        """The plant's present truth (at rig.t)."""
+        return self.plant.truth()
 
     # --- Faults and bus control ---------------------------------------------------------
-    def override_sensors(self, override: Callable[[RawSensors], RawSensors] | None) -> None:
-        """Replace each cycle's raw sensor values before they are sent (None: physics only)."""
+    def override_sensors(self, override: Callable[[SensorFrame], SensorFrame] | None) -> None:
+        """Replace each cycle's sensor frame (`Plant.sense`) before it is sent (None: physics
+        only)."""
         self.driver.sensor_override = override
 
     def pause_rpdo(self, number: int) -> None:

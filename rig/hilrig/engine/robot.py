@@ -11,7 +11,8 @@ or a list), one SYNC per cycle for all, the chain's mechanics from MuJoCo
 
 Each module is a `Rig` of its own (its node, its SDO, its history and trace under
 /modules/<id>), whose driver the robot steps: every module's RPDOs, then one SYNC, then every
-module's due TPDOs, then one physics step of the whole chain with every module's duty.
+module's due TPDOs, then one physics step of the whole chain with the outputs each module
+applied to its plant.
 
 The rig is the bus master: it also sends the master's heartbeat (every `MasterHeartbeat.period_ms`
 of simulation time) and configures each module's heartbeat consumer (CiA 301 0x1016) to watch it,
@@ -56,7 +57,7 @@ from hilrig.engine.lockstep import CycleStart, HangGuard, LockstepDriver
 from hilrig.engine.rig import Rig
 from hilrig.engine.timeline import CycleRunner
 from hilrig.errors import FirmwareError, LockstepError
-from hilrig.plants import JointPlant
+from hilrig.plants.interface import Plant
 from hilrig.table import ControlMode
 from hilrig.wire.transport import Decoder, Exchange, FrameLink, can_frame, exchanger, send_frames
 
@@ -112,12 +113,13 @@ class LostModule:
 
 class ChainModel(Protocol):
     """The mechanics a robot steps (`hilrig.plants.chain.ChainPhysics`): one coupled plant per
-    joint, stepped together by one control period with every joint's duty."""
+    module (`models`, each a module rig's `Plant`), stepped together by one control period with
+    the outputs each module's cycle applied to its plant."""
 
     @property
-    def plants(self) -> Sequence[JointPlant]: ...
+    def models(self) -> Sequence[Plant]: ...
 
-    def step(self, dt_s: float, duties: Sequence[float]) -> None: ...
+    def step(self, dt_s: float) -> None: ...
 
     @property
     def link_count(self) -> int:
@@ -218,7 +220,7 @@ class Robot(CycleRunner):
     """N modules (one `Rig` each, lockstep) and the chain's mechanics, stepped as one.
 
     modules: the modules' rigs, in chain order (joint k of `chain` is module k); each must be
-    constructed with `plant=chain.plants[k]`. firmware: each module's process (None for a board
+    constructed with `plant=chain.models[k]`. firmware: each module's process (None for a board
     the robot did not start), so `kill()` can end one and a lost one is named with its exit.
     master: the heartbeat the rig produces and the modules watch (None: no heartbeat at all).
     """
@@ -234,8 +236,8 @@ class Robot(CycleRunner):
         if not modules:
             raise ValueError("a robot needs at least one module")
         module_ids([m.node.node_id for m in modules])
-        if len(chain.plants) != len(modules):
-            raise ValueError(f"chain has {len(chain.plants)} joints for {len(modules)} modules")
+        if len(chain.models) != len(modules):
+            raise ValueError(f"chain has {len(chain.models)} joints for {len(modules)} modules")
         periods = {m.driver.period_us for m in modules}
         if len(periods) != 1:
             raise ValueError(f"modules with different periods: {sorted(periods)} us")
@@ -245,7 +247,7 @@ class Robot(CycleRunner):
         for k, module in enumerate(self.modules):
             if not isinstance(module.driver, LockstepDriver):
                 raise ValueError(f"node 0x{module.node.node_id:02X}: a robot runs its modules in lockstep")
-            if module.plant is not chain.plants[k]:
+            if module.plant is not chain.models[k]:
                 raise ValueError(f"node 0x{module.node.node_id:02X}: its plant is not joint {k} of the chain")
             module.robot = self
             self._drivers.append(module.driver)
@@ -390,14 +392,14 @@ class Robot(CycleRunner):
         results: list[CycleResult | None] = [None] * len(drivers)
         for k, start in starts.items():  # the modules lost in this cycle are no longer in `starts`
             results[k] = drivers[k].end_cycle(start, got[k])
-        duties = [result.duty if result is not None else 0.0 for result in results]
         for k, driver in enumerate(drivers):
-            if results[k] is None:  # lost: the limp joint still has a truth
-                state = driver.plant.state
+            if results[k] is None:  # lost: its hardware gets no outputs, and still has a truth
+                driver.plant.apply(None)
+                state = driver.plant.truth()
                 driver.history.record_truth(state)
                 t = driver.history.time_of(n)
-                results[k] = CycleResult(n, t, sync_counter(n), None, (), 0.0, (), state)
-        self.chain.step(self.period_s, duties)
+                results[k] = CycleResult(n, t, sync_counter(n), None, (), None, (), state)
+        self.chain.step(self.period_s)
         self._cycle = n + 1
         for k, driver in enumerate(drivers):
             driver.cycle = n + 1

@@ -28,20 +28,17 @@ from hilrig.observe.paths import (
     FIELDS_ROOT,
     MODULES_ROOT,
     SIM_TIME_TIMELINE,
-    TRUE_SPRING_STIFFNESS,
-    TRUTH_QUANTITIES,
     TRUTH_ROOT,
     WALL_TIME_TIMELINE,
     BusProblem,
     delay_path,
     frames_path,
     label_path,
+    plant_truth_path,
     problem_path,
-    truth_path,
     truth_unit,
 )
 from hilrig.observe.sinks import Severity
-from hilrig.plants import STATE_FIELDS, JointState, state_matrix
 from hilrig.wire.transport import PdoDirection, PdoLayout
 
 if TYPE_CHECKING:
@@ -59,7 +56,7 @@ class _CycleRow:
     time_s: float
     groups: tuple[tuple[Sequence[str], Sequence[Value]], ...]
     """(names, values) pairs: one per PDO, or one per dict given to `log_cycle`."""
-    truth: JointState | None  # None: real time without physics
+    truth: object | None  # None: real time without physics
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,8 +101,10 @@ class RecordBatches:
                 framed = True
         if framed:  # the frames of each direction per cycle (`_send_frames`)
             series += self._bus_totals_series()
-        if truth:  # the truth too, when the rig has a plant, and its spring constant
-            series += [(self.root + truth_path(quantity), None, False) for quantity in TRUTH_QUANTITIES]
+        plant = self._plant
+        if truth and plant is not None:  # the truth too, when the rig has a plant, and its parameters
+            quantities = (*plant.truth_fields, *plant.truth_parameters())
+            series += [(self.root + plant_truth_path(quantity), None, False) for quantity in quantities]
         self._name_many(series)
         for path, _, _ in series:  # the columns of the batches to come, made while nothing runs
             self._scalars_field(path)
@@ -123,9 +122,9 @@ class RecordBatches:
         every_cycle = np.asarray(cycles, dtype=np.int64)
         times = history.times_of(cycles)
         self._send_parts(parts, also=self._truth_row_sets(every_cycle, times, states))
-        if states:  # the spring constant's changes go with the frame counts' (mostly the same rows)
-            stiffness = self._spring_stiffness_series(len(every_cycle))
-            self._send_frames(frames, every_cycle, times, also=stiffness)
+        if states:  # the truth parameters' changes go with the frame counts' (mostly the same rows)
+            parameters = self._truth_parameter_series(len(every_cycle))
+            self._send_frames(frames, every_cycle, times, also=parameters)
             self._measure_span(frames, every_cycle, times)
 
     def _send_batch(self, batch: list[_CycleRow | CycleResult]) -> None:
@@ -158,9 +157,9 @@ class RecordBatches:
             parts.append((names, all_cycles[indexes], all_times[indexes], matrix))
         with_truth = [i for i, row in enumerate(batch) if row.truth is not None]
         truth_cycles, truth_times = all_cycles[with_truth], all_times[with_truth]
-        states: list[JointState] = [batch[i].truth for i in with_truth]  # type: ignore[misc]
+        states = [batch[i].truth for i in with_truth]
         self._send_parts(parts, also=self._truth_row_sets(truth_cycles, truth_times, states))
-        self._send_spring_stiffness(truth_cycles, truth_times)
+        self._send_truth_parameters(truth_cycles, truth_times)
 
         results = [row for row in batch if isinstance(row, CycleResult)]
         if results:
@@ -327,33 +326,37 @@ class RecordBatches:
         ]
 
     def _truth_row_sets(
-        self, cycles: np.ndarray, times: np.ndarray, states: Sequence[JointState]
+        self, cycles: np.ndarray, times: np.ndarray, states: Sequence[object]
     ) -> list[_RowSet]:
-        """The truth's series over these plant states, as the row set `_send_parts` sends with
-        the PDOs' (none without states)."""
-        if not states:
+        """The truth's series over these snapshots of the plant's, as the row set `_send_parts`
+        sends with the PDOs' (none without states, or before the rig gave its plant)."""
+        with self._lock:
+            plant = self._plant
+        if not states or plant is None:
             return []
-        matrix = state_matrix(states)
+        matrix = plant.truth_matrix(states)
         series = [
-            (self.root + truth_path(quantity), matrix[:, STATE_FIELDS.index(quantity)])
-            for quantity in TRUTH_QUANTITIES[:-1]
+            (self.root + plant_truth_path(quantity), matrix[:, column])
+            for column, quantity in enumerate(plant.truth_fields)
         ]
         return [(cycles, times, series)]
 
-    def _send_spring_stiffness(self, cycles: np.ndarray, times: np.ndarray) -> None:
-        """The plant's spring constant over these cycles (a parameter: as its changes)."""
+    def _send_truth_parameters(self, cycles: np.ndarray, times: np.ndarray) -> None:
+        """The plant's truth parameters over these cycles (as their changes)."""
         if len(cycles):
-            self._send_changes(cycles, times, self._spring_stiffness_series(len(cycles)))
+            self._send_changes(cycles, times, self._truth_parameter_series(len(cycles)))
 
-    def _spring_stiffness_series(self, count: int) -> list[tuple[str, np.ndarray]]:
-        """The plant's spring constant over `count` cycles, as (path, values) (none before the
-        rig gave its parameters)."""
+    def _truth_parameter_series(self, count: int) -> list[tuple[str, np.ndarray]]:
+        """The plant's truth parameters over `count` cycles, as (path, values) (none before the
+        rig gave its plant)."""
         with self._lock:
-            params = self._params
-        if params is None:
+            plant = self._plant
+        if plant is None:
             return []
-        stiffness = np.full(count, params.spring_stiffness_nm_per_rad)
-        return [(self.root + truth_path(TRUE_SPRING_STIFFNESS), stiffness)]
+        return [
+            (self.root + plant_truth_path(name), np.full(count, value))
+            for name, value in plant.truth_parameters().items()
+        ]
 
     def _send_group(
         self, cycles: Sequence[int], times: Sequence[float], series: Sequence[tuple[str, np.ndarray]]

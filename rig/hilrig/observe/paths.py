@@ -7,8 +7,8 @@ and data cannot drift apart; it imports nothing of hilrig but the exception tree
                              commands every cycle they go out, SDO writes when made)
     /hil/inputs/<name>       raw sensor values the rig sent (RPDO1), /hil/outputs/<name> raw
                              actuator values the node sent (motor_duty, led_pattern)
-    /truth/<quantity>        the plant's ground truth (JointState attributes, unit in the name),
-                             plus spring_stiffness_nm_per_rad from the plant parameters
+    /truth/<quantity>        the plant's ground truth (its `truth_fields`, unit in the name),
+                             plus its `truth_parameters` (the joint: spring_stiffness_nm_per_rad)
     /bus/frames/<PDO>        frames of that PDO's COB-ID in each cycle (TPDO5: 1 every 10th),
                              /bus/per_cycle/{tpdos,rpdos} their sums per direction
     /bus/load                the bus load per 10 ms window [% of the bit rate]
@@ -135,6 +135,9 @@ _TRUTH_UNITS = (  # the longest suffix first: "_nm_per_rad" also ends in "_rad"
     ("_a", "A"),
     ("_c", "degC"),
     ("_ohm", "ohm"),
+    ("_m_s2", "m/s^2"),
+    ("_v", "V"),
+    ("_w", "W"),
 )
 TRUTH_QUANTITIES: tuple[str, ...] = (
     "motor_angle_rad",
@@ -149,8 +152,9 @@ TRUTH_QUANTITIES: tuple[str, ...] = (
     "applied_duty",
     TRUE_SPRING_STIFFNESS,
 )
-"""The truth series: the plant's JointState attributes but its time (a unit test keeps the two
-lists equal; the paths import no plant), and the spring constant."""
+"""The demo joint's truth series, which its dashboards name: the JointState attributes but its
+time (a unit test keeps the two lists equal; the paths import no plant), and the spring
+constant. Any other plant's: `plant_truth_path`."""
 
 
 def kind_path(kind: Kind) -> str:
@@ -183,6 +187,12 @@ def truth_path(quantity: str) -> str:
     """'/truth/load_velocity_rad_s'; the name is checked against the JointState attributes."""
     if quantity not in TRUTH_QUANTITIES:
         raise unknown_name("ground-truth quantity", quantity, TRUTH_QUANTITIES)
+    return f"{TRUTH_ROOT}/{quantity}"
+
+
+def plant_truth_path(quantity: str) -> str:
+    """'/truth/<quantity>' of any plant's truth quantity (`Plant.truth_fields`, or a name of
+    its `truth_parameters`): the plant said the name, nothing to check it against here."""
     return f"{TRUTH_ROOT}/{quantity}"
 
 

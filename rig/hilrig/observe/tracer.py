@@ -46,11 +46,10 @@ from hilrig.observe.paths import (
     NMT_PATH,
     SDO_PATH,
     SIM_TIME_TIMELINE,
-    TRUE_SPRING_STIFFNESS,
     WALL_TIME_TIMELINE,
     entity_paths,
     module_root,
-    truth_path,
+    plant_truth_path,
 )
 from hilrig.observe.sinks import (
     APPLICATION_ID,
@@ -62,7 +61,7 @@ from hilrig.observe.sinks import (
     default_latency,
     web_viewer_url,
 )
-from hilrig.plants import JointParams, JointState
+from hilrig.plants.interface import Plant
 from hilrig.table import RigTable
 from hilrig.wire.node import EmcyRecord
 from hilrig.wire.transport import PdoLayout
@@ -165,7 +164,7 @@ class Tracer(RecordBatches, RigObserver):
         """The page of the served web viewer (with the data's address), when a web sink is used."""
         self._handed_over_cycles = 0  # cycles logged and handed to the sender (cycles_logged)
         self._look_at = 1  # on_cycle looks further once this many cycles are pending
-        self._params: JointParams | None = None
+        self._plant: Plant | None = None
         self._paths = {name: root + path for name, path in entity_paths(table).items()}
         self._named: set[str] = set()  # entities whose static SeriesLines name was sent
         self._polled: dict[str, int] = {}  # field -> every how many cycles it is read over SDO
@@ -185,7 +184,6 @@ class Tracer(RecordBatches, RigObserver):
             for entry in table.board.entries
             if isinstance(entry, Field) and entry.kind in (Kind.COMMAND, Kind.PARAMETER)
         } | set(self._value_names)
-        self._held.add(self.root + truth_path(TRUE_SPRING_STIFFNESS))  # a parameter of the plant
         # PDOs seen on the bus (label -> layout): each gets a frames-per-cycle series, 0 in the
         # cycles it did not come (a TPDO due every 10th SYNC, one that went missing).
         self._framed: dict[str, PdoLayout] = {}
@@ -196,7 +194,7 @@ class Tracer(RecordBatches, RigObserver):
         self._history_mark: HistoryMark | None = None
         self._history_cycles = 0
         self._name_ahead = False  # name the history's series on the sender before its first batch
-        self._lock = threading.Lock()  # guards the swap of _pending, and _params (event threads)
+        self._lock = threading.Lock()  # guards the swap of _pending, and _plant (event threads)
         self._closed = False
         self._error: BaseException | None = None
 
@@ -254,10 +252,13 @@ class Tracer(RecordBatches, RigObserver):
         self.recording.set_sinks(*native)
 
     # --- What the Rig calls -----------------------------------------------------------------
-    def log_plant_params(self, params: JointParams) -> None:
-        """The plant's parameters: the true spring constant is logged every cycle from now on."""
+    def log_plant(self, plant: Plant) -> None:
+        """The rig's plant: its truth is traced from its snapshots (`Plant.truth_matrix`), and
+        its truth parameters (`Plant.truth_parameters`: a spring constant) beside it every
+        cycle from now on, as steps."""
         with self._lock:
-            self._params = params
+            self._plant = plant
+            self._held |= {self.root + plant_truth_path(name) for name in plant.truth_parameters()}
 
     def log_cycle(
         self,
@@ -265,7 +266,7 @@ class Tracer(RecordBatches, RigObserver):
         t: float,
         received: Mapping[str, Value],
         sent: Mapping[str, Value],
-        truth: JointState | None,
+        truth: object | None,
     ) -> None:
         """One completed lockstep cycle: TPDO values, RPDO values, the plant state at its start
         (real time: the tick's values and the plant at the tick; None without physics).
@@ -304,8 +305,8 @@ class Tracer(RecordBatches, RigObserver):
         return len(self._pending) + self._history_cycles
 
     # --- As an observer of a Rig --------------------------------------------------------
-    def on_params(self, params: JointParams) -> None:
-        self.log_plant_params(params)
+    def on_plant(self, plant: Plant) -> None:
+        self.log_plant(plant)
 
     def on_history(self, history: History) -> None:
         if self.cycles_logged == 0 and self._history is None:

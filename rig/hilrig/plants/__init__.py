@@ -1,7 +1,11 @@
 """The plants: the physics a rig puts on a node, no bus in here. The demo joint's plant,
 parameters and sensor models (`plant`, `params`, `sensors`, with the C physics `_plant.c`) and a
-robot's chain of joints (`chain`). The plant interface is `JointPlant`'s `step(dt)` and `state`.
-It imports nothing else of hilrig; the engine and everything above it import it.
+robot's chain of joints (`chain`).
+The plant interface (`interface.Plant`: sensor fields in, actuator fields applied, truth, a
+deterministic step) is all the engine, the session and the tracer know of a plant; the joint
+implements it as `joint.JointModel` (and `default_plant` makes one), a module of the chain as
+`chain.ChainPhysics.models`. It imports nothing else of hilrig; the engine and everything above
+it import it.
 
 Typical use, one control cycle of the lockstep driver::
 
@@ -22,6 +26,7 @@ except ImportError as error:
         "hilrig.plants._plant, the joint's physics in C, is not built: run tools/deps "
         "(or: .venv/bin/python -m pip install --no-build-isolation --no-deps -e rig)"
     ) from error
+from hilrig.plants.interface import Plant
 from hilrig.plants.params import FAST_THERMAL_TIME_CONSTANT_S, JointParams
 from hilrig.plants.plant import (
     MOTOR_DUTY_FULL_SCALE,
@@ -66,11 +71,13 @@ __all__ = [
     "JointParams",
     "JointPlant",
     "JointState",
+    "Plant",
     "RawSensors",
     "SensorModel",
     "counts_to_current_a",
     "counts_to_rad",
     "current_counts",
+    "default_plant",
     "duty_from_motor_duty",
     "encoder_counts",
     "ntc_resistance",
@@ -84,3 +91,13 @@ __all__ = [
     "thermistor_adc_to_temperature_c",
     "wrapped_count_delta",
 ]
+
+
+def default_plant(params: object | None = None, seed: int = 0) -> Plant:
+    """The plant of a rig given none: the demo joint (`hilrig.plants.joint.JointModel`) with
+    `params` (a JointParams; None: the defaults) and sensor noise of `seed`."""
+    from hilrig.plants.joint import JointModel
+
+    if params is not None and not isinstance(params, JointParams):
+        raise TypeError(f"params: expected JointParams for the default plant, got {type(params).__name__}")
+    return JointModel.of(params, seed)

@@ -51,8 +51,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from hilrig.plants.joint import JointModel
 from hilrig.plants.params import JointParams
 from hilrig.plants.plant import JointPlant, JointState
+from hilrig.plants.sensors import SensorModel
 
 if TYPE_CHECKING:
     import numpy as np
@@ -196,6 +198,8 @@ class ChainPhysics:
     """N joint modules in series on the ground, advanced one control period at a time.
 
     `step(dt_s, duties)` advances the plants and MuJoCo together (see the module docstring);
+    `models` are the modules as `hilrig.plants.interface.Plant`s (module k's sensor noise of
+    seed `seed * 1000 + k`), whose applied duties `step(dt_s)` takes when given none;
     `states` are the modules' JointStates (load angle and speed = MuJoCo's joints, spring
     torque = the spring's torque now); `poses()` the links' frames for a 3D view. Same
     inputs give bit-identical results (MuJoCo runs single-threaded, no randomness).
@@ -208,6 +212,7 @@ class ChainPhysics:
         geometry: ChainGeometry | None = None,
         *,
         initial_joint_angles_rad: Sequence[float] | None = None,
+        seed: int = 0,
     ) -> None:
         """A straight chain at rest (or bent to `initial_joint_angles_rad`, springs relaxed).
 
@@ -249,6 +254,10 @@ class ChainPhysics:
             for p, angle in zip(per_module, angles, strict=True)
         )
         self._states = [plant.state for plant in self._plants]
+        self._models = tuple(
+            JointModel(plant, SensorModel(p, seed * 1000 + k), stepped_by="its chain (ChainPhysics.step)")
+            for k, (plant, p) in enumerate(zip(self._plants, per_module, strict=True))
+        )
         self._applied_torques_nm = [0.0] * module_count
         self._steps_per_period: dict[float, int] = {}
 
@@ -289,6 +298,12 @@ class ChainPhysics:
     def plants(self) -> tuple[JointPlant, ...]:
         """The modules' plants: hold a rotor or change the ambient temperature through them."""
         return self._plants
+
+    @property
+    def models(self) -> tuple[JointModel, ...]:
+        """The modules as plants of the interface (`hilrig.plants.interface.Plant`): a robot's
+        module rig drives one each; the chain steps them all (`step`)."""
+        return self._models
 
     # --- State ------------------------------------------------------------------------------
     @property
@@ -333,16 +348,18 @@ class ChainPhysics:
         self._steps_per_period[dt_s] = steps
         return steps
 
-    def step(self, dt_s: float, duties: Sequence[float]) -> None:
+    def step(self, dt_s: float, duties: Sequence[float] | None = None) -> None:
         """Advance every module and the links by one control period `dt_s` [s].
 
         duties: one per module, fractions of the bus voltage (clamped to [-1, 1] by each
-        plant). Raises ValueError for a wrong count, a non-finite duty or a period that is
-        not a whole number of MuJoCo steps (nothing has moved then), FloatingPointError if
-        the simulation diverges.
+        plant); None: each module's as last applied to its model (`models`). Raises ValueError
+        for a wrong count, a non-finite duty or a period that is not a whole number of MuJoCo
+        steps (nothing has moved then), FloatingPointError if the simulation diverges.
         """
         steps = self.mujoco_steps_per_period(dt_s)
         plants = self._plants
+        if duties is None:
+            duties = [model.duty for model in self._models]
         if len(duties) != len(plants):
             raise ValueError(f"duties: expected {len(plants)}, got {len(duties)}")
         if not all(map(math.isfinite, duties)):

@@ -31,7 +31,8 @@ from boardproto.cia301 import emcy_cob_id
 from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig, TimingMode
 from hilrig.engine.robot import MasterHeartbeat, Robot, module_ids
 from hilrig.errors import BusUnavailableError
-from hilrig.plants import JointParams
+from hilrig.plants import default_plant
+from hilrig.plants.interface import Plant
 from hilrig.session.buslog import RecorderProcess, whole_file_logger
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.session.netns import PrivateBus, require_private_buses
@@ -70,6 +71,11 @@ class BoardInterface:
             ) from error
 
 
+PlantFactory = Callable[[Any, int], Plant]
+"""Makes a session's plant from (SessionConfig.params, SessionConfig.seed): the board's hardware
+model (`hilrig.plants.interface.Plant`); `hilrig.plants.default_plant` makes the demo joint."""
+
+
 @dataclass(frozen=True)
 class SessionConfig:
     """Everything a session is made of. out_dir: firmware.log, bus.log and trace.rrd go here.
@@ -77,11 +83,14 @@ class SessionConfig:
     `TraceSink`), or none.
     board: a real board (no firmware is started); None: the firmware on a private vcan0.
     firmware_period_us: the firmware's own period (default: the rig's, or 10 ms in real time).
+    plant: what makes the plant from `params` (its parameters, None: its defaults) and `seed`
+    (its noise); a robot's modules are its chain's (the demo joint's).
     """
 
     out_dir: Path
-    params: JointParams | None = None
+    params: Any = None
     seed: int = 0
+    plant: PlantFactory = default_plant
     node_id: int | None = None
     mode: TimingMode | str = TimingMode.LOCKSTEP
     period_us: int = 1000
@@ -227,8 +236,7 @@ def open_session(
             bus,
             node_id=node_id,
             eds=config.eds,
-            params=config.params,
-            seed=config.seed,
+            plant=config.plant(config.params, config.seed),
             period_us=config.period_us,
             table=table,
             liveness=firmware.check if firmware is not None else None,
@@ -267,7 +275,7 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
     out.mkdir(parents=True, exist_ok=True)
     stack = contextlib.ExitStack()
     try:
-        chain = ChainPhysics(len(node_ids), params=config.params)
+        chain = ChainPhysics(len(node_ids), params=config.params, seed=config.seed)
         chain.mujoco_steps_per_period(config.period_us / 1e6)  # a period MuJoCo cannot step: now
         private_bus, launcher = _launcher(stack, config, private_bus)
         recorder = _recorder(stack, launcher, config)
@@ -299,8 +307,7 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
                 bus,
                 node_id=node_id,
                 eds=config.eds,
-                plant=chain.plants[k],
-                seed=config.seed * 1000 + k,  # each module's sensor noise of its own
+                plant=chain.models[k],  # each with a sensor noise of its own
                 period_us=config.period_us,
                 table=table,
                 liveness=firmware[k].check,

@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import canopen
+import numpy as np
 
 from boardproto.cia301 import (
     NMT_COB_ID,
@@ -31,7 +33,18 @@ from boardproto.cia305 import MASTER_COB_ID as LSS_MASTER_COB_ID
 from hilrig import resources
 from hilrig.engine.driver import SETPOINT_STREAM
 from hilrig.errors import PdoMappingError
-from hilrig.plants import ENCODER_MODULUS, JointParams, JointPlant, JointState, RawSensors, thermistor_adc
+from hilrig.plants import (
+    ENCODER_MODULUS,
+    STATE_FIELDS,
+    JointParams,
+    JointPlant,
+    JointState,
+    RawSensors,
+    state_matrix,
+    thermistor_adc,
+)
+from hilrig.plants.interface import Value
+from hilrig.plants.joint import ACTUATOR_FIELD
 from hilrig.table import BOARD_TABLE, ControlMode, EmcyCode, FaultFlags, RigTable
 from hilrig.wire.transport import PdoDirection, PdoLayout, compile_pdos
 
@@ -201,11 +214,11 @@ class SensorPattern:
     ambient temperature and the motor current is zero. The output velocity is the setpoint of
     the velocity loop, so the controllers run near equilibrium for the whole soak.
 
-    It is the plant and the sensors of the engine's lockstep driver (`hilrig.engine.driver.Plant`
-    and `Sensors`): `read` gives the values of firmware cycle `cycle`, which the soak sets before
-    each cycle (SYNCs while the node is stopped are no firmware cycles, so the driver's own cycle
-    count would run ahead); `step` does nothing and `state` is the joint at the pattern's speeds,
-    never advanced (no physics: no truth to record).
+    It is the plant of the engine's lockstep driver (`hilrig.plants.interface.Plant`): `sense`
+    gives the values of firmware cycle `cycle`, which the soak sets before each cycle (SYNCs
+    while the node is stopped are no firmware cycles, so the driver's own cycle count would run
+    ahead); `apply` and `step` do nothing and `truth` is the joint at the pattern's speeds,
+    never advanced (no physics: the soak's history keeps no truth).
     """
 
     def __init__(self, layout: SoakLayout, period_us: int) -> None:
@@ -238,13 +251,25 @@ class SensorPattern:
         output = round(motor * self.output_per_motor)
         return RawSensors.in_range(motor & ENCODER_MASK, output & ENCODER_MASK, self.thermistor_adc, 0)
 
-    # The engine's Plant and Sensors.
-    @property
-    def state(self) -> JointState:
-        return self._state
+    # The engine's Plant.
+    sensor_fields = tuple(RawSensors.__dataclass_fields__)
+    actuator_fields = (ACTUATOR_FIELD,)
+    truth_fields = STATE_FIELDS[1:]
 
-    def step(self, dt_s: float, duty: float) -> JointState:
-        return self._state
-
-    def read(self, state: JointState) -> RawSensors:
+    def sense(self) -> RawSensors:
         return self.raw(self.cycle)
+
+    def truth(self) -> JointState:
+        return self._state
+
+    def truth_matrix(self, snapshots: Sequence[JointState]) -> np.ndarray:
+        return state_matrix(snapshots)[:, 1:]
+
+    def truth_parameters(self) -> Mapping[str, float]:
+        return {}
+
+    def apply(self, outputs: Sequence[Value] | None) -> None:
+        pass
+
+    def step(self, dt_s: float) -> None:
+        pass

@@ -91,7 +91,6 @@ class Soak:
         self.driver = LockstepDriver(
             node,
             self.pattern,
-            self.pattern,
             period_us=period_us,
             tpdo_timeout_s=RECEIVE_TIMEOUT_S,
             liveness=liveness,

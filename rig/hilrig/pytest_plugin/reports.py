@@ -1,5 +1,7 @@
-"""hilrig's pytest plugin (entry point `pytest11`): what a failed scenario leaves for a reviewer.
+"""What a failed scenario leaves for a reviewer (part of hilrig's pytest plugin).
 
+* Where to look: a scenario's fixtures name its evidence (`request.node.hil_evidence`: its trace,
+  its bus log); a failure shows it in its report and in a list at the end of the run.
 * A picture with every failure: a failing `hilrig.expect` check draws its PNG
   (`ScenarioAssertion.pictures`); the plugin names it in the report, attaches it to the JUnit XML
   as `[[ATTACHMENT|/abs/path.png]]` in the test's system-out (the convention Jenkins' and GitLab's
@@ -25,6 +27,7 @@ from hilrig.files import replacing
 ATTACHMENT = "[[ATTACHMENT|{path}]]"
 """How a JUnit reader finds a file to attach in a test's system-out."""
 _SUMMARY = pytest.StashKey[list[str]]()
+_EVIDENCE = pytest.StashKey[list[str]]()
 _CALL_PASSED = pytest.StashKey[bool]()
 
 
@@ -41,6 +44,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 def pytest_configure(config: pytest.Config) -> None:
     config.stash[_SUMMARY] = []
+    config.stash[_EVIDENCE] = []
 
 
 def baseline_path(folder: Path, nodeid: str) -> Path:
@@ -62,6 +66,10 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     summary = item.config.stash[_SUMMARY]
     folder = item.config.getoption("hil_baseline")
     trace: Path | None = getattr(item, "hil_trace", None)
+    evidence: str | None = getattr(item, "hil_evidence", None)
+    if report.failed and evidence:
+        report.sections.append(("scenario evidence", evidence))
+        item.config.stash[_EVIDENCE].append(f"FAILED {item.nodeid}: {evidence}")
     if report.when == "call":
         item.stash[_CALL_PASSED] = report.passed
     if report.failed and call.excinfo is not None:
@@ -84,6 +92,11 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    evidence = terminalreporter.config.stash.get(_EVIDENCE, [])
+    if evidence:
+        terminalreporter.section("failed scenarios: where to look")
+        for line in evidence:
+            terminalreporter.line(line)
     lines = terminalreporter.config.stash.get(_SUMMARY, [])
     if lines:
         terminalreporter.section("failed scenarios: pictures and comparisons")

@@ -1,0 +1,109 @@
+"""What board a project's scenarios run: its table, its EDS, its firmware and its plant, from the
+project's pytest configuration (ini options, paths relative to the ini file), or from a
+`hil_board` fixture the project overrides.
+
+    [pytest]
+    hil_table = board.toml                      # the board's table (board.toml format)
+    hil_eds = build/board.eds                   # optional: default, generated from the table
+    hil_firmware = build/toy-firmware           # the firmware executable
+    hil_firmware_args = --verbose               # optional: more of its command line
+    hil_plant = toy_plant:make_plant            # the plant factory, `module:callable`
+
+The firmware is started as `FIRMWARE --can CHANNEL --node-id N --mode lockstep|free --period-us P
+[ARGS...]` (`hilrig.session.firmware.firmware_argv`); the plant factory is called with
+(params, seed) from `make_scenario(params=..., seed=...)` and returns a
+`hilrig.plants.interface.Plant`. Nothing set: hilrig's own demo board (its table, EDS and
+firmware where `hilrig.resources` finds them, the joint's plant). $HIL_FIRMWARE, when set, is
+the firmware whatever the ini says (a mutant, a release build).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import shlex
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from boardproto import TableError
+from hilrig import resources
+from hilrig.plants import default_plant
+from hilrig.session.builder import PlantFactory
+from hilrig.table import RigTable
+
+INI_OPTIONS: tuple[tuple[str, str], ...] = (
+    ("hil_table", "the board's table (board.toml format); default: hilrig's demo board"),
+    ("hil_eds", "the board's EDS; default: generated from hil_table (or the demo board's)"),
+    ("hil_firmware", "the board's firmware executable; default: hilrig's demo firmware"),
+    ("hil_firmware_args", "more arguments for the firmware's command line (shell words)"),
+    ("hil_plant", "the plant factory, module:callable (params, seed) -> Plant; default: the joint"),
+    ("hil_durations", "a JSON file of each scenario's duration [s]: the longest run first"),
+)
+"""The ini options of the plugin (`pytest_addoption` registers them)."""
+
+
+@dataclass(frozen=True)
+class HilBoard:
+    """One board as the scenarios see it. node_id: the firmware's (its table's default)."""
+
+    table: RigTable
+    eds: Path
+    firmware: Path
+    plant: PlantFactory
+    firmware_args: tuple[str, ...] = ()
+
+    @property
+    def node_id(self) -> int:
+        return self.table.board.node.default_node_id
+
+
+def load_factory(spelled: str) -> PlantFactory:
+    """The callable `module:name` names (a dotted name after the colon for an attribute of an
+    attribute); a UsageError that says what is wrong otherwise."""
+    module_name, colon, attribute = spelled.partition(":")
+    if not colon or not module_name or not attribute:
+        raise pytest.UsageError(f"hil_plant: expected module:callable, got {spelled!r}")
+    try:
+        found: Any = importlib.import_module(module_name)
+    except ImportError as error:
+        raise pytest.UsageError(f"hil_plant {spelled}: cannot import {module_name}: {error}") from None
+    for part in attribute.split("."):
+        if not hasattr(found, part):
+            raise pytest.UsageError(f"hil_plant {spelled}: {module_name} has no {attribute}")
+        found = getattr(found, part)
+    if not callable(found):
+        raise pytest.UsageError(f"hil_plant {spelled}: not callable")
+    return found  # type: ignore[no-any-return]
+
+
+def _ini_path(config: pytest.Config, name: str) -> Path | None:
+    """The ini option's path, relative to the ini file's folder (None: not set)."""
+    value = str(config.getini(name) or "").strip()
+    if not value:
+        return None
+    base = config.inipath.parent if config.inipath is not None else config.rootpath
+    return (base / value).resolve()
+
+
+def board_from_config(config: pytest.Config) -> HilBoard:
+    """The board the ini options describe (see the module docstring)."""
+    table_path = _ini_path(config, "hil_table")
+    try:
+        files = resources.board_files(table_path)
+        table = RigTable.load(files.table) if table_path is not None else RigTable.load()
+    except (OSError, TableError) as error:
+        raise pytest.UsageError(f"hil_table {table_path}: {error}") from None
+    eds = _ini_path(config, "hil_eds") or files.eds
+    firmware = _ini_path(config, "hil_firmware") or resources.DEFAULT_FIRMWARE
+    if os.environ.get("HIL_FIRMWARE"):
+        firmware = Path(os.environ["HIL_FIRMWARE"])
+    spelled = str(config.getini("hil_plant") or "").strip()
+    plant = load_factory(spelled) if spelled else default_plant
+    args = tuple(shlex.split(str(config.getini("hil_firmware_args") or "")))
+    return HilBoard(table=table, eds=eds, firmware=firmware, plant=plant, firmware_args=args)
+
+
+__all__ = ["INI_OPTIONS", "HilBoard", "board_from_config", "load_factory"]

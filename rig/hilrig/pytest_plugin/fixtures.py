@@ -1,0 +1,372 @@
+"""The scenario fixtures and `--hil-*` options: a private bus per test, the board's firmware on it,
+a `Rig` with the board's plant, a candump bus log and a Rerun trace, torn down after the test.
+
+    def test_velocity_step(make_scenario) -> None:
+        s = make_scenario(seed=1)
+        s.rig.set("velocity_setpoint", 10.0)
+        s.rig.run(seconds=0.5)
+        s.expect.series("output_velocity").settles_to(10.0, within=0.02)
+
+Which board is the project's (`hil_board`, from the ini options: `hilrig.pytest_plugin.board`).
+Every wait is bounded in simulation time; the wall-clock bounds here are hang guards only.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hilrig.cli import forked
+from hilrig.cli.common import bitrate
+from hilrig.engine.rig import Rig
+from hilrig.engine.robot import MasterHeartbeat
+from hilrig.errors import BusUnavailableError
+from hilrig.expect import Expect
+from hilrig.observe.picture import FailurePictures
+from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
+from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config
+from hilrig.session import warm
+from hilrig.session.builder import BoardInterface, HilSession, SessionConfig, open_session
+from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
+
+BOOT_TIMEOUT_S = 60.0
+"""A hang guard for start-up inside the software-emulated VM (ASan build), not a timing check."""
+SCENARIO_SDO_TIMEOUT_S = 5.0
+"""Also a hang guard: the firmware on a private bus always answers, but a machine shared with a
+second emulated VM has left it unscheduled for over 2 s (1 s and one retry: SdoTimeoutError)."""
+REALTIME_FIRMWARE_PERIOD_US = 10_000
+REALTIME_RIG_PERIOD_US = 50_000
+"""Real-time scenarios (make_scenario(mode="realtime")): the firmware runs free at 100 Hz and the
+rig ticks at 20 Hz. Neither keeps 1 kHz inside the software-emulated VM (the ASan firmware missed
+over half of its 5 ms deadlines there). The rig's period is what leaves its receive side time to
+keep up: at 50 Hz its ticks ran back to back in the VM, the TPDOs it took in fell behind the bus,
+and the plant got the firmware's outputs that late. A real board keeps its own period."""
+CLI_TIMEOUT_S = 300.0
+"""Hang guard for one `hilrig` command in the emulated VM, not a timing check."""
+HANG_GUARD_FACTOR = 10
+"""A scenario whose recorded duration (hil_durations) is long gets this many times it as its
+pytest-timeout bound instead of the run's: a busy host must not read as a hang."""
+KEEP_ORDER = "HIL_SCENARIO_ORDER"
+"""Set to "given": run the scenarios in the order of the command line, not longest first."""
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("hil", "hardware in the loop")
+    group.addoption(
+        "--hil-interface",
+        help="run the real-time scenarios against a board on this python-can interface "
+        "(socketcan, pcan, kvaser, slcan...) instead of the firmware on a private vcan; "
+        "lockstep scenarios are skipped",
+    )
+    group.addoption("--hil-channel", help="the interface's channel, e.g. can0 or PCAN_USBBUS1")
+    group.addoption(
+        "--hil-bitrate", type=bitrate, help="bit rate for interfaces that set it (e.g. 1M, 500k, 125000)"
+    )
+    group.addoption(
+        "--hil-physics",
+        action="store_true",
+        help="simulate the plant for the real board too (a board that takes its sensors from the "
+        "bus); default: its own sensors and actuators, the rig only commands and observes",
+    )
+    group.addoption(
+        "--hil-node-id",
+        type=lambda text: int(text, 0),
+        help="the board's node id (default: its table's)",
+    )
+    group.addoption(
+        "--hil-viewer",
+        action="append",
+        metavar="WHERE",
+        help="also stream every scenario's trace live (repeatable): spawn[:PORT], web[:PORT] or "
+        "connect[:URL], as `hilrig sim --viewer` (default: $HIL_TRACE); trace.rrd is always written",
+    )
+    for name, help_text in INI_OPTIONS:
+        parser.addini(name, help_text, default="")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """With hil_durations: the longest scenarios first (pytest-xdist hands tests out in
+    collection order: a long one started last would run alone at the end while the other
+    worker idles; a scenario without a recorded duration counts as an average one), and each
+    long scenario's hang guard grows with its duration (HANG_GUARD_FACTOR)."""
+    spelled = str(config.getini("hil_durations") or "").strip()
+    if not spelled:
+        return
+    base = config.inipath.parent if config.inipath is not None else config.rootpath
+    try:
+        durations: dict[str, float] = json.loads((base / spelled).read_text())
+    except (OSError, ValueError):
+        return  # no order to go by: collection order
+    guard = config.getoption("timeout", None) if config.pluginmanager.hasplugin("timeout") else None
+    if guard:
+        for item in items:
+            guard_s = HANG_GUARD_FACTOR * durations.get(item.nodeid, 0.0)
+            if guard_s > float(guard) and item.get_closest_marker("timeout") is None:
+                item.add_marker(pytest.mark.timeout(round(guard_s)))
+    if os.environ.get(KEEP_ORDER) == "given":
+        return
+    average = sum(durations.values()) / len(durations) if durations else 0.0
+    items.sort(key=lambda item: -durations.get(item.nodeid, average))  # stable: ties keep their order
+
+
+# --- The board, the bus, the folder -----------------------------------------------------------
+@pytest.fixture(scope="session")
+def hil_board(pytestconfig: pytest.Config) -> HilBoard:
+    """The project's board (ini options: `hilrig.pytest_plugin.board`); a project may override
+    this fixture in its conftest.py instead. A bad option fails each scenario with one line."""
+    try:
+        return board_from_config(pytestconfig)
+    except pytest.UsageError as error:
+        problem = str(error)
+    pytest.fail(problem, pytrace=False)
+
+
+@pytest.fixture(scope="session")
+def hil_warm_server() -> None:
+    """The warm server for helper processes, once per session (of each xdist worker), where
+    private buses exist: it imports python-can, canopen and the CLI once, in the background, for
+    every scenario's bus recorder and `hilrig` command after it (`hilrig.session.warm`)."""
+    if private_buses_supported():
+        warm.preload(*forked.CLI_PRELOAD)
+        warm.start()
+
+
+def output_root(config: pytest.Config) -> Path:
+    """$HIL_OUT_DIR, else out/ under the run's root folder."""
+    return Path(os.environ.get("HIL_OUT_DIR", config.rootpath / "out"))
+
+
+@pytest.fixture
+def scenario_dir(request: pytest.FixtureRequest) -> Path:
+    """out/scenarios/<test name>/: the firmware log, bus log and trace of this test."""
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", request.node.name)
+    path = output_root(request.config) / "scenarios" / name
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+@pytest.fixture
+def private_bus(hil_warm_server: None) -> Iterator[PrivateBus]:
+    """A network namespace with its own vcan0, for this test alone."""
+    try:
+        require_private_buses(
+            "a bus-level scenario", "run it through `tools/with-vcan` or on a host with vcan"
+        )
+    except BusUnavailableError as error:
+        pytest.fail(str(error), pytrace=False)
+    with PrivateBus() as bus:
+        yield bus
+
+
+def run_hilrig(
+    private_bus: PrivateBus, *argv: str, timeout_s: float = CLI_TIMEOUT_S
+) -> subprocess.CompletedProcess[str]:
+    """`hilrig ARGV` on this test's private bus: exit code, stdout and stderr as the console
+    script gives them, from a process forked from the warm server (`hilrig.cli.forked`)."""
+    return forked.run(argv, namespace_file=private_bus.namespace_file, timeout_s=timeout_s)
+
+
+def _require_built(board: HilBoard) -> None:
+    missing = [str(path) for path in (board.firmware, board.eds) if not path.exists()]
+    if missing:
+        pytest.fail(
+            f"{' and '.join(missing)} missing: build the board's firmware and files first", pytrace=False
+        )
+
+
+# --- Scenarios --------------------------------------------------------------------------------
+@dataclass
+class Scenario:
+    """What a scenario test gets: the rig, expectations on its histories, and its evidence.
+
+    `close()` ends it early (rig, firmware with SIGTERM, trace, bus log; the fixture does it
+    otherwise), e.g. to read the firmware's stop summary or to start another run on the bus.
+    """
+
+    rig: Rig
+    expect: Expect
+    firmware: Any  # hilrig.session.firmware.Firmware; None: a real board (--hil-interface)
+    trace: Path | None
+    bus_log: Path
+    close: Callable[[], None] = field(default=lambda: None, repr=False)
+
+
+@pytest.fixture
+def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureRequest) -> Iterator:
+    """Factory: `make_scenario(params=..., seed=...)` opens a HIL session (`hilrig.session.builder`):
+    the board's firmware in lockstep on this test's private bus, a candump recorder, a Rerun
+    trace and a `Rig` with the board's plant (`hil_plant(params, seed)`), all torn down after
+    the test (firmware stopped with SIGTERM, files closed whole).
+    `mode="realtime"`: the firmware runs `--mode free` and the rig in real time
+    (REALTIME_*_PERIOD_US); with --hil-interface the rig opens that interface instead, talks to
+    the real board on it (`physics` as the scenario says), and lockstep scenarios are skipped.
+    `extra_args` go to the firmware's command line; `subdir` keeps one run's evidence apart when
+    a test makes several runs one after the other (close the previous one first: one node id per
+    bus). `before_start(rig)` configures the node over SDO before the rig reads its PDO mapping
+    and starts it (the node is pre-operational, so PDOs may be remapped)."""
+    sessions: list[HilSession] = []
+
+    def make(
+        params: object | None = None,
+        seed: int = 1,
+        trace: bool = True,
+        params_file: Path | None = None,
+        extra_args: Sequence[str] = (),
+        subdir: str | None = None,
+        mode: str = "lockstep",
+        physics: bool = True,
+        before_start: Callable[[Rig], None] | None = None,
+    ) -> Scenario:
+        run_dir = scenario_dir / subdir if subdir else scenario_dir
+        realtime = mode == "realtime"
+        config = request.config
+        board = None
+        node_id = hil_board.node_id
+        if config.getoption("hil_interface"):
+            if not realtime:
+                pytest.skip("a lockstep scenario needs the firmware on a private bus (--hil-interface given)")
+            bitrate = config.getoption("hil_bitrate")
+            board = BoardInterface(
+                config.getoption("hil_interface"), config.getoption("hil_channel"), bitrate
+            )
+            physics = physics and config.getoption("hil_physics")
+            node_id = config.getoption("hil_node_id") or node_id
+        session_config = SessionConfig(
+            out_dir=run_dir,
+            live=_live_sinks(config) if trace else (),
+            params=params,
+            seed=seed,
+            plant=hil_board.plant,
+            node_id=node_id,
+            mode=mode,
+            period_us=REALTIME_RIG_PERIOD_US if realtime else 1000,
+            firmware_period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else 1000,
+            physics=physics,
+            trace=trace,
+            board=board,
+            executable=hil_board.firmware,
+            eds=hil_board.eds,
+            params_file=params_file,
+            extra_args=(*hil_board.firmware_args, *extra_args),
+            boot_timeout_s=BOOT_TIMEOUT_S,
+            sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+        )
+        if board is None:
+            _require_built(hil_board)
+        # The test's own private bus (a test may send frames of its own on it, e.g. a flood).
+        private_bus = request.getfixturevalue("private_bus") if board is None else None
+        session = open_session(
+            session_config, table=hil_board.table, before_start=before_start, private_bus=private_bus
+        )
+        sessions.append(session)
+        request.node.hil_evidence = _evidence(run_dir, trace)
+        request.node.hil_trace = session.trace_path  # --hil-baseline
+        assert session.rig is not None
+        return Scenario(
+            rig=session.rig,
+            expect=Expect(
+                session.rig, evidence=request.node.hil_evidence, picture=FailurePictures(run_dir / "pictures")
+            ),
+            firmware=session.firmware,
+            trace=session.trace_path,
+            bus_log=session.bus_log,
+            close=session.close,
+        )
+
+    yield make
+    for session in reversed(sessions):
+        session.close()
+
+
+@pytest.fixture
+def make_robot(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureRequest) -> Iterator:
+    """Factory: `make_robot(n=8)` opens a robot session (`hilrig.session.builder`, `modules=`): the
+    firmware started n times on this test's private bus (node ids 1..n, or `node_ids`), one rig
+    per module, the chain's mechanics from MuJoCo, the master heartbeat, a candump recorder and
+    one Rerun trace (each module under /modules/<id>, the chain in 3D under /robot); returns the
+    `HilSession` (its `.robot`), torn down after the test."""
+    sessions: list[HilSession] = []
+
+    def make(
+        n: int = 8,
+        *,
+        node_ids: Sequence[int] | None = None,
+        params: object | None = None,
+        seed: int = 1,
+        trace: bool = True,
+        master: MasterHeartbeat | None = MasterHeartbeat(),  # noqa: B008 (frozen: shared is fine)
+        start: bool = True,
+    ) -> HilSession:
+        config = SessionConfig(
+            out_dir=scenario_dir,
+            modules=tuple(node_ids) if node_ids is not None else n,
+            live=_live_sinks(request.config) if trace else (),
+            params=params,
+            seed=seed,
+            trace=trace,
+            executable=hil_board.firmware,
+            eds=hil_board.eds,
+            extra_args=hil_board.firmware_args,
+            master=master,
+            start=start,
+            boot_timeout_s=BOOT_TIMEOUT_S,
+            sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+        )
+        _require_built(hil_board)
+        logs = f", firmware logs: {scenario_dir}/firmware-*.log"
+        request.node.hil_evidence = _evidence(scenario_dir, trace) + logs
+        session = open_session(
+            config, table=hil_board.table, private_bus=request.getfixturevalue("private_bus")
+        )
+        sessions.append(session)
+        request.node.hil_trace = session.trace_path  # --hil-baseline
+        return session
+
+    yield make
+    for session in reversed(sessions):
+        session.close()
+
+
+def _live_sinks(config: pytest.Config) -> list[TraceSink]:
+    """--hil-viewer, else $HIL_TRACE; a bad spelling stops the run with one line."""
+    spelled = config.getoption("hil_viewer")
+    try:
+        if spelled:
+            return [parse_live_sink(text) for text in spelled]
+        return live_sinks_from_environment()
+    except ValueError as error:
+        raise pytest.UsageError(f"--hil-viewer: {error}") from None
+
+
+def _evidence(scenario_dir: Path, traced: bool) -> str:
+    parts = [f"trace: {scenario_dir / 'trace.rrd'}"] if traced else []
+    parts.append(f"bus log: {scenario_dir / 'bus.log'}")
+    return ", ".join(parts)
+
+
+__all__ = [
+    "BOOT_TIMEOUT_S",
+    "REALTIME_FIRMWARE_PERIOD_US",
+    "REALTIME_RIG_PERIOD_US",
+    "SCENARIO_SDO_TIMEOUT_S",
+    "Scenario",
+    "hil_board",
+    "hil_warm_server",
+    "make_robot",
+    "make_scenario",
+    "output_root",
+    "private_bus",
+    "pytest_addoption",
+    "pytest_collection_modifyitems",
+    "run_hilrig",
+    "scenario_dir",
+]
