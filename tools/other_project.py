@@ -8,9 +8,8 @@ native part and the scenarios in its bus stage's VM:
     .venv/bin/python tools/other_project.py prepare [PYTEST_ARGS...]  # prints the command for the VM
 
 Everything goes under build/other-project/ (the wheel, the venv, the prefix) and
-examples/other-project/build/ (the lamp's build tree, which its pytest.ini names). The venv's
-third-party packages are the project venv's, linked in by a .pth file (hilrig and its siblings
-left out), so nothing is downloaded and every import of hilrig is the wheel's.
+examples/other-project/build/ (the lamp's build tree, which its pytest.ini names). The venv is
+pip's own install of the wheel and pytest, nothing of the checkout's venv in it.
 """
 
 from __future__ import annotations
@@ -21,7 +20,6 @@ import shlex
 import shutil
 import subprocess
 import sys
-import sysconfig
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -30,8 +28,6 @@ OUT = REPO / "build" / "other-project"
 CMAKE_BUILD = Path(os.environ.get("HILFW_BUILD", REPO / "build"))
 """The configured CMake build tree whose install rules hold the firmware package: `make build`'s,
 or $HILFW_BUILD (a tree configured by hand, e.g. a worktree whose build/ links another's)."""
-OWN_PACKAGES = ("hilrig", "boardproto", "dashboards", "__editable__", "__pycache__")
-"""Entries of the project venv's site-packages the fresh venv must not see (prefixes)."""
 
 
 def _run(argv: list[str | Path], **kwargs: object) -> None:
@@ -47,23 +43,15 @@ def _clean_env() -> dict[str, str]:
 
 
 def fresh_venv(wheels: Path, venv: Path) -> Path:
-    """`pip install --no-index --find-links WHEELS hilrig` into a new venv; its python."""
+    """A new venv with hilrig from WHEELS and pytest, as another project installs them: its
+    dependencies from the package index at the versions requirements.lock pins (pip's cache
+    has them after `make deps`, so nothing is downloaded twice); its python."""
     shutil.rmtree(venv, ignore_errors=True)
     _run([sys.executable, "-m", "venv", "--without-pip", venv])
     python = venv / "bin" / "python"
-    site = subprocess.run(
-        [python, "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
-        capture_output=True, text=True, check=True, env=_clean_env(),
-    ).stdout.strip()  # fmt: skip
-    links = OUT / "dependencies"
-    shutil.rmtree(links, ignore_errors=True)
-    links.mkdir(parents=True)
-    for entry in Path(sysconfig.get_path("purelib")).iterdir():
-        if not entry.name.startswith(OWN_PACKAGES) and entry.suffix != ".pth":
-            (links / entry.name).symlink_to(entry)
-    (Path(site) / "project-dependencies.pth").write_text(f"{links}\n")
     pip = [sys.executable, "-m", "pip", "--python", python, "--disable-pip-version-check"]
-    _run([*pip, "install", "--quiet", "--no-index", "--find-links", wheels, "hilrig"])
+    _run([*pip, "install", "--quiet", "--find-links", wheels, "--constraint", REPO / "requirements.lock",
+          "hilrig", "pytest"], env=_clean_env())  # fmt: skip
     return python
 
 
