@@ -367,6 +367,36 @@ def test_record_then_replay_into_a_trace(
     assert f"{syncs + 1} cycles" in err
 
 
+def test_record_works_out_the_nmt_target_before_it_counts_frames(
+    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str, tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Loading the table took seconds in the VM: the node's heartbeats meanwhile filled --count
+    # before the NMT command went out (a scenario's recording of 60 heartbeats, no NMT).
+    from hilrig.cli import record
+
+    order: list[str] = []
+    real_load_table, real_open_bus = record.load_table, record.open_bus
+
+    def load_table(args: object) -> RigTable:
+        order.append("table")
+        return real_load_table(args)
+
+    def open_bus(*args: object, **kwargs: object) -> can.BusABC:
+        order.append("bus")
+        return real_open_bus(*args, **kwargs)
+
+    monkeypatch.setattr(record, "load_table", load_table)
+    monkeypatch.setattr(record, "open_bus", open_bus)
+    log = tmp_path / "bench.log"
+    argv = ["--nmt-start", "--count", "1", "-i", "virtual", "-c", channel]
+    code, _, err = run(capsys, "record", str(log), *argv)
+    assert code == 0, err
+    assert order == ["table", "bus"]
+    first = next(iter(can.LogReader(str(log))))
+    assert (first.arbitration_id, bytes(first.data)) == (NMT_COB_ID, bytes([NmtCommand.START, NODE_ID]))
+
+
 def test_replay_sends_the_log_into_the_bus(
     capsys: pytest.CaptureFixture[str], channel: str, tmp_path: Path
 ) -> None:

@@ -85,17 +85,26 @@ class _CountingSink:
                 self.done.set()
 
 
+def nmt_target(args: argparse.Namespace) -> int | None:
+    """The node --nmt-start starts (None without it). Worked out before the recording starts:
+    loading the table takes seconds on a slow machine, and every frame meanwhile (heartbeats)
+    would count towards --count before the NMT command is even sent."""
+    if not args.nmt_start:
+        return None
+    return int(args.node_id if args.node_id is not None else load_table(args).board.node.default_node_id)
+
+
 @contextmanager
-def master_traffic(bus: can.BusABC, args: argparse.Namespace) -> Iterator[None]:
-    """Optionally act as the master of a board with no master: NMT start, SYNC producer."""
-    if not (args.nmt_start or args.sync_period_ms):
+def master_traffic(bus: can.BusABC, args: argparse.Namespace, target: int | None) -> Iterator[None]:
+    """Optionally act as the master of a board with no master: NMT start to `target`, SYNC
+    producer."""
+    if target is None and not args.sync_period_ms:
         yield
         return
     import canopen
 
     network = canopen.Network(bus)  # not connected: only sends, the recorder's notifier reads
-    if args.nmt_start:
-        target = args.node_id if args.node_id is not None else load_table(args).board.node.default_node_id
+    if target is not None:
         master = canopen.nmt.NmtMaster(target)
         master.network = network
         master.send_command(0x01)
@@ -167,6 +176,7 @@ def run_record(args: argparse.Namespace) -> int:
         live = LiveBusTrace(args.viewer, dbc, table, node, name=path.stem)
         if live.tracer.web_url is not None:
             progress(f"record: web viewer at {live.tracer.web_url}")
+    target = nmt_target(args)
     with open_bus(args, receive_own_messages=True) as bus, whole_file_logger(path) as logger:
         counter = _CountingSink(logger if live is None else _Both(logger, live), args.count, args.filters)
         notifier = can.Notifier(bus, [counter])
@@ -174,7 +184,7 @@ def run_record(args: argparse.Namespace) -> int:
             limit = " (Ctrl-C to stop)" if not (args.count or args.duration) else ""
             kept = f", frames {' '.join(map(str, args.filters))}" if args.filters else ""
             progress(f"record: {describe_bus(args)}{kept} -> {path}{limit}")
-            with master_traffic(bus, args):
+            with master_traffic(bus, args, target):
                 while not counter.done.is_set():
                     wait = PROGRESS_EVERY_S
                     if deadline is not None:
