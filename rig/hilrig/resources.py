@@ -6,6 +6,8 @@ firmware. Every default path of hilrig comes from here; three cases:
 - an installed wheel: the table, EDS and DBC packaged in hilrig/data/ (generated from the table
   when the wheel was built, `make dist`); the firmware is not in the wheel: build/bin/joint-firmware
   under the working directory (the runtime image's /src);
+- the robot head module's table (HEAD_TABLE, protocol/boards/head.toml) and firmware
+  (build/bin/head-firmware), the second board, found the same way;
 - another table (`--table FILE`, in either case): its EDS and DBC generated on first use with
   boardproto's generators into a cache directory, by content ($XDG_CACHE_HOME/hilrig/tables/).
 """
@@ -46,6 +48,11 @@ else:
     DEFAULT_DBC = PACKAGED / "board.dbc"
     DEFAULT_FIRMWARE = Path("build") / "bin" / "joint-firmware"
     REBUILD_HINT = "reinstall hilrig"
+
+# The second board of this repository (issue 45), the robot head module: its table beside the
+# joint's and its firmware beside the joint's; its EDS and DBC come from board_files(HEAD_TABLE).
+HEAD_TABLE = (CHECKOUT / "protocol" / "boards" if CHECKOUT is not None else PACKAGED / "boards") / "head.toml"
+HEAD_FIRMWARE = DEFAULT_FIRMWARE.with_name("head-firmware")
 
 if os.environ.get("HIL_FIRMWARE"):
     # Another build of the firmware for every caller that takes the default (a mutant under
