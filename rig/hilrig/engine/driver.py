@@ -55,7 +55,8 @@ from hilrig.wire.transport import (
 )
 
 SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
-"""Fields of the RPDO sent every cycle, like a real master's setpoint stream."""
+"""Fields of the RPDO sent every cycle, like a real master's setpoint stream (those of them the
+board's table has)."""
 LIVENESS_SLICE_S = 0.25
 """While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
 
@@ -351,8 +352,11 @@ class Driver:
             sharing = [p.label for p in enabled_rpdos if p.cob_id == cob_id]
             if len(sharing) > 1:  # the node could not tell their frames apart, nor could the history
                 problems.append(f"{' and '.join(sharing)} share a COB-ID")
-        stream = [p for p in enabled_rpdos if set(SETPOINT_STREAM) & set(p.names)]
-        for name in SETPOINT_STREAM:
+        # The board's setpoint stream: the names of it its table has (another board, the head,
+        # has none: its commands go out when set).
+        streamed = [name for name in SETPOINT_STREAM if name in table.names]
+        stream = [p for p in enabled_rpdos if set(streamed) & set(p.names)]
+        for name in streamed:
             if not any(name in p.names for p in stream):
                 problems.append(f"setpoint {name} is in no enabled RPDO")
         enabled_tpdos = [p for p in self.node.tpdos.values() if p.enabled and p.names]

@@ -208,7 +208,7 @@ class Tracer(RecordBatches, RigObserver):
             self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
             self._attach_sinks()
         if blueprint is not None:
-            self.send_blueprint(load_blueprint(blueprint))
+            self.send_blueprint(load_blueprint(blueprint, table))
 
         self._queue: queue.SimpleQueue[_Batch | None] | None = None
         self._worker: threading.Thread | None = None
@@ -522,12 +522,13 @@ class Tracer(RecordBatches, RigObserver):
         else:
             work()
 
-    def module_tracer(self, node_id: int) -> Tracer:
+    def module_tracer(self, node_id: int, table: RigTable | None = None) -> Tracer:
         """A tracer for module `node_id` of a robot: its paths under /modules/<id>, on this
-        tracer's recording and sinks (close it before this one)."""
+        tracer's recording and sinks (close it before this one); `table`: the module's board's
+        when it is another board than the robot's (the head on a snake)."""
         return Tracer(
             (),
-            self.table,
+            table if table is not None else self.table,
             blueprint=None,
             batch_cycles=self.batch_cycles,
             max_latency_s=self.max_latency_s,

@@ -246,6 +246,7 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
             params=params,
             seed=seed,
             plant=hil_board.plant,
+            blueprint=hil_board.dashboard,
             node_id=node_id,
             mode=mode,
             period_us=REALTIME_RIG_PERIOD_US if realtime else 1000,

@@ -91,6 +91,9 @@ class SessionConfig:
     params: Any = None
     seed: int = 0
     plant: PlantFactory = default_plant
+    blueprint: str | None = "overview"
+    """The dashboard (`dashboards.BLUEPRINTS`) the trace opens with, built for the session's
+    table: the board's own ("head" for the head module), None for the viewer's default."""
     node_id: int | None = None
     mode: TimingMode | str = TimingMode.LOCKSTEP
     period_us: int = 1000
@@ -215,7 +218,7 @@ def open_session(
         # The tracer before the rig's bus: importing rerun takes seconds (minutes on a loaded
         # emulated VM), and a bus opened before it would queue every heartbeat meanwhile for
         # canopen to wade through before the first SDO answer.
-        tracer = _tracer(config, table)
+        tracer = _tracer(config, table, config.blueprint)
         if tracer is not None:
             stack.callback(tracer.close)
         if private_bus is not None:
