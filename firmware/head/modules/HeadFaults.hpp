@@ -29,7 +29,6 @@ class HeadFaults final : public core::Module {
 
  private:
   std::uint32_t active_causes(std::uint32_t elapsed_cycles);
-  bool clear_requested();
 
   joint::FaultLatch latch_;
   joint::CycleStep cycle_step_;
@@ -37,8 +36,7 @@ class HeadFaults final : public core::Module {
   Debounce over_current_;
   Debounce battery_low_;
   std::uint32_t previous_refused_writes_ = 0;
-  std::uint32_t seen_clear_stamp_ = 0;
-  bool seen_clear_ = false;
+  joint::ClearRequest clear_;
 };
 
 }  // namespace head
