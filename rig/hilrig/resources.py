@@ -53,6 +53,8 @@ else:
 # joint's and its firmware beside the joint's; its EDS and DBC come from board_files(HEAD_TABLE).
 HEAD_TABLE = (CHECKOUT / "protocol" / "boards" if CHECKOUT is not None else PACKAGED / "boards") / "head.toml"
 HEAD_FIRMWARE = DEFAULT_FIRMWARE.with_name("head-firmware")
+_BUILT_TABLES = {HEAD_TABLE: CHECKOUT / "build" / "protocol" / "head"} if CHECKOUT is not None else {}
+"""Tables besides the default whose EDS and DBC `make build` generates (CMake's hil_board_protocol)."""
 
 if os.environ.get("HIL_FIRMWARE"):
     # Another build of the firmware for every caller that takes the default (a mutant under
@@ -76,9 +78,13 @@ class BoardFiles:
 def board_files(table: Path | None = None) -> BoardFiles:
     """The files of `table` (None: the default table). The default table's are the checkout's
     build/protocol/ or the packaged ones, which may be missing in a checkout before `make build`
-    (callers say EDS_HINT then); any other table's are generated now (a bad table: TableError)."""
+    (callers say EDS_HINT then); the head's those `make build` generates into build/protocol/head/
+    when they are there; any other table's are generated now (a bad table: TableError)."""
     if table is None or is_default_table(table):
         return BoardFiles(DEFAULT_TABLE, DEFAULT_EDS, DEFAULT_DBC)
+    built = _BUILT_TABLES.get(table)
+    if built is not None and (built / "board.eds").is_file():
+        return BoardFiles(table, built / "board.eds", built / "board.dbc")
     return generated_files(table)
 
 
@@ -119,6 +125,8 @@ def _cache_dir() -> Path:
     path = Path(base) / "hilrig" / "tables"
     try:
         path.mkdir(parents=True, exist_ok=True)
+        if not os.access(path, os.W_OK):  # there, but read-only (the VM's view of the home)
+            raise PermissionError(path)
     except OSError:  # a read-only home (a container): the temporary directory instead
         path = Path(tempfile.gettempdir()) / f"hilrig-{os.getuid()}" / "tables"
         path.mkdir(parents=True, exist_ok=True)
