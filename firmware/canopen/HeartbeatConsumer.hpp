@@ -12,6 +12,7 @@
 // see Node::set_timeout_clock); it may wrap. Fixed-size, no heap.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -94,6 +95,20 @@ class BasicHeartbeatConsumer {
       e.monitoring = Monitoring::Lost;
       event(node_id_of(e.value));
     }
+  }
+
+  // Microseconds from `now_us` until the first active entry's consumer time runs out (0 if one
+  // already has); kNoTimer when none is timing. What an idle loop may sleep.
+  static constexpr std::uint32_t kNoTimer = UINT32_MAX;
+  std::uint32_t us_until_timeout(std::uint32_t now_us) const {
+    std::uint32_t soonest = kNoTimer;
+    for (const Entry& e : entries_) {
+      if (e.monitoring != Monitoring::Active) continue;
+      const std::uint32_t limit_us = std::uint32_t{time_ms_of(e.value)} * 1000u;
+      const std::uint32_t elapsed_us = now_us - e.last_heartbeat_us;
+      soonest = std::min(soonest, elapsed_us >= limit_us ? 0u : limit_us - elapsed_us);
+    }
+    return soonest;
   }
 
   // Entries whose heartbeat timed out and has not come back.

@@ -169,6 +169,13 @@ class Node final {
   // once per millisecond for exact timing.
   void poll(std::uint32_t now_us);
 
+  // Microseconds from `now_us` until the next of poll()'s timers is due (0 if one is; at most
+  // `limit_us`): the heartbeat producer, the wall-clock consumer and SDO timeouts, an
+  // event-driven TPDO's event timer or the end of its inhibit time, an RPDO deadline. A loop that
+  // also wakes for every received frame (process(), then poll()) may sleep this long instead of
+  // polling every millisecond: in lockstep an idle node then wakes only for its heartbeat.
+  std::uint32_t us_until_next_timer(std::uint32_t now_us, std::uint32_t limit_us) const;
+
   // True while block-upload segments wait to be sent and the transmit queue took the last one:
   // the caller polls again at once instead of sleeping (8 segments a millisecond would cap a
   // 64 KiB upload at 56 kB/s). False after a refused send, so a full queue is not spun on.
@@ -275,6 +282,7 @@ class Node final {
     bool due_at_sync = false;
     bool sync_started = false;  // the SYNC start value was seen (or is not used)
     bool sent_once = false;
+    bool change_held = false;  // event-driven: a change waits for the inhibit time to end
     std::uint32_t last_sent_us = 0;
     std::array<std::uint8_t, 8> last_payload{};
     bool buffered = false;  // synchronous RPDO waiting for the next SYNC
@@ -327,6 +335,7 @@ class Node final {
   void send_tpdo(Pdo& pdo, const std::array<std::uint8_t, 8>& data, std::uint8_t len,
                  std::uint32_t now_us);
   void poll_event_tpdos(std::uint32_t now_us);
+  std::uint32_t us_until_pdo_timer(std::uint32_t now_us, std::uint32_t limit_us) const;
 
   // NMT, storage, EMCY (Node.cpp).
   void handle_nmt(const CanFrame& frame, std::uint32_t now_us, ProcessResult& result);

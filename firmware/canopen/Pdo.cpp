@@ -74,6 +74,7 @@ SdoAbort Node::write_pdo_communication(Pdo& pdo, bool is_rpdo, std::uint8_t sub,
       if (enabling) {
         pdo.received_once = false;
         pdo.sent_once = false;
+        pdo.change_held = false;
         pdo.syncs_since_sent = 0;
         pdo.due_at_sync = false;
         pdo.sync_started = false;
@@ -185,6 +186,7 @@ void Node::reset_pdo_runtime() {
     pdo.syncs_since_sent = 0;
     pdo.due_at_sync = false;
     pdo.sent_once = false;
+    pdo.change_held = false;
     pdo.sync_started = false;
   }
 }
@@ -258,6 +260,7 @@ void Node::send_tpdo(Pdo& pdo, const std::array<std::uint8_t, 8>& data, std::uin
   pdo.last_payload = data;
   pdo.last_sent_us = now_us;
   pdo.sent_once = true;
+  pdo.change_held = false;
 }
 
 void Node::transmit_synchronous_pdos(std::uint32_t now_us) {
@@ -286,6 +289,29 @@ void Node::poll_rpdo_deadlines(std::uint32_t now_us) {
   }
 }
 
+std::uint32_t Node::us_until_pdo_timer(std::uint32_t now_us, std::uint32_t limit_us) const {
+  std::uint32_t soonest = limit_us;
+  for (const Pdo& pdo : rpdos_) {
+    if (!pdo.valid() || pdo.event_timer_ms == 0 || !pdo.received_once || pdo.deadline_missed) continue;
+    const std::uint32_t left_us = now_us - pdo.last_received_us;
+    const std::uint32_t deadline_us = std::uint32_t{pdo.event_timer_ms} * 1000u;
+    soonest = std::min(soonest, left_us >= deadline_us ? 0u : deadline_us - left_us);
+  }
+  for (const Pdo& pdo : tpdos_) {
+    if (!pdo.valid() || !is_event_driven(pdo.transmission_type)) continue;
+    if (!pdo.sent_once) return 0;  // poll_event_tpdos sends it at once
+    const std::uint32_t since_sent_us = now_us - pdo.last_sent_us;
+    if (pdo.event_timer_ms != 0) {
+      const std::uint32_t timer_us = std::uint32_t{pdo.event_timer_ms} * 1000u;
+      soonest = std::min(soonest, since_sent_us >= timer_us ? 0u : timer_us - since_sent_us);
+    }
+    // A change held back by the inhibit time goes out when it ends.
+    const std::uint32_t inhibit_us = std::uint32_t{pdo.inhibit_time_100us} * 100u;
+    if (pdo.change_held) soonest = std::min(soonest, since_sent_us >= inhibit_us ? 0u : inhibit_us - since_sent_us);
+  }
+  return soonest;
+}
+
 void Node::poll_event_tpdos(std::uint32_t now_us) {
   for (Pdo& pdo : tpdos_) {
     if (!pdo.valid() || !is_event_driven(pdo.transmission_type)) continue;
@@ -298,7 +324,10 @@ void Node::poll_event_tpdos(std::uint32_t now_us) {
     if (!changed && !timer_expired) continue;
     // The inhibit time is the minimum gap between two transmissions; a change inside it is
     // sent when it ends (this poll re-evaluates it every call).
-    if (pdo.sent_once && since_sent_us < std::uint32_t{pdo.inhibit_time_100us} * 100u) continue;
+    if (pdo.sent_once && since_sent_us < std::uint32_t{pdo.inhibit_time_100us} * 100u) {
+      pdo.change_held = true;
+      continue;
+    }
     send_tpdo(pdo, data, len, now_us);
   }
 }

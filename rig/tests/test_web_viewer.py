@@ -128,8 +128,9 @@ def test_web_viewer_shows_the_recording_with_every_dashboard(trace: Path) -> Non
 
 @pytest.fixture
 def one_broken_series(tmp_path: Path) -> Path:
-    """A recording with two series of 200 rows each (cycle and sim_time, as the rig's): a sine, and one whose
-    every value is NaN (it has rows, so it has data, but it draws nothing)."""
+    """A recording of series of 200 rows each (cycle and sim_time, as the rig's): a sine, three flags
+    that are all 0 (identical lines, each hiding the ones below), and one whose every value is NaN
+    (it has rows, so it has data, but it draws nothing)."""
     import numpy as np
     import rerun as rr
 
@@ -137,7 +138,9 @@ def one_broken_series(tmp_path: Path) -> Path:
     stream = rr.RecordingStream(APPLICATION_ID, recording_id="one-broken-series")
     stream.save(str(path))
     cycles = np.arange(200)
-    for entity, values in (("/check/drawn", np.sin(cycles / 20.0)), ("/check/broken", np.full(200, np.nan))):
+    series = [("/check/drawn", np.sin(cycles / 20.0)), ("/check/broken", np.full(200, np.nan))]
+    series += [(f"/check/flag_{name}", np.zeros(200)) for name in "abc"]
+    for entity, values in series:
         stream.send_columns(
             entity,
             indexes=[
@@ -154,8 +157,10 @@ def one_broken_series(tmp_path: Path) -> Path:
 @pytest.mark.skipif(NO_BROWSER is not None, reason=str(NO_BROWSER))
 @pytest.mark.timeout(600)
 def test_the_series_check_fails_for_a_series_with_data_that_draws_nothing(one_broken_series: Path) -> None:
-    """The per-series pixel check of the browser stage (`check_series`): of two series that both
-    have data, the one that draws nothing in its view is named, the other one is not."""
+    """The per-series pixel check of the browser stage (`check_series`): of the series that all
+    have data, the one that draws nothing in its view is named, the others are not; three
+    identical lines are told apart in one more showing (nested), and only the broken one is then
+    shown alone."""
     import rerun.blueprint as rrb
 
     from hilrig.observe.dashboard_check import missing_series
@@ -163,7 +168,11 @@ def test_the_series_check_fails_for_a_series_with_data_that_draws_nothing(one_br
     from hilrig.observe.series_check import SERIES_PIXELS, check_series
 
     layout = rrb.Blueprint(
-        rrb.TimeSeriesView(name="two series", origin="/check", contents=["/check/drawn", "/check/broken"]),
+        rrb.TimeSeriesView(
+            name="five series",
+            origin="/check",
+            contents=["/check/flag_a", "/check/flag_b", "/check/drawn", "/check/broken", "/check/flag_c"],
+        ),
         rrb.TimePanel(timeline=CYCLE_TIMELINE),
         collapse_panels=False,
     )
@@ -172,8 +181,10 @@ def test_the_series_check_fails_for_a_series_with_data_that_draws_nothing(one_br
     out = output_dir() / "series-check"
     with served_trace(one_broken_series, "overview") as served, ViewerPage(served) as viewer:
         drawn = check_series(viewer, layout, trace, out, name="broken", trace_path=one_broken_series)
-    assert drawn.pixels[("two series", "/check/drawn")] >= SERIES_PIXELS, drawn.pixels
-    assert drawn.missing() == ["broken / two series: /check/broken drew 0 pixels in its view"]
+    for entity in ("/check/drawn", "/check/flag_a", "/check/flag_b", "/check/flag_c"):
+        assert drawn.pixels[("five series", entity)] >= SERIES_PIXELS, drawn.pixels
+    assert drawn.missing() == ["broken / five series: /check/broken drew 0 pixels in its view"]
+    assert [shot.name for shot in drawn.screenshots] == ["1.png", "1-nested.png", "1-4.png"]
 
 
 # --- Without a browser ------------------------------------------------------------------------

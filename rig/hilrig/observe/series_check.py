@@ -10,8 +10,10 @@ How: each time series view of the dashboard is shown alone (it then fills the bl
 `BLUEPRINT_AREA`: that rectangle is the view's), with its legend hidden and each of its series
 given its own colour of `SERIES_PALETTE` and a wide line by a blueprint override; a series is
 drawn when pixels of its colour are inside that rectangle. Lines on top of each other hide the
-ones below (a setpoint its measurement follows exactly, flags that are all 0): a series not found
-among the others is shown once more alone in its view, and only then is it missing. Text logs
+ones below (a setpoint its measurement follows exactly, flags that are all 0). Identical lines (flags
+all 0) are then shown together once more, nested: the first widest, each next narrower
+(`nested_widths`), so each shows a band of its colour around the ones on top of it; only a
+series still not found is shown alone, and only then is it missing. Text logs
 and 3D views name no series: `check_dashboards` covers them.
 
 The series of a view are the entity paths it names, or (a view of everything under its origin)
@@ -47,6 +49,9 @@ robot's angles are 16): clear colours apart from each other by 40 or more in som
 near the viewer's own accent blue (`hilrig.observe.browser.UI_ACCENT_HUE`) or its greys."""
 LINE_WIDTH = 4.0
 """Points: the middle of a line this wide is its own colour exactly, whatever the anti-aliasing."""
+NESTED_STEP = 4.0
+"""Points between the widths of series shown nested (`nested_widths`): two pixels of a band each
+side, one of them clear of the anti-aliased edges."""
 COLOUR_TOLERANCE = 10
 """Per channel, how far a pixel may be from a series' colour and still be it."""
 SERIES_PIXELS = 20
@@ -74,20 +79,29 @@ def colour_pixels(image: Image, box: tuple[int, int, int, int], rgb: tuple[int, 
     return int(np.count_nonzero(near))
 
 
+def nested_widths(count: int) -> list[float]:
+    """Line widths for `count` series that may lie on top of each other: the first widest, each
+    next NESTED_STEP narrower, down to LINE_WIDTH. Drawn in order (the later on top), identical
+    lines then show as nested bands, each of its own colour."""
+    return [LINE_WIDTH + NESTED_STEP * (count - 1 - k) for k in range(count)]
+
+
 def alone(
     view: rrb.TimeSeriesView,
     series: Sequence[str],
     time_panel: rrb.TimePanel | None,
     *,
     name: str | None = None,
+    widths: Sequence[float] | None = None,
 ) -> rrb.Blueprint:
     """A blueprint of `view` alone (called `name`, default its own), plotting `series`, each in its
-    SERIES_PALETTE colour, wide, no legend."""
+    SERIES_PALETTE colour, LINE_WIDTH wide (or `widths`), no legend."""
     import rerun as rr
     import rerun.blueprint as rrb
 
+    line_widths = list(widths) if widths is not None else [LINE_WIDTH] * len(series)
     overrides = {
-        path: rr.SeriesLines.from_fields(colors=[SERIES_PALETTE[k]], widths=[LINE_WIDTH])
+        path: rr.SeriesLines.from_fields(colors=[SERIES_PALETTE[k]], widths=[line_widths[k]])
         for k, path in enumerate(series)
     }
     shown = rrb.TimeSeriesView(
@@ -176,16 +190,31 @@ def check_series(
             path = out_dir / (f"{number}.png" if not first else f"{number}-from-{first + 1}.png")
             image = _still_screenshot(viewer, path)
             drawn.screenshots.append(path)
+            counts = {
+                entity: colour_pixels(image, BLUEPRINT_AREA, SERIES_PALETTE[k])
+                for k, entity in enumerate(series)
+            }
+            # Hidden under the others, or not drawn: the hidden ones shown again together, nested
+            # (lines on top of each other then each show a band), then any still missing alone.
+            hidden = [e for e in series if counts[e] < SERIES_PIXELS]
+            if len(hidden) > 1:
+                nested = alone(view, hidden, blueprint.time_panel, name=f"{name} (hidden, nested)",
+                               widths=nested_widths(len(hidden)))
+                viewer.show_dashboard(nested, whole)
+                again = out_dir / f"{number}-nested{'' if not first else f'-from-{first + 1}'}.png"
+                nested_shot = _still_screenshot(viewer, again)
+                drawn.screenshots.append(again)
+                for k, entity in enumerate(hidden):
+                    counts[entity] = colour_pixels(nested_shot, BLUEPRINT_AREA, SERIES_PALETTE[k])
             for k, entity in enumerate(series):
-                count = colour_pixels(image, BLUEPRINT_AREA, SERIES_PALETTE[k])
-                if count < SERIES_PIXELS:  # hidden under the others, or not drawn: look at it alone
+                if counts[entity] < SERIES_PIXELS:
                     by_itself = alone(view, [entity], blueprint.time_panel, name=f"{view.name}: {entity}")
                     viewer.show_dashboard(by_itself, whole)
                     single = out_dir / f"{number}-{first + k + 1}.png"
                     alone_shot = _still_screenshot(viewer, single)
-                    count = colour_pixels(alone_shot, BLUEPRINT_AREA, SERIES_PALETTE[0])
+                    counts[entity] = colour_pixels(alone_shot, BLUEPRINT_AREA, SERIES_PALETTE[0])
                     drawn.screenshots.append(single)
-                drawn.pixels[(str(view.name), entity)] = count
+                drawn.pixels[(str(view.name), entity)] = counts[entity]
         checked[key] = {entity: drawn.pixels[(str(view.name), entity)] for entity in every}
     return drawn
 
@@ -197,5 +226,6 @@ __all__ = [
     "alone",
     "check_series",
     "colour_pixels",
+    "nested_widths",
     "series_of",
 ]
