@@ -3,7 +3,7 @@ its power (rail current against its limit, battery voltage against its low limit
 (commanded, driven, true), its attitude from the IMU against the plant's, the rail and fault
 state, and the event log (EMCY of a trip or a low battery).
 
-    hilrig view out/scenarios/<test>/trace.rrd --dashboard head --table protocol/boards/head.toml
+    .venv/bin/rerun out/scenarios/<test>/trace.rrd      # a head scenario's trace carries it
     blueprint("head", RigTable.load(resources.HEAD_TABLE))
 
 Built like the joint's (dashboards/joint.py): paths from `hilrig.observe.paths`, every field name
@@ -34,7 +34,9 @@ def head(table: EntryTable) -> rrb.Blueprint:
                  [*p(*leds, *(f"{led}_duty" for led in leds)),
                   *(plant_truth_path(f"{led}_duty") for led in leds)]),
             plot("head attitude [rad]: firmware estimate vs true",
-                 [*p("head_pitch", "head_roll"), plant_truth_path("pitch_rad"), plant_truth_path("roll_rad")]),
+                 [*p("head_pitch", "head_roll"), *(plant_truth_path(q) for q in ("pitch_rad", "roll_rad"))]),
+            plot("IMU rates [rad/s]: gyro y, z vs true pitch and yaw rate",
+                 [*p("gyro_y", "gyro_z"), *map(plant_truth_path, ("pitch_rate_rad_s", "yaw_rate_rad_s"))]),
             plot("rail and faults [1]: rail_enable, rail_on, fault_flags, fault_clear",
                  p("rail_enable", "rail_on", "fault_flags", "fault_clear")),
             plot("state of charge [1], true", [plant_truth_path("battery_state_of_charge")]),

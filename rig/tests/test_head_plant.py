@@ -136,3 +136,28 @@ def test_the_head_dashboard_shows_logged_paths_one_unit_per_plot() -> None:
         assert all(path in unit_of for path in shown), [p for p in shown if p not in unit_of]
         units = {unit_of[path] for path in shown}
         assert len(units) <= 1, f"{view.name} mixes {sorted(units)}"  # type: ignore[attr-defined]
+
+
+def test_mounted_on_a_turning_body_the_imu_reads_its_yaw_rate_and_tilt() -> None:
+    """On a robot's head link (`mount_on`): a body yawing at 0.5 rad/s and pitched nose down
+    by 0.1 rad reads that rate on the gyro's z axis and that pitch from gravity."""
+    dt, rate, pitch = 1e-3, 0.5, 0.1
+    angle = [0.0]
+
+    def orientation() -> tuple[float, float, float, float]:
+        # yaw about the world's z, then pitch about the body's y: q = q_yaw * q_pitch
+        cy, sy = math.cos(angle[0] / 2), math.sin(angle[0] / 2)
+        cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+        return (cy * cp, -sy * sp, cy * sp, sy * cp)
+
+    plant = HeadPlant(quiet())
+    plant.mount_on(orientation)
+    for _ in range(10):
+        angle[0] += rate * dt
+        plant.step(dt)
+    truth = plant.truth()
+    assert truth.pitch_rad == pytest.approx(pitch, abs=1e-9)
+    assert truth.yaw_rate_rad_s == pytest.approx(rate * math.cos(pitch), abs=1e-6)  # body z is tilted
+    frame = plant.sense()
+    gyro_scale = TABLE.field("gyro_scale").default
+    assert frame.gyro_z_counts == round(rate * math.cos(pitch) / gyro_scale)

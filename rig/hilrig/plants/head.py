@@ -6,7 +6,9 @@ the rail switch), `step(dt)` advances the battery's charge and the nod.
 
 Physics, deliberately small and exact in simulation time:
 - pose: pitch = nod_amplitude * sin(2 pi nod_hz t) plus a fixed roll; the IMU reads gravity's
-  specific force in the head's frame (x forward, y left, z up) and the pitch rate on y;
+  specific force in the head's frame (x forward, y left, z up) and the pitch rate on y. Mounted
+  on a body (`mount_on`: a robot's head link in MuJoCo), the pose is that body's instead, and the
+  IMU reads its gravity direction and its angular rate (from the orientation's change per step);
 - rail: closed by the rail switch output; it draws base_load + extra_load + each LED channel's
   full current times its PWM share; the board itself draws quiescent current always;
 - battery: open-circuit voltage linear in the state of charge between the cells' empty and full
@@ -22,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,6 +107,7 @@ class HeadTruth:
     pitch_rad: float
     roll_rad: float
     pitch_rate_rad_s: float
+    yaw_rate_rad_s: float
     rail_closed: float
     rail_current_a: float
     battery_current_a: float
@@ -125,6 +128,26 @@ def _counts(value: float, low_high: tuple[int, int]) -> int:
     return min(max(rounded, low_high[0]), low_high[1])
 
 
+def _rotation(quaternion: Sequence[float]) -> np.ndarray:
+    """The rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = (float(v) for v in quaternion)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def _body_rate(before: np.ndarray, after: np.ndarray, dt_s: float) -> np.ndarray:
+    """The angular rate in the body's frame that turns `before` into `after` in `dt_s` (the
+    rotation vector of before^T after, over dt)."""
+    delta = before.T @ after
+    angle = math.acos(max(-1.0, min(1.0, (np.trace(delta) - 1.0) / 2.0)))
+    axis = np.array([delta[2, 1] - delta[1, 2], delta[0, 2] - delta[2, 0], delta[1, 0] - delta[0, 1]])
+    scale = 0.5 if angle < 1e-9 else angle / (2.0 * math.sin(angle))
+    return axis * scale / dt_s
+
+
 class HeadPlant:
     """The head module's hardware model (`hilrig.plants.interface.Plant`)."""
 
@@ -140,8 +163,31 @@ class HeadPlant:
         """The battery's charge left [C]."""
         self._pwm = (0, 0, 0)
         self._rail_closed = False
+        self._mount: Callable[[], Sequence[float]] | None = None
+        self._rotation = np.eye(3)  # mounted: the body's frame in the world (columns x, y, z)
+        self._rate = np.zeros(3)  # mounted: its angular rate in its own frame [rad/s]
+
+    def mount_on(self, orientation: Callable[[], Sequence[float]]) -> None:
+        """Ride on a body from now on: `orientation()` gives its unit quaternion (w, x, y, z) in
+        a z-up world each step (a robot's head link: `lambda: chain.poses()[1][0]`)."""
+        self._mount = orientation
+        self._rotation = _rotation(orientation())
+        self._rate = np.zeros(3)
 
     # --- what the hardware draws and shows now -----------------------------------------
+    def _motion(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """Gravity's specific force [m/s^2] and the angular rate [rad/s] in the head's frame."""
+        g = STANDARD_GRAVITY_MPS2
+        if self._mount is not None:
+            up = self._rotation.T @ np.array([0.0, 0.0, g])
+            ax, ay, az = (float(v) for v in up)
+            wx, wy, wz = (float(w) for w in self._rate)
+            return (ax, ay, az), (wx, wy, wz)
+        pitch, pitch_rate = self._pitch()
+        roll = self.params.roll_rad
+        level = g * math.cos(pitch)
+        return (-g * math.sin(pitch), level * math.sin(roll), level * math.cos(roll)), (0.0, pitch_rate, 0.0)
+
     def _pitch(self) -> tuple[float, float]:
         p = self.params
         omega = 2.0 * math.pi * p.nod_hz
@@ -168,14 +214,7 @@ class HeadPlant:
     # --- the plant interface -------------------------------------------------------------
     def sense(self) -> HeadSensors:
         p = self.params
-        pitch, pitch_rate = self._pitch()
-        g = STANDARD_GRAVITY_MPS2
-        accel = (
-            -g * math.sin(pitch),
-            g * math.cos(pitch) * math.sin(p.roll_rad),
-            g * math.cos(pitch) * math.cos(p.roll_rad),
-        )
-        gyro = (0.0, pitch_rate, 0.0)
+        accel, gyro = self._motion()
         noise = self._noise.standard_normal(8)
         a = [
             _counts((v + p.accel_noise_mps2 * n) / p.accel_scale_mps2, _I16_RANGE)
@@ -199,12 +238,13 @@ class HeadPlant:
         )
 
     def truth(self) -> HeadTruth:
-        pitch, pitch_rate = self._pitch()
+        (ax, ay, az), (_, pitch_rate, yaw_rate) = self._motion()
         red, green, blue = (pwm / PWM_FULL_SCALE for pwm in self._pwm)
         return HeadTruth(
-            pitch_rad=pitch,
-            roll_rad=self.params.roll_rad,
+            pitch_rad=math.atan2(-ax, math.hypot(ay, az)),
+            roll_rad=math.atan2(ay, az),
             pitch_rate_rad_s=pitch_rate,
+            yaw_rate_rad_s=yaw_rate,
             rail_closed=1.0 if self._rail_closed else 0.0,
             rail_current_a=self.rail_current_a(),
             battery_current_a=self.battery_current_a(),
@@ -241,6 +281,10 @@ class HeadPlant:
     def step(self, dt_s: float) -> None:
         self.charge_c = max(0.0, self.charge_c - self.battery_current_a() * dt_s)
         self.t += dt_s
+        if self._mount is not None:  # the body has moved (a robot steps its chain first)
+            rotation = _rotation(self._mount())
+            self._rate = _body_rate(self._rotation, rotation, dt_s)
+            self._rotation = rotation
 
     def set_extra_load(self, amperes: float) -> None:
         """A fault load on the rail from now on (a scenario's short or stalled fan)."""
