@@ -125,9 +125,10 @@ def _cache_dir() -> Path:
     path = Path(base) / "hilrig" / "tables"
     try:
         path.mkdir(parents=True, exist_ok=True)
-        if not os.access(path, os.W_OK):  # there, but read-only (the VM's view of the home)
-            raise PermissionError(path)
-    except OSError:  # a read-only home (a container): the temporary directory instead
+        writable = os.access(path, os.W_OK)  # it may exist on a home mounted read-only (a VM)
+    except OSError:
+        writable = False
+    if not writable:  # a read-only home (a container, the micro-VM): the temporary directory instead
         path = Path(tempfile.gettempdir()) / f"hilrig-{os.getuid()}" / "tables"
         path.mkdir(parents=True, exist_ok=True)
     return path

@@ -332,3 +332,35 @@ def test_a_plant_whose_field_no_tpdo_carries_is_refused_naming_it() -> None:
     driver = LockstepDriver(StubNode(), plant, period_us=1000)  # type: ignore[arg-type]
     with pytest.raises(PdoMappingError, match="HIL output gear_ratio is in no enabled TPDO"):
         driver.configure()
+
+
+class TableWithout:
+    """The demo table less some of its fields (a board without a setpoint stream)."""
+
+    def __init__(self, table: RigTable, *left_out: str) -> None:
+        self._table = table
+        self.names = tuple(name for name in table.names if name not in left_out)
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._table, name)
+
+
+def test_a_board_without_the_setpoint_fields_has_no_stream_and_sends_rpdos_when_changed() -> None:
+    node = StubNode()
+    node.table = TableWithout(node.table, "velocity_setpoint", "torque_setpoint")  # type: ignore[assignment]
+    driver = LockstepDriver(node, JointModel.of(JointParams(), 1), period_us=1000)  # type: ignore[arg-type]
+    driver.configure()
+    driver.node_entered(NmtState.OPERATIONAL)
+    driver.step()
+    assert [c for c, _ in _link(driver).sent] == [SENSORS, SYNC_COB_ID]  # the sensors alone
+    _link(driver).sent.clear()
+    driver.set_rpdo_value("position_setpoint", 0.5)
+    driver.step()
+    changed = BOARD_TABLE.rpdo(3).cob_id(NODE_ID)
+    assert [c for c, _ in _link(driver).sent] == [SENSORS, changed, SYNC_COB_ID]
+
+
+def test_a_setpoint_field_of_the_table_in_no_rpdo_is_refused_naming_it(driver) -> None:
+    driver.node.rpdos[2] = dataclasses.replace(driver.node.rpdos[2], enabled=False)
+    with pytest.raises(PdoMappingError, match="setpoint velocity_setpoint is in no enabled RPDO"):
+        driver.configure()

@@ -54,6 +54,26 @@ def test_another_table_gets_its_eds_and_dbc_generated_into_the_cache(
     assert resources.board_files(other_table).dbc.parent != files.dbc.parent, "another table, another place"
 
 
+def test_a_cache_that_exists_read_only_falls_back_to_the_temporary_directory(
+    other_table: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The micro-VM mounts the home read-only: ~/.cache/hilrig/tables is there (made natively)
+    # but cannot take a file. Root writes through modes, so the mount is stood in for by access().
+    cache = tmp_path / "cache" / "hilrig" / "tables"
+    cache.mkdir(parents=True)
+    real_access = os.access
+
+    def access(path: str | Path, mode: int) -> bool:
+        return False if Path(path) == cache else real_access(path, mode)
+
+    monkeypatch.setattr(resources.os, "access", access)
+    monkeypatch.setattr(resources.tempfile, "tempdir", str(tmp_path / "tmp"))
+    files = resources.board_files(other_table)
+    assert files.eds.parent.parent == tmp_path / "tmp" / f"hilrig-{os.getuid()}" / "tables"
+    assert f"ParameterName={RENAMED}" in files.eds.read_text()
+    assert list(cache.iterdir()) == []
+
+
 def test_replay_decode_with_another_table_uses_the_dbc_generated_for_it(
     other_table: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

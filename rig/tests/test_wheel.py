@@ -243,3 +243,39 @@ def test_replay_decodes_with_the_packaged_dbc_and_with_one_generated_for_another
     assert "TPDO1  motor_pwm=0 0.01%" in replay.stdout
     generated = list((Path(installed.env["XDG_CACHE_HOME"]) / "hilrig" / "tables").glob("*/board.dbc"))
     assert len(generated) == 1
+
+
+def test_the_installed_pytest_plugin_serves_a_project_outside_the_checkout(installed: Installed) -> None:
+    # A project of its own: its table (the demo's with a field renamed), its plant module, its
+    # pytest.ini naming them; the fixtures come from the wheel's entry point, the EDS is
+    # generated from the table by the wheel's boardproto.
+    project = installed.workdir / "project"
+    project.mkdir()
+    text = (REPO / "protocol" / "board.toml").read_text()
+    (project / "board.toml").write_text(text.replace('"motor_duty"', '"motor_pwm"'))
+    (project / "pytest.ini").write_text(
+        "[pytest]\nhil_table = board.toml\nhil_firmware = bin/firmware\nhil_plant = my_plant:make\n"
+    )
+    (project / "my_plant.py").write_text(
+        "from hilrig.plants.joint import JointModel\n\n\ndef make(params, seed):\n"
+        "    return JointModel.of(params, seed)\n"
+    )
+    (project / "test_board.py").write_text(
+        "from pathlib import Path\n\nimport hilrig\n\n\ndef test_board(hil_board, make_scenario):\n"
+        "    assert 'site-packages' in hilrig.__file__\n"
+        "    assert 'motor_pwm' in hil_board.table.names and hil_board.eds.is_file()\n"
+        "    assert 'ParameterName=motor_pwm' in hil_board.eds.read_text()\n"
+        "    assert hil_board.firmware == Path('bin/firmware').resolve()\n"
+        "    assert hil_board.plant(None, 2).sensor_fields\n"
+    )
+    python = installed.venv / "bin" / "python"
+    done = subprocess.run(
+        [python, "-m", "pytest", "-q", "-p", "no:cacheprovider"],
+        cwd=project,
+        env=installed.env,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=120,
+    )
+    assert done.returncode == 0 and "1 passed" in done.stdout, done.stdout + done.stderr

@@ -55,8 +55,9 @@ from hilrig.wire.transport import (
 )
 
 SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
-"""Fields of the RPDO sent every cycle, like a real master's setpoint stream (those of them the
-board's table has)."""
+"""Fields of the RPDO sent every cycle, like a real master's setpoint stream (the demo joint's
+watchdog watches it). Those of them a board's table has must be in an enabled RPDO; a board with
+none of them has no stream: its RPDOs go out when a scenario changes a value."""
 LIVENESS_SLICE_S = 0.25
 """While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
 
@@ -297,6 +298,9 @@ class Driver:
         self._actuator: Callable[[Mapping[int, tuple[Value, ...]]], Outputs] = _no_outputs
         """A cycle's TPDO values by COB-ID -> the plant's actuator fields (None: not all came)."""
         self._actuator_pdos: tuple[PdoLayout, ...] = ()
+        self._actuator_one: tuple[int, int] | None = None
+        """(COB-ID, position) of a plant's one actuator field: what a lockstep cycle reads
+        itself, without `_actuator`'s call (the usual case); None: call `_actuator`."""
         self._due_table: list[frozenset[int]] = [frozenset()]
         self._sync_starts = SyncStarts(())
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
@@ -352,8 +356,6 @@ class Driver:
             sharing = [p.label for p in enabled_rpdos if p.cob_id == cob_id]
             if len(sharing) > 1:  # the node could not tell their frames apart, nor could the history
                 problems.append(f"{' and '.join(sharing)} share a COB-ID")
-        # The board's setpoint stream: the names of it its table has (another board, the head,
-        # has none: its commands go out when set).
         streamed = [name for name in SETPOINT_STREAM if name in table.names]
         stream = [p for p in enabled_rpdos if set(streamed) & set(p.names)]
         for name in streamed:
@@ -398,6 +400,8 @@ class Driver:
         complete = len(actuator_at) == len(self.plant.actuator_fields)
         self._actuator = _outputs_getter(actuator_at) if complete and actuator_at else _no_outputs
         self._actuator_pdos = tuple(dict.fromkeys(pdo for pdo, _ in actuator_at)) if complete else ()
+        one = complete and len(actuator_at) == 1
+        self._actuator_one = (actuator_at[0][0].cob_id, actuator_at[0][1]) if one else None
         self._due_table = due_table(enabled_tpdos)
         self._sync_starts = SyncStarts(enabled_tpdos)
         keep = self.history.keep

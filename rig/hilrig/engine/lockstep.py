@@ -280,7 +280,12 @@ class LockstepDriver(Driver):
         appended as they were decoded: `_collect`), its actuator outputs applied to the plant
         (None when the TPDOs carrying them did not come: the node not operational), and the
         result."""
-        outputs = self._actuator(got)
+        one = self._actuator_one
+        if one is not None:
+            values = got.get(one[0])
+            outputs = None if values is None else (values[one[1]],)
+        else:
+            outputs = self._actuator(got)
         self.plant.apply(outputs)
         if self._rpdo_rows:  # none when the history keeps nothing
             append_frame_rows(frames, self._rpdo_rows, n)

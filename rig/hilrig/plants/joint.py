@@ -47,6 +47,9 @@ class JointModel:
         self.duty = 0.0
         """The duty fraction last applied (what the next step holds)."""
         self._read: Callable[[JointState], RawSensors] = sensors.read
+        self._step = plant.step
+        if stepped_by is not None:
+            self.step = self._stepped_elsewhere  # type: ignore[method-assign]
 
     @classmethod
     def of(cls, params: JointParams | None = None, seed: int | np.random.Generator = 0) -> JointModel:
@@ -55,11 +58,13 @@ class JointModel:
         return cls(JointPlant(params), SensorModel(params, seed))
 
     # --- The interface ------------------------------------------------------------------
+    # Every cycle of every module calls these: they read the joint's state without its
+    # property's call (the plants' own package), a cost of every cycle.
     def sense(self) -> RawSensors:
-        return self._read(self.joint.state)
+        return self._read(self.joint._state)
 
     def truth(self) -> JointState:
-        return self.joint.state
+        return self.joint._state
 
     def truth_matrix(self, snapshots: Sequence[JointState]) -> np.ndarray:
         return state_matrix(snapshots)[:, 1:]
@@ -73,9 +78,10 @@ class JointModel:
         self.duty = 0.0 if outputs is None else duty_from_motor_duty(outputs[0])  # type: ignore[arg-type]
 
     def step(self, dt_s: float) -> None:
-        if self.stepped_by is not None:
-            raise RuntimeError(f"this joint is stepped by {self.stepped_by}, not on its own")
-        self.joint.step(dt_s, self.duty)
+        self._step(dt_s, self.duty)
+
+    def _stepped_elsewhere(self, dt_s: float) -> None:
+        raise RuntimeError(f"this joint is stepped by {self.stepped_by}, not on its own")
 
     # --- The joint's own ----------------------------------------------------------------
     @property

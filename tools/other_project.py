@@ -1,0 +1,90 @@
+"""examples/other-project from outside the checkout, as another project would use hil-rig:
+hilrig's wheel (`make dist`) installed into a fresh venv, hil-rig's firmware package installed
+from the CMake build (`cmake --install build --component hilfw`), the lamp's firmware built
+against that prefix with the wheel's generator, and the lamp's scenarios run by the wheel's pytest
+plugin with the example as the working directory and no PYTHONPATH. `tools/run-tests` runs the
+native part and the scenarios in its bus stage's VM:
+
+    .venv/bin/python tools/other_project.py prepare [PYTEST_ARGS...]  # prints the command for the VM
+
+Everything goes under build/other-project/ (the wheel, the venv, the prefix) and
+examples/other-project/build/ (the lamp's build tree, which its pytest.ini names). The venv is
+pip's own install of the wheel and pytest, nothing of the checkout's venv in it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+EXAMPLE = REPO / "examples" / "other-project"
+OUT = REPO / "build" / "other-project"
+CMAKE_BUILD = Path(os.environ.get("HILFW_BUILD", REPO / "build"))
+"""The configured CMake build tree whose install rules hold the firmware package: `make build`'s,
+or $HILFW_BUILD (a tree configured by hand, e.g. a worktree whose build/ links another's)."""
+
+
+def _run(argv: list[str | Path], **kwargs: object) -> None:
+    """Run a step; its output goes to stderr (stdout is the command for the VM)."""
+    done = subprocess.run([str(a) for a in argv], stdout=sys.stderr, check=False, **kwargs)  # type: ignore[call-overload]
+    if done.returncode != 0:
+        raise SystemExit(f"other-project: failed ({done.returncode}): {shlex.join(str(a) for a in argv)}")
+
+
+def _clean_env() -> dict[str, str]:
+    """This environment without what would reach the checkout's packages."""
+    return {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
+
+
+def fresh_venv(wheels: Path, venv: Path) -> Path:
+    """A new venv with hilrig from WHEELS and pytest, as another project installs them: its
+    dependencies from the package index at the versions requirements.lock pins (pip's cache
+    has them after `make deps`, so nothing is downloaded twice); its python."""
+    shutil.rmtree(venv, ignore_errors=True)
+    _run([sys.executable, "-m", "venv", "--without-pip", venv])
+    python = venv / "bin" / "python"
+    pip = [sys.executable, "-m", "pip", "--python", python, "--disable-pip-version-check"]
+    _run([*pip, "install", "--quiet", "--find-links", wheels, "--constraint", REPO / "requirements.lock",
+          "hilrig", "pytest"], env=_clean_env())  # fmt: skip
+    return python
+
+
+def prepare(pytest_args: list[str]) -> str:
+    """The native part; returns the shell command that runs the lamp's scenarios (in the VM), in
+    a subshell, with `pytest_args` after pytest's own."""
+    wheels = OUT / "dist"
+    shutil.rmtree(wheels, ignore_errors=True)
+    _run([sys.executable, REPO / "tools" / "dist.py", "--out", wheels], env=_clean_env())
+    python = fresh_venv(wheels, OUT / "venv")
+    prefix = OUT / "prefix"
+    shutil.rmtree(prefix, ignore_errors=True)
+    _run(["cmake", "--install", CMAKE_BUILD, "--component", "hilfw", "--prefix", prefix])
+    lamp_build = EXAMPLE / "build"
+    shutil.rmtree(lamp_build, ignore_errors=True)
+    _run(
+        ["cmake", "-S", EXAMPLE, "-B", lamp_build, "-G", "Ninja", f"-DCMAKE_PREFIX_PATH={prefix}",
+         f"-DHILFW_PYTHON={python}"],
+        env=_clean_env(),
+    )  # fmt: skip
+    _run(["cmake", "--build", lamp_build], env=_clean_env())
+    pytest = shlex.join(["env", "-u", "PYTHONPATH", str(python), "-m", "pytest", "-q", *pytest_args])
+    return f"(cd {shlex.quote(str(EXAMPLE))} && {pytest})"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("step", choices=["prepare"])
+    parser.add_argument("pytest_args", nargs=argparse.REMAINDER, help="more arguments for pytest")
+    arguments = parser.parse_args()
+    print(prepare(arguments.pytest_args))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
