@@ -39,7 +39,7 @@ ORIGIN_SUBTREE = "$origin/**"
 """A view's contents when it names no series: everything under its origin."""
 
 
-class _Paths:
+class Paths:
     """Field name -> entity path, checked against the table."""
 
     def __init__(self, table: EntryTable) -> None:
@@ -58,17 +58,17 @@ WHOLE_RUN = rrb.archetypes.TimeAxis(
 show a window of some thousand cycles around the time cursor)."""
 
 
-def _plot(name: str, contents: list[str] | None = None, *, origin: str = "/") -> rrb.TimeSeriesView:
+def plot(name: str, contents: list[str] | None = None, *, origin: str = "/") -> rrb.TimeSeriesView:
     """A time series plot of `contents` (default: everything under `origin`), the whole run."""
     shown = contents if contents is not None else ORIGIN_SUBTREE
     return rrb.TimeSeriesView(name=name, origin=origin, contents=shown, axis_x=WHOLE_RUN)
 
 
-def _events(name: str = "Events (NMT, EMCY, SDO, bus, faults)") -> rrb.TextLogView:
+def events(name: str = "Events (NMT, EMCY, SDO, bus, faults)") -> rrb.TextLogView:
     return rrb.TextLogView(name=name, origin=EVENTS_ROOT)
 
 
-def _blueprint(*parts: rrb.Container | rrb.View, timeline: str = SIM_TIME_TIMELINE) -> rrb.Blueprint:
+def blueprint_of(*parts: rrb.Container | rrb.View, timeline: str = SIM_TIME_TIMELINE) -> rrb.Blueprint:
     return rrb.Blueprint(*parts, rrb.TimePanel(timeline=timeline), collapse_panels=False)
 
 
@@ -76,22 +76,22 @@ def overview(table: EntryTable) -> rrb.Blueprint:
     """Is the joint doing what it is told? Per controlled quantity the setpoint, the firmware's
     belief and the truth on one plot (one unit per plot); the motor command it turned into; the
     mode and the fault state; the event log."""
-    p = _Paths(table)
-    return _blueprint(rrb.Vertical(
+    p = Paths(table)
+    return blueprint_of(rrb.Vertical(
         rrb.Grid(
-            _plot("velocity [rad/s]: setpoint, firmware estimate, true",
+            plot("velocity [rad/s]: setpoint, firmware estimate, true",
                   [*p("velocity_setpoint", "output_velocity"), truth_path("load_velocity_rad_s")]),
-            _plot("torque [N*m]: setpoint, firmware estimate, true",
+            plot("torque [N*m]: setpoint, firmware estimate, true",
                   [*p("torque_setpoint", "joint_torque"), truth_path("spring_torque_nm")]),
-            _plot("position [rad]: setpoint, firmware estimate, true",
+            plot("position [rad]: setpoint, firmware estimate, true",
                   [*p("position_setpoint", "output_position"), truth_path("load_angle_rad")]),
-            _plot("motor duty [1]: commanded by the firmware, applied by the plant",
+            plot("motor duty [1]: commanded by the firmware, applied by the plant",
                   [*p("motor_duty_command"), truth_path("applied_duty")]),
-            _plot("control mode (velocity, torque, position...)", p("control_mode")),
-            _plot("fault state: fault flags, safe state, watchdog",
+            plot("control mode (velocity, torque, position...)", p("control_mode")),
+            plot("fault state: fault flags, safe state, watchdog",
                   p("fault_flags", "safe_state", "watchdog_tripped")),
         ),
-        _events(),
+        events(),
         row_shares=[4, 1],
     ))
 
@@ -99,62 +99,62 @@ def overview(table: EntryTable) -> rrb.Blueprint:
 def tuning(table: EntryTable) -> rrb.Blueprint:
     """Controller tuning: per loop, setpoint vs measurement vs truth, and the controller's
     effort (one unit per plot)."""
-    p = _Paths(table)
-    return _blueprint(rrb.Vertical(
+    p = Paths(table)
+    return blueprint_of(rrb.Vertical(
         rrb.Horizontal(
-            _plot("velocity loop [rad/s]: setpoint, measurement, true",
+            plot("velocity loop [rad/s]: setpoint, measurement, true",
                   [*p("velocity_setpoint", "output_velocity"), truth_path("load_velocity_rad_s")]),
-            _plot("velocity loop effort [1]: controller output, duty",
+            plot("velocity loop effort [1]: controller output, duty",
                   p("velocity_controller_output", "motor_duty_command")),
         ),
         rrb.Horizontal(
-            _plot("torque loop [N*m]: setpoint, measurement, true",
+            plot("torque loop [N*m]: setpoint, measurement, true",
                   [*p("torque_setpoint", "joint_torque"), truth_path("spring_torque_nm")]),
-            _plot("torque loop effort [1]: controller output, duty",
+            plot("torque loop effort [1]: controller output, duty",
                   p("torque_controller_output", "motor_duty_command")),
         ),
         rrb.Horizontal(
-            _plot("motor velocity [rad/s]: measured vs true",
+            plot("motor velocity [rad/s]: measured vs true",
                   [*p("motor_velocity"), truth_path("motor_velocity_rad_s")]),
-            _plot("spring constant [N*m/rad]: estimate vs true",
+            plot("spring constant [N*m/rad]: estimate vs true",
                   [*p("spring_constant_estimate"), truth_path(TRUE_SPRING_STIFFNESS)]),
-            _plot("spring constant estimate: confidence [1]", p("spring_constant_confidence")),
+            plot("spring constant estimate: confidence [1]", p("spring_constant_confidence")),
         ),
-        _plot("duty [1]: sent by the node, derate, applied by the plant",
+        plot("duty [1]: sent by the node, derate, applied by the plant",
               [*p("motor_duty_command", "thermal_derate"), truth_path("applied_duty")]),
     ))
 
 
 def thermal(table: EntryTable) -> rrb.Blueprint:
     """Winding temperature (measured vs true), derating, resistance and current."""
-    p = _Paths(table)
-    return _blueprint(rrb.Vertical(
-        _plot("winding temperature [degC]: measured vs true, warning and limit",
+    p = Paths(table)
+    return blueprint_of(rrb.Vertical(
+        plot("winding temperature [degC]: measured vs true, warning and limit",
               [*p("winding_temperature", "thermal_warning_c", "thermal_limit_c"),
                truth_path("winding_temperature_c")]),
         rrb.Horizontal(
-            _plot("thermal derate and duty [1]", p("thermal_derate", "motor_duty_command")),
+            plot("thermal derate and duty [1]", p("thermal_derate", "motor_duty_command")),
             # Apart: the NTC's kilo-ohms would flatten the winding's ohm on one axis.
-            _plot("thermistor resistance [ohm] (what the firmware reads the temperature from)",
+            plot("thermistor resistance [ohm] (what the firmware reads the temperature from)",
                   p("thermistor_resistance")),
-            _plot("winding resistance [ohm], true (rises with its temperature)",
+            plot("winding resistance [ohm], true (rises with its temperature)",
                   [truth_path("winding_resistance_ohm")]),
         ),
-        _plot("motor current [A]: measured vs true", [*p("motor_current"), truth_path("current_a")]),
-        _events("Events"),
+        plot("motor current [A]: measured vs true", [*p("motor_current"), truth_path("current_a")]),
+        events("Events"),
     ))
 
 
 def faults(table: EntryTable) -> rrb.Blueprint:
     """Fault flags, safe state, watchdog and LED next to the NMT/EMCY/SDO event log."""
-    p = _Paths(table)
-    return _blueprint(rrb.Horizontal(
+    p = Paths(table)
+    return blueprint_of(rrb.Horizontal(
         rrb.Vertical(
-            _plot("fault flags and fault clear", p("fault_flags", "fault_clear")),
-            _plot("safe state, watchdog, LED", p("safe_state", "watchdog_tripped", "led_pattern")),
-            _plot("control mode", p("control_mode")),
+            plot("fault flags and fault clear", p("fault_flags", "fault_clear")),
+            plot("safe state, watchdog, LED", p("safe_state", "watchdog_tripped", "led_pattern")),
+            plot("control mode", p("control_mode")),
         ),
-        _events(),
+        events(),
         column_shares=[3, 2],
     ), timeline=CYCLE_TIMELINE)
 
@@ -164,13 +164,13 @@ def bus(table: EntryTable) -> rrb.Blueprint:
     of the bit rate, each TPDO's delay after its SYNC, the TPDOs late, missing or malformed and
     the error frames counted and as events (with which PDOs the node uses), SDO aborts, EMCY
     and NMT. The same from a live run and from `hilrig replay LOG --trace`."""
-    return _blueprint(rrb.Vertical(
+    return blueprint_of(rrb.Vertical(
         rrb.Horizontal(
-            _plot("bus load per 10 ms [% of the bit rate, worst-case bit stuffing]", [BUS_LOAD_PATH]),
-            _plot("each TPDO's delay after its SYNC [ms]", origin=BUS_DELAY_ROOT),
+            plot("bus load per 10 ms [% of the bit rate, worst-case bit stuffing]", [BUS_LOAD_PATH]),
+            plot("each TPDO's delay after its SYNC [ms]", origin=BUS_DELAY_ROOT),
         ),
         rrb.Horizontal(
-            _plot("late, missing, malformed TPDOs and error frames [count so far]",
+            plot("late, missing, malformed TPDOs and error frames [count so far]",
                   [problem_path(problem) for problem in BusProblem]),
             rrb.TextLogView(name="PDOs in use; late, missing, malformed TPDOs; error frames",
                             origin=BUS_EVENTS_PATH),
@@ -212,14 +212,5 @@ BLUEPRINTS: dict[str, Callable[[EntryTable], rrb.Blueprint]] = {
     "robot": robot,
     "diff": diff,
 }
-"""Blueprint builders by name; `blueprint(name)` is the way to get one."""
-
-
-def blueprint(name: str, table: EntryTable) -> rrb.Blueprint:
-    """The blueprint called `name` for `table` (a `hilrig.table.RigTable`); KeyError listing the
-    names for another (`hilrig.observe.blueprints.load_blueprint` lists the close matches)."""
-    try:
-        build = BLUEPRINTS[name]
-    except KeyError:
-        raise KeyError(f"no dashboard named {name!r}: one of {', '.join(BLUEPRINTS)}") from None
-    return build(table)
+"""The joint's blueprint builders by name (with a robot's and a comparison's); every board's are
+the package's `dashboards.BLUEPRINTS`, and `dashboards.blueprint(name, table)` the way to get one."""

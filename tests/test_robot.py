@@ -10,9 +10,12 @@ import numpy as np
 import pytest
 from conftest import run_hilrig
 
+from hilrig import resources
 from hilrig.engine.robot import MasterHeartbeat, Robot, RobotObserver, TravellingWave
 from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
 from hilrig.observe.reader import Trace
+from hilrig.plants.head import HeadParams, HeadPlant
+from hilrig.session.builder import Rider
 from hilrig.table import EmcyCode, FaultFlags, RigTable
 
 pytestmark = pytest.mark.bus
@@ -80,6 +83,56 @@ def test_travelling_wave_tracked_by_all_eight_modules(make_robot) -> None:
     # this trace in it).
     assert list(fitting_dashboards(trace)) == ["robot"]
     assert trace_gaps(trace) == []
+
+
+def test_mixed_robot_the_snakes_joints_and_the_head_module_on_one_bus(make_robot) -> None:
+    """Two boards in one robot: three joints and the head module (its own firmware, table and
+    plant, protocol/boards/head.toml) on one bus, one SYNC and one exchange a cycle for all. The
+    joints follow the gait, the head its LED command, every module answers every cycle, and
+    nothing faults (the head watches the same master heartbeat). The head rides the snake's head
+    link: its gyro reads the yaw the gait gives that link in MuJoCo."""
+    head_table = RigTable.load(resources.HEAD_TABLE)
+    head_params = HeadParams.from_table(head_table.board)
+    rider = Rider(
+        node_id=head_table.board.node.default_node_id,
+        table=head_table,
+        eds=resources.board_files(resources.HEAD_TABLE).eds,
+        executable=resources.HEAD_FIRMWARE,
+        plant=lambda _params, seed: HeadPlant(head_params, seed),
+    )
+    session = make_robot(3, riders=[rider])
+    robot = session.robot
+    head = robot.module(rider.node_id)
+    assert robot.riders == (head,) and len(robot.joints) == 3
+    head.plant.mount_on(lambda: robot.chain.poses()[1][0])  # link 0: the snake's head
+    wave = TravellingWave(phase_per_joint_rad=2 * np.pi / 3, ramp_s=0.2).drive(robot)
+    robot.set_all("led_green", 1.0)  # the head's field: set on the head only
+    robot.run(seconds=0.6)
+    settled_s = wave.ramp_s + 0.2
+    for joint in robot.joints:
+        error = tracking_error(robot, joint.node.node_id, settled_s)
+        assert error <= TRACKING_TOLERANCE_RAD, f"node {joint.node.node_id} tracks within {error:.3f} rad"
+    _, green = head.history("led_green_pwm")
+    assert green[-1] == 255, f"expected the head's green LED at 255, got {green[-1]}"
+    _, closed = head.truth("rail_closed")
+    assert closed[-1] == 1.0
+    for module in robot.modules:  # the head's TPDOs came in the same exchange as the joints'
+        t, _ = module.history("fault_flags")
+        assert len(t) == robot.cycle, f"node {module.node.node_id}: {len(t)} cycles of {robot.cycle}"
+    # The head's gyro, through its firmware, against the head link's true yaw rate: one count
+    # of quantization and the gyro's noise apart, cycle by cycle, and the link did turn.
+    t_gyro, gyro_z = head.history("gyro_z")
+    t_true, yaw_rate = head.truth("yaw_rate_rad_s")
+    _, in_gyro, in_true = np.intersect1d(t_gyro, t_true, return_indices=True)
+    worst = float(np.max(np.abs(gyro_z[in_gyro] - yaw_rate[in_true])))
+    assert np.max(np.abs(yaw_rate)) > 0.1, "the gait turns the snake's head"
+    assert worst < 0.02, f"expected |gyro_z - head link yaw rate| < 0.02 rad/s, got {worst:.4f}"
+    _, head_faults = head.history("fault_flags")
+    assert not np.any(head_faults), f"the head faulted: {sorted(set(head_faults))}"
+    session.close()
+    trace = Trace.read(session.trace_path)
+    assert trace.scalars[f"/modules/{rider.node_id}/fields/sensors/rail_current"]
+    assert trace.scalars[f"/modules/{robot.joints[0].node.node_id}/fields/sensors/output_position"]
 
 
 def test_one_module_killed_mid_gait(make_robot) -> None:

@@ -23,6 +23,22 @@ from boardproto.table import (
 )
 
 GENERATED_BANNER = "// Generated from protocol/board.toml by protocol/boardproto. Do not edit."
+"""The banner of the default table's files; another table's names that table (`banner`)."""
+
+
+def table_name(table: BoardTable) -> str:
+    """The table's path from the protocol/ folder on ("protocol/boards/head.toml"), or its file
+    name when it lives elsewhere (another project's table)."""
+    parts = table.source.resolve().parts if table.source.is_absolute() else table.source.parts
+    if "protocol" in parts:
+        at = len(parts) - 1 - parts[::-1].index("protocol")
+        return "/".join(parts[at:])
+    return table.source.name
+
+
+def banner(table: BoardTable) -> str:
+    """The first line of every file generated from `table`."""
+    return GENERATED_BANNER.replace("protocol/board.toml", table_name(table))
 PDO_MAX_ENTRIES = 8
 
 
@@ -505,10 +521,10 @@ def generate_header(table: BoardTable) -> str:
     rpdos = "\n".join(_pdo_initializer(p) for p in table.rpdos)
     tpdos = "\n".join(_pdo_initializer(p) for p in table.tpdos)
 
-    return f"""{GENERATED_BANNER}
+    return f"""{banner(table)}
 // Board fields, hardware-in-the-loop I/O objects, node identity, default PDOs, EMCY codes and
 // the values fields carry (enums, flag bits).
-// Edit protocol/board.toml and rebuild; the EDS and DBC beside this header come from
+// Edit {table_name(table)} and rebuild; the EDS and DBC beside this header come from
 // the same table.
 #pragma once
 

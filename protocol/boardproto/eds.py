@@ -32,7 +32,7 @@ from canopen.objectdictionary import (
 
 from boardproto import cia302
 from boardproto.cia301 import ERROR_BEHAVIOUR_INDEX, SYNC_COB_ID, ErrorBehaviour, FunctionCode, emcy_cob_id
-from boardproto.cpp_header import GENERATED_BANNER
+from boardproto.cpp_header import banner
 from boardproto.table import (
     BoardTable,
     DataType,
@@ -477,7 +477,7 @@ def build_object_dictionary(table: BoardTable) -> ObjectDictionary:
     info.nr_of_RXPDO = len(table.rpdos)
     info.nr_of_TXPDO = len(table.tpdos)
     info.LSS_supported = True  # CiA 305 LSS slave (firmware/canopen/LssSlave.hpp)
-    od.comments = "\n".join((GENERATED_BANNER.removeprefix("// "), *NOT_SUPPORTED))
+    od.comments = "\n".join((banner(table).removeprefix("// "), *NOT_SUPPORTED))
 
     _add_communication_objects(od, table)
     for field in table.fields:

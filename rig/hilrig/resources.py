@@ -6,6 +6,8 @@ firmware. Every default path of hilrig comes from here; three cases:
 - an installed wheel: the table, EDS and DBC packaged in hilrig/data/ (generated from the table
   when the wheel was built, `make dist`); the firmware is not in the wheel: build/bin/joint-firmware
   under the working directory (the runtime image's /src);
+- the robot head module's table (HEAD_TABLE, protocol/boards/head.toml) and firmware
+  (build/bin/head-firmware), the second board, found the same way;
 - another table (`--table FILE`, in either case): its EDS and DBC generated on first use with
   boardproto's generators into a cache directory, by content ($XDG_CACHE_HOME/hilrig/tables/).
 """
@@ -47,6 +49,13 @@ else:
     DEFAULT_FIRMWARE = Path("build") / "bin" / "joint-firmware"
     REBUILD_HINT = "reinstall hilrig"
 
+# The second board of this repository (issue 45), the robot head module: its table beside the
+# joint's and its firmware beside the joint's; its EDS and DBC come from board_files(HEAD_TABLE).
+HEAD_TABLE = (CHECKOUT / "protocol" / "boards" if CHECKOUT is not None else PACKAGED / "boards") / "head.toml"
+HEAD_FIRMWARE = DEFAULT_FIRMWARE.with_name("head-firmware")
+_BUILT_TABLES = {HEAD_TABLE: CHECKOUT / "build" / "protocol" / "head"} if CHECKOUT is not None else {}
+"""Tables besides the default whose EDS and DBC `make build` generates (CMake's hil_board_protocol)."""
+
 if os.environ.get("HIL_FIRMWARE"):
     # Another build of the firmware for every caller that takes the default (a mutant under
     # `make mutate`, a release build next to the test build).
@@ -69,9 +78,13 @@ class BoardFiles:
 def board_files(table: Path | None = None) -> BoardFiles:
     """The files of `table` (None: the default table). The default table's are the checkout's
     build/protocol/ or the packaged ones, which may be missing in a checkout before `make build`
-    (callers say EDS_HINT then); any other table's are generated now (a bad table: TableError)."""
+    (callers say EDS_HINT then); the head's those `make build` generates into build/protocol/head/
+    when they are there; any other table's are generated now (a bad table: TableError)."""
     if table is None or is_default_table(table):
         return BoardFiles(DEFAULT_TABLE, DEFAULT_EDS, DEFAULT_DBC)
+    built = _BUILT_TABLES.get(table)
+    if built is not None and (built / "board.eds").is_file():
+        return BoardFiles(table, built / "board.eds", built / "board.dbc")
     return generated_files(table)
 
 

@@ -42,21 +42,9 @@ std::uint32_t FaultManager::active_causes(std::uint32_t elapsed_cycles) {
   return causes;
 }
 
-bool FaultManager::clear_requested() {
-  const core::MessageBoard& b = board();
-  if (!b.has(FieldId::fault_clear)) {
-    return false;
-  }
-  const std::uint32_t stamp = b.last_write_cycle(FieldId::fault_clear);
-  const bool new_write = !seen_clear_ || stamp != seen_clear_stamp_;
-  seen_clear_ = true;
-  seen_clear_stamp_ = stamp;
-  return new_write && boardGet(FieldId::fault_clear) == 1.0F;
-}
-
 void FaultManager::update() {
   const std::uint32_t elapsed_cycles = cycle_step_.update(board().cycle());
-  const bool clear = clear_requested();
+  const bool clear = clear_.update(board(), FieldId::fault_clear);
   const std::uint32_t latched = latch_.update(active_causes(elapsed_cycles), clear);
   boardSet(FieldId::fault_flags, static_cast<float>(latched));
   boardSet(FieldId::safe_state, latched != 0 ? 1.0F : 0.0F);

@@ -38,7 +38,6 @@ class FaultManager final : public core::Module {
 
  private:
   std::uint32_t active_causes(std::uint32_t elapsed_cycles);
-  bool clear_requested();
 
   FaultLatch latch_;
   CycleStep cycle_step_;
@@ -47,8 +46,7 @@ class FaultManager final : public core::Module {
   SilenceCounter output_encoder_silence_{0};
   SilenceCounter thermistor_silence_{0};
   std::uint32_t previous_refused_writes_ = 0;  // 0: a refusal before the first cycle latches too
-  std::uint32_t seen_clear_stamp_ = 0;
-  bool seen_clear_ = false;
+  ClearRequest clear_;
 };
 
 }  // namespace joint

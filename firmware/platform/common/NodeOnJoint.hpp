@@ -1,9 +1,7 @@
 // The CANopen node's views of the demo joint's application, for every platform's main (Linux and
-// Cortex-M): the node reads the board and writes only the bus-writable fields,
-// through the bus writer; its raw HIL I/O and heartbeat news go through the joint's driver
-// registers, never the board (the interrupt policy). `Application` has `board`
-// (core::MessageBoard), `bus_writer` (BusWriter) and `registers` (joint::HilRegisters); each view
-// follows the application in its std::optional, which NMT reset node rebuilds.
+// Cortex-M): the board-independent ones are NodeOnBoard.hpp's; here the joint's raw HIL I/O and
+// heartbeat news, which go through the joint's driver registers, never the board (the interrupt
+// policy). `Application` has `registers` (joint::HilRegisters) besides NodeOnBoard.hpp's members.
 #pragma once
 
 #include <cstdint>
@@ -16,37 +14,9 @@
 #include "core/MessageBoard.hpp"
 #include "core/MessageBoardUser.hpp"
 #include "joint/drivers/HilRegisters.hpp"
+#include "NodeOnBoard.hpp"
 
 namespace platform {
-
-// The node's write access to the board: an external writer of the bus-writable fields.
-class BusWriter final : public core::ExternalWriter {
- public:
-  explicit BusWriter(core::MessageBoard& board)
-      : ExternalWriter(board, "canopen_node", {.writes = core::kBusWritableFields}) {}
-
-  core::SetResult write(board::FieldId id, float value) { return boardSet(id, value); }
-};
-
-// The board's refused writes become EMCY frames naming the field (board.toml's [[emcy]]
-// ownership_violation); `context` is the co::Node.
-inline void report_ownership_violation(void* context, const core::WriteViolation& violation) {
-  static_cast<co::Node*>(context)->report_emcy(co::emcy::ownership_violation(violation.field));
-}
-
-template <class Application>
-class BoardFieldAccess final : public co::FieldAccess {
- public:
-  explicit BoardFieldAccess(std::optional<Application>& app) : app_{app} {}
-  float read(board::FieldId id) override { return app_->board.get(id); }
-  co::WriteResult write(board::FieldId id, float value) override {
-    return app_->bus_writer.write(id, value) == core::SetResult::Ok ? co::WriteResult::Accepted
-                                                                     : co::WriteResult::Refused;
-  }
-
- private:
-  std::optional<Application>& app_;
-};
 
 template <class Application>
 class HilIoOnRegisters final : public co::HilIo {

@@ -1,7 +1,9 @@
-// joint-firmware: the demo joint's firmware for a Linux target on SocketCAN.
+// joint-firmware and head-firmware: a board's firmware for a Linux target on SocketCAN. Built
+// once per board (FIRMWARE_NAME; the board's side, its components, registers and node views, is
+// its BoardApplication.hpp in platform/linux/boards/<board>/, first on the include path).
 //
 // Wires the pieces together (the board itself stays a plain table): the message board, the
-// scheduler with the demo joint's components, the CANopen node (owner of the bus-writable
+// scheduler with the board's components, the CANopen node (owner of the bus-writable
 // fields), the hardware-in-the-loop registers, and one event-loop thread that feeds CAN frames
 // to the node and runs control cycles, either one per received SYNC (lockstep) or on its own
 // absolute-deadline timer (free-running).
@@ -28,7 +30,7 @@
 
 #include "FileParameterStorage.hpp"
 #include "FileProgramStore.hpp"
-#include "NodeOnJoint.hpp"
+#include "BoardApplication.hpp"
 #include "SoftwareVersion.hpp"
 #include "canopen/ParameterImage.hpp"
 #include "SocketCanPort.hpp"
@@ -41,8 +43,6 @@
 #include "core/MessageBoard.hpp"
 #include "core/MessageBoardUser.hpp"
 #include "core/Scheduler.hpp"
-#include "joint/DemoJoint.hpp"
-#include "joint/drivers/HilRegisters.hpp"
 
 namespace {
 
@@ -106,14 +106,14 @@ constexpr int kExitStartupFailure = 1;
 constexpr int kExitUsage = 2;
 
 // The field --inject-rogue-write-at-cycle writes without owning it.
-constexpr board::FieldId kRogueTarget = board::FieldId::motor_duty_command;
+constexpr board::FieldId kRogueTarget = board_app::kRogueTarget;
 
 // --inject-rogue-write-at-cycle's help, with the EMCY code and fault bit board.toml gives.
 std::string rogue_write_help() {
   const board::FieldInfo& target = board::info(kRogueTarget);
   std::array<char, 512> text{};
   std::snprintf(text.data(), text.size(),
-                "FAULT INJECTION for hardware-in-the-loop tests, never for a real joint: at control\n"
+                "FAULT INJECTION for hardware-in-the-loop tests, never for a real board: at control\n"
                 "cycle N (1 = the first) an extra module that owns no field writes %.*s.\n"
                 "The board must refuse it: value kept, refusal counted, EMCY 0x%04X naming 0x%04X,\n"
                 "fault_flags bit %u (ownership violation) latched, safe state. 0 = off",
@@ -125,11 +125,12 @@ std::string rogue_write_help() {
 
 std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
   CLI::App app{
-      "Firmware of the demo series-elastic joint, a CANopen (CiA 301) node on SocketCAN.\n"
+      std::string(board_app::kDescription) +
+      ", a CANopen (CiA 301) node on SocketCAN.\n"
       "In lockstep mode every SYNC from the bus runs exactly one control cycle and the\n"
       "synchronous TPDOs answer it (the rig drives simulation time). In free mode the\n"
       "firmware keeps its own period with an absolute-deadline timer, as on a real board.",
-      "joint-firmware"};
+      FIRMWARE_NAME};
   app.add_option("--can", options.can_interface, "SocketCAN interface")->capture_default_str();
   app.add_option("--node-id", options.node_id,
                  "CANopen node id (1..127), or 0xFF: none yet, LSS only (CiA 305) until a master\n"
@@ -190,7 +191,7 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& options) {
     std::fputs(app.help().c_str(), stdout);
     return 0;
   } catch (const CLI::ParseError& error) {
-    std::fprintf(stderr, "joint-firmware: %s (see joint-firmware --help)\n", error.what());
+    std::fprintf(stderr, FIRMWARE_NAME ": %s (see " FIRMWARE_NAME " --help)\n", error.what());
     return kExitUsage;
   }
   options.mode = mode == "free" ? Mode::Free : Mode::Lockstep;
@@ -226,7 +227,7 @@ class NoParameterStorage final : public co::ParameterStorage {
 class RogueWriter final : public core::Module {
  public:
   static constexpr board::FieldId kTarget = kRogueTarget;
-  static constexpr float kRogueValue = 0.875F;  // a duty the joint's owner never commands at rest
+  static constexpr float kRogueValue = board_app::kRogueValue;
 
   RogueWriter(core::MessageBoard& board, std::uint32_t at_cycle)
       : Module(board, "rogue_writer", {}), at_cycle_{at_cycle} {}
@@ -239,13 +240,13 @@ class RogueWriter final : public core::Module {
   std::uint32_t at_cycle_;
 };
 
-// Everything NMT reset node resets: the board, the scheduler with the demo joint's components,
+// Everything NMT reset node resets: the board, the scheduler with the board's components,
 // and the driver registers. Built in place (none of its members moves) and rebuilt on reset node,
 // so after it every object the firmware does not store is at its power-on value, as after a
 // power cycle.
 struct Application {
   explicit Application(const Options& options)
-      : demo_joint{board, registers.drivers(), static_cast<float>(options.period_us) * 1e-6f} {
+      : components{board, registers, static_cast<float>(options.period_us) * 1e-6f} {
     if (options.rogue_write_cycle != 0) rogue_writer.emplace(board, options.rogue_write_cycle);
   }
   Application(const Application&) = delete;
@@ -253,13 +254,13 @@ struct Application {
 
   // false: a component came too late or the ownership/schedule check failed (message printed).
   bool start() {
-    if (!scheduler.add(bus_writer) || !demo_joint.add_to(scheduler) ||
+    if (!scheduler.add(bus_writer) || !components.add_to(scheduler) ||
         (rogue_writer && !scheduler.add(*rogue_writer))) {
-      std::fprintf(stderr, "joint-firmware: start-up error: components added after the scheduler started\n");
+      std::fprintf(stderr, FIRMWARE_NAME ": start-up error: components added after the scheduler started\n");
       return false;
     }
     if (const core::StartupStatus status = scheduler.start(); !status.ok()) {
-      std::fprintf(stderr, "joint-firmware: start-up error: %s\n", status.message().c_str());
+      std::fprintf(stderr, FIRMWARE_NAME ": start-up error: %s\n", status.message().c_str());
       return false;
     }
     return true;
@@ -268,8 +269,8 @@ struct Application {
   core::MessageBoard board;
   core::Scheduler scheduler{board};
   platform::BusWriter bus_writer{board};
-  joint::HilRegisters registers;
-  joint::DemoJoint demo_joint;
+  board_app::Registers registers;
+  board_app::Components components;
   std::optional<RogueWriter> rogue_writer;
 };
 
@@ -318,7 +319,7 @@ int run(const Options& options, std::string& exec_path) {
 
   linuxhw::SocketCanPort port;
   if (std::string error; !port.open(options.can_interface, error)) {
-    std::fprintf(stderr, "joint-firmware: %s\n", error.c_str());
+    std::fprintf(stderr, FIRMWARE_NAME ": %s\n", error.c_str());
     return kExitStartupFailure;
   }
   platform::BoardFieldAccess<Application> field_access{app};
@@ -391,11 +392,12 @@ int run(const Options& options, std::string& exec_path) {
   bool chain_output = node.has_node_id();
   set_chain_output(options.chain_out, chain_output);
   if (app->rogue_writer) {
-    std::fprintf(stderr, "joint-firmware: FAULT INJECTION: rogue write of motor_duty_command at cycle %u\n",
+    std::fprintf(stderr, FIRMWARE_NAME ": FAULT INJECTION: rogue write of %.*s at cycle %u\n",
+                 static_cast<int>(board::info(kRogueTarget).name.size()), board::info(kRogueTarget).name.data(),
                  options.rogue_write_cycle);
   }
   const std::string_view version = linuxhw::software_version();
-  std::fprintf(stderr, "joint-firmware: node %d%s, version %.*s, serial 0x%08X, on %s%s, %s mode, period %u us, parameters %s (%s)\n",
+  std::fprintf(stderr, FIRMWARE_NAME ": node %d%s, version %.*s, serial 0x%08X, on %s%s, %s mode, period %u us, parameters %s (%s)\n",
                node.node_id(), node.has_node_id() ? "" : " (none yet: LSS only)",
                static_cast<int>(version.size()), version.data(), serial_number,
                options.can_interface.c_str(),
@@ -425,7 +427,7 @@ int run(const Options& options, std::string& exec_path) {
     // a block upload has segments to send (each pass sends a bounded number, then serves frames).
     const int ready = ::poll(fds.data(), count, node.sdo_segments_due() ? 0 : idle_wait_ms(node, now_us()));
     if (ready < 0 && errno != EINTR) {
-      std::fprintf(stderr, "joint-firmware: poll failed: %s\n", std::strerror(errno));
+      std::fprintf(stderr, FIRMWARE_NAME ": poll failed: %s\n", std::strerror(errno));
       return kExitStartupFailure;
     }
     if ((fds[1].revents & POLLIN) != 0) {
@@ -444,7 +446,7 @@ int run(const Options& options, std::string& exec_path) {
     while (port.receive(frame) == co::ReceiveResult::Received) {
       const co::ProcessResult result = node.process(frame, now_us());
       if (application_rebuild.failed()) {
-        std::fprintf(stderr, "joint-firmware: reset node: the application did not start again\n");
+        std::fprintf(stderr, FIRMWARE_NAME ": reset node: the application did not start again\n");
         return kExitStartupFailure;
       }
       if (result.sync) {
@@ -460,11 +462,11 @@ int run(const Options& options, std::string& exec_path) {
     if (node.program_start_requested()) {
       exec_path = program_store->promote_staged();
       if (exec_path.empty()) {
-        std::fprintf(stderr, "joint-firmware: cannot start the downloaded image: %s\n",
+        std::fprintf(stderr, FIRMWARE_NAME ": cannot start the downloaded image: %s\n",
                      program_store->last_error().c_str());
         return kExitStartupFailure;
       }
-      std::fprintf(stderr, "joint-firmware: starting the downloaded image %s\n", exec_path.c_str());
+      std::fprintf(stderr, FIRMWARE_NAME ": starting the downloaded image %s\n", exec_path.c_str());
       running = false;
       continue;
     }
@@ -472,14 +474,14 @@ int run(const Options& options, std::string& exec_path) {
     if (node.has_node_id() != chain_output) {
       chain_output = node.has_node_id();
       set_chain_output(options.chain_out, chain_output);
-      std::fprintf(stderr, "joint-firmware: node id %d%s\n", node.node_id(),
+      std::fprintf(stderr, FIRMWARE_NAME ": node id %d%s\n", node.node_id(),
                    chain_output ? " configured over LSS" : " gone (LSS only)");
     }
   }
 
   const co::NodeCounters& counters = node.counters();
   std::fprintf(stderr,
-               "joint-firmware: stopped after %llu cycles; overruns %llu; frames received %u, ignored %u, "
+               FIRMWARE_NAME ": stopped after %llu cycles; overruns %llu; frames received %u, ignored %u, "
                "malformed %u, SDO aborts %u, RPDO length errors %u, TPDOs sent %u, EMCY %u, send failures %u, "
                "bus error frames %u, receive overruns %u, board refused writes %u, acceptance filter failures %u\n",
                static_cast<unsigned long long>(cycles.run()), static_cast<unsigned long long>(cycles.skipped()),
@@ -503,6 +505,6 @@ int main(int argc, char** argv) {
   if (exec_path.empty()) return exit_code;
   // Same arguments, new image: it starts as after a power cycle and sends its boot-up.
   ::execv(exec_path.c_str(), argv);
-  std::fprintf(stderr, "joint-firmware: cannot execute %s: %s\n", exec_path.c_str(), std::strerror(errno));
+  std::fprintf(stderr, FIRMWARE_NAME ": cannot execute %s: %s\n", exec_path.c_str(), std::strerror(errno));
   return kExitStartupFailure;
 }

@@ -18,6 +18,11 @@ The rig is the bus master: it also sends the master's heartbeat (every `MasterHe
 of simulation time) and configures each module's heartbeat consumer (CiA 301 0x1016) to watch it,
 so a module whose master falls silent goes to its safe state on its own.
 
+A robot may carry other boards on the same bus (*riders*: the head module on the snake, its own
+firmware, table and plant): they come after the joints in `modules`, take part in the same
+exchange of every cycle, and their plants step on their own beside the chain. `set_all` and
+`set_each` set a field on the modules whose board has it.
+
 A module whose firmware dies (killed, crashed) is *lost*: the cycle its TPDOs were due in names it
 (`Robot.lost`, an event on the trace), its motor bridge is off from then on (duty 0: the joint is
 limp, its link still moves with the chain), and the other modules run on as before: a module does
@@ -185,7 +190,7 @@ class TravellingWave:
         and before every cycle each module's position_setpoint for that cycle's time. Returns
         the wave as driven (its `start_s` is the robot's time now)."""
         wave = dataclasses.replace(self, start_s=robot.t)
-        joints = len(robot.modules)
+        joints = len(robot.joints)
         robot.set_all("position_kp", position_kp)
         robot.set_each("position_setpoint", wave.angles(robot.t, joints))
         robot.set_all("control_mode", ControlMode.POSITION)
@@ -220,8 +225,10 @@ class Robot(CycleRunner):
     """N modules (one `Rig` each, lockstep) and the chain's mechanics, stepped as one.
 
     modules: the modules' rigs, in chain order (joint k of `chain` is module k); each must be
-    constructed with `plant=chain.models[k]`. firmware: each module's process (None for a board
-    the robot did not start), so `kill()` can end one and a lost one is named with its exit.
+    constructed with `plant=chain.models[k]`. Any modules after the chain's joints are riders:
+    other boards with plants of their own, stepped by the robot after the chain. firmware: each
+    module's process (None for a board the robot did not start), so `kill()` can end one and a
+    lost one is named with its exit.
     master: the heartbeat the rig produces and the modules watch (None: no heartbeat at all).
     """
 
@@ -236,8 +243,9 @@ class Robot(CycleRunner):
         if not modules:
             raise ValueError("a robot needs at least one module")
         module_ids([m.node.node_id for m in modules])
-        if len(chain.models) != len(modules):
-            raise ValueError(f"chain has {len(chain.models)} joints for {len(modules)} modules")
+        joints = len(chain.models)
+        if joints > len(modules):
+            raise ValueError(f"chain has {joints} joints for {len(modules)} modules")
         periods = {m.driver.period_us for m in modules}
         if len(periods) != 1:
             raise ValueError(f"modules with different periods: {sorted(periods)} us")
@@ -247,11 +255,15 @@ class Robot(CycleRunner):
         for k, module in enumerate(self.modules):
             if not isinstance(module.driver, LockstepDriver):
                 raise ValueError(f"node 0x{module.node.node_id:02X}: a robot runs its modules in lockstep")
-            if module.plant is not chain.models[k]:
+            if k < joints and module.plant is not chain.models[k]:
                 raise ValueError(f"node 0x{module.node.node_id:02X}: its plant is not joint {k} of the chain")
             module.robot = self
             self._drivers.append(module.driver)
         self.chain = chain
+        self.joints: tuple[Rig, ...] = self.modules[:joints]
+        """The chain's modules, joint k first."""
+        self.riders: tuple[Rig, ...] = self.modules[joints:]
+        """Other boards on the robot's bus, each with a plant of its own (the head module)."""
         self.firmware: tuple[ModuleProcess | None, ...] = tuple(firmware) or (None,) * len(modules)
         if len(self.firmware) != len(modules):
             raise ValueError(f"{len(self.firmware)} firmware processes for {len(modules)} modules")
@@ -281,6 +293,7 @@ class Robot(CycleRunner):
         self._tpdo_ids: list[tuple[int, ...]] = []  # each module's TPDO COB-IDs, by index
         self._shared_by: list[LockstepDriver] = []  # the drivers sharing the link, as shared
         self._polled_tpdos = False  # `poll` handed a module a TPDO, which its next cycle takes
+        self._carriers_of: dict[str, dict[int, int]] = {}  # field name -> `_carriers`
         self._init_timeline()
 
     # --- Life cycle ---------------------------------------------------------------------
@@ -317,23 +330,38 @@ class Robot(CycleRunner):
                 return module
         raise KeyError(f"no module with node id {node_id}; the robot has {list(self.node_ids)}")
 
+    def _carriers(self, name: str) -> dict[int, int]:
+        """The modules whose board has the field `name`: module index -> its place among them
+        (every module when none has it: their `Rig.set` then names the typo)."""
+        carriers = self._carriers_of.get(name)
+        if carriers is None:
+            having = [k for k, module in enumerate(self.modules) if name in module.table.names]
+            carriers = {k: j for j, k in enumerate(having or range(len(self.modules)))}
+            self._carriers_of[name] = carriers
+        return carriers
+
     def set_all(self, name: str, value: float) -> None:
-        """`Rig.set(name, value)` on every module not lost."""
+        """`Rig.set(name, value)` on every module not lost whose board has the field."""
+        carriers = self._carriers(name)
         for k in self._live:
-            self.modules[k].set(name, value)
+            if k in carriers:
+                self.modules[k].set(name, value)
 
     def set_each(self, name: str, values: Sequence[float]) -> None:
-        """`Rig.set(name, values[k])` on module k (in chain order), lost modules skipped. Every
-        cycle for a gait: a field an RPDO carries goes straight into each module's next frame."""
-        if len(values) != len(self.modules):
-            raise ValueError(f"{name}: {len(values)} values for {len(self.modules)} modules")
+        """`Rig.set(name, values[j])` on the j-th module (in chain order) whose board has the
+        field (every joint, not a rider without it), lost modules skipped. Every cycle for a
+        gait: a field an RPDO carries goes straight into each module's next frame."""
+        carriers = self._carriers(name)
+        if len(values) != len(carriers):
+            raise ValueError(f"{name}: {len(values)} values for {len(carriers)} modules")
+        live = [k for k in self._live if k in carriers]
         drivers = self._drivers
-        if all(drivers[k].rpdo_of(name) is not None for k in self._live):
-            for k in self._live:
-                drivers[k].set_rpdo_value(name, values[k])
+        if all(drivers[k].rpdo_of(name) is not None for k in live):
+            for k in live:
+                drivers[k].set_rpdo_value(name, values[carriers[k]])
             return
-        for k in self._live:
-            self.modules[k].set(name, values[k])
+        for k in live:
+            self.modules[k].set(name, values[carriers[k]])
 
     def kill(self, node_id: int) -> None:
         """SIGKILL one module's firmware now, as a crash or a pulled plug would end it; the next
@@ -400,6 +428,8 @@ class Robot(CycleRunner):
                 t = driver.history.time_of(n)
                 results[k] = CycleResult(n, t, sync_counter(n), None, (), None, (), state)
         self.chain.step(self.period_s)
+        for k in range(len(self.joints), len(drivers)):  # the riders' own hardware
+            drivers[k].plant.step(self.period_s)
         self._cycle = n + 1
         for k, driver in enumerate(drivers):
             driver.cycle = n + 1

@@ -34,6 +34,7 @@ import numpy as np
 from boardproto import Field, Kind
 from boardproto.cia301 import NmtState
 from boardproto.table import BitSet, ValueEnum
+from hilrig import resources
 from hilrig.engine.driver import CycleResult, History, HistoryMark
 from hilrig.engine.observers import RigObserver
 from hilrig.observe.batches import Clock, RecordBatches, Value, _Batch, _CycleRow, _HistorySpan, module_of
@@ -80,11 +81,16 @@ SETTLE_TIMEOUT_S = 5.0
 take what was sent so far; past it the start goes on and the rest is written beside the run."""
 
 
+DEFAULT_BLUEPRINT = "overview"
+"""The dashboard a trace of the demo joint opens with."""
+
+
 class Tracer(RecordBatches, RigObserver):
     """Logs the rig's cycles, NMT changes, EMCYs and SDO aborts to Rerun.
 
     sink: one `TraceSink` or several. table: names -> kinds and units (RigTable.load()).
-    blueprint: name in `dashboards.BLUEPRINTS` sent with the trace (None: the viewer's own).
+    blueprint: name in `dashboards.BLUEPRINTS` sent with the trace, built for `table` (None: the
+    viewer's own); the default, the demo joint's overview, only with the demo joint's table.
     batch_cycles: cycles per batch at most. max_latency_s: also hand a batch over when this much
     wall time passed since the last one (default: LIVE_LATENCY_S with a live sink, never for .rrd
     files alone). background: pivot and send batches in a thread (True) or
@@ -104,7 +110,7 @@ class Tracer(RecordBatches, RigObserver):
         sink: TraceSink | Sequence[TraceSink],
         table: RigTable,
         *,
-        blueprint: str | None = "overview",
+        blueprint: str | None = DEFAULT_BLUEPRINT,
         batch_cycles: int = DEFAULT_BATCH_CYCLES,
         max_latency_s: float | None = None,
         background: bool = True,
@@ -207,8 +213,10 @@ class Tracer(RecordBatches, RigObserver):
         else:
             self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
             self._attach_sinks()
+        if blueprint == DEFAULT_BLUEPRINT and not resources.is_default_table(table.board.source):
+            blueprint = None  # another board's trace: its own dashboard when named, else none
         if blueprint is not None:
-            self.send_blueprint(load_blueprint(blueprint))
+            self.send_blueprint(load_blueprint(blueprint, table))
 
         self._queue: queue.SimpleQueue[_Batch | None] | None = None
         self._worker: threading.Thread | None = None
@@ -522,12 +530,13 @@ class Tracer(RecordBatches, RigObserver):
         else:
             work()
 
-    def module_tracer(self, node_id: int) -> Tracer:
+    def module_tracer(self, node_id: int, table: RigTable | None = None) -> Tracer:
         """A tracer for module `node_id` of a robot: its paths under /modules/<id>, on this
-        tracer's recording and sinks (close it before this one)."""
+        tracer's recording and sinks (close it before this one); `table`: the module's board's
+        when it is another board than the robot's (the head on a snake)."""
         return Tracer(
             (),
-            self.table,
+            table if table is not None else self.table,
             blueprint=None,
             batch_cycles=self.batch_cycles,
             max_latency_s=self.max_latency_s,

@@ -54,6 +54,9 @@ class HilBoard:
     firmware: Path
     plant: PlantFactory
     firmware_args: tuple[str, ...] = ()
+    dashboard: str | None = None
+    """The dashboard a scenario's trace opens with (`dashboards.BLUEPRINTS`, for this table): the
+    demo joint's "overview"; None, the viewer's default, for a board dashboards/ has none for."""
 
     @property
     def node_id(self) -> int:
@@ -103,7 +106,10 @@ def board_from_config(config: pytest.Config) -> HilBoard:
     spelled = str(config.getini("hil_plant") or "").strip()
     plant = load_factory(spelled) if spelled else default_plant
     args = tuple(shlex.split(str(config.getini("hil_firmware_args") or "")))
-    return HilBoard(table=table, eds=eds, firmware=firmware, plant=plant, firmware_args=args)
+    dashboard = "overview" if resources.is_default_table(files.table) else None
+    return HilBoard(
+        table=table, eds=eds, firmware=firmware, plant=plant, firmware_args=args, dashboard=dashboard
+    )
 
 
 __all__ = ["INI_OPTIONS", "HilBoard", "board_from_config", "load_factory"]

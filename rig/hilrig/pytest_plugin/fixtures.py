@@ -34,7 +34,7 @@ from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config
 from hilrig.session import warm
-from hilrig.session.builder import BoardInterface, HilSession, SessionConfig, open_session
+from hilrig.session.builder import BoardInterface, HilSession, Rider, SessionConfig, open_session
 from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
 
 BOOT_TIMEOUT_S = 60.0
@@ -246,6 +246,7 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
             params=params,
             seed=seed,
             plant=hil_board.plant,
+            blueprint=hil_board.dashboard,
             node_id=node_id,
             mode=mode,
             period_us=REALTIME_RIG_PERIOD_US if realtime else 1000,
@@ -293,7 +294,8 @@ def make_robot(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureR
     firmware started n times on this test's private bus (node ids 1..n, or `node_ids`), one rig
     per module, the chain's mechanics from MuJoCo, the master heartbeat, a candump recorder and
     one Rerun trace (each module under /modules/<id>, the chain in 3D under /robot); returns the
-    `HilSession` (its `.robot`), torn down after the test."""
+    `HilSession` (its `.robot`), torn down after the test. `riders`: other boards on the same bus
+    (`hilrig.session.builder.Rider`, the head module), after the joints."""
     sessions: list[HilSession] = []
 
     def make(
@@ -305,6 +307,7 @@ def make_robot(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureR
         trace: bool = True,
         master: MasterHeartbeat | None = MasterHeartbeat(),  # noqa: B008 (frozen: shared is fine)
         start: bool = True,
+        riders: Sequence[Rider] = (),
     ) -> HilSession:
         config = SessionConfig(
             out_dir=scenario_dir,
@@ -318,6 +321,7 @@ def make_robot(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureR
             extra_args=hil_board.firmware_args,
             master=master,
             start=start,
+            riders=tuple(riders),
             boot_timeout_s=BOOT_TIMEOUT_S,
             sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
         )

@@ -77,6 +77,19 @@ model (`hilrig.plants.interface.Plant`); `hilrig.plants.default_plant` makes the
 
 
 @dataclass(frozen=True)
+class Rider:
+    """Another board on a robot's bus (the head module on the snake): its firmware, table, EDS
+    and plant (made from (params, seed) like a session's), started and stepped with the joints."""
+
+    node_id: int
+    table: RigTable
+    eds: Path
+    executable: Path
+    plant: PlantFactory
+    params: Any = None
+
+
+@dataclass(frozen=True)
 class SessionConfig:
     """Everything a session is made of. out_dir: firmware.log, bus.log and trace.rrd go here.
     trace: a trace.rrd in out_dir (True; `live` sinks beside it), these sinks (a sequence of
@@ -91,6 +104,9 @@ class SessionConfig:
     params: Any = None
     seed: int = 0
     plant: PlantFactory = default_plant
+    blueprint: str | None = "overview"
+    """The dashboard (`dashboards.BLUEPRINTS`) the trace opens with, built for the session's
+    table: the board's own ("head" for the head module), None for the viewer's default."""
     node_id: int | None = None
     mode: TimingMode | str = TimingMode.LOCKSTEP
     period_us: int = 1000
@@ -121,6 +137,8 @@ class SessionConfig:
     the firmware started by the session; `node_id`, `params_file` and `board` do not apply)."""
     master: MasterHeartbeat | None = field(default_factory=MasterHeartbeat)
     """A robot's master heartbeat (None: the rig sends none and the modules watch nothing)."""
+    riders: Sequence[Rider] = ()
+    """A robot's other boards on its bus, after its joints (`Robot.riders`)."""
 
 
 @dataclass
@@ -215,7 +233,7 @@ def open_session(
         # The tracer before the rig's bus: importing rerun takes seconds (minutes on a loaded
         # emulated VM), and a bus opened before it would queue every heartbeat meanwhile for
         # canopen to wade through before the first SDO answer.
-        tracer = _tracer(config, table)
+        tracer = _tracer(config, table, config.blueprint)
         if tracer is not None:
             stack.callback(tracer.close)
         if private_bus is not None:
@@ -266,7 +284,9 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
     """The robot variant of `open_session`: N firmware processes on one private bus, one bus
     handle, node and rig per module, one chain, one tracer with a child per module."""
     assert config.modules is not None
-    node_ids = module_ids(config.modules)  # refuses a repeated id before anything starts
+    node_ids = module_ids(config.modules)
+    # A repeated id, a rider's too, is refused before anything starts.
+    module_ids([*node_ids, *(rider.node_id for rider in config.riders)])
     if config.board is not None or TimingMode(config.mode) is not TimingMode.LOCKSTEP:
         raise ValueError("a robot session runs its own firmware modules in lockstep (no board=, no realtime)")
     from hilrig.plants.chain import ChainPhysics  # MuJoCo: only for robots
@@ -319,6 +339,13 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
             )
             stack.callback(rig.close)
             modules.append(rig)
+        for rider in config.riders:
+            rider_firmware = _start_firmware(
+                stack, launcher, config, rider.node_id, out / f"firmware-{rider.node_id}.log",
+                out / f"params-{rider.node_id}.bin", executable=rider.executable,
+            )
+            firmware.append(rider_firmware)
+            modules.append(_rider_rig(stack, config, rider, rider_firmware, private_bus, launcher, tracer))
         robot = Robot(modules, chain, firmware=firmware, master=config.master)
         if tracer is not None:
             chain_trace = tracer.robot_observer(chain)
@@ -332,6 +359,44 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
     return HilSession(
         config, None, modules[0].node, firmware[0], tracer, private_bus, recorder, stack, robot=robot
     )
+
+
+def _rider_rig(
+    stack: contextlib.ExitStack,
+    config: SessionConfig,
+    rider: Rider,
+    firmware: Firmware,
+    private_bus: PrivateBus | None,
+    launcher: PrivateBus | _HostChannel,
+    tracer: Tracer | None,
+) -> Rig:
+    """A robot's rider as a module: its own bus handle, node, plant and trace under its root."""
+    if private_bus is not None:
+        bus = private_bus.open()
+    else:
+        bus = BoardInterface("socketcan", launcher.channel).open()
+    stack.callback(bus.shutdown)
+    bus.set_filters(answer_filters(rider.node_id, bus, emcy_cob_id(rider.node_id)))
+    module_tracer = None
+    if tracer is not None:
+        module_tracer = tracer.module_tracer(rider.node_id, rider.table)
+        stack.callback(module_tracer.close)
+    rig = Rig(
+        bus,
+        node_id=rider.node_id,
+        eds=rider.eds,
+        plant=rider.plant(rider.params, config.seed * 1000 + rider.node_id),
+        period_us=config.period_us,
+        table=rider.table,
+        liveness=firmware.check,
+        activity=firmware.activity,
+        boot_timeout_s=config.boot_timeout_s,
+        tpdo_timeout_s=config.tpdo_timeout_s,
+        sdo_timeout_s=config.sdo_timeout_s,
+        tracer=module_tracer,
+    )
+    stack.callback(rig.close)
+    return rig
 
 
 def _launcher(
@@ -364,17 +429,20 @@ def _start_firmware(
     node_id: int,
     log_path: Path,
     params_file: Path | None,
+    *,
+    executable: Path | None = None,
 ) -> Firmware:
     """One firmware process of the session, started (stopped with it): its mode and period follow
-    the rig's timing (lockstep: the rig's period; real time: its own 10 ms unless given)."""
+    the rig's timing (lockstep: the rig's period; real time: its own 10 ms unless given).
+    `executable`: another board's firmware (a robot's rider), without the session's extra_args."""
     mode = TimingMode(config.mode)
     firmware = Firmware(
         launcher,
         node_id=node_id,
         log_path=log_path,
         params_file=params_file,
-        extra_args=config.extra_args,
-        executable=config.executable,
+        extra_args=config.extra_args if executable is None else (),
+        executable=executable if executable is not None else config.executable,
         mode=FIRMWARE_MODE[mode],
         period_us=config.firmware_period_us or (config.period_us if mode is TimingMode.LOCKSTEP else 10_000),
         term_timeout_s=config.firmware_term_timeout_s,
@@ -431,4 +499,4 @@ def hil_session(
         session.close()
 
 
-__all__ = ["BoardInterface", "HilSession", "SessionConfig", "hil_session", "open_session"]
+__all__ = ["BoardInterface", "HilSession", "Rider", "SessionConfig", "hil_session", "open_session"]
