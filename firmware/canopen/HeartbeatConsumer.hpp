@@ -18,6 +18,7 @@
 #include <cstdint>
 
 #include "SdoAbort.hpp"
+#include "TimeLeft.hpp"
 #include "board/cia301.hpp"
 #include "board/fields.hpp"
 
@@ -98,15 +99,13 @@ class BasicHeartbeatConsumer {
   }
 
   // Microseconds from `now_us` until the first active entry's consumer time runs out (0 if one
-  // already has); kNoTimer when none is timing. What an idle loop may sleep.
-  static constexpr std::uint32_t kNoTimer = UINT32_MAX;
+  // already has); kNoTimerUs when none is timing. What an idle loop may sleep.
   std::uint32_t us_until_timeout(std::uint32_t now_us) const {
-    std::uint32_t soonest = kNoTimer;
+    std::uint32_t soonest = kNoTimerUs;
     for (const Entry& e : entries_) {
       if (e.monitoring != Monitoring::Active) continue;
-      const std::uint32_t limit_us = std::uint32_t{time_ms_of(e.value)} * 1000u;
-      const std::uint32_t elapsed_us = now_us - e.last_heartbeat_us;
-      soonest = std::min(soonest, elapsed_us >= limit_us ? 0u : limit_us - elapsed_us);
+      const std::uint32_t consumer_time_us = std::uint32_t{time_ms_of(e.value)} * 1000u;
+      soonest = std::min(soonest, time_left_us(now_us, e.last_heartbeat_us, consumer_time_us));
     }
     return soonest;
   }

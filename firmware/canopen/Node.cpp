@@ -6,6 +6,7 @@
 #include <bit>
 
 #include "ObjectTables.hpp"
+#include "TimeLeft.hpp"
 
 namespace co {
 namespace {
@@ -382,21 +383,11 @@ void Node::poll(std::uint32_t now_us) {
   }
 }
 
-namespace {
-
-// Time left of a period that started at `since_us`, 0 once it has run out (wrap-safe).
-std::uint32_t remaining_us(std::uint32_t now_us, std::uint32_t since_us, std::uint32_t period_us) {
-  const std::uint32_t elapsed_us = now_us - since_us;
-  return elapsed_us >= period_us ? 0u : period_us - elapsed_us;
-}
-
-}  // namespace
-
 std::uint32_t Node::us_until_next_timer(std::uint32_t now_us, std::uint32_t limit_us) const {
   if (state_ == NmtState::Initialising) return limit_us;
   std::uint32_t soonest = limit_us;
   const std::uint32_t period_us = std::uint32_t{heartbeat_ms_} * 1000u;
-  if (period_us != 0) soonest = std::min(soonest, remaining_us(now_us, last_heartbeat_us_, period_us));
+  if (period_us != 0) soonest = std::min(soonest, time_left_us(now_us, last_heartbeat_us_, period_us));
   if (timeout_clock_ == TimeoutClock::WallTime) {
     soonest = std::min(soonest, heartbeat_consumer_.us_until_timeout(now_us));
     if (state_ != NmtState::Stopped) soonest = std::min(soonest, sdo_.us_until_timeout(now_us));

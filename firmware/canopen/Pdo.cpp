@@ -6,6 +6,7 @@
 
 #include "Node.hpp"
 #include "ObjectTables.hpp"
+#include "TimeLeft.hpp"
 
 namespace co {
 namespace {
@@ -293,21 +294,18 @@ std::uint32_t Node::us_until_pdo_timer(std::uint32_t now_us, std::uint32_t limit
   std::uint32_t soonest = limit_us;
   for (const Pdo& pdo : rpdos_) {
     if (!pdo.valid() || pdo.event_timer_ms == 0 || !pdo.received_once || pdo.deadline_missed) continue;
-    const std::uint32_t left_us = now_us - pdo.last_received_us;
-    const std::uint32_t deadline_us = std::uint32_t{pdo.event_timer_ms} * 1000u;
-    soonest = std::min(soonest, left_us >= deadline_us ? 0u : deadline_us - left_us);
+    soonest = std::min(soonest, time_left_us(now_us, pdo.last_received_us, std::uint32_t{pdo.event_timer_ms} * 1000u));
   }
   for (const Pdo& pdo : tpdos_) {
     if (!pdo.valid() || !is_event_driven(pdo.transmission_type)) continue;
     if (!pdo.sent_once) return 0;  // poll_event_tpdos sends it at once
-    const std::uint32_t since_sent_us = now_us - pdo.last_sent_us;
     if (pdo.event_timer_ms != 0) {
-      const std::uint32_t timer_us = std::uint32_t{pdo.event_timer_ms} * 1000u;
-      soonest = std::min(soonest, since_sent_us >= timer_us ? 0u : timer_us - since_sent_us);
+      soonest = std::min(soonest, time_left_us(now_us, pdo.last_sent_us, std::uint32_t{pdo.event_timer_ms} * 1000u));
     }
     // A change held back by the inhibit time goes out when it ends.
-    const std::uint32_t inhibit_us = std::uint32_t{pdo.inhibit_time_100us} * 100u;
-    if (pdo.change_held) soonest = std::min(soonest, since_sent_us >= inhibit_us ? 0u : inhibit_us - since_sent_us);
+    if (pdo.change_held) {
+      soonest = std::min(soonest, time_left_us(now_us, pdo.last_sent_us, std::uint32_t{pdo.inhibit_time_100us} * 100u));
+    }
   }
   return soonest;
 }

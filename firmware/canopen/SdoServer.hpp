@@ -25,6 +25,7 @@
 
 #include "CanPort.hpp"
 #include "SdoAbort.hpp"
+#include "TimeLeft.hpp"
 
 namespace co {
 
@@ -99,12 +100,11 @@ class SdoServer {
   // Aborts a transfer whose client fell silent. Returns true when `response` (the abort) must
   // be sent.
   bool check_timeout(std::uint32_t now_us, std::array<std::uint8_t, 8>& response);
-  // Microseconds from `now_us` until check_timeout() would act (0 if it would now); UINT32_MAX
+  // Microseconds from `now_us` until check_timeout() would act (0 if it would now); kNoTimerUs
   // while no transfer is open. What an idle loop may sleep.
   std::uint32_t us_until_timeout(std::uint32_t now_us) const {
-    if (state_ == State::Idle) return UINT32_MAX;
-    const std::uint32_t elapsed_us = now_us - last_activity_us_;
-    return elapsed_us >= kSegmentTimeoutUs ? 0u : kSegmentTimeoutUs - elapsed_us;
+    if (state_ == State::Idle) return kNoTimerUs;
+    return time_left_us(now_us, last_activity_us_, kSegmentTimeoutUs);
   }
 
   // Forgets any transfer in progress without answering (NMT stop or reset).
