@@ -53,7 +53,7 @@ def test_the_older_spelling_still_works() -> None:
     assert done.stdout.split() == list(blueprint_names())
 
 
-def _fake_node_trace(path: Path, channel: str) -> None:
+def _fake_node_trace(path: Path, channel: str, fake: FakeJointNode) -> None:
     """A few cycles of a Rig against the fake node on `channel`, traced to `path`."""
     import can
 
@@ -67,7 +67,9 @@ def _fake_node_trace(path: Path, channel: str) -> None:
     tracer = Tracer(TraceSink.rrd(path), table, blueprint=None)
     params = JointParams.fast_thermal()
     with can.Bus(interface="virtual", channel=channel) as bus:
-        rig = Rig(bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
+        rig = Rig(
+            bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, activity=fake.activity, tracer=tracer
+        )
         try:
             rig.start()
             rig.set("control_mode", ControlMode.VELOCITY)
@@ -81,7 +83,7 @@ def test_check_lists_the_series_a_dashboard_names_that_the_trace_lacks(
     fake: FakeJointNode, channel: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     trace = tmp_path / "trace.rrd"
-    _fake_node_trace(trace, channel)
+    _fake_node_trace(trace, channel, fake)
     # No SDO poll, no EMCY, no abort in this run: those views are empty, and said so.
     assert main(["view", str(trace), "--check"]) == 1
     gaps = capsys.readouterr().out.splitlines()

@@ -38,7 +38,9 @@ def traced_run(path: Path, velocity_kp: float, cycles: int = 30) -> Path:
     fake = FakeJointNode(fake_bus, table=table)
     tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=10, background=False, blueprint="overview")
     params = JointParams.fast_thermal()
-    rig = Rig(rig_bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
+    rig = Rig(
+        rig_bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, activity=fake.activity, tracer=tracer
+    )
     fake.boot()
     try:
         rig.start()

@@ -32,7 +32,10 @@ def test_velocity_step_that_cannot_settle(tmp_path):
     table = RigTable.load()
     rig_bus, fake_bus = (can.Bus(interface="virtual", channel="picture") for _ in range(2))
     fake = FakeJointNode(fake_bus, table=table)
-    rig = Rig(rig_bus, table=table, params=JointParams.fast_thermal(), seed=3, tpdo_timeout_s=0.5)
+    rig = Rig(
+        rig_bus, table=table, params=JointParams.fast_thermal(), seed=3, tpdo_timeout_s=0.5,
+        activity=fake.activity,
+    )
     fake.boot()
     try:
         rig.start()

@@ -104,7 +104,14 @@ def _bench() -> Bench:
     channel = f"hilrig-faults-{next(_channels)}"
     rig_bus, fake_bus, spy = (can.Bus(interface="virtual", channel=channel) for _ in range(3))
     fake = FakeJointNode(fake_bus, table=TABLE)
-    rig = Rig(rig_bus, table=TABLE, params=JointParams.fast_thermal(), seed=3, tpdo_timeout_s=0.5)
+    rig = Rig(
+        rig_bus,
+        table=TABLE,
+        params=JointParams.fast_thermal(),
+        seed=3,
+        tpdo_timeout_s=0.5,
+        activity=fake.activity,
+    )
     fake.boot()
     rig.start()
     bench = Bench(rig, fake, spy)

@@ -4,11 +4,12 @@ activity (a scripted sequence here, one value per quiet slice), and /proc's stat
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Iterator
 
 import pytest
 
-from hilrig.engine.driver import ProcessActivity, process_activity
+from hilrig.engine.driver import ProcessActivity, process_activity, thread_activity
 from hilrig.engine.lockstep import HANG_CAP_FACTOR, HangGuard
 from hilrig.errors import HostStarvedError
 
@@ -93,3 +94,28 @@ def test_process_activity_of_this_process() -> None:
 
 def test_process_activity_of_no_process_is_none() -> None:
     assert process_activity(2**22 + 1) is None  # above the kernel's pid_max limit
+
+
+def test_thread_activity_of_this_thread_and_of_a_sleeping_one() -> None:
+    running = thread_activity(threading.get_native_id())
+    assert running is not None and running.sleeping is False  # this thread reads the file
+    started, release = threading.Event(), threading.Event()
+    native_ids: list[int] = []
+
+    def wait() -> None:
+        native_ids.append(threading.get_native_id())
+        started.set()
+        release.wait()
+
+    sleeper = threading.Thread(target=wait)
+    sleeper.start()
+    try:
+        started.wait()
+        asleep = None
+        while asleep is None or not asleep.sleeping:  # until it is blocked in release.wait()
+            asleep = thread_activity(native_ids[0])
+            assert asleep is not None
+    finally:
+        release.set()
+        sleeper.join()
+    assert thread_activity(native_ids[0]) is None  # gone with its thread

@@ -74,7 +74,7 @@ def _buses(count: int) -> list[can.BusABC]:
 def unstarted(table: RigTable) -> Iterator[Bench]:
     rig_bus, fake_bus, spy = _buses(3)
     fake = FakeJointNode(fake_bus, table=table)
-    rig = Rig(rig_bus, table=table, params=PARAMS, seed=SEED, tpdo_timeout_s=0.5)
+    rig = Rig(rig_bus, table=table, params=PARAMS, seed=SEED, tpdo_timeout_s=0.5, activity=fake.activity)
     fake.boot()
     yield Bench(rig, fake, spy)
     rig.close()
@@ -214,7 +214,8 @@ def test_missing_tpdo_raises_lockstep_error_naming_cycle_time_and_pdo(bench: Ben
     bench.fake.drop = lambda sync_number, tpdo: sync_number == 7 and tpdo == 3
     bench.rig.driver.tpdo_timeout_s = 0.2
     with pytest.raises(
-        LockstepError, match=re.escape("cycle 6 (t = 0.006 s): TPDO3 (0x390) did not arrive within 0.2 s")
+        LockstepError,
+        match=re.escape("cycle 6 (t = 0.006 s): TPDO3 (0x390) did not arrive: the firmware sat idle for"),
     ):
         bench.rig.run(cycles=10)
     assert bench.rig.cycle == 6
@@ -257,6 +258,8 @@ def test_start_puts_the_node_operational(unstarted: Bench) -> None:
     assert nmt[-1] == (NMT_COB_ID, bytes([NmtCommand.START, NODE_ID]))
     unstarted.rig.run(cycles=1)  # the fake answers SYNC only once it is operational
     assert unstarted.fake.state.name == "OPERATIONAL"
+    # The hang guard sees the thread that answered, as it sees a firmware process.
+    assert unstarted.fake.activity() is not None
 
 
 def test_start_refuses_an_actuator_tpdo_that_is_not_sent_every_sync(unstarted: Bench) -> None:

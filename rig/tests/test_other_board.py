@@ -47,7 +47,15 @@ def lamp(tmp_path: Path) -> Iterator[tuple[Rig, Tracer, Path]]:
     trace = tmp_path / "trace.rrd"
     tracer = Tracer(TraceSink.rrd(trace), table, batch_cycles=100, background=False)
     plant = lamp_plant.make_plant(None, seed=1)
-    rig = Rig(rig_bus, table=table, eds=files.eds, plant=plant, tpdo_timeout_s=0.5, tracer=tracer)
+    rig = Rig(
+        rig_bus,
+        table=table,
+        eds=files.eds,
+        plant=plant,
+        tpdo_timeout_s=0.5,
+        activity=fake.activity,
+        tracer=tracer,
+    )
     fake.boot()
     try:
         yield rig, tracer, trace

@@ -27,7 +27,7 @@ def test_polled_fields_land_in_the_history_and_the_trace_every_nth_cycle(
     path = tmp_path / "trace.rrd"
     tracer = Tracer(TraceSink.rrd(path), table, blueprint=None)
     with can.Bus(interface="virtual", channel=channel) as bus:
-        rig = Rig(bus, table=table, tpdo_timeout_s=0.5, tracer=tracer)
+        rig = Rig(bus, table=table, tpdo_timeout_s=0.5, activity=fake.activity, tracer=tracer)
         try:
             rig.start()
             rig.poll_over_sdo(POLLED, every_cycles=5)
@@ -53,7 +53,7 @@ def test_polled_fields_land_in_the_history_and_the_trace_every_nth_cycle(
 
 def test_a_streamed_field_or_a_bad_rate_is_refused(fake: FakeJointNode, channel: str) -> None:
     with can.Bus(interface="virtual", channel=channel) as bus:
-        rig = Rig(bus, table=RigTable.load(), tpdo_timeout_s=0.5)
+        rig = Rig(bus, table=RigTable.load(), tpdo_timeout_s=0.5, activity=fake.activity)
         try:
             rig.start()
             with pytest.raises(ValueError, match="motor_velocity: in a TPDO already"):

@@ -91,7 +91,9 @@ def traced(request: pytest.FixtureRequest, table: RigTable, tmp_path: Path) -> I
     path = tmp_path / "scenario" / "trace.rrd"
     kind, background = request.param
     tracer = kind(TraceSink.rrd(path), table, batch_cycles=BATCH, background=background, blueprint="faults")
-    rig = Rig(rig_bus, table=table, params=PARAMS, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
+    rig = Rig(
+        rig_bus, table=table, params=PARAMS, seed=3, tpdo_timeout_s=0.5, activity=fake.activity, tracer=tracer
+    )
     fake.boot()
     try:
         yield Run(rig, fake, tracer, path)
@@ -483,7 +485,13 @@ def test_a_robot_module_names_and_colours_its_own_series(tmp_path: Path) -> None
     fake = FakeJointNode(fake_bus, table=table)
     tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=10, background=False, root="/modules/3")
     rig = Rig(
-        rig_bus, table=table, params=JointParams.fast_thermal(), seed=3, tpdo_timeout_s=0.5, tracer=tracer
+        rig_bus,
+        table=table,
+        params=JointParams.fast_thermal(),
+        seed=3,
+        tpdo_timeout_s=0.5,
+        activity=fake.activity,
+        tracer=tracer,
     )
     fake.boot()
     try:

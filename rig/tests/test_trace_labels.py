@@ -38,7 +38,15 @@ def test_a_traced_run_names_each_new_value_of_an_enum_field(
     path = tmp_path / "trace.rrd"
     tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=7, background=False, blueprint=None)
     with can.Bus(interface="virtual", channel=channel) as bus:
-        rig = Rig(bus, table=table, params=JointParams(), seed=1, tpdo_timeout_s=0.5, tracer=tracer)
+        rig = Rig(
+            bus,
+            table=table,
+            params=JointParams(),
+            seed=1,
+            tpdo_timeout_s=0.5,
+            activity=fake.activity,
+            tracer=tracer,
+        )
         try:
             rig.start()
             rig.set("control_mode", ControlMode.VELOCITY)

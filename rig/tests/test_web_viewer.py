@@ -66,7 +66,9 @@ def trace(fake: FakeJointNode, channel: str, tmp_path: Path) -> Path:
     tracer = Tracer(TraceSink.rrd(path), table, blueprint="overview")
     params = JointParams.fast_thermal()
     with can.Bus(interface="virtual", channel=channel) as bus:
-        rig = Rig(bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, tracer=tracer)
+        rig = Rig(
+            bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, activity=fake.activity, tracer=tracer
+        )
         try:
             rig.start()
             rig.set("velocity_setpoint", 5.0)

@@ -89,8 +89,19 @@ _CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 def process_activity(pid: int) -> ProcessActivity | None:
     """`pid`'s activity from /proc/PID/stat; None once it is gone or where /proc has no such
     file (the guard then falls back to wall time)."""
+    return _stat_activity(f"/proc/{pid}/stat")
+
+
+def thread_activity(native_id: int) -> ProcessActivity | None:
+    """One thread of this process (`threading.get_native_id()`), from /proc/self/task/TID/stat:
+    an in-process node's receive thread, so the hang guard judges a fake node as it judges a
+    firmware process (a starved host is no verdict on either)."""
+    return _stat_activity(f"/proc/self/task/{native_id}/stat")
+
+
+def _stat_activity(stat_path: str) -> ProcessActivity | None:
     try:
-        with open(f"/proc/{pid}/stat", "rb") as stat:
+        with open(stat_path, "rb") as stat:
             text = stat.read()
     except OSError:
         return None

@@ -23,6 +23,7 @@ from canopen.sdo import SdoAbortedError
 
 from boardproto import Field
 from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState, SdoAbortCode, heartbeat_cob_id
+from hilrig.engine.driver import ProcessActivity, thread_activity
 from hilrig.table import LedPattern, RigTable
 from hilrig.wire.node import RECEIVE_POLL_S
 
@@ -81,6 +82,8 @@ class FakeJointNode:
         """Return True to leave TPDO `tpdo_number` out at SYNC `sync_number` (fault injection)."""
         self.last_inputs: dict[str, Value] = {}
         self._sync_number = 0
+        self._receive_thread: int | None = None
+        """Native id of the thread that runs the node's callbacks, once one ran (`activity`)."""
         self._lock = threading.Lock()
         self._inputs: dict[str, PdoVariable] = {
             var.name: var for m in self.local.rpdo.map.values() if m.enabled for var in m.map
@@ -96,6 +99,13 @@ class FakeJointNode:
         if self.network.notifier is not None:
             self.network.notifier.stop(self.network.NOTIFIER_SHUTDOWN_TIMEOUT)
             self.network.notifier = None
+
+    def activity(self) -> ProcessActivity | None:
+        """What the thread that answers SYNCs is doing, for the rig's hang guard (`Rig(activity=)`):
+        the fake gets the firmware's verdicts, idle or spinning, and a busy host is none. None
+        before the first NMT command or SYNC reached it (the guard then counts wall time)."""
+        thread = self._receive_thread
+        return thread_activity(thread) if thread is not None else None
 
     @property
     def state(self) -> NmtState:
@@ -115,6 +125,7 @@ class FakeJointNode:
         self.local.data_store.setdefault(index, {})[subindex] = od.encode_raw(value)
 
     def _after_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        self._receive_thread = threading.get_native_id()
         if data[0] == NmtCommand.START and data[1] in (0, self.node_id):
             with self._lock:
                 self._sync_number = 0  # the firmware counts SYNCs from entering operational
@@ -130,6 +141,7 @@ class FakeJointNode:
             raise SdoAbortedError(SdoAbortCode.VALUE_TOO_LOW)
 
     def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        self._receive_thread = threading.get_native_id()
         if self.state is not NmtState.OPERATIONAL:
             return
         with self._lock:
