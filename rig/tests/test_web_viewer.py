@@ -160,9 +160,9 @@ def one_broken_series(tmp_path: Path) -> Path:
 @pytest.mark.timeout(600)
 def test_the_series_check_fails_for_a_series_with_data_that_draws_nothing(one_broken_series: Path) -> None:
     """The per-series pixel check of the browser stage (`check_series`): of the series that all
-    have data, the one that draws nothing in its view is named, the others are not; three
-    identical lines are told apart in one more showing (nested), and only the broken one is then
-    shown alone."""
+    have data, the one that draws nothing in its view is named, the others are not; both views
+    are looked at in one showing; three identical lines are told apart in one more showing
+    (nested), and only the broken one is then shown alone."""
     import rerun.blueprint as rrb
 
     from hilrig.observe.dashboard_check import missing_series
@@ -175,6 +175,7 @@ def test_the_series_check_fails_for_a_series_with_data_that_draws_nothing(one_br
             origin="/check",
             contents=["/check/flag_a", "/check/flag_b", "/check/drawn", "/check/broken", "/check/flag_c"],
         ),
+        rrb.TimeSeriesView(name="the sine again", origin="/check", contents=["/check/drawn"]),
         rrb.TimePanel(timeline=CYCLE_TIMELINE),
         collapse_panels=False,
     )
@@ -185,8 +186,9 @@ def test_the_series_check_fails_for_a_series_with_data_that_draws_nothing(one_br
         drawn = check_series(viewer, layout, trace, out, name="broken", trace_path=one_broken_series)
     for entity in ("/check/drawn", "/check/flag_a", "/check/flag_b", "/check/flag_c"):
         assert drawn.pixels[("five series", entity)] >= SERIES_PIXELS, drawn.pixels
+    assert drawn.pixels[("the sine again", "/check/drawn")] >= SERIES_PIXELS, drawn.pixels
     assert drawn.missing() == ["broken / five series: /check/broken drew 0 pixels in its view"]
-    assert [shot.name for shot in drawn.screenshots] == ["1.png", "1-nested.png", "1-4.png"]
+    assert [shot.name for shot in drawn.screenshots] == ["1+2.png", "1-nested.png", "1-4.png"]
 
 
 # --- Without a browser ------------------------------------------------------------------------

@@ -7,8 +7,9 @@ in one page (`hilrig.observe.browser.check_dashboards`):
 the viewer shows exactly the dashboard's views, none hidden or reporting an error, the recording
 whole, something plotted, no console error; every series each view names has data in the
 trace; and every series of every plot draws pixels of its own colour inside its own view
-(`hilrig.observe.series_check`). Screenshots: $HIL_OUT_DIR/viewer/<trace>/<dashboard>.png, and
-per view <trace>/<dashboard>/<view number>.png.
+(`hilrig.observe.series_check`, a few views to a showing). Screenshots:
+$HIL_OUT_DIR/viewer/<trace>/<dashboard>.png, and per showing <trace>/<dashboard>/<view numbers>.png
+(`1+2+3.png`).
 
     .venv/bin/python -m pytest tests/browser        # after the bus stage (make test) wrote them
 """

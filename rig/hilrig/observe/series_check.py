@@ -6,15 +6,18 @@ whole page: something plotted somewhere, the views there, no error).
         drawn = check_series(viewer, blueprint("tuning", table), Trace.read(path), out / "tuning")
         drawn.missing()      # ["velocity loop ...: /fields/commands/velocity_setpoint drew 0 pixels"]
 
-How: each time series view of the dashboard is shown alone (it then fills the blueprint's area,
-`BLUEPRINT_AREA`: that rectangle is the view's), with its legend hidden and each of its series
-given its own colour of `SERIES_PALETTE` and a wide line by a blueprint override; a series is
-drawn when pixels of its colour are inside that rectangle. Lines on top of each other hide the
-ones below (a setpoint its measurement follows exactly, flags that are all 0). Identical lines (flags
-all 0) are then shown together once more, nested: the first widest, each next narrower
-(`nested_widths`), so each shows a band of its colour around the ones on top of it; only a
-series still not found is shown alone, and only then is it missing. Text logs
-and 3D views name no series: `check_dashboards` covers them.
+How: the time series views of the dashboard are shown by themselves, a few at a time
+(`MAX_VIEWS_SHOWN`, stacked, each series of a showing given its own colour of `SERIES_PALETTE`
+and a wide line by a blueprint override, legends hidden), so that they fill the blueprint's
+area (`BLUEPRINT_AREA`); a series is drawn when pixels of its colour are inside that rectangle.
+Its colour is its own in the showing and a view draws only inside itself, so its pixels are
+its view's. Lines on top of each other hide the ones below (a setpoint its measurement follows
+exactly, flags that are all 0). The hidden ones of a view are then shown together once more,
+nested: the first widest, each next narrower (`nested_widths`), so each shows a band of its
+colour around the ones on top of it; only a series still not found is shown alone (a view of
+its own), and only then is it missing. Text logs and 3D views name no series:
+`check_dashboards` covers them. Each showing costs the software-rendered viewer frames to settle,
+which is why views share them.
 
 The series of a view are the entity paths it names, or (a view of everything under its origin)
 the entities under its origin with scalar data in the trace.
@@ -22,6 +25,7 @@ the entities under its origin with scalar data in the trace.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -56,6 +60,9 @@ COLOUR_TOLERANCE = 10
 """Per channel, how far a pixel may be from a series' colour and still be it."""
 SERIES_PIXELS = 20
 """Pixels of its colour a drawn series has at least (a flat line across a view has thousands)."""
+MAX_VIEWS_SHOWN = 4
+"""Views stacked in one showing at most: each keeps a quarter of the blueprint area's height,
+room for the nested bands of a few identical lines."""
 STILL_S = 30.0
 """How long a view is given to hold still before its screenshot counts as it is."""
 
@@ -86,6 +93,49 @@ def nested_widths(count: int) -> list[float]:
     return [LINE_WIDTH + NESTED_STEP * (count - 1 - k) for k in range(count)]
 
 
+@dataclass(frozen=True)
+class Plot:
+    """A view as one showing plots it: `series` (some or all of the view's), named `name` there,
+    each line `widths` wide (default LINE_WIDTH); `label` names its part of the screenshot's file."""
+
+    view: rrb.TimeSeriesView
+    series: tuple[str, ...]
+    name: str
+    label: str
+    widths: tuple[float, ...] | None = None
+
+
+def together(plots: Sequence[Plot], time_panel: rrb.TimePanel | None) -> rrb.Blueprint:
+    """A blueprint of `plots` stacked top to bottom, nothing else in it; the series of all of
+    them take SERIES_PALETTE's colours in order, so that no two share one."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+    colours = iter(SERIES_PALETTE)
+    shown = []
+    for plot in plots:
+        widths = plot.widths if plot.widths is not None else (LINE_WIDTH,) * len(plot.series)
+        overrides = {
+            path: rr.SeriesLines.from_fields(colors=[next(colours)], widths=[width])
+            for path, width in zip(plot.series, widths, strict=True)
+        }
+        shown.append(
+            rrb.TimeSeriesView(
+                name=plot.name,
+                origin=plot.view.origin,
+                contents=list(plot.series),
+                axis_x=WHOLE_RUN,
+                plot_legend=rrb.PlotLegend(visible=False),
+                overrides=overrides,
+            )
+        )
+    top: rrb.Container | rrb.View = shown[0] if len(shown) == 1 else rrb.Vertical(*shown)
+    parts: list[rrb.Container | rrb.View | rrb.TimePanel] = [top]
+    if time_panel is not None:
+        parts.append(time_panel)
+    return rrb.Blueprint(*parts, collapse_panels=False)  # type: ignore[arg-type]
+
+
 def alone(
     view: rrb.TimeSeriesView,
     series: Sequence[str],
@@ -96,26 +146,8 @@ def alone(
 ) -> rrb.Blueprint:
     """A blueprint of `view` alone (called `name`, default its own), plotting `series`, each in its
     SERIES_PALETTE colour, LINE_WIDTH wide (or `widths`), no legend."""
-    import rerun as rr
-    import rerun.blueprint as rrb
-
-    line_widths = list(widths) if widths is not None else [LINE_WIDTH] * len(series)
-    overrides = {
-        path: rr.SeriesLines.from_fields(colors=[SERIES_PALETTE[k]], widths=[line_widths[k]])
-        for k, path in enumerate(series)
-    }
-    shown = rrb.TimeSeriesView(
-        name=name if name is not None else str(view.name),
-        origin=view.origin,
-        contents=list(series),
-        axis_x=WHOLE_RUN,
-        plot_legend=rrb.PlotLegend(visible=False),
-        overrides=overrides,
-    )
-    parts: list[rrb.Container | rrb.View | rrb.TimePanel] = [shown]
-    if time_panel is not None:
-        parts.append(time_panel)
-    return rrb.Blueprint(*parts, collapse_panels=False)  # type: ignore[arg-type]
+    shown = name if name is not None else str(view.name)
+    return together([Plot(view, tuple(series), shown, shown, tuple(widths) if widths else None)], time_panel)
 
 
 @dataclass
@@ -155,6 +187,50 @@ def _time_series_views(blueprint: rrb.Blueprint) -> Iterator[rrb.TimeSeriesView]
             yield view
 
 
+_showings = itertools.count(1)
+"""Numbers the showings of this process: each one's views are named apart from any shown before,
+so that the wait for a showing knows it by its names."""
+
+
+def _groups(plots: Sequence[Plot]) -> Iterator[list[Plot]]:
+    """`plots` in order, as few to a showing as MAX_VIEWS_SHOWN and the palette allow."""
+    group: list[Plot] = []
+    for plot in plots:
+        if group and (
+            len(group) == MAX_VIEWS_SHOWN
+            or sum(len(p.series) for p in group) + len(plot.series) > len(SERIES_PALETTE)
+        ):
+            yield group
+            group = []
+        group.append(plot)
+    if group:
+        yield group
+
+
+def _show(
+    viewer: ViewerPage,
+    plots: Sequence[Plot],
+    time_panel: rrb.TimePanel | None,
+    whole: dict[str, int] | None,
+    path: Path,
+    drawn: SeriesDrawn,
+) -> list[dict[str, int]]:
+    """Show `plots` together, screenshot them to `path` once still: per plot, each series'
+    pixels of its colour."""
+    number = next(_showings)
+    named = [
+        Plot(plot.view, plot.series, f"{plot.name} · {number}", plot.label, plot.widths) for plot in plots
+    ]
+    viewer.show_dashboard(together(named, time_panel), whole)
+    image = _still_screenshot(viewer, path)
+    drawn.screenshots.append(path)
+    colours = iter(SERIES_PALETTE)
+    return [
+        {entity: colour_pixels(image, BLUEPRINT_AREA, next(colours)) for entity in plot.series}
+        for plot in plots
+    ]
+
+
 def check_series(
     viewer: ViewerPage,
     blueprint: rrb.Blueprint,
@@ -165,61 +241,74 @@ def check_series(
     trace_path: Path,
     checked: dict[tuple[str, tuple[str, ...]], dict[str, int]] | None = None,
 ) -> SeriesDrawn:
-    """Show each time series view of `blueprint` alone in `viewer` (a page of a served trace) and
-    count each series' pixels in it (see the module); screenshots to out_dir/<view number>.png
-    (and <view number>-<series number>.png for a series looked at alone). `checked`: views
-    (origin, series) already looked at with what they drew, e.g. by another dashboard of the
-    same trace (the overview's control mode plot is the faults' too): taken from there, and
-    filled with this dashboard's."""
+    """Show the time series views of `blueprint` by themselves in `viewer` (a page of a served
+    trace), a few at a time, and count each series' pixels (see the module); screenshots to
+    out_dir/<view numbers>.png (`1+2+3.png`; `-nested` for hidden series shown again nested,
+    `<view>-<series>` for a series looked at alone). `checked`: views (origin, series) already
+    looked at with what they drew, e.g. by another dashboard of the same trace (the overview's
+    control mode plot is the faults' too): taken from there, and filled with this dashboard's."""
     checked = {} if checked is None else checked
     end = last_cycle(trace_path)
     whole = {CYCLE_TIMELINE: end} if end is not None else None
+    time_panel = blueprint.time_panel
     out_dir.mkdir(parents=True, exist_ok=True)
     drawn = SeriesDrawn(name)
+    keys: list[tuple[rrb.TimeSeriesView, tuple[str, tuple[str, ...]]]] = []
+    plots: list[Plot] = []
     for number, view in enumerate(_time_series_views(blueprint), start=1):
         every = series_of(view, trace)
         key = (str(view.origin), tuple(every))
-        if key in checked:
-            drawn.pixels.update({(str(view.name), entity): n for entity, n in checked[key].items()})
+        keys.append((view, key))
+        if key in checked or any(k == key for _, k in keys[:-1]):
             continue
         for first in range(0, len(every), len(SERIES_PALETTE)):  # as many colours at a time
-            series = every[first : first + len(SERIES_PALETTE)]
-            # Each showing named apart from the one before: the wait knows the switch by it.
-            name = str(view.name) if not first else f"{view.name} (series {first + 1} on)"
-            viewer.show_dashboard(alone(view, series, blueprint.time_panel, name=name), whole)
-            path = out_dir / (f"{number}.png" if not first else f"{number}-from-{first + 1}.png")
-            image = _still_screenshot(viewer, path)
-            drawn.screenshots.append(path)
-            counts = {
-                entity: colour_pixels(image, BLUEPRINT_AREA, SERIES_PALETTE[k])
-                for k, entity in enumerate(series)
-            }
-            # Hidden under the others, or not drawn: the hidden ones shown again together, nested
-            # (lines on top of each other then each show a band), then any still missing alone.
-            hidden = [e for e in series if counts[e] < SERIES_PIXELS]
-            if len(hidden) > 1:
-                nested = alone(view, hidden, blueprint.time_panel, name=f"{name} (hidden, nested)",
-                               widths=nested_widths(len(hidden)))
-                viewer.show_dashboard(nested, whole)
-                again = out_dir / f"{number}-nested{'' if not first else f'-from-{first + 1}'}.png"
-                nested_shot = _still_screenshot(viewer, again)
-                drawn.screenshots.append(again)
-                for k, entity in enumerate(hidden):
-                    counts[entity] = colour_pixels(nested_shot, BLUEPRINT_AREA, SERIES_PALETTE[k])
-            for k, entity in enumerate(series):
-                if counts[entity] < SERIES_PIXELS:
-                    by_itself = alone(view, [entity], blueprint.time_panel, name=f"{view.name}: {entity}")
-                    viewer.show_dashboard(by_itself, whole)
-                    single = out_dir / f"{number}-{first + k + 1}.png"
-                    alone_shot = _still_screenshot(viewer, single)
-                    counts[entity] = colour_pixels(alone_shot, BLUEPRINT_AREA, SERIES_PALETTE[0])
-                    drawn.screenshots.append(single)
-                drawn.pixels[(str(view.name), entity)] = counts[entity]
-        checked[key] = {entity: drawn.pixels[(str(view.name), entity)] for entity in every}
+            label = str(number) if not first else f"{number}-from-{first + 1}"
+            plots.append(Plot(view, tuple(every[first : first + len(SERIES_PALETTE)]), str(view.name), label))
+    counts: dict[tuple[str, str], int] = {}  # (view name, series) -> pixels
+    for group in _groups(plots):
+        stem = "+".join(plot.label for plot in group)
+        seen = _show(viewer, group, time_panel, whole, out_dir / f"{stem}.png", drawn)
+        for plot, pixels in zip(group, seen, strict=True):
+            counts.update({(plot.name, entity): n for entity, n in pixels.items()})
+        # Hidden under the others, or not drawn: the hidden ones of each view shown again
+        # together, nested (lines on top of each other then each show a band).
+        hidden = [
+            Plot(plot.view, tuple(e for e in plot.series if counts[(plot.name, e)] < SERIES_PIXELS),
+                 plot.name, plot.label)
+            for plot in group
+        ]
+        nested = [
+            Plot(p.view, p.series, p.name, p.label, tuple(nested_widths(len(p.series))))
+            for p in hidden
+            if len(p.series) > 1
+        ]
+        if nested:
+            stem = "+".join(plot.label for plot in nested)
+            seen = _show(viewer, nested, time_panel, whole, out_dir / f"{stem}-nested.png", drawn)
+            for plot, pixels in zip(nested, seen, strict=True):
+                counts.update({(plot.name, entity): n for entity, n in pixels.items()})
+    # Any series still not found: each alone in a view of its own, a few views to a showing.
+    single = [
+        Plot(plot.view, (entity,), f"{plot.name}: {entity}", f"{plot.label.split('-')[0]}-{k + 1}")
+        for plot in plots
+        for k, entity in enumerate(series_of(plot.view, trace))
+        if entity in plot.series and counts[(plot.name, entity)] < SERIES_PIXELS
+    ]
+    for group in _groups(single):
+        stem = "+".join(plot.label for plot in group)
+        seen = _show(viewer, group, time_panel, whole, out_dir / f"{stem}.png", drawn)
+        for plot, pixels in zip(group, seen, strict=True):
+            ((entity, n),) = pixels.items()
+            counts[(str(plot.view.name), entity)] = n
+    for view, key in keys:
+        if key not in checked:
+            checked[key] = {entity: counts[(str(view.name), entity)] for entity in key[1]}
+        drawn.pixels.update({(str(view.name), entity): n for entity, n in checked[key].items()})
     return drawn
 
 
 __all__ = [
+    "MAX_VIEWS_SHOWN",
     "SERIES_PALETTE",
     "SERIES_PIXELS",
     "SeriesDrawn",
@@ -228,4 +317,5 @@ __all__ = [
     "colour_pixels",
     "nested_widths",
     "series_of",
+    "together",
 ]
