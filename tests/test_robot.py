@@ -18,7 +18,10 @@ from hilrig.plants.head import HeadParams, HeadPlant
 from hilrig.session.builder import Rider
 from hilrig.table import EmcyCode, FaultFlags, RigTable
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, pytest.mark.xdist_group("robot")]
+"""One worker runs the robots one after another (`--dist loadgroup`, tools/run-tests): two at
+once put 20 firmware processes and two chains on the VM's two vCPUs, and a 4-module robot beside
+the 16-module one took 30 times its quiet time (load 15 to 30 from other work on the host)."""
 
 TABLE = RigTable.load()
 GAIT = TravellingWave()

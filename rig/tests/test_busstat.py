@@ -9,7 +9,7 @@ import can
 import pytest
 
 from boardproto import load_table
-from boardproto.cia301 import SYNC_COB_ID, due_at_sync
+from boardproto.cia301 import SYNC_COB_ID, due_at_sync, heartbeat_cob_id
 from hilrig.apps.busload import bus_load, frame_bits_worst_case, lockstep_traffic
 from hilrig.apps.busstat import measure
 from hilrig.cli import main
@@ -61,6 +61,23 @@ def test_the_load_per_sync_agrees_with_bus_load_for_the_same_mapping() -> None:
     tpdo1, tpdo2 = TABLE.tpdo(1).cob_id(NODE), TABLE.tpdo(2).cob_id(NODE)
     assert stats.delays_s[tpdo1] == [pytest.approx(GAP_S)] * 201, "TPDO1 right after its SYNC"
     assert stats.delays_s[tpdo2] == [pytest.approx(2 * GAP_S)] * 201
+
+
+def test_heartbeats_bunched_into_one_slow_lockstep_cycle_do_not_make_it_the_busiest() -> None:
+    # A heartbeat is paced by the node's wall-clock timer: a cycle the host was slow in holds
+    # several. They are traffic (the totals have them), but that cycle is no busier on the bus.
+    frames = lockstep_log(20)
+    quiet = measure(frames, [], RATE_HZ)
+    slow_cycle_t = 10 / RATE_HZ + 0.5 / RATE_HZ
+    beats = [
+        can.Message(timestamp=slow_cycle_t + k * 1e-6, arbitration_id=heartbeat_cob_id(NODE),
+                    data=bytes([0x05]), is_extended_id=False)
+        for k in range(5)
+    ]
+    stats = measure(sorted(frames + beats, key=lambda m: m.timestamp), [], RATE_HZ)
+    assert stats.busiest_cycle_bits == quiet.busiest_cycle_bits
+    assert stats.by_cob_id[heartbeat_cob_id(NODE)].frames == 5
+    assert stats.bits_worst_case == quiet.bits_worst_case + 5 * frame_bits_worst_case(1)
 
 
 def test_the_command_reads_a_log_and_needs_a_bit_rate(

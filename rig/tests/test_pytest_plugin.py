@@ -117,7 +117,7 @@ def test_unknown(request):
     pass
 
 def test_long(request):
-    assert request.node.get_closest_marker("timeout").args == (2000,)
+    assert request.node.get_closest_marker("timeout").args == (4000,)
 """
     )
     result = pytester.runpytest("-p", "no:cacheprovider", "-v", "--timeout=600")

@@ -13,7 +13,10 @@ id or FD frame counts as a classic one of its length, the safe side is not claim
 Time base: without a rate, the frames' own timestamps (first to last frame): a real bus. With
 `rate_hz`, the SYNCs: the frames from the first SYNC to the last one are `SYNCs - 1` cycles of
 1 / rate_hz each. That is how a lockstep log is read (its wall time is the rig's pace, not the
-bus's), and it is what `bus-load --rate-hz` assumes, frame for frame.
+bus's), and it is what `bus-load --rate-hz` assumes, frame for frame. Heartbeats are the one
+traffic paced by wall time there (a node's timer): they count in the totals, but not in the
+busiest cycle, which would otherwise be the cycle the host was slowest in (five heartbeats in
+one cycle the rig took 0.7 s for, in a VM beside other load).
 
 The delay of a TPDO after its SYNC is its timestamp minus the latest SYNC's, from the frames'
 timestamps (a log from the receiving side holds the receive times).
@@ -108,7 +111,8 @@ def measure(
             syncs += 1
         if rate_hz is not None and syncs:
             pending.append((cob_id, nominal, worst, message.is_remote_frame))
-            cycle_bits += worst
+            if function_of(cob_id)[0] != FunctionCode.HEARTBEAT or message.is_extended_id:
+                cycle_bits += worst
         if is_sync:
             sync_t = message.timestamp
         elif cob_id in tpdos and sync_t is not None:

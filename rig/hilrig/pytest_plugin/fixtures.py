@@ -51,9 +51,11 @@ keep up: at 50 Hz its ticks ran back to back in the VM, the TPDOs it took in fel
 and the plant got the firmware's outputs that late. A real board keeps its own period."""
 CLI_TIMEOUT_S = 300.0
 """Hang guard for one `hilrig` command in the emulated VM, not a timing check."""
-HANG_GUARD_FACTOR = 10
+HANG_GUARD_FACTOR = 20
 """A scenario whose recorded duration (hil_durations) is long gets this many times it as its
-pytest-timeout bound instead of the run's: a busy host must not read as a hang."""
+pytest-timeout bound instead of the run's: a busy host must not read as a hang (the 16-module
+robot took 10.4 times its quiet time in a VM beside other work, load 15 to 30). The firmware's
+own hangs are the engine's hang guard's to name, in seconds; this bound is for the harness's."""
 KEEP_ORDER = "HIL_SCENARIO_ORDER"
 """Set to "given": run the scenarios in the order of the command line, not longest first."""
 
