@@ -348,15 +348,20 @@ def test_sinks_parse_from_the_command_line(tmp_path: Path) -> None:
 def test_open_trace_opens_the_file_with_the_named_blueprint(tmp_path: Path, table: RigTable) -> None:
     with Tracer(TraceSink.rrd(tmp_path / "t.rrd"), table, blueprint=None):
         pass
-    command = open_trace(tmp_path / "t.rrd", blueprint="thermal", web=True, web_port=9191, launch=False)
+    command = open_trace(tmp_path / "t.rrd", blueprint="thermal", launch=False)
     assert isinstance(command, list)
     assert command[:3] == [sys.executable, "-m", "rerun"]
-    assert command[3:6] == ["--web-viewer", "--web-viewer-port", "9191"]
-    assert command[6] == str(tmp_path / "t.rrd")
+    assert command[3] == str(tmp_path / "t.rrd")
     import rerun as rr
 
-    (store,) = rr.chunk.RrdReader(command[7]).blueprints()
+    (store,) = rr.chunk.RrdReader(command[4]).blueprints()
     assert store.application_id == "hilrig"
+    # Served, the trace is sent in once the server listens: a file on rerun's command line keeps
+    # a thread of the server busy for as long as it serves.
+    served = open_trace(tmp_path / "t.rrd", blueprint="thermal", web=True, web_port=9191, launch=False)
+    assert served[3:] == [
+        "--web-viewer", "--web-viewer-port", "9191", "--port", "9876", "--bind", "127.0.0.1"
+    ]
     with pytest.raises(FileNotFoundError):
         open_trace(tmp_path / "missing.rrd", launch=False)
 

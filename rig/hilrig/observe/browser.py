@@ -35,6 +35,7 @@ from hilrig.observe.blueprints import dashboards, load_blueprint
 from hilrig.observe.paths import CYCLE_TIMELINE
 from hilrig.observe.sinks import APPLICATION_ID
 from hilrig.observe.viewer import ViewerProcess, open_trace
+from hilrig.observe.viewer import wait_until_listening as viewer_wait_until_listening
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb
@@ -243,23 +244,11 @@ def free_port() -> int:
 
 
 def wait_until_listening(port: int, process: subprocess.Popen[Any], timeout_s: float = WAIT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=1).close()
-            return
-        except OSError:
-            pass
-        # Between attempts, wait on the viewer process itself: a viewer that dies ends the wait
-        # at once instead of after a blind pause.
-        try:
-            returncode: int | None = process.wait(timeout=0.1)
-        except subprocess.TimeoutExpired:
-            returncode = None
-        if returncode is not None:
-            raise ViewerCheckError(f"the viewer exited with {returncode} before serving port {port}")
-        if time.monotonic() > deadline:
-            raise ViewerCheckError(f"Expected the viewer on port {port} within {timeout_s:.0f} s")
+    """`hilrig.observe.viewer.wait_until_listening`, its failure a ViewerCheckError."""
+    try:
+        viewer_wait_until_listening(port, process, timeout_s)
+    except OSError as error:
+        raise ViewerCheckError(str(error)) from None
 
 
 @dataclass(frozen=True)

@@ -8,10 +8,20 @@ import socket
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
-from hilrig.observe.blueprints import save_blueprint
-from hilrig.observe.sinks import DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT, VIEWER_BIND_ADDRESS, web_viewer_url
+from hilrig.observe.blueprints import load_blueprint, save_blueprint
+from hilrig.observe.sinks import (
+    APPLICATION_ID,
+    DEFAULT_GRPC_PORT,
+    DEFAULT_WEB_PORT,
+    VIEWER_BIND_ADDRESS,
+    web_viewer_url,
+)
+
+SERVE_TIMEOUT_S = 120.0
+"""Hang guard for a served viewer's ports to listen (a loaded machine starts rerun slowly)."""
 
 
 class ViewerProcess(subprocess.Popen[bytes]):
@@ -66,15 +76,18 @@ def open_trace(
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"no trace at {path}")
-    rbl = Path(tempfile.mkdtemp(prefix="hilrig-blueprint-")) / f"{blueprint}.rbl"
-    save_blueprint(blueprint, rbl)
     command = [sys.executable, "-m", "rerun"]
     if web:
+        # The trace is not named here but sent in once the server listens (`_send_trace`):
+        # rerun 0.41 serving a file it loaded keeps a thread polling the finished loader, a
+        # whole core for as long as it serves. Without --port the data would go to 9876
+        # whatever else listens there (spawn, compose).
         command += ["--web-viewer", "--web-viewer-port", str(web_port)]
-    command += [str(path), str(rbl)]
-    if web:
-        # Without --port the data would go to 9876 whatever else listens there (spawn, compose).
         command += ["--port", str(grpc_port), "--bind", VIEWER_BIND_ADDRESS]
+    else:
+        rbl = Path(tempfile.mkdtemp(prefix="hilrig-blueprint-")) / f"{blueprint}.rbl"
+        save_blueprint(blueprint, rbl)
+        command += [str(path), str(rbl)]
     if not launch:
         return command
     if web:
@@ -82,6 +95,51 @@ def open_trace(
         _check_port_free(grpc_port, "gRPC")
     process = ViewerProcess(command, process_group=0)
     if web:
+        try:
+            wait_until_listening(grpc_port, process, SERVE_TIMEOUT_S)
+            _send_trace(path, blueprint, grpc_port)
+        except BaseException:
+            process.terminate()
+            process.wait()
+            raise
         process.url = web_viewer_url(web_port, grpc_port)
         print(f"web viewer: open {process.url}", flush=True)
     return process
+
+
+def _send_trace(path: Path, blueprint: str, grpc_port: int) -> None:
+    """The trace (its own recording, whole) and `blueprint` as its default into the served
+    viewer's gRPC server, which keeps them for every page that connects. The stream sends no
+    recording of its own (send_properties=False: no empty second source in the viewer)."""
+    import rerun as rr
+
+    stream = rr.RecordingStream(APPLICATION_ID, send_properties=False)
+    stream.connect_grpc(f"rerun+http://{VIEWER_BIND_ADDRESS}:{grpc_port}/proxy")
+    try:
+        rr.log_file_from_path(path, recording=stream)
+        stream.send_blueprint(load_blueprint(blueprint), make_active=True, make_default=True)
+        stream.flush()
+    finally:
+        stream.disconnect()
+
+
+def wait_until_listening(port: int, process: subprocess.Popen[bytes], timeout_s: float) -> None:
+    """Until something accepts connections on 127.0.0.1:`port`; OSError if `process` exits
+    first or `timeout_s` passes (a hang guard)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return
+        except OSError:
+            pass
+        # Between attempts, wait on the viewer process itself: a viewer that dies ends the wait
+        # at once instead of after a blind pause.
+        try:
+            returncode: int | None = process.wait(timeout=0.1)
+        except subprocess.TimeoutExpired:
+            returncode = None
+        if returncode is not None:
+            raise OSError(f"the viewer exited with {returncode} before serving port {port}")
+        if time.monotonic() > deadline:
+            raise OSError(f"Expected the viewer on port {port} within {timeout_s:.0f} s")
