@@ -33,8 +33,7 @@ from typing import TYPE_CHECKING, Any, Self
 
 from hilrig.observe.blueprints import dashboards, load_blueprint
 from hilrig.observe.paths import CYCLE_TIMELINE
-from hilrig.observe.sinks import APPLICATION_ID
-from hilrig.observe.viewer import ViewerProcess, open_trace
+from hilrig.observe.viewer import ViewerProcess, open_trace, send_to_viewer
 from hilrig.observe.viewer import wait_until_listening as viewer_wait_until_listening
 
 if TYPE_CHECKING:
@@ -269,8 +268,7 @@ def served_trace(trace: Path, dashboard: str) -> Iterator[ServedTrace]:
     process = open_trace(trace, dashboard, web=True, web_port=web_port, grpc_port=grpc_port)
     assert isinstance(process, ViewerProcess) and process.url is not None
     try:
-        wait_until_listening(web_port, process)
-        wait_until_listening(grpc_port, process)
+        wait_until_listening(web_port, process)  # open_trace waited for the gRPC port
         yield ServedTrace(process.url, grpc_port, process)
     finally:
         process.terminate()
@@ -282,19 +280,11 @@ def served_trace(trace: Path, dashboard: str) -> Iterator[ServedTrace]:
 
 
 def show_dashboard(grpc_port: int, recording_id: str, dashboard: str | rrb.Blueprint) -> None:
-    """Make `dashboard` the active blueprint of a running viewer: sent to its gRPC server, which
-    passes it on to every connected viewer. The stream takes the shown recording's id: a stream
-    of another id would be a new, empty recording that the viewer then makes the active one."""
-    import rerun as rr
-
+    """Make `dashboard` the active blueprint of a running viewer (`send_to_viewer`). The stream
+    takes the shown recording's id: a stream of another id would be a new, empty recording that
+    the viewer then makes the active one."""
     blueprint = load_blueprint(dashboard) if isinstance(dashboard, str) else dashboard
-    stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
-    stream.connect_grpc(f"rerun+http://127.0.0.1:{grpc_port}/proxy")
-    try:
-        stream.send_blueprint(blueprint, make_active=True)
-        stream.flush()
-    finally:
-        stream.disconnect()
+    send_to_viewer(grpc_port, blueprint, recording_id=recording_id)
 
 
 # --- The page ----------------------------------------------------------------------------------

@@ -255,15 +255,18 @@ def check_series(
     drawn = SeriesDrawn(name)
     keys: list[tuple[rrb.TimeSeriesView, tuple[str, tuple[str, ...]]]] = []
     plots: list[Plot] = []
+    numbers: list[tuple[int, int]] = []  # per plot: its view's number, its first series' index
     for number, view in enumerate(_time_series_views(blueprint), start=1):
         every = series_of(view, trace)
         key = (str(view.origin), tuple(every))
+        looked_at = key in checked or any(key == earlier for _, earlier in keys)  # a view twice
         keys.append((view, key))
-        if key in checked or any(k == key for _, k in keys[:-1]):
+        if looked_at:
             continue
         for first in range(0, len(every), len(SERIES_PALETTE)):  # as many colours at a time
             label = str(number) if not first else f"{number}-from-{first + 1}"
             plots.append(Plot(view, tuple(every[first : first + len(SERIES_PALETTE)]), str(view.name), label))
+            numbers.append((number, first))
     counts: dict[tuple[str, str], int] = {}  # (view name, series) -> pixels
     for group in _groups(plots):
         stem = "+".join(plot.label for plot in group)
@@ -289,10 +292,10 @@ def check_series(
                 counts.update({(plot.name, entity): n for entity, n in pixels.items()})
     # Any series still not found: each alone in a view of its own, a few views to a showing.
     single = [
-        Plot(plot.view, (entity,), f"{plot.name}: {entity}", f"{plot.label.split('-')[0]}-{k + 1}")
-        for plot in plots
-        for k, entity in enumerate(series_of(plot.view, trace))
-        if entity in plot.series and counts[(plot.name, entity)] < SERIES_PIXELS
+        Plot(plot.view, (entity,), f"{plot.name}: {entity}", f"{number}-{first + k + 1}")
+        for plot, (number, first) in zip(plots, numbers, strict=True)
+        for k, entity in enumerate(plot.series)
+        if counts[(plot.name, entity)] < SERIES_PIXELS
     ]
     for group in _groups(single):
         stem = "+".join(plot.label for plot in group)

@@ -10,6 +10,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hilrig.observe.blueprints import load_blueprint, save_blueprint
 from hilrig.observe.sinks import (
@@ -19,6 +20,9 @@ from hilrig.observe.sinks import (
     VIEWER_BIND_ADDRESS,
     web_viewer_url,
 )
+
+if TYPE_CHECKING:
+    import rerun.blueprint as rrb
 
 SERVE_TIMEOUT_S = 120.0
 """Hang guard for a served viewer's ports to listen (a loaded machine starts rerun slowly)."""
@@ -78,7 +82,7 @@ def open_trace(
         raise FileNotFoundError(f"no trace at {path}")
     command = [sys.executable, "-m", "rerun"]
     if web:
-        # The trace is not named here but sent in once the server listens (`_send_trace`):
+        # The trace is not named here but sent in once the server listens (`send_to_viewer`):
         # rerun 0.41 serving a file it loaded keeps a thread polling the finished loader, a
         # whole core for as long as it serves. Without --port the data would go to 9876
         # whatever else listens there (spawn, compose).
@@ -97,7 +101,8 @@ def open_trace(
     if web:
         try:
             wait_until_listening(grpc_port, process, SERVE_TIMEOUT_S)
-            _send_trace(path, blueprint, grpc_port)
+            # The server keeps the recording, whole, for every page that connects.
+            send_to_viewer(grpc_port, load_blueprint(blueprint), trace=path)
         except BaseException:
             process.terminate()
             process.wait()
@@ -107,17 +112,25 @@ def open_trace(
     return process
 
 
-def _send_trace(path: Path, blueprint: str, grpc_port: int) -> None:
-    """The trace (its own recording, whole) and `blueprint` as its default into the served
-    viewer's gRPC server, which keeps them for every page that connects. The stream sends no
-    recording of its own (send_properties=False: no empty second source in the viewer)."""
+def send_to_viewer(
+    grpc_port: int,
+    blueprint: rrb.Blueprint,
+    *,
+    recording_id: str | None = None,
+    trace: Path | None = None,
+) -> None:
+    """Into a served viewer's gRPC server, which passes it on to every page: `trace` first if
+    given (the file's own recording), then `blueprint` made the active and the default one.
+    The stream sends no recording of its own (send_properties=False: no empty second source);
+    `recording_id`: the shown recording's, where a page already shows one."""
     import rerun as rr
 
-    stream = rr.RecordingStream(APPLICATION_ID, send_properties=False)
+    stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
     stream.connect_grpc(f"rerun+http://{VIEWER_BIND_ADDRESS}:{grpc_port}/proxy")
     try:
-        rr.log_file_from_path(path, recording=stream)
-        stream.send_blueprint(load_blueprint(blueprint), make_active=True, make_default=True)
+        if trace is not None:
+            rr.log_file_from_path(trace, recording=stream)
+        stream.send_blueprint(blueprint, make_active=True, make_default=True)
         stream.flush()
     finally:
         stream.disconnect()
