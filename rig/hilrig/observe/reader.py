@@ -43,40 +43,61 @@ class Trace:
 
     @classmethod
     def read(cls, path: Path) -> Trace:
+        """Every chunk of `path`, its columns taken whole (Arrow to NumPy, one list per series at
+        the end): a scenario reads a trace of hundreds of thousands of values in the emulated VM,
+        where a Python object per value made by Arrow was most of the read."""
+        import pyarrow.compute as pc
         import rerun as rr
 
         reader = rr.chunk.RrdReader(path)
         trace = cls(blueprints=len(reader.blueprints()))
+        cycles: dict[str, list[np.ndarray]] = defaultdict(list)
+        times: dict[str, list[np.ndarray]] = defaultdict(list)
+        scalars: dict[str, list[np.ndarray]] = defaultdict(list)
         for chunk in reader.stream():
-            columns = _columns(chunk.to_record_batch())
+            batch = chunk.to_record_batch()
             path_ = chunk.entity_path
             if chunk.is_static:
-                if "SeriesLines:names" in columns:
-                    trace.series_names[path_] = columns["SeriesLines:names"][0][0]
-                modes = columns.get("SeriesLines:interpolation_mode")
-                if modes and modes[0] and modes[0][0] != LINEAR_INTERPOLATION:
-                    trace.stepped.add(path_)
-                policies = columns.get("SeriesLines:aggregation_policy")
-                if policies and policies[0] and policies[0][0] == MIN_MAX_AGGREGATION:
-                    trace.banded.add(path_)
+                trace._read_static(path_, _columns(batch))
                 continue
             trace.rows[path_] += chunk.num_rows
-            trace.cycles[path_] += columns.get("cycle", [])
-            trace.times[path_] += [ns / 1e9 for ns in columns.get("sim_time", [])]
-            trace.times[path_] += [ns / 1e9 for ns in columns.get("wall_time", [])]  # Unix seconds
-            for values in columns.get("Scalars:scalars", []):
-                trace.scalars[path_].append(values[0])
+            columns = dict(zip(batch.schema.names, batch.columns, strict=True))
+            if "cycle" in columns:
+                cycles[path_].append(columns["cycle"].to_numpy(zero_copy_only=False))
+            for timeline in ("sim_time", "wall_time"):  # wall_time: Unix seconds
+                if timeline in columns:
+                    times[path_].append(_nanoseconds(columns[timeline]).to_numpy(zero_copy_only=False) / 1e9)
+            if "Scalars:scalars" in columns:
+                first = pc.list_element(columns["Scalars:scalars"], 0)
+                scalars[path_].append(first.to_numpy(zero_copy_only=False))
             if "TextLog:text" in columns:
-                trace.texts[path_] += [
-                    (text[0], level[0])
-                    for text, level in zip(columns["TextLog:text"], columns["TextLog:level"], strict=True)
-                ]
-        for path_ in trace.scalars:  # chunks of one entity may come in any order: sort by cycle
-            order = np.argsort(trace.cycles[path_], kind="stable")
-            trace.cycles[path_] = [trace.cycles[path_][i] for i in order]
-            trace.times[path_] = [trace.times[path_][i] for i in order]
-            trace.scalars[path_] = [trace.scalars[path_][i] for i in order]
+                texts = zip(
+                    columns["TextLog:text"].to_pylist(), columns["TextLog:level"].to_pylist(), strict=True
+                )
+                trace.texts[path_] += [(text[0], level[0]) for text, level in texts]
+        joined = {path_: np.concatenate(parts) for path_, parts in cycles.items()}
+        joined_times = {path_: np.concatenate(parts) for path_, parts in times.items()}
+        for path_, parts in scalars.items():  # chunks of one entity may come in any order
+            order = np.argsort(joined[path_], kind="stable")
+            joined[path_] = joined[path_][order]
+            joined_times[path_] = joined_times[path_][order]
+            trace.scalars[path_] = np.concatenate(parts)[order].tolist()
+        for path_, values in joined.items():
+            trace.cycles[path_] = values.tolist()
+        for path_, values in joined_times.items():
+            trace.times[path_] = values.tolist()
         return trace
+
+    def _read_static(self, path: str, columns: dict[str, list[Any]]) -> None:
+        """A series' name and how it is drawn, from its static chunk."""
+        if "SeriesLines:names" in columns:
+            self.series_names[path] = columns["SeriesLines:names"][0][0]
+        modes = columns.get("SeriesLines:interpolation_mode")
+        if modes and modes[0] and modes[0][0] != LINEAR_INTERPOLATION:
+            self.stepped.add(path)
+        policies = columns.get("SeriesLines:aggregation_policy")
+        if policies and policies[0] and policies[0][0] == MIN_MAX_AGGREGATION:
+            self.banded.add(path)
 
     def at_cycles(self, path: str, cycles: Iterable[int]) -> list[float]:
         """A step series' value at each of `cycles`: its latest row at or before the cycle (a
@@ -91,21 +112,23 @@ class Trace:
         return found
 
 
-def _columns(batch: Any) -> dict[str, list[Any]]:
-    """A record batch as lists; timestamps (the wall_time timeline) and durations (sim_time)
-    as integer nanoseconds, since Python's datetime and timedelta cannot hold nanoseconds (a
-    real-time run stamps its ticks to the nanosecond)."""
+def _nanoseconds(column: Any) -> Any:
+    """Timestamps (the wall_time timeline) and durations (sim_time) as integer nanoseconds,
+    since Python's datetime and timedelta cannot hold nanoseconds (a real-time run stamps its
+    ticks to the nanosecond)."""
     import pyarrow as pa
 
-    def nanoseconds(column: Any) -> Any:
-        if pa.types.is_timestamp(column.type):
-            return column.cast(pa.timestamp("ns")).cast(pa.int64())
-        if pa.types.is_duration(column.type):
-            return column.cast(pa.duration("ns")).cast(pa.int64())
-        return column
+    if pa.types.is_timestamp(column.type):
+        return column.cast(pa.timestamp("ns")).cast(pa.int64())
+    if pa.types.is_duration(column.type):
+        return column.cast(pa.duration("ns")).cast(pa.int64())
+    return column
 
+
+def _columns(batch: Any) -> dict[str, list[Any]]:
+    """A record batch as lists, times as integer nanoseconds (`_nanoseconds`)."""
     return {
-        name: nanoseconds(column).to_pylist()
+        name: _nanoseconds(column).to_pylist()
         for name, column in zip(batch.schema.names, batch.columns, strict=True)
     }
 
