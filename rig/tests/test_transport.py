@@ -11,6 +11,7 @@ import os
 import signal
 import socket
 import struct
+import time
 from collections.abc import Iterator
 from typing import Any, ClassVar
 
@@ -357,7 +358,6 @@ def test_a_signal_during_the_c_exchanges_wait_raises_in_python() -> None:
         peer.close()
 
 
-
 def test_sync_starts_follow_the_node_start_at_their_counter_then_every_nth() -> None:
     from boardproto.cia301 import FunctionCode, cob_id
     from hilrig.wire.transport import SyncStarts
@@ -383,3 +383,38 @@ def test_sync_starts_follow_the_node_start_at_their_counter_then_every_nth() -> 
     }, "then every 10th SYNC"
     turns.reset()
     assert turns.due(13) == frozenset(), "after a reset, each waits for its counter again"
+
+
+def test_receive_stamped_takes_what_is_queued_in_batches_with_the_kernels_receive_times() -> None:
+    """The bus recorder's receive (`RawCanLink.receive_stamped`): every queued frame in arrival
+    order, flags kept in the can_id, each with the time the kernel queued it; at most what is
+    asked; nothing and no wait when the queue is empty."""
+    ours, peer = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    link = RawCanLink(ours)
+    link.enable_timestamps()
+    try:
+        assert link.receive_stamped(10) == []
+        assert not link.wait_readable(0.0)
+        extended = 0x8000_0000 | 0x1234567
+        sent = [(RPDO1_ID, bytes([k % 256] * (k % 9))) for k in range(150)] + [(extended, b"\x01")]
+        before = time.time()
+        for can_id, data in sent:
+            peer.send(struct.pack("=IB3x8s", can_id, len(data), data))
+        assert link.wait_readable(0.0)
+        first = link.receive_stamped(100)  # more than one recvmmsg batch, less than queued
+        rest = link.receive_stamped(1000)
+        after = time.time()
+        assert [(can_id, data) for can_id, data, _ in first + rest] == sent
+        stamps = [stamp for _, _, stamp in first + rest]
+        assert before - 1.0 <= stamps[0] <= stamps[-1] <= after + 1.0
+        assert stamps == sorted(stamps)
+        assert link.receive_stamped(10) == []
+    finally:
+        link.close()
+        peer.close()
+    not_a_socket = os.open(os.devnull, os.O_RDONLY)
+    try:
+        with pytest.raises(OSError):
+            _wire.receive_stamped(not_a_socket, 1)
+    finally:
+        os.close(not_a_socket)

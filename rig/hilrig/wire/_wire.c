@@ -12,6 +12,7 @@
  *   exchange(fd, out, due, decoders, got, spin_s[, cycle])
  *                                                send `out`, then receive (see exchange_doc)
  *   append_rows(frames, rows, cycle)             the RPDO frames a cycle sent into their rows
+ *   receive_stamped(fd, max_frames)              what is queued, with the kernel's receive times
  *
  * A decoder may carry its PDO's history rows (two bytearrays: the cycles as native int64, the
  * payloads back to back): each TPDO it decodes is then also appended there, tagged with
@@ -25,6 +26,7 @@
  * every system call (canopen's receive thread and the tracer's sender run meanwhile), and a
  * signal (Ctrl-C) during a wait raises as Python's own socket calls do.
  */
+#define _GNU_SOURCE /* recvmmsg */
 #define PY_SSIZE_T_CLEAN
 #define Py_LIMITED_API 0x030B0000 /* the stable ABI of CPython 3.11+: one wheel for them all (abi3) */
 #include <Python.h>
@@ -34,6 +36,7 @@
 #include <stdint.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <time.h>
 
 #define FRAME_SIZE 16 /* struct can_frame: can_id (4), len (1), pad (3), data (8) */
@@ -454,10 +457,107 @@ static PyObject *append_rows(PyObject *module, PyObject *const *args, Py_ssize_t
     Py_RETURN_NONE;
 }
 
+#define STAMPED_BATCH 64 /* frames per recvmmsg */
+
+PyDoc_STRVAR(receive_stamped_doc,
+             "receive_stamped(fd, max_frames, /)\n--\n\n"
+             "Up to `max_frames` frames already queued on the raw CAN socket `fd` (SO_TIMESTAMP on),\n"
+             "without waiting: a list of (raw can_id with its EFF/RTR/ERR flags, data, kernel\n"
+             "receive time [s since the epoch]), oldest first; empty when nothing is queued. Taken\n"
+             "STAMPED_BATCH at a time (recvmmsg): a bus recorder's work per frame is then one tuple.");
+
+static PyObject *receive_stamped(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
+    (void)module;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "receive_stamped(fd, max_frames) takes 2 arguments");
+        return NULL;
+    }
+    int fd = fd_argument(args[0]);
+    if (fd < 0) {
+        return NULL;
+    }
+    Py_ssize_t wanted = PyLong_AsSsize_t(args[1]);
+    if (wanted == -1 && PyErr_Occurred()) {
+        return NULL;
+    }
+    PyObject *received = PyList_New(0);
+    if (received == NULL) {
+        return NULL;
+    }
+    unsigned char frames[STAMPED_BATCH][FRAME_SIZE];
+    union {
+        char space[CMSG_SPACE(sizeof(struct timeval))];
+        struct cmsghdr align;
+    } control[STAMPED_BATCH];
+    struct iovec vectors[STAMPED_BATCH];
+    struct mmsghdr messages[STAMPED_BATCH];
+    while (PyList_Size(received) < wanted) {
+        Py_ssize_t room = wanted - PyList_Size(received);
+        unsigned int batch = room < STAMPED_BATCH ? (unsigned int)room : STAMPED_BATCH;
+        memset(messages, 0, sizeof messages);
+        for (unsigned int i = 0; i < batch; ++i) {
+            vectors[i].iov_base = frames[i];
+            vectors[i].iov_len = FRAME_SIZE;
+            messages[i].msg_hdr.msg_iov = &vectors[i];
+            messages[i].msg_hdr.msg_iovlen = 1;
+            messages[i].msg_hdr.msg_control = control[i].space;
+            messages[i].msg_hdr.msg_controllen = sizeof control[i].space;
+        }
+        int count;
+        int error;
+        Py_BEGIN_ALLOW_THREADS
+        count = recvmmsg(fd, messages, batch, MSG_DONTWAIT, NULL);
+        error = errno;
+        Py_END_ALLOW_THREADS
+        if (count < 0) {
+            if (error == EINTR) {
+                if (PyErr_CheckSignals() < 0) {
+                    Py_DECREF(received);
+                    return NULL;
+                }
+                continue;
+            }
+            if (error == EAGAIN || error == EWOULDBLOCK) {
+                break;
+            }
+            Py_DECREF(received);
+            errno = error;
+            return PyErr_SetFromErrno(PyExc_OSError);
+        }
+        for (int i = 0; i < count; ++i) {
+            double stamp = 0.0;
+            for (struct cmsghdr *c = CMSG_FIRSTHDR(&messages[i].msg_hdr); c != NULL;
+                 c = CMSG_NXTHDR(&messages[i].msg_hdr, c)) {
+                if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMP) {
+                    struct timeval when;
+                    memcpy(&when, CMSG_DATA(c), sizeof when);
+                    stamp = (double)when.tv_sec + (double)when.tv_usec / 1e6;
+                }
+            }
+            uint32_t can_id;
+            memcpy(&can_id, frames[i], sizeof can_id);
+            unsigned int length = frames[i][4] <= 8 ? frames[i][4] : 8;
+            PyObject *entry = Py_BuildValue("(ky#d)", (unsigned long)can_id, (const char *)frames[i] + 8,
+                                            (Py_ssize_t)length, stamp);
+            if (entry == NULL || PyList_Append(received, entry) < 0) {
+                Py_XDECREF(entry);
+                Py_DECREF(received);
+                return NULL;
+            }
+            Py_DECREF(entry);
+        }
+        if ((unsigned int)count < batch) {
+            break; /* the queue is empty */
+        }
+    }
+    return received;
+}
+
 static PyMethodDef methods[] = {
     {"send_frames", (PyCFunction)(void (*)(void))send_frames, METH_FASTCALL, send_frames_doc},
     {"exchange", (PyCFunction)(void (*)(void))exchange, METH_FASTCALL, exchange_doc},
     {"append_rows", (PyCFunction)(void (*)(void))append_rows, METH_FASTCALL, append_rows_doc},
+    {"receive_stamped", (PyCFunction)(void (*)(void))receive_stamped, METH_FASTCALL, receive_stamped_doc},
     {NULL, NULL, 0, NULL},
 };
 

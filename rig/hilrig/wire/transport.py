@@ -25,6 +25,7 @@ import functools
 import math
 import os
 import queue
+import select
 import socket
 import struct
 import time
@@ -437,29 +438,18 @@ class RawCanLink:
         """Have the kernel stamp every received frame (`recv_stamped`)."""
         self.socket.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMP, 1)
 
-    def recv_stamped(self, timeout_s: float) -> tuple[int, bytes, float] | None:
-        """(raw can_id with its EFF/RTR/ERR flags, data, kernel receive time [s since the epoch])
-        of the next frame, or None after `timeout_s`; needs `enable_timestamps()` first."""
-        if timeout_s != self._timeout:
-            self._set_timeout(timeout_s)
-        try:
-            frame, ancillary, _flags, _address = self.socket.recvmsg(CAN_FRAME_SIZE, _TIMESTAMP_SPACE)
-        except (BlockingIOError, TimeoutError):
-            return None
-        stamp = 0.0
-        for level, kind, payload in ancillary:
-            if level == socket.SOL_SOCKET and kind == SO_TIMESTAMP:
-                seconds, micros = _TIMEVAL.unpack_from(payload)
-                stamp = seconds + micros / 1e6
-        can_id, length = CAN_HEADER.unpack_from(frame)
-        return can_id, frame[8 : 8 + length], stamp
+    def receive_stamped(self, max_frames: int) -> list[tuple[int, bytes, float]]:
+        """Up to `max_frames` frames already queued, without waiting, oldest first: (raw can_id
+        with its EFF/RTR/ERR flags, data, kernel receive time [s since the epoch]) each, taken
+        many per system call (`hilrig.wire._wire.receive_stamped`); needs `enable_timestamps()`."""
+        return _wire.receive_stamped(self._fd, max_frames)
+
+    def wait_readable(self, timeout_s: float) -> bool:
+        """Whether a frame is queued within `timeout_s` (poll(2), without taking it)."""
+        return bool(select.select([self._fd], [], [], timeout_s)[0])
 
     def close(self) -> None:
         self.socket.close()
-
-
-_TIMEVAL = struct.Struct("@ll")
-_TIMESTAMP_SPACE = socket.CMSG_SPACE(_TIMEVAL.size)
 
 
 class BusLink:
