@@ -298,6 +298,7 @@ def test_record_then_replay_decode(
     capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str, tmp_path: Path
 ) -> None:
     log = tmp_path / "bus.log"
+    frames = 120  # a busy host lets record's SYNCs run ahead of the fake's answers: room for some
     code, _, err = run(
         capsys,
         "record",
@@ -306,20 +307,20 @@ def test_record_then_replay_decode(
         "--sync-period-ms",
         "5",
         "--count",
-        "40",
+        str(frames),
         "-i",
         "virtual",
         "-c",
         channel,
     )
     assert code == 0, err
-    assert f"record: 40 frames written to {log}" in err
+    assert f"record: {frames} frames written to {log}" in err
     assert not list(tmp_path.glob(".*partial*")), "the partial file is renamed, not left behind"
-    assert sum(1 for _ in can.LogReader(str(log))) == 40
+    assert sum(1 for _ in can.LogReader(str(log))) == frames
     code, out, err = run(capsys, "replay", str(log), "--decode")
     assert (code, err) == (0, "")
     lines = out.splitlines()
-    assert len(lines) == 40
+    assert len(lines) == frames
     assert any("0x000  NMT command 0x01 to node 0x10" in line for line in lines)
     assert any("0x080  SYNC 1" in line for line in lines)
     tpdo1 = f"0x190  TPDO1  motor_duty=0 0.01%  led_pattern=on ({int(LedPattern.ON)})"
@@ -338,7 +339,11 @@ def test_record_then_replay_into_a_trace(
     from hilrig.observe.reader import Trace
 
     log, rrd = tmp_path / "bench.log", tmp_path / "bench.rrd"
-    argv = ["--nmt-start", "--sync-period-ms", "5", "--count", "60", "-i", "virtual", "-c", channel]
+    # The SYNCs come from record's wall-clock producer and the fake answers on its own thread: on
+    # a busy host (the bus stage's VM beside this stage) most of 60 frames were SYNCs, two with a
+    # TPDO1. What is checked holds for any interleaving: the trace has motor_duty at exactly the
+    # cycles the log has a TPDO1 in. Enough frames that some TPDO1 is among them.
+    argv = ["--nmt-start", "--sync-period-ms", "5", "--count", "200", "-i", "virtual", "-c", channel]
     code, _, err = run(capsys, "record", str(log), *argv)
     assert code == 0, err
     code, out, err = run(capsys, "replay", str(log), "--trace", str(rrd))
@@ -354,7 +359,7 @@ def test_record_then_replay_into_a_trace(
             syncs += 1
         elif message.arbitration_id == tpdo1 and syncs >= 0 and expected[-1:] != [syncs]:
             expected.append(syncs)
-    assert len(expected) >= 5
+    assert expected, "no TPDO1 in the log: nothing to compare"
     paths = entity_paths(RigTable.load())
     trace = Trace.read(rrd)
     assert trace.cycles[paths["motor_duty"]] == expected
