@@ -62,8 +62,7 @@ endif
 endif
 
 .PHONY: test
-# The Cortex-M build is part of stage 1c (tools/run-tests), beside the bus stage's VM.
-test: build ## run everything: C++ tests, Python tests, bus-level scenarios (SHARD=K/N: one CI job of N)
+test: build cortex-m ## run everything: C++ tests, Python tests, bus-level scenarios (SHARD=K/N: one CI job of N)
 	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests $(if $(SHARD),--shard $(SHARD))
 
 # The durations come from the JUnit XML run-tests writes rather than pytest-split's
