@@ -41,6 +41,17 @@
 
 #define FRAME_SIZE 16 /* struct can_frame: can_id (4), len (1), pad (3), data (8) */
 
+/* A received struct can_frame's can_id, flags included, and its data length (at most 8). */
+static uint32_t frame_can_id(const unsigned char *frame) {
+    uint32_t can_id;
+    memcpy(&can_id, frame, sizeof can_id);
+    return can_id;
+}
+
+static Py_ssize_t frame_data_length(const unsigned char *frame) {
+    return frame[4] <= 8 ? frame[4] : 8;
+}
+
 static int fd_argument(PyObject *object) {
     long fd = PyLong_AsLong(object);
     if (fd == -1 && PyErr_Occurred()) {
@@ -360,10 +371,8 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
         if (received < 8) {
             continue; /* not a CAN frame; a raw CAN socket never delivers one */
         }
-        uint32_t can_id;
-        memcpy(&can_id, frame, sizeof can_id);
-        Py_ssize_t length = frame[4] <= 8 ? frame[4] : 8;
-        PyObject *cob_id = PyLong_FromUnsignedLong(can_id);
+        Py_ssize_t length = frame_data_length(frame);
+        PyObject *cob_id = PyLong_FromUnsignedLong(frame_can_id(frame));
         if (cob_id == NULL) {
             return NULL;
         }
@@ -423,9 +432,7 @@ static PyObject *append_rows(PyObject *module, PyObject *const *args, Py_ssize_t
     int status = 0;
     for (Py_ssize_t offset = 0; status == 0 && offset < frames.len; offset += FRAME_SIZE) {
         const unsigned char *frame = (const unsigned char *)frames.buf + offset;
-        uint32_t can_id;
-        memcpy(&can_id, frame, sizeof can_id);
-        PyObject *cob_id = PyLong_FromUnsignedLong(can_id);
+        PyObject *cob_id = PyLong_FromUnsignedLong(frame_can_id(frame));
         if (cob_id == NULL) {
             status = -1;
             break;
@@ -443,7 +450,7 @@ static PyObject *append_rows(PyObject *module, PyObject *const *args, Py_ssize_t
             status = -1;
             break;
         }
-        Py_ssize_t length = frame[4] <= 8 ? frame[4] : 8;
+        Py_ssize_t length = frame_data_length(frame);
         /* The payload first, then the cycle, as `exchange` appends (a reader counts cycles). */
         if (append_bytes(PyTuple_GetItem(store, 1), frame + 8, length) < 0 ||
             append_bytes(PyTuple_GetItem(store, 0), &cycle, sizeof cycle) < 0) {
@@ -534,11 +541,8 @@ static PyObject *receive_stamped(PyObject *module, PyObject *const *args, Py_ssi
                     stamp = (double)when.tv_sec + (double)when.tv_usec / 1e6;
                 }
             }
-            uint32_t can_id;
-            memcpy(&can_id, frames[i], sizeof can_id);
-            unsigned int length = frames[i][4] <= 8 ? frames[i][4] : 8;
-            PyObject *entry = Py_BuildValue("(ky#d)", (unsigned long)can_id, (const char *)frames[i] + 8,
-                                            (Py_ssize_t)length, stamp);
+            PyObject *entry = Py_BuildValue("(ky#d)", (unsigned long)frame_can_id(frames[i]),
+                                            (const char *)frames[i] + 8, frame_data_length(frames[i]), stamp);
             if (entry == NULL || PyList_Append(received, entry) < 0) {
                 Py_XDECREF(entry);
                 Py_DECREF(received);

@@ -435,7 +435,7 @@ class RawCanLink:
         return cob_id, frame[8 : 8 + length]
 
     def enable_timestamps(self) -> None:
-        """Have the kernel stamp every received frame (`recv_stamped`)."""
+        """Have the kernel stamp every received frame (`receive_stamped`)."""
         self.socket.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMP, 1)
 
     def receive_stamped(self, max_frames: int) -> list[tuple[int, bytes, float]]:
@@ -445,7 +445,7 @@ class RawCanLink:
         return _wire.receive_stamped(self._fd, max_frames)
 
     def wait_readable(self, timeout_s: float) -> bool:
-        """Whether a frame is queued within `timeout_s` (poll(2), without taking it)."""
+        """Whether a frame is queued within `timeout_s` (select(2), without taking it)."""
         return bool(select.select([self._fd], [], [], timeout_s)[0])
 
     def close(self) -> None:
