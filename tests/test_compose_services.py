@@ -28,6 +28,7 @@ from typing import Any
 import pytest
 from conftest import REPO, TABLE
 
+from hilrig import resources
 from hilrig.observe.paths import entity_paths
 from hilrig.session.netns import PrivateBus
 
@@ -40,6 +41,7 @@ compose_file = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(compose_file)
 HANG_GUARD_S = 600.0  # the software-emulated VM starts rerun and Python slowly; not a timing check
 VIEWER_GRPC_PORT = 9876  # the port of the viewer's command and of the rig's HIL_TRACE
+FIRMWARE_IN_IMAGE = "build/bin/joint-firmware"
 
 
 def compose_services() -> dict[str, dict[str, Any]]:
@@ -54,6 +56,10 @@ def as_processes(command: list[str]) -> list[str]:
     command = command[1:] if command[0] == "CMD" else command
     program = command[0]
     rest = [arg.replace("hilrig.boardproto.", "boardproto.") for arg in command[1:]]
+    if program == FIRMWARE_IN_IMAGE:
+        # The checkout's firmware as every scenario takes it: $HIL_FIRMWARE when set (the release
+        # build under user-mode Linux, where the image's ASan build cannot start).
+        return [str(resources.DEFAULT_FIRMWARE), *rest]
     return [str(REPO / program) if "/" in program else program, *rest]
 
 

@@ -648,6 +648,7 @@ def run_command(args: argparse.Namespace) -> int:
         vm = subprocess.run(
             [
                 str(REPO / "tools" / "with-vcan"),
+                "--no-uml",  # the mutants are ASan builds, which user-mode Linux cannot start
                 "--",
                 sys.executable,
                 str(Path(__file__).resolve()),

@@ -73,7 +73,11 @@ def prepare(pytest_args: list[str]) -> str:
         env=_clean_env(),
     )  # fmt: skip
     _run(["cmake", "--build", lamp_build], env=_clean_env())
-    pytest = shlex.join(["env", "-u", "PYTHONPATH", str(python), "-m", "pytest", "-q", *pytest_args])
+    # Its own hilrig and firmware: not this checkout's PYTHONPATH, nor its $HIL_FIRMWARE (which
+    # tools/with-vcan sets under user-mode Linux, and which the plugin would take over the lamp's).
+    pytest = shlex.join(
+        ["env", "-u", "PYTHONPATH", "-u", "HIL_FIRMWARE", str(python), "-m", "pytest", "-q", *pytest_args]
+    )
     return f"(cd {shlex.quote(str(EXAMPLE))} && {pytest})"
 
 

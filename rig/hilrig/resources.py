@@ -49,17 +49,20 @@ else:
     DEFAULT_FIRMWARE = Path("build") / "bin" / "joint-firmware"
     REBUILD_HINT = "reinstall hilrig"
 
-# The second board of this repository (issue 45), the robot head module: its table beside the
-# joint's and its firmware beside the joint's; its EDS and DBC come from board_files(HEAD_TABLE).
-HEAD_TABLE = (CHECKOUT / "protocol" / "boards" if CHECKOUT is not None else PACKAGED / "boards") / "head.toml"
-HEAD_FIRMWARE = DEFAULT_FIRMWARE.with_name("head-firmware")
-_BUILT_TABLES = {HEAD_TABLE: CHECKOUT / "build" / "protocol" / "head"} if CHECKOUT is not None else {}
-"""Tables besides the default whose EDS and DBC `make build` generates (CMake's hil_board_protocol)."""
-
 if os.environ.get("HIL_FIRMWARE"):
     # Another build of the firmware for every caller that takes the default (a mutant under
     # `make mutate`, a release build next to the test build).
     DEFAULT_FIRMWARE = Path(os.environ["HIL_FIRMWARE"])
+
+# The second board of this repository (issue 45), the robot head module: its table beside the
+# joint's and its firmware beside the joint's; its EDS and DBC come from board_files(HEAD_TABLE).
+HEAD_TABLE = (CHECKOUT / "protocol" / "boards" if CHECKOUT is not None else PACKAGED / "boards") / "head.toml"
+HEAD_FIRMWARE = DEFAULT_FIRMWARE.with_name("head-firmware")
+if not HEAD_FIRMWARE.exists() and CHECKOUT is not None:
+    # $HIL_FIRMWARE names a build without the head (a mutant's folder holds only the joint's).
+    HEAD_FIRMWARE = CHECKOUT / "build" / "bin" / "head-firmware"
+_BUILT_TABLES = {HEAD_TABLE: CHECKOUT / "build" / "protocol" / "head"} if CHECKOUT is not None else {}
+"""Tables besides the default whose EDS and DBC `make build` generates (CMake's hil_board_protocol)."""
 
 EDS_HINT = f"{REBUILD_HINT}, or give --eds FILE"
 DBC_HINT = f"{REBUILD_HINT}, or give --dbc FILE"
