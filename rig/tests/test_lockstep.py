@@ -295,6 +295,26 @@ def test_start_without_a_node_is_a_bounded_timeout(table: RigTable) -> None:
         bus.shutdown()
 
 
+def test_start_stops_waiting_once_the_firmware_process_is_gone(table: RigTable) -> None:
+    """A firmware that cannot start (an ASan build under user-mode Linux, a missing library)
+    is reported by its exit at once, not as a silent node at the end of the boot bound."""
+    (bus,) = _buses(1)
+    calls = []
+
+    def firmware_exited() -> None:
+        calls.append(1)
+        raise FirmwareError("joint-firmware exited with code 1; last lines of fw.log:\nShadow memory")
+
+    rig = Rig(bus, table=table, boot_timeout_s=5.0, sdo_timeout_s=0.05, liveness=firmware_exited)
+    try:
+        with pytest.raises(FirmwareError, match="exited with code 1"):
+            rig.start()
+        assert calls == [1]
+    finally:
+        rig.close()
+        bus.shutdown()
+
+
 # --- Names, SDO, EMCY, events ------------------------------------------------------------
 @pytest.mark.parametrize(
     ("call", "suggestion"),

@@ -81,7 +81,7 @@ class Rig(CycleRunner):
     eds: the generated EDS. plant: the hardware model; default: the demo joint
     (`hilrig.plants.default_plant`) of `params` (its parameters) and `seed` (its sensor noise).
     period_us: control period (the firmware's --period-us). liveness: called while waiting
-    for TPDOs, raises when the node's process died (e.g. `Firmware.check`). activity: the
+    for the boot-up and for TPDOs, raises when the node's process died (e.g. `Firmware.check`). activity: the
     node's process activity (e.g. `Firmware.activity`), so that the lockstep hang guard tells a
     busy host from a stuck firmware. Timeouts in seconds of wall clock are hang guards only.
     tracer: a `hilrig.observe.tracer.Tracer` that gets every cycle, NMT change, EMCY and SDO abort (the
@@ -143,6 +143,7 @@ class Rig(CycleRunner):
                 liveness=liveness,
                 activity=activity,
             )
+        self.liveness = liveness
         self._emcy: list[EmcyRecord] = []
         self._emcy_lock = threading.Lock()
         self._init_timeline()
@@ -206,7 +207,7 @@ class Rig(CycleRunner):
     # --- Life cycle ---------------------------------------------------------------------
     def start(self) -> None:
         """Bring the node up (bounded waits) and put it operational."""
-        self.node.wait_until_alive(self.boot_timeout_s)
+        self.node.wait_until_alive(self.boot_timeout_s, liveness=self.liveness)
         self._configure_and_start()
 
     def _configure_and_start(self) -> None:

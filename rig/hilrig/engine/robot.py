@@ -308,7 +308,7 @@ class Robot(CycleRunner):
                 future.result()  # the first failure (in module order) is raised
 
     def _start_module(self, module: Rig) -> None:
-        module.node.wait_until_alive(module.boot_timeout_s)
+        module.node.wait_until_alive(module.boot_timeout_s, liveness=module.liveness)
         if self.master is not None:
             entry = heartbeat_consumer_entry(self.master.node_id, self.master.consumer_ms)
             module.node.download(HEARTBEAT_CONSUMER_INDEX, 1, entry.to_bytes(4, "little"))

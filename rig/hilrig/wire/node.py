@@ -59,6 +59,8 @@ from hilrig.wire.transport import (
 _T = TypeVar("_T")
 
 RECEIVE_POLL_S = 0.05
+LIVENESS_POLL_S = 0.25
+"""How often a wait for the boot-up asks whether the node's process still runs."""
 """How often canopen's receive thread wakes up without traffic (bounds the time close() takes)."""
 
 
@@ -373,14 +375,25 @@ class BoardNode:
             return None
         return time.monotonic() - self._last_heartbeat_at
 
-    def wait_until_alive(self, timeout_s: float) -> None:
+    def wait_until_alive(self, timeout_s: float, liveness: Callable[[], None] | None = None) -> None:
         """Return once the node has sent a boot-up or heartbeat, or answers an SDO read.
 
         The boot-up may have gone out before this network listened, and a heartbeat may be
-        slow, so after the bound an SDO read of the vendor id is the last chance.
+        slow, so after the bound an SDO read of the vendor id is the last chance. `liveness`,
+        when given, is called while waiting and raises once the node's process has died: a
+        firmware that cannot start is told by its exit and log at once, not by silence at the
+        end of the bound.
         """
-        if self._heard.wait(timeout_s):
-            return
+        deadline = time.monotonic() + timeout_s
+        while True:
+            left = deadline - time.monotonic()
+            if self._heard.wait(max(0.0, min(left, LIVENESS_POLL_S) if liveness is not None else left)):
+                return
+            if liveness is None:
+                break
+            liveness()
+            if time.monotonic() >= deadline:
+                break
         try:
             self.remote.sdo.upload(0x1018, 1)
         except (SdoCommunicationError, SdoAbortedError) as error:
