@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -127,6 +128,23 @@ def node_under_test(private_bus: PrivateBus, scenario_dir: Path) -> Iterator[Nod
     )
 
 
+@contextmanager
+def own_master(private_bus: PrivateBus) -> Iterator[canopen.RemoteNode]:
+    """A canopen master of the node on a socket opened now, which hears only what is sent from
+    now on. After a `hilrig` command has talked SDO to the node, the fixture's master has heard
+    those answers too, and on a busy host its listener thread may hand one over late, as the
+    answer to a request of its own (seen under user-mode Linux, the bus stage's lanes side by
+    side: a read that got the command's abort)."""
+    network = canopen.Network(private_bus.open())
+    network.connect()
+    try:
+        node = network.add_node(canopen.RemoteNode(NODE_ID, str(EDS)))
+        node.sdo.RESPONSE_TIMEOUT = SCENARIO_SDO_TIMEOUT_S
+        yield node
+    finally:
+        network.disconnect()
+
+
 def stop_summary(firmware: Firmware) -> dict[str, int]:
     """The counters of the firmware's stop line (printed on SIGTERM), by name:
     {"cycles": 812, "overruns": 0, "frames received": 4100, "ignored": 3, "malformed": 0, ...}."""
@@ -145,6 +163,7 @@ __all__ = [
     "SCENARIO_SDO_TIMEOUT_S",
     "TABLE",
     "NodeUnderTest",
+    "own_master",
     "run_hilrig",
     "start_node",
     "stop_node",

@@ -10,7 +10,7 @@ from pathlib import Path
 import can
 import cantools
 import pytest
-from conftest import NODE_ID, REPO, NodeUnderTest, run_hilrig
+from conftest import NODE_ID, REPO, NodeUnderTest, own_master, run_hilrig
 
 from boardproto import load_table
 from boardproto.cia301 import SYNC_COB_ID
@@ -48,9 +48,9 @@ def test_scan_get_and_set_against_the_firmware(
         ]
     ]
 
-    sdo = node_under_test.node.sdo
     kp, ki = TABLE.field("velocity_kp"), TABLE.field("velocity_ki")
-    sdo[kp.index].raw = 0.125  # the master sets, `get` reads
+    with own_master(private_bus) as master:
+        master.sdo[kp.index].raw = 0.125  # the master sets, `get` reads
     got = hilrig(private_bus, "get", "velocity_kp", "winding_temperature", *SDO_TIMEOUT)
     assert got.returncode == 0, got.stderr
     assert [line.split()[:3] for line in got.stdout.splitlines()] == [
@@ -65,8 +65,9 @@ def test_scan_get_and_set_against_the_firmware(
     )
     assert done.returncode == 1
     assert done.stdout.split()[:3] == ["velocity_ki", "=", "2.5"]
-    assert sdo[ki.index].raw == pytest.approx(2.5)
-    assert sdo[kp.index].raw == pytest.approx(0.125), "a refused write changes nothing"
+    with own_master(private_bus) as master:
+        assert master.sdo[ki.index].raw == pytest.approx(2.5)
+        assert master.sdo[kp.index].raw == pytest.approx(0.125), "a refused write changes nothing"
     assert done.stderr == (
         f"hilrig set: error: node 0x{NODE_ID:02X} refused write velocity_kp: "
         f"0x06090031 value too high (max {kp.max}); not attempted: torque_kp\n"
@@ -86,7 +87,8 @@ def test_sdo_by_index_and_nmt_against_the_firmware(
     written = hilrig(private_bus, "sdo", "write", "0x1017", "50", *SDO_TIMEOUT)
     assert written.returncode == 0, written.stderr
     assert written.stdout == "0x1017:00 Producer heartbeat time := 50 (0x0032, u16)\n"
-    assert node_under_test.node.sdo[0x1017].raw == 50
+    with own_master(private_bus) as master:
+        assert master.sdo[0x1017].raw == 50
     # NMT start, and the heartbeat that then says operational (30 s: a hang guard in the VM)
     started = hilrig(private_bus, "nmt", "start", "--wait", "--timeout", "30")
     assert started.returncode == 0, started.stderr

@@ -59,9 +59,9 @@ from hilrig.wire.transport import (
 _T = TypeVar("_T")
 
 RECEIVE_POLL_S = 0.05
+"""How often canopen's receive thread wakes up without traffic (bounds the time close() takes)."""
 LIVENESS_POLL_S = 0.25
 """How often a wait for the boot-up asks whether the node's process still runs."""
-"""How often canopen's receive thread wakes up without traffic (bounds the time close() takes)."""
 
 
 class SocketSdoClient(SdoClient):
