@@ -6,10 +6,11 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
-from hilrig.engine.driver import ProcessActivity, process_activity, thread_activity
+from hilrig.engine.driver import ProcessActivity, _stat_activity, process_activity, thread_activity
 from hilrig.engine.lockstep import HANG_CAP_FACTOR, HangGuard
 from hilrig.errors import HostStarvedError
 
@@ -119,3 +120,15 @@ def test_thread_activity_of_this_thread_and_of_a_sleeping_one() -> None:
         release.set()
         sleeper.join()
     assert thread_activity(native_ids[0]) is None  # gone with its thread
+
+
+@pytest.mark.parametrize(("state", "expected"), [("S", True), ("R", False), ("Z", None), ("X", None)])
+def test_an_exited_task_whose_entry_lingers_counts_as_gone(
+    tmp_path: Path, state: str, expected: bool | None
+) -> None:
+    """A zombie or dead task (a joined thread's entry for a moment, an unreaped process) has no
+    activity: None, as when its /proc entry is already gone."""
+    stat = tmp_path / "stat"
+    stat.write_text(f"4242 (a (name) with) {state} 1 1 1 0 -1 4194560 0 0 0 0 7 3 0 0 20 0 1 0 0\n")
+    activity = _stat_activity(str(stat))
+    assert (activity if activity is None else activity.sleeping) == expected

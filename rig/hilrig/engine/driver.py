@@ -111,6 +111,10 @@ def _stat_activity(stat_path: str) -> ProcessActivity | None:
         state, utime, stime = fields[0], int(fields[11]), int(fields[12])
     except (IndexError, ValueError):
         return None
+    if state in (b"Z", b"X"):
+        # Exited, its entry not yet gone: a joined thread's task lingers a moment (seen on a
+        # busy host), a process until it is reaped. Gone, as far as activity goes.
+        return None
     return ProcessActivity((utime + stime) / _CLOCK_TICKS, state in (b"S", b"I"))
 
 
