@@ -129,20 +129,27 @@ def node_under_test(private_bus: PrivateBus, scenario_dir: Path) -> Iterator[Nod
 
 
 @contextmanager
-def own_master(private_bus: PrivateBus) -> Iterator[canopen.RemoteNode]:
-    """A canopen master of the node on a socket opened now, which hears only what is sent from
-    now on. After a `hilrig` command has talked SDO to the node, the fixture's master has heard
-    those answers too, and on a busy host its listener thread may hand one over late, as the
-    answer to a request of its own (seen under user-mode Linux, the bus stage's lanes side by
-    side: a read that got the command's abort)."""
+def fresh_network(private_bus: PrivateBus) -> Iterator[canopen.Network]:
+    """A canopen network on a socket opened now, which hears only what is sent from now on.
+    After a `hilrig` command has talked SDO to the node, a network that was listening has
+    heard those answers too, and on a busy host its listener thread may hand one over late, as
+    the answer to a request of its own (seen under user-mode Linux, the bus stage's lanes side
+    by side: a read that got the command's abort)."""
     network = canopen.Network(private_bus.open())
     network.connect()
     try:
+        yield network
+    finally:
+        network.disconnect()
+
+
+@contextmanager
+def own_master(private_bus: PrivateBus) -> Iterator[canopen.RemoteNode]:
+    """A canopen master of the node on a `fresh_network`."""
+    with fresh_network(private_bus) as network:
         node = network.add_node(canopen.RemoteNode(NODE_ID, str(EDS)))
         node.sdo.RESPONSE_TIMEOUT = SCENARIO_SDO_TIMEOUT_S
         yield node
-    finally:
-        network.disconnect()
 
 
 def stop_summary(firmware: Firmware) -> dict[str, int]:
@@ -163,6 +170,7 @@ __all__ = [
     "SCENARIO_SDO_TIMEOUT_S",
     "TABLE",
     "NodeUnderTest",
+    "fresh_network",
     "own_master",
     "run_hilrig",
     "start_node",

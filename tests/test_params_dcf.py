@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import subprocess
 from collections.abc import Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack
 from pathlib import Path
 
 import canopen
 import pytest
 from canopen.objectdictionary import ODVariable
-from conftest import BOOT_TIMEOUT_S, EDS, SCENARIO_SDO_TIMEOUT_S, run_hilrig
+from conftest import BOOT_TIMEOUT_S, EDS, SCENARIO_SDO_TIMEOUT_S, fresh_network, run_hilrig
 
 from boardproto.cia301 import NODE_ID_MASK
 from boardproto.table import PDO_NOT_VALID
@@ -29,20 +29,9 @@ TABLE = RigTable.load()
 TUNED, FRESH = 1, 2
 
 
-@contextmanager
-def connected(private_bus: PrivateBus) -> Iterator[canopen.Network]:
-    """A network on a socket of its own: it hears only what is sent after it opened."""
-    network = canopen.Network(private_bus.open())
-    network.connect()
-    try:
-        yield network
-    finally:
-        network.disconnect()
-
-
 @pytest.fixture
 def network(private_bus: PrivateBus) -> Iterator[canopen.Network]:
-    with connected(private_bus) as network:
+    with fresh_network(private_bus) as network:
         yield network
 
 
@@ -122,10 +111,9 @@ def test_a_dcf_saved_from_one_board_and_loaded_into_another_equals_it(
         loaded = hilrig(private_bus, "params", "load", str(dcf), "-n", str(FRESH))
         assert loaded.returncode == 0, loaded.stderr
         assert "stored (0x1010)" in loaded.stdout
-        # Read back on a new socket: `network` heard the commands' SDO answers too, and on a busy
-        # host its listener may hand one over late, as the answer to a request of ours.
+        # Read back on a new socket (`fresh_network`): `network` heard the commands' answers too.
         del network[TUNED], network[FRESH]
-        network = stack.enter_context(connected(private_bus))
+        network = stack.enter_context(fresh_network(private_bus))
         assert stored_values(network, FRESH) == tuned_values
 
         with BootUpWatch(network, FRESH) as booted:
