@@ -49,17 +49,20 @@ class NodeUnderTest:
         cob_id: int,
         timeout_s: float = 30.0,
         after_subscribing: Callable[[], object] | None = None,
-        data: bytes | None = None,
+        data: bytes | Callable[[bytes], bool] | None = None,
     ) -> can.Message:
-        """The next frame with this COB-ID (and these data bytes, if given; bounded wait: a
-        hang guard, not a timing check). `after_subscribing` sends the request that frame
-        answers: only once we listen, so an answer faster than this thread cannot be missed."""
+        """The next frame with this COB-ID (and these data bytes, or data this predicate
+        accepts, if given; bounded wait: a hang guard, not a timing check). `after_subscribing`
+        sends the request that frame answers: only once we listen, so an answer faster than this
+        thread cannot be missed."""
         got: list[can.Message] = []
         arrived = threading.Event()
         wanted = data
 
         def on_frame(can_id: int, data: bytearray, timestamp: float) -> None:
-            if wanted is not None and bytes(data) != wanted:
+            if isinstance(wanted, bytes) and bytes(data) != wanted:
+                return
+            if callable(wanted) and not wanted(bytes(data)):
                 return
             if not arrived.is_set():
                 got.append(can.Message(arbitration_id=can_id, data=bytes(data), timestamp=timestamp))
