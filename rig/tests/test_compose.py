@@ -38,7 +38,7 @@ compose_file = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(compose_file)
 COMPOSE = REPO / "docker-compose.yml"
 DOCKERFILE = REPO / "Dockerfile"
-FIRMWARE_MAIN = REPO / "firmware" / "platform" / "linux" / "main.cpp"
+FIRMWARE_COMMAND_LINE = REPO / "firmware" / "platform" / "linux" / "CommandLine.cpp"
 TOP_LEVEL_KEYS = {"name", "services", "networks", "volumes", "configs", "secrets"}
 SERVICE_KEYS = {
     "build",
@@ -128,7 +128,7 @@ def test_commands_name_what_the_repository_has() -> None:
             assert set(command[1:]) <= targets, f"{name}: make {command[1:]} is not a Makefile target"
         elif command[0].startswith("build/bin/"):
             assert command[0] == "build/bin/joint-firmware", f"{name}: unexpected program {command[0]}"
-            options = set(re.findall(r'add_(?:option|flag)\("(--[a-z-]+)"', FIRMWARE_MAIN.read_text()))
+            options = set(re.findall(r'add_(?:option|flag)\("(--[a-z-]+)"', FIRMWARE_COMMAND_LINE.read_text()))
             given = {arg for arg in command[1:] if arg.startswith("--")}
             assert given <= options, f"{name}: the firmware has no option {given - options}"
         elif command[0] == ".venv/bin/hilrig":
