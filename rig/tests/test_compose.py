@@ -128,7 +128,8 @@ def test_commands_name_what_the_repository_has() -> None:
             assert set(command[1:]) <= targets, f"{name}: make {command[1:]} is not a Makefile target"
         elif command[0].startswith("build/bin/"):
             assert command[0] == "build/bin/joint-firmware", f"{name}: unexpected program {command[0]}"
-            options = set(re.findall(r'add_(?:option|flag)\("(--[a-z-]+)"', FIRMWARE_COMMAND_LINE.read_text()))
+            command_line = FIRMWARE_COMMAND_LINE.read_text()
+            options = set(re.findall(r'add_(?:option|flag)\("(--[a-z-]+)"', command_line))
             given = {arg for arg in command[1:] if arg.startswith("--")}
             assert given <= options, f"{name}: the firmware has no option {given - options}"
         elif command[0] == ".venv/bin/hilrig":
