@@ -3,7 +3,7 @@ ones three scenarios of the bus stage wrote (tools/run-tests runs this after tha
 
 For each trace, every dashboard made for it (`hilrig.observe.dashboard_check.fitting_dashboards`:
 the five of one joint, `robot`, or `diff` for a comparison of two runs) is shown one after another
-in one page (`hilrig.observe.browser.check_dashboards`; the joint's in two, `PAGES`):
+in one page (`hilrig.observe.browser.check_dashboards`):
 the viewer shows exactly the dashboard's views, none hidden or reporting an error, the recording
 whole, something plotted, no console error; every series each view names has data in the
 trace; and every series of every plot draws pixels of its own colour inside its own view
@@ -38,15 +38,6 @@ FIRMWARE_TRACES = {
     "diff": "test_same_seed_same_trace_bit_for_bit_other_seed_other_noise/diff.rrd",
 }
 """Trace name -> the recording of the bus stage it is (under its scenario's folder)."""
-PAGES = {"joint": 2}
-"""Traces whose dashboards are shown in more than one page, each page a test of its own: the
-joint's five took as long as the three other traces together, so with one worker a trace the
-stage waited on it alone."""
-CASES = [
-    pytest.param(name, page, PAGES.get(name, 1), id=name if name not in PAGES else f"{name}-{page + 1}")
-    for name in FIRMWARE_TRACES
-    for page in range(PAGES.get(name, 1))
-]
 
 
 def output_root() -> Path:
@@ -54,8 +45,8 @@ def output_root() -> Path:
 
 
 @pytest.mark.timeout(1800)
-@pytest.mark.parametrize(("name", "page", "pages"), CASES)
-def test_every_dashboard_shows_the_firmware_trace_whole(name: str, page: int, pages: int) -> None:
+@pytest.mark.parametrize("name", FIRMWARE_TRACES)
+def test_every_dashboard_shows_the_firmware_trace_whole(name: str) -> None:
     scenario, _, file_name = FIRMWARE_TRACES[name].partition("/")
     trace_path = output_root() / "scenarios" / scenario / file_name
     if not trace_path.exists():
@@ -71,10 +62,8 @@ def test_every_dashboard_shows_the_firmware_trace_whole(name: str, page: int, pa
     assert gaps == [], f"{trace_path}: series without data:\n" + "\n".join(gaps)
 
     # The trace holds overview (robot) as its default: served first is another one where there
-    # is one, which must win over it (`hilrig view --dashboard`), the rest are sent in turn. A
-    # trace shown in several pages: every `pages`-th dashboard from this page's on.
-    names = list(reversed(dashboards))[page::pages]
-    assert names, f"{name}: {len(dashboards)} dashboards for {pages} pages"
+    # is one, which must win over it (`hilrig view --dashboard`), the rest are sent in turn.
+    names = list(reversed(dashboards))
     out = output_root() / "viewer" / name
     checked: dict[tuple[str, tuple[str, ...]], dict[str, int]] = {}
     with served_trace(trace_path, names[0]) as served, ViewerPage(served) as viewer:
