@@ -10,6 +10,7 @@ import itertools
 import json
 import os
 import sys
+import tracemalloc
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -104,6 +105,7 @@ def test_the_rig_probe_runs_its_cycles_against_its_answering_peer(mode: str) -> 
 def test_the_rig_probe_counts_what_the_rig_keeps_and_what_the_bus_carried(capsys) -> None:
     probe = load_tool("rig_probe")
     assert probe.main(["memory", "200"]) == 0
+    assert not tracemalloc.is_tracing(), "left on, it slows every later test of this worker 20x"
     kept, on_bus = (float(word) for word in capsys.readouterr().out.split() if word[0].isdigit())
     # The history keeps every PDO's payload and cycle (and the truth), so more than the bus
     # carried, but no per-cycle Python tuples any more: some 550 bytes natively.
