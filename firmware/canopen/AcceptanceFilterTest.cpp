@@ -11,9 +11,6 @@ namespace {
 
 using Ids = std::vector<std::uint32_t>;
 
-constexpr std::uint32_t kInvalid = 0x8000'0000u;
-constexpr std::uint32_t kMasterHeartbeat = cia301::cob_id(cia301::FunctionCode::Heartbeat, 1);
-
 struct Heard {
   Ids ids;
   std::size_t frames_sent_before = 0;  // frames the node had sent (and nobody read) by then

@@ -8,8 +8,6 @@ namespace co::test {
 namespace {
 
 constexpr std::uint16_t kConsumerHeartbeat = HeartbeatConsumer::kIndex;
-constexpr std::uint8_t kMasterId = 0x01;
-constexpr std::uint32_t kMasterHeartbeat = cia301::cob_id(cia301::FunctionCode::Heartbeat, kMasterId);
 constexpr std::uint16_t kConsumerTimeMs = 150;
 constexpr std::uint32_t kConsumerTimeUs = kConsumerTimeMs * 1000u;
 

@@ -10,9 +10,6 @@ namespace {
 
 constexpr std::uint32_t kStepUs = 100;
 constexpr std::uint32_t kLimitUs = 1'000'000;
-constexpr std::uint8_t kMasterId = 0x01;
-constexpr std::uint32_t kMasterHeartbeat = cia301::cob_id(cia301::FunctionCode::Heartbeat, kMasterId);
-constexpr std::uint32_t kInvalid = 0x8000'0000u;
 
 class IdleWaitTest : public NodeTest {
  protected:

@@ -87,6 +87,12 @@ std::array<std::uint8_t, 8> abort_data(std::uint16_t index, std::uint8_t sub, Sd
 std::uint16_t index_of(board::FieldId id);
 std::uint16_t index_of(board::HilInputId id);
 std::uint16_t index_of(board::HilOutputId id);
+// The master the tests play (node 1) and its heartbeat's COB-ID.
+inline constexpr std::uint8_t kMasterId = 0x01;
+inline constexpr std::uint32_t kMasterHeartbeat = cia301::cob_id(cia301::FunctionCode::Heartbeat, kMasterId);
+// Bit 31 of a COB-ID entry (PDO, SYNC, EMCY): not valid.
+inline constexpr std::uint32_t kInvalid = 0x8000'0000u;
+
 std::array<std::uint8_t, 4> le32(std::uint32_t v);
 std::uint32_t float_bits(float v);
 

@@ -13,7 +13,6 @@ using board::FieldId;
 using board::HilInputId;
 using board::HilOutputId;
 
-constexpr std::uint32_t kInvalid = 0x8000'0000u;
 constexpr std::uint32_t kNoRtr = 0x4000'0000u;  // TPDO COB-ID bit 30: no remote request
 
 std::uint32_t map(std::uint16_t index, std::uint8_t bits) {

@@ -27,9 +27,9 @@ using VirtualSensorProbe = Probe<VirtualSensor>;
 using ModuleProbe = Probe<Module>;
 using ActuatorProbe = Probe<Actuator>;
 
-class NodeStandIn final : public ExternalWriter {
+class BusNodeStandIn final : public ExternalWriter {
  public:
-  explicit NodeStandIn(MessageBoard& board) : ExternalWriter(board, "canopen_node", {.writes = kBusWritableFields}) {}
+  explicit BusNodeStandIn(MessageBoard& board) : ExternalWriter(board, "canopen_node", {.writes = kBusWritableFields}) {}
 };
 
 class SchedulerTest : public ::testing::Test {
@@ -130,7 +130,7 @@ TEST_F(SchedulerTest, RejectsTwoWritersOfOneFieldNamingFieldAndBoth) {
 }
 
 TEST_F(SchedulerTest, RejectsComponentWritingABusOwnedField) {
-  NodeStandIn node{board};
+  BusNodeStandIn node{board};
   ModuleProbe sneaky{board, "auto_tuner", {.writes = {F::velocity_kp}}, log};
   ASSERT_TRUE(scheduler.add(node));
   ASSERT_TRUE(scheduler.add(sneaky));
@@ -149,7 +149,7 @@ TEST_F(SchedulerTest, RejectsWriteOfFieldOfAnotherKind) {
 }
 
 TEST_F(SchedulerTest, ExternalWriterOwnsBusFieldsButIsNotScheduled) {
-  NodeStandIn node{board};
+  BusNodeStandIn node{board};
   ModuleProbe pid{board, "velocity_pid",
       {.writes = {F::velocity_controller_output}, .reads = {F::velocity_setpoint, F::velocity_kp}}, log};
   ASSERT_TRUE(scheduler.add(node));
@@ -292,7 +292,7 @@ TEST_F(SchedulerTest, RefusesAddAndSecondStartAfterStart) {
 }
 
 TEST_F(SchedulerTest, PrintsScheduleWithWritesAndReads) {
-  NodeStandIn node{board};
+  BusNodeStandIn node{board};
   SensorProbe encoder{board, "motor_encoder", {.writes = {F::motor_position}}, log};
   VirtualSensorProbe velocity{board, "motor_velocity",
       {.writes = {F::motor_velocity}, .reads = {F::motor_position, F::velocity_filter_hz}}, log};

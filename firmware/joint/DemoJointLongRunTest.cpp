@@ -24,7 +24,7 @@ namespace {
 using board::FieldId;
 using testing::SeriesElasticPlant;
 
-constexpr float kDtS = 0.001F;
+using joint::testing::kDtS;
 constexpr std::uint64_t kCyclesPerSecond = 1000;
 constexpr double kPi = std::numbers::pi;
 

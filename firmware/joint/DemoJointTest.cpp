@@ -19,7 +19,7 @@ namespace {
 
 using board::FieldId;
 
-constexpr float kDtS = 0.001F;
+using joint::testing::kDtS;
 
 // A tiny plant: the motor's speed follows duty * no-load speed with a first-order
 // lag, the load follows the gearbox rigidly (spring at rest). Encoders with

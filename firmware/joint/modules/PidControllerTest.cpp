@@ -2,10 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include "joint/testing/BoardStandIns.hpp"
+
 namespace joint {
 namespace {
 
-constexpr float kDtS = 0.001F;
+using joint::testing::kDtS;
 
 TEST(PidController, ClampsTheOutputToTheLimit) {
   PidController pid;

@@ -13,7 +13,7 @@ namespace {
 
 using board::FieldId;
 
-constexpr float kDtS = 0.001F;
+using joint::testing::kDtS;
 constexpr float kGearRatio = 50.0F;  // table default
 
 class SpringConstantEstimatorTest : public ::testing::Test {

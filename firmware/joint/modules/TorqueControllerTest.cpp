@@ -12,7 +12,7 @@ namespace {
 
 using board::FieldId;
 
-constexpr float kDtS = 0.001F;
+using joint::testing::kDtS;
 
 class TorqueControllerTest : public ::testing::Test {
  protected:

@@ -13,6 +13,9 @@
 
 namespace joint::testing {
 
+// The control period the tests step components at (1 kHz).
+inline constexpr float kDtS = 0.001F;
+
 // Owns every bus-writable field, like the CANopen node. Call write() between
 // run_cycle() calls, as frames arrive between cycles.
 class BusStandIn final : public core::ExternalWriter {

@@ -2,13 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include "joint/testing/BoardStandIns.hpp"
+
 #include <cmath>
 #include <numbers>
 
 namespace joint {
 namespace {
 
-constexpr float kDtS = 0.001F;
+using joint::testing::kDtS;
 
 TEST(VelocityFilter, StepResponseFollowsTheFirstOrderCurve) {
   // Equal displacements from t = 0 on are a velocity step of 2 rad/s.
