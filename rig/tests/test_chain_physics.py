@@ -184,6 +184,24 @@ def test_zero_duty_keeps_the_snake_still(mujoco: ModuleType) -> None:
     assert abs(abs(quaternions[:, 0]) - 1.0).max() < 1e-9
 
 
+def test_a_step_reads_no_clock_unless_the_caller_set_a_timer(mujoco: ModuleType) -> None:
+    """MuJoCo's per-stage timers are off (each a clock read: a system call under user-mode
+    Linux), so a step's timer stays at zero; a timer callback of the caller's own is kept."""
+    chain = _chain_module().ChainPhysics(2)
+    for _ in range(20):
+        chain.step(1e-3, [0.2, -0.2])
+    step_timer = chain.data.timer[mujoco.mjtTimer.mjTIMER_STEP]
+    assert step_timer.number == 20 and step_timer.duration == 0.0
+    ticks = itertools.count()
+    mujoco.set_mjcb_time(lambda: float(next(ticks)))
+    try:
+        timed = _chain_module().ChainPhysics(2)
+        timed.step(1e-3, [0.2, -0.2])
+        assert timed.data.timer[mujoco.mjtTimer.mjTIMER_STEP].duration > 0.0
+    finally:
+        mujoco.set_mjcb_time(None)
+
+
 def test_the_spring_torque_is_what_mujoco_applies_and_a_driven_joint_bends(mujoco: ModuleType) -> None:
     chain = _chain_module().ChainPhysics(3)
     duties = [0.0, 0.05, 0.0]

@@ -240,6 +240,12 @@ class ChainPhysics:
         self._mjcf = chain_mjcf(self._geometry, per_module)
         self._model = mujoco.MjModel.from_xml_string(self._mjcf)
         self._data = mujoco.MjData(self._model)
+        if mujoco.get_mjcb_time() is None:
+            # MuJoCo's Python bindings time each stage of a step (MjData.timer, which nothing
+            # here reads): 31 clock reads a step. Under user-mode Linux, which has no vDSO, each
+            # is a system call of some 30 us: a millisecond of every robot cycle. Off after the
+            # MjData (a new one turns them on again); a timer callback set by the caller is kept.
+            mujoco.set_mjcb_time(None)
         self._mj_step = mujoco.mj_step
         self._mj_kinematics = mujoco.mj_kinematics
         # Views into MjData's fixed buffers: the hinges follow the head's free joint.
