@@ -89,6 +89,9 @@ def start_node(private_bus: PrivateBus, scenario_dir: Path, params_file: Path | 
     network = canopen.Network(bus)
     network.connect()
     node = network.add_node(canopen.RemoteNode(NODE_ID, str(EDS)))
+    # canopen's default (0.3 s) is shorter than its listener thread can take to hand an answer
+    # over in a loaded VM: an answer on the bus within 1 ms was missed (test_recorder, fresh run).
+    node.sdo.RESPONSE_TIMEOUT = SCENARIO_SDO_TIMEOUT_S
     booted = threading.Event()
     boot_up = bytes([NmtState.INITIALISING])
     network.subscribe(
