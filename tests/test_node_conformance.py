@@ -36,19 +36,9 @@ SDO_TX = sdo_response_cob_id(NODE_ID)
 HEARTBEAT = heartbeat_cob_id(NODE_ID)
 
 
-# canopen's default SDO timeout (0.3 s) is shorter than an answer can take inside the emulated VM
-# on a loaded machine: a bounded hang guard instead, as the scenarios use.
-SDO_TIMEOUT_S = 5.0
-
 # The firmware's SDO server timeout (SdoServer::kSegmentTimeoutUs, 1 s) in control cycles of the
 # fixture's firmware (Firmware's default period, 1 ms).
 SERVER_TIMEOUT_CYCLES = 1000
-
-
-@pytest.fixture(autouse=True)
-def _patient_sdo_client(request: pytest.FixtureRequest) -> None:
-    if "node_under_test" in request.fixturenames:
-        request.getfixturevalue("node_under_test").node.sdo.RESPONSE_TIMEOUT = SDO_TIMEOUT_S
 
 
 def expect_abort(code: int, action: Callable[[], object]) -> None:
@@ -268,14 +258,12 @@ def test_stale_encoder_is_reported_by_emcy_naming_the_field(node_under_test: Nod
 def test_parameters_stored_survive_a_restart(private_bus: PrivateBus, scenario_dir: Path) -> None:
     params = scenario_dir / "params.bin"
     first = start_node(private_bus, scenario_dir, params_file=params)
-    first.node.sdo.RESPONSE_TIMEOUT = SDO_TIMEOUT_S  # a store (fsync) can take longer in the VM
     try:
         first.node.sdo["velocity_kp"].raw = 0.125
         first.node.sdo[0x1010][1].raw = 0x65766173  # "save"
     finally:
         assert stop_node(first) == 0
     second = start_node(private_bus, scenario_dir, params_file=params)
-    second.node.sdo.RESPONSE_TIMEOUT = SDO_TIMEOUT_S
     try:
         assert second.node.sdo["velocity_kp"].raw == pytest.approx(0.125)
         second.node.sdo[0x1011][1].raw = 0x64616F6C  # "load": restore defaults
