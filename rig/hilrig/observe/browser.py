@@ -369,6 +369,7 @@ class ViewerPage:
         self._playwright: Playwright | None = None
         self._browser: Browser | None = None
         self._page: Page | None = None
+        self._size: ViewportSize = viewport
 
     def __enter__(self) -> Self:
         require_browser()
@@ -431,6 +432,12 @@ class ViewerPage:
         if self._page is None:
             raise RuntimeError("the ViewerPage is not open (use it in a with statement)")
         return self._page
+
+    def resize(self, viewport: ViewportSize) -> None:
+        """The page at `viewport` from now on (the viewer lays itself out again)."""
+        if viewport != self._size:
+            self.page.set_viewport_size(viewport)
+            self._size = viewport
 
     # --- what the viewer says -------------------------------------------------------------
     def state(self) -> ViewerState:
@@ -590,6 +597,7 @@ def check_dashboards(
         if viewer is None:
             served = stack.enter_context(served_trace(trace, names[0]))
             viewer = stack.enter_context(ViewerPage(served))
+        viewer.resize(viewer.viewport)  # as the user sees them, whatever a check before needed
         shown: dict[str, DashboardShown] = {}
         for number, name in enumerate(names):
             console_from, errors_from = len(viewer.console), len(viewer.page_errors)

@@ -8,8 +8,9 @@ whole page: something plotted somewhere, the views there, no error).
 
 How: the time series views of the dashboard are shown by themselves, a few at a time
 (`MAX_VIEWS_SHOWN`, stacked, each series of a showing given its own colour of `SERIES_PALETTE`
-and a wide line by a blueprint override, legends hidden), so that they fill the blueprint's
-area (`BLUEPRINT_AREA`); a series is drawn when pixels of its colour are inside that rectangle.
+and a wide line by a blueprint override, legends hidden, the side panels collapsed), on a page
+of `SHOWING_VIEWPORT`, so that they fill its views' area (`SHOWING_AREA`); a series is drawn
+when pixels of its colour are inside that rectangle.
 Its colour is its own in the showing and a view draws only inside itself, so its pixels are
 its view's. Lines on top of each other hide the ones below (a setpoint its measurement follows
 exactly, flags that are all 0). The hidden ones of a view are then shown together once more,
@@ -17,7 +18,8 @@ nested: the first widest, each next narrower (`nested_widths`), so each shows a 
 colour around the ones on top of it; only a series still not found is shown alone (a view of
 its own), and only then is it missing. Text logs and 3D views name no series:
 `check_dashboards` covers them. Each showing costs the software-rendered viewer frames to settle,
-which is why views share them.
+which is why views share them, and why the page is smaller than the dashboards' own (the
+viewer paints in software; a screenshot is a frame painted).
 
 The series of a view are the entity paths it names, or (a view of everything under its origin)
 the entities under its origin with scalar data in the trace.
@@ -33,13 +35,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dashboards.joint import ORIGIN_SUBTREE, WHOLE_RUN
-from hilrig.observe.browser import BLUEPRINT_AREA, SETTLE_POLL_S, ViewerPage, last_cycle
+from hilrig.observe.browser import BLUEPRINT_AREA, SETTLE_POLL_S, VIEWPORT, ViewerPage, last_cycle
 from hilrig.observe.dashboard_check import views
 from hilrig.observe.paths import CYCLE_TIMELINE
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb
     from PIL.Image import Image
+    from playwright.sync_api import ViewportSize
 
     from hilrig.observe.reader import Trace
 
@@ -63,6 +66,17 @@ SERIES_PIXELS = 20
 MAX_VIEWS_SHOWN = 4
 """Views stacked in one showing at most: each keeps a quarter of the blueprint area's height,
 room for the nested bands of a few identical lines."""
+SHOWING_VIEWPORT: ViewportSize = {"width": 800, "height": 700}
+"""The page while views are shown for their series: a third of VIEWPORT's pixels, so a third of
+the software painting a frame costs, and room enough for MAX_VIEWS_SHOWN views' nested bands."""
+SHOWING_AREA = (
+    0,
+    BLUEPRINT_AREA[1],
+    SHOWING_VIEWPORT["width"],
+    SHOWING_VIEWPORT["height"] - (VIEWPORT["height"] - BLUEPRINT_AREA[3]),
+)
+"""(left, top, right, bottom): where a showing's views are, the whole width (its side panels are
+collapsed) between the top bar and the time panel, which keep their pixel sizes."""
 STILL_S = 30.0
 """How long a view is given to hold still before its screenshot counts as it is."""
 
@@ -130,7 +144,11 @@ def together(plots: Sequence[Plot], time_panel: rrb.TimePanel | None) -> rrb.Blu
             )
         )
     top: rrb.Container | rrb.View = shown[0] if len(shown) == 1 else rrb.Vertical(*shown)
-    parts: list[rrb.Container | rrb.View | rrb.TimePanel] = [top]
+    parts: list[rrb.Container | rrb.View | rrb.TimePanel | rrb.BlueprintPanel | rrb.SelectionPanel] = [
+        top,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+    ]
     if time_panel is not None:
         parts.append(time_panel)
     return rrb.Blueprint(*parts, collapse_panels=False)  # type: ignore[arg-type]
@@ -172,7 +190,7 @@ def _still_screenshot(viewer: ViewerPage, path: Path) -> Image:
     previous: bytes | None = None
     while True:
         image = viewer.screenshot(path)
-        pixels = image.crop(BLUEPRINT_AREA).tobytes()
+        pixels = image.crop(SHOWING_AREA).tobytes()
         if pixels == previous or time.monotonic() > deadline:
             return image
         previous = pixels
@@ -226,7 +244,7 @@ def _show(
     drawn.screenshots.append(path)
     colours = iter(SERIES_PALETTE)
     return [
-        {entity: colour_pixels(image, BLUEPRINT_AREA, next(colours)) for entity in plot.series}
+        {entity: colour_pixels(image, SHOWING_AREA, next(colours)) for entity in plot.series}
         for plot in plots
     ]
 
@@ -246,12 +264,14 @@ def check_series(
     out_dir/<view numbers>.png (`1+2+3.png`; `-nested` for hidden series shown again nested,
     `<view>-<series>` for a series looked at alone). `checked`: views (origin, series) already
     looked at with what they drew, e.g. by another dashboard of the same trace (the overview's
-    control mode plot is the faults' too): taken from there, and filled with this dashboard's."""
+    control mode plot is the faults' too): taken from there, and filled with this dashboard's.
+    Leaves the page at SHOWING_VIEWPORT (`check_dashboards` sets its own size again)."""
     checked = {} if checked is None else checked
     end = last_cycle(trace_path)
     whole = {CYCLE_TIMELINE: end} if end is not None else None
     time_panel = blueprint.time_panel
     out_dir.mkdir(parents=True, exist_ok=True)
+    viewer.resize(SHOWING_VIEWPORT)
     drawn = SeriesDrawn(name)
     keys: list[tuple[rrb.TimeSeriesView, tuple[str, tuple[str, ...]]]] = []
     plots: list[Plot] = []
@@ -314,6 +334,8 @@ __all__ = [
     "MAX_VIEWS_SHOWN",
     "SERIES_PALETTE",
     "SERIES_PIXELS",
+    "SHOWING_AREA",
+    "SHOWING_VIEWPORT",
     "SeriesDrawn",
     "alone",
     "check_series",
