@@ -103,33 +103,61 @@ co::SendResult SocketCanPort::send(const co::CanFrame& frame) {
   return co::SendResult::PortError;
 }
 
-co::ReceiveResult SocketCanPort::receive(co::CanFrame& frame) {
-  for (;;) {
-    can_frame raw{};
-    iovec payload{&raw, sizeof(raw)};
-    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(std::uint32_t))];
-    msghdr message{};
-    message.msg_iov = &payload;
-    message.msg_iovlen = 1;
-    message.msg_control = control;
-    message.msg_controllen = sizeof(control);
-    const ssize_t got = ::recvmsg(fd_, &message, 0);
-    if (got < 0) {
-      if (errno == EAGAIN || errno == EWOULDBLOCK) {
-        return co::ReceiveResult::Empty;
-      }
-      if (errno == EINTR) {
-        continue;
-      }
-      ++counters_.receive_errors;
-      return co::ReceiveResult::PortError;
+co::ReceiveResult SocketCanPort::read_batch() {
+  std::array<mmsghdr, kReceiveBatch> messages{};
+  std::array<iovec, kReceiveBatch> payloads{};
+  struct Control {
+    alignas(cmsghdr) char bytes[CMSG_SPACE(sizeof(std::uint32_t))];
+  };
+  std::array<Control, kReceiveBatch> controls{};
+  for (std::size_t i = 0; i < kReceiveBatch; ++i) {
+    payloads[i] = {&batch_[i], sizeof(can_frame)};
+    messages[i].msg_hdr.msg_iov = &payloads[i];
+    messages[i].msg_hdr.msg_iovlen = 1;
+    messages[i].msg_hdr.msg_control = controls[i].bytes;
+    messages[i].msg_hdr.msg_controllen = sizeof(controls[i].bytes);
+  }
+  filled_ = next_ = 0;
+  int got = -1;
+  do got = ::recvmmsg(fd_, messages.data(), kReceiveBatch, MSG_DONTWAIT, nullptr);
+  while (got < 0 && errno == EINTR);
+  if (got < 0) {
+    if (errno == EAGAIN || errno == EWOULDBLOCK) {
+      return co::ReceiveResult::Empty;
     }
+    ++counters_.receive_errors;
+    return co::ReceiveResult::PortError;
+  }
+  for (std::size_t i = 0; i < static_cast<std::size_t>(got); ++i) {
+    msghdr& message = messages[i].msg_hdr;
     for (cmsghdr* c = CMSG_FIRSTHDR(&message); c != nullptr; c = CMSG_NXTHDR(&message, c)) {
       if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
         std::memcpy(&counters_.receive_overruns, CMSG_DATA(c), sizeof(counters_.receive_overruns));
       }
     }
-    if (got != static_cast<ssize_t>(sizeof(raw))) {
+    lengths_[i] = messages[i].msg_len;
+  }
+  filled_ = static_cast<std::size_t>(got);
+  drained_ = filled_ < kReceiveBatch;
+  return filled_ > 0 ? co::ReceiveResult::Received : co::ReceiveResult::Empty;
+}
+
+co::ReceiveResult SocketCanPort::receive(co::CanFrame& frame) {
+  for (;;) {
+    if (next_ == filled_) {
+      if (drained_) {
+        drained_ = false;
+        return co::ReceiveResult::Empty;
+      }
+      const co::ReceiveResult read = read_batch();
+      if (read != co::ReceiveResult::Received) {
+        return read;
+      }
+    }
+    const can_frame& raw = batch_[next_];
+    const std::size_t length = lengths_[next_];
+    ++next_;
+    if (length != sizeof(raw)) {
       ++counters_.short_frames;
       continue;
     }

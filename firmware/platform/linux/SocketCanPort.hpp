@@ -1,6 +1,9 @@
 // co::CanPort over a raw Linux SocketCAN socket (vcan0, can0, any SocketCAN interface).
 #pragma once
 
+#include <linux/can.h>
+
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -39,7 +42,14 @@ class SocketCanPort final : public co::CanPort, public co::AcceptanceListener {
   bool open(const std::string& interface, std::string& error);
 
   co::SendResult send(const co::CanFrame& frame) override;
+  // The next frame, from what one recvmmsg() took out of the socket (up to kReceiveBatch at a
+  // time: a cycle's RPDOs and SYNC in one system call, not one each). Empty once a read found
+  // the socket drained; a caller that polls fd() for more first hands out what is buffered.
   co::ReceiveResult receive(co::CanFrame& frame) override;
+  // Frames already read from the socket and not yet handed out: fd() does not show them.
+  bool has_buffered_frames() const { return next_ < filled_; }
+
+  static constexpr std::size_t kReceiveBatch = 16;
 
   static constexpr std::size_t kMaxAcceptedIds = 32;  // a node lists a handful (no heap here)
 
@@ -55,8 +65,18 @@ class SocketCanPort final : public co::CanPort, public co::AcceptanceListener {
   const SocketCanCounters& counters() const { return counters_; }
 
  private:
+  // Reads what the socket holds into batch_ (none: Empty; a failure: PortError).
+  co::ReceiveResult read_batch();
+
   int fd_ = -1;
   SocketCanCounters counters_;
+  std::array<can_frame, kReceiveBatch> batch_{};
+  std::array<std::size_t, kReceiveBatch> lengths_{};
+  std::size_t filled_ = 0;  // frames in batch_
+  std::size_t next_ = 0;    // the next one to hand out
+  // The last read took fewer than a batch: the socket was empty then, so once batch_ is handed
+  // out receive() says Empty without asking the kernel again (and reads on the call after).
+  bool drained_ = false;
 };
 
 }  // namespace linuxhw

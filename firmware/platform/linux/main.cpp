@@ -337,7 +337,9 @@ int run(const Options& options, std::string& exec_path) {
     // event TPDO, a timeout): an idle node in lockstep wakes for its heartbeat only, not every
     // millisecond (sixteen idle modules in the emulated VM spent a vCPU on that). No wait while
     // a block upload has segments to send (each pass sends a bounded number, then serves frames).
-    const int ready = ::poll(fds.data(), count, node.sdo_segments_due() ? 0 : idle_wait_ms(node, now_us()));
+    // No wait either while the port holds frames it has read but not handed out.
+    const bool work_at_hand = node.sdo_segments_due() || port.has_buffered_frames();
+    const int ready = ::poll(fds.data(), count, work_at_hand ? 0 : idle_wait_ms(node, now_us()));
     if (ready < 0 && errno != EINTR) {
       std::fprintf(stderr, FIRMWARE_NAME ": poll failed: %s\n", std::strerror(errno));
       return kExitStartupFailure;
@@ -354,9 +356,13 @@ int run(const Options& options, std::string& exec_path) {
         run_cycle(expirations);  // deadlines missed while the last cycle ran still count as time
       }
     }
+    // One clock read for what this wake-up found, not one a frame: they all arrived before it.
+    // Under user-mode Linux (the bus stage's VM) a clock read is a system call the host traps,
+    // about 30 us; a module read it six times a cycle.
+    const std::uint32_t woke_at = now_us();
     co::CanFrame frame;
     while (port.receive(frame) == co::ReceiveResult::Received) {
-      const co::ProcessResult result = node.process(frame, now_us());
+      const co::ProcessResult result = node.process(frame, woke_at);
       if (application_rebuild.failed()) {
         std::fprintf(stderr, FIRMWARE_NAME ": reset node: the application did not start again\n");
         return kExitStartupFailure;
@@ -366,7 +372,7 @@ int run(const Options& options, std::string& exec_path) {
           node.advance_control_time(options.period_us);  // a lost heartbeat reaches this cycle
           run_cycle(1);
         }
-        node.transmit_synchronous_pdos(now_us());
+        node.transmit_synchronous_pdos(woke_at);
       }
       // 0x1F51 start with a checked image staged; its SDO answer is out.
       if (node.program_start_requested()) break;
@@ -382,7 +388,7 @@ int run(const Options& options, std::string& exec_path) {
       running = false;
       continue;
     }
-    node.poll(now_us());
+    node.poll(woke_at);
     if (node.has_node_id() != chain_output) {
       chain_output = node.has_node_id();
       set_chain_output(options.chain_out, chain_output);
