@@ -25,6 +25,7 @@ from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.errors import PdoMappingError
 from hilrig.wire import _wire
 from hilrig.wire.transport import (
+    ARRIVAL,
     CAN_FRAME_SIZE,
     ROW_CYCLE,
     BusLink,
@@ -207,6 +208,29 @@ TPDO2_ID, RPDO1_ID = cob_id(FunctionCode.TPDO2, NODE_ID), cob_id(FunctionCode.RP
 DUE = frozenset({TPDO1_ID, TPDO2_ID})
 DECODERS = {TPDO1_ID: (2, struct.Struct("<h").unpack), TPDO2_ID: (4, struct.Struct("<f").unpack)}
 SLICE_S = 0.05  # a receive's wait when a due frame is missing (it is, in one test)
+
+
+def test_arrivals_are_when_each_frame_was_sent_on_the_monotonic_clock(wire) -> None:
+    """A decoder that keeps arrivals gets (cycle, CLOCK_MONOTONIC ns) of each TPDO: on a raw
+    socket the kernel's receive time (SO_TIMESTAMPNS, which RawCanLink sets; the socketpair
+    stamps as CAN does), so a frame that waited in the queue is dated when it came, not when the
+    exchange took it."""
+    link, peer = wire
+    rows = {cob: (bytearray(), bytearray(), bytearray()) for cob in DUE}
+    decoders = {cob: (*DECODERS[cob], *rows[cob]) for cob in DUE}
+    before = time.monotonic_ns()
+    peer.send(can_frame(TPDO1_ID, struct.pack("<h", 5)))
+    sent = time.monotonic_ns()
+    peer.send(can_frame(TPDO2_ID, struct.pack("<f", 2.0)))
+    got: dict[int, tuple] = {}
+    assert exchange(link, b"", DUE, decoders, got, SLICE_S, 7) is None
+    taken = time.monotonic_ns()
+    first = ARRIVAL.unpack(bytes(rows[TPDO1_ID][2]))
+    second = ARRIVAL.unpack(bytes(rows[TPDO2_ID][2]))
+    assert first[0] == second[0] == 7
+    assert before <= first[1] <= second[1] <= taken
+    if isinstance(link, RawCanLink):  # the frame-by-frame link reads the clock as it takes each
+        assert first[1] <= sent, "dated by the kernel when it was sent, not when it was taken"
 
 
 def test_exchange_sends_out_then_decodes_every_due_frame(wire) -> None:

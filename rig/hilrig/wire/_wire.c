@@ -235,6 +235,69 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
     return values;
 }
 
+/* One frame into `frame` (recv's flags), and the kernel's receive time in CLOCK_REALTIME
+ * nanoseconds into `kernel_ns` when the socket carries one (SO_TIMESTAMPNS, which RawCanLink sets,
+ * or SO_TIMESTAMP), else -1. Returns recvmsg()'s result. */
+static ssize_t receive_frame(int fd, unsigned char *frame, int flags, int64_t *kernel_ns) {
+    struct iovec vector = {frame, FRAME_SIZE};
+    union {
+        char space[CMSG_SPACE(sizeof(struct timespec))];
+        struct cmsghdr align;
+    } control;
+    struct msghdr message;
+    memset(&message, 0, sizeof message);
+    message.msg_iov = &vector;
+    message.msg_iovlen = 1;
+    message.msg_control = control.space;
+    message.msg_controllen = sizeof control.space;
+    ssize_t received = recvmsg(fd, &message, flags);
+    *kernel_ns = -1;
+    if (received < 0) {
+        return received;
+    }
+    for (struct cmsghdr *c = CMSG_FIRSTHDR(&message); c != NULL; c = CMSG_NXTHDR(&message, c)) {
+        if (c->cmsg_level != SOL_SOCKET) {
+            continue;
+        }
+        if (c->cmsg_type == SCM_TIMESTAMPNS) {
+            struct timespec when;
+            memcpy(&when, CMSG_DATA(c), sizeof when);
+            *kernel_ns = (int64_t)when.tv_sec * 1000000000 + when.tv_nsec;
+        } else if (c->cmsg_type == SCM_TIMESTAMP) {
+            struct timeval when;
+            memcpy(&when, CMSG_DATA(c), sizeof when);
+            *kernel_ns = (int64_t)when.tv_sec * 1000000000 + (int64_t)when.tv_usec * 1000;
+        }
+    }
+    return received;
+}
+
+/* CLOCK_REALTIME minus CLOCK_MONOTONIC, read again once the kernel's receive times have moved on
+ * by OFFSET_REFRESH_NS since the last reading (an NTP slew moves it by microseconds a second at
+ * most). Touched with the GIL held only. */
+#define OFFSET_REFRESH_NS 100000000 /* 0.1 s */
+static int64_t realtime_offset_ns;
+static int64_t offset_read_at_ns; /* CLOCK_REALTIME of that reading (0: none yet) */
+
+/* When a frame the kernel received at `kernel_ns` (CLOCK_REALTIME, -1: not known) came, on the
+ * CLOCK_MONOTONIC nanoseconds of the arrivals: the kernel's time, not a clock read a frame (in
+ * the bus stage's VM every clock read is a system call the host traps, some 30 us). */
+static int64_t arrival_ns(int64_t kernel_ns) {
+    if (kernel_ns < 0) {
+        return monotonic_ns();
+    }
+    if (kernel_ns - offset_read_at_ns > OFFSET_REFRESH_NS || kernel_ns < offset_read_at_ns) {
+        /* Between two monotonic reads: a read costs ~30 us in the VM, which would skew it. */
+        struct timespec real;
+        int64_t before = monotonic_ns();
+        clock_gettime(CLOCK_REALTIME, &real);
+        int64_t after = monotonic_ns();
+        offset_read_at_ns = (int64_t)real.tv_sec * 1000000000 + real.tv_nsec;
+        realtime_offset_ns = offset_read_at_ns - (before + (after - before) / 2);
+    }
+    return kernel_ns - realtime_offset_ns;
+}
+
 /* How long a wait on each socket looks for a frame before it sleeps, by file descriptor; adapted
  * as it goes (see `receive`). -1: not used yet. Only touched by the thread using that socket. */
 #define LOOK_SLOTS 4096
@@ -256,8 +319,8 @@ static const int64_t kLookStepNs = 20000; /* 20 us: what a look that paid grows 
  * grows (doubled plus 20 us, up to `max_look_ns`) each time a look, or a sleep shorter than
  * `max_look_ns`, found the frame: a node answering within it is looked for, a loaded one is
  * slept on. Called without the GIL. */
-static ssize_t receive(int fd, unsigned char *frame, int wait, int64_t max_look_ns, int *error) {
-    ssize_t received = recv(fd, frame, FRAME_SIZE, MSG_DONTWAIT);
+static ssize_t receive(int fd, unsigned char *frame, int wait, int64_t max_look_ns, int *error, int64_t *kernel_ns) {
+    ssize_t received = receive_frame(fd, frame, MSG_DONTWAIT, kernel_ns);
     *error = errno;
     if (received >= 0 || !wait || (*error != EAGAIN && *error != EWOULDBLOCK)) {
         return received;
@@ -268,7 +331,7 @@ static ssize_t receive(int fd, unsigned char *frame, int wait, int64_t max_look_
     if (budget > 0) {
         do {
             sched_yield();
-            received = recv(fd, frame, FRAME_SIZE, MSG_DONTWAIT);
+            received = receive_frame(fd, frame, MSG_DONTWAIT, kernel_ns);
             *error = errno;
             if (received >= 0 || (*error != EAGAIN && *error != EWOULDBLOCK)) {
                 if (received >= 0) {
@@ -280,7 +343,7 @@ static ssize_t receive(int fd, unsigned char *frame, int wait, int64_t max_look_
         } while (monotonic_ns() - started < budget);
         *look = budget / 2 < kLookStepNs / 2 ? 0 : budget / 2;
     }
-    received = recv(fd, frame, FRAME_SIZE, 0);
+    received = receive_frame(fd, frame, 0, kernel_ns);
     *error = errno;
     if (look != NULL && received >= 0 && max_look_ns > 0 && *look == 0 &&
         monotonic_ns() - started < max_look_ns) {
@@ -297,7 +360,8 @@ PyDoc_STRVAR(exchange_doc,
              "unpack)`) is decoded into `got[cob_id] = unpack(data)`; a decoder `(length, unpack,\n"
              "cycles, payloads)` also appends `cycle` (a native int64) and the data to those two\n"
              "bytearrays; `(length, unpack, cycles, payloads, arrivals)` also the cycle and the\n"
-             "CLOCK_MONOTONIC nanoseconds it was received at (two native int64) to `arrivals`.\n"
+             "CLOCK_MONOTONIC nanoseconds it was received at (two native int64) to `arrivals`:\n"
+             "the kernel's receive time where the socket has SO_TIMESTAMPNS (or SO_TIMESTAMP) on.\n"
              "Returns:\n"
              "  (cob_id, data)  the first frame that is anything else, at once (Python judges it);\n"
              "  False           the socket's receive timeout passed with a due COB-ID missing;\n"
@@ -347,10 +411,9 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
     for (;;) {
         ssize_t received;
         int error;
-        int64_t received_at;
+        int64_t kernel_ns;
         Py_BEGIN_ALLOW_THREADS
-        received = receive(fd, frame, missing > 0, spin_ns, &error);
-        received_at = monotonic_ns();
+        received = receive(fd, frame, missing > 0, spin_ns, &error, &kernel_ns);
         Py_END_ALLOW_THREADS
         if (received < 0) {
             if (error == EINTR) {
@@ -376,7 +439,7 @@ static PyObject *exchange(PyObject *module, PyObject *const *args, Py_ssize_t na
         if (cob_id == NULL) {
             return NULL;
         }
-        PyObject *values = usual_values(cob_id, frame + 8, length, due, decoders, got, cycle, received_at);
+        PyObject *values = usual_values(cob_id, frame + 8, length, due, decoders, got, cycle, arrival_ns(kernel_ns));
         if (values != NULL) {
             int stored = PyDict_SetItem(got, cob_id, values);
             Py_DECREF(values);

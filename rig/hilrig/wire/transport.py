@@ -63,6 +63,8 @@ than taking the frame."""
 SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
 SO_TIMESTAMP = getattr(socket, "SO_TIMESTAMP", 29)
 """Linux's SO_TIMESTAMP (also the ancillary message type SCM_TIMESTAMP); Python does not name it."""
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
+"""Linux's SO_TIMESTAMPNS: the kernel's receive time of each frame in nanoseconds (SCM_TIMESTAMPNS)."""
 _SIOCGSKNS = 0x894C
 """ioctl: a file descriptor of the network namespace a socket lives in (Linux >= 4.9)."""
 _CLONE_NEWNET = 0x40000000
@@ -385,6 +387,9 @@ class RawCanLink:
     def __init__(self, sock: socket.socket) -> None:
         self.socket = sock
         sock.settimeout(None)
+        # The exchange takes each TPDO's arrival time from the kernel (`hilrig.wire._wire`), not
+        # from a clock read a frame: in the bus stage's VM each read is a trapped system call.
+        sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
         self._timeout = -1.0
         self._send = sock.send
         self._recv = sock.recv
@@ -435,7 +440,8 @@ class RawCanLink:
         return cob_id, frame[8 : 8 + length]
 
     def enable_timestamps(self) -> None:
-        """Have the kernel stamp every received frame (`receive_stamped`)."""
+        """Have the kernel stamp every received frame in microseconds, as `receive_stamped`
+        reads them (the exchange reads either kind)."""
         self.socket.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMP, 1)
 
     def receive_stamped(self, max_frames: int) -> list[tuple[int, bytes, float]]:
