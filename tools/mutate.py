@@ -147,7 +147,7 @@ def mutants_of(root: Path, path: str) -> list[Mutant]:
         if code_of(original) == code_of(replacement):
             continue  # a statement appended behind a // comment: no change at all
         if changes_digits_of_a_name(original, replacement):
-            continue  # uint32_t -> uint(32+1)_t, 0x580 -> (0+1)x580: never compiles
+            continue  # uint32_t -> uint(32+1)_t, 0x3F -> (0+1)x3F: never compiles
         seen[(original, replacement)] += 1
         key = f"{path}\0{original}\0{replacement}\0{seen[(original, replacement)]}"
         digest = hashlib.sha1(key.encode()).hexdigest()[:8]
@@ -161,7 +161,7 @@ _INTEGER_LITERAL = re.compile(r"(?<![\w.'])\d+(?:[uU]?[lL]{0,2}|[lL]{1,2}[uU]?)(
 
 def changes_digits_of_a_name(original: str, replacement: str) -> bool:
     """Whether the first change is to digits that are not a whole integer literal: part of a
-    name (uint32_t), of a hex or float literal (0x580, 1.0F). universalmutator's literal rule
+    name (uint32_t), of a hex or float literal (0x3F, 1.0F). universalmutator's literal rule
     matches those too, and such a mutant never compiles: not generated, so as not to spend a
     build on it."""
     start = next((i for i, (a, b) in enumerate(zip(original, replacement, strict=False)) if a != b), None)

@@ -10,6 +10,7 @@
 
 #include "MemoryPort.hpp"
 #include "Node.hpp"
+#include "ObjectTables.hpp"
 
 namespace co::test {
 
@@ -91,7 +92,7 @@ std::uint16_t index_of(board::HilOutputId id);
 inline constexpr std::uint8_t kMasterId = 0x01;
 inline constexpr std::uint32_t kMasterHeartbeat = cia301::cob_id(cia301::FunctionCode::Heartbeat, kMasterId);
 // Bit 31 of a COB-ID entry (PDO, SYNC, EMCY): not valid.
-inline constexpr std::uint32_t kInvalid = 0x8000'0000u;
+inline constexpr std::uint32_t kInvalid = tables::kPdoInvalidBit;
 
 std::array<std::uint8_t, 4> le32(std::uint32_t v);
 std::uint32_t float_bits(float v);

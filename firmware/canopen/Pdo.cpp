@@ -11,7 +11,6 @@
 namespace co {
 namespace {
 
-constexpr std::uint32_t kInvalidBit = 0x8000'0000u;
 // TPDO: 1 = no RTR allowed. The node does not answer remote frames (CiA AN 802 advises
 // against RTR; a remote-requested TPDO would also arrive between two SYNCs and break the
 // lockstep rig's one-frame-per-cycle accounting), so a TPDO COB-ID always has it set. A write
@@ -59,7 +58,7 @@ SdoAbort Node::write_pdo_communication(Pdo& pdo, bool is_rpdo, std::uint8_t sub,
                                        std::uint32_t value) {
   switch (sub) {
     case 1: {
-      const bool valid = (value & kInvalidBit) == 0;
+      const bool valid = (value & tables::kPdoInvalidBit) == 0;
       const std::uint32_t can_id = value & cia301::kStandardIdMask;
       // bit 29 (29-bit id) and bits 11..28 must be zero; the id may change only while the
       // PDO is invalid; an enabled PDO needs a usable id and a mapping.
@@ -71,7 +70,7 @@ SdoAbort Node::write_pdo_communication(Pdo& pdo, bool is_rpdo, std::uint8_t sub,
         return SdoAbort::ValueRangeExceeded;
       }
       const bool enabling = valid && !pdo.valid();
-      pdo.cob_id = (value & (kInvalidBit | kRtrBit | cia301::kStandardIdMask)) | (is_rpdo ? 0u : kRtrBit);
+      pdo.cob_id = (value & (tables::kPdoInvalidBit | kRtrBit | cia301::kStandardIdMask)) | (is_rpdo ? 0u : kRtrBit);
       if (enabling) {
         pdo.received_once = false;
         pdo.sent_once = false;
@@ -142,7 +141,7 @@ SdoAbort Node::write_pdo_mapping(Pdo& pdo, bool is_rpdo, std::uint8_t sub, std::
 
 void Node::load_default_pdo(Pdo& pdo, const board::PdoDefault& defaults, bool is_rpdo) {
   pdo = Pdo{};
-  pdo.cob_id = (defaults.cob_id_base + node_id_) | (defaults.enabled ? 0u : kInvalidBit) |
+  pdo.cob_id = (defaults.cob_id_base + node_id_) | (defaults.enabled ? 0u : tables::kPdoInvalidBit) |
                (is_rpdo ? 0u : kRtrBit);
   pdo.transmission_type = defaults.transmission_type;
   pdo.inhibit_time_100us = defaults.inhibit_time_100us;
@@ -153,7 +152,7 @@ void Node::load_default_pdo(Pdo& pdo, const board::PdoDefault& defaults, bool is
     pdo.mapping[i] = mapping_entry(defaults.entries[i]);
     if (resolve_mapping(pdo.mapping[i], is_rpdo, pdo.mapped[i]) != SdoAbort::None) {
       ++counters_.default_pdo_errors;  // a table bug: leave this PDO disabled and empty
-      pdo.cob_id |= kInvalidBit;
+      pdo.cob_id |= tables::kPdoInvalidBit;
       pdo.mapping_count = 0;
       pdo.payload_bytes = 0;
       return;
@@ -162,7 +161,7 @@ void Node::load_default_pdo(Pdo& pdo, const board::PdoDefault& defaults, bool is
   }
   if (bytes > 8) {
     ++counters_.default_pdo_errors;
-    pdo.cob_id |= kInvalidBit;
+    pdo.cob_id |= tables::kPdoInvalidBit;
     return;
   }
   pdo.mapping_count = static_cast<std::uint8_t>(count);
