@@ -235,15 +235,39 @@ static PyObject *usual_values(PyObject *cob_id, const unsigned char *data, Py_ss
     return values;
 }
 
-/* One frame into `frame` (recv's flags), and the kernel's receive time in CLOCK_REALTIME
- * nanoseconds into `kernel_ns` when the socket carries one (SO_TIMESTAMPNS, which RawCanLink sets,
- * or SO_TIMESTAMP), else -1. Returns recvmsg()'s result. */
+/* Room for the kernel's receive time of one frame, of either kind. */
+typedef union {
+    char space[CMSG_SPACE(sizeof(struct timespec))];
+    struct cmsghdr align;
+} StampControl;
+
+/* The kernel's receive time of a received message in CLOCK_REALTIME nanoseconds: its
+ * SCM_TIMESTAMPNS (SO_TIMESTAMPNS, which RawCanLink sets) or SCM_TIMESTAMP (SO_TIMESTAMP,
+ * `enable_timestamps`); -1 when it carries neither. */
+static int64_t kernel_stamp_ns(struct msghdr *message) {
+    int64_t stamp = -1;
+    for (struct cmsghdr *c = CMSG_FIRSTHDR(message); c != NULL; c = CMSG_NXTHDR(message, c)) {
+        if (c->cmsg_level != SOL_SOCKET) {
+            continue;
+        }
+        if (c->cmsg_type == SCM_TIMESTAMPNS) {
+            struct timespec when;
+            memcpy(&when, CMSG_DATA(c), sizeof when);
+            stamp = (int64_t)when.tv_sec * 1000000000 + when.tv_nsec;
+        } else if (c->cmsg_type == SCM_TIMESTAMP) {
+            struct timeval when;
+            memcpy(&when, CMSG_DATA(c), sizeof when);
+            stamp = (int64_t)when.tv_sec * 1000000000 + (int64_t)when.tv_usec * 1000;
+        }
+    }
+    return stamp;
+}
+
+/* One frame into `frame` (recv's flags), and its `kernel_stamp_ns` into `kernel_ns` (-1: none).
+ * Returns recvmsg()'s result. */
 static ssize_t receive_frame(int fd, unsigned char *frame, int flags, int64_t *kernel_ns) {
     struct iovec vector = {frame, FRAME_SIZE};
-    union {
-        char space[CMSG_SPACE(sizeof(struct timespec))];
-        struct cmsghdr align;
-    } control;
+    StampControl control;
     struct msghdr message;
     memset(&message, 0, sizeof message);
     message.msg_iov = &vector;
@@ -251,24 +275,7 @@ static ssize_t receive_frame(int fd, unsigned char *frame, int flags, int64_t *k
     message.msg_control = control.space;
     message.msg_controllen = sizeof control.space;
     ssize_t received = recvmsg(fd, &message, flags);
-    *kernel_ns = -1;
-    if (received < 0) {
-        return received;
-    }
-    for (struct cmsghdr *c = CMSG_FIRSTHDR(&message); c != NULL; c = CMSG_NXTHDR(&message, c)) {
-        if (c->cmsg_level != SOL_SOCKET) {
-            continue;
-        }
-        if (c->cmsg_type == SCM_TIMESTAMPNS) {
-            struct timespec when;
-            memcpy(&when, CMSG_DATA(c), sizeof when);
-            *kernel_ns = (int64_t)when.tv_sec * 1000000000 + when.tv_nsec;
-        } else if (c->cmsg_type == SCM_TIMESTAMP) {
-            struct timeval when;
-            memcpy(&when, CMSG_DATA(c), sizeof when);
-            *kernel_ns = (int64_t)when.tv_sec * 1000000000 + (int64_t)when.tv_usec * 1000;
-        }
-    }
+    *kernel_ns = received < 0 ? -1 : kernel_stamp_ns(&message);
     return received;
 }
 
@@ -531,7 +538,8 @@ static PyObject *append_rows(PyObject *module, PyObject *const *args, Py_ssize_t
 
 PyDoc_STRVAR(receive_stamped_doc,
              "receive_stamped(fd, max_frames, /)\n--\n\n"
-             "Up to `max_frames` frames already queued on the raw CAN socket `fd` (SO_TIMESTAMP on),\n"
+             "Up to `max_frames` frames already queued on the raw CAN socket `fd` (SO_TIMESTAMP or\n"
+             "SO_TIMESTAMPNS on), "
              "without waiting: a list of (raw can_id with its EFF/RTR/ERR flags, data, kernel\n"
              "receive time [s since the epoch]), oldest first; empty when nothing is queued. Taken\n"
              "STAMPED_BATCH at a time (recvmmsg): a bus recorder's work per frame is then one tuple.");
@@ -555,10 +563,7 @@ static PyObject *receive_stamped(PyObject *module, PyObject *const *args, Py_ssi
         return NULL;
     }
     unsigned char frames[STAMPED_BATCH][FRAME_SIZE];
-    union {
-        char space[CMSG_SPACE(sizeof(struct timeval))];
-        struct cmsghdr align;
-    } control[STAMPED_BATCH];
+    StampControl control[STAMPED_BATCH];
     struct iovec vectors[STAMPED_BATCH];
     struct mmsghdr messages[STAMPED_BATCH];
     while (PyList_Size(received) < wanted) {
@@ -595,15 +600,11 @@ static PyObject *receive_stamped(PyObject *module, PyObject *const *args, Py_ssi
             return PyErr_SetFromErrno(PyExc_OSError);
         }
         for (int i = 0; i < count; ++i) {
-            double stamp = 0.0;
-            for (struct cmsghdr *c = CMSG_FIRSTHDR(&messages[i].msg_hdr); c != NULL;
-                 c = CMSG_NXTHDR(&messages[i].msg_hdr, c)) {
-                if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMP) {
-                    struct timeval when;
-                    memcpy(&when, CMSG_DATA(c), sizeof when);
-                    stamp = (double)when.tv_sec + (double)when.tv_usec / 1e6;
-                }
-            }
+            int64_t stamp_ns = kernel_stamp_ns(&messages[i].msg_hdr);
+            /* Seconds and their fraction apart: for a microsecond stamp this is the same double
+             * as tv_sec + tv_usec / 1e6. */
+            double stamp = stamp_ns < 0 ? 0.0
+                                        : (double)(stamp_ns / 1000000000) + (double)(stamp_ns % 1000000000) / 1e9;
             PyObject *entry = Py_BuildValue("(ky#d)", (unsigned long)frame_can_id(frames[i]),
                                             (const char *)frames[i] + 8, frame_data_length(frames[i]), stamp);
             if (entry == NULL || PyList_Append(received, entry) < 0) {
