@@ -369,7 +369,6 @@ class ViewerPage:
         self._playwright: Playwright | None = None
         self._browser: Browser | None = None
         self._page: Page | None = None
-        self._size: ViewportSize = viewport
 
     def __enter__(self) -> Self:
         require_browser()
@@ -435,9 +434,8 @@ class ViewerPage:
 
     def resize(self, viewport: ViewportSize) -> None:
         """The page at `viewport` from now on (the viewer lays itself out again)."""
-        if viewport != self._size:
+        if self.page.viewport_size != viewport:
             self.page.set_viewport_size(viewport)
-            self._size = viewport
 
     # --- what the viewer says -------------------------------------------------------------
     def state(self) -> ViewerState:
