@@ -19,19 +19,24 @@ import pytest
 from PIL import Image
 
 from hilrig.engine.rig import Rig
+from hilrig.observe import browser
 from hilrig.observe.browser import (
     BLUEPRINT_AREA,
     PLOTTED_PIXELS,
+    RENDERER_VARIABLE,
     RERUN_VERSION,
     VIEWPORT,
+    BrowserUnavailableError,
     ConsoleLine,
     ViewerPage,
     ViewerState,
     browser_missing,
     check_dashboards,
+    chromium_flags,
     dashboard_views,
     is_fatal,
     plotted_pixels,
+    renderer,
     served_trace,
 )
 from hilrig.observe.paths import CYCLE_TIMELINE, SIM_TIME_TIMELINE
@@ -99,10 +104,13 @@ def test_web_viewer_shows_the_recording_with_every_dashboard(trace: Path) -> Non
         try:
             shown = check_dashboards(trace, DASHBOARDS, out, viewer=viewer)
             panicked = viewer.has_panicked()
+            webgl = viewer.webgl_renderer()
         finally:
             viewer.write_console_log(out / "console.log")
     assert not panicked
     assert any("wgpu adapter backend: Gl" in line.text for line in viewer.console), "WebGL never came up"
+    # On the renderer chosen, not on one Chromium fell back to without saying so.
+    assert {"llvmpipe": "llvmpipe", "swiftshader": "SwiftShader"}[renderer()] in webgl, webgl
 
     assert list(shown) == DASHBOARDS
     for name, dashboard in shown.items():
@@ -293,3 +301,21 @@ def test_the_series_of_a_view_are_the_ones_it_names_or_those_under_its_origin_wi
     assert series_of(subtree, trace) == ["/bus/tpdo_delay/TPDO1", "/bus/tpdo_delay/TPDO2"]
     named = rrb.TimeSeriesView(name="load", origin="/", contents=["/bus/load", "+ /events/**"])
     assert series_of(named, trace) == ["/bus/load"]
+
+
+def test_the_renderer_is_llvmpipe_where_mesa_is_else_swiftshader_or_as_told(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.delenv(RENDERER_VARIABLE, raising=False)
+    monkeypatch.setattr(browser, "MESA_EGL", tmp_path / "50_mesa.json")
+    assert renderer() == "swiftshader"
+    assert chromium_flags()[-2:] == ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+    (tmp_path / "50_mesa.json").write_text("{}")
+    assert renderer() == "llvmpipe"
+    assert "--use-angle=gl-egl" in chromium_flags()
+    monkeypatch.setenv(RENDERER_VARIABLE, "swiftshader")
+    assert renderer() == "swiftshader"
+    monkeypatch.setenv(RENDERER_VARIABLE, "gpu")
+    expected = "HIL_VIEWER_RENDERER=gpu: expected one of llvmpipe, swiftshader"
+    with pytest.raises(BrowserUnavailableError, match=expected):
+        renderer()

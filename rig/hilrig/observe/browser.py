@@ -22,6 +22,7 @@ page is opened, so `import hilrig.observe.browser` needs neither.
 from __future__ import annotations
 
 import contextlib
+import os
 import socket
 import subprocess
 import tempfile
@@ -42,15 +43,37 @@ if TYPE_CHECKING:
     from playwright.sync_api import Browser, Page, Playwright, ViewportSize
 
 CHROMIUM = Path("/usr/bin/chromium")
-# Software rendering, no GPU and no display: WebGL through ANGLE on SwiftShader, asked for by name
-# (Chromium is retiring its silent fallback to it). Root needs --no-sandbox; /dev/shm may be tiny.
-CHROMIUM_FLAGS = [
-    "--headless=new",
-    "--no-sandbox",
-    "--disable-dev-shm-usage",
-    "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader",
-]
+# Software rendering, no GPU and no display. Root needs --no-sandbox; /dev/shm may be tiny.
+CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-dev-shm-usage"]
+MESA_EGL = Path("/usr/share/glvnd/egl_vendor.d/50_mesa.json")
+"""Mesa's EGL (libegl-mesa0, tools/deps): without a GPU it renders with llvmpipe."""
+RENDERER_FLAGS = {
+    # WebGL through ANGLE on Mesa's EGL: llvmpipe, which Chromium keeps off its list for WebGL 2
+    # unless told; it paints the same pages for less CPU than SwiftShader.
+    "llvmpipe": ["--use-angle=gl-egl", "--ignore-gpu-blocklist"],
+    # Chromium's own software Vulkan, asked for by name (it is retiring its silent fallback).
+    "swiftshader": ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
+}
+RENDERER_VARIABLE = "HIL_VIEWER_RENDERER"
+
+
+def renderer() -> str:
+    """Which software renderer the browser's WebGL runs on: $HIL_VIEWER_RENDERER if set (a key
+    of RENDERER_FLAGS), else llvmpipe where Mesa's EGL is installed, else SwiftShader."""
+    chosen = os.environ.get(RENDERER_VARIABLE)
+    if chosen:
+        if chosen not in RENDERER_FLAGS:
+            raise BrowserUnavailableError(
+                f"{RENDERER_VARIABLE}={chosen}: expected one of {', '.join(RENDERER_FLAGS)}"
+            )
+        return chosen
+    return "llvmpipe" if MESA_EGL.exists() else "swiftshader"
+
+
+def chromium_flags() -> list[str]:
+    return [*CHROMIUM_FLAGS, *RENDERER_FLAGS[renderer()]]
+
+
 VIEWPORT: ViewportSize = {"width": 1600, "height": 1000}
 WAIT_S = 120.0  # per wait; generous, the viewer renders in software on a busy machine
 POLL_S = 0.25
@@ -63,6 +86,13 @@ CAPTURE_HANDLE = """() => {
     const proto = wasm_bindgen.WebHandle.prototype;
     const hasPanicked = proto.has_panicked;
     proto.has_panicked = function () { window.hilrigViewer = this; return hasPanicked.call(this); };
+}"""
+
+WEBGL_RENDERER = """() => {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    if (!gl) return 'no WebGL 2';
+    const info = gl.getExtension('WEBGL_debug_renderer_info');
+    return info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
 }"""
 
 BLUEPRINT_AREA = (204, 40, 1296, 848)
@@ -377,7 +407,7 @@ class ViewerPage:
         self._playwright = sync_playwright().start()
         try:
             self._browser = self._playwright.chromium.launch(
-                executable_path=str(CHROMIUM), args=CHROMIUM_FLAGS, timeout=self.wait_s * 1000
+                executable_path=str(CHROMIUM), args=chromium_flags(), timeout=self.wait_s * 1000
             )
             page = self._page = self._browser.new_page(viewport=self.viewport)
             page.set_default_timeout(self.wait_s * 1000)
@@ -463,6 +493,11 @@ class ViewerPage:
                     f"Expected {what} within {self.wait_s:.0f} s, but the viewer answers {state}"
                 )
             self.page.wait_for_timeout(poll_s * 1000)  # lets Playwright deliver console events meanwhile
+
+    def webgl_renderer(self) -> str:
+        """The renderer this page's WebGL 2 runs on, as WebGL names it ("ANGLE (Mesa/X.org,
+        llvmpipe ...)"), or "no WebGL 2"."""
+        return str(self.page.evaluate(WEBGL_RENDERER))
 
     def has_panicked(self) -> bool:
         return bool(self.page.evaluate("() => window.hilrigViewer.has_panicked()"))
@@ -652,10 +687,14 @@ __all__ = [
     "CAPTURE_HANDLE",
     "CHROMIUM",
     "CHROMIUM_FLAGS",
+    "MESA_EGL",
     "PLOTTED_PIXELS",
+    "RENDERER_FLAGS",
+    "RENDERER_VARIABLE",
     "RERUN_VERSION",
     "VIEWPORT",
     "WAIT_S",
+    "WEBGL_RENDERER",
     "BrowserUnavailableError",
     "ConsoleLine",
     "DashboardShown",
@@ -666,11 +705,13 @@ __all__ = [
     "ViewerState",
     "browser_missing",
     "check_dashboards",
+    "chromium_flags",
     "dashboard_views",
     "free_port",
     "is_fatal",
     "last_cycle",
     "plotted_pixels",
+    "renderer",
     "require_browser",
     "served_trace",
     "show_dashboard",
