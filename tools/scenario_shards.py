@@ -9,6 +9,8 @@ place that spells them; the partition test (tools/tests/test_scenario_shards.py)
     scenario_shards.py args SELECTION [K/N]        the pytest arguments of one invocation, one a line
     scenario_shards.py count SELECTION K/N         how many scenarios it selects (native collection,
                                                    with $HIL_PYTEST_ARGS as run-tests adds them)
+    scenario_shards.py counts SELECTION N          the same for each K of 1..N, one a line, from one
+                                                   collection (pytest-split's plan of N groups)
     scenario_shards.py durations OUT JUNIT_XML...  write the durations file from a full run
 
 Loaded as a pytest plugin (`-p scenario_shards` with tools/ on PYTHONPATH) it records what a
@@ -84,6 +86,20 @@ def selection_args(selection: str, shard: Shard | None = None, durations: Path =
 def split_options(durations: Path = DURATIONS) -> list[str]:
     """How pytest-split splits, without which group to keep (a plan collection takes these too)."""
     return [f"--splitting-algorithm={ALGORITHM}", f"--durations-path={durations}"]
+
+
+def parse_count(text: str) -> int:
+    if not re.fullmatch(r"[1-9][0-9]*", text):
+        raise ValueError(f"{text!r} is not a number of groups (1 or more)")
+    return int(text)
+
+
+def plan_groups(selection: str, count: int) -> list[list[str]]:
+    """The scenarios of each of `count` groups of `selection` (with $HIL_PYTEST_ARGS), from one
+    collection: the plan pytest-split's algorithm makes, which is what `--splits=count --group=K`
+    selects (the partition test checks that)."""
+    extra = shlex.split(os.environ.get("HIL_PYTEST_ARGS", ""))
+    return collect(selection_args(selection) + split_options() + extra, plan_splits=[count]).groups[count]
 
 
 @dataclass
@@ -190,7 +206,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 def main(argv: list[str]) -> int:
     usage = (
         "usage: scenario_shards.py check K/N | args SELECTION [K/N] | count SELECTION K/N"
-        " | durations OUT JUNIT_XML..."
+        " | counts SELECTION N | durations OUT JUNIT_XML..."
     )
     if len(argv) < 2:
         print(usage, file=sys.stderr)
@@ -204,6 +220,8 @@ def main(argv: list[str]) -> int:
         elif command == "count" and len(rest) == 2 and rest[0] in SELECTIONS:
             extra = shlex.split(os.environ.get("HIL_PYTEST_ARGS", ""))
             print(len(collect(selection_args(rest[0], parse_shard(rest[1])) + extra).selected))
+        elif command == "counts" and len(rest) == 2 and rest[0] in SELECTIONS:
+            print("\n".join(str(len(group)) for group in plan_groups(rest[0], parse_count(rest[1]))))
         elif command == "durations" and len(rest) >= 2:
             scenario_ids = collect(SCENARIOS).selected
             durations = durations_from_junit([Path(p) for p in rest[1:]], scenario_ids)

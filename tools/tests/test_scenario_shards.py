@@ -148,3 +148,24 @@ def test_the_durations_file_is_written_whole(tmp_path: Path) -> None:
     shards.write_atomically(path, {"tests/test_a.py::test_b": 2.0})
     assert json.loads(path.read_text()) == {"tests/test_a.py::test_b": 2.0}
     assert [p.name for p in tmp_path.iterdir()] == [".test_durations"]
+
+
+def test_counts_are_the_plans_groups_of_the_selection_as_run_tests_narrows_it(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The plan is what --splits/--group select (test_the_shards_select_what_the_plan_says): here,
+    # that `counts` collects the same selection, with $HIL_PYTEST_ARGS, and prints each group's size.
+    asked: list[tuple[list[str], list[int] | None]] = []
+
+    def collect(args: list[str], plan_splits: list[int] | None = None) -> shards.Collected:
+        asked.append((args, plan_splits))
+        return shards.Collected(selected=["a", "b", "c"], groups={3: [["a", "b"], [], ["c"]]})
+
+    monkeypatch.setattr(shards, "collect", collect)
+    monkeypatch.setenv("HIL_PYTEST_ARGS", "-k 'joint or robot'")
+    assert shards.main(["scenario_shards.py", "counts", "lockstep", "3"]) == 0
+    assert capsys.readouterr().out.split() == ["2", "0", "1"]
+    expected = shards.selection_args("lockstep") + shards.split_options() + ["-k", "joint or robot"]
+    assert asked == [(expected, [3])]
+    assert shards.main(["scenario_shards.py", "counts", "lockstep", "0"]) == 2
+    assert "'0' is not a number of groups" in capsys.readouterr().err
