@@ -43,6 +43,21 @@ def _clean_env() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
 
 
+def compiler_cache_env() -> dict[str, str]:
+    """The lamp's build through ccache where it is installed, as the checkout's own (CMakeLists.txt):
+    by the variables CMake and ccache read (another project's CMakeLists needs nothing), paths under
+    the checkout relative, so that another clone's build hits the same objects. Empty without ccache."""
+    if shutil.which("ccache") is None or os.environ.get("CMAKE_CXX_COMPILER_LAUNCHER"):
+        return {}
+    flags = " ".join(filter(None, [os.environ.get("CXXFLAGS"), f"-ffile-prefix-map={REPO}=."]))
+    return {
+        "CMAKE_CXX_COMPILER_LAUNCHER": "ccache",
+        "CCACHE_BASEDIR": str(REPO),
+        "CCACHE_NOHASHDIR": "1",
+        "CXXFLAGS": flags,
+    }
+
+
 def fresh_venv(wheels: Path, venv: Path) -> Path:
     """A new venv with hilrig from WHEELS and pytest, as another project installs them: its
     dependencies from the package index at the versions requirements.lock pins (pip's cache
@@ -77,12 +92,13 @@ def prepare(pytest_args: list[str]) -> str:
     _run(["cmake", "--install", CMAKE_BUILD, "--component", "hilfw", "--prefix", prefix])
     lamp_build = EXAMPLE / "build"
     shutil.rmtree(lamp_build, ignore_errors=True)
+    env = _clean_env() | compiler_cache_env()
     _run(
         ["cmake", "-S", EXAMPLE, "-B", lamp_build, "-G", "Ninja", f"-DCMAKE_PREFIX_PATH={prefix}",
          f"-DHILFW_PYTHON={python}"],
-        env=_clean_env(),
+        env=env,
     )  # fmt: skip
-    _run(["cmake", "--build", lamp_build], env=_clean_env())
+    _run(["cmake", "--build", lamp_build], env=env)
     # Its own hilrig and firmware: not this checkout's PYTHONPATH, nor its $HIL_FIRMWARE (which
     # tools/with-vcan sets under user-mode Linux, and which the plugin would take over the lamp's).
     pytest = shlex.join(
