@@ -9,8 +9,10 @@ the shards select.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import pickle
 from collections import Counter
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -27,7 +29,7 @@ CROSS_CHECKS = [("lockstep", shards.Shard(k, 2)) for k in (1, 2)] + [
 ]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def durations_missing_some(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str]]:
     """A copy of the committed durations without the first scenario of each selection: what a
     newly added scenario looks like to pytest-split."""
@@ -40,9 +42,28 @@ def durations_missing_some(tmp_path_factory: pytest.TempPathFactory) -> tuple[Pa
     return path, [lockstep_id, realtime_id]
 
 
-@pytest.fixture(scope="module")
-def collected(durations_missing_some: tuple[Path, list[str]]) -> dict[object, shards.Collected]:
-    """Every collection the tests compare, side by side (each is a pytest start-up)."""
+@pytest.fixture(scope="session")
+def collected(
+    durations_missing_some: tuple[Path, list[str]], tmp_path_factory: pytest.TempPathFactory
+) -> dict[object, shards.Collected]:
+    """Every collection the tests compare (a dozen pytest start-ups), made once in a run: under
+    pytest-xdist the first worker to ask makes them and the others read its result (their
+    tests of this module land on both; xdist_group does not hold them together here)."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if run is None:
+        return _collect_all(durations_missing_some)
+    shared = tmp_path_factory.getbasetemp().parent  # every worker's base folder is in it
+    made = shared / f"scenario-shards-{run}.pickle"
+    with (shared / f"scenario-shards-{run}.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if made.exists():
+            return pickle.loads(made.read_bytes())
+        result = _collect_all(durations_missing_some)
+        made.write_bytes(pickle.dumps(result))
+        return result
+
+
+def _collect_all(durations_missing_some: tuple[Path, list[str]]) -> dict[object, shards.Collected]:
     without_some, _ = durations_missing_some
     jobs: dict[object, tuple[list[str], list[int] | None]] = {"suite": (shards.SCENARIOS, None)}
     for selection in shards.SELECTIONS:
