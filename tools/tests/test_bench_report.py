@@ -12,23 +12,10 @@ import os
 import sys
 import tracemalloc
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import pytest
-
-TOOLS = Path(__file__).resolve().parent.parent
-
-
-def load_tool(name: str) -> ModuleType:
-    path = TOOLS / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
+from tool_loader import TOOLS, load_tool
 
 sys.path.append(str(TOOLS))  # the tools are scripts on their own folder's path, as when run
 bench = importlib.import_module("bench")

@@ -33,12 +33,18 @@ def symbol_versions(program: Path) -> dict[str, str]:
     return versions
 
 
-@needs_compiler
-def test_a_needed_version_is_taken_out_and_the_program_still_runs(tmp_path: Path) -> None:
+def compiled(tmp_path: Path, main: str) -> Path:
+    """A program of `main`'s C source (with stdlib.h), built by this machine's compiler."""
     source = tmp_path / "exits.c"
-    source.write_text('#include <stdlib.h>\nint main(void) { return (int)strtol("7", 0, 10); }\n')
+    source.write_text(f"#include <stdlib.h>\n{main}\n")
     program = tmp_path / "exits"
     subprocess.run(["cc", "-O0", "-o", program, source], check=True)
+    return program
+
+
+@needs_compiler
+def test_a_needed_version_is_taken_out_and_the_program_still_runs(tmp_path: Path) -> None:
+    program = compiled(tmp_path, 'int main(void) { return (int)strtol("7", 0, 10); }')
     version = symbol_versions(program)["__libc_start_main"]
     assert version in glibc_needs(program)
     others = [s for s, v in symbol_versions(program).items() if v == version and s != "__libc_start_main"]
@@ -52,10 +58,7 @@ def test_a_needed_version_is_taken_out_and_the_program_still_runs(tmp_path: Path
 
 @needs_compiler
 def test_a_version_not_needed_or_a_symbol_left_behind_is_refused(tmp_path: Path) -> None:
-    source = tmp_path / "exits.c"
-    source.write_text("int main(void) { return 0; }\n")
-    program = tmp_path / "exits"
-    subprocess.run(["cc", "-O0", "-o", program, source], check=True)
+    program = compiled(tmp_path, "int main(void) { return 0; }")
     before = program.read_bytes()
     with pytest.raises(ValueError, match=r"needs no version GLIBC_9\.99"):
         drop_version.drop_version(program, "GLIBC_9.99", ["__libc_start_main"])
