@@ -88,6 +88,8 @@ def write_board_files(out_dir: Path) -> None:
 
 setup(
     packages=find_packages(include=["hilrig", "hilrig.*"]) + ([] if SELF_CONTAINED else ["dashboards"]),
+    # The new-board template (hilrig.apps.scaffold): files, not modules.
+    package_data={"hilrig.apps.scaffold": ["template/*", "template/*/*", "template/*/*/*"]},
     package_dir={"": "."} if SELF_CONTAINED else {"": ".", "dashboards": "../dashboards"},
     ext_modules=[
         Extension(

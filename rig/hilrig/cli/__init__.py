@@ -18,6 +18,7 @@
     hilrig bus-load --bitrate 500k            # will the PDO exchange fit a real bus?
     hilrig sim --out out/demo                 # firmware + physics in lockstep, a summary
     hilrig soak --cycles 1000000              # the long run: no cycle lost, memory flat
+    hilrig new-board fan                      # a new board's project: table, firmware, plant, scenario
 
 Every command takes `--help`; those on a bus take python-can's bus options (`-i`, `-c`, `-b`,
 `--fd`, `--data-bitrate`, `--bus-kwargs`), defaulting to python-can's configuration.
@@ -67,6 +68,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "busstat",
     "pdo",
     "soak",
+    "new_board",
     "completion",
 )
 """Modules of `hilrig.cli` whose COMMANDS are registered, in the order `--help` lists them."""
