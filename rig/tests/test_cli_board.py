@@ -178,3 +178,51 @@ def test_a_write_with_the_right_table_says_nothing_about_identity(
 def test_every_writing_command_has_force(command: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     assert main([*command, "--help"]) == EXIT_OK
     assert " ".join(common.FORCE_HELP.split()) in " ".join(capsys.readouterr().out.split())
+
+
+# --- Ctrl-C at start-up -------------------------------------------------------------------------
+INTERRUPT_DURING_IMPORTS = """
+import signal, sys
+
+class CtrlC:
+    def find_spec(self, name, path=None, target=None):
+        if name == "hilrig.cli.common":  # what the console script imports, half-way
+            signal.raise_signal(signal.SIGINT)
+        return None
+
+sys.meta_path.insert(0, CtrlC())
+from hilrig.cli import main
+sys.exit(main(["fields"]))
+"""
+
+
+def test_ctrl_c_while_the_command_is_still_importing_is_one_line_and_130(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-c", INTERRUPT_DURING_IMPORTS],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+        check=False,
+    )
+    assert (done.returncode, done.stdout, done.stderr) == (130, "", "hilrig: interrupted\n")
+
+
+def test_ctrl_c_while_the_parser_is_built_is_one_line_and_130(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import signal
+
+    import hilrig.cli
+
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler, "imported: Python's own again"
+
+    def interrupted(argv: object = None) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(hilrig.cli, "build_parser", interrupted)
+    assert main(["fields"]) == 130
+    assert capsys.readouterr().err == "hilrig: interrupted\n"
