@@ -5,6 +5,7 @@ slowly in the micro-VM, so each call checks as much as it can."""
 from __future__ import annotations
 
 import subprocess
+import zlib
 from pathlib import Path
 
 import can
@@ -14,6 +15,7 @@ from conftest import NODE_ID, REPO, NodeUnderTest, own_master, run_hilrig
 
 from boardproto import load_table
 from boardproto.cia301 import SYNC_COB_ID
+from boardproto.cia302 import ImageHeader
 from hilrig.cli import forked
 from hilrig.session.netns import PrivateBus
 
@@ -185,6 +187,67 @@ def test_watch_record_and_replay_decode(
     assert any("0x080  SYNC 1" in line for line in lines)
     assert any("TPDO1  motor_duty=" in line and "led_pattern=" in line for line in lines)
     assert any("TPDO2  motor_velocity=" in line and "rad/s" in line for line in lines)
+
+
+OTHER_PRODUCT = 0x4F544852
+
+
+def test_every_writing_command_refuses_a_node_that_is_not_the_tables(
+    private_bus: PrivateBus, node_under_test: NodeUnderTest, scenario_dir: Path
+) -> None:
+    """The joint's table with another product code (the same names and indices: only the
+    identity tells the boards apart): each writing command reads the node's 0x1018 first and
+    refuses, exit code 2, nothing written; with --force it writes."""
+    node = TABLE.node
+    line = f"product_code = 0x{node.product_code:08X}"
+    other = scenario_dir / "other-board.toml"
+    other.write_text(
+        (REPO / "protocol" / "board.toml").read_text().replace(line, f"product_code = 0x{OTHER_PRODUCT:08X}")
+    )
+    dcf = scenario_dir / "saved.dcf"
+    saved = hilrig(private_bus, "params", "save", str(dcf), *SDO_TIMEOUT)  # a read: no check
+    assert saved.returncode == 0, saved.stderr
+    image = scenario_dir / "other.img"
+    payload = bytes(range(256)) * 4
+    header = ImageHeader(
+        product_code=OTHER_PRODUCT,
+        software_version="9.9.9",
+        payload_length=len(payload),
+        payload_crc32=zlib.crc32(payload),
+    )
+    image.write_bytes(header.pack() + payload)  # the other table's image: only the node refuses it
+
+    kp = TABLE.field("velocity_kp")
+    # a field, the heartbeat time, the SYNC counter's period, TPDO2's transmission type (lean: 10)
+    watched = [(kp.index, 0), (0x1017, 0), (0x1019, 0), (0x1801, 2)]
+    with own_master(private_bus) as master:
+        master.sdo[kp.index].raw = 0.125
+        before = [master.sdo.upload(*address) for address in watched]
+    writes = [
+        ["set", "velocity_kp=0.25"],
+        ["sdo", "write", "0x1017", "77"],
+        ["pdo", "apply", "lean"],
+        ["params", "load", str(dcf)],
+        ["flash", str(image)],
+        ["capture", "motor_velocity", "-o", str(scenario_dir / "capture.csv")],
+    ]
+    identity = f"vendor 0x{node.vendor_id:08X} product 0x{node.product_code:08X}"
+    for command in writes:
+        refused = hilrig(private_bus, *command, "--table", str(other), *SDO_TIMEOUT)
+        assert refused.returncode == 2, (command, refused.stderr)
+        assert refused.stdout == "", command
+        error = refused.stderr.splitlines()[-1]
+        assert f"error: node 0x{NODE_ID:02X} is {identity}, not the table's " in error, error
+        assert f"product 0x{OTHER_PRODUCT:08X}" in error and "nothing written" in error, error
+    assert not (scenario_dir / "capture.csv").exists()
+    with own_master(private_bus) as master:
+        assert [master.sdo.upload(*address) for address in watched] == before, "nothing written"
+
+    forced = hilrig(private_bus, "set", "velocity_kp=0.25", "--table", str(other), "--force", *SDO_TIMEOUT)
+    assert forced.returncode == 0, forced.stderr
+    assert "writing anyway (--force)" in forced.stderr
+    with own_master(private_bus) as master:
+        assert master.sdo[kp.index].raw == pytest.approx(0.25)
 
 
 SHORT_SCENARIO = """

@@ -20,6 +20,11 @@ class RigError(Exception):
     """Base of every error the rig raises on purpose."""
 
 
+class ConfigurationError(RigError, ValueError):
+    """The project's configuration ($HIL_TABLE, a pytest.ini) names a file that is not there or
+    cannot be read (the message says where it is named)."""
+
+
 class BusUnavailableError(RigError, OSError):
     """The CAN bus (or a private namespace bus) cannot be opened or created."""
 
@@ -61,6 +66,21 @@ class SdoAbortError(RigError, RuntimeError):
 
 class NodeSilentError(RigError, TimeoutError):
     """The node sent no boot-up, heartbeat or SDO answer within the start-up bound."""
+
+
+class IdentityMismatchError(NodeSilentError):
+    """The node answering on the board's node id has another 0x1018 vendor id or product code than
+    the table: the board itself is not there (a NodeSilentError to those who wait for it).
+    ``actual`` and ``expected`` are (vendor id, product code); ``table`` is the table's file."""
+
+    def __init__(
+        self, message: str, *, node_id: int, actual: tuple[int, int], expected: tuple[int, int], table: str
+    ) -> None:
+        super().__init__(message)
+        self.node_id = node_id
+        self.actual = actual
+        self.expected = expected
+        self.table = table
 
 
 class SdoTimeoutError(RigError, TimeoutError):

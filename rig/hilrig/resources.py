@@ -10,15 +10,22 @@ firmware. Every default path of hilrig comes from here; three cases:
   (build/bin/head-firmware), the second board, found the same way;
 - another table (`--table FILE`, in either case): its EDS and DBC generated on first use with
   boardproto's generators into a cache directory, by content ($XDG_CACHE_HOME/hilrig/tables/).
+
+Which table a command uses when none is given is the project's (`chosen_table`, in the order of
+TABLE_ORDER).
 """
 
 from __future__ import annotations
 
+import configparser
 import hashlib
 import os
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+
+from hilrig.errors import ConfigurationError
 
 _PACKAGE = Path(__file__).resolve().parent
 
@@ -76,6 +83,79 @@ class BoardFiles:
     table: Path
     eds: Path
     dbc: Path
+
+
+TABLE_ENV = "HIL_TABLE"
+"""The environment variable that names the table of every command that is given none."""
+TABLE_INI_OPTION = "hil_table"
+"""The pytest.ini option (section [pytest]) that names the project's table, relative to the file;
+hilrig's pytest plugin reads the same one."""
+PROJECT_INI = "pytest.ini"
+PROJECT_TABLE = "board.toml"
+
+TABLE_ORDER = (
+    f"${TABLE_ENV}, else {TABLE_INI_OPTION} of a {PROJECT_INI} in the working folder "
+    f"(relative to that file), else a {PROJECT_TABLE} in the working folder, else hilrig's demo board "
+    "(the joint's)"
+)
+"""Where a command's table comes from when it is given no --table, first found wins
+(`chosen_table`): what `--help` says."""
+
+
+@dataclass(frozen=True)
+class TableChoice:
+    """The table a command uses and why: `source` is '--table', '$HIL_TABLE', 'hil_table of
+    pytest.ini in this folder', 'board.toml in this folder' or 'the default'."""
+
+    path: Path
+    source: str
+
+    @property
+    def is_default(self) -> bool:
+        return is_default_table(self.path)
+
+
+def chosen_table(
+    given: Path | None = None, *, cwd: Path | None = None, environ: Mapping[str, str] | None = None
+) -> TableChoice:
+    """The table of a command: `given` (its --table), else the first of TABLE_ORDER. A name that
+    points at no file is a ConfigurationError saying where it was named; a table that is there
+    but wrong is the loader's TableError later, as for --table."""
+    folder = Path.cwd() if cwd is None else cwd
+    environ = os.environ if environ is None else environ
+    if given is not None:
+        return TableChoice(given, "--table")
+    named = environ.get(TABLE_ENV, "").strip()
+    if named:
+        return TableChoice(_existing(folder / named, f"${TABLE_ENV}"), f"${TABLE_ENV}")
+    ini = folder / PROJECT_INI
+    from_ini = _ini_table(ini) if ini.is_file() else None
+    if from_ini is not None:
+        where = f"{TABLE_INI_OPTION} of {PROJECT_INI} in this folder"
+        return TableChoice(_existing(folder / from_ini, where), where)
+    project = folder / PROJECT_TABLE
+    if project.is_file():
+        return TableChoice(project, f"{PROJECT_TABLE} in this folder")
+    return TableChoice(DEFAULT_TABLE, "the default")
+
+
+def _ini_table(ini: Path) -> str | None:
+    """The hil_table value of a pytest.ini's [pytest] section, as pytest reads it; None: not set."""
+    parser = configparser.ConfigParser(interpolation=None)
+    try:
+        parser.read(ini, encoding="utf-8")
+    except (configparser.Error, UnicodeDecodeError) as error:
+        raise ConfigurationError(
+            f"{ini} is not an ini file hilrig can read ({error}); fix it or give --table"
+        ) from None
+    value = parser.get("pytest", TABLE_INI_OPTION, fallback="").strip()
+    return value or None
+
+
+def _existing(path: Path, where: str) -> Path:
+    if not path.is_file():
+        raise ConfigurationError(f"{where} names {path}, which is no file; fix it or give --table")
+    return path
 
 
 def board_files(table: Path | None = None) -> BoardFiles:

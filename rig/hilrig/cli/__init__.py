@@ -28,15 +28,32 @@ Adding a command: write `hilrig/cli/<module>.py` with `COMMANDS = (Command(...),
 the module's name to `COMMAND_MODULES`.
 """
 
+# ruff: noqa: E402 (the imports after the first two run under the start-up SIGINT handler)
 from __future__ import annotations
+
+import signal
+import sys
+
+
+def _interrupted_at_start(signum: int, frame: object) -> None:
+    """Ctrl-C while the command's libraries are still imported: one line and 130, no traceback
+    (nothing has been opened or written yet). Python's own handler is back once they are."""
+    sys.stderr.write("hilrig: interrupted\n")
+    raise SystemExit(130)
+
+
+try:
+    _PREVIOUS_SIGINT = signal.signal(signal.SIGINT, _interrupted_at_start)
+    _AT_START = True
+except ValueError:  # imported from another thread than the main one: leave SIGINT alone
+    _AT_START = False
 
 import argparse
 import importlib
 import importlib.metadata
 import logging
 import os
-import signal
-import sys
+import textwrap
 import traceback
 from collections.abc import Sequence
 from types import FrameType
@@ -44,8 +61,11 @@ from typing import NoReturn
 
 from boardproto import TableError
 from hilrig import resources
-from hilrig.cli.common import Command, UsageError, add_verbose_option, one_line
+from hilrig.cli.common import Command, UsageError, add_verbose_option, choose_table, one_line
 from hilrig.errors import LogFormatError, RigError
+
+if _AT_START:  # imported: a program that imports hilrig.cli keeps its own handler
+    signal.signal(signal.SIGINT, _PREVIOUS_SIGINT or signal.default_int_handler)
 
 COMMAND_MODULES: tuple[str, ...] = (
     "fields",
@@ -88,8 +108,17 @@ exit codes (every error is one line on stderr; a traceback is a bug in hilrig):
        value, name or index), or something it needs is missing or unusable: a file that does
        not exist or whose format is not read, the table, EDS or DBC, python-can's
        configuration, an interface this machine cannot use or whose package is not
-       installed (the line says what to install); fix that, then run it again
-  130  interrupted (Ctrl-C, SIGTERM); files written so far are whole"""
+       installed (the line says what to install); fix that, then run it again.
+       Also: the node is not the table's board (a command that writes reads its 0x1018
+       vendor id and product code first, and they differ), nothing written; --force writes
+  130  interrupted (Ctrl-C, SIGTERM), at any moment, start-up included; files written so far
+       are whole"""
+
+TABLE_CHOICE = textwrap.fill(
+    "the table (its fields, EDS and DBC, and the identity a write is checked against): --table, "
+    f"else {resources.TABLE_ORDER}; a table other than the default is named in a line on stderr",
+    width=95,
+)
 
 
 def version() -> str:
@@ -144,7 +173,10 @@ def build_parser(argv: Sequence[str] | None = None) -> Parser:
     parser = Parser(
         prog="hilrig",
         description=__doc__.split("\n\n")[0],
-        epilog="`hilrig COMMAND --help` describes each command, with examples.\n\n" + EXIT_CODES,
+        epilog="`hilrig COMMAND --help` describes each command, with examples.\n\n"
+        + EXIT_CODES
+        + "\n\n"
+        + TABLE_CHOICE,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_verbose_option(parser)
@@ -186,11 +218,14 @@ def _terminate(signum: int, frame: FrameType | None) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; returns the exit code (the console script exits with it)."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(argv)
     try:
+        parser = build_parser(argv)  # imports the command modules
         args = parser.parse_args(argv)
     except SystemExit as exit_:  # --help (0) or a bad command line (2)
         return exit_.code if isinstance(exit_.code, int) else EXIT_USAGE
+    except KeyboardInterrupt:
+        print("hilrig: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     prog: str = args.parser.prog
     _configure_logging(args.verbose)
     previous = signal.getsignal(signal.SIGTERM)
@@ -199,6 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError:  # not the main thread: leave SIGTERM alone
         previous = None
     try:
+        choose_table(args)
         return int(args.run(args))
     except (UsageError, TableError, LogFormatError) as error:  # a bad --table or FILE is a bad argument
         return _report(prog, error, EXIT_USAGE, verbose=args.verbose)

@@ -131,7 +131,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="send NMT start first (a node with no master stays pre-operational: no SYNC is served)",
     )
-    add_node_options(parser)
+    add_node_options(parser, writes=True)
 
 
 def parse_bits(text: str | None, bitset: BitSet | None, field: str | None) -> int:
@@ -211,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
     table = load_table(args)
     settings = settings_from(args, table)
     period_s = args.period_us * 1e-6
-    with open_bus(args) as bus, board_node(args, bus, table) as node:
+    with open_bus(args) as bus, board_node(args, bus, table, writes=True) as node:
         # The board's TPDOs (7 a cycle at 1 kHz by default) are nothing to this command: on a
         # slow host they would queue ahead of the SDO answers it polls the recorder with.
         node.receive_only_answers()
@@ -262,6 +262,8 @@ COMMANDS = (
         "  hilrig capture motor_current fault_flags --trigger flag --trigger-field fault_flags \\\n"
         "      --bits command_watchdog --pre 50\n"
         "  hilrig capture motor_velocity --nmt-start --sync-period-ms 1   # a board with no master\n\n"
+        "The recorder's settings are written to the board over SDO: a board that is not the\n"
+        "table's (0x1018 vendor id and product code) is refused first (--force: not).\n"
         "Ctrl-C while waiting disarms the recorder and writes nothing. The CSV has a row per\n"
         "sample: the board's cycle number, cycle * --period-us in seconds, one column per field\n"
         "headed 'name [unit]'.",

@@ -24,9 +24,17 @@ from boardproto.cia301 import MAX_NODE_ID, MIN_NODE_ID, is_node_id
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
 from hilrig.cli.files import ArgKind, existing_file, kind, sniff_eds, sniff_toml
-from hilrig.errors import BusUnavailableError, FieldNameError, RigError, one_line
+from hilrig.errors import (
+    BusUnavailableError,
+    ConfigurationError,
+    FieldNameError,
+    IdentityMismatchError,
+    RigError,
+    SdoAbortError,
+    one_line,
+)
 from hilrig.resources import DBC_HINT, EDS_HINT
-from hilrig.table import DEFAULT_TABLE_PATH, ObjectEntry, RigTable
+from hilrig.table import ObjectEntry, RigTable
 
 if TYPE_CHECKING:
     import can
@@ -264,17 +272,45 @@ LIVE_VIEWER_HELP = (
 )
 
 
+TABLE_HELP = (
+    f"the board field table; not given: {resources.TABLE_ORDER}; the EDS and DBC of another table "
+    "are generated for it"
+)
+
+
 def add_table_option(parser: argparse.ArgumentParser) -> None:
+    """--table; not given, `choose_table` picks the project's (resources.TABLE_ORDER)."""
     parser.add_argument(
         "--table",
         type=existing_file(
             "board table", "pass --table PATH/board.toml", suffixes=(".toml",), sniff=sniff_toml
         ),
-        default=DEFAULT_TABLE_PATH,
+        default=None,
         metavar="TOML",
-        help="the board field table (default: protocol/board.toml of this checkout, or the installed "
-        "hilrig's copy); the EDS and DBC of another table are generated for it",
+        help=TABLE_HELP,
     )
+
+
+def choose_table(args: argparse.Namespace) -> None:
+    """args.table, for a command that has the option: the table of resources.TABLE_ORDER. When
+    it is not the default, one line on stderr says which and why."""
+    if not hasattr(args, "table"):
+        return
+    try:
+        choice = resources.chosen_table(args.table)
+    except ConfigurationError as error:
+        raise UsageError(str(error)) from None
+    args.table = choice.path
+    if not choice.is_default:
+        progress(f"hilrig: table {shown_path(choice.path)} ({choice.source})")
+
+
+def shown_path(path: Path) -> str:
+    """A path as a person would type it here: './board.toml' below the working folder, else as is."""
+    try:
+        return f"./{path.resolve().relative_to(Path.cwd().resolve())}"
+    except (ValueError, OSError):
+        return str(path)
 
 
 def add_verbose_option(parser: argparse.ArgumentParser) -> None:
@@ -350,7 +386,17 @@ def add_bus_options(parser: argparse.ArgumentParser, *, filters: bool = False) -
         )
 
 
-def add_node_options(parser: argparse.ArgumentParser, *, sdo_timeout_s: float = 1.0) -> None:
+FORCE_HELP = (
+    "write even to a node whose 0x1018 vendor id and product code are not the table's; without it "
+    "they are compared before anything is written and a mismatch is refused, exit code 2"
+)
+
+
+def add_node_options(
+    parser: argparse.ArgumentParser, *, sdo_timeout_s: float = 1.0, writes: bool = False
+) -> None:
+    """The bus, the node and the table; a command that `writes` to the node also gets --force
+    (`board_node(..., writes=True)` checks the node's identity)."""
     add_bus_options(parser)
     group = parser.add_argument_group("node")
     group.add_argument(
@@ -373,12 +419,15 @@ def add_node_options(parser: argparse.ArgumentParser, *, sdo_timeout_s: float = 
         metavar="S",
         help=f"seconds to wait for each SDO answer (default: {sdo_timeout_s:g})",
     )
+    if writes:
+        group.add_argument("--force", action="store_true", help=FORCE_HELP)
     add_table_option(parser)
 
 
 # --- Table and values ------------------------------------------------------------------
 def load_table(args: argparse.Namespace) -> RigTable:
-    return RigTable.load(args.table)
+    """The table `choose_table` chose (the default one when no command line chose)."""
+    return RigTable.load(args.table) if args.table is not None else RigTable.load()
 
 
 def check_names(table: RigTable, names: list[str]) -> list[ObjectEntry]:
@@ -435,8 +484,12 @@ def progress(message: str) -> None:
 
 # --- Bus and node ----------------------------------------------------------------------
 def describe_bus(args: argparse.Namespace) -> str:
-    """'socketcan channel vcan0': the bus `open_bus` opened (or would open)."""
-    return f"{args.interface} channel {args.channel}"
+    """'socketcan channel vcan0': the bus `open_bus` opened; before it is open, what the command
+    line names, or "python-can's default configuration"."""
+    if args.interface is None:
+        channel = f" channel {args.channel}" if args.channel is not None else ""
+        return f"python-can's default configuration{channel}"
+    return f"{args.interface} channel {args.channel}" if args.channel is not None else args.interface
 
 
 def bus_config(args: argparse.Namespace) -> dict[str, Any]:
@@ -630,16 +683,49 @@ def load_dbc(path: Path) -> cantools.database.can.Database:
 
 
 @contextlib.contextmanager
-def board_node(args: argparse.Namespace, bus: can.BusABC, table: RigTable) -> Iterator[BoardNode]:
+def board_node(
+    args: argparse.Namespace, bus: can.BusABC, table: RigTable, *, writes: bool = False
+) -> Iterator[BoardNode]:
+    """The node of the node options; one the command `writes` to has passed `check_board`."""
     from hilrig.wire.node import BoardNode
 
     node_id = resolved_node_id(args, table)
     od = load_eds(eds_path(args), node_id)
     node = BoardNode(bus, node_id, od, table, sdo_timeout_s=args.sdo_timeout)
     try:
+        if writes:
+            check_board(node, args)
         yield node
     finally:
         node.close()
+
+
+class WrongBoardError(UsageError):
+    """The node is not the table's board (0x1018 differs, or cannot be read): nothing written."""
+
+
+def check_board(node: BoardNode, args: argparse.Namespace) -> None:
+    """Before a command writes to `node`: its 0x1018 vendor id and product code against the
+    table's (`BoardNode.check_identity`). A mismatch, or an identity the node will not tell, is
+    WrongBoardError (exit code 2) before anything is written; with --force a warning line, and
+    the command goes on. A node that does not answer fails as any SDO timeout does."""
+    from hilrig.wire.node import identity_text
+
+    table = shown_path(Path(node.table.board.source))
+    expected = identity_text(node.table.board.node.vendor_id, node.table.board.node.product_code)
+    try:
+        node.check_identity()
+        return
+    except IdentityMismatchError as error:
+        problem = f"node 0x{node.node_id:02X} is {identity_text(*error.actual)}, not the table's {expected}"
+    except SdoAbortError as error:
+        problem = f"node 0x{node.node_id:02X} does not tell its identity ({error}), the table's is {expected}"
+    if getattr(args, "force", False):
+        progress(f"hilrig: warning: {problem} ({table}); writing anyway (--force)")
+        return
+    raise WrongBoardError(
+        f"{problem} ({table}): nothing written; give that board's --table, or --force to write anyway"
+    )
 
 
 def silent_hint(node_id: int) -> str:

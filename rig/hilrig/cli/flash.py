@@ -1,7 +1,8 @@
 """`hilrig flash FILE.img`: program download (CiA 302-3) of a firmware image into a board.
 
 The image is checked here first (its header: a firmware image, for this table's product code,
-its payload whole); a wrong one is refused with one line before anything is sent. Then the
+its payload whole); a wrong one is refused with one line before anything is sent. So is a board
+that is not the table's (its 0x1018 vendor id and product code; --force: flashed anyway). Then the
 board's program is stopped (0x1F51), its staged image cleared, the image sent into 0x1F50 by
 SDO block transfer (progress on stderr), and started: the board restarts from it and sends its
 boot-up. The new 0x100A version and 0x1F56 software id are printed. The board checks the image
@@ -60,7 +61,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="seconds to wait for the boot-up of the new image (default: 30)",
     )
-    add_node_options(parser, sdo_timeout_s=5.0)
+    add_node_options(parser, sdo_timeout_s=5.0, writes=True)
 
 
 def checked_image(path: Path, product_code: int) -> tuple[ImageHeader, bytes]:
@@ -85,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     def report(sent: int, total: int) -> None:
         progress(f"flash: {sent}/{total} bytes ({100 * sent // total} %)")
 
-    with open_bus(args) as bus, board_node(args, bus, table) as node:
+    with open_bus(args) as bus, board_node(args, bus, table, writes=True) as node:
         # Every segment sent is also on canopen's bus: without this, the boot-up of the new image
         # would queue behind all of them in its receive thread.
         node.receive_only_answers()

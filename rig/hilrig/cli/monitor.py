@@ -116,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         screen.draw(title, rows(seen, time.time()), headers=COLUMNS)
 
     with open_bus(args) as bus:
+        where = describe_bus(args)  # now what python-can's configuration resolved to
         progress(f"monitor: listening on {where} (Ctrl-C ends)")
         next_draw = started + REDRAW_S
         try:

@@ -5,7 +5,8 @@ PDOs included, and the board fields the table marks `stored`) over SDO and write
 their values, as a DCF (the board's EDS with a ParameterValue each; COB-IDs that follow the node
 id stay written relative to it). `load` writes a DCF's values to a board (PDOs in CiA 301's
 order; the board must be pre-operational), stores them with 0x1010 (--no-store: not), and reads
-every one back. A DCF of another product is refused before anything is written.
+every one back. A DCF of another product, or a board that is not the table's (0x1018 vendor id
+and product code; --force: written anyway), is refused before anything is written.
 """
 
 from __future__ import annotations
@@ -46,8 +47,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="the DCF to read",
     )
     load.add_argument("--no-store", action="store_true", help="write and verify, but do not store (0x1010)")
-    for sub in (save, load):
-        add_node_options(sub, sdo_timeout_s=1.0)
+    add_node_options(save, sdo_timeout_s=1.0)
+    add_node_options(load, sdo_timeout_s=1.0, writes=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
             dcf = read_dcf(args.file, node_id)
         except DcfError as error:
             raise UsageError(str(error)) from None
-    with open_bus(args) as bus, board_node(args, bus, table) as node:
+    with open_bus(args) as bus, board_node(args, bus, table, writes=args.action == "load") as node:
         if args.action == "save":
             count = len(stored_objects(node.remote.object_dictionary, table))
             on = f"node 0x{node_id:02X} on {describe_bus(args)}"

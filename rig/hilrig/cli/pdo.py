@@ -20,7 +20,7 @@ from hilrig.errors import NodeSilentError, SdoTimeoutError
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("action", choices=["apply"], help="apply: write the profile and store it")
     parser.add_argument("profile", metavar="PROFILE", help="a [[pdo_profile]] of the table: full, lean...")
-    add_node_options(parser)
+    add_node_options(parser, writes=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
         profile = table.board.pdo_profile(args.profile)
     except UnknownNameError as error:
         raise UsageError(str(error)) from None
-    with open_bus(args) as bus, board_node(args, bus, table) as node:
+    with open_bus(args) as bus, board_node(args, bus, table, writes=True) as node:
         progress(f"pdo: node 0x{node.node_id:02X} to pre-operational, writing PDO profile {profile.name}")
         try:
             apply_pdo_profile(node, profile)
@@ -59,7 +59,8 @@ COMMANDS = (
         "The node is put pre-operational (remapping is refused in operational) and left there;\n"
         "each PDO is written in CiA 301's order, then 0x1019 (the SYNC counter the profile's\n"
         "start values count on) and 'store communication parameters' (0x1010:02).\n"
-        "`hilrig bus-load --profile NAME` says what a profile puts on the bus.\n\n"
+        "`hilrig bus-load --profile NAME` says what a profile puts on the bus. A board that is\n"
+        "not the table's (0x1018 vendor id and product code) is refused first (--force: not).\n\n"
         "  hilrig pdo apply lean -c can0      # fits 1 Mbit/s at 1 kHz\n"
         "  hilrig pdo apply full -c can0      # back to everything every SYNC",
         configure=configure,

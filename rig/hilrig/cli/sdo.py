@@ -90,7 +90,7 @@ def configure_set(parser: argparse.ArgumentParser) -> None:
         metavar="NAME=VALUE",
         help="e.g. velocity_kp=0.2; applied in order, stops at the first refusal",
     )
-    add_node_options(parser)
+    add_node_options(parser, writes=True)
 
 
 def run_get(args: argparse.Namespace) -> int:
@@ -127,7 +127,7 @@ def run_set(args: argparse.Namespace) -> int:
             "`hilrig fields --kind parameter` lists what can be set"
         )
     assignments = [parse_assignment(text, entry_of, table) for text in args.assignments]
-    with open_bus(args) as bus, board_node(args, bus, table) as node:
+    with open_bus(args) as bus, board_node(args, bus, table, writes=True) as node:
         for number, (name, value) in enumerate(assignments):
             try:
                 node.write(name, value)
@@ -164,7 +164,9 @@ COMMANDS = (
         help="write fields over SDO; refusals explained in words",
         description="Write board fields over SDO, in the order given, each read back and printed.\n"
         "The node judges the value: a refusal prints its SDO abort code in words\n"
-        "(e.g. '0x06090031 value too high (max 10.0)') and stops there, exit code 1.\n\n"
+        "(e.g. '0x06090031 value too high (max 10.0)') and stops there, exit code 1.\n"
+        "First the node's 0x1018 identity is compared with the table's: another board is\n"
+        "refused, nothing written, exit code 2 (--force writes anyway).\n\n"
         "  hilrig set control_mode=1 velocity_setpoint=2.5\n"
         "  hilrig set velocity_kp=0.2 velocity_ki=1.0",
         configure=configure_set,

@@ -24,6 +24,7 @@ from hilrig.cli.common import (
     UsageError,
     add_node_options,
     add_verbose_option,
+    check_board,
     load_eds,
     load_table,
     open_bus,
@@ -250,12 +251,19 @@ def _unknown_type(info: ObjectInfo, eds: Path | None) -> str:
 
 @contextlib.contextmanager
 def _node(
-    args: argparse.Namespace, bus: can.BusABC, table: RigTable, od: canopen.ObjectDictionary | None
+    args: argparse.Namespace,
+    bus: can.BusABC,
+    table: RigTable,
+    od: canopen.ObjectDictionary | None,
+    *,
+    writes: bool = False,
 ) -> Iterator[BoardNode]:
     from hilrig.wire.node import BoardNode
 
     node = BoardNode(bus, resolved_node_id(args, table), od, table, sdo_timeout_s=args.sdo_timeout)
     try:
+        if writes:
+            check_board(node, args)
         yield node
     finally:
         node.close()
@@ -311,7 +319,7 @@ def run_write(args: argparse.Namespace) -> int:
     if kind is None:
         raise UsageError(f"{_unknown_type(info, eds)}: give --type ({', '.join(VALUE_TYPES)})")
     data = kind.encode(args.value, info.label)
-    with open_bus(args) as bus, _node(args, bus, table, od) as node:
+    with open_bus(args) as bus, _node(args, bus, table, od, writes=True) as node:
         try:
             node.download(info.index, info.subindex, data, f"write {info.label}")
         except SdoTimeoutError as error:
@@ -363,14 +371,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "  hilrig sdo write 0x1017 100                     # heartbeat every 100 ms\n"
         "  hilrig sdo write 0x2500 0.2                     # a board field, f32 from the table\n"
         "  hilrig sdo write 0x1010:1 -t u32 0x65766173     # 'save' (store parameters)\n"
-        "  hilrig sdo write 0x3000 -t bytes '01 02'        # raw bytes, hex",
+        "  hilrig sdo write 0x3000 -t bytes '01 02'        # raw bytes, hex\n\n"
+        "First the node's 0x1018 identity is compared with the table's: another device is\n"
+        "refused, nothing written, exit code 2 (--force writes anyway: a foreign device).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     _add_object_arguments(write)
     write.add_argument(
         "value", metavar="VALUE", help="the value: a number (decimal or 0x hex), text, or hex bytes"
     )
-    add_node_options(write)
+    add_node_options(write, writes=True)
     add_verbose_option(write)
     write.set_defaults(parser=write)
 

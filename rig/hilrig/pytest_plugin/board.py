@@ -35,7 +35,7 @@ from hilrig.session.builder import PlantFactory
 from hilrig.table import RigTable
 
 INI_OPTIONS: tuple[tuple[str, str], ...] = (
-    ("hil_table", "the board's table (board.toml format); default: hilrig's demo board"),
+    (resources.TABLE_INI_OPTION, "the board's table (board.toml format); default: hilrig's demo board"),
     ("hil_eds", "the board's EDS; default: generated from hil_table (or the demo board's)"),
     ("hil_firmware", "the board's firmware executable; default: hilrig's demo firmware"),
     ("hil_firmware_args", "more arguments for the firmware's command line (shell words)"),
@@ -93,7 +93,7 @@ def _ini_path(config: pytest.Config, name: str) -> Path | None:
 
 def board_from_config(config: pytest.Config) -> HilBoard:
     """The board the ini options describe (see the module docstring)."""
-    table_path = _ini_path(config, "hil_table")
+    table_path = _ini_path(config, resources.TABLE_INI_OPTION)
     try:
         files = resources.board_files(table_path)
         table = RigTable.load(files.table) if table_path is not None else RigTable.load()

@@ -42,7 +42,7 @@ from boardproto.cia301 import (
     sdo_response_cob_id,
     split_emcy,
 )
-from hilrig.errors import NodeSilentError, SdoAbortError, SdoTimeoutError
+from hilrig.errors import IdentityMismatchError, NodeSilentError, SdoAbortError, SdoTimeoutError
 from hilrig.table import EmcyCode, ObjectEntry, RigTable
 from hilrig.wire.transport import (
     FrameLink,
@@ -62,6 +62,11 @@ RECEIVE_POLL_S = 0.05
 """How often canopen's receive thread wakes up without traffic (bounds the time close() takes)."""
 LIVENESS_POLL_S = 0.25
 """How often a wait for the boot-up asks whether the node's process still runs."""
+
+
+def identity_text(vendor_id: int, product_code: int) -> str:
+    """'vendor 0x48494C00 product 0x4A4E5431': a node's or a table's 0x1018 identity."""
+    return f"vendor 0x{vendor_id:08X} product 0x{product_code:08X}"
 
 
 class SocketSdoClient(SdoClient):
@@ -413,18 +418,23 @@ class BoardNode:
             )
 
     def check_identity(self) -> None:
-        """Read 0x1018 vendor id and product code and compare them with board.toml."""
-        expected = self.table.board.node
-        for subindex, name, value in (
-            (1, "vendor id", expected.vendor_id),
-            (2, "product code", expected.product_code),
-        ):
-            actual = int.from_bytes(self._upload(0x1018, subindex, f"read 0x1018 sub {subindex}"), "little")
-            if actual != value:
-                raise NodeSilentError(
-                    f"node 0x{self.node_id:02X}: {name} 0x{actual:08X}, expected 0x{value:08X} "
-                    f"from {self.table.board.source}: another device answers on this node id"
-                )
+        """Read 0x1018 vendor id and product code and compare them with board.toml: a node of
+        another product is IdentityMismatchError naming both identities."""
+        board = self.table.board
+        expected = (board.node.vendor_id, board.node.product_code)
+        vendor, product = (
+            int.from_bytes(self._upload(0x1018, subindex, f"read 0x1018 sub {subindex}"), "little")
+            for subindex in (1, 2)
+        )
+        if (vendor, product) != expected:
+            raise IdentityMismatchError(
+                f"node 0x{self.node_id:02X}: {identity_text(vendor, product)}, expected "
+                f"{identity_text(*expected)} from {board.source}: another device answers on this node id",
+                node_id=self.node_id,
+                actual=(vendor, product),
+                expected=expected,
+                table=str(board.source),
+            )
 
     # --- EMCY ---------------------------------------------------------------------------
     def on_emcy(self, callback: Callable[[EmcyError], None]) -> None:
