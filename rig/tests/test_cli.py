@@ -380,6 +380,9 @@ def test_record_works_out_the_nmt_target_before_it_counts_frames(
     # before the NMT command went out (a scenario's recording of 60 heartbeats, no NMT).
     from hilrig.cli import record
 
+    # The order is the point (table, then bus); the node's own heartbeats would race the NMT
+    # command for the log's first place on a busy host.
+    fake.local.nmt.stop_heartbeat()
     order: list[str] = []
     real_load_table, real_open_bus = record.load_table, record.open_bus
 
