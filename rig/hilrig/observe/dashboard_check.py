@@ -61,6 +61,27 @@ def missing_series(blueprint: rrb.Blueprint, trace: Trace, *, name: str = "") ->
     return gaps
 
 
+def unshown_series(blueprint: rrb.Blueprint, trace: Trace) -> list[str]:
+    """The entities with data in the trace that no view of the blueprint shows (by name, or under
+    its origin or a query): what a dashboard that draws every series leaves out."""
+    named: set[str] = set()
+    subtrees: list[str] = []
+    for view in views(blueprint):
+        contents = view.contents if isinstance(view.contents, list) else [str(view.contents)]
+        for content in contents:
+            if content == ORIGIN_SUBTREE:
+                subtrees.append(str(view.origin))
+            elif content.startswith("+ "):
+                subtrees.append(content[2:].removesuffix("/**"))
+            else:
+                named.add(content)
+    return sorted(
+        entity
+        for entity, rows in trace.rows.items()
+        if rows and entity not in named and not any(_under(subtree, {entity}) for subtree in subtrees)
+    )
+
+
 def robot_node_ids(trace: Trace) -> tuple[int, ...]:
     """The modules of a robot's trace (entities under /modules/<id>), () for one board's."""
     ids = {int(parts[2]) for entity in trace.rows if (parts := entity.split("/"))[1:2] == ["modules"]}
@@ -131,5 +152,6 @@ __all__ = [
     "trace_blueprint",
     "trace_gaps",
     "trace_table",
+    "unshown_series",
     "views",
 ]
