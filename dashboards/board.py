@@ -11,9 +11,11 @@ truth beside the firmware's belief. Then the raw HIL I/O per unit, the fields wi
 (modes, fault flags) with their names as they change, the event log (NMT, EMCY, SDO, bus,
 injected faults) and the bus (load, each TPDO's delay, problems, frames per cycle).
 
-Which fields: every one a PDO of the table carries (a field the trace should have every cycle),
-and every other one `present` names (a parameter written over SDO, a field polled). So a trace
-has every series drawn, and a PDO's field the run never got is a gap `hilrig view --check` says.
+Which fields: before a run, every one a PDO of the table carries. For a trace (`present` given),
+every one a TPDO carries (what the node sends every cycle it is due) and every other one the
+trace holds (a command the rig sent, a parameter written over SDO, a field polled): a command
+the scenario never sent is not expected. So a trace has every series drawn, and a TPDO's field
+the run never got is a gap `hilrig view --check` says.
 Paths come from `hilrig.observe.paths`, like every dashboard's.
 """
 
@@ -54,9 +56,10 @@ ROLES: tuple[tuple[str, tuple[Kind, ...]], ...] = (
 PER_CYCLE_ROOT = f"{BUS_ROOT}/per_cycle"
 
 
-def pdo_carried(table: EntryTable) -> set[str]:
-    """The names of every field and HIL I/O object an enabled PDO of the table maps."""
-    return {entry.name for pdo in table.board.pdos if pdo.enabled for entry in pdo.entries}
+def pdo_carried(table: EntryTable, *, tpdos_only: bool = False) -> set[str]:
+    """The names of every field and HIL I/O object an enabled PDO (or TPDO) of the table maps."""
+    pdos = table.board.tpdos if tpdos_only else table.board.pdos
+    return {entry.name for pdo in pdos if pdo.enabled for entry in pdo.entries}
 
 
 def truth_of(present: Iterable[str]) -> list[str]:
@@ -78,14 +81,16 @@ def _titled(unit: str, groups: Sequence[tuple[str, Sequence[str]]]) -> str:
     return f"[{unit}] {said}"
 
 
-def board(table: EntryTable, truth: Iterable[str] = (), present: Iterable[str] = ()) -> rrb.Blueprint:
+def board(
+    table: EntryTable, truth: Iterable[str] = (), present: Iterable[str] | None = None
+) -> rrb.Blueprint:
     """The generated dashboard of `table`'s board (see the module docstring). truth: the plant's
     truth quantities (`Plant.truth_fields` and its `truth_parameters`' names); present: entity
-    paths a trace has data at (its truth among them)."""
-    present = list(present)
+    paths a trace has data at (its truth among them), None before a run."""
+    carried = pdo_carried(table, tpdos_only=present is not None)
+    present = list(present or ())
     with_data = set(present)
     paths = entity_paths(table)
-    carried = pdo_carried(table)
     shown = [e for e in table.board.entries if e.name in carried or paths[e.name] in with_data]
     named = [e for e in shown if e.name in table.board.named_values]
     quantities = list(dict.fromkeys([*truth, *truth_of(present)]))

@@ -146,7 +146,7 @@ def test_the_dashboard_generated_from_the_heads_table_draws_every_series_of_its_
     from hilrig.observe.reader import Trace
 
     s = make_scenario()
-    s.rig.set("led_green", 0.5)
+    s.rig.set("led_green", 0.5)  # one command sent, the others never: not expected
     s.rig.run(seconds=0.05)
     assert s.rig.tracer is not None and s.trace is not None
     s.rig.tracer.close()

@@ -140,16 +140,22 @@ def test_the_generated_dashboard_draws_every_series_of_a_lamp_trace_and_names_no
     assert "/truth/brightness" in trace.rows and "/fields/commands/light_setpoint" in trace.rows
 
 
-def test_view_check_passes_on_a_lamp_trace_and_names_a_command_never_sent(
+def test_a_command_never_sent_is_a_gap_only_of_the_layout_made_before_the_run(
     lamp: tuple[Rig, Tracer, Path], capsys: pytest.CaptureFixture[str]
 ) -> None:
     from hilrig.cli import main
+    from hilrig.observe.blueprints import load_blueprint
+    from hilrig.observe.dashboard_check import trace_gaps
+    from hilrig.observe.reader import Trace
 
     trace = _lamp_run(lamp, setpoint=False)
-    assert main(["view", str(trace), "--check"]) == 1
-    out = capsys.readouterr().out.splitlines()
-    assert len(out) == 1 and out[0].endswith("/fields/commands/light_setpoint has no data"), out
-    assert out[0].startswith("board / [1] commanded light_setpoint; firmware light_level; true brightness")
+    before = load_blueprint("board", lamp[0].table, truth=lamp[0].plant.truth_fields)
+    (gap,) = trace_gaps(Trace.read(trace), {"board": before})
+    assert gap.startswith("board / [1] commanded light_setpoint; firmware light_level; true brightness")
+    assert gap.endswith("/fields/commands/light_setpoint has no data")
+    # From the trace: the scenario never commanded the lamp, which no view then expects.
+    assert main(["view", str(trace), "--check"]) == 0
+    assert capsys.readouterr().out == f"{trace}: every series board name has data\n"
 
 
 def test_view_check_passes_on_a_lamp_trace_with_its_setpoint(

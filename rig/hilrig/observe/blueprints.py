@@ -46,11 +46,16 @@ def dashboards() -> ModuleType:
 
 
 def load_blueprint(
-    name: str, table: RigTable | None = None, *, truth: Iterable[str] = (), present: Iterable[str] = ()
+    name: str,
+    table: RigTable | None = None,
+    *,
+    truth: Iterable[str] = (),
+    present: Iterable[str] | None = None,
 ) -> rrb.Blueprint:
     """The dashboards/ blueprint called `name` (FieldNameError with close matches otherwise), for
     `table` (default: the board's). The generated one (GENERATED_DASHBOARD) also takes the
-    plant's truth quantities and the entity paths a trace has data at (`dashboards.board`)."""
+    plant's truth quantities and the entity paths a trace has data at (None: before a run;
+    `dashboards.board`)."""
     known = dashboards().BLUEPRINTS
     if name not in known:
         raise unknown_name("dashboard", name, known)
