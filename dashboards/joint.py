@@ -3,8 +3,9 @@
     python -m dashboards overview out/scenarios/<test>/trace.rrd       # open a trace with a view
     blueprint("tuning", RigTable.load())                               # rerun.blueprint.Blueprint
 
-Every path comes from `hilrig.observe.paths`, the one module of hilrig the dashboards import (so
-the rig can load them without their pulling the rig back in); the table is given, and every field
+Every path comes from `hilrig.observe.paths` (and the shared view parts from `hilrig.observe.layout`),
+the only modules of hilrig the dashboards import (so the rig can load them without their pulling
+the rig back in); the table is given, and every field
 name is checked against it when a blueprint is built, so a renamed field fails here with close
 matches instead of showing an empty plot.
 """
@@ -17,6 +18,7 @@ import rerun.blueprint as rrb
 
 from dashboards.diff import diff
 from dashboards.robot import robot
+from hilrig.observe.layout import ORIGIN_SUBTREE, WHOLE_RUN
 from hilrig.observe.paths import (
     BUS_DELAY_ROOT,
     BUS_EVENTS_PATH,
@@ -35,9 +37,6 @@ from hilrig.observe.paths import (
     truth_path,
 )
 
-ORIGIN_SUBTREE = "$origin/**"
-"""A view's contents when it names no series: everything under its origin."""
-
 
 class Paths:
     """Field name -> entity path, checked against the table."""
@@ -49,13 +48,6 @@ class Paths:
     def __call__(self, *names: str) -> list[str]:
         self._table.check(names)
         return [self._paths[name] for name in names]
-
-
-WHOLE_RUN = rrb.archetypes.TimeAxis(
-    view_range=rrb.TimeRange(start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite())
-)
-"""A plot's x axis over the whole recording (on the cycle timeline the viewer would otherwise
-show a window of some thousand cycles around the time cursor)."""
 
 
 def plot(name: str, contents: list[str] | None = None, *, origin: str = "/") -> rrb.TimeSeriesView:

@@ -135,3 +135,24 @@ def test_a_rig_for_the_joint_refuses_the_head(private_bus, scenario_dir) -> None
     refused = pytest.raises(NodeSilentError, match=f"product code 0x{head:08X}, expected 0x{joint:08X}")
     with refused, hil_session(config, table=RigTable(BOARD_TABLE), private_bus=private_bus):
         pass
+
+
+def test_the_dashboard_generated_from_the_heads_table_draws_every_series_of_its_trace(make_scenario) -> None:
+    """The head's real firmware traced: the dashboard any board gets from its table and plant
+    (`hilrig view --dashboard board`) shows every series the trace holds and names none it
+    lacks, as its hand-made one (`head`) does."""
+    from hilrig.cli import main
+    from hilrig.observe.dashboard_check import trace_blueprint, trace_gaps, unshown_series
+    from hilrig.observe.reader import Trace
+
+    s = make_scenario()
+    s.rig.set("led_green", 0.5)  # one command sent, the others never: not expected
+    s.rig.run(seconds=0.05)
+    assert s.rig.tracer is not None and s.trace is not None
+    s.rig.tracer.close()
+    trace = Trace.read(s.trace)
+    assert trace.board is not None and trace.board.dashboard == "head"
+    generated = trace_blueprint("board", trace, trace.board.table())
+    assert unshown_series(generated, trace) == []
+    assert trace_gaps(trace, {"board": generated}) == []
+    assert main(["view", str(s.trace), "--check", "--dashboard", "board"]) == 0

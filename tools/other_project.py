@@ -31,6 +31,10 @@ CMAKE_BUILD = Path(os.environ.get("HILFW_BUILD", REPO / "build"))
 or $HILFW_BUILD (a tree configured by hand, e.g. a worktree whose build/ links another's)."""
 
 
+LAMP_SCENARIO = "test_the_light_follows_its_setpoint"
+"""The lamp's scenario (examples/other-project/test_lamp.py) whose trace `hilrig view --check` reads."""
+
+
 def _run(argv: list[str | Path], **kwargs: object) -> None:
     """Run a step; its output goes to stderr (stdout is the command for the VM)."""
     done = subprocess.run([str(a) for a in argv], stdout=sys.stderr, check=False, **kwargs)  # type: ignore[call-overload]
@@ -104,7 +108,11 @@ def prepare(pytest_args: list[str]) -> str:
     pytest = shlex.join(
         ["env", "-u", "PYTHONPATH", "-u", "HIL_FIRMWARE", str(python), "-m", "pytest", "-q", *pytest_args]
     )
-    return f"(cd {shlex.quote(str(EXAMPLE))} && {pytest})"
+    # The wheel's `hilrig view --check` on the lamp scenario's trace: it opens with the dashboard
+    # generated from the lamp's table and plant, every series it names with data.
+    check = shlex.join(["env", "-u", "PYTHONPATH", str(python), "-m", "hilrig", "view", "--check"])
+    trace = f'"${{HIL_OUT_DIR:-out}}/scenarios/{LAMP_SCENARIO}/trace.rrd"'
+    return f"(cd {shlex.quote(str(EXAMPLE))} && {pytest} && {check} {trace})"
 
 
 def main() -> int:

@@ -11,10 +11,11 @@ rig at once. A name the table does not define raises `FieldNameError` with the c
 from __future__ import annotations
 
 import enum
+import tomllib
 from collections.abc import Iterable
 from pathlib import Path
 
-from boardproto import BoardTable, Field, HilIo, Kind, load_table
+from boardproto import BoardTable, Field, HilIo, Kind, TableError, load_table, parse_table
 from hilrig import resources
 from hilrig.errors import FieldNameError, unknown_name
 
@@ -47,6 +48,21 @@ class RigTable:
     def load(cls, path: str | Path = DEFAULT_TABLE_PATH) -> RigTable:
         # The default table is parsed once, at import (BOARD_TABLE); others on each call.
         return cls(BOARD_TABLE if resources.is_default_table(Path(path)) else load_table(path))
+
+    @classmethod
+    def loads(cls, text: str, name: str = "board.toml") -> RigTable:
+        """A table from its TOML text (the copy a trace records); `name` says where it came from in
+        errors (TableError)."""
+        try:
+            return cls(parse_table(Path(name), tomllib.loads(text)))
+        except tomllib.TOMLDecodeError as error:
+            raise TableError(f"{name}: not valid TOML: {error}") from None
+
+    @property
+    def is_default_board(self) -> bool:
+        """The demo board's table (its vendor and product code), wherever it was read from."""
+        node, default = self.board.node, BOARD_TABLE.node
+        return (node.vendor_id, node.product_code) == (default.vendor_id, default.product_code)
 
     @property
     def names(self) -> tuple[str, ...]:

@@ -98,3 +98,71 @@ def test_the_lamp_plant_is_deterministic_by_its_seed() -> None:
         return frames
 
     assert run(4) == run(4) and run(4) != run(5)
+
+
+def _lamp_run(lamp: tuple[Rig, Tracer, Path], *, setpoint: bool = True) -> Path:
+    rig, tracer, trace = lamp
+    rig.start()
+    if setpoint:
+        rig.set("light_setpoint", 0.6)
+    rig.run(seconds=0.05)
+    tracer.close()
+    return trace
+
+
+def test_a_lamp_trace_records_its_board_and_its_generated_dashboard(lamp: tuple[Rig, Tracer, Path]) -> None:
+    from hilrig.observe.reader import Trace
+
+    trace = Trace.read(_lamp_run(lamp))
+    assert trace.board is not None and trace.board.dashboard == "board"
+    assert trace.board.table().names == lamp[0].table.names  # the lamp's own, not the joint's
+    assert trace.blueprints == 1  # the generated dashboard, sent with the trace
+
+
+def test_the_generated_dashboard_draws_every_series_of_a_lamp_trace_and_names_none_without_data(
+    lamp: tuple[Rig, Tracer, Path],
+) -> None:
+    from hilrig.observe.blueprints import load_blueprint
+    from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps, unshown_series
+    from hilrig.observe.reader import Trace
+
+    rig = lamp[0]
+    trace = Trace.read(_lamp_run(lamp))
+    fitting = fitting_dashboards(trace)
+    assert set(fitting) == {"board"}
+    # As sent with the trace before the run (the table's PDOs and the plant's truth), and as
+    # `hilrig view` builds it from the trace.
+    truth = [*rig.plant.truth_fields, *rig.plant.truth_parameters()]
+    before = load_blueprint("board", rig.table, truth=truth)
+    for blueprint in (before, fitting["board"]):
+        assert unshown_series(blueprint, trace) == []
+        assert trace_gaps(trace, {"board": blueprint}) == []
+    assert "/truth/brightness" in trace.rows and "/fields/commands/light_setpoint" in trace.rows
+
+
+def test_a_command_never_sent_is_a_gap_only_of_the_layout_made_before_the_run(
+    lamp: tuple[Rig, Tracer, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    from hilrig.cli import main
+    from hilrig.observe.blueprints import load_blueprint
+    from hilrig.observe.dashboard_check import trace_gaps
+    from hilrig.observe.reader import Trace
+
+    trace = _lamp_run(lamp, setpoint=False)
+    before = load_blueprint("board", lamp[0].table, truth=lamp[0].plant.truth_fields)
+    (gap,) = trace_gaps(Trace.read(trace), {"board": before})
+    assert gap.startswith("board / [1] commanded light_setpoint; firmware light_level; true brightness")
+    assert gap.endswith("/fields/commands/light_setpoint has no data")
+    # From the trace: the scenario never commanded the lamp, which no view then expects.
+    assert main(["view", str(trace), "--check"]) == 0
+    assert capsys.readouterr().out == f"{trace}: every series board name has data\n"
+
+
+def test_view_check_passes_on_a_lamp_trace_with_its_setpoint(
+    lamp: tuple[Rig, Tracer, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    from hilrig.cli import main
+
+    trace = _lamp_run(lamp)
+    assert main(["view", str(trace), "--check"]) == 0
+    assert capsys.readouterr().out == f"{trace}: every series board name has data\n"

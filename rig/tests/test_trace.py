@@ -314,7 +314,7 @@ def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
     # A comparison (`hilrig diff`): both runs' series under /base and /cand, cand - base under /diff.
     logged |= {root + path for root in (DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT) for path in one_board}
     logged.add(DIFF_EVENTS_PATH)
-    dashboards = {"overview", "tuning", "thermal", "faults", "bus", "robot", "diff", "head"}
+    dashboards = {"overview", "tuning", "thermal", "faults", "bus", "robot", "diff", "head", "board"}
     assert set(blueprint_names()) == dashboards == set(BLUEPRINTS)
     for name in set(BLUEPRINTS) - set(OTHER_BOARD_BLUEPRINTS):
         views = list(_views(blueprint(name, table).root_container))

@@ -6,16 +6,24 @@ import argparse
 import signal
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
 from hilrig.cli.common import (
     NO_DISPLAY,
     Command,
     UsageError,
+    add_table_option,
     existing_file,
     has_display,
     port,
     progress,
 )
+
+if TYPE_CHECKING:
+    import rerun.blueprint as rrb
+
+    from hilrig.observe.reader import Trace, TraceBoard
+    from hilrig.table import RigTable
 
 DEFAULT_DASHBOARD = "overview"
 RRD_MAGIC = b"RRF"
@@ -48,9 +56,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--dashboard",
         default=None,
         metavar="NAME",
-        help=f"the layout to show (default: diff for `hilrig diff`'s, robot for a robot's, else "
-        f"{DEFAULT_DASHBOARD}; --list names them all)",
+        help=f"the layout to show (default: diff for `hilrig diff`'s, robot for a robot's, else the "
+        f"one the trace recorded: {DEFAULT_DASHBOARD} for the demo joint, board (generated from the "
+        "table and plant) for another board; --list names them all)",
     )
+    add_table_option(parser)  # for a trace that records no table: one recorded wins
     parser.add_argument("--list", action="store_true", help="print the dashboards' names and exit")
     parser.add_argument(
         "--check",
@@ -92,39 +102,108 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("name the trace to open: hilrig view TRACE.rrd (or --list the dashboards)")
     if trace.suffix != ".rrd":
         raise UsageError(f"{trace}: expected a Rerun recording (.rrd)")
+    table = _given_table(args)
     if args.check:
-        return _check(trace, args.dashboard)
+        return _check(trace, args.dashboard, table)
     if args.web is None and not has_display():  # before the trace is read: say it at once
         raise UsageError(f"{NO_DISPLAY}: add --web to serve the web viewer and open the page it prints")
-    dashboard = args.dashboard or default_dashboard(trace)
-    return show(trace, dashboard, web_port=args.web, grpc_port=args.grpc_port)
+    dashboard, blueprint = trace_dashboard(trace, args.dashboard, table)
+    return show(trace, dashboard, web_port=args.web, grpc_port=args.grpc_port, blueprint=blueprint)
 
 
-def default_dashboard(trace: Path) -> str:
+def _given_table(args: argparse.Namespace) -> RigTable | None:
+    """The table --table names (as the CLI resolves it), for a trace that records none."""
+    if getattr(args, "table", None) is None:
+        return None
+    from hilrig.cli.common import load_table
+
+    return load_table(args)
+
+
+def trace_dashboard(
+    trace: Path, name: str | None, table: RigTable | None = None
+) -> tuple[str, rrb.Blueprint]:
+    """The dashboard to open `trace` with (`name`, else its own: `default_dashboard`) and its
+    blueprint, built for the table the trace records (else `table`, else the default board's);
+    the generated one reads the whole trace, to show every series it holds."""
+    from hilrig.observe.blueprints import load_blueprint
+    from hilrig.observe.dashboard_check import trace_blueprint
+    from hilrig.observe.paths import GENERATED_DASHBOARD
+
+    chosen, board = default_dashboard(trace, table)
+    dashboard = name or chosen
+    board_table = _table_of(trace, board, table)
+    if dashboard == GENERATED_DASHBOARD or dashboard == "robot":
+        progress(f"view: reading {trace}")
+        return dashboard, trace_blueprint(dashboard, _read(trace), board_table)
+    return dashboard, load_blueprint(dashboard, board_table)
+
+
+def default_dashboard(trace: Path, table: RigTable | None = None) -> tuple[str, TraceBoard | None]:
     """The dashboard made for the kind of recording: `diff` for a comparison (`hilrig diff`),
-    `robot` for a robot's trace, the overview otherwise. Looks at the first entity it logs."""
+    `robot` for a robot's trace, else the one its board opens with (`own_dashboard`), and the
+    board the trace records. Looks at what it logs before its first data."""
     import rerun as rr
 
+    from hilrig.observe.dashboard_check import own_dashboard
     from hilrig.observe.paths import DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT, MODULES_ROOT, ROBOT_ROOT
+    from hilrig.observe.reader import TraceBoard, _columns, board_property_path
 
+    board: TraceBoard | None = None
     try:
         for chunk in rr.chunk.RrdReader(trace).stream():
+            if chunk.entity_path == board_property_path():
+                board = TraceBoard.from_columns(_columns(chunk.to_record_batch()))
+                continue
             root = "/" + chunk.entity_path.lstrip("/").split("/", 1)[0]
             if root in (DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT):
-                return "diff"
+                return "diff", board
             if root in (MODULES_ROOT, ROBOT_ROOT):
-                return "robot"
+                return "robot", board
             if not chunk.is_static:
                 break
     except RuntimeError as error:  # Rerun's reader: a cut-off or foreign file
-        from hilrig.errors import LogFileError, one_line
-
-        raise LogFileError(f"{trace}: Rerun cannot read this recording ({one_line(error)})") from None
-    return DEFAULT_DASHBOARD
+        raise _unreadable(trace, error) from None
+    return own_dashboard(board, _table_of(trace, board, table)), board
 
 
-def show(trace: Path, dashboard: str, *, web_port: int | None, grpc_port: int | None) -> int:
-    """`trace` in a native viewer (web_port None) or served to the web viewer, with `dashboard`;
+def _table_of(trace: Path, board: TraceBoard | None, table: RigTable | None) -> RigTable:
+    """`trace_table`, a recorded table that does not load a one-line error."""
+    from boardproto import TableError
+    from hilrig.errors import LogFileError
+    from hilrig.observe.dashboard_check import trace_table
+
+    try:
+        return trace_table(board, table)
+    except TableError as error:
+        raise LogFileError(f"{trace}: the table it records does not load ({error})") from None
+
+
+def _unreadable(trace: Path, error: RuntimeError) -> Exception:
+    from hilrig.errors import LogFileError, one_line
+
+    return LogFileError(f"{trace}: Rerun cannot read this recording ({one_line(error)})")
+
+
+def _read(trace: Path) -> Trace:
+    from hilrig.observe.reader import Trace
+
+    try:
+        return Trace.read(trace)
+    except RuntimeError as error:  # rerun's reader: a cut-off or foreign file
+        raise _unreadable(trace, error) from None
+
+
+def show(
+    trace: Path,
+    dashboard: str,
+    *,
+    web_port: int | None,
+    grpc_port: int | None,
+    blueprint: rrb.Blueprint | None = None,
+) -> int:
+    """`trace` in a native viewer (web_port None) or served to the web viewer, with `dashboard`
+    (`blueprint`: it built for the trace's board; None: the named one for the default table);
     returns when the person closes it (or presses Ctrl-C)."""
     from hilrig.errors import RigError
     from hilrig.observe.sinks import DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
@@ -135,7 +214,7 @@ def show(trace: Path, dashboard: str, *, web_port: int | None, grpc_port: int | 
     try:
         process = open_trace(
             trace,
-            dashboard,
+            blueprint if blueprint is not None else dashboard,
             web=web_port is not None,
             web_port=web_port or DEFAULT_WEB_PORT,
             grpc_port=grpc_port or DEFAULT_GRPC_PORT,
@@ -157,31 +236,28 @@ def show(trace: Path, dashboard: str, *, web_port: int | None, grpc_port: int | 
         process.wait()
 
 
-def _check(trace: Path, dashboard: str | None) -> int:
+def _check(trace: Path, dashboard: str | None, table: RigTable | None) -> int:
     """Every series the dashboards name, looked up in the trace; the gaps on stdout."""
     from hilrig.observe.blueprints import dashboards
 
     dashboards()  # importable from a checkout on PYTHONPATH alone too
-    from hilrig.errors import LogFileError, one_line
-    from hilrig.observe.blueprints import load_blueprint
-    from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
-    from hilrig.observe.reader import Trace
+    from hilrig.observe.dashboard_check import fitting_dashboards, trace_blueprint, trace_gaps
 
     progress(f"view: reading {trace}")
-    try:
-        recording = Trace.read(trace)
-    except RuntimeError as error:  # rerun's reader: a cut-off or foreign file
-        raise LogFileError(f"{trace}: Rerun cannot read this recording ({one_line(error)})") from None
-    fitting = fitting_dashboards(recording)  # robot: for the modules the trace has
-    dashboards = {dashboard: fitting.get(dashboard) or load_blueprint(dashboard)} if dashboard else fitting
-    gaps = trace_gaps(recording, dashboards)
+    recording = _read(trace)
+    board_table = _table_of(trace, recording.board, table)
+    if dashboard:
+        checked = {dashboard: trace_blueprint(dashboard, recording, board_table)}
+    else:
+        checked = fitting_dashboards(recording, board_table)
+    gaps = trace_gaps(recording, checked)
     for gap in gaps:
         print(gap)
-    checked = ", ".join(dashboards)
+    names = ", ".join(checked)
     if gaps:
-        progress(f"view: {trace}: {len(gaps)} series named by {checked} without data")
+        progress(f"view: {trace}: {len(gaps)} series named by {names} without data")
         return 1
-    print(f"{trace}: every series {checked} name has data")
+    print(f"{trace}: every series {names} name has data")
     return 0
 
 
@@ -194,9 +270,11 @@ COMMANDS = (
         name="view",
         help="open a trace (.rrd) in the Rerun viewer with one of the dashboards",
         description="Open a trace the rig wrote (hilrig sim, a scenario, hilrig replay --trace)\n"
-        "in the Rerun viewer with a dashboard: overview, tuning, thermal, faults, bus, and\n"
-        "robot for a robot's trace (hilrig sim --modules: the chain in 3D, every\n"
-        "joint's commanded vs measured angle) (--list). --web serves the web viewer\n"
+        "in the Rerun viewer with a dashboard: the demo joint's overview, tuning, thermal,\n"
+        "faults, bus; robot for a robot's trace (hilrig sim --modules: the chain in 3D, every\n"
+        "joint's commanded vs measured angle); board, generated for any board from the table\n"
+        "and plant its trace records (--list). A trace records its board's table; --table is\n"
+        "for a trace that records none. --web serves the web viewer\n"
         "instead of a window, for a machine without a display; open the page it\n"
         "prints (from another machine, forward both ports:\n"
         "ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 host).\n\n"

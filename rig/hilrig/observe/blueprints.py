@@ -1,16 +1,20 @@
 """The dashboards as the rig loads them: a blueprint of dashboards/ by name (the names checked,
-the table given), the fields they plot, a blueprint saved as a .rbl file."""
+the table given), the generated one of any board, a robot's, the fields they plot, a blueprint
+saved as a .rbl file. The one way the rig reaches dashboards/ (which imports only
+`hilrig.observe.paths` and `hilrig.observe.layout` back): nothing else of hilrig imports it."""
 
 from __future__ import annotations
 
 import importlib.util
 import sys
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING
 
 from hilrig import resources
 from hilrig.errors import unknown_name
+from hilrig.observe.paths import GENERATED_DASHBOARD
 from hilrig.observe.sinks import APPLICATION_ID
 from hilrig.table import RigTable
 
@@ -41,13 +45,36 @@ def dashboards() -> ModuleType:
     return module
 
 
-def load_blueprint(name: str, table: RigTable | None = None) -> rrb.Blueprint:
+def load_blueprint(
+    name: str,
+    table: RigTable | None = None,
+    *,
+    truth: Iterable[str] = (),
+    present: Iterable[str] | None = None,
+) -> rrb.Blueprint:
     """The dashboards/ blueprint called `name` (FieldNameError with close matches otherwise), for
-    `table` (default: the board's)."""
+    `table` (default: the board's). The generated one (GENERATED_DASHBOARD) also takes the
+    plant's truth quantities and the entity paths a trace has data at (None: before a run;
+    `dashboards.board`)."""
     known = dashboards().BLUEPRINTS
     if name not in known:
         raise unknown_name("dashboard", name, known)
-    return dashboards().blueprint(name, table if table is not None else RigTable.load())
+    table = table if table is not None else RigTable.load()
+    if name == GENERATED_DASHBOARD:
+        generated: rrb.Blueprint = dashboards().board(table, truth, present)
+        return generated
+    return dashboards().blueprint(name, table)
+
+
+def robot_blueprint(table: RigTable, node_ids: Sequence[int]) -> rrb.Blueprint:
+    """A robot's dashboard for these modules (`dashboards.robot`)."""
+    blueprint: rrb.Blueprint = dashboards().robot(table, node_ids)
+    return blueprint
+
+
+def joint_dashboards() -> tuple[str, ...]:
+    """The demo joint's dashboards of one board's trace (`dashboards.JOINT_DASHBOARDS`)."""
+    return tuple(dashboards().JOINT_DASHBOARDS)
 
 
 def dashboard_fields(table: RigTable) -> list[str]:
@@ -60,8 +87,10 @@ def blueprint_names() -> tuple[str, ...]:
     return tuple(dashboards().BLUEPRINTS)
 
 
-def save_blueprint(name: str, path: str | Path) -> Path:
-    """Write the blueprint `name` as a `.rbl` file for the hilrig application id."""
+def save_blueprint(blueprint: str | rrb.Blueprint, path: str | Path) -> Path:
+    """Write the blueprint (one built, or the one named, for the default table) as a `.rbl`
+    file for the hilrig application id."""
     path = Path(path)
-    load_blueprint(name).save(APPLICATION_ID, path)
+    built = load_blueprint(blueprint) if isinstance(blueprint, str) else blueprint
+    built.save(APPLICATION_ID, path)
     return path

@@ -121,6 +121,14 @@ DIFF_CAND_ROOT = "/cand"
 DIFF_ROOT = "/diff"
 """A comparison of two traces (`hilrig diff`): the base run's series under /base, the
 candidate's under /cand, each at its own path below, and cand - base under /diff."""
+GENERATED_DASHBOARD = "board"
+"""The dashboard made from any board's table and plant (dashboards/board.py)."""
+
+BOARD_PROPERTY = "board"
+"""The recording property (Rerun's /__properties/board) the tracer writes at the start of every
+trace: `table`, the board's table as TOML text; `table_name`, its file's name; `dashboard`, the
+dashboard the trace opens with. `hilrig view` reads it to build the trace's own dashboard."""
+
 DIFF_EVENTS_PATH = f"{DIFF_ROOT}/divergences"
 """Where a comparison says, per series, the first cycle it differs beyond the tolerance."""
 TRUE_SPRING_STIFFNESS = "spring_stiffness_nm_per_rad"
@@ -138,6 +146,7 @@ _TRUTH_UNITS = (  # the longest suffix first: "_nm_per_rad" also ends in "_rad"
     ("_m_s2", "m/s^2"),
     ("_v", "V"),
     ("_w", "W"),
+    ("_s", "s"),
 )
 TRUTH_QUANTITIES: tuple[str, ...] = (
     "motor_angle_rad",

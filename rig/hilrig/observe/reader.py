@@ -5,6 +5,7 @@ their levels, and the series names. For tests and for people post-processing a r
     trace = Trace.read(Path("out/scenarios/<test>/trace.rrd"))
     trace.scalars["/fields/virtual_sensors/motor_velocity"]   # one value per logged cycle
     trace.at_cycles("/bus/frames/TPDO8", range(100))           # a step series at every cycle
+    trace.board.table()                                        # the board's table it recorded
 """
 
 from __future__ import annotations
@@ -14,14 +15,70 @@ from collections import defaultdict
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from hilrig.observe.paths import BOARD_PROPERTY
+
+if TYPE_CHECKING:
+    from hilrig.table import RigTable
 
 LINEAR_INTERPOLATION = 1
 """rerun.components.InterpolationMode.Linear: a series' default."""
 MIN_MAX_AGGREGATION = 5
 """rerun.components.AggregationPolicy.MinMax."""
+
+
+@dataclass(frozen=True)
+class TraceBoard:
+    """Which board a trace is, as its tracer recorded it (`hilrig.observe.layout.BOARD_PROPERTY`)."""
+
+    table_text: str
+    table_name: str
+    dashboard: str | None
+    """The dashboard the trace opens with (None: the tracer named none)."""
+
+    def table(self) -> RigTable:
+        """The recorded table (TableError if it does not load)."""
+        from hilrig.table import RigTable
+
+        return RigTable.loads(self.table_text, self.table_name)
+
+    @classmethod
+    def from_columns(cls, columns: dict[str, list[Any]]) -> TraceBoard | None:
+        """The property's static row (`_columns` of its chunk); None without a table in it."""
+
+        def first(name: str) -> str | None:
+            values = columns.get(name)
+            cell = values[0] if values else None
+            return str(cell[0]) if cell else None
+
+        text = first("table")
+        if text is None:
+            return None
+        return cls(text, first("table_name") or "board.toml", first("dashboard") or None)
+
+
+def board_property_path() -> str:
+    """'/__properties/board': where Rerun keeps the tracer's board property."""
+    import rerun as rr
+
+    return f"{rr.RECORDING_PROPERTIES_PATH}/{BOARD_PROPERTY}"
+
+
+def read_board(path: Path) -> TraceBoard | None:
+    """The board property of the trace at `path`, reading only the static chunks at its start
+    (what the tracer sends before any data); None for a trace that records none."""
+    import rerun as rr
+
+    where = board_property_path()
+    for chunk in rr.chunk.RrdReader(path).stream():
+        if not chunk.is_static:
+            break
+        if chunk.entity_path == where:
+            return TraceBoard.from_columns(_columns(chunk.to_record_batch()))
+    return None
 
 
 @dataclass
@@ -40,6 +97,8 @@ class Trace:
     rows: dict[str, int] = field(default_factory=lambda: defaultdict(int))
     """Rows on a timeline per entity, whatever they hold (scalars, texts, 3D transforms)."""
     blueprints: int = 0
+    board: TraceBoard | None = None
+    """Which board the trace is (its table, its dashboard), when its tracer recorded it."""
 
     @classmethod
     def read(cls, path: Path) -> Trace:
@@ -54,11 +113,15 @@ class Trace:
         cycles: dict[str, list[np.ndarray]] = defaultdict(list)
         times: dict[str, list[np.ndarray]] = defaultdict(list)
         scalars: dict[str, list[np.ndarray]] = defaultdict(list)
+        board_path = board_property_path()
         for chunk in reader.stream():
             batch = chunk.to_record_batch()
             path_ = chunk.entity_path
             if chunk.is_static:
-                trace._read_static(path_, _columns(batch))
+                if path_ == board_path:
+                    trace.board = TraceBoard.from_columns(_columns(batch))
+                else:
+                    trace._read_static(path_, _columns(batch))
                 continue
             trace.rows[path_] += chunk.num_rows
             columns = dict(zip(batch.schema.names, batch.columns, strict=True))

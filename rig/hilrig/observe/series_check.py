@@ -34,9 +34,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from dashboards.joint import ORIGIN_SUBTREE, WHOLE_RUN
 from hilrig.observe.browser import BLUEPRINT_AREA, SETTLE_POLL_S, VIEWPORT, ViewerPage, last_cycle
 from hilrig.observe.dashboard_check import views
+from hilrig.observe.layout import ORIGIN_SUBTREE, WHOLE_RUN
 from hilrig.observe.paths import CYCLE_TIMELINE
 
 if TYPE_CHECKING:

@@ -42,8 +42,10 @@ from hilrig.observe.blueprints import load_blueprint
 from hilrig.observe.busmeter import TRACE_BITRATE, BusMeter, Measured
 from hilrig.observe.chain import ChainTrace
 from hilrig.observe.paths import (
+    BOARD_PROPERTY,
     CYCLE_TIMELINE,
     EMCY_PATH,
+    GENERATED_DASHBOARD,
     NMT_PATH,
     SDO_PATH,
     SIM_TIME_TIMELINE,
@@ -82,7 +84,8 @@ take what was sent so far; past it the start goes on and the rest is written bes
 
 
 DEFAULT_BLUEPRINT = "overview"
-"""The dashboard a trace of the demo joint opens with."""
+"""The dashboard a trace of the demo joint opens with; another board's opens with the one
+generated from its table and plant (GENERATED_DASHBOARD)."""
 
 
 class Tracer(RecordBatches, RigObserver):
@@ -90,7 +93,10 @@ class Tracer(RecordBatches, RigObserver):
 
     sink: one `TraceSink` or several. table: names -> kinds and units (RigTable.load()).
     blueprint: name in `dashboards.BLUEPRINTS` sent with the trace, built for `table` (None: the
-    viewer's own); the default, the demo joint's overview, only with the demo joint's table.
+    viewer's own); the default, the demo joint's overview, only with the demo joint's table, the
+    generated one (GENERATED_DASHBOARD, sent once the plant and the node's PDOs are known) with
+    another's. Every trace also records its table and that name (BOARD_PROPERTY), which is how
+    `hilrig view` knows the board of a trace.
     batch_cycles: cycles per batch at most. max_latency_s: also hand a batch over when this much
     wall time passed since the last one (default: LIVE_LATENCY_S with a live sink, never for .rrd
     files alone). background: pivot and send batches in a thread (True) or
@@ -214,8 +220,12 @@ class Tracer(RecordBatches, RigObserver):
             self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
             self._attach_sinks()
         if blueprint == DEFAULT_BLUEPRINT and not resources.is_default_table(table.board.source):
-            blueprint = None  # another board's trace: its own dashboard when named, else none
-        if blueprint is not None:
+            blueprint = GENERATED_DASHBOARD  # another board's trace
+        if self._owns_recording:
+            self._send_board(blueprint)
+        # The generated dashboard names the plant's truth: sent when the rig configures (or at close).
+        self._generated_pending = blueprint == GENERATED_DASHBOARD
+        if blueprint is not None and not self._generated_pending:
             self.send_blueprint(load_blueprint(blueprint, table))
 
         self._queue: queue.SimpleQueue[_Batch | None] | None = None
@@ -258,6 +268,27 @@ class Tracer(RecordBatches, RigObserver):
                 rr.serve_web_viewer(web_port=port, open_browser=False, connect_to=server.uri)
                 self.web_url = web_viewer_url(port, int(sink.url or DEFAULT_GRPC_PORT))
         self.recording.set_sinks(*native)
+
+    def _send_board(self, dashboard: str | None) -> None:
+        """The board property (BOARD_PROPERTY): the table's text, its file's name, the dashboard."""
+        source = self.table.board.source
+        try:
+            text = Path(source).read_text(encoding="utf-8")
+        except OSError:  # a table not read from a file: the trace says nothing of its board
+            return
+        values: dict[str, str] = {"table": text, "table_name": Path(source).name}
+        if dashboard is not None:
+            values["dashboard"] = dashboard
+        self._rr.send_property(BOARD_PROPERTY, self._rr.AnyValues(**values), recording=self.recording)
+
+    def _send_generated(self, *, truth: bool) -> None:
+        """The generated dashboard, once: for the table, with the plant's truth when it is traced."""
+        if not self._generated_pending:
+            return
+        self._generated_pending = False
+        plant = self._plant
+        quantities = [*plant.truth_fields, *plant.truth_parameters()] if truth and plant is not None else []
+        self.send_blueprint(load_blueprint(GENERATED_DASHBOARD, self.table, truth=quantities))
 
     # --- What the Rig calls -----------------------------------------------------------------
     def log_plant(self, plant: Plant) -> None:
@@ -327,6 +358,8 @@ class Tracer(RecordBatches, RigObserver):
         # Rerun write them (and the start's events) before it too. Each of those ~60 one-row
         # chunks costs Rerun's encoder about as much as a 2000-row one; left to run beside the
         # first cycles, that work took the emulated VM's other CPU from the firmware.
+        if not self._closed:
+            self._send_generated(truth=truth)
         if self._name_ahead and not self._closed:
             self._name_ahead = False
             self.submit(functools.partial(self._name_history_series, truth=truth))
@@ -432,6 +465,7 @@ class Tracer(RecordBatches, RigObserver):
         """
         if self._closed:
             return
+        self._send_generated(truth=self._plant is not None)
         self._hand_over()
         self.submit(self._end_bus)  # the bus's last, open load window
         self._closed = True
@@ -563,7 +597,6 @@ class Tracer(RecordBatches, RigObserver):
         """Entity path of a board field or HIL I/O object (FieldNameError with close matches)."""
         self.table.entry(name)
         return self._paths[name]
-
 
 
 def wall_clock() -> float:

@@ -59,7 +59,7 @@ def _check_port_free(port: int, what: str) -> None:
 
 def open_trace(
     path: str | Path,
-    blueprint: str = "overview",
+    blueprint: str | rrb.Blueprint = "overview",
     *,
     web: bool = False,
     web_port: int = DEFAULT_WEB_PORT,
@@ -67,7 +67,8 @@ def open_trace(
     launch: bool = True,
 ) -> ViewerProcess | list[str]:
     """Open a saved trace in a native viewer (spawned), or serve it to the web viewer (web=True),
-    with the named blueprint active.
+    with the blueprint active (one built for the trace's board, or the one named, for the
+    default table).
 
     web=True serves the viewer page on 127.0.0.1:`web_port` and the recording from a gRPC
     server on 127.0.0.1:`grpc_port`; the page to open is printed and in `process.url`
@@ -89,7 +90,8 @@ def open_trace(
         command += ["--web-viewer", "--web-viewer-port", str(web_port)]
         command += ["--port", str(grpc_port), "--bind", VIEWER_BIND_ADDRESS]
     else:
-        rbl = Path(tempfile.mkdtemp(prefix="hilrig-blueprint-")) / f"{blueprint}.rbl"
+        name = blueprint if isinstance(blueprint, str) else "dashboard"
+        rbl = Path(tempfile.mkdtemp(prefix="hilrig-blueprint-")) / f"{name}.rbl"
         save_blueprint(blueprint, rbl)
         command += [str(path), str(rbl)]
     if not launch:
@@ -102,7 +104,8 @@ def open_trace(
         try:
             wait_until_listening(grpc_port, process, SERVE_TIMEOUT_S)
             # The server keeps the recording, whole, for every page that connects.
-            send_to_viewer(grpc_port, load_blueprint(blueprint), trace=path)
+            built = load_blueprint(blueprint) if isinstance(blueprint, str) else blueprint
+            send_to_viewer(grpc_port, built, trace=path)
         except BaseException:
             process.terminate()
             process.wait()

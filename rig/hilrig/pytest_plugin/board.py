@@ -30,6 +30,7 @@ import pytest
 
 from boardproto import TableError
 from hilrig import resources
+from hilrig.observe.paths import GENERATED_DASHBOARD
 from hilrig.plants import default_plant
 from hilrig.session.builder import PlantFactory
 from hilrig.table import RigTable
@@ -56,7 +57,8 @@ class HilBoard:
     firmware_args: tuple[str, ...] = ()
     dashboard: str | None = None
     """The dashboard a scenario's trace opens with (`dashboards.BLUEPRINTS`, for this table): the
-    demo joint's "overview"; None, the viewer's default, for a board dashboards/ has none for."""
+    demo joint's "overview"; the one generated from the table and plant for another board; None,
+    the viewer's default."""
 
     @property
     def node_id(self) -> int:
@@ -106,7 +108,7 @@ def board_from_config(config: pytest.Config) -> HilBoard:
     spelled = str(config.getini("hil_plant") or "").strip()
     plant = load_factory(spelled) if spelled else default_plant
     args = tuple(shlex.split(str(config.getini("hil_firmware_args") or "")))
-    dashboard = "overview" if resources.is_default_table(files.table) else None
+    dashboard = "overview" if resources.is_default_table(files.table) else GENERATED_DASHBOARD
     return HilBoard(
         table=table, eds=eds, firmware=firmware, plant=plant, firmware_args=args, dashboard=dashboard
     )

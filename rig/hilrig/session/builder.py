@@ -306,7 +306,7 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
         tracer = _tracer(config, table, blueprint=None)
         if tracer is not None:
             stack.callback(tracer.close)
-            from dashboards.robot import robot as robot_blueprint
+            from hilrig.observe.blueprints import robot_blueprint
 
             tracer.send_blueprint(robot_blueprint(table, node_ids))
         modules: list[Rig] = []
