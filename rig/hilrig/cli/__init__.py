@@ -67,6 +67,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "busstat",
     "pdo",
     "soak",
+    "bus",
     "completion",
 )
 """Modules of `hilrig.cli` whose COMMANDS are registered, in the order `--help` lists them."""
