@@ -1,31 +1,41 @@
 """examples/other-project from outside the checkout, as another project would use hil-rig:
-hilrig's wheel (`make dist`) installed into a fresh venv, hil-rig's firmware package installed
-from the CMake build (`cmake --install build --component hilfw`), the lamp's firmware built
-against that prefix with the wheel's generator, and the lamp's scenarios run by the wheel's pytest
-plugin with the example as the working directory and no PYTHONPATH. `tools/run-tests` runs the
-native part and the scenarios in its bus stage's VM:
+a copy of the example in a folder outside the checkout (under the temporary folder), hilrig's
+wheel (`make dist`) installed into a fresh venv there, hil-rig's firmware package installed
+there from the CMake build (`cmake --install build --component hilfw`), the lamp's firmware
+built against that prefix with the wheel's generator, and the lamp's scenarios run by the
+wheel's own `hilrig bus -- python -m pytest` in the copy, with no PYTHONPATH. Passes only if
+pytest's header names the lamp's own firmware (hil_firmware of its pytest.ini): no bus wrapper
+may put another in its place.
 
-    .venv/bin/python tools/other_project.py prepare [PYTEST_ARGS...]  # prints the command for the VM
+    .venv/bin/python tools/other_project.py run [--uml] [PYTEST_ARGS...]
 
-Everything goes under build/other-project/ (the wheel, the venv, the prefix) and
-examples/other-project/build/ (the lamp's build tree, which its pytest.ini names). The venv is
-an installer's own install of the wheel and pytest (uv's, as tools/deps uses it, else pip's),
-nothing of the checkout's venv in it.
+The wheel goes under build/other-project/dist; the rest under OUTSIDE (one folder per checkout,
+$HIL_OTHER_PROJECT_DIR to choose another): OUTSIDE/venv, OUTSIDE/prefix, OUTSIDE/lamp (the copy,
+with its build tree build/, which its pytest.ini names). The venv is an installer's own install
+of the wheel with its `pytest` extra (uv's, as tools/deps uses it, else pip's), nothing of the
+checkout's venv in it. `tools/run-tests` runs it in its bus stage.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import shlex
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "other-project"
 OUT = REPO / "build" / "other-project"
+OUTSIDE = Path(
+    os.environ.get("HIL_OTHER_PROJECT_DIR")
+    or Path(tempfile.gettempdir()) / f"hilrig-other-project-{hashlib.sha256(bytes(REPO)).hexdigest()[:8]}"
+)
+"""Outside the checkout, one per checkout (two clones' `make test` side by side never share it)."""
 CMAKE_BUILD = Path(os.environ.get("HILFW_BUILD", REPO / "build"))
 """The configured CMake build tree whose install rules hold the firmware package: `make build`'s,
 or $HILFW_BUILD (a tree configured by hand, e.g. a worktree whose build/ links another's)."""
@@ -43,23 +53,24 @@ def _clean_env() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
 
 
-def compiler_cache_env() -> dict[str, str]:
+def compiler_cache_env(base: Path = OUTSIDE) -> dict[str, str]:
     """The lamp's build through ccache where it is installed, as the checkout's own (CMakeLists.txt):
     by the variables CMake and ccache read (another project's CMakeLists needs nothing), paths under
-    the checkout relative, so that another clone's build hits the same objects. Empty without ccache."""
+    `base` (the lamp, its prefix) relative, so that a build in another folder hits the same objects.
+    Empty without ccache."""
     if shutil.which("ccache") is None or os.environ.get("CMAKE_CXX_COMPILER_LAUNCHER"):
         return {}
-    flags = " ".join(filter(None, [os.environ.get("CXXFLAGS"), f"-ffile-prefix-map={REPO}=."]))
+    flags = " ".join(filter(None, [os.environ.get("CXXFLAGS"), f"-ffile-prefix-map={base}=."]))
     return {
         "CMAKE_CXX_COMPILER_LAUNCHER": "ccache",
-        "CCACHE_BASEDIR": str(REPO),
+        "CCACHE_BASEDIR": str(base),
         "CCACHE_NOHASHDIR": "1",
         "CXXFLAGS": flags,
     }
 
 
 def fresh_venv(wheels: Path, venv: Path) -> Path:
-    """A new venv with hilrig from WHEELS and pytest, as another project installs them: its
+    """A new venv with hilrig[pytest] from WHEELS, as a scenario author installs it: its
     dependencies from the package index at the versions requirements.lock pins (pip's cache
     has them after `make deps`, so nothing is downloaded twice); its python."""
     shutil.rmtree(venv, ignore_errors=True)
@@ -75,45 +86,72 @@ def fresh_venv(wheels: Path, venv: Path) -> Path:
     else:
         installer = [sys.executable, "-m", "pip", "--python", python, "--disable-pip-version-check",
                      "install", "--quiet"]  # fmt: skip
-    _run([*installer, "--find-links", wheels, "--constraint", REPO / "requirements.lock", "hilrig", "pytest"],
+    _run([*installer, "--find-links", wheels, "--constraint", REPO / "requirements.lock", "hilrig[pytest]"],
          env=_clean_env())  # fmt: skip
     return python
 
 
-def prepare(pytest_args: list[str]) -> str:
-    """The native part; returns the shell command that runs the lamp's scenarios (in the VM), in
-    a subshell, with `pytest_args` after pytest's own."""
+FIRMWARE_HEADER = "hilrig: firmware {firmware} (hil_firmware of pytest.ini)"
+"""The line of pytest's header (hilrig's plugin) that says the lamp's own firmware runs."""
+
+
+def prepare() -> tuple[Path, Path]:
+    """The native part: the wheel, the venv, the prefix, the copy of the lamp built; returns the
+    venv's bin folder and the copy."""
     wheels = OUT / "dist"
     shutil.rmtree(wheels, ignore_errors=True)
     _run([sys.executable, REPO / "tools" / "dist.py", "--out", wheels], env=_clean_env())
-    python = fresh_venv(wheels, OUT / "venv")
-    prefix = OUT / "prefix"
+    OUTSIDE.mkdir(parents=True, exist_ok=True)
+    python = fresh_venv(wheels, OUTSIDE / "venv")
+    prefix = OUTSIDE / "prefix"
     shutil.rmtree(prefix, ignore_errors=True)
     _run(["cmake", "--install", CMAKE_BUILD, "--component", "hilfw", "--prefix", prefix])
-    lamp_build = EXAMPLE / "build"
-    shutil.rmtree(lamp_build, ignore_errors=True)
+    lamp = OUTSIDE / "lamp"
+    shutil.rmtree(lamp, ignore_errors=True)
+    shutil.copytree(EXAMPLE, lamp, ignore=shutil.ignore_patterns("build", "__pycache__", "out"))
     env = _clean_env() | compiler_cache_env()
     _run(
-        ["cmake", "-S", EXAMPLE, "-B", lamp_build, "-G", "Ninja", f"-DCMAKE_PREFIX_PATH={prefix}",
+        ["cmake", "-S", lamp, "-B", lamp / "build", "-G", "Ninja", f"-DCMAKE_PREFIX_PATH={prefix}",
          f"-DHILFW_PYTHON={python}"],
         env=env,
     )  # fmt: skip
-    _run(["cmake", "--build", lamp_build], env=env)
-    # Its own hilrig and firmware: not this checkout's PYTHONPATH, nor its $HIL_FIRMWARE (which
-    # tools/with-vcan sets under user-mode Linux, and which the plugin would take over the lamp's).
-    pytest = shlex.join(
-        ["env", "-u", "PYTHONPATH", "-u", "HIL_FIRMWARE", str(python), "-m", "pytest", "-q", *pytest_args]
-    )
-    return f"(cd {shlex.quote(str(EXAMPLE))} && {pytest})"
+    _run(["cmake", "--build", lamp / "build"], env=env)
+    return python.parent, lamp
+
+
+def run(bus_options: list[str], pytest_args: list[str]) -> int:
+    """The lamp's scenarios through the wheel's `hilrig bus`, in the copy; pytest's exit code,
+    or 1 when its header does not name the lamp's own firmware."""
+    bin_dir, lamp = prepare()
+    env = _clean_env()
+    checkout_uml = REPO / ".venv" / "bin" / "linux.uml"
+    if checkout_uml.exists() and not env.get("HIL_UML_KERNEL"):
+        env["HIL_UML_KERNEL"] = str(checkout_uml)  # the newer kernel tools/uml-kernel installed
+    argv = [str(bin_dir / "hilrig"), "bus", *bus_options, "--", str(bin_dir / "python"), "-m", "pytest",
+            *pytest_args]  # fmt: skip
+    print(f"other-project: {shlex.join(argv)} (in {lamp})", file=sys.stderr, flush=True)
+    process = subprocess.Popen(argv, cwd=lamp, env=env, stdout=subprocess.PIPE, text=True)
+    assert process.stdout is not None
+    seen: list[str] = []
+    for line in process.stdout:
+        sys.stdout.write(line)
+        sys.stdout.flush()
+        seen.append(line.rstrip("\n"))
+    status = process.wait()
+    expected = FIRMWARE_HEADER.format(firmware=(lamp / "build" / "lamp-firmware").resolve())
+    if expected not in seen:
+        print(f"other-project: pytest's header lacks `{expected}`: another firmware ran", file=sys.stderr)
+        return status or 1
+    return status
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("step", choices=["prepare"])
+    parser.add_argument("step", choices=["run"])
+    parser.add_argument("--uml", action="store_true", help="force user-mode Linux (hilrig bus --uml)")
     parser.add_argument("pytest_args", nargs=argparse.REMAINDER, help="more arguments for pytest")
     arguments = parser.parse_args()
-    print(prepare(arguments.pytest_args))
-    return 0
+    return run(["--uml"] if arguments.uml else [], arguments.pytest_args)
 
 
 if __name__ == "__main__":
