@@ -4,9 +4,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from hilrig.cli.common import Command, UsageError
+from hilrig.cli.files import existing_file
 from hilrig.session import vcan
 
 DESCRIPTION = f"""\
@@ -38,6 +40,8 @@ examples:
   hilrig bus --uml -- candump vcan0                 # force user-mode Linux
   hilrig bus --which                                # which path, nothing run"""
 
+KERNEL_VARIABLES = {"uml": "HIL_UML_KERNEL", "vm": "HIL_VM_KERNEL"}
+"""Where --kernel goes: the variable hilrig.session.guests reads for that path."""
 EXIT_NOT_FOUND = 127
 EXIT_INTERRUPTED = 130
 
@@ -55,6 +59,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
     kvm.add_argument("--no-kvm", dest="kvm", action="store_const", const="no", help="never KVM")
     parser.add_argument("--no-uml", dest="uml", action="store_false",
                         help="never user-mode Linux (a command that runs ASan builds)")  # fmt: skip
+    parser.add_argument(
+        "--kernel",
+        type=existing_file("kernel", "give a linux.uml with --uml or a vmlinuz with --vm"),
+        metavar="FILE",
+        help="the guest's kernel: a linux.uml with --uml ($HIL_UML_KERNEL), a vmlinuz with --vm "
+        "($HIL_VM_KERNEL)",
+    )
     parser.add_argument("--quiet", action="store_true", help="nothing of our own unless something fails")
     parser.add_argument(
         "--which", action="store_true", help="print the path these options take here; run nothing"
@@ -75,6 +86,10 @@ def run(args: argparse.Namespace) -> int:
     if command[:1] == ["--"]:
         command = command[1:]
     chosen = options(args)
+    if args.kernel is not None:
+        if args.mode not in KERNEL_VARIABLES:
+            raise UsageError("--kernel needs --uml (a linux.uml) or --vm (a vmlinuz)")
+        os.environ[KERNEL_VARIABLES[args.mode]] = str(args.kernel.resolve())
     if args.which:
         print(vcan.choose_path(chosen, vcan.sayer(chosen)))
         return 0
