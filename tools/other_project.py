@@ -140,7 +140,7 @@ def run(bus_options: list[str], pytest_args: list[str]) -> int:
     status = process.wait()
     expected = FIRMWARE_HEADER.format(firmware=(lamp / "build" / "lamp-firmware").resolve())
     if expected not in seen:
-        print(f"other-project: pytest's header lacks `{expected}`: another firmware ran", file=sys.stderr)
+        print(f"other-project: pytest's header lacks `{expected}`: not the lamp's firmware", file=sys.stderr)
         return status or 1
     return status
 
@@ -149,9 +149,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("step", choices=["run"])
     parser.add_argument("--uml", action="store_true", help="force user-mode Linux (hilrig bus --uml)")
-    parser.add_argument("pytest_args", nargs=argparse.REMAINDER, help="more arguments for pytest")
-    arguments = parser.parse_args()
-    return run(["--uml"] if arguments.uml else [], arguments.pytest_args)
+    arguments, pytest_args = parser.parse_known_args()  # the rest: pytest's
+    return run(["--uml"] if arguments.uml else [], pytest_args)
 
 
 if __name__ == "__main__":
