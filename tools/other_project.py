@@ -23,6 +23,7 @@ import hashlib
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -132,12 +133,17 @@ def run(bus_options: list[str], pytest_args: list[str]) -> int:
     print(f"other-project: {shlex.join(argv)} (in {lamp})", file=sys.stderr, flush=True)
     process = subprocess.Popen(argv, cwd=lamp, env=env, stdout=subprocess.PIPE, text=True)
     assert process.stdout is not None
+    # A SIGTERM (run-tests interrupted) goes on to `hilrig bus`, which stops its guest; its
+    # output and exit status are then read to the end as usual.
+    signal.signal(signal.SIGTERM, lambda *_: process.terminate())
     seen: list[str] = []
     for line in process.stdout:
         sys.stdout.write(line)
         sys.stdout.flush()
         seen.append(line.rstrip("\n"))
     status = process.wait()
+    if status == 130:  # interrupted: `hilrig bus` said so
+        return status
     expected = FIRMWARE_HEADER.format(firmware=(lamp / "build" / "lamp-firmware").resolve())
     if expected not in seen:
         print(f"other-project: pytest's header lacks `{expected}`: not the lamp's firmware", file=sys.stderr)
