@@ -165,7 +165,7 @@ def private_bus(hil_warm_server: None) -> Iterator[PrivateBus]:
     """A network namespace with its own vcan0, for this test alone."""
     try:
         require_private_buses(
-            "a bus-level scenario", "run it through `tools/with-vcan` or on a host with vcan"
+            "a bus-level scenario", "run pytest through `hilrig bus -- python -m pytest` or on a vcan host"
         )
     except BusUnavailableError as error:
         pytest.fail(str(error), pytrace=False)
