@@ -57,8 +57,9 @@ def as_processes(command: list[str]) -> list[str]:
     program = command[0]
     rest = [arg.replace("hilrig.boardproto.", "boardproto.") for arg in command[1:]]
     if program == FIRMWARE_IN_IMAGE:
-        # The checkout's firmware as every scenario takes it: $HIL_FIRMWARE when set (the release
-        # build under user-mode Linux, where the image's ASan build cannot start).
+        # The checkout's firmware as every scenario takes it: $HIL_FIRMWARE when set, else the
+        # release build under user-mode Linux, where the image's ASan build cannot start
+        # (hilrig.resources).
         return [str(resources.DEFAULT_FIRMWARE), *rest]
     return [str(REPO / program) if "/" in program else program, *rest]
 

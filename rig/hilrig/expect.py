@@ -35,6 +35,11 @@ class ScenarioAssertion(AssertionError):
         self.pictures = pictures
 
 
+class PictureUnavailable(Exception):
+    """A picture of a failed check cannot be drawn here (a part is not installed); the message
+    says what to install. The check's own failure still reads whole, with this line after it."""
+
+
 @dataclass(frozen=True)
 class FailedCheck:
     """What a picture of a failed check shows: the series looked at, the band of values it was
@@ -51,7 +56,8 @@ class FailedCheck:
 
 
 Picture = Callable[[FailedCheck], Path | None]
-"""Draws a failed check and returns the PNG's path (None: it could not be drawn)."""
+"""Draws a failed check and returns the PNG's path (None: it could not be drawn; PictureUnavailable:
+it cannot be drawn here, the message says why)."""
 
 
 class History(Protocol):
@@ -83,7 +89,11 @@ class Expect:
         if self.picture is not None and series is not None:
             caller = inspect.currentframe()
             check = caller.f_back.f_code.co_name if caller and caller.f_back else "check"  # settles_within...
-            drawn = self.picture(FailedCheck(check, name, *series, band, band_from_s, at_s, message))
+            try:
+                drawn = self.picture(FailedCheck(check, name, *series, band, band_from_s, at_s, message))
+            except PictureUnavailable as missing:
+                drawn = None
+                message += f"; {missing}"
             if drawn is not None:
                 pictures = (drawn,)
                 message += f"; picture {drawn}"

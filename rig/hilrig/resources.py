@@ -2,7 +2,8 @@
 firmware. Every default path of hilrig comes from here; three cases:
 
 - a checkout (this file is rig/hilrig/resources.py beside protocol/board.toml): the checkout's
-  table, the EDS and DBC `make build` generates into build/protocol/, build/bin/joint-firmware;
+  table, the EDS and DBC `make build` generates into build/protocol/, build/bin/joint-firmware
+  (build/release/bin/ under user-mode Linux, `$HIL_BUS_PATH` "uml:...", where ASan cannot run);
 - an installed wheel: the table, EDS and DBC packaged in hilrig/data/ (generated from the table
   when the wheel was built, `make dist`); the firmware is not in the wheel: build/bin/joint-firmware
   under the working directory (the runtime image's /src);
@@ -43,23 +44,39 @@ PACKAGED = _PACKAGE / "data"
 """The wheel's copies of board.toml, board.eds and board.dbc (hilrig ships C extensions, so it is
 always installed as plain files, never imported from a zip: a path is enough)."""
 
+FIRMWARE_VARIABLE = "HIL_FIRMWARE"
+"""The caller's firmware, over every default and a project's `hil_firmware` (a mutant under
+`make mutate`); no tool of hilrig sets it."""
+BUS_PATH_VARIABLE = "HIL_BUS_PATH"
+"""Set by `hilrig bus` (tools/with-vcan) for its command: "native", "vm:<kernel>", "uml:<kernel>"."""
+
+
+def _default_firmware() -> tuple[Path, str]:
+    """The demo joint's firmware when nothing else names one, and why that one. In the checkout
+    under user-mode Linux, whose address space has no room for AddressSanitizer's shadow memory,
+    `make build`'s release build instead of the ASan one: a default only, below $HIL_FIRMWARE and
+    a project's `hil_firmware`."""
+    if os.environ.get(FIRMWARE_VARIABLE):
+        return Path(os.environ[FIRMWARE_VARIABLE]), f"${FIRMWARE_VARIABLE}"
+    if CHECKOUT is None:
+        return Path("build") / "bin" / "joint-firmware", "hilrig's default"
+    release = CHECKOUT / "build" / "release" / "bin" / "joint-firmware"
+    if os.environ.get(BUS_PATH_VARIABLE, "").startswith("uml:") and release.is_file():
+        return release, "the checkout's release build: AddressSanitizer cannot run under user-mode Linux"
+    return CHECKOUT / "build" / "bin" / "joint-firmware", "the checkout's build"
+
+
 if CHECKOUT is not None:
     DEFAULT_TABLE = CHECKOUT / "protocol" / "board.toml"
     DEFAULT_EDS = CHECKOUT / "build" / "protocol" / "board.eds"
     DEFAULT_DBC = CHECKOUT / "build" / "protocol" / "board.dbc"
-    DEFAULT_FIRMWARE = CHECKOUT / "build" / "bin" / "joint-firmware"
     REBUILD_HINT = "run `make build`"
 else:
     DEFAULT_TABLE = PACKAGED / "board.toml"
     DEFAULT_EDS = PACKAGED / "board.eds"
     DEFAULT_DBC = PACKAGED / "board.dbc"
-    DEFAULT_FIRMWARE = Path("build") / "bin" / "joint-firmware"
     REBUILD_HINT = "reinstall hilrig"
-
-if os.environ.get("HIL_FIRMWARE"):
-    # Another build of the firmware for every caller that takes the default (a mutant under
-    # `make mutate`, a release build next to the test build).
-    DEFAULT_FIRMWARE = Path(os.environ["HIL_FIRMWARE"])
+DEFAULT_FIRMWARE, DEFAULT_FIRMWARE_ORIGIN = _default_firmware()
 
 # The second board of this repository (issue 45), the robot head module: its table beside the
 # joint's and its firmware beside the joint's; its EDS and DBC come from board_files(HEAD_TABLE).

@@ -5,6 +5,7 @@ band and the failure line where a check without a browser can find them."""
 
 from __future__ import annotations
 
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -162,3 +163,22 @@ def test_a_baseline_is_kept_when_passing_and_named_when_failing(
     failed.assert_outcomes(failed=1)
     failed.stdout.fnmatch_lines([f"*what changed: hilrig diff {kept} *trace.rrd"])
     assert kept.read_bytes() == b"run good"  # a failing run never replaces the last good one
+
+
+def test_without_matplotlib_the_failure_keeps_its_text_and_says_what_to_install(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    class Recorded:
+        period_s = 0.001
+
+        def history(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+            return np.arange(100) * 0.001, np.full(100, 3.0)
+
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # `import matplotlib` raises ImportError
+    expect = Expect(Recorded(), evidence="trace t.rrd", picture=FailurePictures(tmp_path / "pictures"))
+    with pytest.raises(ScenarioAssertion) as failed:
+        expect.stays_within("output_velocity", 0.0, 1.0)
+    message = str(failed.value)
+    assert message.startswith("output_velocity: expected within [0, 1], got 3 at t = 0.000 s")
+    assert "; no picture: matplotlib is not installed (pip install 'hilrig[pytest]'); trace t.rrd" in message
+    assert failed.value.pictures == () and not (tmp_path / "pictures").exists()

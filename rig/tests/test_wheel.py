@@ -156,6 +156,19 @@ def test_dist_holds_hilrig_alone_requiring_only_what_the_lock_pins(built: Path) 
     assert required <= pinned, f"not in requirements.lock: {sorted(required - pinned)}"
 
 
+def test_the_pytest_extra_brings_what_a_scenario_author_and_a_failure_report_need(built: Path) -> None:
+    (wheel,) = built.glob("*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        metadata = archive.read("hilrig-0.1.0.dist-info/METADATA").decode()
+    assert "Provides-Extra: pytest" in metadata
+    extra = {
+        re.split(r"[\s\[<>=~;!]", line.split(":", 1)[1].strip())[0].lower()
+        for line in metadata.splitlines()
+        if line.startswith("Requires-Dist:") and line.endswith('extra == "pytest"')
+    }
+    assert extra == {"pytest", "matplotlib", "pytest-xdist", "pytest-timeout"}
+
+
 def test_the_wheel_holds_every_module_the_table_its_eds_and_dbc_and_the_dashboards(
     installed: Installed,
 ) -> None:

@@ -1,4 +1,5 @@
-"""tools/other_project.py's build environment: the lamp compiled through ccache as the checkout is."""
+"""tools/other_project.py's build environment: the lamp, copied outside the checkout, compiled through
+ccache as the checkout is, its folder's paths relative."""
 
 from __future__ import annotations
 
@@ -8,13 +9,13 @@ from tool_loader import load_tool
 other_project = load_tool("other_project")
 
 
-def test_the_lamp_compiles_through_ccache_with_the_checkouts_paths_relative(
+def test_the_lamp_compiles_through_ccache_with_its_folders_paths_relative(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setattr(other_project.shutil, "which", lambda name: f"/usr/bin/{name}")
     monkeypatch.delenv("CMAKE_CXX_COMPILER_LAUNCHER", raising=False)
     monkeypatch.setenv("CXXFLAGS", "-O1")
-    repo = other_project.REPO
+    repo = other_project.OUTSIDE
     assert other_project.compiler_cache_env() == {
         "CMAKE_CXX_COMPILER_LAUNCHER": "ccache",
         "CCACHE_BASEDIR": str(repo),

@@ -89,6 +89,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "pdo",
     "soak",
     "new_board",
+    "bus",
     "completion",
 )
 """Modules of `hilrig.cli` whose COMMANDS are registered, in the order `--help` lists them."""

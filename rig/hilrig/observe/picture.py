@@ -4,7 +4,8 @@ time, the band it was expected in, and the moment it failed.
 
     expect = Expect(rig, evidence=..., picture=FailurePictures(Path("out/scenarios/x/pictures")))
 
-Drawn with matplotlib's Agg backend (no display); written whole (a temporary file renamed). The
+Drawn with matplotlib's Agg backend (no display; without matplotlib the failure says what to
+install, `PictureUnavailable`, and keeps its text); written whole (a temporary file renamed). The
 colours are fixed (`CURVE`, `BAND`, `FAILED_AT`) so a check without a browser can find each part
 in the image (`rig/tests/test_failure_picture.py`).
 """
@@ -16,7 +17,7 @@ import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from hilrig.expect import FailedCheck
+from hilrig.expect import FailedCheck, PictureUnavailable
 from hilrig.files import replacing
 
 CURVE = "#1f3fbf"
@@ -28,6 +29,8 @@ FAILED_AT = "#d62728"
 """The moment the check failed: a vertical line and a marker on the sample."""
 SIZE_IN = (9.0, 4.5)
 DPI = 100
+EXTRA = "hilrig[pytest]"
+"""The install that brings matplotlib, with pytest (rig/pyproject.toml's extra)."""
 MAX_PICTURES = 20
 """Per `FailurePictures`: a scenario that fails in a loop does not fill the disk."""
 
@@ -54,8 +57,12 @@ class FailurePictures:
 
 
 def draw(failed: FailedCheck, path: Path) -> Path:
-    """The PNG of one failed check at `path` (parent folders made)."""
-    import matplotlib
+    """The PNG of one failed check at `path` (parent folders made); PictureUnavailable without
+    matplotlib."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise PictureUnavailable(f"no picture: matplotlib is not installed (pip install '{EXTRA}')") from None
 
     matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure

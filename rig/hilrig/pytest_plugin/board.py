@@ -14,7 +14,8 @@ The firmware is started as `FIRMWARE --can CHANNEL --node-id N --mode lockstep|f
 (params, seed) from `make_scenario(params=..., seed=...)` and returns a
 `hilrig.plants.interface.Plant`. Nothing set: hilrig's own demo board (its table, EDS and
 firmware where `hilrig.resources` finds them, the joint's plant). $HIL_FIRMWARE, when set, is
-the firmware whatever the ini says (a mutant, a release build).
+the firmware whatever the ini says (a mutant); `hilrig bus` never sets it. The run's header names
+the firmware and where it comes from (`report_header`).
 """
 
 from __future__ import annotations
@@ -93,6 +94,32 @@ def _ini_path(config: pytest.Config, name: str) -> Path | None:
     return (base / value).resolve()
 
 
+def firmware_choice(config: pytest.Config) -> tuple[Path, str]:
+    """The firmware the scenarios start and where that choice comes from: $HIL_FIRMWARE, else
+    the ini's `hil_firmware`, else hilrig's default (`hilrig.resources.DEFAULT_FIRMWARE_ORIGIN`).
+    No bus wrapper sets any of them: the caller's configuration always wins."""
+    variable = resources.FIRMWARE_VARIABLE
+    if os.environ.get(variable):
+        return Path(os.environ[variable]), f"${variable}"
+    configured = _ini_path(config, "hil_firmware")
+    if configured is not None:
+        where = config.inipath.name if config.inipath is not None else "the ini file"
+        return configured, f"hil_firmware of {where}"
+    return resources.DEFAULT_FIRMWARE, resources.DEFAULT_FIRMWARE_ORIGIN
+
+
+def report_header(config: pytest.Config) -> list[str]:
+    """The lines a run's header says of its board (none where no hil_* option is set and no
+    test asked: a project of no board), so that a log shows which firmware ran."""
+    if not any(str(config.getini(name) or "").strip() for name, _ in INI_OPTIONS):
+        return []
+    firmware, origin = firmware_choice(config)
+    table = _ini_path(config, "hil_table") or resources.DEFAULT_TABLE
+    bus = os.environ.get(resources.BUS_PATH_VARIABLE)
+    lines = [f"hilrig: table {table}", f"hilrig: firmware {firmware} ({origin})"]
+    return lines + ([f"hilrig: bus path {bus}"] if bus else [])
+
+
 def board_from_config(config: pytest.Config) -> HilBoard:
     """The board the ini options describe (see the module docstring)."""
     table_path = _ini_path(config, resources.TABLE_INI_OPTION)
@@ -102,9 +129,7 @@ def board_from_config(config: pytest.Config) -> HilBoard:
     except (OSError, TableError) as error:
         raise pytest.UsageError(f"hil_table {table_path}: {error}") from None
     eds = _ini_path(config, "hil_eds") or files.eds
-    firmware = _ini_path(config, "hil_firmware") or resources.DEFAULT_FIRMWARE
-    if os.environ.get("HIL_FIRMWARE"):
-        firmware = Path(os.environ["HIL_FIRMWARE"])
+    firmware, _ = firmware_choice(config)
     spelled = str(config.getini("hil_plant") or "").strip()
     plant = load_factory(spelled) if spelled else default_plant
     args = tuple(shlex.split(str(config.getini("hil_firmware_args") or "")))
@@ -114,4 +139,4 @@ def board_from_config(config: pytest.Config) -> HilBoard:
     )
 
 
-__all__ = ["INI_OPTIONS", "HilBoard", "board_from_config", "load_factory"]
+__all__ = ["INI_OPTIONS", "HilBoard", "board_from_config", "firmware_choice", "load_factory", "report_header"]

@@ -32,7 +32,7 @@ from hilrig.errors import BusUnavailableError
 from hilrig.expect import Expect
 from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
-from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config
+from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config, report_header
 from hilrig.session import warm
 from hilrig.session.builder import BoardInterface, HilSession, Rider, SessionConfig, open_session
 from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
@@ -92,6 +92,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     )
     for name, help_text in INI_OPTIONS:
         parser.addini(name, help_text, default="")
+
+
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    return report_header(config)
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -161,7 +165,7 @@ def private_bus(hil_warm_server: None) -> Iterator[PrivateBus]:
     """A network namespace with its own vcan0, for this test alone."""
     try:
         require_private_buses(
-            "a bus-level scenario", "run it through `tools/with-vcan` or on a host with vcan"
+            "a bus-level scenario", "run pytest through `hilrig bus -- python -m pytest` or on a vcan host"
         )
     except BusUnavailableError as error:
         pytest.fail(str(error), pytrace=False)

@@ -7,7 +7,7 @@ are opened inside it by switching the calling thread into the namespace just lon
 create the socket (a socket stays bound to the namespace it was created in).
 
 Needs root (CAP_SYS_ADMIN) and a kernel with vcan: natively on such a host, or inside the
-micro-VM of ``tools/with-vcan``.
+guest of ``hilrig bus`` (``tools/with-vcan`` in the checkout).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def private_buses_supported() -> bool:
 
 
 def require_private_buses(
-    what: str, how: str = "run it through tools/with-vcan (make run, make test) or on a host with vcan"
+    what: str, how: str = "run it through `hilrig bus -- ...` (a checkout: tools/with-vcan) or on a vcan host"
 ) -> None:
     """BusUnavailableError "<what> needs root and a kernel with vcan ...: <how>" unless this
     process may make private buses."""
@@ -56,7 +56,7 @@ def _ip(*args: str, batch: str | None = None) -> None:
         spelled = " ".join(argv[1:]) + (f" <<< {batch.strip()!r}" if batch is not None else "")
         raise BusUnavailableError(
             f"`ip {spelled}` failed: {result.stderr.strip()} "
-            f"(a session {NEEDS}: run it through tools/with-vcan)"
+            f"(a session {NEEDS}: run it through `hilrig bus -- ...`)"
         )
 
 
