@@ -3,6 +3,7 @@ own blocks override them, and the kind of field no component writes."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import tomllib
@@ -248,6 +249,14 @@ def test_the_lamps_table_holds_only_its_own() -> None:
     assert not {"emcy", "enum", "recorder", "pdo"} & document.keys()
     assert not set(STANDARD["node"]) & document["node"].keys()
     load_table(LAMP_TABLE)
+
+
+def test_the_minimal_table_of_protocol_readme_loads(write_table: TableWriter) -> None:
+    readme = (PROTOCOL_DIR / "README.md").read_text()
+    examples = re.findall(r"```toml\n(.*?)```", readme, re.S)
+    assert len(examples) == 1, "protocol/README.md shows one minimal table"
+    table = load_table(write_table(examples[0]))
+    assert [e.name for e in table.emcy_codes] == STANDARD_EMCY
 
 
 def test_the_command_prints_the_standard_table() -> None:
