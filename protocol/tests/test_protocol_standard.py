@@ -106,6 +106,7 @@ def refused(path: Path, *fragments: str) -> str:
 
 STANDARD = standard_document()
 STANDARD_EMCY = [e["name"] for e in STANDARD["emcy"]]
+STANDARD_CODES = {e["name"]: e["code"] for e in STANDARD["emcy"]}
 
 
 def test_the_smallest_table_gets_every_standard_block(write_table: TableWriter) -> None:
@@ -169,7 +170,8 @@ def test_the_boards_own_codes_come_first_then_the_standard_ones(write_table: Tab
 
 
 def test_a_code_of_a_standard_name_replaces_it_at_the_boards_place(write_table: TableWriter) -> None:
-    own = _emcy("fan_stalled", 0x5010) + _emcy("rpdo_timeout", 0x8250, "The tachometer's RPDO is late")
+    late = _emcy("rpdo_timeout", STANDARD_CODES["rpdo_timeout"], "The tachometer's RPDO is late")
+    own = _emcy("fan_stalled", 0x5010) + late
     table = load_table(write_table(_with(own)))
     names = [e.name for e in table.emcy_codes]
     assert names == ["fan_stalled", "rpdo_timeout", *(n for n in STANDARD_EMCY if n != "rpdo_timeout")]
@@ -177,9 +179,10 @@ def test_a_code_of_a_standard_name_replaces_it_at_the_boards_place(write_table: 
 
 
 def test_refuses_a_standard_code_under_another_name(write_table: TableWriter) -> None:
+    code = STANDARD_CODES["receive_overrun"]
     refused(
-        write_table(_with(_emcy("lost_frames", 0x8110))),
-        "emcy 'lost_frames': code 0x8110 is the standard 'receive_overrun''s",
+        write_table(_with(_emcy("lost_frames", code))),
+        f"emcy 'lost_frames': code 0x{code:04X} is the standard 'receive_overrun''s",
         "name yours 'receive_overrun' to replace it",
     )
 
