@@ -178,7 +178,7 @@ def merge_standard(document: Mapping[str, Any]) -> dict[str, Any]:
         own = document.get(key, [])
         if not isinstance(own, list):
             continue
-        named = {entry.get("name") for entry in own if isinstance(entry, Mapping)}
+        named = {e["name"] for e in own if isinstance(e, Mapping) and isinstance(e.get("name"), str)}
         merged[key] = [*own, *(entry for entry in standard[key] if entry["name"] not in named)]
     return merged
 

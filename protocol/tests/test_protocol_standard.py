@@ -241,6 +241,7 @@ def test_every_other_kind_has_a_writer(write_table: TableWriter) -> None:
 
 def test_merge_leaves_malformed_blocks_for_the_loader_to_refuse(write_table: TableWriter) -> None:
     assert merge_standard({"node": 3, "emcy": "x"})["node"] == 3
+    assert len(merge_standard({"emcy": [{"name": ["x"]}, 1]})["emcy"]) == 2 + len(STANDARD_EMCY)
     refused(write_table('emcy = "none"\n' + SMALLEST_TABLE), "emcy must be an array of tables")
     refused(write_table(_with("[recorder]\nchanels = 4\n")), "recorder: unknown key 'chanels'")
 
