@@ -1,4 +1,5 @@
-"""Command line: `python -m boardproto generate --table board.toml --out-dir build/protocol`."""
+"""Command line: `python -m boardproto generate --table board.toml --out-dir build/protocol`,
+`python -m boardproto standard` (the blocks every table gets)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from boardproto.eds import generate_eds
 from boardproto.image import ImageBuildError, build_image, write_image
 from boardproto.loader import TableError, load_table
 from boardproto.outputs import write_if_changed
+from boardproto.standard import STANDARD_TABLE
 from boardproto.table import BoardTable
 from boardproto.vectors import generate_field_vectors
 
@@ -53,6 +55,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     generate.add_argument("--out-dir", type=Path, required=True, help="output directory, e.g. build/protocol")
     generate.add_argument("--quiet", action="store_true", help="do not list the files that were rewritten")
+    commands.add_parser(
+        "standard",
+        help="print the standard blocks every table gets unless it overrides them",
+        description="Print, in board.toml's format, the [node] communication parameters, the "
+        "[[emcy]] codes, the [recorder] and its [[enum]]s a table gets without writing them "
+        "(boardproto.standard says how a table overrides them).",
+    )
     image = commands.add_parser(
         "image",
         help="wrap a built firmware executable into a program download image (CiA 302-3)",
@@ -83,6 +92,9 @@ def generate(table_path: Path, out_dir: Path) -> list[Path]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     arguments = _parser().parse_args(argv)
+    if arguments.command == "standard":
+        print(STANDARD_TABLE, end="")
+        return 0
     if arguments.command == "image":
         try:
             table = load_table(arguments.table)

@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from boardproto.cia301 import LAST_SYNCHRONOUS_TYPE, RPDO_FUNCTIONS, TPDO_FUNCTIONS, predefined_pdo_base
+from boardproto.cpp_keywords import CPP_KEYWORDS
+from boardproto.standard import STANDARD_TRANSMISSION_TYPES, merge_standard, pdo_slots, standard_document
 from boardproto.table import (
     HIL_IO_TYPES,
     RECORDER_ENUMS,
@@ -53,106 +55,16 @@ MAX_PDO_SLOTS = 512  # CiA 301: 0x1400..0x15FF, 0x1800..0x19FF
 MAX_NODE_ID = 127
 FLOAT32_MAX = 3.4028234663852886e38
 
+# An Actuator reads the board and drives hardware; it writes no field, and the bus writes only rw
+# (command, parameter) fields: a field of kind actuator would have no writer at all.
+ACTUATOR_FIELD_FIX = (
+    "kind 'actuator' has no writer (an Actuator only reads the board and drives hardware): make what "
+    "it drives a [[hil_output]] (the raw value the plant takes) and the value it executes a module "
+    "field (what a controller computes) or a command field (what the bus sets)"
+)
 _SNAKE_CASE = re.compile(r"[a-z][a-z0-9]*(?:_[a-z0-9]+)*")
 # Printable ASCII without space, comma or quotes: units go into C++ strings, CSV and DBC.
 _UNIT = re.compile(r"[!#-&(-+\--~]+")
-# C++ keywords that are valid snake_case: as enumerator names they would not compile.
-_CPP_KEYWORDS = frozenset(
-    {
-        "alignas",
-        "alignof",
-        "and",
-        "and_eq",
-        "asm",
-        "auto",
-        "bitand",
-        "bitor",
-        "bool",
-        "break",
-        "case",
-        "catch",
-        "char",
-        "char8_t",
-        "char16_t",
-        "char32_t",
-        "class",
-        "compl",
-        "concept",
-        "const",
-        "consteval",
-        "constexpr",
-        "constinit",
-        "const_cast",
-        "continue",
-        "co_await",
-        "co_return",
-        "co_yield",
-        "decltype",
-        "default",
-        "delete",
-        "do",
-        "double",
-        "dynamic_cast",
-        "else",
-        "enum",
-        "explicit",
-        "export",
-        "extern",
-        "false",
-        "float",
-        "for",
-        "friend",
-        "goto",
-        "if",
-        "inline",
-        "int",
-        "long",
-        "mutable",
-        "namespace",
-        "new",
-        "noexcept",
-        "not",
-        "not_eq",
-        "nullptr",
-        "operator",
-        "or",
-        "or_eq",
-        "private",
-        "protected",
-        "public",
-        "register",
-        "reinterpret_cast",
-        "requires",
-        "return",
-        "short",
-        "signed",
-        "sizeof",
-        "static",
-        "static_assert",
-        "static_cast",
-        "struct",
-        "switch",
-        "template",
-        "this",
-        "thread_local",
-        "throw",
-        "true",
-        "try",
-        "typedef",
-        "typeid",
-        "typename",
-        "union",
-        "unsigned",
-        "using",
-        "virtual",
-        "void",
-        "volatile",
-        "wchar_t",
-        "while",
-        "xor",
-        "xor_eq",
-    }
-)
 # Transmission types CiA 301 defines for both directions (241..251 are reserved,
 # 252/253 are RTR-only TPDO types the firmware does not implement).
 _TRANSMISSION_TYPES = frozenset((*range(0, 241), 254, 255))
@@ -173,9 +85,9 @@ _TOP_LEVEL_KEYS = frozenset(
         "recorder",
     }
 )
-_NODE_KEYS = frozenset(
+# The board's identity: no default (boardproto.standard has the other [node] keys').
+_NODE_IDENTITY_KEYS = frozenset(
     {
-        "device_type",
         "vendor_id",
         "product_code",
         "revision",
@@ -183,11 +95,9 @@ _NODE_KEYS = frozenset(
         "hardware_version",
         "software_version",
         "default_node_id",
-        "heartbeat_ms",
-        "error_history_length",
-        "heartbeat_consumers",
     }
 )
+_NODE_STANDARD_KEYS = frozenset(standard_document()["node"])
 _FIELD_KEYS = frozenset(
     {"name", "index", "unit", "kind", "access", "min", "max", "default", "stored", "description"}
 )
@@ -210,9 +120,9 @@ MAX_RECORDER_CHANNELS = 254
 MAX_RECORDER_VALUES = 1 << 22
 # Recorder objects carry enum values in UNSIGNED8 objects.
 _RECORDER_ENUM_RANGE = range(0, 0x100)  # protocol-literal: the UNSIGNED8 range
-_PDO_REQUIRED_KEYS = frozenset({"number", "transmission_type", "map"})
+_PDO_REQUIRED_KEYS = frozenset({"number", "map"})
 _PDO_OPTIONAL_KEYS = frozenset(
-    {"enabled", "inhibit_time_100us", "event_timer_ms", "cob_id_base", "sync_start"}
+    {"transmission_type", "enabled", "inhibit_time_100us", "event_timer_ms", "cob_id_base", "sync_start"}
 )
 
 
@@ -299,7 +209,7 @@ def _check_name(entry: _Entry) -> str:
     name = entry.text("name")
     if not _SNAKE_CASE.fullmatch(name):
         raise entry.error(f"name {name!r} is not snake_case (lower-case words joined by _)")
-    if name in _CPP_KEYWORDS:
+    if name in CPP_KEYWORDS:
         raise entry.error(f"name {name!r} is a C++ keyword")
     return name
 
@@ -318,7 +228,7 @@ def _array_of_tables(source: Path, document: Mapping[str, Any], key: str) -> lis
 
 def _load_node(source: Path, data: Any) -> NodeIdentity:
     entry = _Entry(source, "node", data)
-    entry.check_keys(_NODE_KEYS)
+    entry.check_keys(_NODE_IDENTITY_KEYS, _NODE_STANDARD_KEYS)
     u32 = 0xFFFF_FFFF
     return NodeIdentity(
         device_type=entry.integer("device_type", 0, u32),
@@ -342,6 +252,8 @@ def _load_field(source: Path, position: int, data: Any) -> Field:
     name = _check_name(entry)
     index = entry.integer("index", 0, 0xFFFF)
     kind = entry.choice("kind", Kind)
+    if kind is Kind.ACTUATOR:
+        raise entry.error(ACTUATOR_FIELD_FIX)
     access = entry.choice("access", Access)
     low, high, default = entry.real("min"), entry.real("max"), entry.real("default")
     stored = entry.boolean("stored")
@@ -542,7 +454,10 @@ def _check_unique(source: Path, entries: list[ObjectEntry]) -> None:
         by_index[entry.index] = entry
 
 
-def _load_recorder(source: Path, data: Any, entries: list[ObjectEntry], enums: list[ValueEnum]) -> Recorder:
+def _load_recorder(
+    source: Path, data: Any, entries: list[ObjectEntry], enums: list[ValueEnum], *, standard: bool
+) -> Recorder:
+    """The merged [recorder]; `standard`: the board's table has no [recorder] of its own."""
     entry = _Entry(source, "recorder", data)
     entry.check_keys(_RECORDER_KEYS)
     index = entry.integer("index", MANUFACTURER_RANGE.start, MANUFACTURER_RANGE.stop - len(RecorderObject))
@@ -554,14 +469,13 @@ def _load_recorder(source: Path, data: Any, entries: list[ObjectEntry], enums: l
     for other in entries:
         if other.index in recorder.indices:
             offset = RecorderObject(other.index - index)
+            move = "; move the standard recorder with [recorder] index = ..." if standard else ""
             raise entry.error(
                 f"{offset.object_name} at 0x{other.index:04X} collides with {other.name!r} "
-                f"(the recorder takes 0x{index:04X}..0x{recorder.indices[-1]:04X})"
+                f"(the recorder takes 0x{index:04X}..0x{recorder.indices[-1]:04X}{move})"
             )
-    by_name = {e.name: e for e in enums}
+    by_name = {e.name: e for e in enums}  # the standard ones unless the board's replace them
     for name, required in RECORDER_ENUMS.items():
-        if name not in by_name:
-            raise entry.error(f"needs an [[enum]] {name!r} with the values {', '.join(required)}")
         values = by_name[name]
         missing = [v for v in required if v not in {value.name for value in values.values}]
         if missing:
@@ -634,7 +548,8 @@ def _load_pdos(
 def _load_pdo(
     entry: _Entry, direction: PdoDirection, number: int, entries_by_name: Mapping[str, ObjectEntry]
 ) -> Pdo:
-    transmission_type = entry.integer("transmission_type", 0, 255)
+    standard_type = STANDARD_TRANSMISSION_TYPES[direction]
+    transmission_type = entry.integer("transmission_type", 0, 255, default=standard_type)
     if transmission_type not in _TRANSMISSION_TYPES:
         raise entry.error(
             f"transmission_type {transmission_type} is not supported "
@@ -698,6 +613,12 @@ def _check_cob_id_collisions(source: Path, slots: list[Pdo]) -> None:
         seen[pdo.cob_id_base] = pdo
 
 
+def _slot_count(section: _Entry, document: Mapping[str, Any], direction: PdoDirection) -> int:
+    """[pdo]'s rpdo_slots or tpdo_slots, else as many as boardproto.standard gives the table."""
+    standard = min(pdo_slots(document, direction), MAX_PDO_SLOTS)
+    return section.integer(f"{direction.value}_slots", 0, MAX_PDO_SLOTS, default=standard)
+
+
 def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
     """Validate an already parsed TOML document; `source` only names it in errors."""
     for key in document:
@@ -710,6 +631,9 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
             )
     if "node" not in document:
         raise TableError(f"{source}: missing [node] table")
+    own_recorder = "recorder" in document
+    own_emcy = len(_array_of_tables(source, document, "emcy"))
+    document = merge_standard(document)
 
     node = _load_node(source, document["node"])
     fields = [_load_field(source, i, d) for i, d in enumerate(_array_of_tables(source, document, "field"))]
@@ -730,8 +654,16 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
     emcy = [_load_emcy(source, i, d) for i, d in enumerate(_array_of_tables(source, document, "emcy"))]
     _unique_names(source, "emcy", emcy)
     for i, code in enumerate(emcy):
-        if any(other.code == code.code for other in emcy[:i]):
-            raise TableError(f"{source}: emcy {code.name!r}: code 0x{code.code:04X} already used")
+        first = next((other for other in emcy[:i] if other.code == code.code), None)
+        if first is not None and i >= own_emcy:  # the board's own come first, then the standard ones
+            raise TableError(
+                f"{source}: emcy {first.name!r}: code 0x{code.code:04X} is the standard {code.name!r}'s "
+                f"(boardproto.standard): name yours {code.name!r} to replace it, or pick another code"
+            )
+        if first is not None:
+            raise TableError(
+                f"{source}: emcy {code.name!r}: code 0x{code.code:04X} already used by {first.name!r}"
+            )
     emcy_by_name = {e.name: e for e in emcy}
     enums = [_load_enum(source, i, d) for i, d in enumerate(_array_of_tables(source, document, "enum"))]
     _unique_names(source, "enum", enums)
@@ -743,28 +675,26 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
     _check_values(source, all_entries, enums, bitsets)
 
     pdo_section = _Entry(source, "pdo", document.get("pdo", {}))
-    pdo_section.check_keys(_PDO_SLOT_KEYS)
+    pdo_section.check_keys(frozenset(), _PDO_SLOT_KEYS)
     rpdos = _load_pdos(
         source,
         document,
         PdoDirection.RPDO,
-        pdo_section.integer("rpdo_slots", 0, MAX_PDO_SLOTS),
+        _slot_count(pdo_section, document, PdoDirection.RPDO),
         entries_by_name,
     )
     tpdos = _load_pdos(
         source,
         document,
         PdoDirection.TPDO,
-        pdo_section.integer("tpdo_slots", 0, MAX_PDO_SLOTS),
+        _slot_count(pdo_section, document, PdoDirection.TPDO),
         entries_by_name,
     )
     from boardproto.profiles import load_pdo_profiles  # built on this module's helpers
 
     profiles = load_pdo_profiles(source, document, (len(rpdos), len(tpdos)), entries_by_name, (rpdos, tpdos))
 
-    recorder = (
-        _load_recorder(source, document["recorder"], all_entries, enums) if "recorder" in document else None
-    )
+    recorder = _load_recorder(source, document["recorder"], all_entries, enums, standard=not own_recorder)
 
     return BoardTable(
         source=source,

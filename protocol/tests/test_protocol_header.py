@@ -22,6 +22,7 @@ from boardproto.cpp_header import (
     enum_underlying_type,
     generate_header,
 )
+from boardproto.standard import standard_document
 from boardproto.table import EnumValue, ErrorRegisterBit, ValueEnum, camel_case
 
 
@@ -308,11 +309,17 @@ def test_odd_value_sets_compile_to_their_values(
 
 
 @pytest.mark.skipif(shutil.which("g++") is None, reason="needs g++")
-def test_a_table_without_value_sets_compiles(
+def test_a_table_without_value_sets_compiles_with_the_standard_ones(
     minimal_table: str, write_table: Callable[[str], Path], tmp_path: Path
 ) -> None:
     generate(write_table(minimal_table), tmp_path / "out")
-    source = '#include "board/fields.hpp"\nstatic_assert(board::kEmcyCount == 0);\n'
+    standard_codes = len(standard_document()["emcy"])
+    source = (
+        '#include "board/fields.hpp"\n'
+        f"static_assert(board::kEmcyCount == {standard_codes});\n"
+        "static_assert(board::kRecorder.index == board::recorder::kState);\n"
+        "static_assert(board::RecorderState::Done != board::RecorderState::Idle);\n"
+    )
     result = _compile(tmp_path / "out" / "include", source, tmp_path)
     assert result.returncode == 0, result.stderr
 

@@ -25,6 +25,7 @@ from boardproto.recording import (
     header_bytes,
     recording_bytes,
 )
+from boardproto.standard import standard_document
 from boardproto.table import RECORDER_ENUMS, RecorderObject, RecorderStatusSub, RecorderTriggerSub
 from boardproto.vectors import generate_value_vectors
 
@@ -81,8 +82,18 @@ def test_board_table_declares_the_recorder(table: BoardTable) -> None:
         assert {v.name for v in table.enum(name).values} >= set(values)
 
 
-def test_a_table_without_recorder_has_none(minimal_table: str, write_table: TableWriter) -> None:
-    assert load_table(write_table(minimal_table)).recorder is None
+def test_a_table_without_recorder_gets_the_standard_one(minimal_table: str, write_table: TableWriter) -> None:
+    table = load_table(write_table(minimal_table))
+    standard = standard_document()
+    recorder = table.recorder
+    assert recorder is not None
+    assert (recorder.index, recorder.max_channels, recorder.buffer_values) == (
+        standard["recorder"]["index"],
+        standard["recorder"]["channels"],
+        standard["recorder"]["buffer_values"],
+    )
+    for name, values in RECORDER_ENUMS.items():
+        assert tuple(v.name for v in table.enum(name).values) == values
 
 
 def test_minimal_recorder_is_valid(minimal_table: str, write_table: TableWriter) -> None:
@@ -97,9 +108,18 @@ def test_refuses_unknown_recorder_key(minimal_table: str, write_table: TableWrit
     refused(write_table(text), "unknown key 'chanels'; did you mean 'channels'?")
 
 
-def test_refuses_missing_recorder_key(minimal_table: str, write_table: TableWriter) -> None:
-    text = _with_recorder(minimal_table, RECORDER.replace("buffer_values = 16384\n", ""))
-    refused(write_table(text), "missing key buffer_values")
+def test_a_recorder_key_of_the_board_replaces_only_that_key(
+    minimal_table: str, write_table: TableWriter
+) -> None:
+    text = _with_recorder(minimal_table, "\n[recorder]\nchannels = 4\n", enums="")
+    recorder = load_table(write_table(text)).recorder
+    assert recorder is not None
+    standard = standard_document()["recorder"]
+    assert (recorder.index, recorder.max_channels, recorder.buffer_values) == (
+        standard["index"],
+        4,
+        standard["buffer_values"],
+    )
 
 
 def test_refuses_recorder_outside_the_manufacturer_range(
@@ -141,12 +161,22 @@ def test_refuses_buffer_smaller_than_one_sample(minimal_table: str, write_table:
     )
 
 
-def test_refuses_recorder_without_its_enums(minimal_table: str, write_table: TableWriter) -> None:
+def test_a_recorder_enum_of_the_board_replaces_the_standard_one(
+    minimal_table: str, write_table: TableWriter
+) -> None:
     enums = _enum("recorder_state", RECORDER_ENUMS["recorder_state"])
-    refused(
-        write_table(_with_recorder(minimal_table, enums=enums)),
-        "needs an [[enum]] 'recorder_trigger' with the values immediate, level, flag",
-    )
+    table = load_table(write_table(_with_recorder(minimal_table, enums=enums)))
+    assert [e.name for e in table.enums] == list(RECORDER_ENUMS)  # the board's first, no second one
+    assert table.enum("recorder_state").description == "d"
+    standard = {e["name"]: e for e in standard_document()["enum"]}
+    assert table.enum("recorder_trigger").description == standard["recorder_trigger"]["description"]
+
+
+def test_the_standard_recorder_over_a_board_object_says_how_to_move_it(
+    minimal_table: str, write_table: TableWriter
+) -> None:
+    text = minimal_table.replace("index = 0x3100", "index = 0x3203")
+    refused(write_table(text), "recorder_samples at 0x3203 collides with 'motor_duty'", "[recorder] index = ")
 
 
 def test_refuses_recorder_enum_missing_a_value(minimal_table: str, write_table: TableWriter) -> None:

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from boardproto import TableError, load_table
+from boardproto.standard import standard_document
 
 TableWriter = Callable[[str], Path]  # TOML text -> path
 TableEditor = Callable[[str, str], Path]  # (old, new) -> path of the edited minimal table
@@ -205,8 +206,8 @@ def test_refuses_heartbeat_consumer_count_outside_its_range(edit_table: TableEdi
     )
 
 
-def test_refuses_node_without_heartbeat_consumer_count(edit_table: TableEditor) -> None:
-    refused(edit_table("heartbeat_consumers = 1\n", ""), "node: ", "missing key heartbeat_consumers")
+def test_refuses_node_without_its_identity(edit_table: TableEditor) -> None:
+    refused(edit_table("product_code = 0x5678\n", ""), "node: ", "missing key product_code")
 
 
 def test_refuses_unknown_top_level_table(minimal_table: str, write_table: TableWriter) -> None:
@@ -306,7 +307,13 @@ def edit_values(values_table: str, write_table: TableWriter) -> TableEditor:
 
 def test_value_sets_table_is_valid(values_table: str, write_table: TableWriter) -> None:
     table = load_table(write_table(values_table))
-    assert [e.name for e in table.emcy_codes] == ["stale_sensor", "over_temperature"]
+    # The table's own codes, then the standard ones it does not name.
+    standard = [e["name"] for e in standard_document()["emcy"]]
+    assert [e.name for e in table.emcy_codes] == [
+        "stale_sensor",
+        "over_temperature",
+        *(name for name in standard if name not in ("stale_sensor", "over_temperature")),
+    ]
     assert table.values_of("velocity_kp") == table.enum("control_mode")
     assert table.values_of("motor_position") == table.bitset("fault_flags")
     assert table.bitset("fault_flags").bit("over_temperature").about is None
