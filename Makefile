@@ -126,6 +126,16 @@ dist: ## build what installs anywhere: dist/hilrig-*.whl and its sdist (DIST=DIR
 	@tools/deps --dist
 	@$(PY) tools/dist.py --out $(abspath $(DIST))
 
+# The firmware package another project's board builds against (find_package(hilfw)): the core, the
+# CANopen engine, the Linux platform and the board application, as sources with their CMake config.
+HILFW_PREFIX ?= dist/hilfw
+
+.PHONY: hilfw
+hilfw: deps ## install the firmware package a board's own firmware builds on (HILFW_PREFIX=dist/hilfw)
+	@test -f $(BUILD)/build.ninja || $(MAKE) --no-print-directory build
+	@cmake --install $(BUILD) --component hilfw --prefix $(abspath $(HILFW_PREFIX)) >/dev/null
+	@echo "hilfw: installed in $(abspath $(HILFW_PREFIX)) (cmake -DCMAKE_PREFIX_PATH=$(abspath $(HILFW_PREFIX)) in a board's project)"
+
 # Soak (issue 11): SOAK_CYCLES lockstep cycles against the real firmware on a real bus, a seeded
 # fault now and then; fails if a cycle is lost or the firmware's memory grows. SOAK_ARGS are passed
 # on (hilrig soak --help). Report: build/soak/report.json. Ctrl-C stops cleanly.

@@ -98,9 +98,10 @@ _NODE_IDENTITY_KEYS = frozenset(
     }
 )
 _NODE_STANDARD_KEYS = frozenset(standard_document()["node"])
-_FIELD_KEYS = frozenset(
-    {"name", "index", "unit", "kind", "access", "min", "max", "default", "stored", "description"}
-)
+_FIELD_KEYS = frozenset({"name", "index", "unit", "kind", "min", "max", "description"})
+# Optional on a field: access follows from its kind (the only one the loader accepts), a field is
+# not stored and starts at 0 (or its min, when 0 is outside its range) unless it says otherwise.
+_FIELD_OPTIONAL_KEYS = frozenset({"access", "default", "stored"})
 _HIL_IO_KEYS = frozenset({"name", "index", "type", "min", "max", "unit", "description"})
 _VALUES_KEY = frozenset({"values"})  # optional on fields and HIL I/O: the enum or bitset carried
 _NAMED_SET_KEYS = frozenset({"name", "description"})
@@ -248,22 +249,23 @@ def _load_node(source: Path, data: Any) -> NodeIdentity:
 
 def _load_field(source: Path, position: int, data: Any) -> Field:
     entry = _Entry(source, _entry_label("field", position, data), data)
-    entry.check_keys(_FIELD_KEYS, _VALUES_KEY)
+    entry.check_keys(_FIELD_KEYS, _VALUES_KEY | _FIELD_OPTIONAL_KEYS)
     name = _check_name(entry)
     index = entry.integer("index", 0, 0xFFFF)
     kind = entry.choice("kind", Kind)
     if kind is Kind.ACTUATOR:
         raise entry.error(ACTUATOR_FIELD_FIX)
-    access = entry.choice("access", Access)
-    low, high, default = entry.real("min"), entry.real("max"), entry.real("default")
-    stored = entry.boolean("stored")
-    if low > high:
-        raise entry.error(f"min {low!r} is greater than max {high!r}")
-    if not low <= default <= high:
-        raise entry.error(f"default {default!r} outside [{low!r}, {high!r}]")
     # Bus-written fields are owned by the CANopen node; a second writer would be a
     # start-up error in the firmware, so refuse the table instead.
     expected_access = Access.READ_WRITE if kind.bus_writable else Access.READ_ONLY
+    access = entry.choice("access", Access) if "access" in entry.data else expected_access
+    low, high = entry.real("min"), entry.real("max")
+    if low > high:
+        raise entry.error(f"min {low!r} is greater than max {high!r}")
+    default = entry.real("default") if "default" in entry.data else min(max(0.0, low), high)
+    stored = entry.boolean("stored", False)
+    if not low <= default <= high:
+        raise entry.error(f"default {default!r} outside [{low!r}, {high!r}]")
     if access is not expected_access:
         raise entry.error(
             f"a {kind.value} field must have access {expected_access.value!r}, got {access.value!r}"

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from boardproto import TableError, load_table
+from boardproto import Access, TableError, load_table
 from boardproto.standard import standard_document
 
 TableWriter = Callable[[str], Path]  # TOML text -> path
@@ -194,7 +194,19 @@ def test_refuses_unknown_key_with_suggestion(edit_table: TableEditor) -> None:
 
 
 def test_refuses_missing_key(edit_table: TableEditor) -> None:
-    refused(edit_table("stored = false\n", ""), "field 'motor_position'", "missing key stored")
+    refused(edit_table('unit = "rad"\n', ""), "field 'motor_position'", "missing key unit")
+
+
+def test_a_field_without_access_default_or_stored_takes_its_kinds_and_zero(edit_table: TableEditor) -> None:
+    path = edit_table(
+        'access = "ro"\nmin = -10.0\nmax = 10.0\ndefault = 0.0\nstored = false\n', "min = 1.0\nmax = 10.0\n"
+    )
+    field = load_table(path).field("motor_position")
+    assert (field.access, field.default, field.stored) == (Access.READ_ONLY, 1.0, False)  # 0 outside: min
+
+
+def test_an_access_other_than_the_kinds_is_still_refused(edit_table: TableEditor) -> None:
+    refused(edit_table('access = "ro"\n', 'access = "rw"\n'), "a sensor field must have access 'ro'")
 
 
 @pytest.mark.parametrize("count", [0, 5])
