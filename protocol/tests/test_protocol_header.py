@@ -102,6 +102,8 @@ static_assert(emcy_code::kHeartbeatError == 0x8130);
 static_assert(info(EmcyId::heartbeat_error).register_bit == error_register::kCommunication);
 static_assert(*kFaultFlagsInfo[static_cast<std::size_t>(FaultFlagsBit::MasterHeartbeatLost)].emcy
               == EmcyId::heartbeat_error);
+static_assert(kFaultFlagsField == FieldId::fault_flags && kFaultFlagsEmcy.size() == kFaultFlagsInfo.size());
+static_assert(kOwnershipViolationBit == static_cast<std::uint8_t>(FaultFlagsBit::OwnershipViolation));
 static_assert(kDefaultTpdos[0].cob_id_base == 0x180 && kDefaultTpdos[0].count == 2);
 static_assert(kDefaultTpdos[0].entries[0].index == 0x3100);
 static_assert(kDefaultTpdos[0].entries[0].bits == 16);
@@ -313,6 +315,8 @@ def test_a_table_without_value_sets_compiles(
 ) -> None:
     generate(write_table(minimal_table), tmp_path / "out")
     source = '#include "board/fields.hpp"\nstatic_assert(board::kEmcyCount == 0);\n'
+    source += "static_assert(!board::kFaultFlagsField && board::kFaultFlagsEmcy.empty());\n"
+    source += "static_assert(!board::kOwnershipViolationBit);\n"
     result = _compile(tmp_path / "out" / "include", source, tmp_path)
     assert result.returncode == 0, result.stderr
 
