@@ -90,7 +90,7 @@ def test_latched_fault_holds_until_fault_clear_then_error_reset(make_scenario) -
 
 ROGUE_CYCLE = 200
 """The firmware's cycle (1 = first SYNC) at which the injected rogue module writes."""
-ROGUE_VALUE = 0.875  # board_app::kRogueValue in firmware/platform/linux/boards/joint/BoardApplication.hpp
+ROGUE_VALUE = 0.875  # BoardInfo::rogue_value in firmware/platform/linux/boards/joint/main.cpp
 
 
 def test_write_by_a_non_owner_is_refused_and_reported_by_emcy(make_scenario) -> None:

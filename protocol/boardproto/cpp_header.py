@@ -39,6 +39,8 @@ def table_name(table: BoardTable) -> str:
 def banner(table: BoardTable) -> str:
     """The first line of every file generated from `table`."""
     return GENERATED_BANNER.replace("protocol/board.toml", table_name(table))
+
+
 PDO_MAX_ENTRIES = 8
 
 
@@ -406,6 +408,35 @@ struct FlagInfo {{
 """
 
 
+# The field whose latched bits the firmware application turns into EMCY frames every cycle, and
+# the bit of its [[bitset]] a refused write latches (platform/linux/hilfw/BoardRuntime.cpp).
+FAULT_FLAGS_FIELD = "fault_flags"
+OWNERSHIP_VIOLATION_BIT = "ownership_violation"
+
+
+def _fault_flags_section(table: BoardTable) -> str:
+    bitset_names = {b.name for b in table.bitsets}
+    field = next((f for f in table.fields if f.name == FAULT_FLAGS_FIELD and f.values in bitset_names), None)
+    if field is None:
+        field_id, bits, ownership = "std::nullopt", "{}", "std::nullopt"
+        carried = f"this table has no field {FAULT_FLAGS_FIELD} carrying a [[bitset]]: none"
+    else:
+        bitset = table.bitset(str(field.values))
+        field_id, bits = f"FieldId::{field.name}", f"k{bitset.type_name}Info"
+        ownership_bits = [b.bit for b in bitset.bits if b.name == OWNERSHIP_VIOLATION_BIT]
+        ownership = f"std::uint8_t{{{ownership_bits[0]}}}" if ownership_bits else "std::nullopt"
+        carried = f"the field {field.name} and its [[bitset]] {bitset.name}"
+    return f"""// ---------------------------------------------------------------------------
+// The fault flags the firmware application reports: after every cycle, bits of this field that
+// latched become EMCY frames, as their FlagInfo says ({carried}).
+// ---------------------------------------------------------------------------
+inline constexpr std::optional<FieldId> kFaultFlagsField = {field_id};
+inline constexpr std::span<const FlagInfo> kFaultFlagsEmcy = {bits};
+// The bit a refused write latches ({OWNERSHIP_VIOLATION_BIT}); std::nullopt: none.
+inline constexpr std::optional<std::uint8_t> kOwnershipViolationBit = {ownership};
+"""
+
+
 def _constants(type_name: str, items: list[tuple[str, int, str]], width: int = 4) -> str:
     """`inline constexpr <type> k<Name> = 0x...;  // comment` lines."""
     spelled = [(name, str(value) if width == 0 else f"0x{value:0{width}X}") for name, value, _ in items]
@@ -532,6 +563,7 @@ def generate_header(table: BoardTable) -> str:
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string_view>
 
 namespace board {{
@@ -664,5 +696,6 @@ inline constexpr std::array<PdoDefault, kTpdoCount> kDefaultTpdos = {{{{
 
 {_emcy_section(table)}
 {_values_section(table)}
+{_fault_flags_section(table)}
 {"" if table.recorder is None else _recorder_section(table.recorder)}}}  // namespace board
 """

@@ -103,6 +103,8 @@ static_assert(emcy_code::kHeartbeatError == 0x8130);
 static_assert(info(EmcyId::heartbeat_error).register_bit == error_register::kCommunication);
 static_assert(*kFaultFlagsInfo[static_cast<std::size_t>(FaultFlagsBit::MasterHeartbeatLost)].emcy
               == EmcyId::heartbeat_error);
+static_assert(kFaultFlagsField == FieldId::fault_flags && kFaultFlagsEmcy.size() == kFaultFlagsInfo.size());
+static_assert(kOwnershipViolationBit == static_cast<std::uint8_t>(FaultFlagsBit::OwnershipViolation));
 static_assert(kDefaultTpdos[0].cob_id_base == 0x180 && kDefaultTpdos[0].count == 2);
 static_assert(kDefaultTpdos[0].entries[0].index == 0x3100);
 static_assert(kDefaultTpdos[0].entries[0].bits == 16);
@@ -319,6 +321,8 @@ def test_a_table_without_value_sets_compiles_with_the_standard_ones(
         f"static_assert(board::kEmcyCount == {standard_codes});\n"
         "static_assert(board::kRecorder.index == board::recorder::kState);\n"
         "static_assert(board::RecorderState::Done != board::RecorderState::Idle);\n"
+        "static_assert(!board::kFaultFlagsField && board::kFaultFlagsEmcy.empty());\n"
+        "static_assert(!board::kOwnershipViolationBit);\n"
     )
     result = _compile(tmp_path / "out" / "include", source, tmp_path)
     assert result.returncode == 0, result.stderr

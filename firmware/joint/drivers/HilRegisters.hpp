@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "board/fields.hpp"
 #include "core/LatestValueRegister.hpp"
 #include "core/SampleBuffer.hpp"
 #include "joint/drivers/JointDrivers.hpp"
@@ -41,11 +42,34 @@ class HilRegisters {
     heartbeat_.write(lost_entries, event);
   }
 
+  // The same, by the table's object: what the CANopen node's HIL I/O view calls (the platform's
+  // views of a board's registers, NodeOnRegisters.hpp).
+  void write_input(board::HilInputId id, std::int32_t raw) {
+    switch (id) {
+      case board::HilInputId::motor_encoder_counts: write_motor_encoder(static_cast<std::uint16_t>(raw)); break;
+      case board::HilInputId::output_encoder_counts: write_output_encoder(static_cast<std::uint16_t>(raw)); break;
+      case board::HilInputId::thermistor_adc: write_thermistor_adc(static_cast<std::uint16_t>(raw)); break;
+      case board::HilInputId::motor_current_adc: write_motor_current(static_cast<std::int16_t>(raw)); break;
+      case board::HilInputId::kCount: break;
+    }
+  }
+  void heartbeat_status(std::uint8_t lost_entries, bool event) { write_heartbeat_status(lost_entries, event); }
+
   // --- transmit path: what the actuators last commanded -------------------
   // -10000..10000 (0.01 % of bus voltage); 0 before the first cycle.
   std::int16_t motor_duty_raw() const { return motor_duty_.value_.load(std::memory_order_acquire); }
   // 0 off, 1 on, 2 slow blink, 3 fast blink; 0 before the first cycle.
   std::uint8_t led_pattern_raw() const { return status_led_.value_.load(std::memory_order_acquire); }
+
+  // The same, by the table's object.
+  std::int32_t read_output(board::HilOutputId id) const {
+    switch (id) {
+      case board::HilOutputId::motor_duty: return motor_duty_raw();
+      case board::HilOutputId::led_pattern: return led_pattern_raw();
+      case board::HilOutputId::kCount: break;
+    }
+    return 0;
+  }
 
   // Thermistor samples dropped because the control cycle did not drain them in time.
   std::uint32_t thermistor_overflows() const { return thermistor_.buffer_.overflow_count(); }

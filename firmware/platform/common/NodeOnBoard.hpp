@@ -1,8 +1,8 @@
 // The CANopen node's views of any board's application, for every platform's main: the node reads
 // the board and writes only the bus-writable fields, through the bus writer. `Application` has
 // `board` (core::MessageBoard) and `bus_writer` (BusWriter); each view follows the application in
-// its std::optional, which NMT reset node rebuilds. A board's raw HIL I/O and heartbeat views are
-// its own (NodeOnJoint.hpp, NodeOnHead.hpp).
+// its std::optional, which NMT reset node rebuilds. The views of a board's registers (raw HIL I/O,
+// heartbeat news) are NodeOnRegisters.hpp's.
 #pragma once
 
 #include <optional>

@@ -1,6 +1,7 @@
 // joint-firmware.elf: the demo joint's firmware for a Cortex-M4F. The same pieces as the Linux
-// target (platform/linux/main.cpp): the message board, the scheduler with the demo joint's
-// components, the CANopen node and its views of them (platform/common/NodeOnJoint.hpp), the
+// target's board application (platform/linux/hilfw/BoardRuntime.cpp): the message board, the
+// scheduler with the demo joint's components, the CANopen node and its views of them
+// (platform/common/NodeOnBoard.hpp, NodeOnRegisters.hpp), the
 // hardware-in-the-loop registers; here on an interrupt-fed CAN port (InterruptCanPort.hpp) and
 // the SysTick timer, free-running: one control cycle per tick. No heap (StartupArena.hpp), no
 // exceptions, no RTTI, no operating system.
@@ -15,7 +16,7 @@
 #include <span>
 
 #include "InterruptCanPort.hpp"
-#include "NodeOnJoint.hpp"
+#include "NodeOnRegisters.hpp"
 #include "StartupArena.hpp"
 #include "board/fields.hpp"
 #include "canopen/FlagEmcy.hpp"

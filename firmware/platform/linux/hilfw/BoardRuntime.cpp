@@ -1,12 +1,14 @@
-// joint-firmware and head-firmware: a board's firmware for a Linux target on SocketCAN. Built
-// once per board (FIRMWARE_NAME; the board's side, its components, registers and node views, is
-// its BoardApplication.hpp in platform/linux/boards/<board>/, first on the include path).
+// The board application of hilfw::run_board (hilfw/Board.hpp): a board's firmware for a Linux
+// target on SocketCAN, the same for every board. Compiled once per board (it includes the board's
+// generated header); the board's side reaches it through detail::BoardSlot.
 //
 // Wires the pieces together (the board itself stays a plain table): the message board, the
 // scheduler with the board's components, the CANopen node (owner of the bus-writable
 // fields), the hardware-in-the-loop registers, and one event-loop thread that feeds CAN frames
 // to the node and runs control cycles, either one per received SYNC (lockstep) or on its own
 // absolute-deadline timer (free-running).
+#include "hilfw/Board.hpp"
+
 #include <poll.h>
 #include <signal.h>
 #include <sys/signalfd.h>
@@ -30,20 +32,20 @@
 #include "CommandLine.hpp"
 #include "FileParameterStorage.hpp"
 #include "FileProgramStore.hpp"
-#include "BoardApplication.hpp"
-#include "SoftwareVersion.hpp"
-#include "canopen/ParameterImage.hpp"
 #include "SocketCanPort.hpp"
+#include "SoftwareVersion.hpp"
 #include "board/cia305.hpp"
 #include "board/fields.hpp"
 #include "canopen/FlagEmcy.hpp"
 #include "canopen/Node.hpp"
+#include "canopen/ParameterImage.hpp"
 #include "canopen/Recorder.hpp"
 #include "core/CycleCounter.hpp"
 #include "core/MessageBoard.hpp"
 #include "core/MessageBoardUser.hpp"
 #include "core/Scheduler.hpp"
 
+namespace hilfw::detail {
 namespace {
 
 using linuxhw::Mode;
@@ -93,21 +95,29 @@ void set_chain_output(const std::string& path, bool high) {
 // Exit codes: 0 clean stop, 1 start-up failure (bus, schedule), 2 bad command line (linuxhw::kExitUsage).
 constexpr int kExitStartupFailure = 1;
 
-// The field --inject-rogue-write-at-cycle writes without owning it.
-constexpr board::FieldId kRogueTarget = board_app::kRogueTarget;
+// The executable's name in every message (BoardInfo::program, else argv[0]'s file name).
+std::string g_program;
 
-// --inject-rogue-write-at-cycle's help, with the EMCY code and fault bit board.toml gives.
-std::string rogue_write_help() {
-  const board::FieldInfo& target = board::info(kRogueTarget);
+// --inject-rogue-write-at-cycle's help, with the EMCY code and fault bit the table gives.
+std::string rogue_write_help(const BoardInfo& info) {
+  if (!info.rogue_target) {
+    return "FAULT INJECTION for hardware-in-the-loop tests: not offered by this board (its main names\n"
+           "no BoardInfo::rogue_target); any value but 0 is refused";
+  }
+  const board::FieldInfo& target = board::info(*info.rogue_target);
+  std::array<char, 160> fault_bit{};
+  if (board::kOwnershipViolationBit) {
+    std::snprintf(fault_bit.data(), fault_bit.size(), ",\nfault_flags bit %u (ownership violation) latched, safe state",
+                  static_cast<unsigned>(*board::kOwnershipViolationBit));
+  }
   std::array<char, 512> text{};
   std::snprintf(text.data(), text.size(),
                 "FAULT INJECTION for hardware-in-the-loop tests, never for a real board: at control\n"
                 "cycle N (1 = the first) an extra module that owns no field writes %.*s.\n"
-                "The board must refuse it: value kept, refusal counted, EMCY 0x%04X naming 0x%04X,\n"
-                "fault_flags bit %u (ownership violation) latched, safe state. 0 = off",
+                "The board must refuse it: value kept, refusal counted, EMCY 0x%04X naming 0x%04X%s. 0 = off",
                 static_cast<int>(target.name.size()), target.name.data(),
                 static_cast<unsigned>(board::emcy_code::kOwnershipViolation), static_cast<unsigned>(target.index),
-                static_cast<unsigned>(board::FaultFlagsBit::OwnershipViolation));
+                fault_bit.data());
   return text.data();
 }
 
@@ -138,76 +148,77 @@ class NoParameterStorage final : public co::ParameterStorage {
 // so a scenario can watch the board's single-writer rule hold on the real bus.
 class RogueWriter final : public core::Module {
  public:
-  static constexpr board::FieldId kTarget = kRogueTarget;
-  static constexpr float kRogueValue = board_app::kRogueValue;
-
-  RogueWriter(core::MessageBoard& board, std::uint32_t at_cycle)
-      : Module(board, "rogue_writer", {}), at_cycle_{at_cycle} {}
+  RogueWriter(core::MessageBoard& board, std::uint32_t at_cycle, board::FieldId target, float value)
+      : Module(board, "rogue_writer", {}), at_cycle_{at_cycle}, target_{target}, value_{value} {}
 
   void update() override {
-    if (board().cycle() == at_cycle_) boardSet(kTarget, kRogueValue);
+    if (board().cycle() == at_cycle_) boardSet(target_, value_);
   }
 
  private:
   std::uint32_t at_cycle_;
+  board::FieldId target_;
+  float value_;
 };
 
-// Everything NMT reset node resets: the board, the scheduler with the board's components,
-// and the driver registers. Built in place (none of its members moves) and rebuilt on reset node,
-// so after it every object the firmware does not store is at its power-on value, as after a
-// power cycle.
-struct Application {
-  explicit Application(const Options& options)
-      : components{board, registers, static_cast<float>(options.period_us) * 1e-6f} {
-    if (options.rogue_write_cycle != 0) rogue_writer.emplace(board, options.rogue_write_cycle);
-  }
+// Everything NMT reset node resets: the board's application (the slot: board, scheduler,
+// registers, components) and the rogue writer on its board. Rebuilt in place on reset node, so
+// after it every object the firmware does not store is at its power-on value, as after a power
+// cycle.
+class Application {
+ public:
+  Application(BoardSlot& slot, const Options& options, const BoardInfo& info)
+      : slot_{slot}, options_{options}, info_{info} {}
   Application(const Application&) = delete;
   Application& operator=(const Application&) = delete;
 
   // false: a component came too late or the ownership/schedule check failed (message printed).
-  bool start() {
-    if (!scheduler.add(bus_writer) || !components.add_to(scheduler) ||
-        (rogue_writer && !scheduler.add(*rogue_writer))) {
-      std::fprintf(stderr, FIRMWARE_NAME ": start-up error: components added after the scheduler started\n");
+  bool build_and_start() {
+    rogue_writer_.reset();
+    slot_.build(static_cast<float>(options_.period_us) * 1e-6f);
+    if (options_.rogue_write_cycle != 0) {
+      rogue_writer_.emplace(slot_.board(), options_.rogue_write_cycle, *info_.rogue_target, info_.rogue_value);
+    }
+    if (!slot_.add_components() || (rogue_writer_ && !slot_.scheduler().add(*rogue_writer_))) {
+      std::fprintf(stderr, "%s: start-up error: components added after the scheduler started\n", g_program.c_str());
       return false;
     }
-    if (const core::StartupStatus status = scheduler.start(); !status.ok()) {
-      std::fprintf(stderr, FIRMWARE_NAME ": start-up error: %s\n", status.message().c_str());
+    if (const core::StartupStatus status = slot_.scheduler().start(); !status.ok()) {
+      std::fprintf(stderr, "%s: start-up error: %s\n", g_program.c_str(), status.message().c_str());
       return false;
     }
     return true;
   }
 
-  core::MessageBoard board;
-  core::Scheduler scheduler{board};
-  platform::BusWriter bus_writer{board};
-  board_app::Registers registers;
-  board_app::Components components;
-  std::optional<RogueWriter> rogue_writer;
+  BoardSlot& slot() { return slot_; }
+  core::MessageBoard& board() { return slot_.board(); }
+  bool rogue() const { return rogue_writer_.has_value(); }
+
+ private:
+  BoardSlot& slot_;
+  const Options& options_;
+  const BoardInfo& info_;
+  std::optional<RogueWriter> rogue_writer_;
 };
 
 // NMT reset node: a fresh application in place of the old one, wired to the node again.
 class ApplicationRebuild final : public co::ApplicationReset {
  public:
-  ApplicationRebuild(std::optional<Application>& app, const Options& options)
-      : app_{app}, options_{options} {}
+  explicit ApplicationRebuild(Application& app) : app_{app} {}
   void attach(co::Node& node, co::FlagEmcyReporter& fault_emcy) {
     node_ = &node;
     fault_emcy_ = &fault_emcy;
   }
   void reset_application() override {
-    app_.reset();
-    app_.emplace(options_);
     // The same components started before; a failure here is a firmware bug, not a user error.
-    if (!app_->start()) failed_ = true;
-    app_->board.set_fault_hook({platform::report_ownership_violation, node_});
+    if (!app_.build_and_start()) failed_ = true;
+    app_.board().set_fault_hook({platform::report_ownership_violation, node_});
     fault_emcy_->forget();
   }
   bool failed() const { return failed_; }
 
  private:
-  std::optional<Application>& app_;
-  const Options& options_;
+  Application& app_;
   co::Node* node_ = nullptr;
   co::FlagEmcyReporter* fault_emcy_ = nullptr;
   bool failed_ = false;
@@ -218,24 +229,26 @@ co::Recorder g_recorder;
 
 void print_to_stdout(void*, std::string_view text) { std::fwrite(text.data(), 1, text.size(), stdout); }
 
-// `exec_path`: set when 0x1F51 started a downloaded image; main() execv()s it once everything
+// The table's fault flags as the FlagEmcyReporter reads them; 0 for a table without them.
+std::uint32_t fault_flags(const core::MessageBoard& message_board) {
+  return board::kFaultFlagsField ? static_cast<std::uint32_t>(message_board.get(*board::kFaultFlagsField)) : 0;
+}
+
+// `exec_path`: set when 0x1F51 started a downloaded image; run_board execv()s it once everything
 // here is closed.
-int run(const Options& options, std::string& exec_path) {
-  std::optional<Application> app;
-  app.emplace(options);
-  if (!app->start()) return kExitStartupFailure;
+int run(const Options& options, const BoardInfo& info, BoardSlot& slot, std::string& exec_path) {
+  Application app{slot, options, info};
+  if (!app.build_and_start()) return kExitStartupFailure;
   if (options.print_schedule) {
-    app->scheduler.print_schedule(print_to_stdout, nullptr);
+    slot.scheduler().print_schedule(print_to_stdout, nullptr);
     return 0;
   }
 
   linuxhw::SocketCanPort port;
   if (std::string error; !port.open(options.can_interface, error)) {
-    std::fprintf(stderr, FIRMWARE_NAME ": %s\n", error.c_str());
+    std::fprintf(stderr, "%s: %s\n", g_program.c_str(), error.c_str());
     return kExitStartupFailure;
   }
-  platform::BoardFieldAccess<Application> field_access{app};
-  platform::HilIoOnRegisters<Application> hil_io{app};
   std::unique_ptr<co::ParameterStorage> storage;
   if (options.params_file.empty()) {
     storage = std::make_unique<NoParameterStorage>();
@@ -243,7 +256,8 @@ int run(const Options& options, std::string& exec_path) {
     storage = std::make_unique<linuxhw::FileParameterStorage>(options.params_file);
   }
   const std::uint32_t serial_number = options.serial_number.value_or(serial_number_default(options));
-  co::Node node{static_cast<std::uint8_t>(options.node_id), port, field_access, hil_io, *storage, serial_number};
+  co::Node node{static_cast<std::uint8_t>(options.node_id), port, slot.field_access(), slot.hil_io(), *storage,
+                serial_number};
   node.set_software_version(linuxhw::software_version());
   std::unique_ptr<linuxhw::FileProgramStore> program_store;
   if (!options.image_dir.empty()) {
@@ -255,16 +269,15 @@ int run(const Options& options, std::string& exec_path) {
     lss_storage = std::make_unique<linuxhw::FileParameterStorage>(options.lss_store);
     node.set_lss_storage(lss_storage.get());
   }
-  app->board.set_fault_hook({platform::report_ownership_violation, &node});
+  app.board().set_fault_hook({platform::report_ownership_violation, &node});
   // Newly latched fault bits become EMCY frames and cleared ones error resets, as board.toml's
-  // [[bitset]] fault_flags says (each bit's emcy and about).
-  co::FlagEmcyReporter fault_emcy{node, board::kFaultFlagsInfo};
-  ApplicationRebuild application_rebuild{app, options};
+  // [[bitset]] fault_flags says (each bit's emcy and about); a table without it has none.
+  co::FlagEmcyReporter fault_emcy{node, board::kFaultFlagsEmcy};
+  ApplicationRebuild application_rebuild{app};
   application_rebuild.attach(node, fault_emcy);
   node.set_application_reset(&application_rebuild);
   node.set_recorder(&g_recorder);
-  platform::HeartbeatOnRegisters<Application> heartbeat_on_registers{app};
-  node.set_heartbeat_listener(&heartbeat_on_registers);
+  node.set_heartbeat_listener(&slot.heartbeat_listener());
   // The socket takes the node's accepted set at start() and whenever the bus changes it; the
   // node tells it before it answers, so a master never talks to a filter that lags.
   static_assert(co::Node::kMaxAcceptedIds <= linuxhw::SocketCanPort::kMaxAcceptedIds);
@@ -303,14 +316,14 @@ int run(const Options& options, std::string& exec_path) {
   node.start(now_us());
   bool chain_output = node.has_node_id();
   set_chain_output(options.chain_out, chain_output);
-  if (app->rogue_writer) {
-    std::fprintf(stderr, FIRMWARE_NAME ": FAULT INJECTION: rogue write of %.*s at cycle %u\n",
-                 static_cast<int>(board::info(kRogueTarget).name.size()), board::info(kRogueTarget).name.data(),
-                 options.rogue_write_cycle);
+  if (app.rogue()) {
+    const std::string_view target = board::info(*info.rogue_target).name;
+    std::fprintf(stderr, "%s: FAULT INJECTION: rogue write of %.*s at cycle %u\n", g_program.c_str(),
+                 static_cast<int>(target.size()), target.data(), options.rogue_write_cycle);
   }
   const std::string_view version = linuxhw::software_version();
-  std::fprintf(stderr, FIRMWARE_NAME ": node %d%s, version %.*s, serial 0x%08X, on %s%s, %s mode, period %u us, parameters %s (%s)\n",
-               node.node_id(), node.has_node_id() ? "" : " (none yet: LSS only)",
+  std::fprintf(stderr, "%s: node %d%s, version %.*s, serial 0x%08X, on %s%s, %s mode, period %u us, parameters %s (%s)\n",
+               g_program.c_str(), node.node_id(), node.has_node_id() ? "" : " (none yet: LSS only)",
                static_cast<int>(version.size()), version.data(), serial_number,
                options.can_interface.c_str(),
                options.acceptance_filter ? "" : " (no acceptance filter: every frame)",
@@ -323,10 +336,11 @@ int run(const Options& options, std::string& exec_path) {
   core::CycleCounter cycles;
   auto run_cycle = [&](std::uint64_t periods) {
     const std::uint32_t cycle = cycles.advance(periods);
-    app->scheduler.run_cycle(cycle);
-    fault_emcy.update(static_cast<std::uint32_t>(app->board.get(board::FieldId::fault_flags)));
+    slot.scheduler().run_cycle(cycle);
+    const core::MessageBoard& message_board = slot.board();
+    fault_emcy.update(fault_flags(message_board));
     // What the cycle left on the board; idle, this is one comparison.
-    g_recorder.sample(cycle, [&](board::FieldId id) { return app->board.get(id); });
+    g_recorder.sample(cycle, [&](board::FieldId id) { return message_board.get(id); });
   };
 
   bool running = true;
@@ -341,7 +355,7 @@ int run(const Options& options, std::string& exec_path) {
     const bool work_at_hand = node.sdo_segments_due() || port.has_buffered_frames();
     const int ready = ::poll(fds.data(), count, work_at_hand ? 0 : idle_wait_ms(node, now_us()));
     if (ready < 0 && errno != EINTR) {
-      std::fprintf(stderr, FIRMWARE_NAME ": poll failed: %s\n", std::strerror(errno));
+      std::fprintf(stderr, "%s: poll failed: %s\n", g_program.c_str(), std::strerror(errno));
       return kExitStartupFailure;
     }
     if ((fds[1].revents & POLLIN) != 0) {
@@ -364,7 +378,7 @@ int run(const Options& options, std::string& exec_path) {
     while (port.receive(frame) == co::ReceiveResult::Received) {
       const co::ProcessResult result = node.process(frame, woke_at);
       if (application_rebuild.failed()) {
-        std::fprintf(stderr, FIRMWARE_NAME ": reset node: the application did not start again\n");
+        std::fprintf(stderr, "%s: reset node: the application did not start again\n", g_program.c_str());
         return kExitStartupFailure;
       }
       if (result.sync) {
@@ -380,11 +394,11 @@ int run(const Options& options, std::string& exec_path) {
     if (node.program_start_requested()) {
       exec_path = program_store->promote_staged();
       if (exec_path.empty()) {
-        std::fprintf(stderr, FIRMWARE_NAME ": cannot start the downloaded image: %s\n",
+        std::fprintf(stderr, "%s: cannot start the downloaded image: %s\n", g_program.c_str(),
                      program_store->last_error().c_str());
         return kExitStartupFailure;
       }
-      std::fprintf(stderr, FIRMWARE_NAME ": starting the downloaded image %s\n", exec_path.c_str());
+      std::fprintf(stderr, "%s: starting the downloaded image %s\n", g_program.c_str(), exec_path.c_str());
       running = false;
       continue;
     }
@@ -392,40 +406,51 @@ int run(const Options& options, std::string& exec_path) {
     if (node.has_node_id() != chain_output) {
       chain_output = node.has_node_id();
       set_chain_output(options.chain_out, chain_output);
-      std::fprintf(stderr, FIRMWARE_NAME ": node id %d%s\n", node.node_id(),
+      std::fprintf(stderr, "%s: node id %d%s\n", g_program.c_str(), node.node_id(),
                    chain_output ? " configured over LSS" : " gone (LSS only)");
     }
   }
 
   const co::NodeCounters& counters = node.counters();
   std::fprintf(stderr,
-               FIRMWARE_NAME ": stopped after %llu cycles; overruns %llu; frames received %u, ignored %u, "
+               "%s: stopped after %llu cycles; overruns %llu; frames received %u, ignored %u, "
                "malformed %u, SDO aborts %u, RPDO length errors %u, TPDOs sent %u, EMCY %u, send failures %u, "
                "bus error frames %u, receive overruns %u, board refused writes %u, acceptance filter failures %u\n",
-               static_cast<unsigned long long>(cycles.run()), static_cast<unsigned long long>(cycles.skipped()),
+               g_program.c_str(), static_cast<unsigned long long>(cycles.run()), static_cast<unsigned long long>(cycles.skipped()),
                counters.frames_received,
                counters.frames_ignored, counters.frames_malformed, counters.sdo_aborts_sent,
                counters.rpdo_length_errors, counters.tpdos_sent, counters.emcy_sent, counters.send_failures,
-               port.counters().error_frames, port.counters().receive_overruns, app->board.total_refused_writes(),
+               port.counters().error_frames, port.counters().receive_overruns, app.board().total_refused_writes(),
                port.counters().filter_failures);
   return 0;
 }
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run_board(int argc, char** argv, const BoardInfo& info, BoardSlot& slot) {
+  g_program = !info.program.empty() ? std::string{info.program}
+                                    : std::filesystem::path{argc > 0 ? argv[0] : "firmware"}.filename().string();
   Options options;
   options.node_id = board::kNode.default_node_id;
-  const linuxhw::CommandLineText text{FIRMWARE_NAME, board_app::kDescription, cia305::kNodeIdUnconfigured,
-                                      rogue_write_help()};
+  const linuxhw::CommandLineText text{g_program, info.description, cia305::kNodeIdUnconfigured,
+                                      rogue_write_help(info)};
   if (const std::optional<int> exit_code = linuxhw::parse_command_line(argc, argv, text, options)) {
     return *exit_code;
   }
+  if (options.rogue_write_cycle != 0 && !info.rogue_target) {
+    std::fprintf(stderr,
+                 "%s: --inject-rogue-write-at-cycle: this board offers no rogue write (name a field in "
+                 "BoardInfo::rogue_target of its main), or leave the option out\n",
+                 g_program.c_str());
+    return linuxhw::kExitUsage;
+  }
   std::string exec_path;
-  const int exit_code = run(options, exec_path);
+  const int exit_code = run(options, info, slot, exec_path);
   if (exec_path.empty()) return exit_code;
   // Same arguments, new image: it starts as after a power cycle and sends its boot-up.
   ::execv(exec_path.c_str(), argv);
-  std::fprintf(stderr, FIRMWARE_NAME ": cannot execute %s: %s\n", exec_path.c_str(), std::strerror(errno));
+  std::fprintf(stderr, "%s: cannot execute %s: %s\n", g_program.c_str(), exec_path.c_str(), std::strerror(errno));
   return kExitStartupFailure;
 }
+
+}  // namespace hilfw::detail
