@@ -1,19 +1,27 @@
-"""examples/other-project from outside the checkout, as another project would use hil-rig:
-a copy of the example in a folder outside the checkout (under the temporary folder), hilrig's
-wheel (`make dist`) installed into a fresh venv there, hil-rig's firmware package installed
-there from the CMake build (`cmake --install build --component hilfw`), the lamp's firmware
-built against that prefix with the wheel's generator, and the lamp's scenarios run by the
-wheel's own `hilrig bus -- python -m pytest` in the copy, with no PYTHONPATH. Passes only if
-pytest's header names the lamp's own firmware (hil_firmware of its pytest.ini): no bus wrapper
-may put another in its place.
+"""Other projects than this checkout, as their users make them, outside the checkout: hilrig's
+wheel (`make dist`) installed with its `pytest` extra into a fresh venv, hil-rig's firmware
+package installed from the CMake build (`make hilfw`'s `cmake --install build --component
+hilfw`), and three projects built against that prefix with the wheel's generator:
+
+- lamp: a copy of examples/other-project;
+- sensor_board: what `hilrig new-board sensor_board` writes, as generated;
+- fan: examples/fan, which is `hilrig new-board fan` and a new user's edits (a second sensor, a
+  controller, a plant, two scenarios). Those edits are counted against the scaffold the wheel
+  writes now (difflib): the controller, the plant and the scenario at most MAX_USER_LINES, and
+  every file the user does not edit must be the scaffold's unchanged.
+
+Each project's scenarios then run by the wheel's own `hilrig bus -- python -m pytest` in its
+folder, with no PYTHONPATH, and the wheel's `hilrig view --check` reads one of its traces (the
+dashboard generated from its table and plant draws every series). Passes only if each pytest
+header names the project's own firmware (hil_firmware of its pytest.ini).
 
     .venv/bin/python tools/other_project.py run [--uml] [PYTEST_ARGS...]
 
 The wheel goes under build/other-project/dist; the rest under OUTSIDE (one folder per checkout,
-$HIL_OTHER_PROJECT_DIR to choose another): OUTSIDE/venv, OUTSIDE/prefix, OUTSIDE/lamp (the copy,
-with its build tree build/, which its pytest.ini names). The venv is an installer's own install
-of the wheel with its `pytest` extra (uv's, as tools/deps uses it, else pip's), nothing of the
-checkout's venv in it. `tools/run-tests` runs it in its bus stage.
+$HIL_OTHER_PROJECT_DIR to choose another): OUTSIDE/venv, OUTSIDE/prefix, a folder per project
+(with its build tree build/, which its pytest.ini names). The venv is an installer's own install
+of the wheel (uv's, as tools/deps uses it, else pip's), nothing of the checkout's venv in it.
+`tools/run-tests` runs it in its bus stage.
 """
 
 from __future__ import annotations
@@ -126,7 +134,10 @@ def user_lines(scaffold: Path, edited: Path) -> dict[str, int]:
             raise SystemExit(f"new-board: {edited / relative} differs from the scaffold's: regenerate it")
 
     def new_lines(relative: str) -> int:
-        old, new = (scaffold / relative).read_text().splitlines(), (edited / relative).read_text().splitlines()
+        old, new = (
+            (scaffold / relative).read_text().splitlines(),
+            (edited / relative).read_text().splitlines(),
+        )
         return sum(1 for line in difflib.ndiff(old, new) if line.startswith("+ "))
 
     return {group: sum(map(new_lines, names)) for group, names in USER_FILES.items()}
@@ -161,20 +172,30 @@ def prepare() -> tuple[Path, list[Project]]:
     # As a new user: `hilrig new-board` of the wheel, from the folder the project goes in.
     hilrig = python.parent / "hilrig"
     _run([hilrig, "new-board", "sensor_board"], cwd=OUTSIDE, env=_clean_env())
-    _run([hilrig, "new-board", NEW_BOARD, "--node-id", "0x21", "--dir", OUTSIDE / "scaffold"], env=_clean_env())
+    _run(
+        [hilrig, "new-board", NEW_BOARD, "--node-id", "0x21", "--dir", OUTSIDE / "scaffold"], env=_clean_env()
+    )
     fan = OUTSIDE / NEW_BOARD
-    shutil.copytree(REPO / "examples" / NEW_BOARD, fan, ignore=shutil.ignore_patterns("build", "__pycache__", "out"))
+    shutil.copytree(
+        REPO / "examples" / NEW_BOARD, fan, ignore=shutil.ignore_patterns("build", "__pycache__", "out")
+    )
     counts = user_lines(OUTSIDE / "scaffold", fan)
     own = counts["controller"] + counts["plant"] + counts["scenario"]
-    print(f"new-board: the new user's own lines in {NEW_BOARD}: " + ", ".join(f"{k} {v}" for k, v in counts.items())
-          + f"; controller + plant + scenario {own} (at most {MAX_USER_LINES})", file=sys.stderr)  # fmt: skip
+    by_group = ", ".join(f"{group} {lines}" for group, lines in counts.items())
+    print(
+        f"new-board: the new user's own lines in {NEW_BOARD}: {by_group}; "
+        f"controller + plant + scenario {own} (at most {MAX_USER_LINES})",
+        file=sys.stderr,
+    )
     if own > MAX_USER_LINES:
         raise SystemExit(f"new-board: {own} lines of a new user's own, more than {MAX_USER_LINES}")
+    generated = OUTSIDE / "sensor_board"
     projects = [
         Project("lamp", lamp, lamp / "build" / "lamp-firmware", "test_the_light_follows_its_setpoint"),
-        Project("sensor_board", OUTSIDE / "sensor_board", OUTSIDE / "sensor_board" / "build" / "sensor_board-firmware",
+        Project("sensor_board", generated, generated / "build" / "sensor_board-firmware",
                 "test_the_input_follows_the_setpoint"),
-        Project(NEW_BOARD, fan, fan / "build" / f"{NEW_BOARD}-firmware", "test_the_fan_holds_its_target_speed"),
+        Project(NEW_BOARD, fan, fan / "build" / f"{NEW_BOARD}-firmware",
+                "test_the_fan_holds_its_target_speed"),
     ]  # fmt: skip
     for project in projects:
         _build(project.folder, python, prefix)
@@ -184,7 +205,8 @@ def prepare() -> tuple[Path, list[Project]]:
 def _junit_of(pytest_args: list[str], name: str) -> list[str]:
     """pytest's arguments for one project: a --junitxml=FILE.xml of its own (FILE-NAME.xml)."""
     return [
-        f"{arg.removesuffix('.xml')}-{name}.xml" if arg.startswith("--junitxml=") else arg for arg in pytest_args
+        f"{arg.removesuffix('.xml')}-{name}.xml" if arg.startswith("--junitxml=") else arg
+        for arg in pytest_args
     ]
 
 
@@ -208,7 +230,10 @@ def run(bus_options: list[str], pytest_args: list[str]) -> int:
         )
     script = "; ".join([*steps, "exit $status"])
     argv = [str(bin_dir / "hilrig"), "bus", *bus_options, "--", "bash", "-c", script]
-    print(f"other-project: {', '.join(p.name for p in projects)} through {bin_dir / 'hilrig'} bus", file=sys.stderr)
+    print(
+        f"other-project: {', '.join(p.name for p in projects)} through {bin_dir / 'hilrig'} bus",
+        file=sys.stderr,
+    )
     process = subprocess.Popen(argv, cwd=OUTSIDE, env=env, stdout=subprocess.PIPE, text=True)
     assert process.stdout is not None
     # A SIGTERM (run-tests interrupted) goes on to `hilrig bus`, which stops its guest; its
@@ -225,7 +250,10 @@ def run(bus_options: list[str], pytest_args: list[str]) -> int:
     for project in projects:
         expected = FIRMWARE_HEADER.format(firmware=project.firmware.resolve())
         if expected not in seen:
-            print(f"other-project: pytest's header lacks `{expected}`: not {project.name}'s firmware", file=sys.stderr)
+            print(
+                f"other-project: pytest's header lacks `{expected}`: not {project.name}'s firmware",
+                file=sys.stderr,
+            )
             status = status or 1
     return status
 

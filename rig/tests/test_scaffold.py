@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -36,7 +37,7 @@ def test_new_board_writes_the_whole_project(tmp_path: Path, capsys: pytest.Captu
     assert written == EXPECTED
     for name in written:
         text = (project / name).read_text()
-        assert "{{" not in text, f"{name}: a placeholder is left"
+        assert not re.search(r"\{\{\w+\}\}", text), f"{name}: a placeholder is left"
     assert "fan/" in capsys.readouterr().out
     table = load_table(project / "board.toml")
     assert table.node.device_name == "fan"
@@ -69,7 +70,7 @@ def test_the_plant_is_a_deterministic_plant_of_the_table(tmp_path: Path) -> None
         assert set(plant.sensor_fields) <= {io.name for io in table.hil_inputs}
         assert set(plant.actuator_fields) <= {io.name for io in table.hil_outputs}
         frames = []
-        for _ in range(200):
+        for _ in range(500):
             frames.append(plant.sense())
             plant.apply([6000])
             plant.step(1e-3)

@@ -26,7 +26,7 @@ from hilrig.errors import FirmwareError
 
 DEFAULT_EXECUTABLE = resources.DEFAULT_FIRMWARE
 LOG_TAIL_LINES = 20
-_STOP_LINE = re.compile(r"joint-firmware: stopped after (\d+) cycles; (.*)$", re.MULTILINE)
+_STOP_LINE = re.compile(r"^\S+: stopped after (\d+) cycles; (.*)$", re.MULTILINE)
 
 
 def parse_stop_line(text: str) -> tuple[str, dict[str, int]] | None:
