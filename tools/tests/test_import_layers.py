@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[2]
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # (layer, module prefixes), bottom up; a module belongs to the layer of its longest prefix.
     ("base", ("hilrig", "hilrig.errors", "hilrig.resources", "hilrig.table", "hilrig.expect",
-              "hilrig.observe.paths")),
+              "hilrig.observe.paths", "hilrig.observe.layout")),
     ("dashboards", ("dashboards",)),
     ("wire", ("hilrig.wire",)),
     ("plants", ("hilrig.plants",)),
@@ -30,13 +30,14 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("tools", ("tools",)),
 )
 """Base: the table, the errors, where the board's files are, the condition waiter and the entity
-paths (a leaf every layer may name). The dashboards sit right above it: they build Rerun layouts
+paths and the layout pieces (leaves every layer may name). The dashboards sit right above it: they build Rerun layouts
 on the entity paths, and the tracer and the session load them. `python -m hilrig` and `python -m
 dashboards` are entry points on top of the CLI; the pytest plugin is one beside it (it runs the
 `hilrig` command on a scenario's bus)."""
 
-DASHBOARDS_MAY_IMPORT = frozenset({"hilrig.observe.paths"})
-"""The one module of hilrig the dashboards import (entry points aside: `dashboards.__main__` is
+DASHBOARDS_MAY_IMPORT = frozenset({"hilrig.observe.paths", "hilrig.observe.layout"})
+"""The two leaves of hilrig the dashboards import (the entity paths, the layout pieces the checks
+share) (entry points aside: `dashboards.__main__` is
 the older spelling of `hilrig view` and nothing imports it)."""
 
 PATHS_MAY_IMPORT = frozenset({"hilrig.errors"})
@@ -170,7 +171,7 @@ def test_imports_go_down_the_layers() -> None:
     assert upward == []
 
 
-def test_dashboards_import_only_the_entity_paths_of_hilrig() -> None:
+def test_dashboards_import_only_the_leaves_of_hilrig() -> None:
     graph = module_graph()
     wrong = {
         module: sorted(t for t in targets if t.startswith("hilrig") and t not in DASHBOARDS_MAY_IMPORT)
@@ -180,6 +181,7 @@ def test_dashboards_import_only_the_entity_paths_of_hilrig() -> None:
     assert {module: targets for module, targets in wrong.items() if targets} == {}
     paths = {t for t in graph["hilrig.observe.paths"] if t.startswith("hilrig")}
     assert paths <= PATHS_MAY_IMPORT
+    assert not any(t.startswith("hilrig") for t in graph["hilrig.observe.layout"])
     assert not any(t.startswith("hilrig") for t in graph["hilrig.errors"])
 
 

@@ -293,15 +293,16 @@ def add_table_option(parser: argparse.ArgumentParser) -> None:
 
 def choose_table(args: argparse.Namespace) -> None:
     """args.table, for a command that has the option: the table of resources.TABLE_ORDER. When
-    it is not the default, one line on stderr says which and why."""
+    it came from the project's configuration (not --table, not the default), one line on stderr
+    says which and why."""
     if not hasattr(args, "table"):
         return
     try:
         choice = resources.chosen_table(args.table)
     except ConfigurationError as error:
         raise UsageError(str(error)) from None
-    args.table = choice.path
-    if not choice.is_default:
+    given, args.table = args.table, choice.path
+    if not choice.is_default and given is None:
         progress(f"hilrig: table {shown_path(choice.path)} ({choice.source})")
 
 

@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from hilrig.cli.common import Command, UsageError, node_id
+from hilrig.cli.files import output_folder
 
 DESCRIPTION = """\
 Write a new board's project into a new folder (default: ./NAME): its table (board.toml, only
@@ -26,7 +27,10 @@ examples:
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("name", metavar="NAME", help="the board's name: lower case, digits and _ (e.g. fan)")
     parser.add_argument(
-        "--dir", type=Path, default=None, help="the new folder (default: ./NAME); must not exist or be empty"
+        "--dir",
+        type=output_folder,
+        default=None,
+        help="the new folder (default: ./NAME); must not exist or be empty",
     )
     parser.add_argument(
         "--node-id", type=node_id, default=0x20, help="the board's default node id (default: 0x20)"
