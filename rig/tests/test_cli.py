@@ -89,7 +89,7 @@ def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFix
         ),
         (["scan", "--interface", "pcann"], "did you mean pcan"),
         (["scan", "--listen", "0"], "expected a finite number > 0"),
-        (["record", "bus.txt"], "bus.txt does not end in .log, .blf, .asc, .csv or .trc"),
+        (["record", "bus.txt"], "bus.txt does not end in .log, .asc, .blf, .mf4, .csv or .trc"),
         (["replay", "no-such.log", "--decode"], "log no-such.log does not exist; record one"),
         (["watch", "--once", "--count", "3"], "not allowed with argument"),
         (

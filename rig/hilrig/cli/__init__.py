@@ -81,6 +81,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "params",
     "flash",
     "record",
+    "convert",
     "sim",
     "view",
     "diff",

@@ -1,8 +1,9 @@
 """`hilrig record FILE` and `hilrig replay FILE`: bus traffic to and from log files.
 
-The format follows the extension, as python-can's `can.Logger`/`can.LogReader` choose it:
-`.log` (candump -L), `.blf` (Vector), `.asc`, `.csv`, `.trc`; `replay` also reads what else
-python-can reads (`.db`, `.mf4` with asammdf, gzipped `.log.gz`...). `record` writes into a hidden
+The format follows the extension (`hilrig.session.logformats`): `.log` (candump -L), `.asc` and
+`.blf` (Vector), `.mf4` (ASAM MDF4, with asammdf), `.csv`, `.trc`, times in UTC and exact to the
+format's resolution; `replay` also reads what else python-can reads (`.db`, gzipped
+`.log.gz`...). `record` writes into a hidden
 temporary file beside FILE and renames it to FILE only after the logger was stopped (flushed
 and closed; a BLF file gets its header and object count only then), so FILE is always a whole
 log: after Ctrl-C, SIGTERM, `--duration` or `--count` alike. A hard kill (SIGKILL) leaves FILE
@@ -56,7 +57,7 @@ PROGRESS_EVERY_S = 1.0
 
 
 log_path = output_file("log", suffixes=tuple(LOG_FORMATS))
-"""record's FILE: the format follows the extension (.log is candump, .blf is Vector)."""
+"""record's FILE: the format follows the extension (.log is candump, .asc/.blf Vector, .mf4 ASAM)."""
 
 
 class _CountingSink:
@@ -458,10 +459,11 @@ class FrameDecoder:
 COMMANDS = (
     Command(
         name="record",
-        help="record bus traffic to a .log (candump) or .blf file; Ctrl-C leaves a whole file",
+        help="record bus traffic to a .log (candump), .asc, .blf or .mf4 file; Ctrl-C leaves a whole file",
         description=__doc__.split("\n", 1)[1].strip() + "\n\n"
         "  hilrig record out/bus.log                         # until Ctrl-C\n"
         "  hilrig record bus.blf --duration 10 --channel can0\n"
+        "  hilrig record bus.mf4 --duration 10                # for CANape / asammdf\n"
         "  hilrig record bus.log --nmt-start --sync-period-ms 10 --count 500  # no master",
         configure=configure_record,
         run=run_record,

@@ -34,7 +34,15 @@ from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config, report_header
 from hilrig.session import warm
-from hilrig.session.builder import BoardInterface, HilSession, Rider, SessionConfig, open_session
+from hilrig.session.builder import (
+    BoardInterface,
+    HilSession,
+    Rider,
+    SessionConfig,
+    bus_log_path,
+    open_session,
+)
+from hilrig.session.logformats import LOG_FORMATS
 from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
 
 BOOT_TIMEOUT_S = 60.0
@@ -90,8 +98,24 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         help="also stream every scenario's trace live (repeatable): spawn[:PORT], web[:PORT] or "
         "connect[:URL], as `hilrig sim --viewer` (default: $HIL_TRACE); trace.rrd is always written",
     )
+    group.addoption(
+        "--hil-bus-log-format",
+        type=_bus_log_format,
+        default=".log",
+        metavar="FORMAT",
+        help="every scenario's bus log in this format: "
+        + ", ".join(f.lstrip(".") for f in LOG_FORMATS)
+        + " (default log, candump); e.g. blf for CANoe, mf4 for CANape",
+    )
     for name, help_text in INI_OPTIONS:
         parser.addini(name, help_text, default="")
+
+
+def _bus_log_format(text: str) -> str:
+    suffix = "." + text.lower().lstrip(".")
+    if suffix not in LOG_FORMATS:
+        raise ValueError(text)  # pytest: "argument --hil-bus-log-format: invalid _bus_log_format value"
+    return suffix
 
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
@@ -266,6 +290,7 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
             extra_args=(*hil_board.firmware_args, *extra_args),
             boot_timeout_s=BOOT_TIMEOUT_S,
             sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+            bus_log_format=config.getoption("hil_bus_log_format"),
         )
         if board is None:
             _require_built(hil_board)
@@ -275,7 +300,7 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
             session_config, table=hil_board.table, before_start=before_start, private_bus=private_bus
         )
         sessions.append(session)
-        request.node.hil_evidence = _evidence(run_dir, trace)
+        request.node.hil_evidence = _evidence(run_dir, trace, bus_log_path(session_config))
         request.node.hil_trace = session.trace_path  # --hil-baseline
         assert session.rig is not None
         return Scenario(
@@ -330,10 +355,11 @@ def make_robot(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureR
             riders=tuple(riders),
             boot_timeout_s=BOOT_TIMEOUT_S,
             sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+            bus_log_format=request.config.getoption("hil_bus_log_format"),
         )
         _require_built(hil_board)
         logs = f", firmware logs: {scenario_dir}/firmware-*.log"
-        request.node.hil_evidence = _evidence(scenario_dir, trace) + logs
+        request.node.hil_evidence = _evidence(scenario_dir, trace, bus_log_path(config)) + logs
         session = open_session(
             config, table=hil_board.table, private_bus=request.getfixturevalue("private_bus")
         )
@@ -357,9 +383,9 @@ def _live_sinks(config: pytest.Config) -> list[TraceSink]:
         raise pytest.UsageError(f"--hil-viewer: {error}") from None
 
 
-def _evidence(scenario_dir: Path, traced: bool) -> str:
+def _evidence(scenario_dir: Path, traced: bool, bus_log: Path) -> str:
     parts = [f"trace: {scenario_dir / 'trace.rrd'}"] if traced else []
-    parts.append(f"bus log: {scenario_dir / 'bus.log'}")
+    parts.append(f"bus log: {bus_log}")
     return ", ".join(parts)
 
 

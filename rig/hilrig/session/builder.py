@@ -35,6 +35,7 @@ from hilrig.plants import default_plant
 from hilrig.plants.interface import Plant
 from hilrig.session.buslog import RecorderProcess, whole_file_logger
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware
+from hilrig.session.logformats import LOG_FORMATS
 from hilrig.session.netns import PrivateBus, require_private_buses
 from hilrig.table import RigTable
 from hilrig.wire.node import BoardNode, answer_filters
@@ -115,6 +116,8 @@ class SessionConfig:
     live: Sequence[TraceSink] = ()
     """With trace=True: also stream to these sinks (a viewer) while the run goes."""
     record: bool = True
+    bus_log_format: str = ".log"
+    """The bus log's format, out_dir/bus<format>: one of `logformats.LOG_FORMATS`."""
     board: BoardInterface | None = None
     executable: Path = DEFAULT_EXECUTABLE
     eds: Path = DEFAULT_EDS_PATH
@@ -161,7 +164,7 @@ class HilSession:
 
     @property
     def bus_log(self) -> Path:
-        return self.config.out_dir / "bus.log"
+        return bus_log_path(self.config)
 
     @property
     def trace_path(self) -> Path | None:
@@ -245,7 +248,7 @@ def open_session(
         stack.callback(bus.shutdown)
         board_logger = None
         if config.board is not None and config.record:
-            board_logger = _record_board(stack, bus, config.board, out / "bus.log")
+            board_logger = _record_board(stack, bus, config.board, bus_log_path(config))
         if not config.rig:
             node = BoardNode(bus, node_id, config.eds, table, sdo_timeout_s=config.sdo_timeout_s)
             stack.callback(node.close)
@@ -411,13 +414,20 @@ def _launcher(
     return private_bus, launcher
 
 
+def bus_log_path(config: SessionConfig) -> Path:
+    """Where the session's bus log goes: out_dir/bus.log, or bus.blf, bus.mf4... by its format."""
+    if config.bus_log_format not in LOG_FORMATS:
+        raise ValueError(f"bus log format {config.bus_log_format!r}: choose one of {', '.join(LOG_FORMATS)}")
+    return config.out_dir / f"bus{config.bus_log_format}"
+
+
 def _recorder(
     stack: contextlib.ExitStack, launcher: PrivateBus | _HostChannel, config: SessionConfig
 ) -> RecorderProcess | None:
     """The bus log (out_dir/bus.log) from a recorder process of its own, when `record`."""
     if not config.record:
         return None
-    recorder = RecorderProcess(launcher, config.out_dir / "bus.log")
+    recorder = RecorderProcess(launcher, bus_log_path(config))
     stack.callback(recorder.close)
     return recorder
 

@@ -1,14 +1,15 @@
 """Bus logs: written whole through python-can's loggers, and the master side of a log.
 
-`whole_file_logger` is the one way the project writes a log (`hilrig record`, `hilrig sim`,
-every scenario's bus.log): a `can.Logger` (format by extension: .log candump, .blf Vector,
-.asc, .csv, .trc) writing to a hidden partial file that is renamed to the real name only once
+`whole_file_logger` is the one way the project writes a log (`hilrig record`, `hilrig convert`,
+`hilrig sim`, every scenario's bus log): python-can's writer for the extension
+(`hilrig.session.logformats`: .log candump, .asc and .blf Vector, .mf4 ASAM MDF4, .csv, .trc)
+writing to a hidden partial file that is renamed to the real name only once
 the logger was stopped (flushed and closed; a BLF file gets its header and object count only
 then). So the named file is always a whole log, also after Ctrl-C or SIGTERM; a hard kill
 (SIGKILL) leaves it untouched and the partial file behind.
 
-`read_log` is the one way the command line reads a log: python-can's `can.LogReader` (format by
-extension, also gzipped), with every problem of the file said in one line that names it.
+`read_log` is the one way the command line reads a log: python-can's reader for the extension
+(`logformats.open_reader`; also gzipped), with every problem of the file said in one line that names it.
 
 `RecorderProcess` runs that logger in a process of its own, forked from a warm server: every
 frame becomes a python-can Message there, and in the rig's own process those would compete with
@@ -30,14 +31,13 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from boardproto.cia301 import TPDO_FUNCTIONS, cob_id, emcy_cob_id, heartbeat_cob_id, sdo_response_cob_id
 from hilrig.errors import LogFileError, LogFormatError, one_line
+from hilrig.session.logformats import DEFAULT_BLF_CLOCK, LOG_FORMATS, open_reader, open_writer
 from hilrig.table import RigTable
 
 if TYPE_CHECKING:
     import can
     import cantools.database
 
-LOG_FORMATS = (".log", ".blf", ".asc", ".csv", ".trc")
-"""The formats the project writes (python-can reads more: `readable_formats`)."""
 
 _CANDUMP_LOG_LINE = re.compile(r"\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")  # (1700000000.000000) can0 123#1122
 _CANDUMP_SCREEN_LINE = re.compile(r"(\(\S+\)\s+)?\S+\s+[0-9A-Fa-f]+\s+\[\d+\]")  # can0  123   [2]  11 22
@@ -49,13 +49,14 @@ def partial_path(path: Path) -> Path:
 
 
 @contextmanager
-def whole_file_logger(path: Path) -> Iterator[can.Listener]:
-    """A python-can `can.Logger` whose file appears at `path` only whole (see the module)."""
-    import can
-
+def whole_file_logger(path: Path, *, blf_clock: str = DEFAULT_BLF_CLOCK) -> Iterator[can.Listener]:
+    """A python-can writer whose file appears at `path` only whole (see the module)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = partial_path(path)
-    logger = can.Logger(str(partial))
+    try:
+        logger = open_writer(partial, blf_clock=blf_clock)
+    except NotImplementedError as error:  # .mf4 without asammdf
+        raise LogFormatError(f"{path}: {one_line(error)}") from error
     try:
         yield logger
     finally:
@@ -105,13 +106,12 @@ def _kind(suffix: str) -> str:
 
 
 @contextmanager
-def read_log(path: Path) -> Iterator[Iterator[can.Message]]:
-    """The frames of the log at `path`, read by python-can's LogReader (format by extension).
+def read_log(path: Path, *, blf_clock: str = DEFAULT_BLF_CLOCK) -> Iterator[Iterator[can.Message]]:
+    """The frames of the log at `path`, read by python-can (format by extension, `open_reader`).
 
     A format python-can does not read (or not without a package this machine lacks) raises
     LogFormatError; content it cannot parse, at the start or part-way, LogFileError. Both name
     the file; the first lists the formats read."""
-    import can
     from can.io.player import MESSAGE_READERS
 
     suffix = _format_of(path)
@@ -122,7 +122,7 @@ def read_log(path: Path) -> Iterator[Iterator[can.Message]]:
             f"{readable_formats()}{_content_hint(path, suffix)}"
         )
     try:
-        reader = can.LogReader(str(path))
+        reader = open_reader(path, blf_clock=blf_clock)
     except (NotImplementedError, ImportError) as error:  # .mf4 without asammdf
         raise LogFormatError(f"{path}: {one_line(error)}") from error
     except Exception as error:  # the reader's parse errors have no common base
