@@ -99,7 +99,9 @@ def _stop(process: subprocess.Popen[bytes]) -> None:
 @pytest.fixture
 def lab(private_bus: PrivateBus, scenario_dir: Path) -> Iterator[Path]:
     """A coordinator and an exporter of the bus, the place made and acquired; yields the folder
-    of their logs."""
+    of their logs. The coordinator starts with no places (a run before this one left its own)."""
+    for stale in ("places.yaml", "resources.yaml"):
+        (scenario_dir / stale).unlink(missing_ok=True)
     coordinator = _start(
         private_bus, [str(BIN / "labgrid-coordinator"), "-l", COORDINATOR], scenario_dir / "coordinator.log"
     )
@@ -139,7 +141,10 @@ def test_a_scenario_runs_on_a_labgrid_place_with_its_power_and_console(
     env_file = lab / "env.yaml"
     env_file.write_text(_env_config(state))
     inner_out = lab / "out"
-    command = [sys.executable, "-m", "pytest", "tests/test_two_worlds.py", "--lg-env", str(env_file)]
+    command = [
+        sys.executable, "-m", "pytest", "tests/test_two_worlds.py",
+        "-p", "labgrid.pytestplugin", "--lg-env", str(env_file),
+    ]  # fmt: skip
     inner = subprocess.run(
         private_bus.command([*command, "-k", SCENARIO, "-p", "no:cacheprovider", "-q", "-rs"]),
         cwd=REPO,
