@@ -5,7 +5,8 @@ firmware, its plant: `board`), and its tests get the fixtures (`fixtures`): `mak
 (the firmware on a private vcan, a `Rig` with the board's plant, a bus log and a trace),
 `make_robot`, `private_bus`, `scenario_dir`, `hil_board`, with the `--hil-*` options (a real
 board on a real interface, a live viewer); `run_hilrig` runs the `hilrig` command on a test's
-bus. A failure names its evidence, its picture and, with `--hil-baseline`, the comparison with
+bus; with labgrid's `--lg-env` the board, its bus, power and console come from a labgrid target
+(`labgrid`). A failure names its evidence, its picture and, with `--hil-baseline`, the comparison with
 the last good run (`reports`).
 
     # pytest.ini
@@ -29,7 +30,10 @@ import pytest
 # The parts are plugins of their own (`pytest_plugins` below), imported here first: their
 # asserts are rewritten like any plugin's.
 pytest.register_assert_rewrite(
-    "hilrig.pytest_plugin.board", "hilrig.pytest_plugin.fixtures", "hilrig.pytest_plugin.reports"
+    "hilrig.pytest_plugin.board",
+    "hilrig.pytest_plugin.fixtures",
+    "hilrig.pytest_plugin.labgrid",
+    "hilrig.pytest_plugin.reports",
 )
 
 from hilrig.pytest_plugin.board import HilBoard, board_from_config, load_factory  # noqa: E402
@@ -44,7 +48,11 @@ from hilrig.pytest_plugin.fixtures import (  # noqa: E402
 )
 from hilrig.pytest_plugin.reports import ATTACHMENT, baseline_path  # noqa: E402
 
-pytest_plugins = ["hilrig.pytest_plugin.reports", "hilrig.pytest_plugin.fixtures"]
+pytest_plugins = [
+    "hilrig.pytest_plugin.reports",
+    "hilrig.pytest_plugin.fixtures",
+    "hilrig.pytest_plugin.labgrid",
+]
 """The plugin's parts, registered with it (their hooks and fixtures)."""
 
 __all__ = [

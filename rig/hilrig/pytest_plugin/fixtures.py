@@ -33,6 +33,7 @@ from hilrig.expect import Expect
 from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config, report_header
+from hilrig.pytest_plugin.labgrid import CONSOLE_LOG, LabgridBoard, labgrid_env_given
 from hilrig.session import warm
 from hilrig.session.builder import (
     BoardInterface,
@@ -238,12 +239,14 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
     the test (firmware stopped with SIGTERM, files closed whole).
     `mode="realtime"`: the firmware runs `--mode free` and the rig in real time
     (REALTIME_*_PERIOD_US); with --hil-interface the rig opens that interface instead, talks to
-    the real board on it (`physics` as the scenario says), and lockstep scenarios are skipped.
+    the real board on it (`physics` as the scenario says), and lockstep scenarios are skipped;
+    with labgrid's --lg-env the same, on the target's bus (`hilrig.pytest_plugin.labgrid`).
     `extra_args` go to the firmware's command line; `subdir` keeps one run's evidence apart when
     a test makes several runs one after the other (close the previous one first: one node id per
     bus). `before_start(rig)` configures the node over SDO before the rig reads its PDO mapping
     and starts it (the node is pre-operational, so PDOs may be remapped)."""
     sessions: list[HilSession] = []
+    labgrid_consoles: list[tuple[LabgridBoard, Path]] = []
 
     def make(
         params: object | None = None,
@@ -261,13 +264,19 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
         config = request.config
         board = None
         node_id = hil_board.node_id
-        if config.getoption("hil_interface"):
+        lab = request.getfixturevalue("hil_labgrid") if labgrid_env_given(config) else None
+        if config.getoption("hil_interface") or lab is not None:
             if not realtime:
-                pytest.skip("a lockstep scenario needs the firmware on a private bus (--hil-interface given)")
-            bitrate = config.getoption("hil_bitrate")
-            board = BoardInterface(
-                config.getoption("hil_interface"), config.getoption("hil_channel"), bitrate
-            )
+                given = "--lg-env" if lab is not None else "--hil-interface"
+                pytest.skip(f"a lockstep scenario needs the firmware on a private bus ({given} given)")
+            if lab is not None:
+                board = lab.interface
+                labgrid_consoles.append((lab, run_dir / CONSOLE_LOG))
+            else:
+                bitrate = config.getoption("hil_bitrate")
+                board = BoardInterface(
+                    config.getoption("hil_interface"), config.getoption("hil_channel"), bitrate
+                )
             physics = physics and config.getoption("hil_physics")
             node_id = config.getoption("hil_node_id") or node_id
         session_config = SessionConfig(
@@ -317,6 +326,8 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
     yield make
     for session in reversed(sessions):
         session.close()
+    for lab, path in labgrid_consoles:
+        lab.save_console(path)
 
 
 @pytest.fixture
