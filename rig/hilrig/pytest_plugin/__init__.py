@@ -6,7 +6,9 @@ firmware, its plant: `board`), and its tests get the fixtures (`fixtures`): `mak
 `make_robot`, `private_bus`, `scenario_dir`, `hil_board`, with the `--hil-*` options (a real
 board on a real interface, a live viewer); `run_hilrig` runs the `hilrig` command on a test's
 bus. A failure names its evidence, its picture and, with `--hil-baseline`, the comparison with
-the last good run (`reports`).
+the last good run (`reports`). `@pytest.mark.requirement("ID", ...)` names what a test verifies,
+checked against the project's requirements file and exported as JUnit properties and needs.json
+(`requirements`).
 
     # pytest.ini
     [pytest]
@@ -29,7 +31,10 @@ import pytest
 # The parts are plugins of their own (`pytest_plugins` below), imported here first: their
 # asserts are rewritten like any plugin's.
 pytest.register_assert_rewrite(
-    "hilrig.pytest_plugin.board", "hilrig.pytest_plugin.fixtures", "hilrig.pytest_plugin.reports"
+    "hilrig.pytest_plugin.board",
+    "hilrig.pytest_plugin.fixtures",
+    "hilrig.pytest_plugin.reports",
+    "hilrig.pytest_plugin.requirements",
 )
 
 from hilrig.pytest_plugin.board import HilBoard, board_from_config, load_factory  # noqa: E402
@@ -44,7 +49,11 @@ from hilrig.pytest_plugin.fixtures import (  # noqa: E402
 )
 from hilrig.pytest_plugin.reports import ATTACHMENT, baseline_path  # noqa: E402
 
-pytest_plugins = ["hilrig.pytest_plugin.reports", "hilrig.pytest_plugin.fixtures"]
+pytest_plugins = [
+    "hilrig.pytest_plugin.reports",
+    "hilrig.pytest_plugin.fixtures",
+    "hilrig.pytest_plugin.requirements",
+]
 """The plugin's parts, registered with it (their hooks and fixtures)."""
 
 __all__ = [
