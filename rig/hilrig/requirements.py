@@ -83,19 +83,19 @@ class Coverage:
     def ids(self, verdict: str) -> list[str]:
         return [id_ for id_, found in self.verdicts.items() if found == verdict]
 
-    def summary(self) -> str:
+    def summary(self, label: str = "requirements") -> str:
         """'requirements: 30 of 32 verified by a passing test, 1 failed, 1 uncovered'."""
         counts = {verdict: len(self.ids(verdict)) for verdict in VERDICTS}
-        line = f"requirements: {counts[PASSED]} of {len(self.verdicts)} verified by a passing test"
+        line = f"{label}: {counts[PASSED]} of {len(self.verdicts)} verified by a passing test"
         for verdict in (FAILED, SKIPPED, UNCOVERED):
             if counts[verdict]:
                 line += f", {counts[verdict]} {verdict}"
         return line
 
-    def lines(self) -> list[str]:
+    def lines(self, label: str = "requirements") -> list[str]:
         """The summary, then one line per verdict other than PASSED listing its IDs, then the
         unknown IDs with the tests that named them."""
-        lines = [self.summary()]
+        lines = [self.summary(label)]
         for verdict in (FAILED, SKIPPED, UNCOVERED):
             if found := self.ids(verdict):
                 lines.append(f"    {verdict}: {' '.join(found)}")
