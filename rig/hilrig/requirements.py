@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+import textwrap
 import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -93,12 +94,14 @@ class Coverage:
         return line
 
     def lines(self, label: str = "requirements") -> list[str]:
-        """The summary, then one line per verdict other than PASSED listing its IDs, then the
-        unknown IDs with the tests that named them."""
+        """The summary, then the IDs of each verdict other than PASSED (wrapped at 100 columns),
+        then the unknown IDs with the tests that named them."""
         lines = [self.summary(label)]
         for verdict in (FAILED, SKIPPED, UNCOVERED):
             if found := self.ids(verdict):
-                lines.append(f"    {verdict}: {' '.join(found)}")
+                lines += textwrap.wrap(
+                    " ".join(found), width=100, initial_indent=f"    {verdict}: ", subsequent_indent=" " * 8
+                )
         for id_, names in self.unknown.items():
             lines.append(f"    not in the requirements file: {id_} (named by {', '.join(names)})")
         return lines
