@@ -5,6 +5,7 @@ each requirement's verdict, needs.json, and the same under pytest-xdist."""
 
 from __future__ import annotations
 
+import ast
 import json
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -233,16 +234,25 @@ def test_the_ini_file_names_the_requirements_file_relative_to_itself(tmp_path: P
     assert requirements.ini_requirements(tmp_path / "pytest.ini") is None
 
 
-def test_the_projects_requirements_file_loads_and_every_id_is_named_by_a_scenario() -> None:
+def _marked_ids(source: str) -> set[str]:
+    """The IDs of every `pytest.mark.requirement(...)` call in a module's source."""
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Call) and ast.unparse(node.func) == f"pytest.mark.{requirements.MARKER}":
+            found |= {arg.value for arg in node.args if isinstance(arg, ast.Constant)}
+    return found
+
+
+def test_the_projects_requirements_are_each_named_by_a_scenario_and_nothing_else_is() -> None:
     root = Path(__file__).resolve().parents[2]
     path = requirements.ini_requirements(root / "pytest.ini")
     assert path is not None
     known = requirements.load(path)
     named = set()
     for scenario in (root / "tests").rglob("test_*.py"):
-        text = scenario.read_text()
-        named |= {id_ for id_ in known if f'"{id_}"' in text}
-    assert sorted(set(known) - named) == []
+        named |= _marked_ids(scenario.read_text())
+    assert sorted(set(known) - named) == [], "requirements no scenario names"
+    assert sorted(named - set(known)) == [], "IDs the scenarios name that the file lacks"
 
 
 def test_a_run_of_tests_that_name_no_requirement_says_nothing_of_them(pytester: pytest.Pytester) -> None:
