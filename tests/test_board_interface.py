@@ -28,6 +28,7 @@ INNER_RUN_TIMEOUT_S = 540.0
 """Hang guard for the inner pytest (below pytest.ini's 600 s, so its output is not lost)."""
 
 
+@pytest.mark.requirement("CTRL_04")
 def test_readme_command_runs_the_realtime_scenarios_against_a_board_on_an_interface(
     private_bus: PrivateBus, scenario_dir: Path
 ) -> None:

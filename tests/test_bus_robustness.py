@@ -63,6 +63,7 @@ queue overflowed and dropped the SYNC itself, a lost cycle that was the host's, 
 FLOOD_CYCLES = 500
 
 
+@pytest.mark.requirement("BUS_01")
 @pytest.mark.slow
 def test_flood_of_frames_to_ignore_costs_no_control_cycle(make_scenario) -> None:
     # The flood is for the node, with its acceptance filter off: with it, the kernel would drop
@@ -93,6 +94,7 @@ def test_flood_of_frames_to_ignore_costs_no_control_cycle(make_scenario) -> None
     print(f"\nflood on 0x{FLOOD_COB_ID:03X}: {sent} frames over {FLOOD_CYCLES} cycles, none lost; {counters}")
 
 
+@pytest.mark.requirement("BUS_01")
 def test_malformed_frames_are_counted_and_ignored(make_scenario, private_bus: PrivateBus) -> None:
     s = make_scenario()
     s.rig.set("control_mode", VELOCITY_MODE)
@@ -182,6 +184,7 @@ def abort_code(answer: bytes) -> int | None:
     return struct.unpack_from("<I", answer, 4)[0] if answer[0] == SdoCommand.ABORT else None
 
 
+@pytest.mark.requirement("BUS_01")
 def test_nmt_for_other_nodes_and_sdo_out_of_order_cost_no_cycle(
     make_scenario, private_bus: PrivateBus
 ) -> None:
@@ -236,6 +239,7 @@ def test_nmt_for_other_nodes_and_sdo_out_of_order_cost_no_cycle(
 SYNC_BURSTS, SYNCS_PER_BURST = 100, 20
 
 
+@pytest.mark.requirement("SYNC_01")
 @pytest.mark.slow
 def test_sync_flood_runs_exactly_one_cycle_per_sync(private_bus: PrivateBus, scenario_dir: Path) -> None:
     """SYNCs back to back, as fast as this sender goes, in bursts of 20 (a burst's TPDOs must fit

@@ -32,6 +32,7 @@ SDO_TIMEOUT = ["--sdo-timeout", "5"]
 hilrig = run_hilrig
 
 
+@pytest.mark.requirement("SDO_01", "SDO_03")
 def test_scan_get_and_set_against_the_firmware(
     private_bus: PrivateBus, node_under_test: NodeUnderTest
 ) -> None:
@@ -76,6 +77,7 @@ def test_scan_get_and_set_against_the_firmware(
     )
 
 
+@pytest.mark.requirement("SDO_01", "NMT_01")
 def test_sdo_by_index_and_nmt_against_the_firmware(
     private_bus: PrivateBus, node_under_test: NodeUnderTest
 ) -> None:
@@ -97,6 +99,7 @@ def test_sdo_by_index_and_nmt_against_the_firmware(
     assert started.stdout.startswith(f"node 0x{NODE_ID:02X}: operational, "), started.stdout
 
 
+@pytest.mark.requirement("REC_01", "SDO_05")
 def test_capture_records_on_the_board_and_uploads_by_block_transfer(
     private_bus: PrivateBus, node_under_test: NodeUnderTest, scenario_dir: Path
 ) -> None:
@@ -114,6 +117,7 @@ def test_capture_records_on_the_board_and_uploads_by_block_transfer(
     assert cycles == list(range(cycles[0], cycles[0] + 200)), "one sample every cycle, none skipped"
 
 
+@pytest.mark.requirement("RIG_03")
 def test_watch_record_and_replay_decode(
     private_bus: PrivateBus, node_under_test: NodeUnderTest, scenario_dir: Path
 ) -> None:
@@ -192,6 +196,7 @@ def test_watch_record_and_replay_decode(
 OTHER_PRODUCT = 0x4F544852
 
 
+@pytest.mark.requirement("ID_01")
 def test_every_writing_command_refuses_a_node_that_is_not_the_tables(
     private_bus: PrivateBus, node_under_test: NodeUnderTest, scenario_dir: Path
 ) -> None:
@@ -261,6 +266,7 @@ def scenario(rig):
 """
 
 
+@pytest.mark.requirement("RIG_04")
 def test_sim_injects_faults_from_the_command_line(scenario_dir: Path) -> None:
     scenario = scenario_dir / "short.py"
     scenario.write_text(SHORT_SCENARIO)
@@ -312,6 +318,7 @@ def test_sim_injects_faults_from_the_command_line(scenario_dir: Path) -> None:
     assert named["led_pattern"] and named["led_pattern"] <= patterns, named
 
 
+@pytest.mark.requirement("RIG_04")
 def test_sim_reports_a_killed_firmware_with_the_evidence(scenario_dir: Path) -> None:
     scenario = scenario_dir / "short.py"
     scenario.write_text(SHORT_SCENARIO)

@@ -165,6 +165,7 @@ def expect_every_object_at_its_default(under_test: NodeUnderTest, when: str) -> 
 class TestPdo_7_2_2:
     """PDO services and the PDO parameter records (7.5.2.35..38)."""
 
+    @pytest.mark.requirement("PDO_02")
     def test_7_5_2_38_mapping_written_out_of_order_gets_the_codes_the_clause_names(
         self, node_under_test: NodeUnderTest
     ) -> None:
@@ -178,6 +179,7 @@ class TestPdo_7_2_2:
         assert download(node_under_test, 0x1A00, 0, 0, 1) == 0
         assert download(node_under_test, 0x1A00, 0, 9, 1) == 0x06040042
 
+    @pytest.mark.requirement("PDO_03")
     def test_7_5_2_37_tpdo_cob_ids_say_no_rtr_and_a_remote_frame_gets_no_tpdo(
         self, node_under_test: NodeUnderTest
     ) -> None:
@@ -206,6 +208,7 @@ class TestPdo_7_2_2:
 class TestSync_7_2_5:
     """SYNC consumer: the counter (0x1019, 7.5.2.22) and the TPDO SYNC start value (7.5.2.37)."""
 
+    @pytest.mark.requirement("SYNC_02")
     def test_7_5_2_22_counter_overflow_value_takes_0_and_2_to_240(
         self, node_under_test: NodeUnderTest
     ) -> None:
@@ -215,6 +218,7 @@ class TestSync_7_2_5:
         assert download(node_under_test, 0x1019, 0, 240, 1) == 0
         assert upload(node_under_test, 0x1019) == 240
 
+    @pytest.mark.requirement("SYNC_02")
     def test_7_5_2_37_tpdo_starts_at_the_sync_whose_counter_equals_its_start_value(
         self, node_under_test: NodeUnderTest
     ) -> None:
@@ -234,6 +238,7 @@ class TestSync_7_2_5:
 class TestNmt_7_2_8:
     """NMT reset node / reset communication: power-on values (7.2.8, 7.3.2)."""
 
+    @pytest.mark.requirement("NMT_01", "STORE_01")
     def test_7_2_8_reset_node_returns_every_unstored_object_to_its_power_on_value(
         self, node_under_test: NodeUnderTest
     ) -> None:
@@ -258,6 +263,7 @@ class TestStoreRestore_7_5_2_13:
     """Store parameters 0x1010 and restore default parameters 0x1011 (7.5.2.13, 7.5.2.14),
     verify configuration 0x1020 (7.5.2.23)."""
 
+    @pytest.mark.requirement("STORE_01")
     def test_7_5_2_13_save_all_keeps_communication_parameters_over_reset_node_and_restart(
         self, private_bus: PrivateBus, scenario_dir: Path
     ) -> None:
@@ -291,6 +297,7 @@ class TestObjectDictionary_7_5:
     """The EDS (CiA 306) lists every object the node answers, and the node answers every object
     the EDS lists (the manufacturer range is checked exhaustively by ObjectDictionaryTest)."""
 
+    @pytest.mark.requirement("OD_01")
     def test_7_5_communication_objects_match_the_eds(self, node_under_test: NodeUnderTest) -> None:
         od = eds_objects()
         indices = list(range(0x1000, 0x1030))

@@ -48,6 +48,7 @@ def differing(a: dict[str, Series], b: dict[str, Series]) -> list[str]:
     ]
 
 
+@pytest.mark.requirement("RIG_01")
 def test_same_seed_same_trace_bit_for_bit_other_seed_other_noise(make_scenario, scenario_dir, capsys) -> None:
     first = record_run(make_scenario, seed=7, subdir="seed7-a")
     again = record_run(make_scenario, seed=7, subdir="seed7-b")

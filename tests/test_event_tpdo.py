@@ -31,6 +31,7 @@ def status_tpdo_on_change(rig) -> None:
     status.save()
 
 
+@pytest.mark.requirement("PDO_04")
 def test_an_event_driven_tpdo_goes_out_once_per_change_and_never_in_between(make_scenario) -> None:
     s = make_scenario(before_start=status_tpdo_on_change)
     s.rig.set("watchdog_cycles", WATCHDOG_CYCLES)

@@ -42,6 +42,7 @@ def start_velocity_loop(s, setpoint: float = 2.0) -> None:
     s.rig.set("velocity_setpoint", setpoint)
 
 
+@pytest.mark.requirement("PROT_07")
 def test_latched_fault_holds_until_fault_clear_then_error_reset(make_scenario) -> None:
     s = make_scenario()
     start_velocity_loop(s)
@@ -93,6 +94,7 @@ ROGUE_CYCLE = 200
 ROGUE_VALUE = 0.875  # BoardInfo::rogue_value in firmware/platform/linux/boards/joint/main.cpp
 
 
+@pytest.mark.requirement("PROT_09")
 def test_write_by_a_non_owner_is_refused_and_reported_by_emcy(make_scenario) -> None:
     s = make_scenario(extra_args=["--inject-rogue-write-at-cycle", str(ROGUE_CYCLE)])
     start_velocity_loop(s)
@@ -136,6 +138,7 @@ def test_write_by_a_non_owner_is_refused_and_reported_by_emcy(make_scenario) -> 
     print(f"\nownership: {violations[0]}; firmware: {counters}")
 
 
+@pytest.mark.requirement("NMT_02")
 def test_nmt_stop_halts_pdos_and_cycles_and_start_resumes_them(make_scenario) -> None:
     s = make_scenario()
     start_velocity_loop(s)
@@ -195,6 +198,7 @@ def test_nmt_stop_halts_pdos_and_cycles_and_start_resumes_them(make_scenario) ->
 KILL_CYCLE = 150
 
 
+@pytest.mark.requirement("RIG_04")
 def test_killed_firmware_is_named_at_its_cycle_and_its_heartbeat_is_missed(make_scenario) -> None:
     s = make_scenario()
     start_velocity_loop(s)

@@ -51,6 +51,7 @@ def image_files(image_dir: Path) -> list[str]:
     return sorted(path.name for path in image_dir.iterdir())
 
 
+@pytest.mark.requirement("FLASH_01", "SDO_05")
 def test_second_build_flashed_into_one_module_comes_back_with_its_version(make_robot) -> None:
     header, image = second_image()
     old_version = TABLE.board.node.software_version
@@ -85,6 +86,7 @@ def test_second_build_flashed_into_one_module_comes_back_with_its_version(make_r
     assert program.software_version(robot.module(UNTOUCHED).node) == old_version
 
 
+@pytest.mark.requirement("FLASH_02")
 def test_wrong_image_and_broken_off_download_leave_the_old_image_running(make_robot) -> None:
     header, image = second_image()
     old_version = TABLE.board.node.software_version

@@ -119,6 +119,7 @@ def test_battery_sagging_under_led_load_latches_low_battery(make_scenario) -> No
     assert not int(flags[-1]) & HeadFaults.RAIL_OVER_CURRENT, "1.65 A is within the rail's limit"
 
 
+@pytest.mark.requirement("ID_01")
 def test_a_rig_for_the_joint_refuses_the_head(private_bus, scenario_dir) -> None:
     """The head's firmware where a rig expects the joint: the rig reads the node's identity
     (0x1018) first and names what answered, before it maps a single PDO."""

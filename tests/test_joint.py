@@ -30,6 +30,7 @@ def latched_faults(rig) -> FaultFlags:
     return FaultFlags(int(rig.field("fault_flags")))
 
 
+@pytest.mark.requirement("CTRL_01")
 def test_velocity_step_settles_within_2_percent(make_scenario, capsys: pytest.CaptureFixture[str]) -> None:
     # The loop regulates the gearbox side (motor_velocity / gear ratio): collocated, so it
     # settles fast and clean. The load behind the spring follows with the spring-load ring
@@ -67,6 +68,7 @@ def test_velocity_step_settles_within_2_percent(make_scenario, capsys: pytest.Ca
     )
 
 
+@pytest.mark.requirement("BUS_02")
 def test_the_demo_under_the_lean_profile(
     make_scenario, scenario_dir, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -108,6 +110,7 @@ def test_the_demo_under_the_lean_profile(
     )
 
 
+@pytest.mark.requirement("CTRL_02")
 def test_torque_step_through_the_spring(make_scenario) -> None:
     s = make_scenario(params=VISCOUS_LOAD)
     s.rig.set("control_mode", ControlMode.TORQUE)
@@ -121,6 +124,7 @@ def test_torque_step_through_the_spring(make_scenario) -> None:
     print(f"\ntorque step 0 -> 2 N*m: settled (2 %) at {settled:.3f} s")
 
 
+@pytest.mark.requirement("CTRL_03")
 def test_spring_constant_is_estimated_within_5_percent(make_scenario) -> None:
     # The plant's spring is stiffer than the firmware's nominal value: the estimate must find the
     # plant's, not echo the nominal one.
@@ -139,6 +143,7 @@ def test_spring_constant_is_estimated_within_5_percent(make_scenario) -> None:
     print(f"\nspring constant: estimated {estimate:.2f} N*m/rad (true {true_k}), confidence {confidence:.2f}")
 
 
+@pytest.mark.requirement("PROT_05", "PROT_06")
 def test_thermal_derating_then_cut_off_with_hysteresis(make_scenario) -> None:
     # The rig heats the winding: a hot enclosure (ambient 50 degC) around a winding with a 1 s
     # thermal time constant (the real one is minutes), and limits set over SDO, so heating,
@@ -189,6 +194,7 @@ def test_thermal_derating_then_cut_off_with_hysteresis(make_scenario) -> None:
     )
 
 
+@pytest.mark.requirement("PROT_01")
 def test_silent_encoder_goes_to_safe_state_with_emcy(make_scenario) -> None:
     s = make_scenario()
     s.rig.set("control_mode", ControlMode.VELOCITY)
@@ -211,6 +217,7 @@ def test_silent_encoder_goes_to_safe_state_with_emcy(make_scenario) -> None:
     assert latched_faults(s.rig) & stale == stale, f"latched: {latched_faults(s.rig)!r}"
 
 
+@pytest.mark.requirement("PROT_03")
 def test_command_watchdog_stops_the_motor_when_setpoints_stop(make_scenario) -> None:
     s = make_scenario()
     s.rig.set("control_mode", ControlMode.VELOCITY)

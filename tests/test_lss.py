@@ -41,6 +41,7 @@ def network(private_bus: PrivateBus) -> Iterator[canopen.Network]:
         network.disconnect()
 
 
+@pytest.mark.requirement("LSS_01")
 def test_four_modules_are_numbered_in_chain_order_and_keep_their_ids(
     private_bus: PrivateBus, scenario_dir: Path, network: canopen.Network
 ) -> None:
@@ -72,6 +73,7 @@ def test_four_modules_are_numbered_in_chain_order_and_keep_their_ids(
         assert not lss.any_unconfigured()
 
 
+@pytest.mark.requirement("LSS_01")
 def test_python_canopens_lss_master_gives_a_board_its_id(
     private_bus: PrivateBus, scenario_dir: Path, network: canopen.Network
 ) -> None:

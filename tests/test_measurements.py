@@ -45,6 +45,7 @@ def worst(s, field: str, truth: str, *, scale: float = 1.0, after_s: float = 0.0
     return float(error[at]), int(cycles[keep][at])
 
 
+@pytest.mark.requirement("MEAS_01")
 def test_every_measurement_tracks_its_physical_truth(make_scenario) -> None:
     # Fast enough for the motor encoder to wrap many times (and the output encoder once), a hot
     # enclosure so the winding sweeps 25 -> 60+ degC through the NTC's curve.
@@ -96,6 +97,7 @@ def test_every_measurement_tracks_its_physical_truth(make_scenario) -> None:
     print("\n" + "\n".join(report))
 
 
+@pytest.mark.requirement("MEAS_02")
 def test_velocity_is_the_first_order_filter_of_the_encoder_steps(make_scenario) -> None:
     # The firmware's motor_velocity, from the counts the rig sent: each cycle's step of the
     # 16-bit counter (modular) over one period, through a first-order low-pass at

@@ -59,6 +59,7 @@ def abort_code(answer: bytes) -> int:
     return struct.unpack_from("<I", answer, 4)[0]
 
 
+@pytest.mark.requirement("SDO_01")
 def test_every_field_reads_its_default_and_every_writable_field_takes_a_value(
     node_under_test: NodeUnderTest,
 ) -> None:
@@ -78,12 +79,14 @@ def test_every_field_reads_its_default_and_every_writable_field_takes_a_value(
         assert sdo[field.index].raw == pytest.approx(target, rel=1e-6), field.name
 
 
+@pytest.mark.requirement("SDO_02")
 def test_device_name_is_a_segmented_upload(node_under_test: NodeUnderTest) -> None:
     assert node_under_test.node.sdo[0x1008].raw == "hil-joint-firmware"
     identity = node_under_test.node.sdo[0x1018]
     assert identity[1].raw == 0x48494C00
 
 
+@pytest.mark.requirement("SDO_03")
 def test_bad_requests_get_the_cia301_abort_codes(node_under_test: NodeUnderTest) -> None:
     sdo = node_under_test.node.sdo
     velocity_kp = TABLE.field("velocity_kp")
@@ -118,6 +121,7 @@ def send_syncs(under_test: NodeUnderTest, count: int) -> None:
         under_test.wait_for(tpdo1, after_subscribing=under_test.network.sync.transmit)
 
 
+@pytest.mark.requirement("SDO_04")
 def test_segmented_download_that_stalls_is_aborted_after_a_second_of_control_time(
     node_under_test: NodeUnderTest,
 ) -> None:
@@ -144,6 +148,7 @@ def test_segmented_download_that_stalls_is_aborted_after_a_second_of_control_tim
     assert abort_code(answered[0]) == 0x05040000
 
 
+@pytest.mark.requirement("PDO_01")
 def test_tpdo_remapped_in_pre_operational_is_sent_on_sync(node_under_test: NodeUnderTest) -> None:
     node = node_under_test.node
     node.tpdo.read()
@@ -165,6 +170,7 @@ def test_tpdo_remapped_in_pre_operational_is_sent_on_sync(node_under_test: NodeU
     expect_abort(0x08000022, lambda: node.sdo.download(0x1A06, 0, b"\x00"))
 
 
+@pytest.mark.requirement("PDO_02")
 def test_mapping_errors_are_answered(node_under_test: NodeUnderTest) -> None:
     sdo = node_under_test.node.sdo
     # Disable TPDO1 (bit 30: no RTR, as every TPDO COB-ID of this node).
@@ -189,6 +195,7 @@ def heartbeat_state(node: canopen.RemoteNode, expected: str, heartbeats: int = 5
     return state
 
 
+@pytest.mark.requirement("NMT_01")
 def test_nmt_states_walk_and_reset_gives_boot_up_and_defaults(node_under_test: NodeUnderTest) -> None:
     node = node_under_test.node
     node.sdo.RESPONSE_TIMEOUT = 1.0
@@ -211,6 +218,7 @@ def test_nmt_states_walk_and_reset_gives_boot_up_and_defaults(node_under_test: N
     assert node.sdo["velocity_setpoint"].raw == pytest.approx(TABLE.field("velocity_setpoint").default)
 
 
+@pytest.mark.requirement("HB_01")
 def test_heartbeat_follows_the_configured_period(node_under_test: NodeUnderTest) -> None:
     # Heartbeats are wall-clock by nature: the bounds are deliberately wide (the VM is slow and
     # shared); what is checked is that 0x1017 changes the period, not the jitter.
@@ -230,6 +238,7 @@ def test_heartbeat_follows_the_configured_period(node_under_test: NodeUnderTest)
     )
 
 
+@pytest.mark.requirement("PROT_01")
 def test_stale_encoder_is_reported_by_emcy_naming_the_field(node_under_test: NodeUnderTest) -> None:
     node = node_under_test.node
     node.nmt.state = "OPERATIONAL"
@@ -255,6 +264,7 @@ def test_stale_encoder_is_reported_by_emcy_naming_the_field(node_under_test: Nod
     assert node.sdo[0x1003][0].raw >= 1  # pre-defined error field holds it
 
 
+@pytest.mark.requirement("STORE_01")
 def test_parameters_stored_survive_a_restart(private_bus: PrivateBus, scenario_dir: Path) -> None:
     params = scenario_dir / "params.bin"
     first = start_node(private_bus, scenario_dir, params_file=params)
@@ -277,6 +287,7 @@ def test_parameters_stored_survive_a_restart(private_bus: PrivateBus, scenario_d
         assert stop_node(second) == 0
 
 
+@pytest.mark.requirement("OD_01")
 def test_eds_describes_the_firmware(node_under_test: NodeUnderTest) -> None:
     # Every object the EDS lists answers an SDO upload (or is write-only by its access type).
     od: canopen.ObjectDictionary = node_under_test.node.object_dictionary

@@ -68,6 +68,7 @@ def dcf_values(path: Path, node_id: int) -> dict[tuple[int, int], object]:
     return {(v.index, v.subindex): normalized(v, v.value, node_id) for v in stored_objects(od, TABLE)}
 
 
+@pytest.mark.requirement("STORE_02")
 def test_a_dcf_saved_from_one_board_and_loaded_into_another_equals_it(
     private_bus: PrivateBus, scenario_dir: Path, network: canopen.Network
 ) -> None:

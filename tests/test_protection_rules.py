@@ -49,6 +49,7 @@ def moving(s, setpoint: float = 2.0) -> None:
     s.rig.run(seconds=0.2)
 
 
+@pytest.mark.requirement("PROT_01", "PROT_02")
 def test_stale_encoders_then_thermistor_each_at_their_own_limit(make_scenario) -> None:
     s = make_scenario()
     s.rig.set("encoder_stale_cycles", ENCODER_STALE_CYCLES)
@@ -74,6 +75,7 @@ def test_stale_encoders_then_thermistor_each_at_their_own_limit(make_scenario) -
     assert EmcyCode.STALE_SENSOR in [record.code for record in s.rig.emcy]
 
 
+@pytest.mark.requirement("PROT_03")
 def test_watchdog_trips_on_its_cycle_and_cuts_the_drive_there(make_scenario) -> None:
     s = make_scenario()
     s.rig.set("watchdog_cycles", WATCHDOG_CYCLES)
@@ -102,6 +104,7 @@ def test_watchdog_trips_on_its_cycle_and_cuts_the_drive_there(make_scenario) -> 
     assert EmcyCode.SETPOINT_STREAM_LOST in [record.code for record in s.rig.emcy]
 
 
+@pytest.mark.requirement("PROT_04")
 def test_a_disabled_drive_never_trips_the_watchdog(make_scenario) -> None:
     s = make_scenario()
     s.rig.set("watchdog_cycles", WATCHDOG_CYCLES)
@@ -113,6 +116,7 @@ def test_a_disabled_drive_never_trips_the_watchdog(make_scenario) -> None:
     assert set(by_cycle(s, "led_pattern").values()) == {float(LedPattern.SLOW_BLINK)}, "disabled: slow blink"
 
 
+@pytest.mark.requirement("PROT_05")
 def test_thermal_derate_follows_its_line_and_bounds_the_duty(make_scenario) -> None:
     # Warning 31 degC, limit 47 degC: a derate line whose slope (1/16 per degC) and offset no
     # neighbouring rule shares; max_duty 0.7 is not the default 0.95. The motor is asked for more
@@ -186,6 +190,7 @@ def watch_the_master_and_map_max_duty(rig) -> None:
     spare.save()
 
 
+@pytest.mark.requirement("PROT_08")
 def test_the_master_heartbeat_beside_every_rpdo_is_heard_until_it_stops(make_scenario) -> None:
     s = make_scenario(before_start=watch_the_master_and_map_max_duty)
     assert s.rig.driver.rpdo_of("max_duty") == SPARE_RPDO, "the rig sends max_duty in the spare RPDO"
@@ -232,6 +237,7 @@ def test_the_master_heartbeat_beside_every_rpdo_is_heard_until_it_stops(make_sce
     assert s.rig.driver.operational, "0x1029 = 1: the node stays operational"
 
 
+@pytest.mark.requirement("PROT_08")
 def test_the_master_heartbeat_lost_enters_pre_operational_by_default(make_scenario) -> None:
     s = make_scenario(before_start=watch_the_master)
     assert s.rig.node.error_behaviour is ErrorBehaviour.PRE_OPERATIONAL

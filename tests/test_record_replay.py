@@ -51,6 +51,7 @@ def decoded_tpdos(frames: list[can.Message], dbc: cantools.database.can.Database
     ]
 
 
+@pytest.mark.requirement("RIG_03")
 def test_a_recorded_run_replays_into_a_fresh_firmware_with_identical_decoded_fields(
     make_scenario, private_bus: PrivateBus, scenario_dir: Path
 ) -> None:

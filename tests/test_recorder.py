@@ -36,6 +36,7 @@ PRE_TRIGGER_PERCENT = 10
 STEP_AT_CYCLE = 400
 
 
+@pytest.mark.requirement("REC_01", "SDO_05")
 def test_a_triggered_capture_equals_the_lockstep_history_cycle_for_cycle(
     make_scenario, private_bus: PrivateBus
 ) -> None:
@@ -104,6 +105,7 @@ def test_a_triggered_capture_equals_the_lockstep_history_cycle_for_cycle(
     assert len(ours) > 64_000 and theirs == ours
 
 
+@pytest.mark.requirement("REC_02")
 def test_a_channel_in_use_takes_another_field_but_not_none(node_under_test) -> None:
     # While a channel is in use (sub-index <= channels in use) it may be pointed at another
     # field, but not at none (0): a recording's channels all name a field, as a PDO mapping's.

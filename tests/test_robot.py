@@ -56,6 +56,7 @@ def tracking_error(robot: Robot, node_id: int, since_s: float, until_s: float | 
     return float(np.max(np.abs(commanded[in_cmd][window] - measured[in_meas][window])))
 
 
+@pytest.mark.requirement("CHAIN_01")
 def test_travelling_wave_tracked_by_all_eight_modules(make_robot) -> None:
     session = make_robot(8)
     robot = session.robot
@@ -138,6 +139,7 @@ def test_mixed_robot_the_snakes_joints_and_the_head_module_on_one_bus(make_robot
     assert trace.scalars[f"/modules/{robot.joints[0].node.node_id}/fields/sensors/output_position"]
 
 
+@pytest.mark.requirement("CHAIN_01")
 def test_one_module_killed_mid_gait(make_robot) -> None:
     # Designed behaviour: the lost module is named with the cycle its TPDOs were due in, its
     # bridge is off from then on (the joint goes limp, its link still moves with the chain), and
@@ -171,6 +173,7 @@ def test_one_module_killed_mid_gait(make_robot) -> None:
     assert [text for text, _ in trace.texts["/modules/3/events/lost"]] == [str(lost)]
 
 
+@pytest.mark.requirement("CHAIN_01")
 def test_sixteen_modules_track_the_gait_and_one_lost_mid_gait_leaves_the_rest_tracking(make_robot) -> None:
     # The seed lab's snake: 16 modules (node ids 1..16) on one bus, two waves along the body.
     # As short as the physics allows: the wave's ramp and the chain's catching up (SETTLE_S),
@@ -218,6 +221,7 @@ def test_sixteen_modules_track_the_gait_and_one_lost_mid_gait_leaves_the_rest_tr
             assert abs(measured[-1] - truth[-2]) < 0.01, f"node {node_id}: {measured[-1]} vs {truth[-2]}"
 
 
+@pytest.mark.requirement("PROT_08")
 def test_master_heartbeat_lost_every_module_safe_within_the_consumer_time(make_robot) -> None:
     master = MasterHeartbeat()
     session = make_robot(4, master=master)
@@ -240,6 +244,7 @@ def test_master_heartbeat_lost_every_module_safe_within_the_consumer_time(make_r
         assert np.all(duty[t >= deadline * robot.period_s] == 0), f"node {node_id} still drives"
 
 
+@pytest.mark.requirement("ID_01")
 def test_two_modules_with_one_node_id_are_refused(make_robot, scenario_dir: Path) -> None:
     with pytest.raises(ValueError, match=r"node id 2 \(0x02\) is given to two modules"):
         make_robot(node_ids=[1, 2, 2])

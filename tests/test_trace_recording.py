@@ -21,6 +21,7 @@ POLL_EVERY = 100
 pytestmark = pytest.mark.bus
 
 
+@pytest.mark.requirement("RIG_02")
 def test_a_scenario_trace_holds_every_streamed_field_and_its_faults(make_scenario) -> None:
     s = make_scenario()
     s.rig.set("control_mode", ControlMode.VELOCITY)
@@ -56,6 +57,7 @@ def test_a_scenario_trace_holds_every_streamed_field_and_its_faults(make_scenari
     assert any("0x8100" in text for text in emcy_texts), f"expected the watchdog EMCY in {emcy_texts}"
 
 
+@pytest.mark.requirement("RIG_02")
 def test_every_series_every_dashboard_names_has_data_on_a_firmware_trace(make_scenario) -> None:
     """Each control mode in turn, a parameter write the node refuses, the setpoint stream
     stopped (EMCY): the trace of the real firmware gives every view of every joint dashboard

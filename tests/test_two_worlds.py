@@ -96,6 +96,7 @@ def observe_and_command(rig: Rig, expect: Expect) -> int:
 
 
 # --- Lockstep ------------------------------------------------------------------------------------
+@pytest.mark.requirement("CTRL_01", "CTRL_04")
 def test_velocity_hold_lockstep(make_scenario) -> None:
     s = make_scenario()
     mean = velocity_hold(s.rig, s.expect)
@@ -115,6 +116,7 @@ def test_velocity_hold_lockstep(make_scenario) -> None:
 
 
 # --- Real time -----------------------------------------------------------------------------------
+@pytest.mark.requirement("CTRL_04")
 @pytest.mark.slow
 @pytest.mark.realtime
 def test_velocity_hold_realtime(make_scenario) -> None:
@@ -135,6 +137,7 @@ def test_velocity_hold_realtime(make_scenario) -> None:
     )
 
 
+@pytest.mark.requirement("CTRL_04")
 @pytest.mark.slow
 @pytest.mark.realtime
 def test_observe_and_command_realtime_without_physics(make_scenario) -> None:

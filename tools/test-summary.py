@@ -2,14 +2,16 @@
 
 Prints how many C++ tests, Python unit tests and bus-level scenarios ran, which bus path the
 scenarios used, one line per failure with the pictures it left (the [[ATTACHMENT|path]] lines
-hilrig's pytest plugin writes into the failure's system-out), and closes with the plain
-"N passed, N failed" line.
+hilrig's pytest plugin writes into the failure's system-out), the coverage of the project's
+requirements (each test's `requirement` JUnit properties against the `hil_requirements` file
+pytest.ini names: hilrig.requirements), and closes with the plain "N passed, N failed" line.
 Exits non-zero when a stage is missing, collected nothing, or had failures.
 
-    python tools/test-summary.py out/test-results [--shard K/N] [--bus-only]
+    python tools/test-summary.py out/test-results [--shard K/N] [--bus-only] [--requirements FILE]
 
 --shard K/N: the run was one CI job of N (`make test SHARD=K/N`): the unit stages are expected
-in shard 1 only. --bus-only: the bus-level stage alone (`make durations`).
+in shard 1 only. --bus-only: the bus-level stage alone (`make durations`). --requirements FILE:
+the requirements file (default: the one the checkout's pytest.ini names).
 """
 
 from __future__ import annotations
@@ -22,6 +24,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from scenario_shards import Shard, parse_shard  # tools/, this script's own folder
+
+from hilrig import requirements
+from hilrig.errors import ConfigurationError
+
+CHECKOUT_INI = Path(__file__).resolve().parent.parent / "pytest.ini"
 
 # The stages that run in every shard; the others run in shard 1 (tools/run-tests).
 BUS_STAGE = "bus-level scenarios"
@@ -46,6 +53,8 @@ class StageResult:
     failures: list[str] = field(default_factory=list)
     attachments: dict[str, list[str]] = field(default_factory=dict)
     """Per failure, the files it attached (pictures of the failed checks)."""
+    cases: list[requirements.CaseResult] = field(default_factory=list)
+    """Each test that names a requirement, with its outcome."""
 
 
 ATTACHMENT = re.compile(r"\[\[ATTACHMENT\|(?P<path>[^\]]+)\]\]")
@@ -61,11 +70,34 @@ def read_junit(path: Path) -> StageResult:
             out = "".join(element.text or "" for element in case.iter("system-out"))
             if found := [match["path"] for match in ATTACHMENT.finditer(out)]:
                 result.attachments[name] = found
+            outcome = requirements.FAILED
         elif case.find("skipped") is not None:
             result.skipped += 1
+            outcome = requirements.SKIPPED
         else:
             result.passed += 1
+            outcome = requirements.PASSED
+        named = tuple(
+            p.get("value", "") for p in case.iter("property") if p.get("name") == requirements.PROPERTY
+        )
+        if named:
+            result.cases.append(requirements.CaseResult(name, named, outcome))
     return result
+
+
+def requirement_lines(
+    path: Path | None, cases: list[requirements.CaseResult], shard: Shard | None
+) -> list[str]:
+    """Each requirement's verdict over every stage's tests (hilrig.requirements); nothing where
+    the project has no requirements file."""
+    if path is None:
+        return []
+    try:
+        known = requirements.load(path)
+    except ConfigurationError as error:
+        return [f"requirements: {error}"]
+    label = f"requirements of {path.name}" + (", this shard's tests only" if shard is not None else "")
+    return requirements.coverage(known, cases).lines(label)
 
 
 def shard_spec(text: str) -> Shard:
@@ -80,11 +112,15 @@ def main(argv: list[str]) -> int:
     parser.add_argument("results", type=Path, help="the folder of the JUnit XML files")
     parser.add_argument("--shard", type=shard_spec, help="K/N: the run was shard K of N")
     parser.add_argument("--bus-only", action="store_true", help="the run had the bus-level stage alone")
+    parser.add_argument(
+        "--requirements", type=Path, help="the requirements file (default: hil_requirements of pytest.ini)"
+    )
     options = parser.parse_args(argv[1:])
     results: Path = options.results
     shard: Shard | None = options.shard
     ok = True
     total_passed = total_failed = total_skipped = bus_ran = 0
+    cases: list[requirements.CaseResult] = []
     for file_name, title in STAGES:
         if title != BUS_STAGE and options.bus_only:
             print(f"{title:22} not run (bus-level stage only)")
@@ -105,6 +141,7 @@ def main(argv: list[str]) -> int:
             stage.skipped += part.skipped
             stage.failures += part.failures
             stage.attachments |= part.attachments
+            cases += part.cases
         ran = stage.passed + stage.failed
         line = f"{title:22} {ran:4d} ran: {stage.passed} passed, {stage.failed} failed"
         if stage.skipped:
@@ -129,6 +166,9 @@ def main(argv: list[str]) -> int:
     bus_path = results / "bus-path.txt"
     where = bus_path.read_text().strip() if bus_path.exists() else "unknown (the bus stage did not start)"
     print(f"bus path used by the scenarios: {where}")
+    required = options.requirements or requirements.ini_requirements(CHECKOUT_INI)
+    for line in requirement_lines(required, cases, shard):
+        print(line)
     closing = f"{total_passed} passed, {total_failed} failed"
     if total_skipped:
         closing += f", {total_skipped} skipped"

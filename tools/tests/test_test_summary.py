@@ -46,3 +46,44 @@ def test_a_failure_lists_the_pictures_it_attached(tmp_path: Path, capsys: pytest
     at = out.index("    FAILED tests.test_joint::test_step")
     assert out[at + 1] == "        picture: /out/p/output_velocity-settles_within.png"
     assert out[-1] == "5 passed, 1 failed"
+
+
+def test_the_requirements_coverage_gathers_every_stage_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    summary = load_summary()
+    for name in ("cpp.xml", "cortex-m.xml", "python-unit.xml", "browser.xml"):
+        (tmp_path / name).write_text(junit('<testcase classname="t" name="a"/>'))
+
+    def case(name: str, inner: str, *ids: str) -> str:
+        properties = "".join(f'<property name="requirement" value="{id_}"/>' for id_ in ids)
+        head = f'<testcase classname="tests.t" name="{name}">'
+        return f"{head}<properties>{properties}</properties>{inner}</testcase>"
+
+    (tmp_path / "scenarios-lane-1.xml").write_text(junit(case("a", "", "CTRL_01", "PROT_01")))
+    (tmp_path / "scenarios-lane-2.xml").write_text(
+        junit(case("b", '<failure message="x"/>', "PROT_01"), case("c", "<skipped/>", "NMT_01"))
+    )
+    listed = tmp_path / "requirements.toml"
+    listed.write_text(
+        "".join(
+            f'[[requirement]]\nid = "{id_}"\ntitle = "t"\n'
+            for id_ in ("CTRL_01", "PROT_01", "NMT_01", "HB_01")
+        )
+    )
+    assert summary.main(["test-summary.py", str(tmp_path), "--requirements", str(listed)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    at = out.index(
+        "requirements of requirements.toml: 1 of 4 verified by a passing test,"
+        " 1 failed, 1 skipped, 1 uncovered"
+    )
+    assert out[at + 1 : at + 4] == ["    failed: PROT_01", "    skipped: NMT_01", "    uncovered: HB_01"]
+    assert out[-1] == "5 passed, 1 failed, 1 skipped"
+
+
+def test_the_checkouts_requirements_file_is_the_default(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    summary = load_summary()
+    assert summary.main(["test-summary.py", str(tmp_path), "--bus-only"]) == 1
+    assert "requirements of requirements.toml: 0 of " in capsys.readouterr().out

@@ -7,7 +7,9 @@ firmware, its plant: `board`), and its tests get the fixtures (`fixtures`): `mak
 board on a real interface, a live viewer); `run_hilrig` runs the `hilrig` command on a test's
 bus; with labgrid's `--lg-env` the board, its bus, power and console come from a labgrid target
 (`labgrid`). A failure names its evidence, its picture and, with `--hil-baseline`, the comparison with
-the last good run (`reports`).
+the last good run (`reports`). `@pytest.mark.requirement("ID", ...)` names what a test verifies,
+checked against the project's requirements file and exported as JUnit properties and needs.json
+(`requirements`).
 
     # pytest.ini
     [pytest]
@@ -34,6 +36,7 @@ pytest.register_assert_rewrite(
     "hilrig.pytest_plugin.fixtures",
     "hilrig.pytest_plugin.labgrid",
     "hilrig.pytest_plugin.reports",
+    "hilrig.pytest_plugin.requirements",
 )
 
 from hilrig.pytest_plugin.board import HilBoard, board_from_config, load_factory  # noqa: E402
@@ -52,6 +55,7 @@ pytest_plugins = [
     "hilrig.pytest_plugin.reports",
     "hilrig.pytest_plugin.fixtures",
     "hilrig.pytest_plugin.labgrid",
+    "hilrig.pytest_plugin.requirements",
 ]
 """The plugin's parts, registered with it (their hooks and fixtures)."""
 
