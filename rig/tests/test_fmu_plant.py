@@ -33,14 +33,14 @@ def test_the_plant_follows_the_fmu_once_per_period(make) -> None:
     assert plant.actuator_fields == ("rail_switch",)
     assert set(plant.sensor_fields) == {io.name for io in HEAD.hil_inputs}
     assert plant.truth_fields == ("pitch_rate_rad_s", "pitch_rad")
-    assert plant.truth_parameters() == {"k[4]": 400.0, "c[4]": 4.0, "m[4]": 1.0}
+    assert plant.truth_parameters() == {"k[4]": 1600.0, "c[4]": 8.0, "m[4]": 1.0}
     assert plant.truth() == (0.0, 0.0)
-    plant.apply([1])  # the rail on: 40 N.m on a 400 N.m/rad spring, 0.1 rad at rest
+    plant.apply([1])  # the rail on: 160 N.m on a 1600 N.m/rad spring, 0.1 rad at rest
     rows = []
-    for _ in range(1000):
+    for _ in range(600):
         rows.append(plant.truth())
         plant.step(1e-3)
-    assert plant.time_s == pytest.approx(1.0)
+    assert plant.time_s == pytest.approx(0.6)
     pitch = plant.truth_matrix(rows)[:, 1]
     assert pitch.max() > 0.15  # overshoot of a lightly damped mount
     assert plant.truth()[1] == pytest.approx(0.1, abs=0.01)
@@ -54,7 +54,7 @@ def test_the_same_seed_gives_the_same_frames_and_another_seed_other_noise(make) 
         plant = make(None, seed)
         plant.apply([1])
         frames = []
-        for _ in range(30):
+        for _ in range(10):
             frames.append(plant.sense().gyro_y_counts)
             plant.step(1e-3)
         return frames
@@ -64,11 +64,11 @@ def test_the_same_seed_gives_the_same_frames_and_another_seed_other_noise(make) 
 
 
 def test_params_set_fmu_parameters_and_substeps_split_the_period(make, tmp_path) -> None:
-    stiff = make({"k[4]": 1600.0}, 1)
+    stiff = make({"k[4]": 6400.0}, 1)
     stiff.apply([1])
-    for _ in range(1000):
+    for _ in range(300):
         stiff.step(1e-3)
-    assert stiff.truth()[1] == pytest.approx(40.0 / 1600.0, abs=0.005)
+    assert stiff.truth()[1] == pytest.approx(160.0 / 6400.0, abs=0.005)
     with pytest.raises(PlantMapError, match=r"no parameter 'k\[9\]'"):
         make({"k[9]": 1.0}, 1)
     halves = tmp_path / "halves.map.toml"
@@ -106,7 +106,7 @@ def test_an_fmu_that_cannot_save_its_state_says_to_rerun(make) -> None:
             'field = "gyro_y_counts"',
             r"\['gyro_y_counts'\] have more than one source",
         ),
-        ('"c[4]" = 4.0', '"v[4]" = 4.0', r"\[parameters\]: v\[4\] is an FMU output, not a parameter"),
+        ('"c[4]" = 8.0', '"v[4]" = 8.0', r"\[parameters\]: v\[4\] is an FMU output, not a parameter"),
         ("substeps = 1", "substeps = 0", "substeps must be an integer >= 1"),
     ],
 )
