@@ -136,3 +136,14 @@ def test_a_unit_the_fmu_does_not_declare_and_a_missing_source_are_errors(tmp_pat
         load_map(MAP, HEAD)
     with pytest.raises(PlantMapError, match="no such file"):
         load_map(MAP, HEAD, tmp_path / "none.fmu")
+
+
+def test_the_pytest_plugin_takes_an_fmu_and_its_map() -> None:
+    from hilrig.pytest_plugin.board import fmu_plant_factory
+
+    table = RigTable.load(resources.HEAD_TABLE)
+    assert callable(fmu_plant_factory(FMU, MAP, table))
+    with pytest.raises(pytest.UsageError, match="an FMU needs hil_plant_map"):
+        fmu_plant_factory(FMU, None, table)
+    with pytest.raises(pytest.UsageError, match="names no fmu"):
+        fmu_plant_factory(None, MAP, table)
