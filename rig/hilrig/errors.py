@@ -25,6 +25,11 @@ class ConfigurationError(RigError, ValueError):
     cannot be read (the message says where it is named)."""
 
 
+class PlantMapError(ConfigurationError):
+    """A plant map (an FMU's variables tied to a board's HIL I/O) does not fit its FMU or its
+    table: the message names the map, the entry and what to change."""
+
+
 class BusUnavailableError(RigError, OSError):
     """The CAN bus (or a private namespace bus) cannot be opened or created."""
 

@@ -4,7 +4,8 @@ robot's chain of joints (`chain`).
 The plant interface (`interface.Plant`: sensor fields in, actuator fields applied, truth, a
 deterministic step) is all the engine, the session and the tracer know of a plant; the joint
 implements it as `joint.JointModel` (and `default_plant` makes one), a module of the chain as
-`chain.ChainPhysics.models`. It imports nothing else of hilrig; the engine and everything above
+`chain.ChainPhysics.models`, an FMU over FMPy as `fmu.FmuPlant` (its map in `fmu_map`). It
+imports nothing else of hilrig but its errors; the engine and everything above
 it import it.
 
 Typical use, one control cycle of the lockstep driver::

@@ -8,6 +8,8 @@ project's pytest configuration (ini options, paths relative to the ini file), or
     hil_firmware = build/toy-firmware           # the firmware executable
     hil_firmware_args = --verbose               # optional: more of its command line
     hil_plant = toy_plant:make_plant            # the plant factory, `module:callable`
+                                                # or an FMU: hil_plant = model.fmu
+    hil_plant_map = model.map.toml              # an FMU's plant map (hilrig.plants.fmu_map)
 
 The firmware is started as `FIRMWARE --can CHANNEL --node-id N --mode lockstep|free --period-us P
 [ARGS...]` (`hilrig.session.firmware.firmware_argv`); the plant factory is called with
@@ -31,6 +33,7 @@ import pytest
 
 from boardproto import TableError
 from hilrig import resources
+from hilrig.errors import PlantMapError
 from hilrig.observe.paths import GENERATED_DASHBOARD
 from hilrig.plants import default_plant
 from hilrig.session.builder import PlantFactory
@@ -41,7 +44,11 @@ INI_OPTIONS: tuple[tuple[str, str], ...] = (
     ("hil_eds", "the board's EDS; default: generated from hil_table (or the demo board's)"),
     ("hil_firmware", "the board's firmware executable; default: hilrig's demo firmware"),
     ("hil_firmware_args", "more arguments for the firmware's command line (shell words)"),
-    ("hil_plant", "the plant factory, module:callable (params, seed) -> Plant; default: the joint"),
+    (
+        "hil_plant",
+        "the plant factory, module:callable (params, seed) -> Plant, or an FMU (.fmu); default: the joint",
+    ),
+    ("hil_plant_map", "an FMU plant's map (TOML: its variables tied to the table's HIL I/O)"),
     ("hil_durations", "a JSON file of each scenario's duration [s]: the longest run first"),
 )
 """The ini options of the plugin (`pytest_addoption` registers them)."""
@@ -83,6 +90,21 @@ def load_factory(spelled: str) -> PlantFactory:
     if not callable(found):
         raise pytest.UsageError(f"hil_plant {spelled}: not callable")
     return found  # type: ignore[no-any-return]
+
+
+def fmu_plant_factory(fmu: Path | None, plant_map: Path | None, table: RigTable) -> PlantFactory:
+    """The factory of an FMU plant (`hil_plant = model.fmu`, `hil_plant_map = map.toml`; the
+    map may name its FMU), its map checked now; a UsageError saying what is wrong otherwise."""
+    if plant_map is None:
+        raise pytest.UsageError(f"hil_plant {fmu}: an FMU needs hil_plant_map = its map (TOML)")
+    try:
+        from hilrig.plants.fmu import fmu_factory
+
+        return fmu_factory(plant_map, table.board, fmu)  # type: ignore[no-any-return]
+    except ImportError as error:
+        raise pytest.UsageError(f"hil_plant {fmu}: {error}: pip install 'hilrig[fmu]'") from None
+    except PlantMapError as error:
+        raise pytest.UsageError(str(error)) from None
 
 
 def _ini_path(config: pytest.Config, name: str) -> Path | None:
@@ -131,7 +153,11 @@ def board_from_config(config: pytest.Config) -> HilBoard:
     eds = _ini_path(config, "hil_eds") or files.eds
     firmware, _ = firmware_choice(config)
     spelled = str(config.getini("hil_plant") or "").strip()
-    plant = load_factory(spelled) if spelled else default_plant
+    plant_map = _ini_path(config, "hil_plant_map")
+    if spelled.endswith(".fmu") or plant_map is not None:
+        plant = fmu_plant_factory(_ini_path(config, "hil_plant"), plant_map, table)
+    else:
+        plant = load_factory(spelled) if spelled else default_plant
     args = tuple(shlex.split(str(config.getini("hil_firmware_args") or "")))
     dashboard = "overview" if resources.is_default_table(files.table) else GENERATED_DASHBOARD
     return HilBoard(
