@@ -37,13 +37,13 @@ from boardproto.cia301 import (
     NmtCommand,
     NmtState,
     SdoAbortCode,
-    SdoCommand,
     heartbeat_cob_id,
     sdo_response_cob_id,
     split_emcy,
 )
 from hilrig.errors import IdentityMismatchError, NodeSilentError, SdoAbortError, SdoTimeoutError
 from hilrig.table import EmcyCode, ObjectEntry, RigTable
+from hilrig.wire.sdo import parse_abort
 from hilrig.wire.transport import (
     FrameLink,
     PdoDirection,
@@ -130,8 +130,9 @@ class SocketSdoClient(SdoClient):
         if frame is None:
             raise SdoCommunicationError("No SDO response received")
         response = frame[1]
-        if len(response) == 8 and response[0] == SdoCommand.ABORT:  # its code in bytes 4..7
-            raise SdoAbortedError(int.from_bytes(response[4:8], "little"))
+        abort = parse_abort(response)
+        if abort is not None:
+            raise SdoAbortedError(abort.code)
         return response
 
     def request_response(self, sdo_request: bytes | bytearray) -> bytes:
