@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from boardproto.cia301 import FunctionCode, SdoCommand, function_of
+from boardproto.cia301 import FunctionCode, SdoAbortCode, SdoCommand, function_of
 from hilrig.table import ObjectEntry, RigTable
 
 if TYPE_CHECKING:
@@ -72,11 +72,26 @@ def parse_abort(data: bytes) -> SdoAbortFrame | None:
     return SdoAbortFrame(index, subindex, code)
 
 
+def explain_abort(code: int, entry: ObjectEntry | None = None) -> str:
+    """'0x06090031 value too high (max 10.0)': the code, its meaning and the table's limit."""
+    try:
+        words = SdoAbortCode(code).text
+    except ValueError:
+        words = "unknown abort code"
+    text = f"0x{code:08X} {words}"
+    if entry is not None:
+        if code == SdoAbortCode.VALUE_TOO_HIGH:
+            text += f" (max {entry.max})"
+        elif code == SdoAbortCode.VALUE_TOO_LOW:
+            text += f" (min {entry.min})"
+        elif code == SdoAbortCode.VALUE_RANGE_EXCEEDED:
+            text += f" (range {entry.min}..{entry.max})"
+    return text
+
+
 def abort_text(abort: SdoAbortFrame, table: RigTable) -> str:
     """'velocity_kp sub 0: 0x06090031 value too high (max 10.0)': the object by the table's name
     and the code in words with the table's limit."""
-    from hilrig.wire.node import explain_abort
-
     entry = table.entry_at(abort.index)
     where = entry.name if entry is not None else f"0x{abort.index:04X}"
     return f"{where} sub {abort.subindex}: {explain_abort(abort.code, entry)}"
@@ -520,8 +535,6 @@ class ObjectWords:
 
     def abort(self, code: int, index: int, subindex: int) -> str:
         """'0x06090031 value too high (max 10.0)'."""
-        from hilrig.wire.node import explain_abort
-
         return explain_abort(code, self._entry(index, subindex))
 
 
@@ -539,5 +552,6 @@ __all__ = [
     "SdoStep",
     "SdoTracker",
     "abort_text",
+    "explain_abort",
     "parse_abort",
 ]
