@@ -63,6 +63,17 @@ def test_a_recorded_run_replays_into_a_fresh_firmware_with_identical_decoded_fie
     cycles = first.rig.cycle
     first.close()  # firmware stopped, bus log whole
     recorded = node_frames(first.bus_log)
+    # The same log in words: the rig's SDO transfers by the objects' names, with their values.
+    decoded = run_hilrig(private_bus, "replay", str(first.bus_log), "--decode")
+    assert decoded.returncode == 0, decoded.stderr
+    vendor = TABLE.board.node.vendor_id
+    identity = (
+        f"SDO upload 0x1018:01 Identity object.Vendor-ID={vendor} (0x{vendor:08X}) from node 0x{NODE_ID:02X} "
+        "(expedited, 4 bytes)"
+    )
+    assert any(line.endswith(f"  {identity}") for line in decoded.stdout.splitlines()), (
+        f"no {identity!r} in `hilrig replay {first.bus_log} --decode`"
+    )
 
     # The second run: a fresh firmware on the same bus and no rig; the log's master side drives it.
     second_dir = scenario_dir / "replayed"

@@ -3,12 +3,13 @@ names (the DBC's PDOs, the CiA 301 services in words), error frames counted, not
 
 from __future__ import annotations
 
+import struct
 import threading
 
 import can
 import pytest
 
-from boardproto.cia301 import SYNC_COB_ID, NmtState, emcy_cob_id, heartbeat_cob_id
+from boardproto.cia301 import SYNC_COB_ID, NmtState, emcy_cob_id, heartbeat_cob_id, sdo_response_cob_id
 from hilrig.cli import main
 from hilrig.table import BOARD_TABLE
 
@@ -17,6 +18,8 @@ NODE = 0x10
 
 SYNC, TPDO1 = SYNC_COB_ID, BOARD_TABLE.tpdo(1).cob_id(NODE)
 EMCY, HEARTBEAT = emcy_cob_id(NODE), heartbeat_cob_id(NODE)
+SDO_ANSWER = sdo_response_cob_id(NODE)
+KP = next(field for field in BOARD_TABLE.fields if field.name == "velocity_kp")
 
 
 def frames() -> list[can.Message]:
@@ -26,6 +29,12 @@ def frames() -> list[can.Message]:
         # EMCY 0x8130 (heartbeat consumer), error register 0x11
         can.Message(arbitration_id=EMCY, data=bytes([0x30, 0x81, 0x11]) + bytes(5), is_extended_id=False),
         can.Message(arbitration_id=HEARTBEAT, data=bytes([NmtState.OPERATIONAL]), is_extended_id=False),
+        # the board's answer to an upload of velocity_kp: 0.25, expedited
+        can.Message(
+            arbitration_id=SDO_ANSWER,
+            data=struct.pack("<BHBf", 0x43, KP.index, 0, 0.25),
+            is_extended_id=False,
+        ),
         can.Message(is_error_frame=True),
     ]
 
@@ -46,8 +55,8 @@ def test_monitor_shows_each_id_decoded_with_the_boards_names(capsys: pytest.Capt
     sender = threading.Thread(target=send)
     sender.start()
     try:
-        # Ten rounds of the five frames: the sender goes on until the monitor has counted them.
-        code = main(["monitor", "-i", "virtual", "-c", channel, "--count", "50", "-n", "0x10"])
+        # Ten rounds of the six frames: the sender goes on until the monitor has counted them.
+        code = main(["monitor", "-i", "virtual", "-c", channel, "--count", "60", "-n", "0x10"])
     finally:
         done.set()
         sender.join()
@@ -56,10 +65,13 @@ def test_monitor_shows_each_id_decoded_with_the_boards_names(capsys: pytest.Capt
     assert out[0].startswith("monitor: virtual") and "error frames " in out[0]
     assert int(out[0].rsplit(" ", 1)[1]) > 0, out[0]
     by_id = {line.split()[0]: line for line in out[2:]}  # under the title and the header
-    row = {can_id: by_id[f"0x{can_id:03X}"] for can_id in (SYNC, TPDO1, EMCY, HEARTBEAT)}
-    assert len(by_id) == 4, out
+    row = {can_id: by_id[f"0x{can_id:03X}"] for can_id in (SYNC, TPDO1, EMCY, HEARTBEAT, SDO_ANSWER)}
+    assert len(by_id) == 5, out
     assert row[SYNC].endswith("SYNC 7")
     assert "TPDO1" in row[TPDO1] and "motor_duty=" in row[TPDO1]
     assert "0x8130 heartbeat_error" in row[EMCY]
     assert row[HEARTBEAT].endswith("heartbeat node 0x10 operational")
+    assert row[SDO_ANSWER].endswith(
+        f"SDO upload 0x{KP.index:04X}:00 velocity_kp=0.25 {KP.unit} from node 0x10 (expedited, 4 bytes)"
+    )
     assert heard == [], "the monitor sent frames"

@@ -13,7 +13,6 @@ TPDOs and error frames as events and counts).
 from __future__ import annotations
 
 import queue
-import struct
 import threading
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -25,14 +24,14 @@ from boardproto.cia301 import (
     SYNC_COB_ID,
     EmcyLayout,
     NmtState,
-    SdoCommand,
     emcy_cob_id,
     heartbeat_cob_id,
     sdo_response_cob_id,
     split_emcy,
 )
 from hilrig.table import RigTable
-from hilrig.wire.node import EmcyRecord, explain_abort
+from hilrig.wire.node import EmcyRecord
+from hilrig.wire.sdo import abort_text, parse_abort
 
 if TYPE_CHECKING:
     import can
@@ -125,11 +124,8 @@ def trace_log(
             tracer.log_text(EMCY_PATH, f"{record} (s into the log)", level, t=t, cycle=at_cycle)
             stats.events += 1
             continue
-        if cob_id == sdo_answer_id and len(data) == 8 and data[0] == SdoCommand.ABORT:
-            index, subindex, code = struct.unpack_from("<HBI", data, 1)
-            entry = table.entry_at(index)
-            what = f"{entry.name if entry else f'0x{index:04X}'} sub {subindex}: {explain_abort(code, entry)}"
-            tracer.log_sdo_abort(what, code, cycle=at_cycle, t=t)
+        if cob_id == sdo_answer_id and (abort := parse_abort(data)) is not None:
+            tracer.log_sdo_abort(abort_text(abort, table), abort.code, cycle=at_cycle, t=t)
             stats.events += 1
             continue
         if cob_id == heartbeat_id and len(data) == 1:

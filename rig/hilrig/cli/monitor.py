@@ -2,7 +2,9 @@
 
 One row per CAN id, as `cantools monitor` shows a bus: the PDOs by their DBC message with each
 field's value and unit (the board's names for enum and flag values), the CiA 301 services in
-words (NMT, SYNC, EMCY with its class and the board's name for its code, heartbeat state, SDO);
+words (NMT, SYNC, EMCY with its class and the board's name for its code, heartbeat state, SDO
+transfers: upload or download, index:sub by the table's name, the value with its unit, the
+abort's text);
 beside each its count, rate and the age of its latest frame. On a terminal the table is redrawn
 in place a few times a second; piped, it is printed once at the end. It only listens: nothing is
 sent, so it sits beside any master (the rig, a PLC, python-canopen) without changing the bus.
@@ -97,13 +99,15 @@ def rows(seen: dict[tuple[int, bool], Seen], now: float) -> list[list[str]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hilrig.cli.record import FrameDecoder
+    from hilrig.cli.record import FrameDecoder, sdo_dictionary
     from hilrig.cli.watch import Screen
     from hilrig.session.buslog import NodeDbc
 
     table = load_table(args)
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
-    decoder = FrameDecoder(NodeDbc(load_dbc(dbc_path(args)), table, node), table, node, set())
+    decoder = FrameDecoder(
+        NodeDbc(load_dbc(dbc_path(args)), table, node), table, node, set(), od=sdo_dictionary(args, node)
+    )
     screen = Screen(sys.stdout, in_place=sys.stdout.isatty())
     seen: dict[tuple[int, bool], Seen] = {}
     errors = 0

@@ -37,6 +37,7 @@ from hilrig.cli.common import (
     format_value,
     live_sink,
     load_dbc,
+    load_eds,
     load_table,
     node_id,
     open_bus,
@@ -49,6 +50,7 @@ from hilrig.session.buslog import LOG_FORMATS, NodeDbc, master_side, partial_pat
 
 if TYPE_CHECKING:
     import can
+    import canopen
 
     from hilrig.apps.log_trace import LiveBusTrace
     from hilrig.table import RigTable
@@ -387,10 +389,6 @@ def describe_frame(cob_id: int, data: bytes, node: int) -> str:
         return f"{EmcyRecord.from_frame(bytes(data)).summary} from node 0x{sender:02X}"
     if function == FunctionCode.HEARTBEAT and len(data) == 1:
         return f"heartbeat node 0x{sender:02X} {state_name(data[0] & HEARTBEAT_STATE_MASK)}"
-    if function == FunctionCode.SDO_RESPONSE:
-        return f"SDO answer from node 0x{sender:02X}"
-    if function == FunctionCode.SDO_REQUEST:
-        return f"SDO request to node 0x{sender:02X}"
     return ""
 
 
@@ -402,7 +400,9 @@ def _decode(args: argparse.Namespace) -> int:
         check_names(table, args.field)
     database = load_dbc(dbc_path(args))
     node = args.node_id if args.node_id is not None else table.board.node.default_node_id
-    decoder = FrameDecoder(NodeDbc(database, table, node), table, node, set(args.field or ()))
+    decoder = FrameDecoder(
+        NodeDbc(database, table, node), table, node, set(args.field or ()), od=sdo_dictionary(args, node)
+    )
     first: float | None = None
     frames = 0
     with read_log(args.file) as logged:
@@ -423,24 +423,48 @@ def _decode(args: argparse.Namespace) -> int:
     return 0
 
 
-class FrameDecoder:
-    """One frame in words: its fields decoded by the DBC, or the CiA 301 service (replay
-    --decode, hilrig monitor)."""
+def sdo_dictionary(args: argparse.Namespace, node: int) -> canopen.ObjectDictionary | None:
+    """The table's EDS, when it is built, for the names and types of the objects an SDO transfer
+    names that the table does not (0x1000..0x1FFF); without it they show by index."""
+    from hilrig import resources
 
-    def __init__(self, dbc: NodeDbc, table: RigTable, node: int, wanted: set[str]) -> None:
+    path = resources.eds_for(args.table)
+    return load_eds(path, node) if path.is_file() else None
+
+
+class FrameDecoder:
+    """One frame in words: its fields decoded by the DBC, an SDO transfer's step with the
+    table's names (`hilrig.wire.sdo`: each node's transfers followed frame by frame), or the
+    CiA 301 service (replay --decode, hilrig monitor). Feed it every frame, in order."""
+
+    def __init__(
+        self,
+        dbc: NodeDbc,
+        table: RigTable,
+        node: int,
+        wanted: set[str],
+        od: canopen.ObjectDictionary | None = None,
+    ) -> None:
+        from hilrig.wire.sdo import ObjectWords, SdoTracker
+
         self.dbc = dbc
         self.node = node
         self.wanted = wanted  # --field: only frames with these, only these shown
         self.units = {e.name: format_unit(e.unit) for e in table.board.entries}
         self.named = table.board.named_values
+        self.sdo = SdoTracker()
+        self.words = ObjectWords(table, self._value, od)
 
     def describe(self, message: can.Message) -> str | None:
         """The text of the frame; None when --field leaves it out."""
         data = bytes(message.data)
         dbc_message = self.dbc.message(message.arbitration_id)
         if dbc_message is None or message.is_extended_id:
+            step = None if message.is_extended_id else self.sdo.feed(message.arbitration_id, data)
             if self.wanted:
                 return None
+            if step is not None:
+                return step.describe(self.words)
             return describe_frame(message.arbitration_id, data, self.node) or data.hex(" ")
         try:
             values = dbc_message.decode(data, decode_choices=False)

@@ -36,14 +36,13 @@ from boardproto.cia301 import (
     ErrorBehaviour,
     NmtCommand,
     NmtState,
-    SdoAbortCode,
-    SdoCommand,
     heartbeat_cob_id,
     sdo_response_cob_id,
     split_emcy,
 )
 from hilrig.errors import IdentityMismatchError, NodeSilentError, SdoAbortError, SdoTimeoutError
 from hilrig.table import EmcyCode, ObjectEntry, RigTable
+from hilrig.wire.sdo import explain_abort, parse_abort
 from hilrig.wire.transport import (
     FrameLink,
     PdoDirection,
@@ -130,8 +129,9 @@ class SocketSdoClient(SdoClient):
         if frame is None:
             raise SdoCommunicationError("No SDO response received")
         response = frame[1]
-        if len(response) == 8 and response[0] == SdoCommand.ABORT:  # its code in bytes 4..7
-            raise SdoAbortedError(int.from_bytes(response[4:8], "little"))
+        abort = parse_abort(response)
+        if abort is not None:
+            raise SdoAbortedError(abort.code)
         return response
 
     def request_response(self, sdo_request: bytes | bytearray) -> bytes:
@@ -208,23 +208,6 @@ def answer_filters(node_id: int, bus: can.BusABC, *also: int) -> list[can.typech
     if socketcan_socket(bus) is None:
         wanted.append(sdo_response_cob_id(node_id))
     return [can.typechecking.CanFilter(can_id=c, can_mask=STANDARD_ID_MASK, extended=False) for c in wanted]
-
-
-def explain_abort(code: int, entry: ObjectEntry | None = None) -> str:
-    """'0x06090031 value too high (max 10.0)': the code, its meaning and the table's limit."""
-    try:
-        words = SdoAbortCode(code).text
-    except ValueError:
-        words = "unknown abort code"
-    text = f"0x{code:08X} {words}"
-    if entry is not None:
-        if code == SdoAbortCode.VALUE_TOO_HIGH:
-            text += f" (max {entry.max})"
-        elif code == SdoAbortCode.VALUE_TOO_LOW:
-            text += f" (min {entry.min})"
-        elif code == SdoAbortCode.VALUE_RANGE_EXCEEDED:
-            text += f" (range {entry.min}..{entry.max})"
-    return text
 
 
 def emcy_object_index(manufacturer: bytes) -> int:
