@@ -23,6 +23,7 @@ from boardproto.cia301 import (
     SYNC_COB_ID,
     NmtCommand,
     NmtState,
+    SdoAbortCode,
     SdoCommand,
     sdo_request_cob_id,
     sdo_response_cob_id,
@@ -32,7 +33,6 @@ from hilrig.plants import JointParams
 from hilrig.session.faults import FaultInjector, FaultPlan
 from hilrig.session.netns import PrivateBus
 from hilrig.table import ControlMode, EmcyCode
-from hilrig.wire.node import SdoAbortCode
 
 pytestmark = pytest.mark.bus
 

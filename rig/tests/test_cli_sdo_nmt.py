@@ -17,7 +17,7 @@ from hilrig.cli.common import UsageError
 from hilrig.cli.sdo_raw import VALUE_TYPES, object_address
 from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
-from hilrig.wire.node import SdoAbortCode
+from boardproto.cia301 import SdoAbortCode
 
 TABLE = RigTable.load()
 NODE = TABLE.board.node

@@ -30,7 +30,7 @@ from hilrig.errors import (
 from hilrig.plants import JointParams, JointPlant, RawSensors, SensorModel, duty_from_motor_duty
 from hilrig.session.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
 from hilrig.table import BOARD_TABLE, ControlMode, EmcyCode, LedPattern, RigTable
-from hilrig.wire.node import SdoAbortCode
+from boardproto.cia301 import SdoAbortCode
 
 DBC_PATH = DEFAULT_EDS_PATH.with_name("board.dbc")
 PARAMS = JointParams.fast_thermal()

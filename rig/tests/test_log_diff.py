@@ -8,18 +8,20 @@ from pathlib import Path
 import can
 import pytest
 
+from boardproto.cia301 import FunctionCode, cob_id
 from hilrig.apps.log_diff import LogComparison, TimeRule, compare_logs
 from hilrig.cli import main
 from hilrig.session.buslog import whole_file_logger
 
 START = 1_700_000_000.0
+TPDO = cob_id(FunctionCode.TPDO1, 0x10)
 
 
 def frames(n: int = 20, *, shift_s: float = 0.0) -> list[can.Message]:
     return [
         can.Message(
             timestamp=START + shift_s + k * 0.001,
-            arbitration_id=0x190 + k % 3,
+            arbitration_id=TPDO + k % 3,
             data=bytes([k, k ^ 0x55, 0, 1]),
             is_extended_id=False,
         )
@@ -58,7 +60,12 @@ def test_a_log_that_ends_early_and_an_identifier_differ() -> None:
     assert short.summary()[0] == "bus logs differ at frame 13: CAND ends after 12 frames, BASE goes on"
     assert len(short.summary()) == 2
     moved = frames()
-    moved[0] = can.Message(timestamp=START, arbitration_id=0x290, data=moved[0].data, is_extended_id=False)
+    moved[0] = can.Message(
+        timestamp=START,
+        arbitration_id=cob_id(FunctionCode.TPDO2, 0x10),
+        data=moved[0].data,
+        is_extended_id=False,
+    )
     assert (
         compare_logs(frames(), moved).summary()[0] == "bus logs differ at frame 1: identifier (times ignored)"
     )
@@ -78,9 +85,9 @@ def test_times_ignored_relative_or_absolute() -> None:
 
 
 def test_ignored_ids_are_left_out_of_both() -> None:
-    fewer = [m for m in frames() if m.arbitration_id != 0x192]
+    fewer = [m for m in frames() if m.arbitration_id != TPDO + 2]
     assert not compare_logs(frames(), fewer).same
-    comparison: LogComparison = compare_logs(frames(), fewer, ignore_ids=frozenset({0x192}))
+    comparison: LogComparison = compare_logs(frames(), fewer, ignore_ids=frozenset({TPDO + 2}))
     assert comparison.same and comparison.frames == len(fewer)
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import can
 import pytest
 
+from boardproto.cia301 import FunctionCode, cob_id
 from hilrig.resources import DEFAULT_DBC
 from hilrig.session.buslog import read_log, whole_file_logger
 from hilrig.session.logformats import open_reader, open_writer
@@ -45,7 +46,7 @@ def frames() -> list[can.Message]:
         out.append(
             can.Message(
                 timestamp=START + k * 0.000_731 + (k % 3) * 0.123_457,
-                arbitration_id=0x18FF_0010 + k if k % 4 == 3 else 0x181 + k,
+                arbitration_id=0x18FF_0010 + k if k % 4 == 3 else cob_id(FunctionCode.TPDO1, 1) + k,
                 is_extended_id=k % 4 == 3,
                 is_remote_frame=k == 5,
                 dlc=0 if k == 5 else k % 9,  # a remote frame: python-can writes candump "#R" without its DLC

@@ -11,6 +11,7 @@ from pathlib import Path
 import can
 import pytest
 
+from boardproto.cia301 import FunctionCode, SdoAbortCode, cob_id, sdo_request_cob_id, sdo_response_cob_id
 from hilrig import resources
 from hilrig.cli import main
 from hilrig.table import RigTable
@@ -18,7 +19,8 @@ from hilrig.wire.node import node_dictionary
 from hilrig.wire.sdo import Direction, Mode, ObjectWords, SdoStep, SdoTracker, abort_text, parse_abort
 
 NODE = 0x10
-REQUEST, ANSWER = 0x600 + NODE, 0x580 + NODE
+ABORT = 0x80  # protocol-literal: the abort's command specifier (4 << 5), a byte
+REQUEST, ANSWER = sdo_request_cob_id(NODE), sdo_response_cob_id(NODE)
 TABLE = RigTable.load()
 KP = TABLE.field("velocity_kp")
 DEVICE_NAME = 0x1008  # VISIBLE_STRING in the EDS
@@ -94,7 +96,10 @@ def test_an_abort_says_the_code_in_words_with_the_tables_limit() -> None:
     lines = texts(
         [
             (REQUEST, frame(0x23, KP.index, 0, too_high)),
-            (ANSWER, frame(0x80, KP.index, 0, struct.pack("<I", 0x06090031))),
+            (
+                ANSWER,
+                frame(ABORT, KP.index, 0, struct.pack("<I", SdoAbortCode.VALUE_TOO_HIGH)),
+            ),
         ]
     )
     assert lines[1] == (
@@ -102,15 +107,19 @@ def test_an_abort_says_the_code_in_words_with_the_tables_limit() -> None:
         f"0x06090031 value too high (max {KP.max})"
     )
     # An abort with no transfer seen before it: the object and the code all the same.
-    (alone,) = run([(REQUEST, frame(0x80, UNNAMED, 1, struct.pack("<I", 0x05040000)))])
+    (alone,) = run([(REQUEST, frame(ABORT, UNNAMED, 1, struct.pack("<I", SdoAbortCode.PROTOCOL_TIMED_OUT)))])
     assert alone.describe(words()) == (
         "SDO transfer 0x5F00:01 aborted by the client (node 0x10): 0x05040000 SDO protocol timed out"
     )
 
 
 def test_parse_abort_is_the_one_reading_of_an_abort_frame() -> None:
-    abort = parse_abort(frame(0x80, KP.index, 0, struct.pack("<I", 0x06090032)))
-    assert abort is not None and (abort.index, abort.subindex, abort.code) == (KP.index, 0, 0x06090032)
+    abort = parse_abort(frame(ABORT, KP.index, 0, struct.pack("<I", SdoAbortCode.VALUE_TOO_LOW)))
+    assert abort is not None and (abort.index, abort.subindex, abort.code) == (
+        KP.index,
+        0,
+        SdoAbortCode.VALUE_TOO_LOW,
+    )
     assert abort_text(abort, TABLE) == f"velocity_kp sub 0: 0x06090032 value too low (min {KP.min})"
     assert parse_abort(frame(0x60, KP.index)) is None
     assert parse_abort(b"\x80\x00") is None
@@ -182,7 +191,7 @@ def block_segments(data: bytes, first: int, count: int, last: bool) -> list[byte
     for n in range(count):
         chunk = data[7 * (first + n) : 7 * (first + n + 1)]
         is_last = last and n == count - 1
-        out.append(segment((0x80 if is_last else 0) | (n + 1), chunk))
+        out.append(segment((0x80 if is_last else 0) | (n + 1), chunk))  # protocol-literal: c, bit 7
     return out
 
 
@@ -255,8 +264,8 @@ def test_a_segment_of_a_transfer_before_the_log_is_still_an_sdo_frame() -> None:
 
 def test_frames_that_are_not_sdo_are_left_alone() -> None:
     tracker = SdoTracker()
-    assert tracker.feed(0x190, bytes(8)) is None  # a TPDO
-    assert tracker.feed(0x580, bytes(8)) is None  # node 0 is no node
+    assert tracker.feed(cob_id(FunctionCode.TPDO1, NODE), bytes(8)) is None  # a TPDO
+    assert tracker.feed(FunctionCode.SDO_RESPONSE, bytes(8)) is None  # node 0 is no node
     assert tracker.feed(REQUEST, bytes(4)) is None  # an SDO frame has 8 bytes
 
 

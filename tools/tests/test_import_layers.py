@@ -17,8 +17,18 @@ ROOT = Path(__file__).resolve().parents[2]
 
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # (layer, module prefixes), bottom up; a module belongs to the layer of its longest prefix.
-    ("base", ("hilrig", "hilrig.errors", "hilrig.resources", "hilrig.table", "hilrig.expect",
-              "hilrig.observe.paths", "hilrig.observe.layout")),
+    (
+        "base",
+        (
+            "hilrig",
+            "hilrig.errors",
+            "hilrig.resources",
+            "hilrig.table",
+            "hilrig.expect",
+            "hilrig.observe.paths",
+            "hilrig.observe.layout",
+        ),
+    ),
     ("dashboards", ("dashboards",)),
     ("wire", ("hilrig.wire",)),
     ("plants", ("hilrig.plants",)),
@@ -26,14 +36,15 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("observe", ("hilrig.observe",)),
     ("session", ("hilrig.session",)),
     ("apps", ("hilrig.apps",)),
-    ("cli", ("hilrig.cli", "hilrig.__main__", "dashboards.__main__", "hilrig.pytest_plugin")),
+    ("cli", ("hilrig.cli", "hilrig.__main__", "dashboards.__main__", "hilrig.pytest_plugin", "hilrig.lab")),
     ("tools", ("tools",)),
 )
-"""Base: the table, the errors, where the board's files are, the condition waiter and the entity
-paths and the layout pieces (leaves every layer may name). The dashboards sit right above it: they build Rerun layouts
-on the entity paths, and the tracer and the session load them. `python -m hilrig` and `python -m
-dashboards` are entry points on top of the CLI; the pytest plugin is one beside it (it runs the
-`hilrig` command on a scenario's bus)."""
+"""Base: the table, the errors, where the board's files are, the condition waiter, the entity
+paths and the layout pieces (leaves every layer may name). The dashboards sit right above it:
+they build Rerun layouts on the entity paths, and the tracer and the session load them.
+`python -m hilrig` and `python -m dashboards` are entry points on top of the CLI; the pytest
+plugin is one beside it (it runs the `hilrig` command on a scenario's bus), and so is hilrig.lab,
+labgrid's resources and driver for a CAN bus (labgrid loads it)."""
 
 DASHBOARDS_MAY_IMPORT = frozenset({"hilrig.observe.paths", "hilrig.observe.layout"})
 """The two leaves of hilrig the dashboards import (the entity paths, the layout pieces the checks
@@ -135,7 +146,7 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
         path.append(node)
         for target in sorted(graph[node]):
             if state.get(target) == 1:
-                return [*path[path.index(target):], target]
+                return [*path[path.index(target) :], target]
             if target not in state and (cycle := visit(target)) is not None:
                 return cycle
         path.pop()

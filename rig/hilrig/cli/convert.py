@@ -9,17 +9,36 @@ only whole.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from hilrig.cli.common import Command, UsageError, progress
-from hilrig.cli.files import output_file
+from hilrig.cli.files import ArgKind, kind, output_file
 from hilrig.cli.record import existing_log
 from hilrig.session.logformats import BLF_CLOCKS, DEFAULT_BLF_CLOCK, FORMAT_NAMES, LOG_FORMATS
 
 converted_path = output_file("log", suffixes=LOG_FORMATS)
 
 
+@kind(ArgKind("input file", suffixes=LOG_FORMATS))
+def convertible_log(text: str) -> Path:
+    """IN: a readable log (`existing_log`) whose extension some reader takes, refused here
+    rather than after OUT is parsed (python-can is imported only for an extension not ours)."""
+    path = existing_log(text)
+    suffixes = [suffix.lower() for suffix in path.suffixes]
+    extension = suffixes[-2] if suffixes[-1:] == [".gz"] and len(suffixes) >= 2 else path.suffix.lower()
+    if extension not in LOG_FORMATS:
+        from can.io.player import MESSAGE_READERS
+
+        if extension not in MESSAGE_READERS:
+            known = ", ".join(sorted({*LOG_FORMATS, *MESSAGE_READERS}))
+            raise argparse.ArgumentTypeError(
+                f"log {text}: no reader for {extension or 'no extension'} ({known})"
+            )
+    return path
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("input", type=existing_log, metavar="IN", help="the log to read")
+    parser.add_argument("input", type=convertible_log, metavar="IN", help="the log to read")
     parser.add_argument(
         "output", type=converted_path, metavar="OUT", help=f"the log to write: {', '.join(LOG_FORMATS)}"
     )

@@ -33,7 +33,7 @@ from hilrig.expect import Expect
 from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config, report_header
-from hilrig.pytest_plugin.labgrid import CONSOLE_LOG, LabgridBoard, labgrid_env_given
+from hilrig.pytest_plugin.labgrid import CONSOLE_LOG, LabgridBoard, labgrid_env_given, open_labgrid_board
 from hilrig.session import warm
 from hilrig.session.builder import (
     BoardInterface,
@@ -400,6 +400,22 @@ def _evidence(scenario_dir: Path, traced: bool, bus_log: Path) -> str:
     return ", ".join(parts)
 
 
+@pytest.fixture(scope="session")
+def hil_labgrid(request: pytest.FixtureRequest) -> Iterator[LabgridBoard | None]:
+    """The board of labgrid's `target` fixture (its "main" target), powered for the session;
+    None without `--lg-env`."""
+    if not labgrid_env_given(request.config):
+        yield None
+        return
+    board = request.getfixturevalue("hil_board")
+    node_id = request.config.getoption("hil_node_id") or board.node_id
+    target = request.getfixturevalue("target")
+    try:
+        yield from open_labgrid_board(target, node_id, BOOT_TIMEOUT_S)
+    except (BusUnavailableError, ValueError) as error:
+        pytest.fail(f"labgrid target: {error}", pytrace=False)
+
+
 __all__ = [
     "BOOT_TIMEOUT_S",
     "REALTIME_FIRMWARE_PERIOD_US",
@@ -407,6 +423,7 @@ __all__ = [
     "SCENARIO_SDO_TIMEOUT_S",
     "Scenario",
     "hil_board",
+    "hil_labgrid",
     "hil_warm_server",
     "make_robot",
     "make_scenario",

@@ -20,7 +20,6 @@ import can
 import pytest
 
 from boardproto.cia301 import NmtState, heartbeat_cob_id
-from hilrig.errors import BusUnavailableError
 from hilrig.session.builder import BoardInterface
 
 CONSOLE_LOG = "console.log"
@@ -89,22 +88,4 @@ def open_labgrid_board(target: Any, node_id: int, boot_timeout_s: float) -> Iter
             power.off()
 
 
-@pytest.fixture(scope="session")
-def hil_labgrid(request: pytest.FixtureRequest) -> Iterator[LabgridBoard | None]:
-    """The board of labgrid's `target` fixture (its "main" target), powered for the session;
-    None without `--lg-env`."""
-    if not labgrid_env_given(request.config):
-        yield None
-        return
-    from hilrig.pytest_plugin.fixtures import BOOT_TIMEOUT_S
-
-    board = request.getfixturevalue("hil_board")
-    node_id = request.config.getoption("hil_node_id") or board.node_id
-    target = request.getfixturevalue("target")
-    try:
-        yield from open_labgrid_board(target, node_id, BOOT_TIMEOUT_S)
-    except (BusUnavailableError, ValueError) as error:
-        pytest.fail(f"labgrid target: {error}", pytrace=False)
-
-
-__all__ = ["CONSOLE_LOG", "LabgridBoard", "hil_labgrid", "labgrid_env_given", "open_labgrid_board"]
+__all__ = ["CONSOLE_LOG", "LabgridBoard", "labgrid_env_given", "open_labgrid_board"]

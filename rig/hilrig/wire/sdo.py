@@ -42,7 +42,9 @@ _SERVER_UPLOAD_SEGMENT, _SERVER_DOWNLOAD_SEGMENT, _SERVER_INITIATE_UPLOAD = 0, 1
 _SERVER_INITIATE_DOWNLOAD, _BLOCK_DOWNLOAD_SERVER, _BLOCK_UPLOAD_SERVER = 3, 5, 6
 # Sub-commands of the block transfers (the low bits of the first byte).
 _BLOCK_INITIATE, _BLOCK_END, _BLOCK_ACK, _BLOCK_START = 0, 1, 2, 3
-_BLOCK_LAST_SEGMENT = 0x80  # c: the last segment of the transfer
+_BLOCK_LAST_SEGMENT = (
+    0x80  # c: the last segment of the transfer  # protocol-literal: bit 7 of a segment's first byte
+)
 _BLOCK_SEQNO_MASK = 0x7F
 
 
