@@ -10,14 +10,13 @@ from pathlib import Path
 import can
 import pytest
 
-from boardproto.cia301 import NMT_COB_ID, NmtCommand, NmtState
+from boardproto.cia301 import NMT_COB_ID, NmtCommand, NmtState, SdoAbortCode
 from hilrig import resources
 from hilrig.cli import main
 from hilrig.cli.common import UsageError
 from hilrig.cli.sdo_raw import VALUE_TYPES, object_address
 from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
-from boardproto.cia301 import SdoAbortCode
 
 TABLE = RigTable.load()
 NODE = TABLE.board.node

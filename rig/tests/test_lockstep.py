@@ -15,7 +15,7 @@ import cantools
 import numpy as np
 import pytest
 
-from boardproto.cia301 import NMT_COB_ID, SYNC_COB_ID, NmtCommand
+from boardproto.cia301 import NMT_COB_ID, SYNC_COB_ID, NmtCommand, SdoAbortCode
 from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig
 from hilrig.errors import (
     FieldAccessError,
@@ -30,7 +30,6 @@ from hilrig.errors import (
 from hilrig.plants import JointParams, JointPlant, RawSensors, SensorModel, duty_from_motor_duty
 from hilrig.session.fake_node import DUTY_PER_VELOCITY_SETPOINT, FakeJointNode
 from hilrig.table import BOARD_TABLE, ControlMode, EmcyCode, LedPattern, RigTable
-from boardproto.cia301 import SdoAbortCode
 
 DBC_PATH = DEFAULT_EDS_PATH.with_name("board.dbc")
 PARAMS = JointParams.fast_thermal()
