@@ -105,8 +105,10 @@ def _checked_clock(clock: str) -> str:
 
 
 def _need_asammdf() -> None:
+    from hilrig import mf4_deferred
+
     try:
-        import asammdf  # noqa: F401
+        mf4_deferred.enable()
     except ImportError:
         raise NotImplementedError(f".mf4 files need asammdf: {MF4_HINT}") from None
 
