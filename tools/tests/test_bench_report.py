@@ -85,8 +85,9 @@ def test_rig_probe_rows_give_what_tracing_costs_per_cycle_next_to_the_rigs_cycle
 
 def test_rig_probe_rows_give_the_fmu_plants_cycle_beside_the_native_plants() -> None:
     rows = bench_report.ReportRows()
-    bench_report._rig_probe_rows(rows, {"rig": 100_000.0, "engine": 50_000.0, "fmu": 180_000.4})
-    _, fmu = rows
+    probe = {"rig": 100_000.0, "engine": 50_000.0, "fmu": 180_000.4, "kept_bytes": 550.0, "bus_bytes": 68.8}
+    bench_report._rig_probe_rows(rows, probe)
+    _, fmu, _ = rows
     assert fmu["measure"] == (
         "instructions/cycle (main thread): Rig cycle with the joint's FMU (FMPy) vs its native plant"
     )
