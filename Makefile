@@ -37,6 +37,7 @@ deps: ## install missing Debian packages (root) and the pinned Python venv
 build: deps ## build the firmware, its tests and the protocol files (build/)
 	$(call configure_and_build,$(BUILD),-DCMAKE_BUILD_TYPE=RelWithDebInfo -DHIL_SANITIZE=ON -DHIL_TESTS=ON)
 	$(call configure_and_build,$(RELEASE_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_PORT_TESTS=ON)
+	@$(PY) tools/joint_fmu.py --out $(BUILD)/fmu
 	@echo "build: firmware build/bin/joint-firmware, protocol files build/protocol/board.{eds,dbc}, program download images $(RELEASE_BUILD)/images/"
 
 # The microcontroller build (issue 45): the core, the CANopen engine and the joint cross-built for a

@@ -95,6 +95,7 @@ setup(
         Extension(
             "hilrig.plants._plant",
             sources=["hilrig/plants/_plant.c"],
+            depends=["hilrig/plants/_joint_core.h"],  # the physics it shares with the joint's FMU
             extra_compile_args=["-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra"],
             libraries=["m"],
             py_limited_api=SELF_CONTAINED,

@@ -77,7 +77,6 @@ RIG_PROBE_CYCLES = (500, 2500)
 """`tools/rig_probe.py` runs at two lengths: their difference is what the cycles cost."""
 
 
-
 TRACE_PROBE_CYCLES = 2000
 """Cycles of the traced run `tools/rig_probe.py` measures: as many as a `make bench` round's."""
 
@@ -134,10 +133,15 @@ def cycle_costs(not_measured: NotMeasured) -> dict[str, float]:
 
 def rig_probe_costs(not_measured: NotMeasured) -> dict[str, float]:
     """The Rig's lockstep cycle and the engine's exchange alone, natively (`tools/rig_probe.py`):
-    instructions per cycle of each (callgrind, `cycle_costs`), what tracing costs per cycle, and
+    instructions per cycle of each (callgrind, `cycle_costs`), of the Rig's cycle with the joint's
+    FMU as its plant (build/fmu/joint.fmu), what tracing costs per cycle, and
     the Rig's bytes kept per cycle. A probe that fails leaves its key out and its error in
     `not_measured`."""
     costs = cycle_costs(not_measured)
+    fmu = not_measured.attempt("rig_probe fmu", lambda: rig_probe_per_cycle("fmu"))
+    if fmu is not None:
+        costs["fmu"] = fmu
+        say(f"  fmu (the joint's FMU as the plant): {fmu:.0f} instructions per cycle")
     tracing = not_measured.attempt("rig_probe tracing", _tracing_per_cycle)
     if tracing is not None:
         costs["tracing"] = tracing
@@ -186,4 +190,3 @@ def native_main(args: argparse.Namespace) -> int:
     result["not_measured"] = not_measured
     write_json_atomically(out / "native.json", result)
     return 0
-

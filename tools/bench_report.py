@@ -116,6 +116,11 @@ def _rig_probe_rows(
         _not_measured_row(row, what, errors_of)
     else:
         row(what, f"{probe['rig']:.0f}", f"{probe['engine']:.0f}", ratio_of(probe["rig"], probe["engine"]))
+    what = "instructions/cycle (main thread): Rig cycle with the joint's FMU (FMPy) vs its native plant"
+    if "fmu" in errors:
+        _not_measured_row(row, what, failed("fmu", "rig"))
+    elif "fmu" in probe and "rig" in probe:  # a native.json from before the FMU probe has none
+        row(what, f"{probe['fmu']:.0f}", f"{probe['rig']:.0f}", ratio_of(probe["fmu"], probe["rig"]))
     what = f"instructions/cycle (all threads): tracing a {TRACE_PROBE_CYCLES}-cycle run vs the Rig's cycle"
     if errors_of := failed("tracing", "rig"):
         _not_measured_row(row, what, errors_of)
@@ -324,7 +329,9 @@ def _robot_rows(row: ReportRows, bus: dict[str, Any]) -> None:
             f"{rate:.0f}/s",
             f"{one:.0f}/s" if one else "-",
             growth,
-            "" if n == 1 else f"{per_module:.2f}x per module"
+            ""
+            if n == 1
+            else f"{per_module:.2f}x per module"
             + (f" (goal <= {ROBOT_PER_MODULE_GOAL:g})" if largest else ""),
             per_module <= ROBOT_PER_MODULE_GOAL if largest else None,
             **({"cycles": robot["cycles"], "cycles_per_s": robot["cycles_per_s"]} if n == 1 else {}),

@@ -3,6 +3,8 @@
 The VM's cycles per second move by 10-20 % between runs of the same code; these do not:
 
     python tools/rig_probe.py rig CYCLES      # the full Rig (physics, history, checks)
+    python tools/rig_probe.py fmu CYCLES      # the same with the joint's FMU as its plant
+                                              # (build/fmu/joint.fmu of `make build`, over FMPy)
     python tools/rig_probe.py engine CYCLES   # the engine's exchange alone, same frames
     python tools/rig_probe.py memory CYCLES   # bytes the Rig keeps per cycle (tracemalloc), and
                                               # the data bytes the bus carried
@@ -11,7 +13,7 @@ The VM's cycles per second move by 10-20 % between runs of the same code; these 
     python tools/rig_probe.py robot CYCLES --modules N  # a `Robot` of N modules on the MuJoCo
                                               # chain following the gait, untraced
 
-`make bench` runs the first two under callgrind at two lengths, so start-up cancels out, and
+`make bench` runs the first three under callgrind at two lengths, so start-up cancels out, and
 reports instructions per cycle of the main thread; and the last two at one length, counting every
 thread (the sender, Rerun's encoder and file writer): their difference is what tracing those
 cycles costs, from naming the series to the file's footer, whatever runs in parallel.
@@ -42,7 +44,8 @@ sys.path[:0] = [str(REPO / "rig"), str(REPO / "protocol")]
 
 from hilrig.wire.transport import RawCanLink, can_frame  # noqa: E402
 
-MODES = ("rig", "engine", "memory", "traced", "tracer-idle", "robot")
+MODES = ("rig", "fmu", "engine", "memory", "traced", "tracer-idle", "robot")
+
 WARMUP_CYCLES = 20
 ROBOT_START_TIMEOUT_S = 600.0
 """A robot's modules start side by side, each fake node answering from a thread of its own:
@@ -122,7 +125,15 @@ def main(argv: list[str] | None = None) -> int:
         fake.boot()
         ours, peer = _socket_pair()
         attached = tracer if args.mode == "traced" else None
-        rig = Rig(rig_bus, table=table, seed=1, tpdo_timeout_s=5.0, tracer=attached)
+        plant = None
+        if args.mode == "fmu":
+            from hilrig.plants.fmu import FmuPlant
+            from hilrig.resources import JOINT_FMU_MAP
+
+            if not JOINT_FMU_MAP.is_file():
+                raise SystemExit(f"rig_probe: no {JOINT_FMU_MAP}: `make build` writes it")
+            plant = FmuPlant.load(JOINT_FMU_MAP, table.board, seed=1)
+        rig = Rig(rig_bus, table=table, seed=1, tpdo_timeout_s=5.0, tracer=attached, plant=plant)
         answers: dict[int, bytes] = {}
         link = AnsweringLink(ours, peer, answers)
         rig.node.open_link = lambda receive_ids: link  # type: ignore[method-assign]

@@ -88,6 +88,11 @@ if not HEAD_FIRMWARE.exists() and CHECKOUT is not None:
 _BUILT_TABLES = {HEAD_TABLE: CHECKOUT / "build" / "protocol" / "head"} if CHECKOUT is not None else {}
 """Tables besides the default whose EDS and DBC `make build` generates (CMake's hil_board_protocol)."""
 
+JOINT_FMU_DIR = (CHECKOUT if CHECKOUT is not None else Path.cwd()) / "build" / "fmu"
+"""Where `make build` writes the demo joint's own FMU and its map (tools/joint_fmu.py)."""
+JOINT_FMU = JOINT_FMU_DIR / "joint.fmu"
+JOINT_FMU_MAP = JOINT_FMU_DIR / "joint.map.toml"
+
 EDS_HINT = f"{REBUILD_HINT}, or give --eds FILE"
 DBC_HINT = f"{REBUILD_HINT}, or give --dbc FILE"
 FIRMWARE_HINT = "build it with `make build`" if CHECKOUT is not None else "give --firmware FILE"

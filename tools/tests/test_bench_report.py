@@ -83,7 +83,19 @@ def test_rig_probe_rows_give_what_tracing_costs_per_cycle_next_to_the_rigs_cycle
     assert kept["measure"].startswith("bytes per lockstep cycle")
 
 
-@pytest.mark.parametrize("mode", ["rig", "engine", "traced", "tracer-idle"])
+def test_rig_probe_rows_give_the_fmu_plants_cycle_beside_the_native_plants() -> None:
+    rows = bench_report.ReportRows()
+    probe = {"rig": 100_000.0, "engine": 50_000.0, "fmu": 180_000.4, "kept_bytes": 550.0, "bus_bytes": 68.8}
+    bench_report._rig_probe_rows(rows, probe)
+    _, fmu, _ = rows
+    assert fmu["measure"] == (
+        "instructions/cycle (main thread): Rig cycle with the joint's FMU (FMPy) vs its native plant"
+    )
+    assert (fmu["ours"], fmu["baseline"]) == ("180000", "100000")
+    assert fmu["ratio"] == pytest.approx(1.8, abs=1e-4)
+
+
+@pytest.mark.parametrize("mode", ["rig", "fmu", "engine", "traced", "tracer-idle"])
 def test_the_rig_probe_runs_its_cycles_against_its_answering_peer(mode: str) -> None:
     probe = load_tool("rig_probe")
     assert probe.main([mode, "30"]) == 0

@@ -13,6 +13,11 @@ period. `live` sinks stream the trace to a viewer while it runs, beside out_dir/
 
 A scenario file defines `def scenario(rig): ...` and drives the `Rig` itself (rig.set,
 rig.run, rig.at...); the summary is computed from what it ran.
+
+Another plant or board: `plant` is a plant factory (`(params, seed) -> Plant`, e.g.
+`hilrig.plants.fmu.fmu_factory`) and `table` the board's table. The velocity and torque profiles
+and the joint's rows of the summary are the demo joint's: another table needs a scenario file,
+and its summary has the run's rows only.
 """
 
 from __future__ import annotations
@@ -29,8 +34,9 @@ import numpy as np
 
 from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig
 from hilrig.errors import FirmwareError, LockstepError, RealTimeError, RigError
-from hilrig.plants import JointParams
-from hilrig.session.builder import SessionConfig, hil_session
+from hilrig.plants import JointParams, default_plant
+from hilrig.plants.joint import SPRING_STIFFNESS
+from hilrig.session.builder import PlantFactory, SessionConfig, hil_session
 from hilrig.session.faults import FaultEvent, FaultInjector, FaultPlan
 from hilrig.session.firmware import DEFAULT_EXECUTABLE
 from hilrig.session.netns import require_private_buses
@@ -123,6 +129,10 @@ class DemoOptions:
     """Where the trace also streams while the run goes (spawn, web, connect), beside trace.rrd."""
     board: BoardInterface | None = None
     """A board (or free-running firmware) on an interface: real time, no firmware started."""
+    plant: PlantFactory | None = None
+    """What makes the plant from (params, seed); None: the demo joint with `params`."""
+    table: RigTable | None = None
+    """The board's table; None: the demo joint's."""
 
 
 @dataclass(frozen=True)
@@ -135,11 +145,12 @@ class DemoSummary:
     """The scenario alone: the lockstep cycles, without the session's start-up."""
     velocity_rms_error_rad_s: float | None
     torque_rms_error_nm: float | None
-    spring_constant_estimate: float
-    spring_constant_confidence: float
-    spring_constant_true: float
+    spring_constant_estimate: float | None
+    """None (and the joint's other rows): a run on another board's table."""
+    spring_constant_confidence: float | None
+    spring_constant_true: float | None
     peak_temperature_reported_c: float | None
-    peak_temperature_true_c: float
+    peak_temperature_true_c: float | None
     fault_flags: int
     safe_state: bool
     emcy: tuple[EmcyRecord, ...]
@@ -195,12 +206,17 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         require_private_buses(
             "the simulation", "run `make run`, or `tools/with-vcan -- .venv/bin/hilrig sim`"
         )
+    table = options.table if options.table is not None else RigTable.load()
+    if options.scenario_file is None and not table.is_default_board:
+        raise ScenarioFileError(
+            f"the demo's profiles drive the demo joint, not {table.board.source.name}'s board: "
+            "pass a scenario file defining `def scenario(rig): ...`"
+        )
     scenario = (
         load_scenario(options.scenario_file)
         if options.scenario_file is not None
         else default_scenario(progress)
     )
-    table = RigTable.load()
     out = options.out_dir
     started = time.monotonic()
     if options.trace:
@@ -220,7 +236,8 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         )
     config = SessionConfig(
         out_dir=out,
-        params=options.params,
+        params=options.params if options.plant is None else None,
+        plant=options.plant if options.plant is not None else default_plant,
         seed=options.seed,
         node_id=options.node_id,
         period_us=options.period_us,
@@ -310,27 +327,54 @@ def _peak(rig: Rig, name: str) -> float | None:
     return float(np.max(values)) if len(values) else None
 
 
+def _peak_truth(rig: Rig, name: str) -> float | None:
+    """The peak of a truth quantity, None when the plant has no such truth (another plant's)."""
+    try:
+        _, values = rig.truth(name)
+    except (KeyError, ValueError, RigError):
+        return None
+    return float(np.max(values)) if len(values) else None
+
+
 def summarize(
     rig: Rig, table: RigTable, options: DemoOptions, started: float, out: Path, frames: int, cycling_s: float
 ) -> DemoSummary:
-    gear_ratio = float(rig.read("gear_ratio"))
-    _, temperature_true = rig.truth("winding_temperature")
-    _, flags = rig.history("fault_flags")
-    _, safe = rig.history("safe_state")
+    names = {f.name for f in table.board.fields}
+    flags = rig.history("fault_flags")[1] if "fault_flags" in names else np.array([])
+    safe = rig.history("safe_state")[1] if "safe_state" in names else np.array([])
+    joint: dict[str, float | None] = dict.fromkeys(
+        (
+            "velocity_rms_error_rad_s",
+            "torque_rms_error_nm",
+            "spring_constant_estimate",
+            "spring_constant_confidence",
+            "spring_constant_true",
+            "peak_temperature_reported_c",
+            "peak_temperature_true_c",
+        )
+    )
+    if table.is_default_board:
+        gear_ratio = float(rig.read("gear_ratio"))
+        stiffness = rig.plant.truth_parameters().get(SPRING_STIFFNESS)
+        joint.update(
+            velocity_rms_error_rad_s=_rms_tracking(
+                rig, ControlMode.VELOCITY, "velocity_setpoint", "motor_velocity", 1.0 / gear_ratio
+            ),
+            torque_rms_error_nm=_rms_tracking(
+                rig, ControlMode.TORQUE, "torque_setpoint", "joint_torque", 1.0
+            ),
+            spring_constant_estimate=float(rig.read("spring_constant_estimate")),
+            spring_constant_confidence=float(rig.read("spring_constant_confidence")),
+            spring_constant_true=stiffness,
+            peak_temperature_reported_c=_peak(rig, "winding_temperature"),
+            peak_temperature_true_c=_peak_truth(rig, "winding_temperature"),
+        )
     return DemoSummary(
         cycles=rig.cycle,
         simulated_s=rig.t,
         wall_s=time.monotonic() - started,
         cycling_s=cycling_s,
-        velocity_rms_error_rad_s=_rms_tracking(
-            rig, ControlMode.VELOCITY, "velocity_setpoint", "motor_velocity", 1.0 / gear_ratio
-        ),
-        torque_rms_error_nm=_rms_tracking(rig, ControlMode.TORQUE, "torque_setpoint", "joint_torque", 1.0),
-        spring_constant_estimate=float(rig.read("spring_constant_estimate")),
-        spring_constant_confidence=float(rig.read("spring_constant_confidence")),
-        spring_constant_true=options.params.spring_stiffness_nm_per_rad,
-        peak_temperature_reported_c=_peak(rig, "winding_temperature"),
-        peak_temperature_true_c=float(np.max(temperature_true)) if len(temperature_true) else float("nan"),
+        **joint,  # type: ignore[arg-type]
         fault_flags=int(np.bitwise_or.reduce(flags.astype(np.int64))) if len(flags) else 0,
         safe_state=bool(len(safe) and np.max(safe) > 0),
         emcy=tuple(rig.emcy),
@@ -346,6 +390,35 @@ def _fmt(value: float | None, unit: str, digits: str = ".3g") -> str:
 
 def _rate(cycles: int, seconds: float) -> str:
     return f"{cycles / seconds:.0f} cycles/s; " if seconds > 0 else ""
+
+
+def _joint_rows(summary: DemoSummary) -> list[tuple[str, str]]:
+    """The demo joint's rows of the summary (none on another board's table)."""
+    if summary.spring_constant_estimate is None:
+        return []
+    true_k = _fmt(summary.spring_constant_true, "true", ".4g")
+    return [
+        (
+            "velocity tracking error",
+            _fmt(summary.velocity_rms_error_rad_s, "rad/s RMS")
+            + f" (setpoint vs motor_velocity / gear_ratio, {SETTLE_S:g} s after each step)",
+        ),
+        (
+            "torque tracking error",
+            _fmt(summary.torque_rms_error_nm, "N*m RMS")
+            + f" (setpoint vs joint_torque, {SETTLE_S:g} s after each step)",
+        ),
+        (
+            "spring constant",
+            f"{summary.spring_constant_estimate:.4g} N*m/rad estimated "
+            f"(confidence {summary.spring_constant_confidence or 0.0:.2f}), {true_k}",
+        ),
+        (
+            "peak winding temperature",
+            _fmt(summary.peak_temperature_reported_c, "degC", ".4g")
+            + f" reported, {_fmt(summary.peak_temperature_true_c, 'degC', '.4g')} true",
+        ),
+    ]
 
 
 def format_summary(summary: DemoSummary) -> str:
@@ -366,27 +439,7 @@ def format_summary(summary: DemoSummary) -> str:
             f"{summary.cycles} cycles = {summary.simulated_s:.3f} s in {summary.cycling_s:.1f} s wall "
             f"({_rate(summary.cycles, summary.cycling_s)}{summary.wall_s:.1f} s with start-up)",
         ),
-        (
-            "velocity tracking error",
-            _fmt(summary.velocity_rms_error_rad_s, "rad/s RMS")
-            + f" (setpoint vs motor_velocity / gear_ratio, {SETTLE_S:g} s after each step)",
-        ),
-        (
-            "torque tracking error",
-            _fmt(summary.torque_rms_error_nm, "N*m RMS")
-            + f" (setpoint vs joint_torque, {SETTLE_S:g} s after each step)",
-        ),
-        (
-            "spring constant",
-            f"{summary.spring_constant_estimate:.4g} N*m/rad estimated "
-            f"(confidence {summary.spring_constant_confidence:.2f}), "
-            f"{summary.spring_constant_true:.4g} true",
-        ),
-        (
-            "peak winding temperature",
-            _fmt(summary.peak_temperature_reported_c, "degC", ".4g")
-            + f" reported, {summary.peak_temperature_true_c:.4g} degC true",
-        ),
+        *_joint_rows(summary),
         ("faults", faults),
         *(
             ("fault injected" if i == 0 else "", f"t = {e.time_s:.3f} s  {e.text}")

@@ -12,6 +12,7 @@ from hilrig.cli.common import (
     Command,
     UsageError,
     add_bus_options,
+    add_table_option,
     bus_config,
     eds_path,
     existing_file,
@@ -20,14 +21,15 @@ from hilrig.cli.common import (
     positive_int,
     progress,
 )
-from hilrig.cli.files import output_folder, sniff_eds, sniff_executable
+from hilrig.cli.files import output_folder, sniff_eds, sniff_executable, sniff_toml
 from hilrig.resources import FIRMWARE_HINT
-from hilrig.table import BOARD_TABLE
+from hilrig.table import BOARD_TABLE, RigTable
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from hilrig.observe.sinks import TraceSink
+    from hilrig.session.builder import PlantFactory
     from hilrig.session.faults import FaultSpec
 
 
@@ -133,6 +135,29 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="the board's EDS (default: build/protocol/board.eds)",
     )
+    plant = parser.add_argument_group("another plant (an FMU) or board (docs/fmu.md)")
+    plant.add_argument(
+        "--plant",
+        type=existing_file("FMU", "pass an FMI 2.0/3.0 co-simulation .fmu", suffixes=(".fmu",)),
+        default=None,
+        metavar="MODEL.fmu",
+        help="run this FMU as the board's plant instead of the demo joint's physics (needs "
+        "--plant-map; pip install 'hilrig[fmu]')",
+    )
+    plant.add_argument(
+        "--plant-map",
+        type=existing_file(
+            "plant map",
+            "pass the TOML map of the FMU to the table (docs/fmu.md)",
+            suffixes=(".toml",),
+            sniff=sniff_toml,
+        ),
+        default=None,
+        metavar="MAP.toml",
+        help="how the FMU's variables meet the table's HIL I/O, checked at start (docs/fmu.md); "
+        "a map that names its `fmu` needs no --plant",
+    )
+    add_table_option(plant)
     trace = parser.add_argument_group("trace (Rerun)")
     trace.add_argument(
         "--viewer",
@@ -183,6 +208,17 @@ def run(args: argparse.Namespace) -> int:
     from hilrig.session.faults import FaultPlan
     from hilrig.session.firmware import DEFAULT_EXECUTABLE
 
+    table = RigTable.load(args.table)
+    plant = plant_factory(args, table)
+    if not table.is_default_board and args.firmware is None and not args.board:
+        raise UsageError(
+            f"--firmware: the demo joint's firmware does not run {args.table}'s board: pass its own"
+        )
+    if not table.is_default_board and args.scenario is None:
+        raise UsageError(
+            "--scenario: the demo's profiles drive the demo joint; another board's table needs a "
+            "scenario file defining `def scenario(rig): ...`"
+        )
     executable = args.firmware or DEFAULT_EXECUTABLE
     if not args.board and not executable.is_file():
         raise UsageError(f"firmware {executable} does not exist: {FIRMWARE_HINT}")
@@ -198,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
     options = DemoOptions(
         out_dir=args.out,
         scenario_file=args.scenario,
-        node_id=args.node_id if args.node_id is not None else BOARD_TABLE.node.default_node_id,
+        node_id=args.node_id if args.node_id is not None else table.board.node.default_node_id,
         period_us=args.period_us,
         seed=args.seed,
         executable=executable,
@@ -208,9 +244,35 @@ def run(args: argparse.Namespace) -> int:
         live=tuple(live),
         board=board,
         poll_every=args.poll_every,
+        plant=plant,
+        table=table,
     )
     summary = run_demo(options, progress=progress)
     return _report(args, format_summary(summary), summary.viewer_url, live)
+
+
+def plant_factory(args: argparse.Namespace, table: RigTable) -> PlantFactory | None:
+    """--plant/--plant-map: the FMU's plant factory, its map checked against `table` and the FMU
+    now (a bad map is a usage error); None: the demo joint's own physics."""
+    if args.plant is None and args.plant_map is None:
+        if not table.is_default_board:
+            raise UsageError(
+                f"{args.table} is not the demo joint's table: give its plant with --plant "
+                "MODEL.fmu --plant-map MAP.toml"
+            )
+        return None
+    if args.plant_map is None:
+        raise UsageError("--plant: give the FMU's map too (--plant-map MAP.toml; docs/fmu.md)")
+    try:
+        from hilrig.plants.fmu import fmu_factory
+    except ImportError as error:
+        raise UsageError(f"--plant needs FMPy ({error.name} is missing): pip install 'hilrig[fmu]'") from None
+    from hilrig.errors import PlantMapError
+
+    try:
+        return fmu_factory(args.plant_map, table.board, args.plant)
+    except PlantMapError as error:
+        raise UsageError(str(error)) from None
 
 
 def _live_sinks(args: argparse.Namespace) -> list[TraceSink]:
@@ -249,7 +311,12 @@ def run_robot_command(args: argparse.Namespace) -> int:
     from hilrig.apps.robot_demo import GAIT_SECONDS, RobotOptions, format_robot_summary, run_robot
     from hilrig.session.firmware import DEFAULT_EXECUTABLE
 
-    given = {"--board": args.board, "--fault": bool(args.fault), "--node-id": args.node_id is not None}
+    given = {
+        "--board": args.board,
+        "--fault": bool(args.fault),
+        "--node-id": args.node_id is not None,
+        "--plant": args.plant is not None or args.plant_map is not None,
+    }
     refused = [flag for flag, present in given.items() if present]
     if refused:
         raise UsageError(
@@ -304,6 +371,11 @@ COMMANDS = (
         "  sudo .venv/bin/hilrig sim --scenario my_scenario.py   # def scenario(rig): ...\n"
         "  hilrig sim --viewer web          # then open http://localhost:9090\n"
         "  hilrig sim --board -c vcan0 --period-us 10000 --viewer connect\n\n"
+        "An FMU as the plant: --plant model.fmu --plant-map model.map.toml (docs/fmu.md);\n"
+        "the joint's own FMU, which `make build` exports, with its map:\n\n"
+        "  ... sim --plant build/fmu/joint.fmu --plant-map build/fmu/joint.map.toml\n"
+        "  ... sim --table head.toml --firmware build/bin/head-firmware --plant osc.fmu \\\n"
+        "        --plant-map head_osc.map.toml --scenario nod.py\n\n"
         "A robot: --modules 8 starts the firmware 8 times on one bus (node ids 1..8),\n"
         "one SYNC for all, the chain's mechanics from MuJoCo (pip install 'hilrig[robot]'),\n"
         "the rig as master with its heartbeat, and runs a travelling-wave gait (`make run\n"

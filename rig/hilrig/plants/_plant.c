@@ -32,53 +32,15 @@
  * Python objects: the state lives in JointState instances (frozen slotted dataclasses); a step
  * reads the previous one and builds the next one of the same type, so the plant's state is
  * plain data. Constants come as a tuple of floats built once from JointParams (order: the
- * enums below, mirrored in plant.py / sensors.py).
+ * enums of _joint_core.h, mirrored in plant.py / sensors.py). The physics and the sensors'
+ * arithmetic are _joint_core.h's, shared with the joint's FMU (_joint_fmu.c); this file is
+ * their Python face: argument checks, Python's errors, JointState and RawSensors objects.
  */
 #define PY_SSIZE_T_CLEAN
 #define Py_LIMITED_API 0x030B0000 /* the stable ABI of CPython 3.11+: one wheel for them all (abi3) */
 #include <Python.h>
 
-#include <math.h>
-
-/* Order of the plant's coefficient tuple (plant.py: _plant_coefficients). */
-enum {
-    C_RATIO,
-    C_STIFFNESS,
-    C_SPRING_DAMPING,
-    C_INDUCTANCE,
-    C_R_REF,
-    C_ALPHA,
-    C_T_REF,
-    C_KT,
-    C_KE,
-    C_ROTOR_INERTIA,
-    C_MOTOR_FRICTION,
-    C_LOAD_INERTIA,
-    C_LOAD_FRICTION,
-    C_COULOMB,
-    C_COULOMB_SPEED,
-    C_THERMAL_CONDUCTANCE,
-    C_THERMAL_CAPACITY,
-    C_BUS_VOLTAGE,
-    C_SUBSTEP_FRACTION,
-    C_SUBSTEP_WITHOUT_ELECTRICAL,
-    PLANT_COEFFICIENT_COUNT
-};
-
-/* Order of the sensors' coefficient tuple (sensors.py: _sensor_coefficients). */
-enum {
-    S_MOTOR_COUNTS_PER_REV,
-    S_OUTPUT_COUNTS_PER_REV,
-    S_NTC_R25,
-    S_NTC_BETA,
-    S_PULLUP,
-    S_THERMISTOR_NOISE_COUNTS,
-    S_CURRENT_NOISE_A,
-    SENSOR_COEFFICIENT_COUNT
-};
-
-/* Indices into the integrator's state. */
-enum { X_MOTOR_ANGLE, X_MOTOR_VELOCITY, X_LOAD_ANGLE, X_LOAD_VELOCITY, X_CURRENT, X_TEMPERATURE, X_COUNT };
+#include "_joint_core.h"
 
 /* JointState's fields in declaration order; the first 7 are the time and the state. */
 enum {
@@ -116,17 +78,6 @@ static const char *const raw_sensor_field_names[R_COUNT] = {
     "thermistor_adc",
     "motor_current_adc",
 };
-
-/* Sensor constants, as in sensors.py. */
-#define ENCODER_MODULUS 65536.0
-#define THERMISTOR_ADC_MAX 4095.0
-#define CURRENT_COUNTS_PER_A 1000.0
-#define KELVIN_AT_0_C 273.15
-#define NTC_REFERENCE_TEMPERATURE_K 298.15
-#define I16_MIN -32768.0
-#define I16_MAX 32767.0
-/* Python's 2.0 * math.pi: the same double (doubling is exact). */
-#define TWO_PI (2.0 * 3.141592653589793)
 
 typedef struct {
     PyObject *joint_state_names[F_COUNT];
@@ -190,65 +141,12 @@ static PyObject *new_frozen(PyTypeObject *type, PyObject *const *names, PyObject
     return object;
 }
 
-/* --- Plant physics ---------------------------------------------------------------------- */
-static double winding_resistance(const double *c, double temperature_c)
-{
-    return c[C_R_REF] * (1.0 + c[C_ALPHA] * (temperature_c - c[C_T_REF]));
-}
-
-/* Longest RK4 sub-step from the present temperature [s]: L/R moves with R. */
-static double max_substep(const double *c, double temperature_c)
-{
-    double resistance = winding_resistance(c, temperature_c);
-    double electrical_s = resistance > 0.0 ? c[C_INDUCTANCE] / resistance : INFINITY;
-    double electrical_limit = c[C_SUBSTEP_FRACTION] * electrical_s;
-    /* Python's min(a, b): b only when strictly smaller. */
-    return c[C_SUBSTEP_WITHOUT_ELECTRICAL] < electrical_limit ? c[C_SUBSTEP_WITHOUT_ELECTRICAL]
-                                                              : electrical_limit;
-}
-
-/* Time derivative of the state for winding voltage and external load torque. */
-static void derivative(const double *c, const double *x, double voltage, double load_torque,
-                       int motor_held, double ambient, double *dx)
-{
-    double motor_angle = x[X_MOTOR_ANGLE], motor_vel = x[X_MOTOR_VELOCITY];
-    double load_angle = x[X_LOAD_ANGLE], load_vel = x[X_LOAD_VELOCITY];
-    double current = x[X_CURRENT], temperature = x[X_TEMPERATURE];
-    double ratio = c[C_RATIO];
-    double resistance = c[C_R_REF] * (1.0 + c[C_ALPHA] * (temperature - c[C_T_REF]));
-
-    /* Spring between gearbox output (motor_angle / N) and load; reaches the rotor divided by N
-     * (the gearbox is lossless here, its loss is the viscous term). */
-    double spring_torque = c[C_STIFFNESS] * (motor_angle / ratio - load_angle)
-                           + (c[C_SPRING_DAMPING] * (motor_vel / ratio - load_vel));
-    double current_rate = (voltage - resistance * current - c[C_KE] * motor_vel) / c[C_INDUCTANCE];
-    double motor_accel = 0.0;
-    if (!motor_held) {
-        motor_accel = (c[C_KT] * current - c[C_MOTOR_FRICTION] * motor_vel - spring_torque / ratio)
-                      / c[C_ROTOR_INERTIA];
-    }
-    double friction = c[C_LOAD_FRICTION] * load_vel + c[C_COULOMB] * tanh(load_vel / c[C_COULOMB_SPEED]);
-    double load_accel = (spring_torque - friction + load_torque) / c[C_LOAD_INERTIA];
-    double heat_w = current * current * resistance;
-    double temperature_rate = (heat_w - (temperature - ambient) * c[C_THERMAL_CONDUCTANCE])
-                              / c[C_THERMAL_CAPACITY];
-
-    dx[X_MOTOR_ANGLE] = motor_vel;
-    dx[X_MOTOR_VELOCITY] = motor_accel;
-    dx[X_LOAD_ANGLE] = load_vel;
-    dx[X_LOAD_VELOCITY] = load_accel;
-    dx[X_CURRENT] = current_rate;
-    dx[X_TEMPERATURE] = temperature_rate;
-}
-
 /* A JointState of `type` for time, state and duty, with the derived quantities. */
 static PyObject *build_joint_state(module_state *st, PyTypeObject *type, const double *c, double time_s,
                                    const double *x, double applied_duty)
 {
-    double ratio = c[C_RATIO];
-    double deflection = x[X_MOTOR_ANGLE] / ratio - x[X_LOAD_ANGLE];
-    double spring_torque = c[C_STIFFNESS] * deflection
-                           + c[C_SPRING_DAMPING] * (x[X_MOTOR_VELOCITY] / ratio - x[X_LOAD_VELOCITY]);
+    double deflection, spring_torque;
+    joint_spring(c, x, &deflection, &spring_torque);
     double fields[F_COUNT] = {
         [F_TIME] = time_s,
         [F_MOTOR_ANGLE] = x[X_MOTOR_ANGLE],
@@ -307,26 +205,9 @@ static PyObject *advance(PyObject *module, PyObject *const *args, Py_ssize_t nar
     double voltage = duty * c[C_BUS_VOLTAGE];
 
     double *x = &now[1];
-    double substep_count = ceil(dt_s / max_substep(c, x[X_TEMPERATURE]) - 1e-9);
-    if (substep_count < 1.0) substep_count = 1.0;
-    if (!(substep_count <= 1e9)) {
+    if (joint_advance(c, x, dt_s, voltage, load_torque, motor_held, ambient) < 0) {
         PyErr_Format(PyExc_ValueError, "dt_s: %S needs more than 1e9 RK4 sub-steps", args[2]);
         return NULL;
-    }
-    long substeps = (long)substep_count;
-    double h = dt_s / (double)substeps;
-    double half = 0.5 * h;
-    double sixth = h / 6.0;
-    double k1[X_COUNT], k2[X_COUNT], k3[X_COUNT], k4[X_COUNT], probe[X_COUNT];
-    for (long n = 0; n < substeps; n++) {
-        derivative(c, x, voltage, load_torque, motor_held, ambient, k1);
-        for (int i = 0; i < X_COUNT; i++) probe[i] = x[i] + half * k1[i];
-        derivative(c, probe, voltage, load_torque, motor_held, ambient, k2);
-        for (int i = 0; i < X_COUNT; i++) probe[i] = x[i] + half * k2[i];
-        derivative(c, probe, voltage, load_torque, motor_held, ambient, k3);
-        for (int i = 0; i < X_COUNT; i++) probe[i] = x[i] + h * k3[i];
-        derivative(c, probe, voltage, load_torque, motor_held, ambient, k4);
-        for (int i = 0; i < X_COUNT; i++) x[i] = x[i] + sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
     }
     for (int i = 0; i < X_COUNT; i++) {
         if (!isfinite(x[i])) {
@@ -396,20 +277,15 @@ static int check_integral(double value)
 static PyObject *rounded_saturated(double value, double low, double high)
 {
     if (check_integral(value) < 0) return NULL;
-    double rounded = copysign(floor(fabs(value) + 0.5), value);
-    if (rounded < low) rounded = low;
-    if (rounded > high) rounded = high;
-    return PyLong_FromDouble(rounded);
+    return PyLong_FromDouble(joint_round_saturated(value, low, high));
 }
 
 /* sensors.encoder_counts: floor of the position in counts, wrapped to U16. */
 static PyObject *encoder_counts(double angle_rad, double counts_per_rev)
 {
-    double counts = floor(angle_rad * counts_per_rev / TWO_PI);
+    double counts = joint_encoder_position(angle_rad, counts_per_rev);
     if (check_integral(counts) < 0) return NULL;
-    double wrapped = fmod(counts, ENCODER_MODULUS); /* exact; Python's % is non-negative */
-    if (wrapped < 0.0) wrapped += ENCODER_MODULUS;
-    return PyLong_FromDouble(wrapped);
+    return PyLong_FromDouble(joint_wrapped_counts(counts));
 }
 
 /* sensors.ntc_resistance and thermistor_adc_exact: unrounded ADC counts at a temperature. */
@@ -420,14 +296,13 @@ static int thermistor_adc_exact(const double *s, double temperature_c, double *a
         PyErr_SetString(PyExc_ZeroDivisionError, "float division by zero");
         return -1;
     }
-    double exponent = s[S_NTC_BETA] * (1.0 / temperature_k - 1.0 / NTC_REFERENCE_TEMPERATURE_K);
+    double exponent = joint_ntc_exponent(s, temperature_k);
     double growth = exp(exponent);
     if (isinf(growth) && isfinite(exponent)) {
         PyErr_SetString(PyExc_OverflowError, "math range error");
         return -1;
     }
-    double ntc_ohm = s[S_NTC_R25] * growth;
-    *adc = THERMISTOR_ADC_MAX * ntc_ohm / (ntc_ohm + s[S_PULLUP]);
+    *adc = joint_thermistor_adc(s, growth);
     return 0;
 }
 

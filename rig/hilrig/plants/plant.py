@@ -82,10 +82,11 @@ def state_matrix(states: Sequence[JointState]) -> np.ndarray:
     return values.reshape(len(states), len(STATE_FIELDS))
 
 
-def _plant_coefficients(
+def plant_coefficients(
     params: JointParams, substep_without_electrical_s: float, *, external_load: bool = False
-) -> tuple[float, ...]:
-    """The constants _plant.c reads, in the order of its C_* enum (all floats).
+) -> dict[str, float]:
+    """The constants _plant.c reads by name, in the order of _joint_core.h's C_* enum (all
+    floats): the joint's FMU takes them as its parameters under these names.
 
     external_load: the load side belongs to another simulator (MuJoCo's chain). The load
     inertia becomes +inf, so _plant.c's load acceleration (finite torque) / inf is 0: over a
@@ -97,33 +98,45 @@ def _plant_coefficients(
     load_inertia = math.inf if external_load else p.load_inertia_kg_m2
     load_viscous = 0.0 if external_load else p.load_viscous_friction_nm_s_per_rad
     load_coulomb = 0.0 if external_load else p.load_coulomb_friction_nm
-    coefficients = tuple(
-        float(value)
-        for value in (
-            p.gear_ratio,
-            p.spring_stiffness_nm_per_rad,
-            p.spring_damping_nm_s_per_rad,
-            p.winding_inductance_h,
-            p.winding_resistance_ohm,
-            p.copper_temperature_coefficient_per_k,
-            p.winding_reference_temperature_c,
-            p.torque_constant_nm_per_a,
-            p.back_emf_constant_v_s_per_rad,
-            p.rotor_inertia_kg_m2,
-            p.motor_viscous_friction_nm_s_per_rad,
-            load_inertia,
-            load_viscous,
-            load_coulomb,
-            p.coulomb_smoothing_velocity_rad_s,
-            1.0 / p.winding_thermal_resistance_k_per_w,  # conductance: 0 when adiabatic
-            p.winding_thermal_capacity_j_per_k,
-            p.bus_voltage_v,
-            SUBSTEP_FRACTION,
-            substep_without_electrical_s,
+    coefficients = {
+        name: float(value)
+        for name, value in (
+            ("gear_ratio", p.gear_ratio),
+            ("spring_stiffness_nm_per_rad", p.spring_stiffness_nm_per_rad),
+            ("spring_damping_nm_s_per_rad", p.spring_damping_nm_s_per_rad),
+            ("winding_inductance_h", p.winding_inductance_h),
+            ("winding_resistance_at_reference_ohm", p.winding_resistance_ohm),  # the state has its own
+            ("copper_temperature_coefficient_per_k", p.copper_temperature_coefficient_per_k),
+            ("winding_reference_temperature_c", p.winding_reference_temperature_c),
+            ("torque_constant_nm_per_a", p.torque_constant_nm_per_a),
+            ("back_emf_constant_v_s_per_rad", p.back_emf_constant_v_s_per_rad),
+            ("rotor_inertia_kg_m2", p.rotor_inertia_kg_m2),
+            ("motor_viscous_friction_nm_s_per_rad", p.motor_viscous_friction_nm_s_per_rad),
+            ("load_inertia_kg_m2", load_inertia),
+            ("load_viscous_friction_nm_s_per_rad", load_viscous),
+            ("load_coulomb_friction_nm", load_coulomb),
+            ("coulomb_smoothing_velocity_rad_s", p.coulomb_smoothing_velocity_rad_s),
+            (
+                "winding_thermal_conductance_w_per_k",
+                1.0 / p.winding_thermal_resistance_k_per_w,
+            ),  # 0: adiabatic
+            ("winding_thermal_capacity_j_per_k", p.winding_thermal_capacity_j_per_k),
+            ("bus_voltage_v", p.bus_voltage_v),
+            ("substep_fraction", SUBSTEP_FRACTION),
+            ("substep_without_electrical_s", substep_without_electrical_s),
         )
-    )
+    }
     assert len(coefficients) == _plant.PLANT_COEFFICIENT_COUNT
     return coefficients
+
+
+def _plant_coefficients(
+    params: JointParams, substep_without_electrical_s: float, *, external_load: bool = False
+) -> tuple[float, ...]:
+    """`plant_coefficients` as the tuple _plant.c takes."""
+    return tuple(
+        plant_coefficients(params, substep_without_electrical_s, external_load=external_load).values()
+    )
 
 
 class JointPlant:
@@ -286,3 +299,9 @@ class JointPlant:
         ]
         fastest = max(rates)
         return SUBSTEP_FRACTION / fastest if fastest > 0.0 else math.inf
+
+
+def joint_coefficients(params: JointParams) -> dict[str, float]:
+    """`plant_coefficients` of a joint of its own with `params`, its sub-step limit included:
+    the parameters of the joint's FMU (tools/joint_fmu.py)."""
+    return plant_coefficients(params, JointPlant(params)._mechanical_substep_limit_s())

@@ -17,6 +17,7 @@ reference, and the tests hold both to identical readings.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -215,23 +216,36 @@ class RawSensors:
 _set = object.__setattr__  # what a frozen dataclass's own __init__ uses
 
 
-def _sensor_coefficients(params: JointParams) -> tuple[float, ...]:
-    """The constants _plant.c's raw_sensors reads, in the order of its S_* enum (all floats)."""
+def sensor_coefficients(params: JointParams) -> dict[str, float]:
+    """The constants _plant.c's raw_sensors reads by name, in the order of _joint_core.h's S_*
+    enum (all floats); the joint's FMU takes those without noise as its parameters."""
     p = params
-    coefficients = tuple(
-        float(value)
-        for value in (
-            p.motor_encoder_counts_per_rev,
-            p.output_encoder_counts_per_rev,
-            p.ntc_r25_ohm,
-            p.ntc_beta_k,
-            p.thermistor_pullup_ohm,
-            p.thermistor_adc_noise_counts,
-            p.current_sensor_noise_a,
+    coefficients = {
+        name: float(value)
+        for name, value in (
+            ("motor_encoder_counts_per_rev", p.motor_encoder_counts_per_rev),
+            ("output_encoder_counts_per_rev", p.output_encoder_counts_per_rev),
+            ("ntc_r25_ohm", p.ntc_r25_ohm),
+            ("ntc_beta_k", p.ntc_beta_k),
+            ("thermistor_pullup_ohm", p.thermistor_pullup_ohm),
+            (NOISE_COEFFICIENTS[0], p.thermistor_adc_noise_counts),
+            (NOISE_COEFFICIENTS[1], p.current_sensor_noise_a),
         )
-    )
+    }
     assert len(coefficients) == _plant.SENSOR_COEFFICIENT_COUNT
     return coefficients
+
+
+NOISE_COEFFICIENTS = ("thermistor_adc_noise_counts", "current_sensor_noise_a")
+"""The sensor coefficients that scale the noise (the last of the S_* enum): the joint's FMU has no
+noise of its own (a plant map adds it)."""
+
+
+@functools.lru_cache(maxsize=64)
+def _sensor_coefficients(params: JointParams) -> tuple[float, ...]:
+    """`sensor_coefficients` as the tuple _plant.c takes (kept per params: `read_sensors` asks
+    every read)."""
+    return tuple(sensor_coefficients(params).values())
 
 
 def read_sensors(state: JointState, params: JointParams, rng: np.random.Generator) -> RawSensors:
