@@ -56,11 +56,9 @@ def test_a_plant_with_modules_is_refused(capsys: pytest.CaptureFixture[str]) -> 
 
 
 def test_the_summary_of_another_board_has_the_runs_rows_only(tmp_path: Path) -> None:
+    run = {"cycles": 150, "simulated_s": 0.15, "wall_s": 2.0, "cycling_s": 1.0, "frames_logged": 900}
     summary = DemoSummary(
-        cycles=150,
-        simulated_s=0.15,
-        wall_s=2.0,
-        cycling_s=1.0,
+        **run,
         velocity_rms_error_rad_s=None,
         torque_rms_error_nm=None,
         spring_constant_estimate=None,
@@ -73,7 +71,6 @@ def test_the_summary_of_another_board_has_the_runs_rows_only(tmp_path: Path) -> 
         emcy=(),
         bus_log=tmp_path / "bus.log",
         firmware_log=tmp_path / "firmware.log",
-        frames_logged=900,
     )
     text = format_summary(summary)
     assert "150 cycles" in text and "900 frames" in text
