@@ -107,6 +107,16 @@ def lab(private_bus: PrivateBus, scenario_dir: Path) -> Iterator[Path]:
     )
     exporter = None
     try:
+        # The exporter gives up at once on a coordinator that does not answer yet: start it only
+        # once a client's call gets through (a busy host may take a while to bring it up).
+        for _ in range(EXPORTED_TRIES):
+            if _client(private_bus, "places").returncode == 0:
+                break
+            assert coordinator.poll() is None, (scenario_dir / "coordinator.log").read_text()
+        else:
+            pytest.fail(
+                f"labgrid's coordinator never answered: {(scenario_dir / 'coordinator.log').read_text()}"
+            )
         exported = scenario_dir / "exporter.yaml"
         exported.write_text(_exporter_config(private_bus))
         exporter = _start(
