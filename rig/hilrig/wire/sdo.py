@@ -224,6 +224,16 @@ class SdoTracker:
             abort=abort.code,
         )
 
+    def _segmented_part(self, transfer: _Transfer, data: bytes) -> tuple[str | None, int, bool]:
+        """A segment of a segmented transfer, either way: its toggle checked, its bytes kept;
+        (the toggle's problem or None, the bytes it leaves unused, whether it is the last)."""
+        problem = self._toggle(transfer, (data[0] >> 4) & 1)
+        transfer.toggle ^= 1
+        transfer.segments += 1
+        unused, last = (data[0] >> 1) & 0x7, bool(data[0] & 0x1)
+        transfer.data += data[1 : SDO_FRAME_BYTES - unused]
+        return problem, unused, last
+
     @staticmethod
     def _toggle(transfer: _Transfer, bit: int) -> str | None:
         if bit != transfer.toggle:
@@ -294,24 +304,19 @@ class SdoTracker:
             return self._segment(node, False, transfer, data)
         command = data[0] >> _CS_SHIFT
         if command == _CLIENT_INITIATE_DOWNLOAD:
-            expedited, sized, unused = data[0] & 0x2, data[0] & 0x1, (data[0] >> 2) & 0x3
-            if expedited:
+            expedited_value, size = _initiate(data)
+            if expedited_value is not None:
                 transfer = self._start(node, Direction.DOWNLOAD, data, Mode.EXPEDITED)
-                transfer.value = data[4 : SDO_FRAME_BYTES - unused] if sized else data[4:]
-                transfer.last_sent = True
+                transfer.value, transfer.last_sent = expedited_value, True
                 return self._step(node, False, transfer, "", value=transfer.value)
             transfer = self._start(node, Direction.DOWNLOAD, data, Mode.SEGMENTED)
-            transfer.size = struct.unpack_from("<I", data, 4)[0] if sized else None
+            transfer.size = size
             size = f"{transfer.size} bytes" if transfer.size is not None else "size not given"
             return self._step(node, False, transfer, f"starts, {size}")
         if command == _CLIENT_DOWNLOAD_SEGMENT:
             if transfer is None or transfer.direction is not Direction.DOWNLOAD:
                 return self._step(node, False, None, "segment")
-            problem = self._toggle(transfer, (data[0] >> 4) & 1)
-            transfer.toggle ^= 1
-            transfer.segments += 1
-            unused, last = (data[0] >> 1) & 0x7, data[0] & 0x1
-            transfer.data += data[1 : SDO_FRAME_BYTES - unused]
+            problem, unused, last = self._segmented_part(transfer, data)
             if last:
                 transfer.value, transfer.last_sent = bytes(transfer.data), True
                 problem = problem or self._size_problem(transfer, len(transfer.value))
@@ -385,24 +390,19 @@ class SdoTracker:
         if command == _SERVER_INITIATE_UPLOAD:
             if transfer is None or transfer.direction is not Direction.UPLOAD:
                 transfer = self._start(node, Direction.UPLOAD, data)
-            expedited, sized, unused = data[0] & 0x2, data[0] & 0x1, (data[0] >> 2) & 0x3
-            if expedited:
+            expedited_value, size = _initiate(data)
+            if expedited_value is not None:
                 transfer.mode = Mode.EXPEDITED
                 self._end(node)
-                value = data[4 : SDO_FRAME_BYTES - unused] if sized else data[4:]
-                return self._step(node, True, transfer, "", value=value)
+                return self._step(node, True, transfer, "", value=expedited_value)
             transfer.mode = Mode.SEGMENTED  # also a block upload the server answers as segmented
-            transfer.size = struct.unpack_from("<I", data, 4)[0] if sized else None
+            transfer.size = size
             size = f"{transfer.size} bytes" if transfer.size is not None else "size not given"
             return self._step(node, True, transfer, f"starts, {size}")
         if command == _SERVER_UPLOAD_SEGMENT:
             if transfer is None or transfer.direction is not Direction.UPLOAD:
                 return self._step(node, True, None, "segment")
-            problem = self._toggle(transfer, (data[0] >> 4) & 1)
-            transfer.toggle ^= 1
-            transfer.segments += 1
-            unused, last = (data[0] >> 1) & 0x7, data[0] & 0x1
-            transfer.data += data[1 : SDO_FRAME_BYTES - unused]
+            problem, unused, last = self._segmented_part(transfer, data)
             if last:
                 self._end(node)
                 value = bytes(transfer.data)
@@ -538,6 +538,16 @@ class ObjectWords:
     def abort(self, code: int, index: int, subindex: int) -> str:
         """'0x06090031 value too high (max 10.0)'."""
         return explain_abort(code, self._entry(index, subindex))
+
+
+def _initiate(data: bytes) -> tuple[bytes | None, int | None]:
+    """An initiate frame that may carry the value (the client's download request, the server's
+    upload answer): (the expedited value or None, the size a segmented transfer announces or
+    None)."""
+    expedited, sized, unused = data[0] & 0x2, data[0] & 0x1, (data[0] >> 2) & 0x3
+    if expedited:
+        return (data[4 : SDO_FRAME_BYTES - unused] if sized else data[4:]), None
+    return None, struct.unpack_from("<I", data, 4)[0] if sized else None
 
 
 def _raw(value: bytes) -> str:
