@@ -162,6 +162,10 @@ mutate: build ## mutation testing of the firmware: MUTANTS=40 SEED=1 [SHARD=K/N]
 # Fuzzing (its own clang tree, build/fuzz): FUZZ_SECONDS per target, all targets side by side.
 FUZZ_SECONDS ?= 600
 
+.PHONY: docs
+docs: deps ## build the manual from docs/ into build/site (MkDocs, strict: no broken link), command outputs checked
+	@$(PY) tools/docs.py build
+
 .PHONY: fuzz
 fuzz: deps ## libFuzzer/atheris fuzzers, FUZZ_SECONDS=600 each; corpus in build/fuzz/corpus
 	@FUZZ_SECONDS=$(FUZZ_SECONDS) firmware/canopen/fuzz/run-fuzzers

@@ -1,11 +1,11 @@
-"""The README's command that points the scenarios at a real board, run for real.
+"""The manual's command (docs/bring-up.md) that points the scenarios at a real board, run for real.
 
 The firmware stands in for the board: it boots on its own, free-running (`--mode free`), on an
 interface the rig did not make, as a board on can0 would. pytest is then started the way the
-README says, `--hil-interface socketcan --hil-channel vcan0` (plus `--hil-physics`: this board
+docs say, `--hil-interface socketcan --hil-channel vcan0` (plus `--hil-physics`: this board
 takes its sensors from the bus), and runs the two-worlds file unchanged: the rig opens that
 interface and starts no firmware, the real-time scenarios pass against the board, the lockstep
-one is skipped with its reason, and the evidence lands where the README says.
+one is skipped with its reason, and the evidence lands where the docs say.
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def test_readme_command_runs_the_realtime_scenarios_against_a_board_on_an_interf
     finally:
         board.stop()
     output = inner.stdout + inner.stderr
-    assert inner.returncode == 0, f"the README command failed (exit {inner.returncode}):\n{output}"
+    assert inner.returncode == 0, f"the documented command failed (exit {inner.returncode}):\n{output}"
     assert re.search(r"\b2 passed, 1 skipped\b", output), output
     assert "a lockstep scenario needs the firmware on a private bus" in output, output
     for test in ("test_velocity_hold_realtime", "test_observe_and_command_realtime_without_physics"):

@@ -7,7 +7,7 @@
   the rig would stand beside a real board (in the software-emulated VM, Python cannot keep
   1 kHz: hence the longer periods, conftest.REALTIME_*_PERIOD_US);
 - a real board: the same real-time tests with `--hil-interface socketcan --hil-channel can0`
-  (README, "Pointing a scenario at a real board"); the rig then opens that interface and starts
+  (docs/bring-up.md, "Pointing a scenario at a real board"); the rig then opens that interface and starts
   no firmware.
 
 The real-time assertions are what wall-clock time on a loaded machine allows: averages over

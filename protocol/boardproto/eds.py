@@ -62,7 +62,7 @@ CONSUMER_HEARTBEAT_UNUSED = 0
 RPDO_COMMUNICATION_SUBINDICES = 5
 TPDO_COMMUNICATION_SUBINDICES = 6
 # What CiA 301 defines that this node does not implement, and why. Written into the EDS's
-# [Comments] and repeated in the README's conformance statement.
+# [Comments] and repeated in the conformance statement, docs/conformance.md.
 NOT_SUPPORTED = (
     "Not supported: node guarding and life guarding (0x100C/0x100D; optional, deprecated by",
     "CiA 301 in favour of the heartbeat, which the node produces). Remote frames (RTR): every",

@@ -7,7 +7,7 @@
 // exceptions, no RTTI, no operating system.
 //
 // Not yet on a real board: the CAN controller's registers and interrupts, and a flash sector
-// for the stored parameters (README, "The firmware on a microcontroller").
+// for the stored parameters (docs/microcontroller.md).
 #include <atomic>
 #include <cstddef>
 #include <cstdint>

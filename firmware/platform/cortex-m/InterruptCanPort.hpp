@@ -3,8 +3,8 @@
 // interrupt copies each frame out of the controller's FIFO with push_received(); the transmit
 // interrupt (a mailbox empty) takes the next frame with pop_to_transmit(). The main loop only
 // calls send() and receive(), so the engine never runs inside an interrupt and never waits.
-// What a real port adds on top (register access, bit timing, filters): README, "The firmware on
-// a microcontroller".
+// What a real port adds on top (register access, bit timing, filters):
+// docs/microcontroller.md.
 #pragma once
 
 #include <array>

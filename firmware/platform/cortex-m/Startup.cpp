@@ -66,8 +66,8 @@ extern "C" [[noreturn]] void Reset_Handler() {
 }
 
 // Index 0: the initial stack pointer; 1: reset; 2..15: the system exceptions (15: SysTick);
-// 16 on: the external interrupts, none used here (a real board's CAN controller's go there: README,
-// "The firmware on a microcontroller"). A constant table placed by the linker: no code builds it.
+// 16 on: the external interrupts, none used here (a real board's CAN controller's go there:
+// docs/microcontroller.md). A constant table placed by the linker: no code builds it.
 #define HIL_UNHANDLED_8 Unhandled_Handler, Unhandled_Handler, Unhandled_Handler, Unhandled_Handler, \
                         Unhandled_Handler, Unhandled_Handler, Unhandled_Handler, Unhandled_Handler
 extern const Vector g_vectors[kVectors];
