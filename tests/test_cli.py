@@ -301,7 +301,7 @@ def test_sim_injects_faults_from_the_command_line(scenario_dir: Path) -> None:
 
     # The bus log is candump text: cantools reads it with the build's DBC and names the values
     # (what `python -m cantools decode board.dbc < bus.log` prints; protocol/tests runs that
-    # command itself, natively: a second Python start costs ~15 s in the micro-VM).
+    # command itself, natively: a second Python start is dear in the micro-VM).
     database = cantools.database.load_file(str(REPO / "build/protocol/board.dbc"))
     named: dict[str, set[str]] = {"control_mode": set(), "fault_flags": set(), "led_pattern": set()}
     messages = {m.frame_id: m for m in database.messages}

@@ -59,7 +59,7 @@ def machine() -> dict[str, Any]:
 
 PROBE_TIMEOUT_S = 1800.0
 """A probe (a benchmark, a count under callgrind) still running after this is stopped and not
-measured: callgrind slows Python some 50x, and a busy host stretches that further."""
+measured: callgrind slows Python many times over, and a busy host stretches that further."""
 STDERR_TAIL_LINES = 12
 """Lines of a failed probe's stderr its error text keeps (the end, where the reason is)."""
 NOT_MEASURED = "not measured"

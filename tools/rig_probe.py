@@ -23,9 +23,9 @@ whose peer answers at once: before each exchange it queues every TPDO due at tha
 payloads of the mapped lengths), after it takes what the rig sent. The node's PDO configuration
 comes from the fake node over canopen's SDO, as on a bus; no firmware, no bus, no waiting, so
 nothing depends on timing. With zero payloads the motor's duty is 0 and it stands still: the
-traced series hold their values, which Rerun compresses better than moving ones (a 60 s trace of
-`make bench`, whose VM rounds drive the motor, is about a fifth larger than one of a still
-motor), so `traced` counts what tracing costs at the least.
+traced series hold their values, which Rerun compresses better than moving ones (a trace of
+`make bench`, whose VM rounds drive the motor, is larger than one of a still motor), so `traced`
+counts what tracing costs at the least.
 """
 
 from __future__ import annotations
@@ -160,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
                         frames = b""
             elif args.mode == "memory":
                 # Stopped again: a caller that runs main() in its own process (the tool's
-                # test) would otherwise trace every allocation after it, 20x slower.
+                # test) would otherwise trace every allocation after it, far slower.
                 tracemalloc.start()
                 try:
                     before, carried = tracemalloc.get_traced_memory()[0], link.data_bytes

@@ -1,5 +1,5 @@
 // The demo joint's components on a double-precision plant for as long as a
-// joint turns on a test bench (issue 20): estimates must not degrade with the
+// joint turns on a test bench: estimates must not degrade with the
 // distance turned or the cycles counted. Its own binary with the ctest label
 // long_run, as it runs millions of cycles; no bus, no wall-clock time.
 #include <gtest/gtest.h>
@@ -112,9 +112,9 @@ struct ErrorWindow {
 
 // Two hours of continuous rotation at the joint's top speed (velocity setpoint
 // beyond reach, the loop saturated at max_duty): 7.2 million cycles, the motor
-// turns 3.3e6 rad. Before issue 20 the velocity estimate differentiated float
-// angles; this test on that code (measured): 0.1 s means 0.2 % off in the last
-// minute (0.0025 % in the first), single cycles up to 76 of 455 rad/s off.
+// turns 3.3e6 rad. A velocity estimate that differentiates float angles fails
+// it: their resolution coarsens as the angle grows, so the last minute's 0.1 s
+// means drift off the first minute's and single cycles jump.
 TEST(DemoJointLongRun, TwoHoursAtTopSpeedKeepEveryEstimateAsGoodAsInTheFirstMinute) {
   JointOnPlant rig;
   rig.velocity_setpoint_rad_s = 50.0F;  // the table's maximum: more than the motor can give
@@ -238,8 +238,8 @@ TEST(DemoJointLongRun, CrossesThe2To32CycleWrapWithoutAGlitch) {
 // The soak's sensor pattern (rig/hilrig/soak.py SensorPattern: the motor
 // counter advancing 25 counts per cycle, the output counter 2) for its million
 // cycles, without the bus: the velocity estimates it reads back, sampled every
-// 1000 cycles as the soak does, in its first and last tenth. Before issue 20
-// the soak measured 0.25 % at 100k cycles and 3.1 % in the last tenth.
+// 1000 cycles as the soak does, in its first and last tenth: exact in both,
+// where an estimate that loses resolution with the count drifts in the last.
 TEST(DemoJointLongRun, SoakPatternVelocityIsExactForAMillionCycles) {
   JointOnPlant rig;
   constexpr std::uint32_t kMotorCountsPerCycle = 25;

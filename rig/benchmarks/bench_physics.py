@@ -1,8 +1,8 @@
-"""Cost of the physics per 1 ms control cycle, as the lockstep driver spends it.
+"""Cost of the physics per control cycle (1 ms of simulation), as the lockstep driver spends it.
 
 Run natively:      .venv/bin/python rig/benchmarks/bench_physics.py
 Run in the VM:     tools/with-vcan -- .venv/bin/python rig/benchmarks/bench_physics.py
-(the micro-VM emulates the CPU in software, where Python's float code is ~100x slower).
+(the micro-VM emulates the CPU in software, where Python's float code is slowest).
 """
 
 from __future__ import annotations

@@ -78,7 +78,7 @@ else:
     REBUILD_HINT = "reinstall hilrig"
 DEFAULT_FIRMWARE, DEFAULT_FIRMWARE_ORIGIN = _default_firmware()
 
-# The second board of this repository (issue 45), the robot head module: its table beside the
+# The second board of this repository, the robot head module: its table beside the
 # joint's and its firmware beside the joint's; its EDS and DBC come from board_files(HEAD_TABLE).
 HEAD_TABLE = (CHECKOUT / "protocol" / "boards" if CHECKOUT is not None else PACKAGED / "boards") / "head.toml"
 HEAD_FIRMWARE = DEFAULT_FIRMWARE.with_name("head-firmware")

@@ -1,4 +1,4 @@
-"""The bad inputs of issue 43's list, each answered in one line with the exit code of
+"""Bad inputs of the command line, each answered in one line with the exit code of
 `hilrig --help`'s rule (2: refused before anything ran; 1: it ran and failed), natively: a
 trace that is none or a port out of range, an output into a folder that does not exist or onto a
 folder (none is created), a folder given as a log, a write to a field the table marks read-only

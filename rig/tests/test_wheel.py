@@ -1,6 +1,6 @@
 """The installable hilrig: what `make dist` writes (tools/dist.py: the sdist, and the wheel built
 from it), installed into fresh virtual environments outside the checkout, run from a directory
-that is not the checkout: issue 43's done-when check.
+that is not the checkout: what a user without the checkout gets.
 
 `pip install --no-index --find-links DIST hilrig`, DIST holding only what `make dist` wrote;
 hilrig's dependencies come from the project venv through a .pth file naming a directory of links

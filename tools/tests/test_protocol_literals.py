@@ -1,4 +1,4 @@
-"""The tree types no protocol value by hand (issues 17, 39): COB-ID bases, SDO abort codes, fault
+"""The tree types no protocol value by hand: COB-ID bases, SDO abort codes, fault
 bits, control-mode numbers and EMCY codes live in boardproto.cia301 and protocol/board.toml; the
 rig, scenarios and tools import them, the firmware includes the headers generated from them. The
 lint's own rules are checked on small examples, so it cannot pass by finding nothing."""

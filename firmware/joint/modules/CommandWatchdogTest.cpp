@@ -70,7 +70,7 @@ TEST_F(CommandWatchdogTest, ReleasesWhenTheStreamResumes) {
   EXPECT_FALSE(tripped());  // latching is the fault manager's job
 }
 
-// Issue 20: counted in 64 bits, the silence survives the 32-bit cycle numbers' wrap.
+// Counted in 64 bits, the silence survives the 32-bit cycle numbers' wrap.
 TEST_F(CommandWatchdogTest, TripsOnTimeAcross2To32CyclesSinceStart) {
   ASSERT_EQ(bus.write(FieldId::control_mode, 1.0F), core::SetResult::Ok);
   run_cycle(true);

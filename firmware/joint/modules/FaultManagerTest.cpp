@@ -164,7 +164,7 @@ TEST_F(FaultManagerTest, LatchesAStaleThermistor) {
   EXPECT_EQ(flags(), fault_mask(FaultBit::ThermistorStale));
 }
 
-// Issue 20: the silence is counted in 64 bits, so neither 2^32 cycles of running
+// The silence is counted in 64 bits, so neither 2^32 cycles of running
 // nor 2^32 cycles of silence (49.7 days at 1 kHz) look like a fresh write.
 TEST_F(FaultManagerTest, StillSeesAnEncoderSilentFor2To32Cycles) {
   run_cycles(1);

@@ -52,7 +52,7 @@ TEST(SpringConstantRls, LosesConfidenceWhenTheDataDoNotFitALine) {
   EXPECT_LT(rls.confidence(), 0.2);
 }
 
-// Issue 20: two hours of samples at 1 kHz, with a long stretch without
+// Two hours of samples at 1 kHz, with a long stretch without
 // excitation in the middle (a joint turning at constant speed). The sums are
 // forgetting (bounded by 1 / (1 - lambda)), the covariance is capped, the
 // sample count saturates: after 7.2 million samples the estimator is as good

@@ -15,8 +15,8 @@ Time base: without a rate, the frames' own timestamps (first to last frame): a r
 1 / rate_hz each. That is how a lockstep log is read (its wall time is the rig's pace, not the
 bus's), and it is what `bus-load --rate-hz` assumes, frame for frame. Heartbeats are the one
 traffic paced by wall time there (a node's timer): they count in the totals, but not in the
-busiest cycle, which would otherwise be the cycle the host was slowest in (five heartbeats in
-one cycle the rig took 0.7 s for, in a VM beside other load).
+busiest cycle, which would otherwise be the cycle the host was slowest in (several heartbeats
+in one cycle the rig was slow in, in a VM beside other load).
 
 The delay of a TPDO after its SYNC is its timestamp minus the latest SYNC's, from the frames'
 timestamps (a log from the receiving side holds the receive times).

@@ -56,8 +56,8 @@ BOOT_TIMEOUT_S = 60.0
 """Hang guard for the firmware's boot-up (ASan build in the software-emulated VM)."""
 DEFAULT_POLL_EVERY = 250
 """Cycles between SDO reads of the fields a dashboard plots but no PDO carries (4 Hz at 1 kHz).
-Each read is a round trip between two cycles (about 15 ms in the micro-VM; six fields): `make
-run`'s 3401 cycles took 8.5 s without polling, 9.8 s every 250 cycles, 10.4 s every 100."""
+Each read is a round trip between two cycles, dear in the micro-VM: the rarer, the closer `make
+run` keeps to its pace without polling."""
 
 
 class ScenarioFileError(RigError, ValueError):

@@ -111,10 +111,10 @@ def _views_box(image: Image) -> tuple[int, int, int, int]:
 
 
 PLOTTED_PIXELS = 1000
-"""`plotted_pixels` above which something is plotted. Measured at VIEWPORT over the 0.4 s
-fake-node trace of rig/tests/test_web_viewer.py: 3500 (faults) to 6100 (tuning), the series
-lines, legend dots and coloured log levels; with each dashboard's views laid out over a
-recording that none of them plots: 0."""
+"""`plotted_pixels` above which something is plotted: at VIEWPORT, dashboards' views laid out
+over a recording that none of them plots paint none, and the sparsest real one (the faults
+dashboard over the fake-node trace of rig/tests/test_web_viewer.py, which checks both) paints
+several times this in series lines, legend dots and coloured log levels."""
 
 
 class BrowserUnavailableError(RuntimeError):

@@ -2,7 +2,8 @@
  * one control cycle. hilrig.plants.plant and .sensors are the Python API around it.
  *
  * Why C: the lockstep rig runs in a qemu micro-VM with software CPU emulation, where Python's
- * float code costs ~100x native; one RK4 step of 4 sub-steps there took ~5 ms of a 1 ms cycle.
+ * float code is what the emulation is slowest at: in Python, one RK4 step would take longer
+ * than the control cycle it stands for.
  *
  * Bit-identity: these are the same floating-point operations in the same order as the
  * original Python (rig/tests/data/physics_reference.json was recorded from it and

@@ -4,7 +4,7 @@ State (6 values): motor angle and speed, load angle and speed, winding current,
 winding temperature. `JointPlant.step(dt_s, duty)` advances it. The physics itself (the
 derivative, the RK4 integrator with its sub-step rule, the H-bridge convention) lives in
 the C extension `hilrig.plants._plant` (_plant.c, documented there): the rig runs in an
-emulated CPU where Python's float code is ~100x slower. This module keeps the API, the
+emulated CPU where Python's float code is slowest. This module keeps the API, the
 validation of parameters and the sub-step limits that do not change during a run.
 """
 

@@ -2,7 +2,7 @@
  * frame (used through hilrig.wire.transport only; every rule about which frame is due, late or
  * malformed stays in Python, in hilrig.engine.lockstep).
  *
- * In the software-emulated micro-VM every Python bytecode costs some 50x its native time while a
+ * In the software-emulated micro-VM a Python bytecode costs many times its native time while a
  * system call costs far less, so the Python wrapper and loop around each recv() (eight a cycle)
  * made up a large share of a lockstep cycle. Here a cycle's frames go out in one call, and the
  * due TPDOs of the usual length are received and decoded in one call; any other frame goes back
@@ -294,7 +294,7 @@ static int64_t arrival_ns(int64_t kernel_ns) {
         return monotonic_ns();
     }
     if (kernel_ns - offset_read_at_ns > OFFSET_REFRESH_NS || kernel_ns < offset_read_at_ns) {
-        /* Between two monotonic reads: a read costs ~30 us in the VM, which would skew it. */
+        /* Between two monotonic reads: a read is slow in the VM, which would skew it. */
         struct timespec real;
         int64_t before = monotonic_ns();
         clock_gettime(CLOCK_REALTIME, &real);
@@ -317,9 +317,8 @@ static const int64_t kLookStepNs = 20000; /* 20 us: what a look that paid grows 
  *
  * Why look before sleeping: a cycle's TPDOs come some microseconds apart, and the exchange takes
  * each in far less. Blocking between them puts the rig's CPU to sleep and has the next frame
- * wake it, which in the software-emulated VM costs more than the whole frame (measured: the
- * exchange alone ran at 1500-1700 cycles/s blocking at once, against 2450-2860 for a Python
- * loop that was slow enough to find each frame queued).
+ * wake it, which in the software-emulated VM costs more than the whole frame (`make bench`'s
+ * exchange-alone row shows what looking is worth).
  *
  * Why adapt: looking burns the CPU the node (and, on a shared machine, everything else) may need
  * when the node is slow to answer. So the look time halves each time a look finds nothing, and

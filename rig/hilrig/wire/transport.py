@@ -57,7 +57,7 @@ the kernel then drops frames without a word."""
 LOOK_BEFORE_SLEEP_S = 0.0005
 """The longest a cycle's exchange on a raw socket looks for the next due TPDO before it sleeps in
 the kernel (`hilrig.wire._wire`; less, down to not at all, while looking does not pay on that socket):
-longer than a node's turnaround in the emulated VM (SYNC to its last TPDO: ~0.1 ms measured), so
+longer than a node's turnaround in the emulated VM (SYNC to its last TPDO), so
 the rig's CPU is not put to sleep and woken between one TPDO and the next, which costs more there
 than taking the frame."""
 SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
