@@ -22,7 +22,7 @@ from canopen.pdo import PdoVariable
 from canopen.sdo import SdoAbortedError
 
 from boardproto import Field
-from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState, SdoAbortCode, heartbeat_cob_id
+from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState, SdoAbortCode, due_at_sync, heartbeat_cob_id
 from hilrig.engine.driver import ProcessActivity, thread_activity
 from hilrig.table import LedPattern, RigTable
 from hilrig.wire.node import RECEIVE_POLL_S
@@ -152,8 +152,7 @@ class FakeJointNode:
         self.last_inputs = inputs
         outputs = dict(self.law(inputs))
         for number, pdo_map in self.local.tpdo.map.items():
-            n = pdo_map.trans_type or 0
-            if not pdo_map.enabled or not 1 <= n <= 240 or sync_number % n:
+            if not pdo_map.enabled or not due_at_sync(pdo_map.trans_type or 0, sync_number):
                 continue
             if self.drop(sync_number, number):
                 continue
