@@ -21,12 +21,12 @@ import pytest
 from tool_loader import load_tool
 
 shards = load_tool("scenario_shards")
-SPLITS = [2, 3, 4, 6]
-# Real --splits/--group collections that must match the plan: both lockstep shards of two, and all
-# six real-time shards of six (fewer real-time scenarios: a shard gets none, pytest's exit 5).
-CROSS_CHECKS = [("lockstep", shards.Shard(k, 2)) for k in (1, 2)] + [
-    ("realtime", shards.Shard(k, 6)) for k in (1, 2, 3, 4, 5, 6)
-]
+# Real --splits/--group collections that must match the plan: the second lockstep shard of two,
+# and of six real-time shards (fewer real-time scenarios than that: a shard gets none, pytest's
+# exit 5) the first the plan leaves empty and the first it does not.
+LOCKSTEP_CROSS_CHECK = shards.Shard(2, 2)
+REALTIME_SPLITS = 6
+SPLITS = [2, 3, 4, REALTIME_SPLITS]
 
 
 @pytest.fixture(scope="session")
@@ -46,7 +46,7 @@ def durations_missing_some(tmp_path_factory: pytest.TempPathFactory) -> tuple[Pa
 def collected(
     durations_missing_some: tuple[Path, list[str]], tmp_path_factory: pytest.TempPathFactory
 ) -> dict[object, shards.Collected]:
-    """Every collection the tests compare (a dozen pytest start-ups), made once in a run: under
+    """Every collection the tests compare (some ten pytest start-ups), made once in a run: under
     pytest-xdist the first worker to ask makes them and the others read its result (their
     tests of this module land on both; xdist_group does not hold them together here)."""
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
@@ -70,13 +70,27 @@ def _collect_all(durations_missing_some: tuple[Path, list[str]]) -> dict[object,
         for variant, durations in (("recorded", shards.DURATIONS), ("missing", without_some)):
             args = shards.selection_args(selection) + shards.split_options(durations)
             jobs[("plan", variant, selection)] = (args, SPLITS)
-    for selection, shard in CROSS_CHECKS:
-        jobs[("shard", selection, str(shard))] = (shards.selection_args(selection, shard), None)
+    jobs[("shard", "lockstep", str(LOCKSTEP_CROSS_CHECK))] = (
+        shards.selection_args("lockstep", LOCKSTEP_CROSS_CHECK),
+        None,
+    )
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
         futures: dict[object, Future[shards.Collected]] = {
             key: pool.submit(shards.collect, args, splits) for key, (args, splits) in jobs.items()
         }
-        return {key: future.result() for key, future in futures.items()}
+        collected = {key: future.result() for key, future in futures.items()}
+        groups = collected[("plan", "recorded", "realtime")].groups[REALTIME_SPLITS]
+        empty = next((k for k, group in enumerate(groups, 1) if not group), None)
+        full = next(k for k, group in enumerate(groups, 1) if group)
+        checks = [shards.Shard(k, REALTIME_SPLITS) for k in (empty, full) if k is not None]
+        more = {
+            ("shard", "realtime", str(shard)): pool.submit(
+                shards.collect, shards.selection_args("realtime", shard), None
+            )
+            for shard in checks
+        }
+        collected.update({key: future.result() for key, future in more.items()})
+        return collected
 
 
 def test_the_selections_run_tests_makes_cover_the_suite_once(
@@ -113,13 +127,16 @@ def test_every_scenario_runs_in_exactly_one_shard(
 
 
 def test_the_shards_select_what_the_plan_says(collected: dict[object, shards.Collected]) -> None:
-    for selection, shard in CROSS_CHECKS:
-        selected = collected[("shard", selection, str(shard))].selected
+    checked = [key for key in collected if isinstance(key, tuple) and key[0] == "shard"]
+    assert len(checked) == 3, f"a lockstep shard, an empty and a full real-time shard: {checked}"
+    for _, selection, text in checked:
+        shard = shards.parse_shard(text)
+        selected = collected[("shard", selection, text)].selected
         planned = collected[("plan", "recorded", selection)].groups[shard.count][shard.index - 1]
         assert selected == planned, f"{selection} shard {shard}"
-    # The case run-tests must skip rather than run into pytest's exit 5 (more shards than the
-    # five real-time scenarios).
-    assert any(not collected[("shard", "realtime", f"{k}/6")].selected for k in (1, 2, 3, 4, 5, 6))
+    # The case run-tests must skip rather than run into pytest's exit 5 (more shards than
+    # real-time scenarios).
+    assert any(not collected[key].selected for key in checked if key[1] == "realtime")
 
 
 @pytest.mark.parametrize("text", ["1/1", "1/2", "2/2", "5/5", "12/40"])
