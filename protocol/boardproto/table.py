@@ -406,6 +406,8 @@ class NodeIdentity:
     heartbeat_ms: int
     error_history_length: int
     heartbeat_consumers: int
+    bitrate: int
+    """The bus's bit rate [bit/s]: what a lockstep run's timed bus carries (`hilrig.wire.bustime`)."""
 
 
 class PdoDirection(enum.StrEnum):
