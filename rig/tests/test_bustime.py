@@ -26,36 +26,44 @@ def frames(cycle: int, *spec: tuple[int, int]) -> list[BusFrame]:
     return [BusFrame(cob_id, dlc, cycle) for cob_id, dlc in spec]
 
 
+# The demo node's identifiers, lowest (highest priority) first: SYNC, TPDO1, RPDO1, TPDO2, ...
+SYNC = SYNC_COB_ID
+T1, T2, T3, T4, T8 = (BOARD_TABLE.tpdo(n).cob_id(NODE_ID) for n in (1, 2, 3, 4, 8))
+R1, R2 = (BOARD_TABLE.rpdo(n).cob_id(NODE_ID) for n in (1, 2))
+EIGHT_BYTES = frame_bits_worst_case(8)
+
+
 def test_a_cycle_that_fits_carries_every_frame_in_arbitration_order() -> None:
     bus = TimedBus(1_000_000, 1000)  # 1000 bits per cycle
-    w = bus.window(0, frames(0, (0x290, 8), (0x80, 1), (0x190, 5)))
-    assert [f.cob_id for f in w.delivered] == [0x80, 0x190, 0x290]
+    w = bus.window(0, frames(0, (T2, 8), (SYNC, 1), (T1, 5)))
+    assert [f.cob_id for f in w.delivered] == [SYNC, T1, T2]
     assert w.backlog == () and not w.late()
-    assert w.busy_bits == frame_bits_worst_case(1) + frame_bits_worst_case(5) + frame_bits_worst_case(8)
+    assert w.busy_bits == frame_bits_worst_case(1) + frame_bits_worst_case(5) + EIGHT_BYTES
 
 
 def test_what_does_not_start_in_time_waits_and_goes_first_by_its_identifier() -> None:
     bus = TimedBus(500_000, 1000)  # 500 bits: three 8-byte frames (405 bits) and a fourth starts
-    eight = [(0x190, 8), (0x290, 8), (0x390, 8), (0x490, 8), (0x4D0, 8)]
+    eight = [(T1, 8), (T2, 8), (T3, 8), (T4, 8), (T8, 8)]
     w0 = bus.window(0, frames(0, *eight))
-    assert [f.cob_id for f in w0.delivered] == [0x190, 0x290, 0x390, 0x490]  # 0x490 starts at 405
-    assert [f.cob_id for f in w0.backlog] == [0x4D0]
-    assert w0.load == 1.0 and bus.overhang == 4 * 135 - 500
+    assert [f.cob_id for f in w0.delivered] == [T1, T2, T3, T4]  # T4 starts at 405
+    assert [f.cob_id for f in w0.backlog] == [T8]
+    assert w0.load == 1.0 and bus.overhang == 4 * EIGHT_BYTES - 500
     w1 = bus.window(1, frames(1, *eight))
-    # 0x4D0 of cycle 0 waits behind cycle 1's lower identifiers: after the 40-bit overhang,
-    # 0x490 starts at 445 again, and 0x4D0 starves.
-    assert [(f.cob_id, f.origin) for f in w1.delivered] == [(0x190, 1), (0x290, 1), (0x390, 1), (0x490, 1)]
-    assert [(f.cob_id, f.origin) for f in w1.backlog] == [(0x4D0, 1)]
-    assert [(f.cob_id, f.origin) for f in w1.replaced] == [(0x4D0, 0)], "the newer replaced it"
+    # T8 of cycle 0 waits behind cycle 1's lower identifiers: after the 40-bit overhang, T4
+    # starts at 445 again, and T8 starves.
+    assert [(f.cob_id, f.origin) for f in w1.delivered] == [(T1, 1), (T2, 1), (T3, 1), (T4, 1)]
+    assert [(f.cob_id, f.origin) for f in w1.backlog] == [(T8, 1)]
+    assert [(f.cob_id, f.origin) for f in w1.replaced] == [(T8, 0)], "the newer replaced it"
 
 
 def test_a_frame_late_by_a_cycle_says_so() -> None:
     bus = TimedBus(1_000_000, 1000)
-    bus.window(0, frames(0, *[(0x100 + i, 8) for i in range(9)]))  # the 9th starts at 1080
-    w = bus.window(1, frames(1, (0x200, 8)))
-    assert [(f.cob_id, f.origin) for f in w.delivered] == [(0x108, 0), (0x200, 1)]
-    assert [(f.cob_id, late) for f, late in w.late()] == [(0x108, 1)]
-    assert bus.window(2, frames(2, (0x108, 8))).late() == []
+    ids = [T1 + i for i in range(9)]
+    bus.window(0, frames(0, *[(i, 8) for i in ids]))  # the 9th starts at 8 * 135 = 1080
+    w = bus.window(1, frames(1, (T2, 8)))
+    assert [(f.cob_id, f.origin) for f in w.delivered] == [(ids[-1], 0), (T2, 1)]
+    assert [(f.cob_id, late) for f, late in w.late()] == [(ids[-1], 1)]
+    assert bus.window(2, frames(2, (ids[-1], 8))).late() == []
 
 
 def test_the_same_frames_give_the_same_schedule() -> None:
@@ -63,7 +71,7 @@ def test_the_same_frames_give_the_same_schedule() -> None:
         bus = TimedBus(250_000, 1000)
         out = []
         for n in range(20):
-            w = bus.window(n, frames(n, (0x80, 1), (0x190, 5), (0x210, 8), (0x290, 8), (0x310, 8)))
+            w = bus.window(n, frames(n, (SYNC, 1), (T1, 5), (R1, 8), (T2, 8), (R2, 8)))
             out += [(n, f.cob_id, f.origin) for f in w.delivered]
         return out
 
@@ -72,13 +80,13 @@ def test_the_same_frames_give_the_same_schedule() -> None:
 
 def test_all_fit_is_the_steady_cycle_shortcut() -> None:
     bus = TimedBus(1_000_000, 1000)
-    assert bus.all_fit(((0x80, 1), (0x190, 5), (0x210, 8)))
-    assert not bus.all_fit(tuple((0x100 + i, 8) for i in range(8)))
-    assert not bus.all_fit(((0x190, 5), (0x190, 5)))  # one identifier twice: one of them waits
+    assert bus.all_fit(((SYNC, 1), (T1, 5), (R1, 8)))
+    assert not bus.all_fit(tuple((T1 + i, 8) for i in range(8)))
+    assert not bus.all_fit(((T1, 5), (T1, 5)))  # one identifier twice: one of them waits
 
 
 def test_needed_bitrate_is_the_lowest_that_carries_every_cycle() -> None:
-    cycle = [(0x80, 1), *[(0x180 + i, 8) for i in range(1, 6)]]  # 65 + 5 * 135 = 740 bits
+    cycle = [(SYNC, 1), *[(T1 + i, 8) for i in range(5)]]  # 65 + 5 * 135 = 740 bits
     needed, late = needed_bitrate([cycle] * 5, 1000)
     assert needed == 1_000_000 and late[1_000_000] == 0
     assert late[125_000] > late[250_000] > late[500_000] > 0

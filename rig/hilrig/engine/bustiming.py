@@ -58,6 +58,8 @@ class BusTimeline:
     late: list[LateFrame] = field(default_factory=list)
     replaced: dict[int, int] = field(default_factory=dict)
     """COB-ID -> frames of it never sent: a newer one came while they waited."""
+    waiting: tuple[int, ...] = ()
+    """COB-IDs of the frames waiting after the last cycle, in arbitration order."""
 
     def late_of(self, cob_id: int) -> list[LateFrame]:
         return [f for f in self.late if f.cob_id == cob_id]
@@ -84,9 +86,11 @@ class BusTimeline:
             f"0x{cob_id:03X} x {len(lates)} (up to {max(lates)} cycles)" for cob_id, lates in worst
         )
         lost = ", ".join(f"0x{cob_id:03X} x {count}" for cob_id, count in sorted(self.replaced.items()))
+        waiting = ", ".join(f"0x{cob_id:03X}" for cob_id in self.waiting) or "none"
         return (
             f"{text}; {len(self.late)} frames late{': ' + parts if parts else ''}; never sent (a newer "
-            f"one came first): {lost or 'none'}; backlog up to {self.peak_backlog} frames"
+            f"one came first): {lost or 'none'}; backlog up to {self.peak_backlog} frames, waiting "
+            f"at the end: {waiting}"
         )
 
 
@@ -124,6 +128,7 @@ class BusTiming:
         self._late_tpdos.clear()
         self._delivered_tpdos.clear()
         if bus.all_fit(key):  # nothing waiting, and all of it fits: the ideal bus's cycle
+            timeline.waiting = ()
             timeline.cycles.append(n)
             timeline.load.append(sum(BusFrame(c, d, n).bits for c, d in key) / bus.window_bits)
             timeline.backlog_frames.append(0)
@@ -158,6 +163,7 @@ class BusTiming:
         timeline.load.append(window.load)
         timeline.backlog_frames.append(len(window.backlog))
         timeline.backlog_bits.append(window.backlog_bits)
+        timeline.waiting = tuple(f.cob_id for f in window.backlog)
         return tuple(out_rows), b"".join(out_frames)
 
     @property
