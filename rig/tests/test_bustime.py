@@ -15,7 +15,7 @@ from hilrig.engine.rig import Rig
 from hilrig.plants import JointParams
 from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import BOARD_TABLE, RigTable
-from hilrig.wire.bustime import BusFrame, TimedBus, needed_bitrate
+from hilrig.wire.bustime import WORST_CASE_BITS, BusFrame, TimedBus, needed_bitrate
 from hilrig.wire.framebits import frame_bits_worst_case
 
 NODE_ID = BOARD_TABLE.node.default_node_id
@@ -78,11 +78,15 @@ def test_the_same_frames_give_the_same_schedule() -> None:
     assert run() == run()
 
 
-def test_all_fit_is_the_steady_cycle_shortcut() -> None:
+def test_a_cycle_that_fits_with_nothing_waiting_is_the_steady_shortcut() -> None:
     bus = TimedBus(1_000_000, 1000)
-    assert bus.all_fit(((SYNC, 1), (T1, 5), (R1, 8)))
-    assert not bus.all_fit(tuple((T1 + i, 8) for i in range(8)))
-    assert not bus.all_fit(((T1, 5), (T1, 5)))  # one identifier twice: one of them waits
+    assert bus.bits_if_all_fit(((SYNC, 1), (T1, 5), (R1, 8))) == sum(WORST_CASE_BITS[n] for n in (1, 5, 8))
+    assert bus.bits_if_all_fit(tuple((T1 + i, 8) for i in range(8))) is None
+    assert bus.bits_if_all_fit(((T1, 5), (T1, 5))) is None  # one identifier twice: one of them waits
+    assert bus.fits_cached("steady", lambda: [(SYNC, 1)]) == WORST_CASE_BITS[1]
+    assert bus.fits_cached("steady", lambda: []) == WORST_CASE_BITS[1], "remembered by its shape"
+    bus.window(0, frames(0, *[(T1 + i, 8) for i in range(9)]))  # one waits now
+    assert bus.fits_cached("steady", lambda: [(SYNC, 1)]) is None
 
 
 def test_needed_bitrate_is_the_lowest_that_carries_every_cycle() -> None:

@@ -51,15 +51,19 @@ class BusTimeline:
     """Per cycle of a run on the timed bus: the bus's load (0..1) and the frames waiting after
     it; and every frame that was delivered late."""
 
-    cycles: array = field(default_factory=lambda: array("q"))
+    first_cycle: int = 0
+    """The cycle of `load[0]` and `backlog_frames[0]`: one entry per cycle from there on."""
     load: array = field(default_factory=lambda: array("d"))
     backlog_frames: array = field(default_factory=lambda: array("q"))
-    backlog_bits: array = field(default_factory=lambda: array("q"))
     late: list[LateFrame] = field(default_factory=list)
     replaced: dict[int, int] = field(default_factory=dict)
     """COB-ID -> frames of it never sent: a newer one came while they waited."""
     waiting: tuple[int, ...] = ()
     """COB-IDs of the frames waiting after the last cycle, in arbitration order."""
+
+    def cycles(self) -> range:
+        """The cycles `load` and `backlog_frames` are of."""
+        return range(self.first_cycle, self.first_cycle + len(self.load))
 
     def late_of(self, cob_id: int) -> list[LateFrame]:
         return [f for f in self.late if f.cob_id == cob_id]
@@ -100,10 +104,15 @@ class BusTiming:
     cycles (0: none)."""
 
     def __init__(
-        self, bus: TimedBus, tpdos: dict[int, PdoLayout], node_id: int, heartbeat_every: int = 0
+        self,
+        bus: TimedBus,
+        tpdos: dict[int, PdoLayout],
+        node_id: int,
+        heartbeat_every: int = 0,
+        first_cycle: int = 0,
     ) -> None:
         self.bus = bus
-        self.timeline = BusTimeline()
+        self.timeline = BusTimeline(first_cycle)
         self._tpdos = tpdos
         self._heartbeat = heartbeat_cob_id(node_id)
         self._heartbeat_every = heartbeat_every
@@ -116,23 +125,24 @@ class BusTiming:
         """Cycle `n`'s time on the bus: the RPDO rows and frames (joined) to send to the node
         now: the ones of `sent`/`frames` that fit, and earlier ones whose turn came."""
         bus = self.bus
-        heartbeat = self._heartbeat_every and n % self._heartbeat_every == 0
-        key = (
-            *((cob_id, self._tpdos[cob_id].length) for cob_id in due),
-            *((CAN_HEADER.unpack_from(frames, at)) for at in range(0, len(frames), CAN_FRAME_SIZE)),
-            (SYNC_COB_ID, _SYNC_DLC),
-        )
-        if heartbeat:
-            key = (*key, (self._heartbeat, _HEARTBEAT_DLC))
+        heartbeat = bool(self._heartbeat_every) and n % self._heartbeat_every == 0
         timeline = self.timeline
         self._late_tpdos.clear()
         self._delivered_tpdos.clear()
-        if bus.all_fit(key):  # nothing waiting, and all of it fits: the ideal bus's cycle
+        # The cycle's shape: its due TPDOs, whether a heartbeat falls in it, and its RPDOs'
+        # headers (identifier bytes and data length of each 16-byte frame).
+        shape = (
+            due,
+            heartbeat,
+            frames[0::CAN_FRAME_SIZE],
+            frames[1::CAN_FRAME_SIZE],
+            frames[4::CAN_FRAME_SIZE],
+        )
+        bits = bus.fits_cached(shape, lambda: self._frames_of(due, heartbeat, frames))
+        if bits is not None:  # nothing waiting, and all of it fits: the ideal bus's cycle
             timeline.waiting = ()
-            timeline.cycles.append(n)
-            timeline.load.append(sum(BusFrame(c, d, n).bits for c, d in key) / bus.window_bits)
+            timeline.load.append(bits / bus.window_bits)
             timeline.backlog_frames.append(0)
-            timeline.backlog_bits.append(0)
             return sent, frames
         queued = [BusFrame(SYNC_COB_ID, _SYNC_DLC, n)]
         for i, at in enumerate(range(0, len(frames), CAN_FRAME_SIZE)):
@@ -159,12 +169,19 @@ class BusTiming:
             if frame.origin == n and frame.payload is _TPDO:
                 self._late_tpdos[frame.cob_id] = frame
         # The SYNC is always sent (highest priority); a backlog's SYNC is only its bus time.
-        timeline.cycles.append(n)
         timeline.load.append(window.load)
         timeline.backlog_frames.append(len(window.backlog))
-        timeline.backlog_bits.append(window.backlog_bits)
         timeline.waiting = tuple(f.cob_id for f in window.backlog)
         return tuple(out_rows), b"".join(out_frames)
+
+    def _frames_of(self, due: frozenset[int], heartbeat: bool, frames: bytes) -> list[tuple[int, int]]:
+        """(COB-ID, data length) of every frame of a cycle (`plan`)."""
+        pairs = [(SYNC_COB_ID, _SYNC_DLC)]
+        pairs += [(cob_id, self._tpdos[cob_id].length) for cob_id in due]
+        pairs += [CAN_HEADER.unpack_from(frames, at) for at in range(0, len(frames), CAN_FRAME_SIZE)]
+        if heartbeat:
+            pairs.append((self._heartbeat, _HEARTBEAT_DLC))
+        return pairs
 
     @property
     def waiting(self) -> bool:

@@ -184,7 +184,9 @@ class LockstepDriver(Driver):
         TPDOs it times. `heartbeat_every`: the node's heartbeat producer time in cycles."""
         before = self.bus_timing
         self.bus_timing = (
-            None if bus is None else BusTiming(bus, self._tpdo_by_cob, self.node.node_id, heartbeat_every)
+            None
+            if bus is None
+            else BusTiming(bus, self._tpdo_by_cob, self.node.node_id, heartbeat_every, self.cycle)
         )
         if before is not None and self.bus_timing is not None:  # a reconfigured node: one timeline
             self.bus_timing.timeline = before.timeline

@@ -30,33 +30,39 @@ No randomness: the same frames give the same schedule, every run.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
-from hilrig.wire.framebits import frame_bits_worst_case
+from hilrig.wire.framebits import MAX_DATA_BYTES, frame_bits_worst_case
 
-STANDARD_BITRATES = (125_000, 250_000, 500_000, 1_000_000)
-"""The bit rates CiA 301 devices commonly support (the EDS's baud rates): what a robot's
+STANDARD_BITRATES: tuple[int, ...] = (125_000, 250_000, 500_000, 1_000_000)
+"""Classic CAN bit rates in bit/s: what `hilrig bus-load` reports by default and what a robot's
 "which bit rate does it need" answer chooses from."""
 IDEAL = "ideal"
 """The option's spelling for no bit rate: every frame in its cycle (the virtual bus as it is)."""
 
 
-@dataclass(slots=True)
+WORST_CASE_BITS = tuple(frame_bits_worst_case(dlc) for dlc in range(MAX_DATA_BYTES + 1))
+"""A classic frame's worst-case bits by its data length (`framebits`), looked up per frame."""
+
+
 class BusFrame:
     """One frame for the timed bus: its identifier, data length, the cycle it was queued in and
     what the caller needs to deliver it (`payload`, anything; filled in later for a TPDO whose
     data comes after the schedule)."""
 
-    cob_id: int
-    dlc: int
-    origin: int
-    payload: Any = None
-    bits: int = field(init=False)
+    __slots__ = ("bits", "cob_id", "dlc", "origin", "payload")
 
-    def __post_init__(self) -> None:
-        self.bits = frame_bits_worst_case(self.dlc)
+    def __init__(self, cob_id: int, dlc: int, origin: int, payload: Any = None) -> None:
+        self.cob_id = cob_id
+        self.dlc = dlc
+        self.origin = origin
+        self.payload = payload
+        self.bits = WORST_CASE_BITS[dlc]
+
+    def __repr__(self) -> str:
+        return f"BusFrame(0x{self.cob_id:03X}, {self.dlc}, cycle {self.origin})"
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,7 +108,7 @@ class TimedBus:
         self.backlog: list[BusFrame] = []
         self.overhang = 0.0
         """Bits of the last frame of the cycle before that ran into this cycle's time."""
-        self._fits: dict[tuple[tuple[int, int], ...], bool] = {}
+        self._fits: dict[object, int | None] = {}
 
     def window(self, cycle: int, frames: Iterable[BusFrame]) -> BusWindow:
         """Cycle `cycle`'s time on the bus: the backlog and `frames` (this cycle's) in arbitration
@@ -110,14 +116,15 @@ class TimedBus:
         queue = self.backlog
         lost: list[BusFrame] = []
         if queue:
-            waiting_by_id = {f.cob_id: f for f in queue}
+            waiting = {f.cob_id: f for f in queue}
             for frame in frames:
-                older = waiting_by_id.pop(frame.cob_id, None)
+                older = waiting.pop(frame.cob_id, None)
                 if older is not None:
                     lost.append(older)
                 queue.append(frame)
             if lost:
-                queue = [f for f in queue if all(f is not old for old in lost)]
+                gone = {id(f) for f in lost}
+                queue = [f for f in queue if id(f) not in gone]
         else:
             queue.extend(frames)
         queue.sort(key=_arbitration)
@@ -139,18 +146,28 @@ class TimedBus:
             cycle, tuple(delivered), tuple(waiting), min(t, window_bits), window_bits, tuple(lost)
         )
 
-    def all_fit(self, key: tuple[tuple[int, int], ...]) -> bool:
-        """Whether frames of these (COB-ID, data length) fit one cycle with nothing waiting: the
-        cycle's schedule is then all of them in their own cycle, whatever their order (what a
-        driver checks before it builds the frames of a steady cycle; remembered per key)."""
+    def bits_if_all_fit(self, frames: Iterable[tuple[int, int]]) -> int | None:
+        """The bits of frames of these (COB-ID, data length) when they all fit one cycle with
+        nothing waiting (the cycle's schedule is then all of them in their own cycle, whatever
+        their order); else None. What a driver checks before it builds a steady cycle's frames
+        (`fits_cached` remembers the answer per cycle shape)."""
         if self.backlog or self.overhang:
-            return False
-        fits = self._fits.get(key)
-        if fits is None:
-            ids = [cob_id for cob_id, _ in key]
-            total = sum(frame_bits_worst_case(dlc) for _, dlc in key)
-            fits = self._fits[key] = len(set(ids)) == len(ids) and total <= self.window_bits
-        return fits
+            return None
+        pairs = list(frames)
+        ids = {cob_id for cob_id, _ in pairs}
+        total = sum(WORST_CASE_BITS[dlc] for _, dlc in pairs)
+        return total if len(ids) == len(pairs) and total <= self.window_bits else None
+
+    def fits_cached(self, shape: object, frames: Callable[[], Iterable[tuple[int, int]]]) -> int | None:
+        """`bits_if_all_fit(frames())`, remembered per `shape` (anything hashable that tells the
+        cycle's frames apart: the due TPDOs, the RPDOs' headers): a steady cycle costs a lookup."""
+        if self.backlog or self.overhang:
+            return None
+        try:
+            return self._fits[shape]
+        except KeyError:
+            bits = self._fits[shape] = self.bits_if_all_fit(frames())
+            return bits
 
 
 def _arbitration(frame: BusFrame) -> tuple[int, int]:
@@ -177,6 +194,7 @@ def needed_bitrate(
 __all__ = [
     "IDEAL",
     "STANDARD_BITRATES",
+    "WORST_CASE_BITS",
     "BusFrame",
     "BusWindow",
     "TimedBus",
