@@ -30,6 +30,7 @@ from bench_common import (
     say,
     write_json_atomically,
 )
+from bench_cycles import cycle_budget_rows
 from bench_native import TRACE_PROBE_CYCLES, cycle_costs, rig_probe_per_cycle
 from bench_size import size_rows
 
@@ -506,6 +507,7 @@ SECTION_TITLES = {
     "sdo": "SDO upload median (firmware vs LocalNode)",
     "board_bench": "board get/set and cycle (fw_board_bench)",
     "cortex_m_size": "Cortex-M4F firmware image: flash and RAM vs budget",
+    "cortex_m_cycles": "Cortex-M4F worst control cycle vs its budget",
     "callgrind": "instructions/cycle (callgrind)",
     "rig_probe": "the Rig's own lockstep cycle (tools/rig_probe.py)",
     "baseline": "the engine's instructions/cycle, this checkout vs a baseline commit",
@@ -534,6 +536,7 @@ def build_report(
         "sdo": lambda: _sdo_rows(rows, bus),
         "board_bench": lambda: _board_bench_rows(rows, native, not_measured),
         "cortex_m_size": lambda: size_rows(rows, native["cortex_m_size"]),
+        "cortex_m_cycles": lambda: cycle_budget_rows(rows, native["cortex_m_cycles"]),
         "callgrind": lambda: _instruction_rows(rows, native, not_measured),
         "rig_probe": lambda: _rig_probe_rows(rows, native.get("rig_probe"), not_measured),
         "baseline": lambda: baseline_rows(
@@ -624,7 +627,7 @@ def format_errors(rows: Sequence[dict[str, Any]]) -> list[str]:
     return lines
 
 
-NATIVE_SECTIONS = ("board_bench", "cortex_m_size", "callgrind", "rig_probe", "baseline")
+NATIVE_SECTIONS = ("board_bench", "cortex_m_size", "cortex_m_cycles", "callgrind", "rig_probe", "baseline")
 
 
 def _read_part(path: Path, step: str, sections: Sequence[str]) -> tuple[dict[str, Any], bool]:

@@ -55,6 +55,8 @@ class BusTimeline:
     """The cycle of `load[0]` and `backlog_frames[0]`: one entry per cycle from there on."""
     load: array = field(default_factory=lambda: array("d"))
     backlog_frames: array = field(default_factory=lambda: array("q"))
+    late_frames: array = field(default_factory=lambda: array("q"))
+    """Per cycle: frames of earlier cycles it delivered."""
     late: list[LateFrame] = field(default_factory=list)
     replaced: dict[int, int] = field(default_factory=dict)
     """COB-ID -> frames of it never sent: a newer one came while they waited."""
@@ -143,6 +145,7 @@ class BusTiming:
             timeline.waiting = ()
             timeline.load.append(bits / bus.window_bits)
             timeline.backlog_frames.append(0)
+            timeline.late_frames.append(0)
             return sent, frames
         queued = [BusFrame(SYNC_COB_ID, _SYNC_DLC, n)]
         for i, at in enumerate(range(0, len(frames), CAN_FRAME_SIZE)):
@@ -171,6 +174,7 @@ class BusTiming:
         # The SYNC is always sent (highest priority); a backlog's SYNC is only its bus time.
         timeline.load.append(window.load)
         timeline.backlog_frames.append(len(window.backlog))
+        timeline.late_frames.append(sum(1 for f in window.delivered if f.origin < n))
         timeline.waiting = tuple(f.cob_id for f in window.backlog)
         return tuple(out_rows), b"".join(out_frames)
 

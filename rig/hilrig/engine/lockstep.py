@@ -190,6 +190,7 @@ class LockstepDriver(Driver):
         )
         if before is not None and self.bus_timing is not None:  # a reconfigured node: one timeline
             self.bus_timing.timeline = before.timeline
+        self.history.bus_timeline = None if self.bus_timing is None else self.bus_timing.timeline
 
     def step(self) -> CycleResult:
         n, state, raw, due, sync_number, sent, frames = self._sample()
