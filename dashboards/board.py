@@ -32,6 +32,9 @@ from hilrig.observe.paths import (
     BUS_FRAMES_ROOT,
     BUS_LOAD_PATH,
     BUS_ROOT,
+    TIMED_BACKLOG_PATH,
+    TIMED_LATE_PATH,
+    TIMED_LOAD_PATH,
     TRUTH_ROOT,
     BusProblem,
     EntryTable,
@@ -140,6 +143,8 @@ def bus_views() -> list[rrb.View]:
     """What the bus carried: its load, each TPDO's delay, the problems counted, frames per cycle."""
     return [
         plot("bus load per 10 ms [% of the bit rate]", [BUS_LOAD_PATH]),
+        plot("timed bus load per cycle [% of its bit rate, at most 100]", [TIMED_LOAD_PATH]),
+        plot("timed bus: frames waiting, frames delivered late", [TIMED_BACKLOG_PATH, TIMED_LATE_PATH]),
         plot("each TPDO's delay after its SYNC [ms]", origin=BUS_DELAY_ROOT),
         plot(
             "late, missing, malformed TPDOs and error frames [count so far]",

@@ -29,6 +29,9 @@ from hilrig.observe.paths import (
     NMT_PATH,
     SDO_PATH,
     SIM_TIME_TIMELINE,
+    TIMED_BACKLOG_PATH,
+    TIMED_LATE_PATH,
+    TIMED_LOAD_PATH,
     TRUE_SPRING_STIFFNESS,
     BusProblem,
     EntryTable,
@@ -151,6 +154,15 @@ def faults(table: EntryTable) -> rrb.Blueprint:
     ), timeline=CYCLE_TIMELINE)
 
 
+def timed_bus_views() -> list[rrb.View]:
+    """A run on the timed bus (`hilrig.engine.bustiming`): its real load per cycle (at most 100 %)
+    and the frames it made wait; empty on the ideal bus."""
+    return [
+        plot("timed bus load per cycle [% of its bit rate, at most 100]", [TIMED_LOAD_PATH]),
+        plot("timed bus: frames waiting, frames delivered late", [TIMED_BACKLOG_PATH, TIMED_LATE_PATH]),
+    ]
+
+
 def bus(table: EntryTable) -> rrb.Blueprint:
     """What the bus carried, measured (`hilrig.observe.busmeter`): its load per 10 ms window in %
     of the bit rate, each TPDO's delay after its SYNC, the TPDOs late, missing or malformed and
@@ -160,6 +172,7 @@ def bus(table: EntryTable) -> rrb.Blueprint:
         rrb.Horizontal(
             plot("bus load per 10 ms [% of the bit rate, worst-case bit stuffing]", [BUS_LOAD_PATH]),
             plot("each TPDO's delay after its SYNC [ms]", origin=BUS_DELAY_ROOT),
+            *timed_bus_views(),
         ),
         rrb.Horizontal(
             plot("late, missing, malformed TPDOs and error frames [count so far]",

@@ -71,7 +71,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from bench_baseline import DEFAULT_BASELINE
-from bench_bus import LOCKSTEP_ROUNDS, bus_main
+from bench_bus import BUS_MEASUREMENTS, LOCKSTEP_ROUNDS, bus_main
 from bench_bus_measure import serve_local_node_main
 from bench_common import LONG_TRACE_CYCLES, ROOT
 from bench_native import native_main
@@ -116,6 +116,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                 type=int,
                 default=LONG_TRACE_CYCLES,
                 help="cycles of the traced run whose trace the report opens in the web viewer (0: none)",
+            )
+            command.add_argument(
+                "--only",
+                action="append",
+                choices=BUS_MEASUREMENTS,
+                metavar="NAME",
+                help="measure only this (repeatable): " + ", ".join(BUS_MEASUREMENTS) + " (default: all)",
             )
             command.add_argument(
                 "--budget-s",

@@ -9,12 +9,15 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from bench_bus_measure import BusBench
 from bench_common import NotMeasured, machine, ratio_of, say, write_json_atomically
 
+BUS_MEASUREMENTS = ("lockstep", "timed_bus", "robot", "long_trace", "sdo", "recorder_upload", "free_running")
+"""What `tools/bench.py bus` measures, in order (`--only NAME` picks some)."""
 ROBOT_SIZES = (1, 4, 8, 16)
 """Robots measured side by side: how the cost of a lockstep cycle grows with the modules."""
 
@@ -38,7 +41,6 @@ def rig_pair_orders(round_: int) -> list[tuple[str, str]]:
     the host's drift."""
     pairs = [("rig", "rig_traced"), ("rig_traced", "rig")] * (RIG_PAIRS_PER_ROUND // 2)
     return pairs if round_ % 2 else pairs[::-1]
-
 
 
 def _lockstep_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
@@ -90,6 +92,43 @@ def _lockstep_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
             "out": len(rpdos) + 1,
             "in": sum(1 / p.transmission_type for p in tpdos),
         },
+    }
+
+
+TIMED_BUS_RATES = {"ideal": None, "timed_carried": 2_000_000, "timed_overloaded": 1_000_000}
+"""The Rig's lockstep cycle on the ideal bus and on the timed bus (`hilrig.engine.bustiming`):
+at a bit rate that carries the default mapping's every frame at 1 kHz (2 Mbit/s: the steady
+cycle's shortcut, what a mapping that fits costs) and at 1 Mbit/s, which it overloads (every
+cycle scheduled frame by frame, frames waiting)."""
+TIMED_BUS_ROUNDS = 4
+
+
+def _timed_bus_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
+    say(
+        f"timed bus: {TIMED_BUS_ROUNDS} rounds of {args.cycles} cycles of the Rig untraced on the "
+        "ideal bus, on a timed bus that carries its frames and on one they overload, alternating"
+    )
+    kinds = list(TIMED_BUS_RATES)
+    rates: dict[str, list[float]] = {kind: [] for kind in kinds}
+    for round_ in range(1, TIMED_BUS_ROUNDS + 1):
+        order = kinds if round_ % 2 else kinds[::-1]
+        got = {
+            kind: bench.rig_rate(
+                args.cycles, args.warmup, args.budget_s, traced=False, bitrate=TIMED_BUS_RATES[kind]
+            )
+            for kind in order
+        }
+        for kind in kinds:
+            rates[kind].append(got[kind][0])
+        say(
+            f"  round {round_}: "
+            + ", ".join(f"{kind} {got[kind][0]:.0f}/s ({got[kind][1]} cycles)" for kind in kinds)
+        )
+    return {
+        "cycles": args.cycles,
+        "rounds": TIMED_BUS_ROUNDS,
+        "bitrates": TIMED_BUS_RATES,
+        **{f"{kind}_cycles_per_s": rates[kind] for kind in kinds},
     }
 
 
@@ -157,14 +196,19 @@ def bus_main(args: argparse.Namespace) -> int:
     not_measured = NotMeasured()
     with PrivateBus() as private_bus:
         bench = BusBench(private_bus, out)
-        for name, measure in (
-            ("lockstep", lambda: _lockstep_runs(bench, args)),
-            ("robot", lambda: _robot_runs(bench, args)),
-            ("long_trace", lambda: _long_trace_run(bench, args)),
-            ("sdo", lambda: _sdo_runs(bench, args)),
-            ("recorder_upload", lambda: _recorder_upload_runs(bench, args)),
-            ("free_running", lambda: _free_running_run(bench, args)),
-        ):
+        measurements: dict[str, Callable[[], Any]] = {
+            "lockstep": lambda: _lockstep_runs(bench, args),
+            "timed_bus": lambda: _timed_bus_runs(bench, args),
+            "robot": lambda: _robot_runs(bench, args),
+            "long_trace": lambda: _long_trace_run(bench, args),
+            "sdo": lambda: _sdo_runs(bench, args),
+            "recorder_upload": lambda: _recorder_upload_runs(bench, args),
+            "free_running": lambda: _free_running_run(bench, args),
+        }
+        assert tuple(measurements) == BUS_MEASUREMENTS
+        for name, measure in measurements.items():
+            if args.only and name not in args.only:
+                continue
             measured = not_measured.attempt(name, measure)
             if measured is not None:
                 result[name] = measured

@@ -58,7 +58,6 @@ def percentile(values: Sequence[float], q: float) -> float:
     return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
 
 
-
 def drive(rig: Any, setpoint: float = 5.0) -> None:
     """The motor under velocity control toward `setpoint`: the firmware's controller, the
     plant and the traced signals move, as in a scenario, so a traced round traces changing
@@ -140,16 +139,16 @@ class BusBench:
             yield fw
 
     # --- lockstep: the rig (untraced, traced) and the floors -----------------------------------
-    def _session(self, what: str, *, traced: bool) -> Any:
+    def _session(self, what: str, *, traced: bool, bitrate: int | None = None) -> Any:
         """A HIL session of the firmware in lockstep on the bench's bus (`hilrig.session.builder`), no
-        bus log; a trace.rrd when `traced`."""
+        bus log; a trace.rrd when `traced`; on a timed bus of `bitrate` unless None."""
         from hilrig.session.builder import open_session
 
         self._runs += 1
-        config = self._config(self.logs / f"{self._runs:02d}-{what}", traced=traced)
+        config = self._config(self.logs / f"{self._runs:02d}-{what}", traced=traced, bitrate=bitrate)
         return open_session(config, table=self.table)
 
-    def _config(self, out_dir: Path, *, traced: bool) -> Any:
+    def _config(self, out_dir: Path, *, traced: bool, bitrate: int | None = None) -> Any:
         """The `SessionConfig` of the firmware in lockstep on the bench's bus, no bus log."""
         from hilrig.session.builder import SessionConfig
 
@@ -161,13 +160,20 @@ class BusBench:
             eds=self.eds,
             node_id=FIRMWARE_NODE_ID,
             period_us=PERIOD_US,
+            bitrate=bitrate,
         )
 
-    def rig_rate(self, cycles: int, warmup: int, budget_s: float, *, traced: bool) -> tuple[float, int]:
+    def rig_rate(
+        self, cycles: int, warmup: int, budget_s: float, *, traced: bool, bitrate: int | None = None
+    ) -> tuple[float, int]:
         """(cycles per second, cycles measured) of the full `Rig` (physics, history, checks) in a
         HIL session (`hilrig.session.builder`, no bus log), with or without a Rerun trace (written to a
-        file; its close(), which sends what is pending, is inside the measurement)."""
-        session = self._session("rig-traced" if traced else "rig", traced=traced)
+        file; its close(), which sends what is pending, is inside the measurement); on a timed bus
+        of `bitrate` (`hilrig.engine.bustiming`) unless None."""
+        what = "rig-traced" if traced else "rig"
+        session = self._session(
+            what if bitrate is None else f"{what}-{bitrate}", traced=traced, bitrate=bitrate
+        )
         try:
             rig = session.rig
             drive(rig)
@@ -683,7 +689,6 @@ class BusBench:
                 "(SO_TIMESTAMP via python-can) of its frames; error = interval - period"
             ),
         }
-
 
 
 def serve_local_node_main(args: argparse.Namespace) -> int:

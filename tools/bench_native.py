@@ -21,6 +21,7 @@ from typing import Any
 
 from bench_baseline import measure_baseline, prepare_checkout
 from bench_common import ROOT, NotMeasured, ProbeError, machine, run_probe, say, write_json_atomically
+from bench_cycles import cycle_budget
 from bench_size import image_size
 
 CALLGRIND_CYCLES = 2000
@@ -162,6 +163,8 @@ def native_main(args: argparse.Namespace) -> int:
     result["board_bench_ns"] = not_measured.attempt("board_bench", lambda: run_board_bench(out)) or {}
     say("size of the Cortex-M4F firmware image (build/cortex-m)")
     result["cortex_m_size"] = not_measured.attempt("cortex_m_size", image_size)
+    say("worst control cycle of the Cortex-M4F firmware under qemu -icount (build/cortex-m)")
+    result["cortex_m_cycles"] = not_measured.attempt("cortex_m_cycles", cycle_budget)
     if shutil.which("valgrind") is None:
         say("valgrind is missing (apt-get install valgrind, or make deps): no instruction counts")
         result["callgrind"] = None

@@ -30,6 +30,7 @@ from bench_common import (
     say,
     write_json_atomically,
 )
+from bench_cycles import cycle_budget_rows
 from bench_native import TRACE_PROBE_CYCLES, cycle_costs, rig_probe_per_cycle
 from bench_size import size_rows
 
@@ -291,6 +292,35 @@ def _lockstep_rows(row: ReportRows, bus: dict[str, Any]) -> None:
         )
 
 
+TIMED_BUS_GOAL = 1 / 1.10
+"""The Rig's cycles/s on a timed bus that carries its frames against on the ideal bus: at most
+10 % slower."""
+
+
+def _timed_bus_rows(row: ReportRows, bus: dict[str, Any]) -> None:
+    """The Rig on the timed bus (`hilrig.engine.bustiming`) beside the ideal bus: the median of
+    the rounds' ratios (each round runs all three back to back)."""
+    timed = bus.get("timed_bus")
+    if not timed:
+        return
+    ideal = timed["ideal_cycles_per_s"]
+    for kind, label, goal in (
+        ("timed_carried", "a bit rate that carries every frame", True),
+        ("timed_overloaded", "1 Mbit/s, which the default mapping overloads", False),
+    ):
+        rates = timed[f"{kind}_cycles_per_s"]
+        ratio = statistics.median(ratio_of(t, i) for t, i in zip(rates, ideal, strict=True))
+        row(
+            f"lockstep cycles/s: Rig on the timed bus ({label}) vs the ideal bus, median of rounds",
+            f"{max(rates):.0f}/s",
+            f"{max(ideal):.0f}/s",
+            ratio,
+            f">= {TIMED_BUS_GOAL:.2f} (at most 10 % slower)" if goal else "",
+            ratio >= TIMED_BUS_GOAL if goal else None,
+            **({"timed_bus": timed} if goal else {}),
+        )
+
+
 ROBOT_FLOOR_GOAL = 0.5
 """Robot cycles/s against the raw N-node floor, for every N."""
 ROBOT_PER_MODULE_GOAL = 1.2
@@ -471,11 +501,13 @@ def _free_running_rows(row: ReportRows, bus: dict[str, Any], bus_path: str) -> N
 
 SECTION_TITLES = {
     "lockstep": "lockstep cycles/s (Rig, traced, floors)",
+    "timed_bus": "lockstep cycles/s on the timed bus vs the ideal bus",
     "robot": "robot lockstep cycles/s",
     "recorder_upload": "SDO upload of the recorder's buffer: block vs segmented",
     "sdo": "SDO upload median (firmware vs LocalNode)",
     "board_bench": "board get/set and cycle (fw_board_bench)",
     "cortex_m_size": "Cortex-M4F firmware image: flash and RAM vs budget",
+    "cortex_m_cycles": "Cortex-M4F worst control cycle vs its budget",
     "callgrind": "instructions/cycle (callgrind)",
     "rig_probe": "the Rig's own lockstep cycle (tools/rig_probe.py)",
     "baseline": "the engine's instructions/cycle, this checkout vs a baseline commit",
@@ -498,11 +530,13 @@ def build_report(
     not_measured: dict[str, str] = {**native.get("not_measured", {}), **bus.get("not_measured", {})}
     sections: dict[str, Callable[[], None]] = {
         "lockstep": lambda: _lockstep_rows(rows, bus),
+        "timed_bus": lambda: _timed_bus_rows(rows, bus),
         "robot": lambda: _robot_rows(rows, bus),
         "recorder_upload": lambda: _recorder_upload_rows(rows, bus),
         "sdo": lambda: _sdo_rows(rows, bus),
         "board_bench": lambda: _board_bench_rows(rows, native, not_measured),
         "cortex_m_size": lambda: size_rows(rows, native["cortex_m_size"]),
+        "cortex_m_cycles": lambda: cycle_budget_rows(rows, native["cortex_m_cycles"]),
         "callgrind": lambda: _instruction_rows(rows, native, not_measured),
         "rig_probe": lambda: _rig_probe_rows(rows, native.get("rig_probe"), not_measured),
         "baseline": lambda: baseline_rows(
@@ -593,7 +627,7 @@ def format_errors(rows: Sequence[dict[str, Any]]) -> list[str]:
     return lines
 
 
-NATIVE_SECTIONS = ("board_bench", "cortex_m_size", "callgrind", "rig_probe", "baseline")
+NATIVE_SECTIONS = ("board_bench", "cortex_m_size", "cortex_m_cycles", "callgrind", "rig_probe", "baseline")
 
 
 def _read_part(path: Path, step: str, sections: Sequence[str]) -> tuple[dict[str, Any], bool]:

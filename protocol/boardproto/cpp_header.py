@@ -665,6 +665,11 @@ inline constexpr NodeIdentity kNode = {{
 // Number of entries of 0x1003 "pre-defined error field" (sub-indices 1..n).
 inline constexpr std::size_t kErrorHistoryLength = {node.error_history_length};
 
+// The microcontroller's cycle budget: the worst control cycle takes at most
+// kCycleBudgetPercent % of the period at kMcuClockHz (the Cortex-M build checks it under qemu).
+inline constexpr std::uint32_t kMcuClockHz = {node.mcu_clock_hz};
+inline constexpr std::uint32_t kCycleBudgetPercent = {node.cycle_budget_percent};
+
 // Number of entries of 0x1016 "consumer heartbeat time" (sub-indices 1..n): the heartbeats of up
 // to n other nodes the node watches. Each entry: bits 16..23 node id, bits 0..15 time in ms.
 inline constexpr std::size_t kHeartbeatConsumers = {node.heartbeat_consumers};

@@ -244,6 +244,9 @@ def _load_node(source: Path, data: Any) -> NodeIdentity:
         # 0x1003 sub 0 is an UNSIGNED8 count; 254 is the largest useful sub-index.
         error_history_length=entry.integer("error_history_length", 1, 254),
         heartbeat_consumers=entry.integer("heartbeat_consumers", 1, MAX_HEARTBEAT_CONSUMERS),
+        bitrate=entry.integer("bitrate", 10_000, 1_000_000),  # classic CAN: 10 kbit/s .. 1 Mbit/s
+        mcu_clock_hz=entry.integer("mcu_clock_hz", 1_000_000, 0xFFFF_FFFF),
+        cycle_budget_percent=entry.integer("cycle_budget_percent", 1, 100),
     )
 
 

@@ -31,6 +31,9 @@ device_type = 0x00000000        # 0x1000: 0 = no standardised device profile
 heartbeat_ms = 100              # 0x1017 producer heartbeat time
 error_history_length = 8        # 0x1003 pre-defined error field: newest EMCY codes kept
 heartbeat_consumers = 1         # 0x1016 consumer heartbeat time entries: the bus master's
+bitrate = 1000000               # bit/s of the board's bus: the rig's timed bus in scenarios
+mcu_clock_hz = 168000000        # the board's microcontroller core clock (a Cortex-M4F)
+cycle_budget_percent = 50       # a control cycle's worst case may take this share of the period
 
 # The EMCY codes the CANopen engine raises (firmware/canopen/Emcy.hpp names each).
 [[emcy]]

@@ -406,6 +406,16 @@ class NodeIdentity:
     heartbeat_ms: int
     error_history_length: int
     heartbeat_consumers: int
+    bitrate: int
+    """The bus's bit rate [bit/s]: what a lockstep run's timed bus carries (`hilrig.wire.bustime`)."""
+    mcu_clock_hz: int
+    cycle_budget_percent: int
+    """The share of the period (at `mcu_clock_hz`) the worst control cycle may take on the
+    microcontroller: what the Cortex-M build's cycle budget check holds it to."""
+
+    def cycle_budget(self, period_us: int) -> int:
+        """Core cycles a control cycle of `period_us` may take at most."""
+        return self.mcu_clock_hz * period_us * self.cycle_budget_percent // 100_000_000
 
 
 class PdoDirection(enum.StrEnum):

@@ -32,6 +32,9 @@ from hilrig.observe.paths import (
     EMCY_PATH,
     NMT_PATH,
     SDO_PATH,
+    TIMED_BACKLOG_PATH,
+    TIMED_LATE_PATH,
+    TIMED_LOAD_PATH,
     TRUE_SPRING_STIFFNESS,
     TRUTH_QUANTITIES,
     BusProblem,
@@ -51,6 +54,7 @@ from hilrig.observe.viewer import open_trace
 from hilrig.plants import JointParams
 from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import BOARD_TABLE, EmcyCode, RigTable
+from hilrig.wire.bustime import TimedBus
 from hilrig.wire.framebits import frame_bits_worst_case
 
 PARAMS = JointParams.fast_thermal()
@@ -269,6 +273,7 @@ def test_every_plot_of_every_dashboard_has_one_unit(table: RigTable) -> None:
     unit_of |= {truth_path(q): truth_unit(q) for q in TRUTH_QUANTITIES}
     unit_of |= {BUS_TPDOS_PER_CYCLE: "frames", BUS_RPDOS_PER_CYCLE: "frames", BUS_LOAD_PATH: "%"}
     unit_of |= {problem_path(problem): "frames" for problem in BusProblem}
+    unit_of |= {TIMED_LOAD_PATH: "%", TIMED_BACKLOG_PATH: "frames", TIMED_LATE_PATH: "frames"}
     for name in BLUEPRINTS:
         if name in OTHER_BOARD_BLUEPRINTS:  # another board's table: test_the_head_dashboard...
             continue
@@ -311,6 +316,7 @@ def test_blueprints_show_only_paths_the_tracer_logs(table: RigTable) -> None:
     robot |= {link_path(k) for k in range(len(DEFAULT_NODE_IDS) + 1)}
     logged = one_board | robot | {BUS_TPDOS_PER_CYCLE, BUS_RPDOS_PER_CYCLE, f"{BUS_FRAMES_ROOT}/TPDO1"}
     logged |= {BUS_LOAD_PATH, delay_path("TPDO1"), *(problem_path(problem) for problem in BusProblem)}
+    logged |= {TIMED_LOAD_PATH, TIMED_BACKLOG_PATH, TIMED_LATE_PATH}  # a run on the timed bus
     # A comparison (`hilrig diff`): both runs' series under /base and /cand, cand - base under /diff.
     logged |= {root + path for root in (DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_ROOT) for path in one_board}
     logged.add(DIFF_EVENTS_PATH)
@@ -553,3 +559,27 @@ def test_bus_load_per_10_ms_and_each_tpdos_delay_after_its_sync_are_in_the_trace
         assert trace.scalars[problem_path(problem)] == [0.0] * len(bits), problem
     if isinstance(traced.tracer, _RowsOnly):
         assert not any(path.startswith(BUS_DELAY_ROOT) for path in trace.scalars)
+
+
+def test_the_timed_bus_load_backlog_and_late_frames_are_in_the_trace(traced: Run) -> None:
+    """A run on the timed bus (`hilrig.engine.bustiming`): per cycle its load in % of the bit
+    rate (the fake node's full mapping overloads 1 Mbit/s: 100 %, never more), the frames waiting
+    and those delivered late, from the History's timeline; a tracer not shown the History has
+    none of them."""
+    rig = traced.rig
+    rig.start()
+    rig.driver.time_bus(TimedBus(1_000_000, rig.driver.period_us))
+    rig.run(cycles=CYCLES)
+    traced.tracer.close()
+    trace = Trace.read(traced.path)
+    if isinstance(traced.tracer, _RowsOnly):
+        assert TIMED_LOAD_PATH not in trace.scalars
+        return
+    timeline = rig.bus_timeline
+    assert timeline is not None
+    assert trace.cycles[TIMED_LOAD_PATH] == list(timeline.cycles())
+    assert trace.scalars[TIMED_LOAD_PATH] == pytest.approx([100.0 * load for load in timeline.load])
+    assert max(trace.scalars[TIMED_LOAD_PATH]) == 100.0
+    assert trace.scalars[TIMED_BACKLOG_PATH] == [float(n) for n in timeline.backlog_frames]
+    assert max(trace.scalars[TIMED_BACKLOG_PATH]) > 0
+    assert trace.scalars[TIMED_LATE_PATH] == [float(n) for n in timeline.late_frames]

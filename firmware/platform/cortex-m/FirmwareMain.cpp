@@ -15,6 +15,7 @@
 #include <optional>
 #include <span>
 
+#include "CycleBudget.hpp"
 #include "InterruptCanPort.hpp"
 #include "NodeOnRegisters.hpp"
 #include "StartupArena.hpp"
@@ -119,6 +120,64 @@ NoParameterStorage g_storage;
 }
 #endif
 
+#ifdef HIL_CYCLE_BUDGET_SCALE_PERCENT
+// SysTick ticks since start: whole periods and the down-counter's progress in this one.
+std::uint64_t systick_now() {
+  for (;;) {
+    const std::uint32_t before = g_ticks.load(std::memory_order_relaxed);
+    const std::uint32_t counter = syst_cvr();
+    if (g_ticks.load(std::memory_order_relaxed) == before) {
+      return static_cast<std::uint64_t>(before) * (syst_rvr() + 1) + (syst_rvr() - counter);
+    }
+  }
+}
+
+// The cycle budget check (CycleBudget.hpp): each cycle's frames from the budget's master, the
+// main loop's pass timed, the node's frames handed back; then the worst cycle against the
+// budget (scaled by HIL_CYCLE_BUDGET_SCALE_PERCENT: the check that must fail), and the exit:
+// 0 within the budget with the fault's EMCY seen and the SDO upload's segments answered.
+template <typename Serve>
+[[noreturn]] void measure_cycle_budget(co::Node& node, const Serve& serve, const std::uint32_t& ticks_done) {
+  namespace budget = cortexm::budget;
+  budget::Master master{board::kNode.default_node_id};
+  constexpr std::uint32_t kNsPerTick = 1'000'000'000u / kCoreClockHz;  // one instruction a ns
+  std::uint64_t worst = 0;
+  std::uint32_t worst_cycle = 0;
+  for (std::uint32_t n = 0; n < budget::kCycles; ++n) {
+    while (g_ticks.load(std::memory_order_relaxed) == ticks_done) asm volatile("wfi");
+    master.frames_of_cycle(n, [](const co::CanFrame& frame) { g_port.push_received(frame); });
+    const std::uint64_t start = systick_now();
+    serve();
+    while (node.sdo_segments_due()) serve();
+    const std::uint64_t spent = (systick_now() - start) * kNsPerTick;
+    co::CanFrame sent;
+    while (g_port.pop_to_transmit(sent)) master.sent(sent);
+    if (spent > worst) {
+      worst = spent;
+      worst_cycle = n;
+    }
+  }
+  const std::uint32_t limit =
+      static_cast<std::uint32_t>(std::uint64_t{budget::budget_cycles(kPeriodUs)} * HIL_CYCLE_BUDGET_SCALE_PERCENT / 100);
+  char line[240] = "cycle_budget: ";
+  char* end = line + 14;
+  end = budget::append(end, "worst_instructions", static_cast<std::uint32_t>(worst));
+  end = budget::append(end, "worst_cycle", worst_cycle);
+  end = budget::append(end, "cycles", budget::kCycles);
+  end = budget::append(end, "budget_cycles", limit);
+  end = budget::append(end, "period_us", kPeriodUs);
+  end = budget::append(end, "mcu_clock_hz", board::kMcuClockHz);
+  end = budget::append(end, "budget_percent", board::kCycleBudgetPercent);
+  end = budget::append(end, "budget_scale_percent", HIL_CYCLE_BUDGET_SCALE_PERCENT);
+  end = budget::append(end, "emcy_frames", master.emcy_frames());
+  end = budget::append(end, "sdo_segments", master.sdo_segments());
+  end[0] = '\n';
+  end[1] = '\0';
+  budget::write_line(line);
+  budget::exit_with(worst <= limit && master.emcy_frames() > 0 && master.sdo_segments() > 0);
+}
+#endif
+
 }  // namespace
 
 extern "C" void SysTick_Handler() { g_ticks.fetch_add(1, std::memory_order_relaxed); }
@@ -151,7 +210,9 @@ int main() {
 
   core::CycleCounter cycles;
   std::uint32_t ticks_done = g_ticks.load(std::memory_order_relaxed);
-  for (;;) {
+  // One pass of the main loop: the frames received, the control cycle when a tick came, the
+  // node's timers and SDO segments.
+  const auto serve = [&] {
     co::CanFrame frame;
     while (g_port.receive(frame) == co::ReceiveResult::Received) {
       if (node.process(frame, now_us()).sync) node.transmit_synchronous_pdos(now_us());
@@ -169,6 +230,12 @@ int main() {
 #endif
     }
     node.poll(now_us());
+  };
+#ifdef HIL_CYCLE_BUDGET_SCALE_PERCENT
+  measure_cycle_budget(node, serve, ticks_done);
+#endif
+  for (;;) {
+    serve();
     if (!node.sdo_segments_due()) asm volatile("wfi");  // the next tick or frame wakes the core
   }
 }

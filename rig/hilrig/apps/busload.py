@@ -89,13 +89,11 @@ from boardproto.cia301 import (
     SYNC_COB_ID,
     heartbeat_cob_id,
 )
+from hilrig.wire.bustime import STANDARD_BITRATES as STANDARD_BITRATES  # the bit rates reported
 from hilrig.wire.framebits import MAX_DATA_BYTES as MAX_DATA_BYTES  # the frame arithmetic's home
 from hilrig.wire.framebits import frame_bits_nominal as frame_bits_nominal
 from hilrig.wire.framebits import frame_bits_worst_case as frame_bits_worst_case
 from hilrig.wire.framebits import stuff_bits_worst_case as stuff_bits_worst_case
-
-STANDARD_BITRATES: tuple[int, ...] = (125_000, 250_000, 500_000, 1_000_000)
-"""Classic CAN bit rates the command reports by default, in bit/s."""
 
 WARNING_LOAD = 0.70
 """Above this share of the bus (worst-case stuffing) the command prints a WARNING line."""
@@ -494,9 +492,7 @@ def robot_load_line(
     mapped = table.with_pdo_profile(profile)
     traffic = lockstep_traffic(mapped, rate_hz, node_ids=node_ids, master_heartbeat_ms=master_heartbeat_ms)
     load = bus_load(traffic, rate_hz, bitrate)
-    highest = highest_rate_hz(
-        mapped, bitrate, node_ids=node_ids, master_heartbeat_ms=master_heartbeat_ms
-    )
+    highest = highest_rate_hz(mapped, bitrate, node_ids=node_ids, master_heartbeat_ms=master_heartbeat_ms)
     verdict = " OVERLOAD" if load.overloaded else " WARNING" if load.warning else ""
     return (
         f"profile {profile}, {len(node_ids)} module{'s' if len(node_ids) > 1 else ''} at {rate_hz:g} Hz "

@@ -129,6 +129,8 @@ class DemoOptions:
     """Where the trace also streams while the run goes (spawn, web, connect), beside trace.rrd."""
     board: BoardInterface | None = None
     """A board (or free-running firmware) on an interface: real time, no firmware started."""
+    bitrate: int | None = None
+    """Lockstep on a bus of this bit rate (`hilrig.engine.bustiming`); None: the ideal bus."""
     plant: PlantFactory | None = None
     """What makes the plant from (params, seed); None: the demo joint with `params`."""
     table: RigTable | None = None
@@ -162,6 +164,8 @@ class DemoSummary:
     faults: tuple[FaultEvent, ...] = ()
     viewer_url: str | None = None
     """The page of the web viewer serving this run's trace (a `web` live sink)."""
+    bus_timing: str | None = None
+    """On the timed bus: what it carried (`BusTimeline.describe`)."""
 
 
 def load_scenario(path: Path) -> Scenario:
@@ -249,6 +253,7 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         sdo_timeout_s=1.0,
         board=options.board,
         mode="lockstep" if options.board is None else "realtime",
+        bitrate=options.bitrate if options.board is None else None,
     )
     with hil_session(config, table=table) as session:
         rig = session.rig
@@ -381,6 +386,9 @@ def summarize(
         bus_log=out / "bus.log",
         firmware_log=out / "firmware.log",
         frames_logged=frames,
+        bus_timing=None
+        if rig.bus_timeline is None or rig.bitrate is None
+        else rig.bus_timeline.describe(rig.bitrate),
     )
 
 
@@ -441,6 +449,7 @@ def format_summary(summary: DemoSummary) -> str:
         ),
         *_joint_rows(summary),
         ("faults", faults),
+        *((("timed bus", summary.bus_timing),) if summary.bus_timing is not None else ()),
         *(
             ("fault injected" if i == 0 else "", f"t = {e.time_s:.3f} s  {e.text}")
             for i, e in enumerate(summary.faults)

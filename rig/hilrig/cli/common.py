@@ -35,6 +35,7 @@ from hilrig.errors import (
 )
 from hilrig.resources import DBC_HINT, EDS_HINT
 from hilrig.table import ObjectEntry, RigTable
+from hilrig.wire.bustime import IDEAL
 
 if TYPE_CHECKING:
     import can
@@ -185,6 +186,13 @@ def bitrate(text: str) -> int:
             f"expected a bit rate in bit/s like 125000, 500k or 1M, got {text!r}"
         )
     return int(value)
+
+
+@kind(ArgKind("number", out_of_range="0"))
+def bus_timing(text: str) -> int | None:
+    """A timed bus option: a bit rate as `bitrate` reads it, or 'ideal' -> None (no bit rate:
+    the virtual bus carries every frame in its cycle; `hilrig.wire.bustime`)."""
+    return None if text.strip().lower() == IDEAL else bitrate(text)
 
 
 _BUS_KWARG = re.compile(r"(?P<name>[_a-zA-Z][-_a-zA-Z0-9]*)=(?P<value>\S*)")

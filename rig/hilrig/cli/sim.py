@@ -232,6 +232,7 @@ def run(args: argparse.Namespace) -> int:
             config.pop("interface"), config.pop("channel", None), config.pop("bitrate", None), config
         )
     options = DemoOptions(
+        bitrate=None if args.board else args.bitrate,  # without --board: the lockstep bus's
         out_dir=args.out,
         scenario_file=args.scenario,
         node_id=args.node_id if args.node_id is not None else table.board.node.default_node_id,

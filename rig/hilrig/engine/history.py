@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -210,6 +211,9 @@ class History:
 
     def __init__(self, period_us: int, *, keep: bool = True, plant: Plant | None = None) -> None:
         self.period_us = period_us
+        self.bus_timeline: Any = None
+        """A run on the timed bus: its `hilrig.engine.bustiming.BusTimeline` (what the trace
+        plots beside the cycles); None on the ideal bus."""
         self.plant = plant
         self.keep = keep
         """Whether rows and truth are recorded (a driver then appends its rows: `row_store`)."""

@@ -27,6 +27,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
+from hilrig.engine.bustiming import BusTiming
 from hilrig.engine.driver import (
     LIVENESS_SLICE_S,
     SETPOINT_STREAM,
@@ -43,7 +44,15 @@ from hilrig.engine.driver import (
     sync_counter,
 )
 from hilrig.errors import FirmwareError, HostStarvedError, LockstepError
-from hilrig.wire.transport import Decoder, PdoLayout, append_frame_rows, append_row, send_frames
+from hilrig.wire.bustime import TimedBus
+from hilrig.wire.transport import (
+    CAN_HEADER_SIZE,
+    Decoder,
+    PdoLayout,
+    append_frame_rows,
+    append_row,
+    send_frames,
+)
 
 _NOTHING_DUE: frozenset[int] = frozenset()
 
@@ -166,13 +175,35 @@ class LockstepDriver(Driver):
     """None: a problem of a cycle raises LockstepError. Set: it gets each problem and the cycle
     goes on (see the module's docstring)."""
 
+    bus_timing: BusTiming | None = None
+    """The bus's bit rate (`hilrig.engine.bustiming`): None, the ideal bus (every frame in its
+    cycle). Set with `time_bus`."""
+
+    def time_bus(self, bus: TimedBus | None, heartbeat_every: int = 0) -> None:
+        """Run the next cycles on `bus` (None: the ideal bus again); after configure(), whose
+        TPDOs it times. `heartbeat_every`: the node's heartbeat producer time in cycles."""
+        before = self.bus_timing
+        self.bus_timing = (
+            None
+            if bus is None
+            else BusTiming(bus, self._tpdo_by_cob, self.node.node_id, heartbeat_every, self.cycle)
+        )
+        if before is not None and self.bus_timing is not None:  # a reconfigured node: one timeline
+            self.bus_timing.timeline = before.timeline
+        self.history.bus_timeline = None if self.bus_timing is None else self.bus_timing.timeline
+
     def step(self) -> CycleResult:
         n, state, raw, due, sync_number, sent, frames = self._sample()
         t, counter = self.history.time_of(n), sync_counter(n)
+        timing = self.bus_timing
+        if timing is not None:
+            sent, frames = timing.plan(n, due, sent, frames)
         # The RPDOs, then the SYNC, in the exchange's one call (`_collect`); the TPDOs' delays
         # after it are their arrivals (`History.arrival_store`) less this.
         self.history.note_sync(n, time.monotonic_ns())
         got = self._collect(n, t, due, sync_number, frames + SYNC_FRAMES[counter - 1])
+        if timing is not None and timing.waiting:
+            timing.deliver(n, got, lambda cob_id: self._forget_rows(n, (cob_id,)), self._keep_late(got, n))
         result = self._record(n, t, counter, state, raw, sent, frames, got)
         self.plant.step(self.period_s)
         self.cycle = n + 1
@@ -382,6 +413,19 @@ class LockstepDriver(Driver):
         decoder = self._decoders[cob_id]
         if len(decoder) >= 4:  # the history keeps rows
             append_row(decoder, n, data)  # type: ignore[arg-type]
+
+    def _keep_late(
+        self, got: dict[int, tuple[Value, ...]], n: int
+    ) -> Callable[[int, tuple[Value, ...]], None]:
+        """What the timed bus calls with each earlier cycle's TPDO it delivers in cycle `n`."""
+
+        def keep(cob_id: int, values: tuple[Value, ...]) -> None:
+            pdo = self._tpdo_by_cob[cob_id]
+            self._keep(
+                got, n, cob_id, values, pdo.frame(values)[CAN_HEADER_SIZE : CAN_HEADER_SIZE + pdo.length]
+            )
+
+        return keep
 
     def _check_alive(
         self, n: int, t: float, due: frozenset[int], got: dict[int, tuple[Value, ...]], guard: HangGuard

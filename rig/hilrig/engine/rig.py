@@ -34,6 +34,7 @@ from canopen.emcy import EmcyError
 
 from boardproto.cia301 import NmtCommand, NmtState, transmission_text
 from hilrig import resources
+from hilrig.engine.bustiming import BusTimeline, heartbeat_cycles
 from hilrig.engine.driver import (
     BUS_EVENTS_PATH,
     CycleResult,
@@ -51,6 +52,7 @@ from hilrig.errors import FieldAccessError, LockstepError, NoValueError, RealTim
 from hilrig.plants import default_plant
 from hilrig.plants.interface import Plant
 from hilrig.table import RigTable
+from hilrig.wire.bustime import TimedBus
 from hilrig.wire.node import BoardNode, EmcyRecord
 
 if TYPE_CHECKING:
@@ -112,6 +114,7 @@ class Rig(CycleRunner):
         mode: TimingMode | str = TimingMode.LOCKSTEP,
         physics: bool = True,
         plant: Plant | None = None,
+        bitrate: int | None = None,
     ) -> None:
         self.mode = TimingMode(mode)  # a typo raises ValueError here, not mid-scenario
         self.physics = physics
@@ -143,6 +146,10 @@ class Rig(CycleRunner):
                 liveness=liveness,
                 activity=activity,
             )
+        if bitrate is not None and self.mode is not TimingMode.LOCKSTEP:
+            raise ValueError("bitrate= times the lockstep bus; in real time the bus is the real one")
+        self.bitrate = bitrate
+        """The timed bus's bit rate (`hilrig.engine.bustiming`); None: the ideal bus."""
         self.liveness = liveness
         self._emcy: list[EmcyRecord] = []
         self._emcy_lock = threading.Lock()
@@ -157,6 +164,12 @@ class Rig(CycleRunner):
         self.tracer = tracer
         if tracer is not None:
             self.add_observer(tracer)
+
+    @property
+    def bus_timeline(self) -> BusTimeline | None:
+        """The timed bus's per-cycle load, backlog and late frames (None: the ideal bus)."""
+        timing = getattr(self.driver, "bus_timing", None)
+        return None if timing is None else timing.timeline
 
     def add_observer(self, observer: RigObserver) -> None:
         """Let `observer` watch every later cycle and event (`hilrig.engine.observers`)."""
@@ -214,6 +227,10 @@ class Rig(CycleRunner):
         self.node.check_identity()
         self.node.read_pdo_configuration(from_node=True)
         self.driver.configure()
+        if self.bitrate is not None:
+            assert isinstance(self.driver, LockstepDriver)
+            heartbeat = heartbeat_cycles(self.table.board.node.heartbeat_ms, self.driver.period_us)
+            self.driver.time_bus(TimedBus(self.bitrate, self.driver.period_us), heartbeat)
         self._log_pdo_configuration()
         for observer in self.observers:
             observer.on_configured(truth=self.physics)

@@ -28,6 +28,9 @@ from hilrig.observe.paths import (
     FIELDS_ROOT,
     MODULES_ROOT,
     SIM_TIME_TIMELINE,
+    TIMED_BACKLOG_PATH,
+    TIMED_LATE_PATH,
+    TIMED_LOAD_PATH,
     TRUTH_ROOT,
     WALL_TIME_TIMELINE,
     BusProblem,
@@ -291,6 +294,34 @@ class RecordBatches:
         ]
         meter.span(every_cycle, times, frames)
         self._send_bus(meter.take())
+        if history is not None and history.bus_timeline is not None:
+            self._send_timed_bus(history.bus_timeline, every_cycle, times)
+
+    def _send_timed_bus(self, timeline: Any, every_cycle: np.ndarray, times: np.ndarray) -> None:
+        """The timed bus's per-cycle load (% of its bit rate, at most 100), backlog and late frames
+        (`hilrig.engine.bustiming.BusTimeline`) for the cycles of a span it has."""
+        first, count = timeline.first_cycle, len(timeline.load)
+        inside = (every_cycle >= first) & (every_cycle < first + count)
+        if not inside.any():
+            return
+        cycles = every_cycle[inside]
+        lo, hi = int(cycles[0]) - first, int(cycles[-1]) - first + 1
+        offsets = cycles - first - lo
+        # Slices of the arrays are copies: the run appends to them while the trace reads.
+        series = [
+            (TIMED_LOAD_PATH, 100.0 * np.asarray(timeline.load[lo:hi], dtype=np.float64)[offsets]),
+            (TIMED_BACKLOG_PATH, np.asarray(timeline.backlog_frames[lo:hi], dtype=np.float64)[offsets]),
+            (TIMED_LATE_PATH, np.asarray(timeline.late_frames[lo:hi], dtype=np.float64)[offsets]),
+        ]
+        root = self.root
+        self._name_many(
+            [
+                (root + TIMED_LOAD_PATH, "timed bus load [% of its bit rate]", False),
+                (root + TIMED_BACKLOG_PATH, "frames waiting for a later cycle", True),
+                (root + TIMED_LATE_PATH, "frames delivered late", True),
+            ]
+        )
+        self._send_group(cycles.tolist(), times[inside].tolist(), [(root + path, v) for path, v in series])
 
     def _send_bus(self, measured: Measured) -> None:
         """Bus measurements (`hilrig.observe.busmeter`) into the recording: the load and the counts

@@ -83,6 +83,14 @@ BUS_LOAD_PATH = f"{BUS_ROOT}/load"
 """Bus load per 10 ms window, % of the bit rate (`hilrig.observe.busmeter`)."""
 BUS_DELAY_ROOT = f"{BUS_ROOT}/tpdo_delay"
 """/bus/tpdo_delay/<TPDO label>: each TPDO's delay after its SYNC, ms."""
+TIMED_BUS_ROOT = f"{BUS_ROOT}/timed"
+"""A lockstep run on the timed bus (`hilrig.engine.bustiming`), per cycle: /bus/timed/load (% of
+its bit rate the cycle's time was busy, at most 100: the frames' wire time), /bus/timed/backlog
+(frames waiting for a later cycle after it), /bus/timed/late (frames of earlier cycles it
+delivered). Nothing on the ideal bus."""
+TIMED_LOAD_PATH = f"{TIMED_BUS_ROOT}/load"
+TIMED_BACKLOG_PATH = f"{TIMED_BUS_ROOT}/backlog"
+TIMED_LATE_PATH = f"{TIMED_BUS_ROOT}/late"
 BUS_PROBLEMS_ROOT = f"{BUS_ROOT}/problems"
 """/bus/problems/{late,missing,malformed,error_frames}: counts so far, per load window."""
 

@@ -25,7 +25,7 @@ from typing import Any
 import pytest
 
 from hilrig.cli import forked
-from hilrig.cli.common import bitrate
+from hilrig.cli.common import bitrate, bus_timing
 from hilrig.engine.rig import Rig
 from hilrig.engine.robot import MasterHeartbeat
 from hilrig.errors import BusUnavailableError
@@ -45,6 +45,7 @@ from hilrig.session.builder import (
 )
 from hilrig.session.logformats import LOG_FORMATS
 from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
+from hilrig.wire.bustime import IDEAL
 
 BOOT_TIMEOUT_S = 60.0
 """A hang guard for start-up inside the software-emulated VM (ASan build), not a timing check."""
@@ -82,6 +83,15 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "--hil-bitrate", type=bitrate, help="bit rate for interfaces that set it (e.g. 1M, 500k, 125000)"
     )
     group.addoption(
+        "--hil-timed-bus",
+        type=_timed_bus,
+        default=IDEAL,
+        metavar="BITRATE",
+        help="lockstep scenarios on a bus with this bit rate (1M, 500k...; `table`: the board "
+        "table's [node] bitrate): frames that do not fit a cycle arrive in a later one; "
+        f"default {IDEAL}: every frame in its cycle",
+    )
+    group.addoption(
         "--hil-physics",
         action="store_true",
         help="simulate the plant for the real board too (a board that takes its sensors from the "
@@ -110,6 +120,23 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     )
     for name, help_text in INI_OPTIONS:
         parser.addini(name, help_text, default="")
+
+
+TABLE_BITRATE = "table"
+"""`--hil-timed-bus table`, `make_scenario(bitrate="table")`: the board table's bit rate."""
+RUN_BITRATE = "run"
+"""`make_scenario(bitrate=...)`'s default: the run's --hil-timed-bus (None: the ideal bus)."""
+
+
+def _timed_bus(text: str) -> int | str | None:
+    return TABLE_BITRATE if text.strip().lower() == TABLE_BITRATE else bus_timing(text)
+
+
+def _scenario_bitrate(config: pytest.Config, given: int | str | None, board: HilBoard) -> int | None:
+    """A lockstep scenario's timed bus: its own (`make_scenario(bitrate=...)`), else the run's
+    --hil-timed-bus; `table`: the board's."""
+    chosen = config.getoption("hil_timed_bus") if given == RUN_BITRATE else given
+    return board.table.board.node.bitrate if chosen == TABLE_BITRATE else chosen  # type: ignore[return-value]
 
 
 def _bus_log_format(text: str) -> str:
@@ -244,7 +271,9 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
     `extra_args` go to the firmware's command line; `subdir` keeps one run's evidence apart when
     a test makes several runs one after the other (close the previous one first: one node id per
     bus). `before_start(rig)` configures the node over SDO before the rig reads its PDO mapping
-    and starts it (the node is pre-operational, so PDOs may be remapped)."""
+    and starts it (the node is pre-operational, so PDOs may be remapped). `bitrate`: a lockstep
+    scenario's timed bus (a bit rate, "table" for the board's, None for the ideal bus; default:
+    the run's --hil-timed-bus); `s.rig.bus_timeline` has its load, backlog and late frames."""
     sessions: list[HilSession] = []
     labgrid_consoles: list[tuple[LabgridBoard, Path]] = []
 
@@ -258,6 +287,7 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
         mode: str = "lockstep",
         physics: bool = True,
         before_start: Callable[[Rig], None] | None = None,
+        bitrate: int | str | None = RUN_BITRATE,
     ) -> Scenario:
         run_dir = scenario_dir / subdir if subdir else scenario_dir
         realtime = mode == "realtime"
@@ -290,6 +320,7 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
             mode=mode,
             period_us=REALTIME_RIG_PERIOD_US if realtime else 1000,
             firmware_period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else 1000,
+            bitrate=None if realtime or board is not None else _scenario_bitrate(config, bitrate, hil_board),
             physics=physics,
             trace=trace,
             board=board,

@@ -111,6 +111,10 @@ class SessionConfig:
     node_id: int | None = None
     mode: TimingMode | str = TimingMode.LOCKSTEP
     period_us: int = 1000
+    bitrate: int | None = None
+    """Lockstep on a bus with this bit rate (`hilrig.engine.bustiming`: what does not fit a
+    cycle arrives in a later one); None: the ideal bus, every frame in its cycle. Scenarios
+    take the table's ([node] bitrate) with `--hil-timed-bus table`."""
     physics: bool = True
     trace: bool | Sequence[TraceSink] = True
     live: Sequence[TraceSink] = ()
@@ -219,6 +223,11 @@ def open_session(
     bus (the caller's, e.g. a test's that also sends frames of its own) instead of a new one."""
     table = table if table is not None else RigTable.load()
     if config.modules is not None:
+        if config.bitrate is not None:
+            raise ValueError(
+                "bitrate= times one node's bus; a robot's bit rate is computed from its schedule "
+                "(`hilrig.apps.robot_bus.robot_bitrate`)"
+            )
         return _open_robot(config, table, private_bus)
     mode = TimingMode(config.mode)
     out = config.out_dir
@@ -268,6 +277,7 @@ def open_session(
             tracer=tracer,
             mode=mode,
             physics=config.physics,
+            bitrate=config.bitrate,
         )
         stack.callback(rig.close)
         if board_logger is not None:
@@ -344,8 +354,13 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
             modules.append(rig)
         for rider in config.riders:
             rider_firmware = _start_firmware(
-                stack, launcher, config, rider.node_id, out / f"firmware-{rider.node_id}.log",
-                out / f"params-{rider.node_id}.bin", executable=rider.executable,
+                stack,
+                launcher,
+                config,
+                rider.node_id,
+                out / f"firmware-{rider.node_id}.log",
+                out / f"params-{rider.node_id}.bin",
+                executable=rider.executable,
             )
             firmware.append(rider_firmware)
             modules.append(_rider_rig(stack, config, rider, rider_firmware, private_bus, launcher, tracer))
