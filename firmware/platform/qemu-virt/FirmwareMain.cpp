@@ -11,6 +11,8 @@
 // serial=N flash=0|1 (a drive behind pflash 1); the rig writes them (hilrig.session.baremetal). Lockstep: one control cycle per
 // SYNC, the synchronous TPDOs right after it; free-running: one per timer deadline, absolute.
 // The log goes to the UART; a fault prints its reason and stops qemu with status 1.
+// count-cycles=N (`make bench`, free-running, under qemu -icount): after N control cycles the
+// image prints what they cost in generic-timer ticks (mean, worst) and ends qemu with status 0.
 #include <array>
 #include <charconv>
 #include <cstddef>
@@ -52,6 +54,7 @@ struct BootParameters {
   std::uint32_t period_us = 1000;
   std::uint32_t serial = kSerialDefault;
   bool flash = false;  // qemu has a drive behind pflash 1
+  std::uint32_t count_cycles = 0;  // >0: measure that many cycles, print their cost, end qemu
 };
 
 // "node-id=16 mode=lockstep period-us=1000 serial=0x12345678": unknown words are a fault (the
@@ -79,6 +82,8 @@ BootParameters parse_boot_parameters(std::string_view text) {
       parameters.node_id = static_cast<std::uint8_t>(number);
     } else if (key == "period-us" && numeric && number > 0) {
       parameters.period_us = number;
+    } else if (key == "count-cycles" && numeric) {
+      parameters.count_cycles = number;
     } else if (key == "flash" && numeric && number <= 1) {
       parameters.flash = number == 1;
     } else if (key == "serial" && numeric) {
@@ -263,12 +268,13 @@ int main() {
 
   node.start(now_us());
   virt::log_hex("hilfw: qemu-virt, CTU CAN FD at ", static_cast<std::uint32_t>(pci.bar[kCoresBar]));
-  virt::log_hex(" (PCI slot ", pci.slot);
-  virt::log_hex(", INTID ", g_can_interrupt);
-  virt::log_hex("), node ", node.node_id());
+  virt::log_decimal(" (PCI slot ", pci.slot);
+  virt::log_decimal(", INTID ", g_can_interrupt);
+  virt::log_decimal("), node ", node.node_id());
   virt::log_hex(", serial ", g_boot.serial);
   virt::log(g_boot.lockstep ? ", lockstep mode" : ", free-running mode");
-  virt::log_hex(", period us ", g_boot.period_us);
+  virt::log_decimal(", period ", g_boot.period_us);
+  virt::log(" us");
   virt::log(flash ? ", parameters in pflash 1" : ", parameters not stored (no pflash drive)");
   virt::log(node.parameter_load() == co::ParameterLoad::Loaded     ? " (loaded)\n"
             : node.parameter_load() == co::ParameterLoad::Rejected ? " (REJECTED: corrupt, defaults used)\n"
@@ -280,9 +286,23 @@ int main() {
   std::uint32_t periods_done = 0;
   virt::ctucan::FaultState reported_fault_state = virt::ctucan::FaultState::ErrorActive;
   std::uint32_t reported_overruns = 0;
+  std::uint64_t measured_ticks = 0;
+  std::uint64_t worst_ticks = 0;
   auto run_cycle = [&](std::uint64_t periods) {
     const std::uint32_t cycle = cycles.advance(periods);
+    const std::uint64_t started = virt::counter_ticks();
     g_app->scheduler.run_cycle(cycle);
+    const std::uint64_t took = virt::counter_ticks() - started;
+    measured_ticks += took;
+    if (took > worst_ticks) worst_ticks = took;
+    if (g_boot.count_cycles != 0 && cycles.run() == g_boot.count_cycles) {
+      virt::log_decimal("hilfw: cycle cost: cycles ", cycles.run());
+      virt::log_decimal(", ticks ", measured_ticks);
+      virt::log_decimal(", worst ", worst_ticks);
+      virt::log_decimal(", counter Hz ", virt::counter_frequency_hz());
+      virt::log("\n");
+      virt::exit_emulation(true);
+    }
     fault_emcy.update(static_cast<std::uint32_t>(g_app->board.get(board::FieldId::fault_flags)));
     recorder.sample(cycle, [](board::FieldId id) { return g_app->board.get(id); });
   };

@@ -75,6 +75,17 @@ void log_hex(std::string_view label, std::uint32_t value) {
   log(std::string_view{text.data(), 10});
 }
 
+void log_decimal(std::string_view label, std::uint64_t value) {
+  std::array<char, 20> text{};
+  std::size_t start = text.size();
+  do {
+    text[--start] = static_cast<char>('0' + value % 10);
+    value /= 10;
+  } while (value != 0);
+  log(label);
+  log(std::string_view{text.data() + start, text.size() - start});
+}
+
 void gic_init() {
   mmio32(kGicDistributor + 0x000) = 1;      // GICD_CTLR: forward interrupts
   mmio32(kGicCpuInterface + 0x004) = 0xFF;  // GICC_PMR: every priority passes

@@ -40,6 +40,7 @@ void enable_mmu_and_fpu();
 // PL011: text out, polled (a line at start-up and at a fault; nothing in the control cycle).
 void log(std::string_view text);
 void log_hex(std::string_view label, std::uint32_t value);
+void log_decimal(std::string_view label, std::uint64_t value);
 
 // GICv2: the distributor and CPU interface on, `interrupt` (an INTID) enabled to CPU 0.
 void gic_init();
