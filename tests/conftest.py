@@ -34,6 +34,7 @@ EDS = REPO / "build" / "protocol" / "board.eds"
 TABLE = RigTable.load()
 NODE_ID = TABLE.board.node.default_node_id
 
+
 @dataclass
 class NodeUnderTest:
     """The running firmware and a CANopen master talking to it on a private bus."""
@@ -82,12 +83,17 @@ class NodeUnderTest:
 
 
 def start_node(
-    private_bus: PrivateBus, scenario_dir: Path, params_file: Path | None = None, platform: str = baremetal.LINUX
+    private_bus: PrivateBus,
+    scenario_dir: Path,
+    params_file: Path | None = None,
+    platform: str = baremetal.LINUX,
 ) -> NodeUnderTest:
     """The firmware on `platform` (hilrig.session.baremetal), booted, with a canopen master."""
     executable = baremetal.default_image(platform) if platform != baremetal.LINUX else DEFAULT_EXECUTABLE
     if not executable.exists() or not EDS.exists():
-        pytest.fail(f"{executable} or {EDS} missing: run `make build` (and `make baremetal`) first", pytrace=False)
+        pytest.fail(
+            f"{executable} or {EDS} missing: run `make build` (and `make baremetal`) first", pytrace=False
+        )
     bus_log = scenario_dir / "bus.log"
     recorder = BusRecorder(private_bus.open(), bus_log)
     bus = private_bus.open(receive_own_messages=True)

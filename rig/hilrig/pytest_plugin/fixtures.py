@@ -247,7 +247,8 @@ def _require_built(board: HilBoard, *platforms: str) -> None:
     if missing:
         hint = " (`make baremetal` for qemu-virt)" if baremetal.QEMU_VIRT in platforms else ""
         pytest.fail(
-            f"{' and '.join(missing)} missing: build the board's firmware and files first{hint}", pytrace=False
+            f"{' and '.join(missing)} missing: build the board's firmware and files first{hint}",
+            pytrace=False,
         )
 
 
@@ -283,7 +284,8 @@ def make_scenario(
     `extra_args` go to the firmware's command line; `subdir` keeps one run's evidence apart when
     a test makes several runs one after the other (close the previous one first: one node id per
     bus). `before_start(rig)` configures the node over SDO before the rig reads its PDO mapping
-    and starts it (the node is pre-operational, so PDOs may be remapped)."""
+    and starts it (the node is pre-operational, so PDOs may be remapped). `firmware_platform`:
+    this run's platform instead of the scenario's (`hil_firmware_platform`)."""
     sessions: list[HilSession] = []
     labgrid_consoles: list[tuple[LabgridBoard, Path]] = []
 
@@ -297,7 +299,9 @@ def make_scenario(
         mode: str = "lockstep",
         physics: bool = True,
         before_start: Callable[[Rig], None] | None = None,
+        firmware_platform: str | None = None,
     ) -> Scenario:
+        platform = firmware_platform or hil_firmware_platform
         run_dir = scenario_dir / subdir if subdir else scenario_dir
         realtime = mode == "realtime"
         config = request.config
@@ -339,10 +343,10 @@ def make_scenario(
             boot_timeout_s=BOOT_TIMEOUT_S,
             sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
             bus_log_format=config.getoption("hil_bus_log_format"),
-            firmware_platform=hil_firmware_platform,
+            firmware_platform=platform,
         )
         if board is None:
-            _require_built(hil_board, hil_firmware_platform)
+            _require_built(hil_board, platform)
         # The test's own private bus (a test may send frames of its own on it, e.g. a flood).
         private_bus = request.getfixturevalue("private_bus") if board is None else None
         session = open_session(
@@ -477,9 +481,9 @@ __all__ = [
     "output_root",
     "private_bus",
     "pytest_addoption",
+    "pytest_collection_modifyitems",
     "pytest_configure",
     "pytest_generate_tests",
-    "pytest_collection_modifyitems",
     "run_hilrig",
     "scenario_dir",
 ]

@@ -16,9 +16,11 @@ ends qemu with status 1, which `Firmware.check()` reports with the log's last li
 
 from __future__ import annotations
 
+import re
 import shutil
 import zlib
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from hilrig import resources
@@ -39,7 +41,9 @@ BOOT_FILE = "opt/hil/boot"
 
 def check_platform(platform: str) -> str:
     if platform not in FIRMWARE_PLATFORMS:
-        raise ValueError(f"firmware platform: expected one of {', '.join(FIRMWARE_PLATFORMS)}, got {platform!r}")
+        raise ValueError(
+            f"firmware platform: expected one of {', '.join(FIRMWARE_PLATFORMS)}, got {platform!r}"
+        )
     return platform
 
 
@@ -63,7 +67,7 @@ def prepare_flash(path: Path) -> None:
             file.truncate(FLASH_BYTES)
 
 
-def serial_number(channel: str, node_id: int, flash: Path | None) -> int:
+def serial_number(channel: str | None, node_id: int, flash: Path | None) -> int:
     """0x1018:4 of the image, as the Linux firmware derives its own: stable for one board (the
     same flash file, or the same bus and node id), different between boards."""
     seed = str(flash.resolve()) if flash is not None else f"{channel}:{node_id}"
@@ -72,25 +76,31 @@ def serial_number(channel: str, node_id: int, flash: Path | None) -> int:
 
 def qemu_argv(
     image: Path,
-    channel: str,
+    channel: str | None,
     *,
     node_id: int,
     period_us: int,
     mode: str = "lockstep",
     flash: Path | None = None,
     extra_args: Sequence[str] = (),
+    boot_extra: Sequence[str] = (),
+    icount: bool = False,
     qemu: str = QEMU,
 ) -> list[str]:
-    """qemu's command line that runs `image` on the SocketCAN interface `channel` (the options
-    the Linux firmware takes, as the image's boot parameters). `extra_args`: none is understood
-    (the Linux firmware's fault-injection options have no bare-metal counterpart yet)."""
+    """qemu's command line that runs `image` on the SocketCAN interface `channel` (None: on a
+    qemu bus of its own, joined to nothing), the options the Linux firmware takes as the image's
+    boot parameters. `extra_args`: none is understood (the Linux firmware's fault-injection
+    options have no bare-metal counterpart yet). `boot_extra`: more boot parameter words
+    (count-cycles=N: the bench's cycle cost). `icount`: one instruction a nanosecond of virtual
+    time (-icount shift=0), so the generic timer counts instructions."""
     if extra_args:
         raise FirmwareError(
             f"{QEMU_VIRT}: the bare-metal image takes no firmware options ({' '.join(extra_args)} are the "
             f"Linux firmware's): run this scenario with --firmware-platform {LINUX}"
         )
     serial = serial_number(channel, node_id, flash)
-    boot = f"node-id={node_id} mode={mode} period-us={period_us} serial={serial} flash={int(flash is not None)}"
+    words = [f"node-id={node_id}", f"mode={mode}", f"period-us={period_us}", f"serial={serial}"]
+    boot = " ".join([*words, f"flash={int(flash is not None)}", *boot_extra])
     argv = [
         qemu,
         "-M", "virt,highmem=off",
@@ -100,7 +110,7 @@ def qemu_argv(
         "-serial", "stdio",
         "-semihosting-config", "enable=on,target=native",
         "-object", "can-bus,id=canbus0",
-        "-object", f"can-host-socketcan,id=canhost0,if={channel},canbus=canbus0",
+        *(["-object", f"can-host-socketcan,id=canhost0,if={channel},canbus=canbus0"] if channel else []),
         "-object", "can-bus,id=canbus1",  # the card's second core, on a bus of its own
         "-device", "ctucan_pci,canbus0=canbus0,canbus1=canbus1",
         "-fw_cfg", f"name={BOOT_FILE},string={boot}",
@@ -108,6 +118,8 @@ def qemu_argv(
     ]  # fmt: skip
     if flash is not None:
         argv += ["-drive", f"if=pflash,index=1,format=raw,file={flash}"]
+    if icount:
+        argv += ["-icount", "shift=0"]
     return argv
 
 
@@ -117,3 +129,27 @@ def require_qemu(qemu: str = QEMU) -> str:
     if path is None:
         raise FirmwareError(f"{qemu} not found: install Debian's qemu-system-arm (tools/deps does)")
     return path
+
+
+_CYCLE_COST = re.compile(r"hilfw: cycle cost: cycles (\d+), ticks (\d+), worst (\d+), counter Hz (\d+)")
+
+
+@dataclass(frozen=True)
+class CycleCost:
+    """What the image measured of its control cycles (boot parameter count-cycles=N) under
+    `-icount shift=0`, where virtual time advances one nanosecond an instruction: the generic
+    timer's ticks times its period in nanoseconds are instructions (to a tick's resolution)."""
+
+    cycles: int
+    instructions_per_cycle: float
+    worst_instructions: int
+
+
+def parse_cycle_cost(log: str) -> CycleCost:
+    """The image's cycle cost line in `log`; FirmwareError when it has none."""
+    match = _CYCLE_COST.search(log)
+    if match is None:
+        raise FirmwareError(f"no cycle cost line in the image's log: {log.strip()[-300:]!r}")
+    cycles, ticks, worst, frequency = (int(group) for group in match.groups())
+    ns_per_tick = 1e9 / frequency
+    return CycleCost(cycles, ticks * ns_per_tick / cycles, round(worst * ns_per_tick))

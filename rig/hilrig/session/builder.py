@@ -352,8 +352,13 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
             modules.append(rig)
         for rider in config.riders:
             rider_firmware = _start_firmware(
-                stack, launcher, config, rider.node_id, out / f"firmware-{rider.node_id}.log",
-                out / f"params-{rider.node_id}.bin", executable=rider.executable,
+                stack,
+                launcher,
+                config,
+                rider.node_id,
+                out / f"firmware-{rider.node_id}.log",
+                out / f"params-{rider.node_id}.bin",
+                executable=rider.executable,
             )
             firmware.append(rider_firmware)
             modules.append(_rider_rig(stack, config, rider, rider_firmware, private_bus, launcher, tracer))

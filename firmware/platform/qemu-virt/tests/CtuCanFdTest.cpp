@@ -242,9 +242,8 @@ TEST(CtuCanFd, FramesLeaveInTheOrderSentOneBufferAtATimeInRotation) {
   driver.service_transmit();
   EXPECT_EQ(model.sent, frames);
   EXPECT_EQ(model.buffers_used, (std::vector<int>{0, 1, 2, 3, 0, 1, 2}));
-  EXPECT_EQ(driver.counters().frames_sent, 6u) << "the last buffer is taken back at the next call";
-  driver.service_transmit();
   EXPECT_EQ(driver.counters().frames_sent, 7u);
+  EXPECT_EQ(model.read(reg::kTxStatus), 0x8888u) << "every buffer taken back: Empty";
 }
 
 TEST(CtuCanFd, OnASlowBusTheNextFrameWaitsForTheBufferDoneInterrupt) {
