@@ -140,11 +140,23 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
     metafunc.parametrize("hil_firmware_platform", platforms, indirect=True)
 
 
+PLATFORM_PROPERTY = "firmware_platform"
+"""The JUnit property naming each platform a scenario's firmware ran on (tools/test-summary.py
+counts the scenarios of each)."""
+
+
+def _record_platform(node: pytest.Item | Any, platform: str) -> None:
+    if (PLATFORM_PROPERTY, platform) not in node.user_properties:
+        node.user_properties.append((PLATFORM_PROPERTY, platform))
+
+
 @pytest.fixture
 def hil_firmware_platform(request: pytest.FixtureRequest) -> str:
     """The platform this scenario's firmware runs on: its firmware_platforms parameter, else
     --hil-firmware-platform."""
-    return str(getattr(request, "param", None) or request.config.getoption("hil_firmware_platform"))
+    platform = str(getattr(request, "param", None) or request.config.getoption("hil_firmware_platform"))
+    _record_platform(request.node, platform)
+    return platform
 
 
 def _bus_log_format(text: str) -> str:
@@ -302,6 +314,7 @@ def make_scenario(
         firmware_platform: str | None = None,
     ) -> Scenario:
         platform = firmware_platform or hil_firmware_platform
+        _record_platform(request.node, platform)
         run_dir = scenario_dir / subdir if subdir else scenario_dir
         realtime = mode == "realtime"
         config = request.config
@@ -418,6 +431,8 @@ def make_robot(
             firmware_platform=hil_firmware_platform,
             module_platforms=dict(module_platforms or {}),
         )
+        for platform in (module_platforms or {}).values():
+            _record_platform(request.node, platform)
         _require_built(hil_board, hil_firmware_platform, *(module_platforms or {}).values())
         logs = f", firmware logs: {scenario_dir}/firmware-*.log"
         request.node.hil_evidence = _evidence(scenario_dir, trace, bus_log_path(config)) + logs
