@@ -45,8 +45,8 @@ inline constexpr std::uint32_t kRxData = 0x6C;
 inline constexpr std::uint32_t kTxStatus = 0x70;  // 4 bits per TXT buffer
 inline constexpr std::uint32_t kTxCommand = 0x74;
 inline constexpr std::uint32_t kTxPriority = 0x78;
-inline constexpr std::uint32_t kTxtBuffer1 = 0x100;  // TXT buffer n at kTxtBuffer1 + 0x100 * n
-inline constexpr std::uint32_t kTxtBufferSpan = 0x100;
+inline constexpr std::uint32_t kTxtBuffer1 = 0x100;  // protocol-literal: a register offset of the core (TXT buffer n at kTxtBuffer1 + 0x100 * n)
+inline constexpr std::uint32_t kTxtBufferSpan = 0x100;  // protocol-literal: a register offset of the core
 }  // namespace reg
 
 inline constexpr std::uint32_t kDeviceIdValue = 0xCAFD;
@@ -206,8 +206,8 @@ class Driver final : public co::AcceptanceListener {
     if (state == FaultState::BusOff && fault_state_ != FaultState::BusOff) ++counters_.bus_off_events;
     fault_state_ = state;
     const std::uint32_t counts = r_.read(reg::kRecTec);
-    counters_.receive_errors = static_cast<std::uint16_t>(counts & 0x1FFu);
-    counters_.transmit_error_count = static_cast<std::uint16_t>((counts >> 16) & 0x1FFu);
+    counters_.receive_errors = static_cast<std::uint16_t>(counts & 0x1FFu);  // protocol-literal: a 9-bit error counter field
+    counters_.transmit_error_count = static_cast<std::uint16_t>((counts >> 16) & 0x1FFu);  // protocol-literal: a 9-bit error counter field
   }
 
   void drain_receive_fifo() {

@@ -18,7 +18,7 @@ constexpr std::uint32_t kAccessFull = 0b11u << 10;
 constexpr std::uint32_t kNormalWriteBack = (0b001u << 12) | (1u << 3) | (1u << 2);  // TEX 001, C, B
 constexpr std::uint32_t kDevice = 1u << 2;                                           // TEX 000, B: shareable device
 constexpr std::uint32_t kExecuteNever = 1u << 4;
-constexpr std::uint32_t kRamFirstSection = 0x400;  // 0x40000000
+constexpr std::uint32_t kRamFirstSection = 0x400;  // protocol-literal: the section index of 0x40000000
 
 volatile std::uint8_t& mmio8(std::uintptr_t address) { return *reinterpret_cast<volatile std::uint8_t*>(address); }
 volatile std::uint16_t& mmio16(std::uintptr_t address) { return *reinterpret_cast<volatile std::uint16_t*>(address); }
@@ -93,12 +93,12 @@ void gic_init() {
 }
 
 void gic_enable(std::uint32_t interrupt) {
-  mmio8(kGicDistributor + 0x400 + interrupt) = 0xA0;                 // GICD_IPRIORITYR
+  mmio8(kGicDistributor + 0x400 + interrupt) = 0xA0;                 // protocol-literal: a GIC register offset (GICD_IPRIORITYR)
   if (interrupt >= 32) mmio8(kGicDistributor + 0x800 + interrupt) = 1;  // GICD_ITARGETSR: CPU 0
-  mmio32(kGicDistributor + 0x100 + 4 * (interrupt / 32)) = 1u << (interrupt % 32);  // GICD_ISENABLER
+  mmio32(kGicDistributor + 0x100 + 4 * (interrupt / 32)) = 1u << (interrupt % 32);  // protocol-literal: a GIC register offset (GICD_ISENABLER)
 }
 
-std::uint32_t gic_acknowledge() { return mmio32(kGicCpuInterface + 0x00C) & 0x3FFu; }
+std::uint32_t gic_acknowledge() { return mmio32(kGicCpuInterface + 0x00C) & 0x3FFu; }  // protocol-literal: the INTID field of GICC_IAR
 void gic_end(std::uint32_t interrupt) { mmio32(kGicCpuInterface + 0x010) = interrupt; }
 
 std::uint64_t counter_ticks() {

@@ -20,7 +20,7 @@ namespace virt {
 
 inline constexpr std::uintptr_t kFlash1Base = 0x0400'0000u;
 inline constexpr std::uint32_t kFlashBlockBytes = 256 * 1024;
-inline constexpr std::uintptr_t kGicDistributor = 0x0800'0000u;
+inline constexpr std::uintptr_t kGicDistributor = 0x0800'0000u;  // protocol-literal: the GIC distributor of the virt machine
 inline constexpr std::uintptr_t kGicCpuInterface = 0x0801'0000u;
 inline constexpr std::uintptr_t kUart = 0x0900'0000u;
 inline constexpr std::uintptr_t kFwCfg = 0x0902'0000u;

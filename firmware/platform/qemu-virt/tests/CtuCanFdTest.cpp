@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "board/cia301.hpp"
+
 #include <array>
 #include <cstdint>
 #include <deque>
@@ -183,6 +185,10 @@ class CoreModel {
 };
 
 using Driver = virt::ctucan::Driver<CoreModel, 8, 8>;
+using cia301::FunctionCode;
+
+// Identifiers of the connection set, of node 16 unless another is named.
+constexpr std::uint32_t id(FunctionCode function, std::uint32_t node_id = 16) { return cia301::cob_id(function, node_id); }
 
 co::CanFrame frame(std::uint32_t id, std::initializer_list<std::uint8_t> bytes) {
   co::CanFrame f;
@@ -213,11 +219,11 @@ TEST(CtuCanFd, TheInterruptMovesEveryFrameOfTheFifoIntoThePortInOrder) {
   Driver driver{model};
   ASSERT_TRUE(driver.start());
   const std::vector<co::CanFrame> frames = {
-      frame(0x080, {}),
-      frame(0x210, {1, 2, 3, 4, 5, 6, 7, 8}),
-      frame(0x610, {0x40, 0x18, 0x10, 0x01}),
+      frame(cia301::kSyncCobId, {}),
+      frame(id(FunctionCode::Rpdo1), {1, 2, 3, 4, 5, 6, 7, 8}),
+      frame(id(FunctionCode::SdoRequest), {0x40, 0x18, 0x10, 0x01}),
       frame(co::CanFrame::kExtendedFlag | 0x1ABC'DEF0u, {9, 8, 7}),
-      frame(co::CanFrame::kRemoteFlag | 0x190, {}),
+      frame(co::CanFrame::kRemoteFlag | id(FunctionCode::Tpdo1), {}),
   };
   for (const co::CanFrame& f : frames) model.deliver(f);
   driver.on_interrupt();
@@ -237,7 +243,7 @@ TEST(CtuCanFd, FramesLeaveInTheOrderSentOneBufferAtATimeInRotation) {
   Driver driver{model};
   ASSERT_TRUE(driver.start());
   std::vector<co::CanFrame> frames;
-  for (std::uint8_t k = 0; k < 7; ++k) frames.push_back(frame(0x180u + k, {k, static_cast<std::uint8_t>(k * 3)}));
+  for (std::uint8_t k = 0; k < 7; ++k) frames.push_back(frame(id(FunctionCode::Tpdo1, k), {k, static_cast<std::uint8_t>(k * 3)}));
   for (const co::CanFrame& f : frames) ASSERT_EQ(driver.port().send(f), co::SendResult::Sent);
   driver.service_transmit();
   EXPECT_EQ(model.sent, frames);
@@ -251,8 +257,8 @@ TEST(CtuCanFd, OnASlowBusTheNextFrameWaitsForTheBufferDoneInterrupt) {
   model.instant_bus = false;
   Driver driver{model};
   ASSERT_TRUE(driver.start());
-  const co::CanFrame first = frame(0x701, {0x05});
-  const co::CanFrame second = frame(0x190, {1, 2});
+  const co::CanFrame first = frame(id(FunctionCode::Heartbeat, 1), {0x05});
+  const co::CanFrame second = frame(id(FunctionCode::Tpdo1), {1, 2});
   ASSERT_EQ(driver.port().send(first), co::SendResult::Sent);
   ASSERT_EQ(driver.port().send(second), co::SendResult::Sent);
   driver.service_transmit();
@@ -270,21 +276,23 @@ TEST(CtuCanFd, FilterAHoldsTheAcceptedIdsCommonBitsAndTheSetIsCheckedExactly) {
   CoreModel model;
   Driver driver{model};
   ASSERT_TRUE(driver.start());
-  const std::array<std::uint32_t, 5> accepted = {0x000, 0x080, 0x210, 0x310, 0x610};
+  const std::array<std::uint32_t, 5> accepted = {cia301::kNmtCobId, cia301::kSyncCobId, id(FunctionCode::Rpdo1),
+                                                 id(FunctionCode::Rpdo2), id(FunctionCode::SdoRequest)};
   driver.accepted_ids_changed(accepted);
-  // 0x000, 0x080, 0x210, 0x310 and 0x610 share bits 0..3 (all zero): filter A passes ids
-  // ending in 0x0 only. 0x181 is outside it (dropped by the core), 0x190 passes it but is not
-  // in the set (dropped by the driver), 0x610 is in the set.
-  model.deliver(frame(0x181, {1}));
-  model.deliver(frame(0x190, {2}));
-  model.deliver(frame(0x610, {3}));
+  // NMT, SYNC, node 16's RPDO1, RPDO2 and SDO request share bits 0..3, 5 and 6 (all zero):
+  // filter A passes only ids with those clear. Node 1's TPDO1 is outside it (dropped by the
+  // core), node 16's passes it but is not in the set (dropped by the driver), the SDO request
+  // is in the set.
+  model.deliver(frame(id(FunctionCode::Tpdo1, 1), {1}));
+  model.deliver(frame(id(FunctionCode::Tpdo1), {2}));
+  model.deliver(frame(id(FunctionCode::SdoRequest), {3}));
   model.deliver(frame(co::CanFrame::kExtendedFlag | 0x12345, {4}));  // 29-bit: the engine's to ignore
   driver.on_interrupt();
   EXPECT_EQ(model.dropped_by_filter, 1u);
   EXPECT_EQ(driver.counters().frames_filtered, 1u);
   co::CanFrame got;
   ASSERT_EQ(driver.port().receive(got), co::ReceiveResult::Received);
-  EXPECT_EQ(got, frame(0x610, {3}));
+  EXPECT_EQ(got, frame(id(FunctionCode::SdoRequest), {3}));
   ASSERT_EQ(driver.port().receive(got), co::ReceiveResult::Received);
   EXPECT_EQ(got.id & co::CanFrame::kExtendedFlag, co::CanFrame::kExtendedFlag);
   EXPECT_EQ(driver.port().receive(got), co::ReceiveResult::Empty);
@@ -319,7 +327,7 @@ TEST(CtuCanFd, OverrunsOfTheCoreAndOfThePortAreCounted) {
   driver.on_interrupt();
   EXPECT_EQ(driver.counters().data_overruns, 1u);
   EXPECT_EQ(model.overruns_cleared, 1);
-  for (std::uint32_t k = 0; k < 10; ++k) model.deliver(frame(0x200 + k, {}));  // the port holds 8
+  for (std::uint32_t k = 1; k <= 10; ++k) model.deliver(frame(id(FunctionCode::Rpdo1, k), {}));  // the port holds 8
   driver.on_interrupt();
   EXPECT_EQ(driver.port().receive_overruns(), 2u);
 }
