@@ -51,6 +51,16 @@ cortex-m: deps ## cross-build the firmware and its unit tests for a Cortex-M4F (
 	$(call configure_and_build,$(CORTEX_M_BUILD),-DCMAKE_TOOLCHAIN_FILE=$(CURDIR)/cmake/arm-none-eabi.cmake -DCMAKE_BUILD_TYPE=MinSizeRel -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF)
 	@echo "build: Cortex-M firmware image $(CORTEX_M_BUILD)/bin/joint-firmware.elf, test images $(CORTEX_M_BUILD)/bin/cm_*_tests.elf"
 
+# The bare-metal platform (issue 62): the demo joint as an image for qemu's 32-bit Arm virt
+# machine on a CTU CAN FD controller (cmake/arm-none-eabi-virt.cmake, firmware/platform/qemu-virt),
+# which the marked scenarios run under qemu-system-arm (--hil-firmware-platform qemu-virt).
+VIRT_BUILD := build/qemu-virt
+
+.PHONY: baremetal
+baremetal: deps ## cross-build the firmware as a bare-metal image for qemu's Arm virt machine (build/qemu-virt)
+	$(call configure_and_build,$(VIRT_BUILD),-DCMAKE_TOOLCHAIN_FILE=$(CURDIR)/cmake/arm-none-eabi-virt.cmake -DCMAKE_BUILD_TYPE=MinSizeRel -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF)
+	@echo "build: bare-metal image $(VIRT_BUILD)/bin/joint-firmware-virt.elf (qemu-system-arm -M virt)"
+
 # Shards for CI (one job each): SHARD=K/N runs shard K of N of the bus-level scenarios, split by
 # pytest-split from tests/.test_durations; shard 1 also runs the C++ and Python unit stages.
 # Checked before anything builds: a malformed SHARD stops make with one line.
@@ -63,7 +73,7 @@ endif
 endif
 
 .PHONY: test
-test: build cortex-m ## run everything: C++ tests, Python tests, bus-level scenarios (SHARD=K/N: one CI job of N)
+test: build cortex-m baremetal ## run everything: C++ tests, Python tests, bus-level scenarios (SHARD=K/N: one CI job of N)
 	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests $(if $(SHARD),--shard $(SHARD))
 
 # The durations come from the JUnit XML run-tests writes rather than pytest-split's
@@ -105,7 +115,7 @@ BASELINE ?=
 BASELINE_ARG = $(if $(BASELINE),--baseline '$(BASELINE)')
 
 .PHONY: bench
-bench: deps cortex-m ## benchmarks, each a ratio measured side by side in one run (BASELINE=<commit>)
+bench: deps cortex-m baremetal ## benchmarks, each a ratio measured side by side in one run (BASELINE=<commit>)
 	$(call configure_and_build,$(BENCH_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_BENCH=ON)
 	@$(PY) tools/bench.py native --out $(BENCH_BUILD) $(BASELINE_ARG)
 	@HIL_BUS_PATH_FILE=$(CURDIR)/$(BENCH_BUILD)/bus-path.txt \

@@ -23,6 +23,7 @@ from hilrig.pytest_plugin import (
     SCENARIO_SDO_TIMEOUT_S,
     run_hilrig,
 )
+from hilrig.session import baremetal
 from hilrig.session.buslog import BusRecorder
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware, parse_stop_line
 from hilrig.session.netns import PrivateBus
@@ -32,6 +33,7 @@ REPO = Path(__file__).resolve().parent.parent
 EDS = REPO / "build" / "protocol" / "board.eds"
 TABLE = RigTable.load()
 NODE_ID = TABLE.board.node.default_node_id
+
 
 @dataclass
 class NodeUnderTest:
@@ -80,9 +82,18 @@ class NodeUnderTest:
             self.network.unsubscribe(cob_id, on_frame)
 
 
-def start_node(private_bus: PrivateBus, scenario_dir: Path, params_file: Path | None = None) -> NodeUnderTest:
-    if not DEFAULT_EXECUTABLE.exists() or not EDS.exists():
-        pytest.fail(f"{DEFAULT_EXECUTABLE} or {EDS} missing: run `make build` first", pytrace=False)
+def start_node(
+    private_bus: PrivateBus,
+    scenario_dir: Path,
+    params_file: Path | None = None,
+    platform: str = baremetal.LINUX,
+) -> NodeUnderTest:
+    """The firmware on `platform` (hilrig.session.baremetal), booted, with a canopen master."""
+    executable = baremetal.default_image(platform) if platform != baremetal.LINUX else DEFAULT_EXECUTABLE
+    if not executable.exists() or not EDS.exists():
+        pytest.fail(
+            f"{executable} or {EDS} missing: run `make build` (and `make baremetal`) first", pytrace=False
+        )
     bus_log = scenario_dir / "bus.log"
     recorder = BusRecorder(private_bus.open(), bus_log)
     bus = private_bus.open(receive_own_messages=True)
@@ -98,7 +109,12 @@ def start_node(private_bus: PrivateBus, scenario_dir: Path, params_file: Path | 
         heartbeat_cob_id(NODE_ID), lambda can_id, data, ts: booted.set() if data[:1] == boot_up else None
     )
     firmware = Firmware(
-        private_bus, node_id=NODE_ID, log_path=scenario_dir / "firmware.log", params_file=params_file
+        private_bus,
+        node_id=NODE_ID,
+        log_path=scenario_dir / "firmware.log",
+        params_file=params_file,
+        executable=executable,
+        platform=platform,
     )
     firmware.start()
     if not booted.wait(BOOT_TIMEOUT_S):
@@ -121,10 +137,12 @@ def stop_node(under_test: NodeUnderTest) -> int | None:
 
 
 @pytest.fixture
-def node_under_test(private_bus: PrivateBus, scenario_dir: Path) -> Iterator[NodeUnderTest]:
+def node_under_test(
+    private_bus: PrivateBus, scenario_dir: Path, hil_firmware_platform: str
+) -> Iterator[NodeUnderTest]:
     """The firmware in lockstep mode on a private bus, booted (pre-operational), with a
     canopen master; on teardown the firmware must stop cleanly on SIGTERM."""
-    under_test = start_node(private_bus, scenario_dir)
+    under_test = start_node(private_bus, scenario_dir, platform=hil_firmware_platform)
     try:
         yield under_test
     finally:

@@ -42,6 +42,7 @@ def start_velocity_loop(s, setpoint: float = 2.0) -> None:
     s.rig.set("velocity_setpoint", setpoint)
 
 
+@pytest.mark.firmware_platforms("linux", "qemu-virt")
 @pytest.mark.requirement("PROT_07")
 def test_latched_fault_holds_until_fault_clear_then_error_reset(make_scenario) -> None:
     s = make_scenario()

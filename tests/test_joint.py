@@ -30,6 +30,7 @@ def latched_faults(rig) -> FaultFlags:
     return FaultFlags(int(rig.field("fault_flags")))
 
 
+@pytest.mark.firmware_platforms("linux", "qemu-virt")
 @pytest.mark.requirement("CTRL_01")
 def test_velocity_step_settles_within_2_percent(make_scenario, capsys: pytest.CaptureFixture[str]) -> None:
     # The loop regulates the gearbox side (motor_velocity / gear ratio): collocated, so it
@@ -110,6 +111,7 @@ def test_the_demo_under_the_lean_profile(
     )
 
 
+@pytest.mark.firmware_platforms("linux", "qemu-virt")
 @pytest.mark.requirement("CTRL_02")
 def test_torque_step_through_the_spring(make_scenario) -> None:
     s = make_scenario(params=VISCOUS_LOAD)
@@ -194,6 +196,7 @@ def test_thermal_derating_then_cut_off_with_hysteresis(make_scenario) -> None:
     )
 
 
+@pytest.mark.firmware_platforms("linux", "qemu-virt")
 @pytest.mark.requirement("PROT_01")
 def test_silent_encoder_goes_to_safe_state_with_emcy(make_scenario) -> None:
     s = make_scenario()

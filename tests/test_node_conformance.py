@@ -86,6 +86,7 @@ def test_device_name_is_a_segmented_upload(node_under_test: NodeUnderTest) -> No
     assert identity[1].raw == 0x48494C00
 
 
+@pytest.mark.firmware_platforms("linux", "qemu-virt")
 @pytest.mark.requirement("SDO_03")
 def test_bad_requests_get_the_cia301_abort_codes(node_under_test: NodeUnderTest) -> None:
     sdo = node_under_test.node.sdo
@@ -195,6 +196,7 @@ def heartbeat_state(node: canopen.RemoteNode, expected: str, heartbeats: int = 5
     return state
 
 
+@pytest.mark.firmware_platforms("linux", "qemu-virt")
 @pytest.mark.requirement("NMT_01")
 def test_nmt_states_walk_and_reset_gives_boot_up_and_defaults(node_under_test: NodeUnderTest) -> None:
     node = node_under_test.node
@@ -264,16 +266,19 @@ def test_stale_encoder_is_reported_by_emcy_naming_the_field(node_under_test: Nod
     assert node.sdo[0x1003][0].raw >= 1  # pre-defined error field holds it
 
 
+@pytest.mark.firmware_platforms("linux", "qemu-virt")
 @pytest.mark.requirement("STORE_01")
-def test_parameters_stored_survive_a_restart(private_bus: PrivateBus, scenario_dir: Path) -> None:
+def test_parameters_stored_survive_a_restart(
+    private_bus: PrivateBus, scenario_dir: Path, hil_firmware_platform: str
+) -> None:
     params = scenario_dir / "params.bin"
-    first = start_node(private_bus, scenario_dir, params_file=params)
+    first = start_node(private_bus, scenario_dir, params_file=params, platform=hil_firmware_platform)
     try:
         first.node.sdo["velocity_kp"].raw = 0.125
         first.node.sdo[0x1010][1].raw = 0x65766173  # "save"
     finally:
         assert stop_node(first) == 0
-    second = start_node(private_bus, scenario_dir, params_file=params)
+    second = start_node(private_bus, scenario_dir, params_file=params, platform=hil_firmware_platform)
     try:
         assert second.node.sdo["velocity_kp"].raw == pytest.approx(0.125)
         second.node.sdo[0x1011][1].raw = 0x64616F6C  # "load": restore defaults

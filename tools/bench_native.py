@@ -23,6 +23,7 @@ from bench_baseline import measure_baseline, prepare_checkout
 from bench_common import ROOT, NotMeasured, ProbeError, machine, run_probe, say, write_json_atomically
 from bench_cycles import cycle_budget
 from bench_size import image_size
+from bench_virt import virt_cycle_cost, virt_size
 
 CALLGRIND_CYCLES = 2000
 # fw_cycle_count's loops: the demo joint, the stand-ins on the core and on the naive board, and
@@ -165,6 +166,9 @@ def native_main(args: argparse.Namespace) -> int:
     result["cortex_m_size"] = not_measured.attempt("cortex_m_size", image_size)
     say("worst control cycle of the Cortex-M4F firmware under qemu -icount (build/cortex-m)")
     result["cortex_m_cycles"] = not_measured.attempt("cortex_m_cycles", cycle_budget)
+    say("the bare-metal image (build/qemu-virt): size, and its cycle under qemu -icount")
+    result["virt_size"] = not_measured.attempt("virt_size", virt_size)
+    result["virt_cycle"] = not_measured.attempt("virt_cycle", virt_cycle_cost)
     if shutil.which("valgrind") is None:
         say("valgrind is missing (apt-get install valgrind, or make deps): no instruction counts")
         result["callgrind"] = None

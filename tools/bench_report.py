@@ -33,6 +33,7 @@ from bench_common import (
 from bench_cycles import cycle_budget_rows
 from bench_native import TRACE_PROBE_CYCLES, cycle_costs, rig_probe_per_cycle
 from bench_size import size_rows
+from bench_virt import virt_rows
 
 LONG_TRACE_DASHBOARD = "overview"
 
@@ -508,6 +509,7 @@ SECTION_TITLES = {
     "board_bench": "board get/set and cycle (fw_board_bench)",
     "cortex_m_size": "Cortex-M4F firmware image: flash and RAM vs budget",
     "cortex_m_cycles": "Cortex-M4F worst control cycle vs its budget",
+    "virt": "bare-metal image (qemu-virt): flash, RAM, instructions/cycle",
     "callgrind": "instructions/cycle (callgrind)",
     "rig_probe": "the Rig's own lockstep cycle (tools/rig_probe.py)",
     "baseline": "the engine's instructions/cycle, this checkout vs a baseline commit",
@@ -537,6 +539,7 @@ def build_report(
         "board_bench": lambda: _board_bench_rows(rows, native, not_measured),
         "cortex_m_size": lambda: size_rows(rows, native["cortex_m_size"]),
         "cortex_m_cycles": lambda: cycle_budget_rows(rows, native["cortex_m_cycles"]),
+        "virt": lambda: virt_rows(rows, native),
         "callgrind": lambda: _instruction_rows(rows, native, not_measured),
         "rig_probe": lambda: _rig_probe_rows(rows, native.get("rig_probe"), not_measured),
         "baseline": lambda: baseline_rows(

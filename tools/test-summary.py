@@ -55,6 +55,13 @@ class StageResult:
     """Per failure, the files it attached (pictures of the failed checks)."""
     cases: list[requirements.CaseResult] = field(default_factory=list)
     """Each test that names a requirement, with its outcome."""
+    platforms: dict[str, list[int]] = field(default_factory=dict)
+    """Per firmware platform (the scenarios' PLATFORM_PROPERTY), [passed, failed] of the scenarios
+    whose firmware ran on it."""
+
+
+PLATFORM_PROPERTY = "firmware_platform"
+"""hilrig.pytest_plugin.fixtures.PLATFORM_PROPERTY (this script imports no pytest plugin)."""
 
 
 ATTACHMENT = re.compile(r"\[\[ATTACHMENT\|(?P<path>[^\]]+)\]\]")
@@ -77,6 +84,12 @@ def read_junit(path: Path) -> StageResult:
         else:
             result.passed += 1
             outcome = requirements.PASSED
+        if outcome != requirements.SKIPPED:
+            for platform in {
+                p.get("value", "") for p in case.iter("property") if p.get("name") == PLATFORM_PROPERTY
+            }:
+                counts = result.platforms.setdefault(platform, [0, 0])
+                counts[0 if outcome == requirements.PASSED else 1] += 1
         named = tuple(
             p.get("value", "") for p in case.iter("property") if p.get("name") == requirements.PROPERTY
         )
@@ -142,11 +155,23 @@ def main(argv: list[str]) -> int:
             stage.failures += part.failures
             stage.attachments |= part.attachments
             cases += part.cases
+            for platform, (passed, failed) in part.platforms.items():
+                counts = stage.platforms.setdefault(platform, [0, 0])
+                counts[0] += passed
+                counts[1] += failed
         ran = stage.passed + stage.failed
         line = f"{title:22} {ran:4d} ran: {stage.passed} passed, {stage.failed} failed"
         if stage.skipped:
             line += f", {stage.skipped} skipped"
         print(line)
+        if stage.platforms:
+            print(
+                "    firmware platforms: "
+                + ", ".join(
+                    f"{p} {n + f} ran ({n} passed, {f} failed)"
+                    for p, (n, f) in sorted(stage.platforms.items())
+                )
+            )
         for name in stage.failures:
             print(f"    FAILED {name}")
             for attached in stage.attachments.get(name, []):

@@ -60,6 +60,8 @@ constexpr EmcyReport over_temperature(board::FieldId field) {
 constexpr EmcyReport receive_overrun(std::uint16_t object_index) {
   return report(board::EmcyId::receive_overrun, object_index);
 }
+// The CAN controller went bus-off (its driver reports it once it is back on the bus).
+constexpr EmcyReport bus_off() { return report(board::EmcyId::bus_off, 0); }
 // An RPDO shorter than its mapping arrived; `rpdo_comm_index` is 0x1400+n.
 constexpr EmcyReport pdo_length_error(std::uint16_t rpdo_comm_index) {
   return report(board::EmcyId::pdo_length_error, rpdo_comm_index);

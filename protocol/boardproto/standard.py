@@ -55,6 +55,12 @@ error_register = "communication"
 description = "CAN overrun: received frames were lost (about: what was lost, e.g. the RPDO's 0x1400+n)"
 
 [[emcy]]
+name = "bus_off"
+code = 0x8140
+error_register = "communication"
+description = "Recovered from bus off: the CAN controller went bus-off and is back on the bus (about: 0)"
+
+[[emcy]]
 name = "pdo_length_error"
 code = 0x8210
 error_register = "communication"

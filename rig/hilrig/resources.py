@@ -88,6 +88,16 @@ if not HEAD_FIRMWARE.exists() and CHECKOUT is not None:
 _BUILT_TABLES = {HEAD_TABLE: CHECKOUT / "build" / "protocol" / "head"} if CHECKOUT is not None else {}
 """Tables besides the default whose EDS and DBC `make build` generates (CMake's hil_board_protocol)."""
 
+VIRT_IMAGE = (
+    (CHECKOUT if CHECKOUT is not None else Path.cwd())
+    / "build"
+    / "qemu-virt"
+    / "bin"
+    / "joint-firmware-virt.elf"
+)
+"""The demo joint's bare-metal image for qemu's Arm `virt` machine (`make baremetal`), which
+`--firmware-platform qemu-virt` runs (hilrig.session.baremetal)."""
+
 JOINT_FMU_DIR = (CHECKOUT if CHECKOUT is not None else Path.cwd()) / "build" / "fmu"
 """Where `make build` writes the demo joint's own FMU and its map (tools/joint_fmu.py)."""
 JOINT_FMU = JOINT_FMU_DIR / "joint.fmu"

@@ -362,6 +362,14 @@ def _native_step_with_a_rig_probe_that_times_out(out: Path, monkeypatch: pytest.
     monkeypatch.setattr(bench_native, "callgrind_instructions", lambda out, loop, cycles: 100 + cycles * 2000)
     monkeypatch.setattr(bench_native, "rig_probe_instructions", rig_probe_instructions)
     monkeypatch.setattr(bench_native, "_rig_memory_per_cycle", lambda: (550.0, 68.8))
+    virt_size = {"image": "joint-firmware-virt.elf", "flash_bytes": 64 * 1024, "flash_budget": 512 * 1024}
+    virt_size |= {"ram_bytes": 120 * 1024, "ram_budget": 256 * 1024}
+    monkeypatch.setattr(bench_native, "virt_size", lambda: virt_size)
+    monkeypatch.setattr(
+        bench_native,
+        "virt_cycle_cost",
+        lambda: {"cycles": 2000, "instructions_per_cycle": 1200.0, "worst": 1280},
+    )
     return bench.main(["native", "--out", str(out)])
 
 
@@ -390,6 +398,10 @@ def test_a_failing_probe_is_a_row_not_measured_and_the_report_is_still_written(
         rows["bytes per lockstep cycle: kept by the Rig (history) vs the data on the bus"]["ours"] == "550 B"
     )
     assert rows["instructions/cycle: demo joint vs stand-ins on naive board"]["ours"] == "2000"
+    virt = rows[
+        "instructions/cycle: bare-metal image under qemu -icount vs the Linux firmware under callgrind"
+    ]
+    assert (virt["ours"], virt["baseline"], virt["ratio"]) == ("1200 (worst 1280)", "2000", 0.6)
     assert rows["lockstep cycles/s: Rig untraced vs raw-socket floor"]["ours"] == "900/s"
     # Against the baseline: the Rig's row says why the checkout's count is missing, the engine's
     # compares both trees' counts.

@@ -87,3 +87,33 @@ def test_the_checkouts_requirements_file_is_the_default(
     summary = load_summary()
     assert summary.main(["test-summary.py", str(tmp_path), "--bus-only"]) == 1
     assert "requirements of requirements.toml: 0 of " in capsys.readouterr().out
+
+
+def test_the_bus_stage_says_how_many_scenarios_ran_on_each_firmware_platform(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    summary = load_summary()
+    for name in ("cpp.xml", "cortex-m.xml", "python-unit.xml", "browser.xml"):
+        (tmp_path / name).write_text(junit('<testcase classname="t" name="a"/>'))
+
+    def case(name: str, inner: str, *platforms: str) -> str:
+        properties = "".join(f'<property name="firmware_platform" value="{p}"/>' for p in platforms)
+        head = f'<testcase classname="tests.t" name="{name}">'
+        return f"{head}<properties>{properties}</properties>{inner}</testcase>"
+
+    (tmp_path / "scenarios.xml").write_text(
+        junit(
+            case("a[linux]", "", "linux"),
+            case("a[qemu-virt]", '<failure message="x"/>', "qemu-virt"),
+            case("both", "", "linux", "qemu-virt"),
+            case("skipped", "<skipped/>", "qemu-virt"),
+        )
+    )
+    assert (
+        summary.main(["test-summary.py", str(tmp_path), "--requirements", str(tmp_path / "none.toml")]) == 1
+    )
+    out = capsys.readouterr().out.splitlines()
+    assert (
+        "    firmware platforms: linux 2 ran (2 passed, 0 failed), qemu-virt 2 ran (1 passed, 1 failed)"
+        in out
+    )

@@ -37,6 +37,8 @@ class FrameRing {
     tail_.store(tail + 1, std::memory_order_release);
     return true;
   }
+  // Consumer side: a frame waits (a main loop asks before it sleeps, with interrupts masked).
+  bool pending() const { return tail_.load(std::memory_order_relaxed) != head_.load(std::memory_order_acquire); }
 
  private:
   std::array<co::CanFrame, Capacity> frames_{};
@@ -60,6 +62,7 @@ class InterruptCanPort final : public co::CanPort {
     if (!rx_.push(frame)) receive_overruns_.fetch_add(1, std::memory_order_relaxed);
   }
   bool pop_to_transmit(co::CanFrame& frame) { return tx_.pop(frame); }
+  bool received_pending() const { return rx_.pending(); }
   std::uint32_t receive_overruns() const { return receive_overruns_.load(std::memory_order_relaxed); }
 
  private:

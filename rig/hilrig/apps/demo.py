@@ -135,6 +135,9 @@ class DemoOptions:
     """What makes the plant from (params, seed); None: the demo joint with `params`."""
     table: RigTable | None = None
     """The board's table; None: the demo joint's."""
+    firmware_platform: str = "linux"
+    """Where the firmware runs (hilrig.session.baremetal.FIRMWARE_PLATFORMS); with "qemu-virt"
+    `executable` is the bare-metal image."""
 
 
 @dataclass(frozen=True)
@@ -166,6 +169,8 @@ class DemoSummary:
     """The page of the web viewer serving this run's trace (a `web` live sink)."""
     bus_timing: str | None = None
     """On the timed bus: what it carried (`BusTimeline.describe`)."""
+    firmware_platform: str = "linux"
+    """Where the firmware ran (hilrig.session.baremetal.FIRMWARE_PLATFORMS)."""
 
 
 def load_scenario(path: Path) -> Scenario:
@@ -248,6 +253,8 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         trace=options.trace,
         live=options.live if options.trace else (),
         executable=options.executable,
+        firmware_platform=options.firmware_platform,
+        baremetal_image=options.executable,
         eds=options.eds,
         boot_timeout_s=BOOT_TIMEOUT_S if options.board is None else BOARD_SILENT_S,
         sdo_timeout_s=1.0,
@@ -294,6 +301,7 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         frames_logged=recorder.frames if recorder is not None and recorder.frames is not None else 0,
         firmware_log=out / "firmware.log" if options.board is None else None,
         viewer_url=viewer_url,
+        firmware_platform=options.firmware_platform,
     )
     if options.trace:
         summary = dataclasses.replace(summary, trace=out / "trace.rrd")
@@ -460,7 +468,7 @@ def format_summary(summary: DemoSummary) -> str:
         ),
     ]
     if summary.firmware_log is not None:
-        rows.append(("firmware log", str(summary.firmware_log)))
+        rows.append(("firmware log", f"{summary.firmware_log} (platform {summary.firmware_platform})"))
     if summary.trace is not None:
         rows += [
             ("trace (Rerun)", str(summary.trace)),

@@ -23,6 +23,7 @@ from hilrig.cli.common import (
 )
 from hilrig.cli.files import output_folder, sniff_eds, sniff_executable, sniff_toml
 from hilrig.resources import FIRMWARE_HINT
+from hilrig.session.baremetal import FIRMWARE_PLATFORMS, LINUX, default_image
 from hilrig.table import BOARD_TABLE, RigTable
 
 if TYPE_CHECKING:
@@ -122,6 +123,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "working directory when hilrig is installed)",
     )
     parser.add_argument(
+        "--firmware-platform",
+        choices=FIRMWARE_PLATFORMS,
+        default=LINUX,
+        help="where the firmware runs: linux (the firmware process, default) or qemu-virt (the "
+        "bare-metal image under qemu-system-arm; --firmware then names the image, default "
+        "build/qemu-virt/bin/joint-firmware-virt.elf from `make baremetal`)",
+    )
+    parser.add_argument(
         "--fault",
         action="append",
         type=fault_spec,
@@ -206,7 +215,6 @@ def run(args: argparse.Namespace) -> int:
     from hilrig.apps.demo import DemoOptions, format_summary, run_demo
     from hilrig.session.builder import BoardInterface
     from hilrig.session.faults import FaultPlan
-    from hilrig.session.firmware import DEFAULT_EXECUTABLE
 
     table = RigTable.load(args.table)
     plant = plant_factory(args, table)
@@ -219,9 +227,12 @@ def run(args: argparse.Namespace) -> int:
             "--scenario: the demo's profiles drive the demo joint; another board's table needs a "
             "scenario file defining `def scenario(rig): ...`"
         )
-    executable = args.firmware or DEFAULT_EXECUTABLE
+    if args.firmware_platform != LINUX and not table.is_default_board:
+        raise UsageError(f"--firmware-platform {args.firmware_platform}: the demo joint's image only")
+    executable = args.firmware or default_image(args.firmware_platform)
     if not args.board and not executable.is_file():
-        raise UsageError(f"firmware {executable} does not exist: {FIRMWARE_HINT}")
+        hint = "build it with `make baremetal`" if args.firmware_platform != LINUX else FIRMWARE_HINT
+        raise UsageError(f"firmware {executable} does not exist: {hint}")
     live = _live_sinks(args)
     if args.poll_every < 0:
         raise UsageError(f"--poll-every: expected a number of cycles >= 0, got {args.poll_every}")
@@ -247,6 +258,7 @@ def run(args: argparse.Namespace) -> int:
         poll_every=args.poll_every,
         plant=plant,
         table=table,
+        firmware_platform=args.firmware_platform,
     )
     summary = run_demo(options, progress=progress)
     return _report(args, format_summary(summary), summary.viewer_url, live)
@@ -317,6 +329,7 @@ def run_robot_command(args: argparse.Namespace) -> int:
         "--fault": bool(args.fault),
         "--node-id": args.node_id is not None,
         "--plant": args.plant is not None or args.plant_map is not None,
+        "--firmware-platform": args.firmware_platform != LINUX,
     }
     refused = [flag for flag, present in given.items() if present]
     if refused:

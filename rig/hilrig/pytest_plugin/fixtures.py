@@ -34,7 +34,7 @@ from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
 from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config, report_header
 from hilrig.pytest_plugin.labgrid import CONSOLE_LOG, LabgridBoard, labgrid_env_given, open_labgrid_board
-from hilrig.session import warm
+from hilrig.session import baremetal, warm
 from hilrig.session.builder import (
     BoardInterface,
     HilSession,
@@ -118,6 +118,14 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         + ", ".join(f.lstrip(".") for f in LOG_FORMATS)
         + " (default log, candump); e.g. blf for CANoe, mf4 for CANape",
     )
+    group.addoption(
+        "--hil-firmware-platform",
+        choices=baremetal.FIRMWARE_PLATFORMS,
+        default=baremetal.LINUX,
+        help="where the firmware of a scenario runs: linux (the firmware process, default) or "
+        "qemu-virt (the bare-metal image under qemu-system-arm, `make baremetal`); a scenario "
+        "marked firmware_platforms(...) runs once on each platform it names whatever this says",
+    )
     for name, help_text in INI_OPTIONS:
         parser.addini(name, help_text, default="")
 
@@ -137,6 +145,45 @@ def _scenario_bitrate(config: pytest.Config, given: int | str | None, board: Hil
     --hil-timed-bus; `table`: the board's."""
     chosen = config.getoption("hil_timed_bus") if given == RUN_BITRATE else given
     return board.table.board.node.bitrate if chosen == TABLE_BITRATE else chosen  # type: ignore[return-value]
+
+
+FIRMWARE_PLATFORMS_MARKER = "firmware_platforms"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        f"{FIRMWARE_PLATFORMS_MARKER}(*platforms): run the scenario once on each firmware platform "
+        f"({', '.join(baremetal.FIRMWARE_PLATFORMS)}), its id ending in [platform]",
+    )
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """A scenario marked firmware_platforms("linux", "qemu-virt") once per platform."""
+    marker = metafunc.definition.get_closest_marker(FIRMWARE_PLATFORMS_MARKER)
+    if marker is None or "hil_firmware_platform" not in metafunc.fixturenames:
+        return
+    platforms = [baremetal.check_platform(str(platform)) for platform in marker.args]
+    metafunc.parametrize("hil_firmware_platform", platforms, indirect=True)
+
+
+PLATFORM_PROPERTY = "firmware_platform"
+"""The JUnit property naming each platform a scenario's firmware ran on (tools/test-summary.py
+counts the scenarios of each)."""
+
+
+def _record_platform(node: pytest.Item | Any, platform: str) -> None:
+    if (PLATFORM_PROPERTY, platform) not in node.user_properties:
+        node.user_properties.append((PLATFORM_PROPERTY, platform))
+
+
+@pytest.fixture
+def hil_firmware_platform(request: pytest.FixtureRequest) -> str:
+    """The platform this scenario's firmware runs on: its firmware_platforms parameter, else
+    --hil-firmware-platform."""
+    platform = str(getattr(request, "param", None) or request.config.getoption("hil_firmware_platform"))
+    _record_platform(request.node, platform)
+    return platform
 
 
 def _bus_log_format(text: str) -> str:
@@ -233,11 +280,14 @@ def run_hilrig(
     return forked.run(argv, namespace_file=private_bus.namespace_file, timeout_s=timeout_s)
 
 
-def _require_built(board: HilBoard) -> None:
-    missing = [str(path) for path in (board.firmware, board.eds) if not path.exists()]
+def _require_built(board: HilBoard, *platforms: str) -> None:
+    firmware = [baremetal.default_image(p) if p == baremetal.QEMU_VIRT else board.firmware for p in platforms]
+    missing = [str(path) for path in (*(firmware or [board.firmware]), board.eds) if not path.exists()]
     if missing:
+        hint = " (`make baremetal` for qemu-virt)" if baremetal.QEMU_VIRT in platforms else ""
         pytest.fail(
-            f"{' and '.join(missing)} missing: build the board's firmware and files first", pytrace=False
+            f"{' and '.join(missing)} missing: build the board's firmware and files first{hint}",
+            pytrace=False,
         )
 
 
@@ -259,7 +309,9 @@ class Scenario:
 
 
 @pytest.fixture
-def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureRequest) -> Iterator:
+def make_scenario(
+    scenario_dir: Path, hil_board: HilBoard, hil_firmware_platform: str, request: pytest.FixtureRequest
+) -> Iterator:
     """Factory: `make_scenario(params=..., seed=...)` opens a HIL session (`hilrig.session.builder`):
     the board's firmware in lockstep on this test's private bus, a candump recorder, a Rerun
     trace and a `Rig` with the board's plant (`hil_plant(params, seed)`), all torn down after
@@ -273,7 +325,8 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
     bus). `before_start(rig)` configures the node over SDO before the rig reads its PDO mapping
     and starts it (the node is pre-operational, so PDOs may be remapped). `bitrate`: a lockstep
     scenario's timed bus (a bit rate, "table" for the board's, None for the ideal bus; default:
-    the run's --hil-timed-bus); `s.rig.bus_timeline` has its load, backlog and late frames."""
+    the run's --hil-timed-bus); `s.rig.bus_timeline` has its load, backlog and late frames.
+    `firmware_platform`: this run's platform instead of the scenario's (`hil_firmware_platform`)."""
     sessions: list[HilSession] = []
     labgrid_consoles: list[tuple[LabgridBoard, Path]] = []
 
@@ -288,7 +341,10 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
         physics: bool = True,
         before_start: Callable[[Rig], None] | None = None,
         bitrate: int | str | None = RUN_BITRATE,
+        firmware_platform: str | None = None,
     ) -> Scenario:
+        platform = firmware_platform or hil_firmware_platform
+        _record_platform(request.node, platform)
         run_dir = scenario_dir / subdir if subdir else scenario_dir
         realtime = mode == "realtime"
         config = request.config
@@ -331,9 +387,10 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
             boot_timeout_s=BOOT_TIMEOUT_S,
             sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
             bus_log_format=config.getoption("hil_bus_log_format"),
+            firmware_platform=platform,
         )
         if board is None:
-            _require_built(hil_board)
+            _require_built(hil_board, platform)
         # The test's own private bus (a test may send frames of its own on it, e.g. a flood).
         private_bus = request.getfixturevalue("private_bus") if board is None else None
         session = open_session(
@@ -362,13 +419,16 @@ def make_scenario(scenario_dir: Path, hil_board: HilBoard, request: pytest.Fixtu
 
 
 @pytest.fixture
-def make_robot(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureRequest) -> Iterator:
+def make_robot(
+    scenario_dir: Path, hil_board: HilBoard, hil_firmware_platform: str, request: pytest.FixtureRequest
+) -> Iterator:
     """Factory: `make_robot(n=8)` opens a robot session (`hilrig.session.builder`, `modules=`): the
     firmware started n times on this test's private bus (node ids 1..n, or `node_ids`), one rig
     per module, the chain's mechanics from MuJoCo, the master heartbeat, a candump recorder and
     one Rerun trace (each module under /modules/<id>, the chain in 3D under /robot); returns the
     `HilSession` (its `.robot`), torn down after the test. `riders`: other boards on the same bus
-    (`hilrig.session.builder.Rider`, the head module), after the joints."""
+    (`hilrig.session.builder.Rider`, the head module), after the joints. `module_platforms`: node
+    ids whose firmware runs on another platform than the scenario's (e.g. {2: "qemu-virt"})."""
     sessions: list[HilSession] = []
 
     def make(
@@ -381,6 +441,7 @@ def make_robot(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureR
         master: MasterHeartbeat | None = MasterHeartbeat(),  # noqa: B008 (frozen: shared is fine)
         start: bool = True,
         riders: Sequence[Rider] = (),
+        module_platforms: dict[int, str] | None = None,
     ) -> HilSession:
         config = SessionConfig(
             out_dir=scenario_dir,
@@ -398,8 +459,12 @@ def make_robot(scenario_dir: Path, hil_board: HilBoard, request: pytest.FixtureR
             boot_timeout_s=BOOT_TIMEOUT_S,
             sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
             bus_log_format=request.config.getoption("hil_bus_log_format"),
+            firmware_platform=hil_firmware_platform,
+            module_platforms=dict(module_platforms or {}),
         )
-        _require_built(hil_board)
+        for platform in (module_platforms or {}).values():
+            _record_platform(request.node, platform)
+        _require_built(hil_board, hil_firmware_platform, *(module_platforms or {}).values())
         logs = f", firmware logs: {scenario_dir}/firmware-*.log"
         request.node.hil_evidence = _evidence(scenario_dir, trace, bus_log_path(config)) + logs
         session = open_session(
@@ -454,6 +519,7 @@ __all__ = [
     "SCENARIO_SDO_TIMEOUT_S",
     "Scenario",
     "hil_board",
+    "hil_firmware_platform",
     "hil_labgrid",
     "hil_warm_server",
     "make_robot",
@@ -462,6 +528,8 @@ __all__ = [
     "private_bus",
     "pytest_addoption",
     "pytest_collection_modifyitems",
+    "pytest_configure",
+    "pytest_generate_tests",
     "run_hilrig",
     "scenario_dir",
 ]

@@ -20,7 +20,7 @@ each module's trace under /modules/<id>.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,6 +33,7 @@ from hilrig.engine.robot import MasterHeartbeat, Robot, module_ids
 from hilrig.errors import BusUnavailableError
 from hilrig.plants import default_plant
 from hilrig.plants.interface import Plant
+from hilrig.session import baremetal
 from hilrig.session.buslog import RecorderProcess, whole_file_logger
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.session.logformats import LOG_FORMATS
@@ -146,6 +147,13 @@ class SessionConfig:
     """A robot's master heartbeat (None: the rig sends none and the modules watch nothing)."""
     riders: Sequence[Rider] = ()
     """A robot's other boards on its bus, after its joints (`Robot.riders`)."""
+    firmware_platform: str = baremetal.LINUX
+    """Where the board's firmware runs (`baremetal.FIRMWARE_PLATFORMS`): the Linux process, or
+    `baremetal_image` under qemu-system-arm ("qemu-virt")."""
+    module_platforms: Mapping[int, str] = field(default_factory=dict)
+    """A robot's modules by node id that run on another platform than `firmware_platform`."""
+    baremetal_image: Path = field(default_factory=lambda: baremetal.default_image(baremetal.QEMU_VIRT))
+    """The image the "qemu-virt" platform runs (the demo joint's: `make baremetal`)."""
 
 
 @dataclass
@@ -461,17 +469,23 @@ def _start_firmware(
     the rig's timing (lockstep: the rig's period; real time: its own 10 ms unless given).
     `executable`: another board's firmware (a robot's rider), without the session's extra_args."""
     mode = TimingMode(config.mode)
+    platform = baremetal.LINUX
+    own = executable is None  # the session's board (its extra_args), not a rider
+    if executable is None:
+        platform = config.module_platforms.get(node_id, config.firmware_platform)
+        executable = config.baremetal_image if platform == baremetal.QEMU_VIRT else config.executable
     firmware = Firmware(
         launcher,
         node_id=node_id,
         log_path=log_path,
         params_file=params_file,
-        extra_args=config.extra_args if executable is None else (),
-        executable=executable if executable is not None else config.executable,
+        extra_args=config.extra_args if own else (),
+        executable=executable,
         mode=FIRMWARE_MODE[mode],
         period_us=config.firmware_period_us or (config.period_us if mode is TimingMode.LOCKSTEP else 10_000),
         term_timeout_s=config.firmware_term_timeout_s,
         image_dir=log_path.parent / f"images-{node_id}",
+        platform=platform,
     )
     firmware.start()
     stack.callback(firmware.stop)

@@ -23,6 +23,7 @@ from typing import IO, Any, Protocol, Self
 from hilrig import resources
 from hilrig.engine.driver import ProcessActivity, process_activity
 from hilrig.errors import FirmwareError
+from hilrig.session import baremetal
 
 DEFAULT_EXECUTABLE = resources.DEFAULT_FIRMWARE
 LOG_TAIL_LINES = 20
@@ -97,7 +98,10 @@ class Firmware:
     """One firmware process. stdout and stderr go to `log_path`; stop() is SIGTERM, then
     SIGKILL after `term_timeout_s`. `extra_args` go last on its command line. `image_dir`: the
     firmware's program download directory (--image-dir, created here): an image flashed into it
-    (CiA 302-3) re-executes the process in place, same pid, so stop() and kill() still reach it."""
+    (CiA 302-3) re-executes the process in place, same pid, so stop() and kill() still reach it.
+    `platform`: "linux" (the process above) or "qemu-virt" (`executable` is then the bare-metal
+    image, run by qemu-system-arm on the launcher's channel: hilrig.session.baremetal; its
+    parameters in a pflash file beside `params_file`; no program download)."""
 
     def __init__(
         self,
@@ -112,20 +116,36 @@ class Firmware:
         term_timeout_s: float = 5.0,
         mode: str = "lockstep",
         image_dir: Path | None = None,
+        platform: str = baremetal.LINUX,
     ) -> None:
         self.launcher = launcher
         self.mode = mode
-        self.image_dir = image_dir
-        self.argv = firmware_argv(
-            executable,
-            launcher.channel,
-            node_id,
-            period_us,
-            params_file,
-            extra_args,
-            mode=mode,
-            image_dir=image_dir,
-        )
+        self.platform = baremetal.check_platform(platform)
+        self.flash: Path | None = None
+        if self.platform == baremetal.QEMU_VIRT:
+            self.image_dir = None
+            self.flash = baremetal.flash_file(params_file) if params_file is not None else None
+            self.argv = baremetal.qemu_argv(
+                executable,
+                launcher.channel,
+                node_id=node_id,
+                period_us=period_us,
+                mode=_check_mode(mode),
+                flash=self.flash,
+                extra_args=extra_args,
+            )
+        else:
+            self.image_dir = image_dir
+            self.argv = firmware_argv(
+                executable,
+                launcher.channel,
+                node_id,
+                period_us,
+                params_file,
+                extra_args,
+                mode=mode,
+                image_dir=image_dir,
+            )
         self.executable = executable
         self.log_path = log_path
         self.term_timeout_s = term_timeout_s
@@ -136,12 +156,15 @@ class Firmware:
         if self.process is not None:
             raise FirmwareError(f"{self.executable.name} already started (pid {self.process.pid})")
         if not self.executable.exists():
-            raise FirmwareError(
-                f"{self.executable} does not exist: build the firmware first (cmake --build build)"
-            )
+            build = "make baremetal" if self.platform == baremetal.QEMU_VIRT else "cmake --build build"
+            raise FirmwareError(f"{self.executable} does not exist: build the firmware first ({build})")
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         if self.image_dir is not None:
             self.image_dir.mkdir(parents=True, exist_ok=True)
+        if self.platform == baremetal.QEMU_VIRT:
+            self.argv[0] = baremetal.require_qemu(self.argv[0])
+            if self.flash is not None:
+                baremetal.prepare_flash(self.flash)
         self._log = self.log_path.open("ab" if append_log else "wb")
         try:
             self.process = self.launcher.popen(
