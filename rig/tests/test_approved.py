@@ -61,6 +61,12 @@ def test_a_change_is_named_by_its_first_cycle_field_and_values() -> None:
     lines = compare_traces([base], [recorded(kick_at=157).run()])
     assert lines[0] == "compared 4 series over cycles 0..299", lines
     assert lines[1].startswith("  first divergence: motor_duty at cycle 157 (t = 0.157 s): "), lines
+    kicked = recorded(kick_at=157).run()
+    kicked.emcy.append((250, 0x8130, 0x11, "00"))
+    assert compare_traces([base], [kicked], every=True)[1:] == [
+        "  motor_duty at cycle 157 (t = 0.157 s): -0.0276761 vs -0.0266761",
+        "  emcy at cycle 250 (t = 0.250 s): '(none)' vs 'cycle 250 0x8130 17 00'",
+    ]
     later = recorded(cycles=301).run()
     assert compare_traces([base], [later]) == [
         "compared 4 series over cycles 0..299 (base 0..299, cand 0..300)",

@@ -55,8 +55,11 @@ APPROVED_FOLDER = "approved"
 """Beside each test file: tests/approved/test_joint.test_step.json."""
 FORMAT = 1
 UPDATE_COMMAND = "pytest --hil-approved=update"
-"""What writes a baseline anew; a project may name its own wrapper (`hil_approve_command`)."""
+"""What writes a baseline anew; a project may name its own wrapper (`hil_approve_command`, e.g.
+`make approve K={test}`)."""
 MARKER = "no_approved_trace"
+MORE_RUNS = 3
+"""Runs of a scenario (a robot's modules) a failure spells out; the others are counted."""
 _CHANGES_PROPERTY = "hil_approved"
 """The user property a test's report carries what its update changed in (read by the controller
 of an xdist run too)."""
@@ -75,7 +78,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     )
     parser.addini(
         "hil_approve_command",
-        "the command that approves changed traces, named in failures (default: pytest --hil-approved=update)",
+        "the command that approves a scenario's trace, named in its failure; {nodeid} and {test} "
+        "are filled in (default: pytest --hil-approved=update {nodeid})",
         default="",
     )
 
@@ -349,19 +353,32 @@ def compare_runs(base: Run, cand: Run) -> Comparison:
     )
 
 
-def compare_traces(base: Sequence[Run], cand: Sequence[Run]) -> list[str]:
-    """What differs between an approved trace and a new one, run by run (empty: nothing); the
-    lines `hilrig diff` prints for each run that differs."""
+def compare_traces(base: Sequence[Run], cand: Sequence[Run], *, every: bool = False) -> list[str]:
+    """What differs between an approved trace and a new one, run by run (empty: nothing): the
+    lines `hilrig diff` prints for each run that differs (its first MORE_RUNS); `every`: every
+    run that differs and every series that moved in it, each at its first divergence (what an
+    update shows for review)."""
     lines: list[str] = []
     if [r.name for r in base] != [r.name for r in cand]:
         lines.append(f"runs: approved {[r.name for r in base]}, this run {[r.name for r in cand]}")
+    differing = 0
     for b, c in zip(base, cand, strict=False):
         comparison = compare_runs(b, c)
-        if not comparison.same:
-            head = f"run {c.name}: " if len(cand) > 1 or c.name != "main" else ""
-            summary = comparison.summary()
-            lines.append(head + summary[0])
+        if comparison.same:
+            continue
+        differing += 1
+        if not every and differing > MORE_RUNS:
+            continue
+        head = f"run {c.name}: " if len(cand) > 1 or c.name != "main" else ""
+        summary = comparison.summary()
+        lines.append(head + summary[0])
+        if every:
+            lines += [f"  {divergence}" for divergence in comparison.divergences]
+            lines += [f"  {line}" for line in summary[2:] if line.startswith("only in ")]
+        else:
             lines += ["  " + line if not line.startswith("  ") else line for line in summary[1:]]
+    if differing > MORE_RUNS and not every:
+        lines.append(f"... and {differing - MORE_RUNS} more runs differ")
     return lines
 
 
@@ -371,8 +388,14 @@ def approved_path(item: pytest.Item) -> Path:
 
 
 def _command(config: pytest.Config, item: pytest.Item) -> str:
+    """The one command that approves `item`'s trace: the project's `hil_approve_command`, with
+    {nodeid} and {test} (the test function's name) filled in, else pytest's own."""
     spelled = str(config.getini("hil_approve_command") or "").strip()
-    return spelled or f"{UPDATE_COMMAND} {item.nodeid}"
+    if not spelled:
+        return f"{UPDATE_COMMAND} {item.nodeid}"
+    return spelled.replace("{nodeid}", item.nodeid).replace(
+        "{test}", getattr(item, "originalname", item.name)
+    )
 
 
 @pytest.hookimpl(wrapper=True)
@@ -407,7 +430,8 @@ def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
         return result
     if mode == "update":
         _write(path, text)
-        item.user_properties.append((_CHANGES_PROPERTY, "\n".join([f"changed {path}", *differences])))
+        changes = compare_traces(approved, runs, every=True)
+        item.user_properties.append((_CHANGES_PROPERTY, "\n".join([f"changed {path}", *changes])))
         return result
     pytest.fail(
         "\n".join(
