@@ -180,7 +180,7 @@ def _pack(pdos: Sequence[Rows]) -> str:
         delta = raw.copy()
         delta[1:] ^= raw[:-1]
         parts.append(delta.T.tobytes())
-    return base64.b64encode(lzma.compress(b"".join(parts), preset=9)).decode()
+    return base64.b64encode(lzma.compress(b"".join(parts))).decode()
 
 
 def _unpack(text: str, layouts: Sequence[tuple[str, tuple[str, ...], tuple[str, ...], int]]) -> list[Rows]:
