@@ -1,0 +1,91 @@
+"""The approved traces catch what a scenario's own assertions let through: the joint's firmware
+with one line changed (the drive's limit 0.1 % lower), built beside `make build`'s from that
+build's own commands (one object compiled again, its library and the firmware linked again, in
+<build>/approved-proof/), runs the velocity step; the step's assertions pass, its approved trace
+(tests/approved/) fails the scenario naming the first divergent cycle, field and values."""
+
+from __future__ import annotations
+
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hilrig import resources
+from hilrig.resources import FIRMWARE_VARIABLE
+
+pytestmark = pytest.mark.bus
+
+REPO = Path(__file__).resolve().parent.parent
+SCENARIO = "tests/test_joint.py::test_velocity_step_settles_within_2_percent"
+SOURCE = "firmware/joint/modules/DriveArbiter.cpp"
+LINE = "std::clamp(inputs.max_duty * inputs.thermal_derate, 0.0F, 1.0F)"
+CHANGED = "std::clamp(inputs.max_duty * inputs.thermal_derate * 0.999F, 0.0F, 1.0F)"
+TARGET = "bin/joint-firmware"
+
+
+def _run(command: str, cwd: Path) -> None:
+    done = subprocess.run(command, shell=True, cwd=cwd, capture_output=True, text=True, check=False)
+    assert done.returncode == 0, f"{command}\n{done.stdout}{done.stderr}"
+
+
+def patched_firmware(build: Path, out: Path) -> Path:
+    """`build`'s joint firmware with SOURCE's LINE changed: its ninja commands, with that one
+    object compiled from the patched copy, put into a copy of its library, and linked into
+    `out`; nothing in `build` is written."""
+    commands = subprocess.run(
+        ["ninja", "-C", str(build), "-t", "commands", TARGET], capture_output=True, text=True, check=True
+    ).stdout.splitlines()
+    source = REPO / SOURCE
+    text = source.read_text()
+    assert text.count(LINE) == 1, f"{SOURCE} no longer holds `{LINE}` once: update this test"
+    out.mkdir(parents=True, exist_ok=True)
+    patched = out / source.name
+    patched.write_text(text.replace(LINE, CHANGED))
+    compile_line = next(c for c in commands if c.endswith(f"-c {source}"))
+    words = shlex.split(compile_line)
+    obj = words[words.index("-o") + 1]
+    for flag in ("-MD",):
+        words.remove(flag)
+    for flag in ("-MT", "-MF"):
+        at = words.index(flag)
+        del words[at : at + 2]
+    new_obj = out / Path(obj).name
+    words[words.index("-o") + 1] = str(new_obj)
+    words[-1] = str(patched)
+    _run(shlex.join(words), build)
+    library = next(
+        w for c in commands if obj in c and "ar qc " in c for w in shlex.split(c) if w.endswith(".a")
+    )
+    new_library = out / Path(library).name
+    shutil.copyfile(build / library, new_library)
+    _run(shlex.join(["ar", "r", str(new_library), str(new_obj)]), out)
+    link = commands[-1]
+    assert f"-o {TARGET}" in link, link
+    firmware = out / Path(TARGET).name
+    _run(link.replace(f"-o {TARGET}", f"-o {firmware}").replace(f" {library} ", f" {new_library} "), build)
+    return firmware
+
+
+def test_a_one_line_firmware_change_fails_the_scenario_on_its_approved_trace(tmp_path: Path) -> None:
+    build = resources.DEFAULT_FIRMWARE.parent.parent
+    firmware = patched_firmware(build, build / "approved-proof")
+    env = {**os.environ, FIRMWARE_VARIABLE: str(firmware), "HIL_OUT_DIR": str(tmp_path)}
+    env.pop("CI", None)
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", SCENARIO, "-p", "no:cacheprovider", "--hil-approved=check"],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    output = done.stdout + done.stderr
+    assert done.returncode == 1, output
+    assert f"firmware {firmware}" in output, f"not the patched firmware:\n{output}"
+    assert "the run differs from its approved trace tests/approved/" in output, output
+    assert "first divergence: motor_duty_command at cycle " in output, output
