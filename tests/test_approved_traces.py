@@ -1,12 +1,14 @@
 """The approved traces catch what a scenario's own assertions let through: the joint's firmware
-with one line changed (the drive's limit 0.1 % lower), built beside `make build`'s from that
+with one line changed (the duty the drive arbiter passes on 0.1 % low), built beside `make build`'s from that
 build's own commands (one object compiled again, its library and the firmware linked again, in
-<build>/approved-proof/), runs the velocity step; the step's assertions pass, its approved trace
-(tests/approved/) fails the scenario naming the first divergent cycle, field and values."""
+<build>/approved-proof/), runs the watchdog scenario: its own assertions (the trip on its cycle,
+the drive cut there) pass, its approved trace (tests/approved/) fails it, naming the first
+divergent cycle, field and values."""
 
 from __future__ import annotations
 
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -21,10 +23,10 @@ from hilrig.resources import FIRMWARE_VARIABLE
 pytestmark = pytest.mark.bus
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = "tests/test_joint.py::test_velocity_step_settles_within_2_percent"
+SCENARIO = "tests/test_protection_rules.py::test_watchdog_trips_on_its_cycle_and_cuts_the_drive_there"
 SOURCE = "firmware/joint/modules/DriveArbiter.cpp"
-LINE = "std::clamp(inputs.max_duty * inputs.thermal_derate, 0.0F, 1.0F)"
-CHANGED = "std::clamp(inputs.max_duty * inputs.thermal_derate * 0.999F, 0.0F, 1.0F)"
+LINE = "return std::clamp(duty, -limit, limit);"
+CHANGED = "return std::clamp(duty * 0.999F, -limit, limit);"
 TARGET = "bin/joint-firmware"
 
 
@@ -88,4 +90,4 @@ def test_a_one_line_firmware_change_fails_the_scenario_on_its_approved_trace(tmp
     assert done.returncode == 1, output
     assert f"firmware {firmware}" in output, f"not the patched firmware:\n{output}"
     assert "the run differs from its approved trace tests/approved/" in output, output
-    assert "first divergence: motor_duty_command at cycle " in output, output
+    assert re.search(r"first divergence: motor_duty(_command)? at cycle \d+ \(t = ", output), output

@@ -60,7 +60,7 @@ def test_a_change_is_named_by_its_first_cycle_field_and_values() -> None:
     base = recorded().run()
     lines = compare_traces([base], [recorded(kick_at=157).run()])
     assert lines[0] == "compared 4 series over cycles 0..299", lines
-    assert lines[1].startswith("  first divergence: motor_duty at cycle 157 (t = 0.157 s): "), lines
+    assert lines[1].startswith("first divergence: motor_duty at cycle 157 (t = 0.157 s): "), lines
     kicked = recorded(kick_at=157).run()
     kicked.emcy.append((250, 0x8130, 0x11, "00"))
     assert compare_traces([base], [kicked], every=True)[1:] == [
@@ -70,7 +70,7 @@ def test_a_change_is_named_by_its_first_cycle_field_and_values() -> None:
     later = recorded(cycles=301).run()
     assert compare_traces([base], [later]) == [
         "compared 4 series over cycles 0..299 (base 0..299, cand 0..300)",
-        "  first divergence: TPDO 0x181 at cycle 300 (t = 0.300 s): 'not sent' vs 'sent'",
+        "first divergence: TPDO 0x181 at cycle 300 (t = 0.300 s): 'not sent' vs 'sent'",
         "  then TPDO 0x281 at cycle 300 (t = 0.300 s): 'not sent' vs 'sent'",
     ]
 
@@ -79,12 +79,12 @@ def test_a_tpdo_missing_in_a_cycle_and_a_lost_emcy_are_divergences() -> None:
     base = recorded().run()
     sparse = recorded(every_other_status=True).run()
     assert compare_traces([base], [sparse])[1] == (
-        "  first divergence: TPDO 0x281 at cycle 1 (t = 0.001 s): 'sent' vs 'not sent'"
+        "first divergence: TPDO 0x281 at cycle 1 (t = 0.001 s): 'sent' vs 'not sent'"
     )
     quiet = recorded()
     quiet.emcy.clear()
     assert compare_traces([base], [quiet.run()])[1] == (
-        "  first divergence: emcy at cycle 200 (t = 0.200 s): 'cycle 200 0x8110 17 0100000000' vs '(none)'"
+        "first divergence: emcy at cycle 200 (t = 0.200 s): 'cycle 200 0x8110 17 0100000000' vs '(none)'"
     )
 
 

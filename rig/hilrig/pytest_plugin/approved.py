@@ -375,8 +375,10 @@ def compare_traces(base: Sequence[Run], cand: Sequence[Run], *, every: bool = Fa
         if every:
             lines += [f"  {divergence}" for divergence in comparison.divergences]
             lines += [f"  {line}" for line in summary[2:] if line.startswith("only in ")]
-        else:
+        elif head:
             lines += ["  " + line if not line.startswith("  ") else line for line in summary[1:]]
+        else:
+            lines += summary[1:]
     if differing > MORE_RUNS and not every:
         lines.append(f"... and {differing - MORE_RUNS} more runs differ")
     return lines
