@@ -7,12 +7,10 @@ divergent cycle, field and values."""
 
 from __future__ import annotations
 
-import os
 import re
 import shlex
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -73,21 +71,29 @@ def patched_firmware(build: Path, out: Path) -> Path:
     return firmware
 
 
-def test_a_one_line_firmware_change_fails_the_scenario_on_its_approved_trace(tmp_path: Path) -> None:
+def test_a_one_line_firmware_change_fails_the_scenario_on_its_approved_trace(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     build = resources.DEFAULT_FIRMWARE.parent.parent
     firmware = patched_firmware(build, build / "approved-proof")
-    env = {**os.environ, FIRMWARE_VARIABLE: str(firmware), "HIL_OUT_DIR": str(tmp_path)}
-    env.pop("CI", None)
-    done = subprocess.run(
-        [sys.executable, "-m", "pytest", SCENARIO, "-p", "no:cacheprovider", "--hil-approved=check"],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        check=False,
+    monkeypatch.setenv(FIRMWARE_VARIABLE, str(firmware))
+    monkeypatch.setenv("HIL_OUT_DIR", str(tmp_path / "out"))
+    monkeypatch.delenv("CI", raising=False)
+    # In this process (its imports are done), with this project's pytest.ini and conftest.py.
+    result = pytester.runpytest_inprocess(
+        str(REPO / SCENARIO),
+        "-c",
+        str(REPO / "pytest.ini"),
+        "--rootdir",
+        str(REPO),
+        "-p",
+        "no:cacheprovider",
+        "--hil-approved=check",
     )
-    output = done.stdout + done.stderr
-    assert done.returncode == 1, output
+    output = result.stdout.str()
+    result.assert_outcomes(failed=1)
     assert f"firmware {firmware}" in output, f"not the patched firmware:\n{output}"
-    assert "the run differs from its approved trace tests/approved/" in output, output
+    assert re.search(r"differs from its approved trace \S*tests/approved/test_protection_rules\.", output), (
+        output
+    )
     assert re.search(r"first divergence: motor_duty(_command)? at cycle \d+ \(t = ", output), output
