@@ -11,14 +11,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from boardproto.cia301 import FunctionCode, SdoAbortCode, cob_id
 from hilrig.engine.history import History
 from hilrig.pytest_plugin.approved import ApprovedRecorder, compare_traces, from_json, to_json
+from hilrig.table import EmcyCode
 from hilrig.wire.node import EmcyRecord
 from hilrig.wire.transport import PdoDirection, PdoLayout
 
-DUTY = PdoLayout(PdoDirection.TPDO, 1, 0x181, True, 1, ("motor_duty", "mode"), ("f", "B"))
-STATUS = PdoLayout(PdoDirection.TPDO, 2, 0x281, True, 1, ("fault_flags",), ("H",))
-SETPOINT = PdoLayout(PdoDirection.RPDO, 1, 0x201, True, 255, ("velocity_setpoint",), ("f",))
+NODE = 1
+DUTY = PdoLayout(
+    PdoDirection.TPDO, 1, cob_id(FunctionCode.TPDO1, NODE), True, 1, ("motor_duty", "mode"), ("f", "B")
+)
+STATUS = PdoLayout(PdoDirection.TPDO, 2, cob_id(FunctionCode.TPDO2, NODE), True, 1, ("fault_flags",), ("H",))
+SETPOINT = PdoLayout(
+    PdoDirection.RPDO, 1, cob_id(FunctionCode.RPDO1, NODE), True, 255, ("velocity_setpoint",), ("f",)
+)
+OVERRUN = EmcyCode.RECEIVE_OVERRUN
+ABORT = SdoAbortCode.VALUE_RANGE_EXCEEDED
 
 
 def recorded(
@@ -37,8 +46,8 @@ def recorded(
             received.append((STATUS, (0 if cycle < 200 else 4,)))
         history.record_rows(cycle, received, [(SETPOINT, (3.0,))])
         history.record_truth(None)
-    recorder.on_emcy(EmcyRecord(0x8110, 0x11, b"\x01\x00\x00\x00\x00", 200, 0.2))
-    recorder.on_sdo_abort("write", 0x06090030, cycle=120, t=0.12)
+    recorder.on_emcy(EmcyRecord(OVERRUN, 0x11, b"\x01\x00\x00\x00\x00", 200, 0.2))
+    recorder.on_sdo_abort("write", ABORT, cycle=120, t=0.12)
     return recorder
 
 
@@ -50,7 +59,7 @@ def test_a_run_reads_back_exactly_and_agrees_with_itself() -> None:
     for before, after in zip(run.pdos, again.pdos, strict=True):
         assert np.array_equal(before.cycles, after.cycles)
         assert before.rows.tobytes() == after.rows.tobytes()
-    assert again.emcy == [(200, 0x8110, 0x11, "0100000000")] and again.aborts == [(120, 0x06090030)]
+    assert again.emcy == [(200, OVERRUN, 0x11, "0100000000")] and again.aborts == [(120, ABORT)]
     assert compare_traces([again], [run]) == []
     assert "velocity_setpoint" not in text, "what the rig sent is not the node's behaviour"
     assert len(json.loads(text)["runs"][0]["data"]) < 300 * 4 * 2, "a noisy float costs a few bytes a cycle"
@@ -62,7 +71,7 @@ def test_a_change_is_named_by_its_first_cycle_field_and_values() -> None:
     assert lines[0] == "compared 4 series over cycles 0..299", lines
     assert lines[1].startswith("first divergence: motor_duty at cycle 157 (t = 0.157 s): "), lines
     kicked = recorded(kick_at=157).run()
-    kicked.emcy.append((250, 0x8130, 0x11, "00"))
+    kicked.emcy.append((250, EmcyCode.HEARTBEAT_ERROR, 0x11, "00"))
     assert compare_traces([base], [kicked], every=True)[1:] == [
         "  motor_duty at cycle 157 (t = 0.157 s): -0.0276761 vs -0.0266761",
         "  emcy at cycle 250 (t = 0.250 s): '(none)' vs 'cycle 250 0x8130 17 00'",
