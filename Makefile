@@ -27,7 +27,7 @@ endef
 help: ## list the targets (default)
 	@echo "Hardware-in-the-loop test rig over CAN. Targets:"
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/^([a-z-]+):.*## (.*)/  make \1\t\2/' | expand -t 20
-	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), VIEWER=web, ROBOT=8 (make run), BASELINE=<commit> (make bench), DIST=DIR (make dist), CMAKE_FLAGS=..."
+	@echo "Variables: OUT=$(OUT) (scenario output), JOBS=$(JOBS), SHARD=K/N (make test), K=EXPR (make approve), VIEWER=web, ROBOT=8 (make run), BASELINE=<commit> (make bench), DIST=DIR (make dist), CMAKE_FLAGS=..."
 
 .PHONY: deps
 deps: ## install missing Debian packages (root) and the pinned Python venv
@@ -84,6 +84,18 @@ test: build cortex-m baremetal ## run everything: C++ tests, Python tests, bus-l
 durations: build ## run every bus-level scenario, then record their durations in tests/.test_durations
 	@HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/run-tests --bus-only
 	@$(PY) tools/scenario_shards.py durations tests/.test_durations $(CURDIR)/$(OUT)/test-results/scenarios*.xml
+
+# The approved traces (docs/approved-traces.md): every lockstep scenario run with
+# --hil-approved=update writes its tests/approved/<test>.json anew; pytest's summary names each
+# one that changed, field by field (its first cycle and both values), git's status lists them.
+# K=EXPR: only the scenarios pytest's -k selects.
+K ?=
+.PHONY: approve
+approve: build ## run the lockstep scenarios, write their approved traces anew, show what changed (K=EXPR: some)
+	@mapfile -t selection < <($(PY) tools/scenario_shards.py args lockstep) || exit 2; \
+	  HIL_OUT_DIR=$(CURDIR)/$(OUT) tools/with-vcan -- $(PY) -m pytest "$${selection[@]}" -q -n $(JOBS) \
+	    --dist loadgroup -p no:cacheprovider --hil-approved=update $(if $(K),-k '$(K)'); \
+	  status=$$?; git status --short -- tests/approved; exit $$status
 
 # VIEWER=spawn | web[:PORT] | connect[:URL]: also stream the trace live (hilrig sim --viewer).
 VIEWER ?=

@@ -6,10 +6,11 @@ firmware, its plant: `board`), and its tests get the fixtures (`fixtures`): `mak
 `make_robot`, `private_bus`, `scenario_dir`, `hil_board`, with the `--hil-*` options (a real
 board on a real interface, a live viewer); `run_hilrig` runs the `hilrig` command on a test's
 bus; with labgrid's `--lg-env` the board, its bus, power and console come from a labgrid target
-(`labgrid`). A failure names its evidence, its picture and, with `--hil-baseline`, the comparison with
-the last good run (`reports`). `@pytest.mark.requirement("ID", ...)` names what a test verifies,
-checked against the project's requirements file and exported as JUnit properties and needs.json
-(`requirements`).
+(`labgrid`). Every lockstep run is compared with its approved trace beside the tests
+(`--hil-approved`, `approved`). A failure names its evidence, its picture and, with
+`--hil-baseline`, the comparison with the last good run (`reports`).
+`@pytest.mark.requirement("ID", ...)` names what a test verifies, checked against the project's
+requirements file and exported as JUnit properties and needs.json (`requirements`).
 
     # pytest.ini
     [pytest]
@@ -32,6 +33,7 @@ import pytest
 # The parts are plugins of their own (`pytest_plugins` below), imported here first: their
 # asserts are rewritten like any plugin's.
 pytest.register_assert_rewrite(
+    "hilrig.pytest_plugin.approved",
     "hilrig.pytest_plugin.board",
     "hilrig.pytest_plugin.fixtures",
     "hilrig.pytest_plugin.labgrid",
@@ -53,6 +55,7 @@ from hilrig.pytest_plugin.reports import ATTACHMENT, baseline_path  # noqa: E402
 
 pytest_plugins = [
     "hilrig.pytest_plugin.reports",
+    "hilrig.pytest_plugin.approved",
     "hilrig.pytest_plugin.fixtures",
     "hilrig.pytest_plugin.labgrid",
     "hilrig.pytest_plugin.requirements",

@@ -32,6 +32,7 @@ from hilrig.errors import BusUnavailableError
 from hilrig.expect import Expect
 from hilrig.observe.picture import FailurePictures
 from hilrig.observe.sinks import TraceSink, live_sinks_from_environment, parse_live_sink
+from hilrig.pytest_plugin.approved import watch
 from hilrig.pytest_plugin.board import INI_OPTIONS, HilBoard, board_from_config, report_header
 from hilrig.pytest_plugin.labgrid import CONSOLE_LOG, LabgridBoard, labgrid_env_given, open_labgrid_board
 from hilrig.session import baremetal, warm
@@ -397,6 +398,10 @@ def make_scenario(
             session_config, table=hil_board.table, before_start=before_start, private_bus=private_bus
         )
         sessions.append(session)
+        if board is None and not realtime:
+            assert session.rig is not None
+            name = subdir or ("main" if len(sessions) == 1 else f"run {len(sessions)}")
+            watch(request.node, session.rig, name)
         request.node.hil_evidence = _evidence(run_dir, trace, bus_log_path(session_config))
         request.node.hil_trace = session.trace_path  # --hil-baseline
         assert session.rig is not None
@@ -471,6 +476,10 @@ def make_robot(
             config, table=hil_board.table, private_bus=request.getfixturevalue("private_bus")
         )
         sessions.append(session)
+        if session.robot is not None:
+            for module in session.robot.modules:
+                prefix = f"robot {len(sessions)} " if len(sessions) > 1 else ""
+                watch(request.node, module, f"{prefix}module 0x{module.node.node_id:02X}")
         request.node.hil_trace = session.trace_path  # --hil-baseline
         return session
 

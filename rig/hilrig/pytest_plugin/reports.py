@@ -47,10 +47,10 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[_EVIDENCE] = []
 
 
-def baseline_path(folder: Path, nodeid: str) -> Path:
+def baseline_path(folder: Path, nodeid: str, suffix: str = ".rrd") -> Path:
     """DIR/<test>.rrd for a test id ('tests/test_joint.py::test_step[a]' -> test_joint.test_step_a_.rrd)."""
     name = nodeid.rsplit("/", 1)[-1].replace(".py::", ".").replace("::", ".")
-    return folder / (re.sub(r"[^A-Za-z0-9_.-]+", "_", name) + ".rrd")
+    return folder / (re.sub(r"[^A-Za-z0-9_.-]+", "_", name) + suffix)
 
 
 def _keep(trace: Path, kept: Path) -> None:
