@@ -2,35 +2,32 @@
 tests reject? `make mutate` runs it; the verdict is in tools/mutation_report.py.
 
     tools/mutate.py run [--mutants N] [--seed S] [--shard K/N] [--out DIR] [--no-scenarios]
+                        [--no-coverage] [--mutant ID ...]
     tools/mutate.py list [--mutants N] [--seed S] [--shard K/N]      the sample, nothing built
     tools/mutate.py report [--mutants N] [--seed S] [--shard K/N]    the report from the results so far
     tools/mutate.py merge REPORT... --out DIR                         shards' reports as one
-    tools/mutate.py scenarios --out DIR                               (inside tools/with-vcan)
+    tools/mutate.py scenarios|coverage --out DIR                      (inside tools/with-vcan)
 
-The mutants come from universalmutator's C++ rules (PyPI, maintained, regexp-based: operators
-swapped, comparisons flipped, conditions negated or forced, constants moved, statements dropped),
-applied to one line of one product file at a time: firmware/ without its tests, benchmarks,
-fuzzers and test doubles (NOT_PRODUCT). Every mutant of every product file, in a stable order,
-then a seeded sample of N (SEED); a shard K/N takes every N-th of the sample from the K-th, so the
-shards of one sample add up to it whatever N is, and `merge` puts their reports together.
+The mutants (tools/mutate_mutants.py): universalmutator's C++ rules and the realistic operators
+of tools/mutate_operators.py, applied to one line of one product file at a time (firmware/
+without its tests, benchmarks, fuzzers and test doubles: NOT_PRODUCT), without those that cannot
+compile. The sample (tools/mutate_sampling.py): N counted mutants (compiled, not listed as
+equivalent) stratified over the product files, seeded (SEED); a shard K/N takes its part of
+every file's candidates and share, so the shards of one sample add up to it and `merge` puts
+their reports together.
 
-Each sampled mutant, in a copy of the sources (build/mutate/src: the checkout is never touched,
-and Ctrl-C leaves nothing half-mutated), is built incrementally in the test configuration
-(ASan + UBSan); a mutant that does not compile is dropped and counted. Then the C++ unit tests
-(ctest), then, in one micro-VM for the whole sample, the bus-level lockstep scenarios against
-the mutant's firmware (HIL_FIRMWARE) with `-x`, the scenarios that killed most mutants so far
-first. Each mutant's result is written as soon as it is known (build/mutate/mutants/ID), so a
-run stopped and started again goes on where it was.
+Each candidate, in a copy of the sources (build/mutate/src: the checkout is never touched, and
+Ctrl-C leaves nothing half-mutated), has its translation unit syntax-checked, then is built
+incrementally in the test configuration (ASan + UBSan); one that does not compile is dropped,
+counted, and replaced by its file's next. Then the C++ unit tests that execute its line (ctest;
+tools/mutate_coverage.py records which once per source state), then, in one micro-VM for the
+whole sample, the lockstep scenarios that execute its line against the mutant's firmware
+(HIL_FIRMWARE), tools/mutate_scenarios.py. Each mutant's result is written as soon as it is
+known (build/mutate/mutants/ID), so a run stopped and started again goes on where it was.
 
 A hang is a kill only against the unmutated firmware's own time. Unit tests: each gets
-HANG_FACTOR times the slowest test of the baseline ctest run on this machine plus a margin. In
-the scenarios a firmware that hangs is a failure of the lockstep HangGuard (asleep with TPDOs due,
-or its CPU spent without an answer, where the unmutated firmware answers within milliseconds of
-CPU): a kill. The whole scenario run's bound (HANG_FACTOR times the recorded durations plus a
-margin) is only a guard: a loaded host made a survivor overrun it, so reaching it is no verdict
-and the mutant's scenarios count as not run. A scenario that fails because the host was starved
-(HostStarvedError) is no kill either: it is run again once, and counted as not run if it starves
-again.
+HANG_FACTOR times the slowest test of the baseline ctest run on this machine plus a margin; the
+scenarios' rule is in tools/mutate_scenarios.py.
 
 Mutants reviewed as equivalent (they cannot change what the firmware does) are listed with a
 reason in tools/mutants-equivalent.toml and are not counted.
@@ -83,7 +80,7 @@ from mutate_scenarios import (
 DEFAULT_OUT = REPO / "build" / "mutate"
 CMAKE_ARGS = ("-DCMAKE_BUILD_TYPE=RelWithDebInfo", "-DHIL_SANITIZE=ON", "-DHIL_TESTS=ON")
 """The configuration of `make build`: what `make test` runs."""
-SOURCES = ("CMakeLists.txt", "firmware", "protocol")
+SOURCES = ("CMakeLists.txt", "cmake", "firmware", "protocol")
 """What the build needs of the checkout (copied into the workspace)."""
 
 

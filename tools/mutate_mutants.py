@@ -161,7 +161,9 @@ def plausible(
     ):
         return False
     start = next((i for i, (a, b) in enumerate(zip(original, replacement, strict=False)) if a != b), None)
-    if start is not None and original[start] in "<>&*|" and not _spaced(original, start):
+    while start and original[start - 1] in "<>&*|=!" and original[start : start + 1] not in "<>&*|":
+        start -= 1
+    if start is not None and original[start : start + 1] in set("<>&*|") and not _spaced(original, start):
         return False
     function = operators.function_at(functions, line)
     in_body = function is not None and function.first < line < function.last

@@ -118,6 +118,7 @@ def functions_of(code: Sequence[str]) -> list[Function]:
     stack: list[tuple[str, int, int]] = []  # kind, line of the brace, line the header started
     header: list[str] = []
     header_line = 1
+    saved: list[tuple[list[str], int]] = []  # the headers around open brace initialisers
     for number, line in enumerate(code, 1):
         for c in line:
             if c == "{":
@@ -134,13 +135,20 @@ def functions_of(code: Sequence[str]) -> list[Function]:
                 else:
                     kind = "init"
                 stack.append((kind, number, header_line))
+                if kind == "init":
+                    saved.append((header, header_line))
                 header, header_line = [], number
             elif c == "}":
+                kind = "scope"
                 if stack:
                     kind, start, started = stack.pop()
                     if kind == "function":
                         found.append(Function(started, start, number))
-                header, header_line = [], number
+                if kind == "init":  # a brace initialiser: the statement or signature goes on
+                    header, header_line = saved.pop() if saved else ([], number)
+                    header.append("{}")
+                else:
+                    header, header_line = [], number
             elif c == ";":
                 if not any(kind in ("function", "init") for kind, _, _ in stack) or not stack:
                     header, header_line = [], number
@@ -188,7 +196,8 @@ class ProjectIndex:
         for match in _CONSTANT.finditer(joined):
             self.constants.setdefault(name, []).append((match.group(1), match.group(2)))
         if name.endswith((".hpp", ".h")):
-            outside = [line for number, line in enumerate(code, 1) if not _in_any(functions_of(code), number)]
+            functions = functions_of(code)
+            outside = [line for number, line in enumerate(code, 1) if not _in_any(functions, number)]
             self.members[name] = [
                 (t, n) for _, t, n in declarations(outside, 1, len(outside)) if n.endswith("_")
             ]
