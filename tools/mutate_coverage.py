@@ -51,6 +51,7 @@ def folder_name(test: str) -> str:
 
 
 # --- The pytest plugin (`-p mutate_coverage`) -------------------------------------------------
+@pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item: pytest.Item) -> None:
     root = os.environ.get(PREFIX_VARIABLE)
     if root:

@@ -123,6 +123,22 @@ def mutants_of(
     return result
 
 
+BINARY_OPERATORS = frozenset(
+    {"<", ">", "<=", ">=", "==", "!=", "&", "|", "&&", "||", "<<", ">>", "*", "/", "%", "+", "-", "^"}
+    | {"=", "+=", "-=", "*=", "/=", "|=", "&=", "^=", "<<=", ">>="}
+)
+
+
+def _operator_at(line: str, at: int) -> str:
+    """The run of operator characters around `at`."""
+    start, end = at, at
+    while start and line[start - 1] in "<>&*|=!+-/%^":
+        start -= 1
+    while end < len(line) and line[end] in "<>&*|=!+-/%^":
+        end += 1
+    return line[start:end]
+
+
 def _spaced(line: str, at: int) -> bool:
     """Whether the operator at `at` has spaces on both sides (a binary operator)."""
     start, end = at, at + 1
@@ -163,7 +179,8 @@ def plausible(
     start = next((i for i, (a, b) in enumerate(zip(original, replacement, strict=False)) if a != b), None)
     while start and original[start - 1] in "<>&*|=!" and original[start : start + 1] not in "<>&*|":
         start -= 1
-    if start is not None and original[start : start + 1] in set("<>&*|") and not _spaced(original, start):
+    swapped = start is not None and original[start : start + 1] in set("<>&*|")
+    if swapped and (not _spaced(original, start) or _operator_at(replacement, start) not in BINARY_OPERATORS):
         return False
     function = operators.function_at(functions, line)
     in_body = function is not None and function.first < line < function.last

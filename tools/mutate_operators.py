@@ -375,7 +375,7 @@ def same_type_variable(line: str, code: str, candidates: dict[str, list[str]]) -
 
 def sibling_constant(line: str, code: str, index: ProjectIndex, path: str) -> list[str]:
     results = []
-    if _CONSTANT.search(code) or re.search(r"\benum\b", code):
+    if _CONSTANT.search(code) or re.search(r"\benum\b|^\s*case\b", code):  # a case label: duplicated
         return []
     for match in _QUALIFIED.finditer(code):
         for other in index.enum_siblings(match.group(1), match.group(2), path):

@@ -120,3 +120,7 @@ def test_mutants_that_cannot_compile_are_not_generated() -> None:
     assert not plausible("  h(std::uint32_t{5});\n", "  h(std::uint(32+1)_t{5});\n")
     assert plausible("  count = 0;\n", "  /*count = 0;*/\n")
     assert plausible("  if (a < b) g();\n", "  if (a <= b) g();\n")
+    assert not plausible("  x = index >> 8;\n", "  x = index <=> 8;\n"), "no operator"
+    assert not mutants(
+        "sibling constant", "void f(State s) {\n  switch (s) {\n    case State::kIdle: break;\n  }\n}\n"
+    )
