@@ -213,7 +213,12 @@ def scenarios_command(out: Path) -> int:
         folder = out / "mutants" / mutant_id
         result = json.loads((folder / "result.json").read_text())
         selected = record.covering(result["path"], result["line"], coverage.SCENARIO) if record else None
-        chosen = ids if selected is None else [t for t in ids if t in set(selected)]
+        recorded = set(record.tests) if record else set()
+        chosen = (  # a scenario the record does not know (added since) may execute anything
+            ids
+            if selected is None
+            else [t for t in ids if t in set(selected) or coverage.SCENARIO + t not in recorded]
+        )
         order = scenario_order(chosen, kills, durations)
         layers: dict[str, dict | None] = {}
         seconds_total = 0.0
