@@ -139,6 +139,25 @@ def _operator_at(line: str, at: int) -> str:
     return line[start:end]
 
 
+def _in_loop(code: Sequence[str], function: operators.Function | None, line: int, switch_too: bool) -> bool:
+    """Whether a line sits in a loop (or a switch) of its function, by indentation: one of the
+    lines that open its enclosing blocks starts with for, while or do (or switch)."""
+    if function is None:
+        return False
+    keywords = ("for", "while", "do") + (("switch",) if switch_too else ())
+    indent = len(code[line - 1]) - len(code[line - 1].lstrip())
+    for number in range(line - 1, function.first - 1, -1):
+        text = code[number - 1]
+        if not text.strip():
+            continue
+        depth = len(text) - len(text.lstrip())
+        if depth < indent:
+            indent = depth
+            if re.match(rf"\s*(?:\}}\s*)?(?:{'|'.join(keywords)})\b", text):
+                return True
+    return False
+
+
 def _spaced(line: str, at: int) -> bool:
     """Whether the operator at `at` has spaces on both sides (a binary operator)."""
     start, end = at, at + 1
@@ -184,8 +203,13 @@ def plausible(
         return False
     function = operators.function_at(functions, line)
     in_body = function is not None and function.first < line < function.last
+    added = replacement[len(original) :].strip() if replacement.startswith(original) else ""
+    if added in ("break;", "continue;") and not (
+        in_body and _in_loop(code, function, line, added == "break;")
+    ):
+        return False  # break or continue outside a loop (or a switch)
     if replacement.count("\n") > original.count("\n") and not in_body:
-        return False  # break; or continue; after a declaration or a closing brace
+        return False
     if _COMMENT_OUT.match(replacement):
         if not in_body:
             return False

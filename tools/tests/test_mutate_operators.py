@@ -124,3 +124,12 @@ def test_mutants_that_cannot_compile_are_not_generated() -> None:
     assert not mutants(
         "sibling constant", "void f(State s) {\n  switch (s) {\n    case State::kIdle: break;\n  }\n}\n"
     )
+
+
+def test_break_and_continue_are_added_only_in_a_loop() -> None:
+    loop = "void f() {\n  for (int i = 0; i < 3; ++i) {\n"
+    assert plausible("    g(i);\n", "    g(i);\n    continue;\n", loop, "  }\n}\n")
+    assert not plausible("  g(1);\n", "  g(1);\n  continue;\n"), "no loop around it"
+    switch = "void f(int s) {\n  switch (s) {\n    case 1:\n"
+    assert plausible("      g(1);\n", "      g(1);\n      break;\n", switch, "  }\n}\n")
+    assert not plausible("      g(1);\n", "      g(1);\n      continue;\n", switch, "  }\n}\n")
