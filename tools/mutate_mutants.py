@@ -114,7 +114,7 @@ def mutants_of(
         if (line, replacement) in taken:
             continue  # the same change by two rules: one mutant
         taken.add((line, replacement))
-        if filtered and not plausible(code, functions, line, original, replacement):
+        if filtered and not plausible(code, functions, line, original, replacement, rule):
             continue
         seen[(original, replacement)] += 1
         key = f"{path}\0{original}\0{replacement}\0{seen[(original, replacement)]}"
@@ -123,6 +123,11 @@ def mutants_of(
     return result
 
 
+NEVER_COMPILES = frozenset({"back_inserter ==> front_inserter"})
+"""universalmutator's rules whose mutants never compile here (no container has push_front)."""
+_SWAP_RULE = r"([,\(\[\{])([^=,\)\}\]]+),"
+_PARAMETER = re.compile(r"[\w>*&]\s+[a-z_]\w*\s*[,)]")
+"""A parameter's declaration (`Type name,`): swapping two of them changes the signature."""
 BINARY_OPERATORS = frozenset(
     {"<", ">", "<=", ">=", "==", "!=", "&", "|", "&&", "||", "<<", ">>", "*", "/", "%", "+", "-", "^"}
     | {"=", "+=", "-=", "*=", "/=", "|=", "&=", "^=", "<<=", ">>="}
@@ -178,6 +183,7 @@ def plausible(
     line: int,
     original: str,
     replacement: str,
+    rule: str = "",
 ) -> bool:
     """Whether a mutant may compile and change something, by cheap checks of its line: not a
     change behind a // comment, not digits inside a name or a hex or float literal, brackets
@@ -198,8 +204,17 @@ def plausible(
     start = next((i for i, (a, b) in enumerate(zip(original, replacement, strict=False)) if a != b), None)
     while start and original[start - 1] in "<>&*|=!" and original[start : start + 1] not in "<>&*|":
         start -= 1
-    swapped = start is not None and original[start : start + 1] in set("<>&*|")
-    if swapped and (not _spaced(original, start) or _operator_at(replacement, start) not in BINARY_OPERATORS):
+    if start is not None and original[start : start + 1] in set("<>&*|+-/%^"):
+        token, spaced = _operator_at(original, start), _spaced(original, start)
+        if spaced and _operator_at(replacement, start) not in BINARY_OPERATORS:
+            return False  # a binary operator removed or made into none
+        if not spaced and original[start] in "<>&*|" and token not in ("->",):
+            return False  # a template's bracket, a reference, a pointer
+        if token in ("++", "--") and _operator_at(replacement, start) not in ("++", "--"):
+            return False
+        if spaced and '"' in before and original[start] in "+-":
+            return False  # a string's concatenation
+    if rule in NEVER_COMPILES or (rule.startswith(_SWAP_RULE) and _PARAMETER.search(original)):
         return False
     function = operators.function_at(functions, line)
     in_body = function is not None and function.first < line < function.last

@@ -161,6 +161,19 @@ def functions_of(code: Sequence[str]) -> list[Function]:
     return sorted(found, key=lambda f: f.first)
 
 
+def _last_use(code: Sequence[str], function: Function, line: int, names: set[str]) -> bool:
+    """Whether a parameter or local used on `line` is used on no other line of the function
+    after its declaration: deleting the line would leave it unused (-Werror)."""
+    for name in names:
+        word = re.compile(rf"\b{re.escape(name)}\b")
+        if not word.search(code[line - 1]):
+            continue
+        others = [n for n in range(function.signature_line, function.last + 1) if n != line]
+        if sum(bool(word.search(code[n - 1])) for n in others) <= 1:
+            return True
+    return False
+
+
 def function_at(functions: Sequence[Function], line: int) -> Function | None:
     return next((f for f in functions if f.first <= line <= f.last), None)
 
@@ -407,8 +420,9 @@ def realistic_mutants(
         mutants += [(m, "unit scale x1000") for m in unit_scale(line, masked)]
         mutants += [(m, "sibling constant") for m in sibling_constant(line, masked, index, path)]
         if function is not None and function.first < number:
-            mutants += [(m, "statement deleted") for m in statement_deleted(line, masked)]
             scope = declarations(code, function.signature_line, number - 1)
+            if not _last_use(code, function, number, {name for _, _, name in scope}):
+                mutants += [(m, "statement deleted") for m in statement_deleted(line, masked)]
             by_type: dict[str, list[str]] = {}
             for _, type_name, name in scope:
                 by_type.setdefault(type_name, [])

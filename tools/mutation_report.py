@@ -326,6 +326,12 @@ def summary(outcomes: Iterable[Outcome], title: str) -> str:
             values = sorted(o.seconds[phase] for o in timed if phase in o.seconds)
             if values:
                 lines.append(f"  {phase:<10} {values[len(values) // 2]:8.1f} {values[-1]:8.1f}")
+    per_counted = cost_per_counted(outcomes)
+    if per_counted is not None:
+        lines.append(
+            f"  all phases: {per_counted:.0f} s of wall time per counted mutant (the dropped ones' "
+            f"builds included): 200 counted in {200 * per_counted / 3600:.1f} h, on this host at its load"
+        )
     survivors = [o for o in outcomes if o.status == "Survived"]
     scenario_survivors = [
         o for o in outcomes if o.scenario_killed_by is not None and o.counted and not o.by_approved
@@ -348,6 +354,15 @@ def summary(outcomes: Iterable[Outcome], title: str) -> str:
         lines.append(f"  {o.id}: {', '.join(o.unit_killed_by or [])[:160]}")
         lines.extend("    " + line for line in o.diff().splitlines())
     return "\n".join(lines) + "\n"
+
+
+def cost_per_counted(outcomes: Iterable[Outcome]) -> float | None:
+    """Wall seconds of every phase of every mutant tried, per counted mutant done."""
+    outcomes = list(outcomes)
+    done = [o for o in outcomes if o.counted and o.status != "Pending"]
+    if not done:
+        return None
+    return sum(sum(o.seconds.values()) for o in outcomes) / len(done)
 
 
 def write_atomically(path: Path, text: str) -> None:

@@ -100,12 +100,14 @@ def test_the_scope_model_finds_function_bodies_not_classes_or_initialisers() -> 
     assert [(f.first, f.last) for f in functions] == [(4, 4), (7, 9)]
 
 
-def plausible(original: str, replacement: str, before: str = "void f() {\n", after: str = "}\n") -> bool:
+def plausible(
+    original: str, replacement: str, before: str = "void f() {\n", after: str = "}\n", rule: str = ""
+) -> bool:
     text = before + original + after
     code = ops.code_lines(text.splitlines(keepends=True))
     functions = ops.functions_of(code)
     line = before.count("\n") + 1
-    return mutate_mutants.plausible(code, functions, line, original, replacement)
+    return mutate_mutants.plausible(code, functions, line, original, replacement, rule)
 
 
 def test_mutants_that_cannot_compile_are_not_generated() -> None:
@@ -133,3 +135,15 @@ def test_break_and_continue_are_added_only_in_a_loop() -> None:
     switch = "void f(int s) {\n  switch (s) {\n    case 1:\n"
     assert plausible("      g(1);\n", "      g(1);\n      break;\n", switch, "  }\n}\n")
     assert not plausible("      g(1);\n", "      g(1);\n      continue;\n", switch, "  }\n}\n")
+
+
+def test_more_mutants_that_cannot_compile_are_not_generated() -> None:
+    assert not plausible("  x = now - last;\n", "  x = now  last;\n"), "a binary operator removed"
+    assert not plausible("  ++count;\n", "  +%count;\n")
+    assert plausible("  ++count;\n", "  --count;\n")
+    assert not plausible('  s = a + ": " + b;\n', '  s = a - ": " + b;\n'), "a string's concatenation"
+    swap = r"([,\(\[\{])([^=,\)\}\]]+),([^=,\)\}\]]+)([,\)\]\}]) ==>  \1\3,\2\4"
+    assert not plausible("  auto f = [](int a, float b) {\n", "  auto f = [](float b,int a) {\n", rule=swap)
+    assert plausible("  g(a, b);\n", "  g( b,a);\n", rule=swap), "a call's arguments swapped"
+    unused = "void f(int now) {\n  g();\n  last_ = now;\n}\n"
+    assert not mutants("statement deleted", unused), "its parameter would be left unused"
