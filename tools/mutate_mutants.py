@@ -144,6 +144,19 @@ def _operator_at(line: str, at: int) -> str:
     return line[start:end]
 
 
+def _after_condition(line: str) -> str:
+    """What follows the parenthesised condition of a line's `if (` or `while (`."""
+    match = re.search(r"\b(?:if|while)\s*\(", line)
+    if match is None:
+        return ""
+    depth = 0
+    for i in range(match.end() - 1, len(line)):
+        depth += {"(": 1, ")": -1}.get(line[i], 0)
+        if depth == 0:
+            return line[i + 1 :]
+    return ""
+
+
 def _in_loop(code: Sequence[str], function: operators.Function | None, line: int, switch_too: bool) -> bool:
     """Whether a line sits in a loop (or a switch) of its function, by indentation: one of the
     lines that open its enclosing blocks starts with for, while or do (or switch)."""
@@ -214,6 +227,10 @@ def plausible(
             return False
         if spaced and '"' in before and original[start] in "+-":
             return False  # a string's concatenation
+    if rule.startswith(("if", "while")) and not replacement.rstrip().endswith(
+        _after_condition(original).rstrip()
+    ):
+        return False  # the rule's greedy (.*) took the statement after the condition too
     if rule in NEVER_COMPILES or (rule.startswith(_SWAP_RULE) and _PARAMETER.search(original)):
         return False
     function = operators.function_at(functions, line)

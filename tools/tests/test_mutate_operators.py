@@ -147,3 +147,6 @@ def test_more_mutants_that_cannot_compile_are_not_generated() -> None:
     assert plausible("  g(a, b);\n", "  g( b,a);\n", rule=swap), "a call's arguments swapped"
     unused = "void f(int now) {\n  g();\n  last_ = now;\n}\n"
     assert not mutants("statement deleted", unused), "its parameter would be left unused"
+    forced = r"if (\(.*\)) ==> if (0==1)"
+    assert not plausible("  if (ok) g(1);\n", "  if (0==1);\n", rule=forced), "the statement went too"
+    assert plausible("  if (ok) g(1);\n", "  if (0==1) g(1);\n", rule=forced)
