@@ -54,7 +54,7 @@ SOME_FILES = (
     "firmware/canopen/Pdo.cpp",
     "firmware/core/MessageBoard.hpp",
     "firmware/joint/modules/ThermalProtection.cpp",
-    "firmware/joint/modules/ThermalDerate.hpp",
+    "firmware/canopen/TimeLeft.hpp",
 )
 
 
@@ -140,7 +140,7 @@ def test_a_mutant_applies_to_its_line_only() -> None:
 def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     killed = tiny_mutant("if (duty > limit) return limit;", "if (duty < limit) return limit;")
     survivor = tiny_mutant("return value * 3;", "return value * 1;")
-    broken = tiny_mutant("return duty;", "return duty; break;")
+    broken = tiny_mutant("factor = factor + value;", "value = factor + value;")  # a const assigned
     out = tmp_path / "out"
     argv = [
         "run",
@@ -164,6 +164,7 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     assert sorted(mutants[killed.id]["killedBy"]) == ["unit:clamp.inside", "unit:clamp.limits"]
     assert mutants[survivor.id]["status"] == "Survived"
     assert mutants[broken.id]["status"] == "CompileError"
+    assert json.loads((out / "mutants" / broken.id / "result.json").read_text())["compiled"] is False
     assert mutants[killed.id]["location"]["start"]["line"] == killed.line
     summary = (out / "report.txt").read_text()
     assert "do not compile (dropped)   1" in summary
