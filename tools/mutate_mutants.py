@@ -144,6 +144,23 @@ def _operator_at(line: str, at: int) -> str:
     return line[start:end]
 
 
+def _common(a: str, b: str) -> int:
+    """The length of the characters a and b start with in common."""
+    return next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), min(len(a), len(b)))
+
+
+def _renames_part_of_a_name(original: str, replacement: str) -> bool:
+    """Whether the change is letters inside an identifier (a word rule matched part of one)."""
+    prefix = _common(original, replacement)
+    suffix = _common(original[prefix:][::-1], replacement[prefix:][::-1])
+    changed = original[prefix : len(original) - suffix]
+    if not changed.isalpha():
+        return False
+    before = original[prefix - 1 : prefix]
+    after = original[len(original) - suffix : len(original) - suffix + 1]
+    return (before.isalnum() or before == "_") or (after.isalnum() or after == "_")
+
+
 def _after_condition(line: str) -> str:
     """What follows the parenthesised condition of a line's `if (` or `while (`."""
     match = re.search(r"\b(?:if|while)\s*\(", line)
@@ -227,6 +244,8 @@ def plausible(
             return False
         if spaced and '"' in before and original[start] in "+-":
             return False  # a string's concatenation
+    if rule not in operators.RULES and _renames_part_of_a_name(original, replacement):
+        return False  # end -> begin inside VendorId
     if rule.startswith(("if", "while")) and not replacement.rstrip().endswith(
         _after_condition(original).rstrip()
     ):
@@ -248,7 +267,7 @@ def plausible(
         masked = code[line - 1].strip()
         previous = next((c.strip() for c in reversed(code[: line - 1]) if c.strip()), "{")
         following = next((c.strip() for c in code[line:] if c.strip()), "}")
-        if not masked.endswith(";") or masked.count("(") != masked.count(")"):
+        if not masked.endswith(";") or any(masked.count(a) != masked.count(b) for a, b in ("()", "{}")):
             return False  # part of a statement
         if not previous.endswith((";", "{", "}", ":")) or previous.startswith("#"):
             return False  # a statement's continuation

@@ -150,3 +150,10 @@ def test_more_mutants_that_cannot_compile_are_not_generated() -> None:
     forced = r"if (\(.*\)) ==> if (0==1)"
     assert not plausible("  if (ok) g(1);\n", "  if (0==1);\n", rule=forced), "the statement went too"
     assert plausible("  if (ok) g(1);\n", "  if (0==1) g(1);\n", rule=forced)
+    assert not plausible("  g(Kind::VendorId);\n", "  g(Kind::VbeginorId);\n"), "part of a name"
+    assert plausible("  g(v.end());\n", "  g(v.begin());\n")
+    assert not plausible("};\n", "/*};*/\n", "void f() {\n  auto x = S{\n", "}\n"), "a brace's statement"
+    sibling = plausible(
+        "  g(FieldId::thermal_warning_c);\n", "  g(FieldId::thermal_limit_c);\n", rule="sibling constant"
+    )
+    assert sibling, "a sibling constant is a whole name"
