@@ -56,6 +56,7 @@ _ASSIGNMENT = re.compile(
     r"|[\w.\->\[\]*]+\s*(?:=(?!=)|\+=|-=|\*=|/=|\|=|&=|\^=|<<=|>>=).*"
     r"|[\w.\->\[\]]+\.(?:reset|clear|fill)\(.*\))\s*;\s*$"
 )
+_SELF_COMPARISON = re.compile(r"(?<![\w.>])([a-z_]\w*)\s*(?:<=|>=|==|!=|<|>)\s*\1\b(?!\s*[.(\[-])")
 _KEYWORDS = {"return", "if", "for", "while", "switch", "case", "else", "do", "break", "continue"}
 
 
@@ -382,7 +383,10 @@ def same_type_variable(line: str, code: str, candidates: dict[str, list[str]]) -
         before = code[: match.start()].rstrip()
         if before.endswith(("->", ".", "::")):
             continue
-        results.extend(_replace(line, match.start(), match.end(), other) for other in candidates[name])
+        for other in candidates[name]:
+            mutant = _replace(line, match.start(), match.end(), other)
+            if not _SELF_COMPARISON.search(mutant):  # x < x: -Werror=tautological-compare
+                results.append(mutant)
     return results
 
 

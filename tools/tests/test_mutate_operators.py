@@ -64,6 +64,8 @@ def test_a_unit_is_off_by_a_factor_of_1000_either_way() -> None:
 def test_a_variable_is_replaced_by_another_of_its_type_in_scope() -> None:
     swapped = mutants("same-type variable")
     assert "if (std::fabs(speed) >= margin && count > 3) {" in swapped[5]
+    assert "speed < speed) return State::kRunning;" not in swapped[9], "x < x does not compile (-Werror)"
+    assert "speed < limit) return State::kRunning;" in swapped[9]
     assert "if (std::fabs(speed) >= limit && cycles_ > 3) {" in swapped[5], "a member of the same type"
     assert not any("count >= " in m or "(count)" in m for m in swapped[5]), "never one of another type"
     assert 4 not in swapped or all("margin =" in m for m in swapped[4]), "a declaration keeps its name"
