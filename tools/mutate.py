@@ -332,19 +332,10 @@ def ensure_scenario_coverage(out: Path) -> None:
     if any(t.startswith(coverage.SCENARIO) for t in record.tests):
         return
     print("mutate: recording which lines each lockstep scenario executes (once per source state)", flush=True)
-    subprocess.run(
-        [
-            str(REPO / "tools" / "with-vcan"),
-            "--",
-            sys.executable,
-            str(Path(__file__).resolve()),
-            "coverage",
-            "--out",
-            str(out),
-        ],
-        cwd=REPO,
-        check=False,
-    )
+    code = run_in_vm(out, "coverage", uml=True)
+    if code != 0:  # stopped: no record, so that the next run records it again
+        print(f"mutate: the scenarios' coverage run ended with exit {code}: every scenario runs", flush=True)
+        return
     ids = json.loads((out / "scenarios.json").read_text())["ids"]
     scenarios = coverage.record_scenarios(
         ids, out / "coverage" / "scenario-counters", out / "coverage" / "build", out / "src", record.digest
