@@ -40,6 +40,7 @@ def rig_pair_orders(round_: int) -> list[tuple[str, str]]:
     return pairs if round_ % 2 else pairs[::-1]
 
 
+
 def _lockstep_runs(bench: BusBench, args: argparse.Namespace) -> dict[str, Any]:
     say(
         f"lockstep: {args.rounds} rounds of {args.cycles} cycles: Rig untraced, Rig traced, "

@@ -58,6 +58,7 @@ def percentile(values: Sequence[float], q: float) -> float:
     return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
 
 
+
 def drive(rig: Any, setpoint: float = 5.0) -> None:
     """The motor under velocity control toward `setpoint`: the firmware's controller, the
     plant and the traced signals move, as in a scenario, so a traced round traces changing
@@ -682,6 +683,7 @@ class BusBench:
                 "(SO_TIMESTAMP via python-can) of its frames; error = interval - period"
             ),
         }
+
 
 
 def serve_local_node_main(args: argparse.Namespace) -> int:

@@ -56,6 +56,7 @@ def machine() -> dict[str, Any]:
     return {"cpu": model, "cores": os.cpu_count(), "kernel": platform.release()}
 
 
+
 PROBE_TIMEOUT_S = 1800.0
 """A probe (a benchmark, a count under callgrind) still running after this is stopped and not
 measured: callgrind slows Python some 50x, and a busy host stretches that further."""
@@ -126,6 +127,7 @@ class NotMeasured(dict[str, str]):
             self[name] = failure_text(error)
             say(f"  {name}: {NOT_MEASURED}: {self[name].splitlines()[0]}")
             return None
+
 
 
 def ratio_of(a: float, b: float) -> float:
