@@ -169,15 +169,16 @@ SOAK_ARGS ?=
 soak: build ## SOAK_CYCLES lockstep cycles, seeded faults; no cycle lost, memory flat (build/soak)
 	@tools/soak --cycles $(SOAK_CYCLES) --out $(CURDIR)/$(BUILD)/soak $(SOAK_ARGS)
 
-# Mutation testing (issue 38): MUTANTS sampled mutants of the firmware's product code (SEED), each
-# built in build/mutate/ (a copy of the sources: the checkout is never touched), then the C++ unit
-# tests, then the lockstep scenarios in one micro-VM; SHARD=K/N runs the K-th of N shards of the
-# same sample (`tools/mutate.py merge` joins their reports). Report: build/mutate/report.{txt,json}.
+# Mutation testing: MUTANTS counted mutants of the firmware's product code (SEED), stratified over
+# its files, each built in build/mutate/ (a copy of the sources: the checkout is never touched),
+# then the C++ unit tests and the lockstep scenarios (one micro-VM) that execute its line (gcov,
+# recorded once per source state); SHARD=K/N runs the K-th of N shards of the same sample
+# (`tools/mutate.py merge` joins their reports). Report: build/mutate/report.{txt,json}.
 MUTANTS ?= 40
 SEED ?= 1
 
 .PHONY: mutate
-mutate: build ## mutation testing of the firmware: MUTANTS=40 SEED=1 [SHARD=K/N]; report in build/mutate
+mutate: build ## mutation testing of the firmware: MUTANTS=40 (counted) SEED=1 [SHARD=K/N]; report in build/mutate
 	@$(PY) tools/mutate.py run --mutants $(MUTANTS) --seed $(SEED) $(if $(SHARD),--shard $(SHARD)) \
 	  --out $(CURDIR)/$(BUILD)/mutate
 

@@ -2,35 +2,32 @@
 tests reject? `make mutate` runs it; the verdict is in tools/mutation_report.py.
 
     tools/mutate.py run [--mutants N] [--seed S] [--shard K/N] [--out DIR] [--no-scenarios]
+                        [--no-coverage] [--mutant ID ...]
     tools/mutate.py list [--mutants N] [--seed S] [--shard K/N]      the sample, nothing built
     tools/mutate.py report [--mutants N] [--seed S] [--shard K/N]    the report from the results so far
     tools/mutate.py merge REPORT... --out DIR                         shards' reports as one
-    tools/mutate.py scenarios --out DIR                               (inside tools/with-vcan)
+    tools/mutate.py scenarios|coverage --out DIR                      (inside tools/with-vcan)
 
-The mutants come from universalmutator's C++ rules (PyPI, maintained, regexp-based: operators
-swapped, comparisons flipped, conditions negated or forced, constants moved, statements dropped),
-applied to one line of one product file at a time: firmware/ without its tests, benchmarks,
-fuzzers and test doubles (NOT_PRODUCT). Every mutant of every product file, in a stable order,
-then a seeded sample of N (SEED); a shard K/N takes every N-th of the sample from the K-th, so the
-shards of one sample add up to it whatever N is, and `merge` puts their reports together.
+The mutants (tools/mutate_mutants.py): universalmutator's C++ rules and the realistic operators
+of tools/mutate_operators.py, applied to one line of one product file at a time (firmware/
+without its tests, benchmarks, fuzzers and test doubles: NOT_PRODUCT), without those that cannot
+compile. The sample (tools/mutate_sampling.py): N counted mutants (compiled, not listed as
+equivalent) stratified over the product files, seeded (SEED); a shard K/N takes its part of
+every file's candidates and share, so the shards of one sample add up to it and `merge` puts
+their reports together.
 
-Each sampled mutant, in a copy of the sources (build/mutate/src: the checkout is never touched,
-and Ctrl-C leaves nothing half-mutated), is built incrementally in the test configuration
-(ASan + UBSan); a mutant that does not compile is dropped and counted. Then the C++ unit tests
-(ctest), then, in one micro-VM for the whole sample, the bus-level lockstep scenarios against
-the mutant's firmware (HIL_FIRMWARE) with `-x`, the scenarios that killed most mutants so far
-first. Each mutant's result is written as soon as it is known (build/mutate/mutants/ID), so a
-run stopped and started again goes on where it was.
+Each candidate, in a copy of the sources (build/mutate/src: the checkout is never touched, and
+Ctrl-C leaves nothing half-mutated), has its translation unit syntax-checked, then is built
+incrementally in the test configuration (ASan + UBSan); one that does not compile is dropped,
+counted, and replaced by its file's next. Then the C++ unit tests that execute its line (ctest;
+tools/mutate_coverage.py records which once per source state), then, in one micro-VM for the
+whole sample, the lockstep scenarios that execute its line against the mutant's firmware
+(HIL_FIRMWARE), tools/mutate_scenarios.py. Each mutant's result is written as soon as it is
+known (build/mutate/mutants/ID), so a run stopped and started again goes on where it was.
 
 A hang is a kill only against the unmutated firmware's own time. Unit tests: each gets
-HANG_FACTOR times the slowest test of the baseline ctest run on this machine plus a margin. In
-the scenarios a firmware that hangs is a failure of the lockstep HangGuard (asleep with TPDOs due,
-or its CPU spent without an answer, where the unmutated firmware answers within milliseconds of
-CPU): a kill. The whole scenario run's bound (HANG_FACTOR times the recorded durations plus a
-margin) is only a guard: a loaded host made a survivor overrun it, so reaching it is no verdict
-and the mutant's scenarios count as not run. A scenario that fails because the host was starved
-(HostStarvedError) is no kill either: it is run again once, and counted as not run if it starves
-again.
+HANG_FACTOR times the slowest test of the baseline ctest run on this machine plus a margin; the
+scenarios' rule is in tools/mutate_scenarios.py.
 
 Mutants reviewed as equivalent (they cannot change what the firmware does) are listed with a
 reason in tools/mutants-equivalent.toml and are not counted.
@@ -41,161 +38,50 @@ from __future__ import annotations
 import argparse
 import contextlib
 import hashlib
-import io
 import json
 import os
-import random
-import re
+import shlex
 import shutil
 import signal
 import subprocess
 import sys
 import time
-import tomllib
 import xml.etree.ElementTree as ET
-from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
-from fnmatch import fnmatch
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import mutate_coverage as coverage
+import mutate_sampling as sampling
 import mutation_report as report
 import scenario_shards
+from mutate_coverage import COVERAGE_CMAKE_ARGS
+from mutate_mutants import (  # noqa: F401 (the tool's names, as its tests use them)
+    EQUIVALENTS,
+    NOT_PRODUCT,
+    PRODUCT,
+    REPO,
+    Mutant,
+    all_mutants,
+    load_equivalents,
+    mutants_of,
+    product_files,
+)
+from mutate_scenarios import (
+    FIRMWARE_BINARIES,
+    HANG_FACTOR,
+    HANG_MARGIN_S,
+    collect_scenarios,
+    coverage_command,
+    scenarios_command,
+)
 
-REPO = Path(__file__).resolve().parent.parent
-PRODUCT = ("firmware/**/*.cpp", "firmware/**/*.hpp")
-NOT_PRODUCT = (
-    "*Test.cpp",
-    "*TestSupport.*",
-    "firmware/bench/*",
-    "firmware/canopen/fuzz/*",
-    "firmware/joint/testing/*",
-    "firmware/canopen/MemoryPort.hpp",  # the engine's tests' CanPort double
-    "firmware/canopen/BlockCrcReference.hpp",  # the tests' reference CRC
-    "firmware/platform/linux/ParameterStoreCrash*",  # the crash test's child process
-    "firmware/core/PortableCheck.cpp",  # a compile-only check
-    # The Cortex-M platform, and the node's views of the joint only it uses so far: built and
-    # tested by the cross build (make cortex-m), not the host build a mutant is tested in.
-    "firmware/platform/cortex-m/*",
-    "firmware/platform/common/*",
-)
-RULES = ("universal.rules", "cpp.rules", "c_like.rules")
-"""universalmutator's rule files for C++, as its own `mutate FILE cpp` picks them."""
-NOT_MUTATED = (
-    r"^\s*#",  # preprocessor: includes, guards
-    r"^\s*//",  # comments
-    r"static_assert",  # compile-time checks: a mutant either does not build or changes nothing
-    r"\bassert\s*\(",  # NDEBUG in the release-like test build
-)
-EQUIVALENTS = REPO / "tools" / "mutants-equivalent.toml"
 DEFAULT_OUT = REPO / "build" / "mutate"
-FIRMWARE_BINARY = "bin/joint-firmware"
 CMAKE_ARGS = ("-DCMAKE_BUILD_TYPE=RelWithDebInfo", "-DHIL_SANITIZE=ON", "-DHIL_TESTS=ON")
 """The configuration of `make build`: what `make test` runs."""
-SOURCES = ("CMakeLists.txt", "firmware", "protocol")
+SOURCES = ("CMakeLists.txt", "cmake", "firmware", "protocol")
 """What the build needs of the checkout (copied into the workspace)."""
-HANG_FACTOR = 3
-HANG_MARGIN_S = 60.0
-SCENARIO_WORKERS = 2
-
-
-@dataclass(frozen=True)
-class Mutant:
-    id: str
-    path: str  # relative to the source root
-    line: int  # 1-based
-    original: str
-    replacement: str
-    rule: str
-
-    def apply(self, text: str) -> str:
-        lines = text.splitlines(keepends=True)
-        if lines[self.line - 1] != self.original:
-            raise ValueError(f"{self.path}:{self.line} is no longer {self.original!r}")
-        lines[self.line - 1] = self.replacement
-        return "".join(lines)
-
-
-# --- Which mutants ---------------------------------------------------------------------------
-def product_files(
-    root: Path, product: Sequence[str] = PRODUCT, not_product: Sequence[str] = NOT_PRODUCT
-) -> list[str]:
-    found = {str(p.relative_to(root)) for pattern in product for p in root.glob(pattern) if p.is_file()}
-    return sorted(
-        f
-        for f in found
-        if not any(fnmatch(f, pattern) or fnmatch(Path(f).name, pattern) for pattern in not_product)
-    )
-
-
-def mutants_of(root: Path, path: str) -> list[Mutant]:
-    """Every mutant of one file by universalmutator's C++ rules, in line order. The id is made
-    of the file, the line's text, the replacement and which such occurrence it is: it survives
-    edits elsewhere in the file (the equivalents list names mutants by it)."""
-    from universalmutator import mutator
-
-    source = (root / path).read_text().splitlines(keepends=True)
-    with contextlib.redirect_stdout(io.StringIO()):  # it prints its progress
-        found = mutator.mutants_regexp(
-            source, ruleFiles=list(RULES), ignorePatterns=list(NOT_MUTATED), ignoreStringOnly=True
-        )
-    seen: Counter[tuple[str, str]] = Counter()
-    result = []
-    for line, replacement, rule_used, _ in sorted(found, key=lambda m: (m[0], m[1])):
-        original = source[line - 1]
-        if code_of(original) == code_of(replacement):
-            continue  # a statement appended behind a // comment: no change at all
-        if changes_digits_of_a_name(original, replacement):
-            continue  # uint32_t -> uint(32+1)_t, 0x3F -> (0+1)x3F: never compiles
-        seen[(original, replacement)] += 1
-        key = f"{path}\0{original}\0{replacement}\0{seen[(original, replacement)]}"
-        digest = hashlib.sha1(key.encode()).hexdigest()[:8]
-        rule = rule_used[0].strip() if isinstance(rule_used, tuple) else str(rule_used)
-        result.append(Mutant(f"{Path(path).stem}-{digest}", path, line, original, replacement, rule))
-    return result
-
-
-_INTEGER_LITERAL = re.compile(r"(?<![\w.'])\d+(?:[uU]?[lL]{0,2}|[lL]{1,2}[uU]?)(?![\w.'])")
-
-
-def changes_digits_of_a_name(original: str, replacement: str) -> bool:
-    """Whether the first change is to digits that are not a whole integer literal: part of a
-    name (uint32_t), of a hex or float literal (0x3F, 1.0F). universalmutator's literal rule
-    matches those too, and such a mutant never compiles: not generated, so as not to spend a
-    build on it."""
-    start = next((i for i, (a, b) in enumerate(zip(original, replacement, strict=False)) if a != b), None)
-    if start is None or not (original[start].isdigit() or (start and original[start - 1].isdigit())):
-        return False
-    while start and original[start - 1].isdigit():
-        start -= 1
-    return _INTEGER_LITERAL.match(original, start) is None
-
-
-def code_of(line: str) -> str:
-    """A line's code without its // comment, whitespace normalised."""
-    return " ".join(line.split("//", 1)[0].split())
-
-
-def all_mutants(root: Path, files: Iterable[str]) -> list[Mutant]:
-    return [m for path in files for m in mutants_of(root, path)]
-
-
-def sample(mutants: Sequence[Mutant], count: int, seed: int) -> list[Mutant]:
-    """A seeded sample of `count` (all of them if fewer), in the order drawn."""
-    return random.Random(seed).sample(list(mutants), min(count, len(mutants)))
-
-
-def shard_of(mutants: Sequence[Mutant], shard: scenario_shards.Shard | None) -> list[Mutant]:
-    return list(mutants) if shard is None else list(mutants[shard.index - 1 :: shard.count])
-
-
-def load_equivalents(path: Path = EQUIVALENTS) -> dict[str, str]:
-    """Reviewed equivalent mutants: id -> reason."""
-    if not path.exists():
-        return {}
-    entries = tomllib.loads(path.read_text()).get("equivalent", [])
-    return {entry["id"]: entry["reason"] for entry in entries}
 
 
 # --- The workspace: a copy of the sources and its build tree ---------------------------------
@@ -205,6 +91,7 @@ class Workspace:
     source_root: Path
     sources: tuple[str, ...] = SOURCES
     cmake_args: tuple[str, ...] = CMAKE_ARGS
+    build_name: str = "build"
 
     @property
     def src(self) -> Path:
@@ -212,7 +99,7 @@ class Workspace:
 
     @property
     def build(self) -> Path:
-        return self.out / "build"
+        return self.out / self.build_name
 
     def mutant_dir(self, mutant: Mutant) -> Path:
         return self.out / "mutants" / mutant.id
@@ -245,6 +132,7 @@ class Workspace:
                 "-G",
                 "Ninja",
                 f"-DHIL_PYTHON={python}",
+                "-DCMAKE_EXPORT_COMPILE_COMMANDS=ON",
                 *self.cmake_args,
             ],
             "configure the mutation build",
@@ -291,23 +179,74 @@ def mutated(workspace: Workspace, mutant: Mutant):
     before writing anything of the mutant: a .cpp file's one object file was not rewritten (the
     compiler writes none on an error), so the original gets its old time back and is not
     compiled again for the next mutant. Never for a header: other translation units that
-    include it may have compiled the mutant before the error."""
+    include it may have compiled the mutant before the error; unless `nothing_built` says that
+    only the syntax check saw it."""
     path = workspace.src / mutant.path
     original = path.read_text()
     before = path.stat()
     path.write_text(mutant.apply(original))
-    state = {"untouched_outputs": False}
+    state = {"untouched_outputs": False, "nothing_built": False}
     try:
         yield state
     finally:
         path.write_text(original)
-        if state["untouched_outputs"] and path.suffix == ".cpp":
+        if state["untouched_outputs"] and (path.suffix == ".cpp" or state["nothing_built"]):
             os.utime(path, ns=(before.st_atime_ns, before.st_mtime_ns))
 
 
+def syntax_check(workspace: Workspace, mutant: Mutant) -> bool:
+    """Whether the mutated file's translation unit (for a header: the first one that includes
+    it) passes the compiler's syntax and type check (-fsyntax-only, a fraction of a build): a
+    mutant that fails it is dropped without building anything. True when no unit is known."""
+    unit = translation_unit_of(workspace, workspace.src / mutant.path)
+    if unit is None:
+        return True
+    argv, directory = unit
+    return subprocess.run(argv, cwd=directory, capture_output=True, check=False).returncode == 0
+
+
+def translation_unit_of(workspace: Workspace, path: Path) -> tuple[list[str], str] | None:
+    """The syntax-check command line of the unit that compiles `path`, and its directory."""
+    commands_path = workspace.build / "compile_commands.json"
+    if not commands_path.exists():
+        return None
+    commands = {str(Path(e["file"]).resolve()): e for e in json.loads(commands_path.read_text())}
+    entry = commands.get(str(path.resolve()))
+    if entry is None:
+        deps = subprocess.run(
+            ["ninja", "-C", str(workspace.build), "-t", "deps"], capture_output=True, text=True, check=False
+        ).stdout
+        current = None
+        for line in deps.splitlines():
+            if line and not line.startswith(" "):
+                current = line.split(":")[0]
+            elif current and Path(workspace.build, line.strip()).resolve() == path.resolve():
+                entry = next((e for e in commands.values() if e.get("output") == current), None)
+                if entry is not None:
+                    break
+    if entry is None:
+        return None
+    argv = entry["arguments"] if "arguments" in entry else shlex.split(entry["command"])
+    cleaned, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+            continue
+        if arg in ("-o", "-MF", "-MT", "-MQ"):
+            skip = True
+            continue
+        if arg in ("-c", "-MD", "-MMD"):
+            continue
+        cleaned.append(arg)
+    return [*cleaned, "-fsyntax-only"], entry["directory"]
+
+
 # --- The unit-test layer ----------------------------------------------------------------------
-def ctest(build: Path, jobs: int, timeout_s: float, junit: Path) -> tuple[list[str], str | None, float]:
-    """Run every C++ unit test: (the tests that failed, why the run timed out or None, seconds)."""
+def ctest(
+    build: Path, jobs: int, timeout_s: float, junit: Path, names: Sequence[str] | None = None
+) -> tuple[list[str], str | None, float]:
+    """Run the C++ unit tests (those named, else all): (the tests that failed, why the run timed
+    out or None, seconds)."""
     started = time.monotonic()
     argv = [
         "ctest",
@@ -319,6 +258,7 @@ def ctest(build: Path, jobs: int, timeout_s: float, junit: Path) -> tuple[list[s
         f"{timeout_s:.0f}",
         "--output-junit",
         str(junit),
+        *(["-R", coverage.ctest_regex(names)] if names is not None else []),
     ]
     result = run_group(argv)
     seconds = time.monotonic() - started
@@ -351,153 +291,75 @@ def baseline_unit_timeout(build: Path, jobs: int, out: Path) -> float:
     return HANG_FACTOR * slowest + HANG_MARGIN_S
 
 
-# --- The scenario layer (inside the VM) -------------------------------------------------------
-def collect_scenarios(out: Path) -> list[str]:
-    """The lockstep scenarios' node ids (collected natively; the VM runs them)."""
-    argv = [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"]
-    argv += scenario_shards.selection_args("lockstep")
-    result = subprocess.run(argv, cwd=REPO, capture_output=True, text=True, check=False)
-    ids = [line for line in result.stdout.splitlines() if "::" in line]
-    if not ids:
-        raise SystemExit(
-            f"mutate: no lockstep scenario collected:\n{result.stdout[-2000:]}{result.stderr[-2000:]}"
-        )
-    report.write_json(out / "scenarios.json", ids)
-    return ids
-
-
-def scenario_order(ids: Sequence[str], kills: Counter[str], durations: dict[str, float]) -> list[str]:
-    """Those that killed most mutants so far first, then the short ones."""
-    average = sum(durations.values()) / len(durations) if durations else 1.0
-    return sorted(ids, key=lambda t: (-kills[t], durations.get(t, average), t))
-
-
-def run_scenarios(
-    firmware: Path, ids: Sequence[str], durations: dict[str, float], out: Path
-) -> tuple[list[str], str | None, bool, float]:
-    """One mutant's scenarios, -x: (the scenarios that failed, why the run timed out, whether a
-    failure was only the host starving, seconds)."""
-    expected = sum(durations.get(t, 10.0) for t in ids) / SCENARIO_WORKERS
-    timeout_s = HANG_FACTOR * expected + HANG_MARGIN_S
-    junit = out / "scenarios.xml"
-    junit.unlink(missing_ok=True)
-    argv = [
-        sys.executable,
-        "-m",
-        "pytest",
-        *ids,
-        "-x",
-        "-q",
-        "-n",
-        str(SCENARIO_WORKERS),
-        "-p",
-        "no:cacheprovider",
-        f"--junitxml={junit}",
-    ]
-    env = dict(
-        os.environ,
-        HIL_FIRMWARE=str(firmware),
-        HIL_OUT_DIR=str(out / "scenario-out"),
-        HIL_SCENARIO_ORDER="given",
-    )
-    started = time.monotonic()
-    with open(out / "scenarios.log", "w") as log:
-        process = subprocess.Popen(
-            argv, cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
-        )
-        try:
-            process.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-            seconds = time.monotonic() - started
-            why = (
-                f"scenarios past {timeout_s:.0f} s ({HANG_FACTOR}x the unmutated firmware's "
-                f"{expected:.0f} s + {HANG_MARGIN_S:.0f} s)"
-            )
-            return [], why, False, seconds
-        except BaseException:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-            raise
-    seconds = time.monotonic() - started
-    failed, starved = [], []
-    if junit.exists():
-        for case in ET.parse(junit).getroot().iter("testcase"):
-            problem = case.find("failure")
-            if problem is None:
-                problem = case.find("error")
-            if problem is None:
-                continue
-            name = f"{case.get('classname', '').replace('.', '/')}.py::{case.get('name')}"
-            text = (problem.get("message") or "") + (problem.text or "")
-            (starved if "HostStarvedError" in text else failed).append(name)
-    if process.returncode not in (0, 1) and not failed and not starved:
-        failed.append(f"pytest exit {process.returncode}")
-    return failed, None, bool(starved) and not failed, seconds
-
-
-def scenarios_command(out: Path) -> int:
-    """Inside the VM: the scenario layer for every built mutant of the run's plan that has none."""
-    plan = json.loads((out / "plan.json").read_text())
-    ids = json.loads((out / "scenarios.json").read_text())
-    durations = json.loads((REPO / scenario_shards.DURATIONS).read_text())
-    kills_path = out / "kills.json"
-    kills: Counter[str] = Counter(json.loads(kills_path.read_text()) if kills_path.exists() else {})
-    equivalent = load_equivalents()
-    todo = [m for m in plan["mutants"] if m not in equivalent and _needs_scenarios(out / "mutants" / m)]
-    missing = [m for m in todo if not (out / "mutants" / m / Path(FIRMWARE_BINARY).name).exists()]
-    if missing:  # never a kill: a scenario against no firmware fails whatever the mutant does
-        print(f"mutate: no firmware kept for {', '.join(missing)}: run `run` again to build them", flush=True)
-        todo = [m for m in todo if m not in missing]
-    for number, mutant_id in enumerate(todo, 1):
-        folder = out / "mutants" / mutant_id
-        result = json.loads((folder / "result.json").read_text())
-        order = scenario_order(ids, kills, durations)
-        for attempt in (1, 2):
-            failed, timeout, starved, seconds = run_scenarios(
-                folder / "joint-firmware", order, durations, folder
-            )
-            if not starved:
-                break
-            print(f"mutate: {mutant_id}: the host starved the scenarios (attempt {attempt})", flush=True)
-        if not failed:
-            # A survivor's scenarios wrote a trace each (hundreds of MB a mutant): not kept.
-            shutil.rmtree(folder / "scenario-out", ignore_errors=True)
-        if starved or timeout:
-            # No verdict: the run's bound comes from a quiet machine's durations, and a loaded
-            # host (this run's own builds) made a survivor overrun it. A firmware that hangs is
-            # a kill through the HangGuard (idle with TPDOs due, or its CPU spent unanswered).
-            result["scenarios"] = None
-            result["scenarios_not_run"] = timeout or "the host starved the scenarios twice"
-        else:
-            result["scenarios"] = {"killed_by": failed, "timeout": timeout}
-            result.setdefault("seconds", {})["scenarios"] = round(seconds, 1)
-            kills.update(failed)
-            report.write_json(kills_path, dict(kills))
-        report.write_json(folder / "result.json", result)
-        verdict = "killed by " + failed[0] if failed else (timeout or "survived")
-        print(f"mutate: scenarios {number}/{len(todo)} {mutant_id}: {verdict} ({seconds:.0f} s)", flush=True)
-    return 0
-
-
-def _needs_scenarios(folder: Path) -> bool:
-    result_path = folder / "result.json"
-    if not result_path.exists():
-        return False
-    result = json.loads(result_path.read_text())
-    return result.get("compiled", False) and result.get("scenarios") is None  # none yet, or starved
-
-
 # --- The run ----------------------------------------------------------------------------------
 def source_digest(root: Path, path: str) -> str:
     return hashlib.sha1((root / path).read_bytes()).hexdigest()
 
 
+def ensure_unit_coverage(workspace: Workspace, jobs: int) -> coverage.Coverage | None:
+    """The coverage record of the unit tests for the workspace's sources: built and recorded
+    when the sources changed (a build tree of its own), else read back."""
+    folder = workspace.out / "coverage"
+    record_path = folder / "coverage.json"
+    digest = coverage.sources_digest(workspace.src, workspace.sources)
+    if record_path.exists():
+        known = coverage.Coverage.from_json(json.loads(record_path.read_text()))
+        if known.digest == digest:
+            return known
+    tree = Workspace(
+        workspace.out, workspace.source_root, workspace.sources, COVERAGE_CMAKE_ARGS, "coverage/build"
+    )
+    tree.configure()
+    print("mutate: building the unmutated sources with --coverage (once per source state)", flush=True)
+    started = time.monotonic()
+    if tree.compile(jobs).returncode != 0:
+        print("mutate: the coverage build failed: every test runs on every mutant", flush=True)
+        return None
+    shutil.rmtree(folder / "unit-counters", ignore_errors=True)
+    record = coverage.record_unit_tests(tree.build, tree.src, folder / "unit-counters", digest, jobs)
+    report.write_json(record_path, record.to_json())
+    print(f"mutate: unit-test coverage recorded ({time.monotonic() - started:.0f} s)", flush=True)
+    return record
+
+
+def ensure_scenario_coverage(out: Path) -> None:
+    """The scenarios' part of the coverage record (a user-mode Linux VM: the coverage build has
+    no sanitizer), recorded once per source state."""
+    record_path = out / "coverage" / "coverage.json"
+    if not record_path.exists():
+        return
+    record = coverage.Coverage.from_json(json.loads(record_path.read_text()))
+    if any(t.startswith(coverage.SCENARIO) for t in record.tests):
+        return
+    print("mutate: recording which lines each lockstep scenario executes (once per source state)", flush=True)
+    code = run_in_vm(out, "coverage", uml=True)
+    if code != 0:  # stopped: no record, so that the next run records it again
+        print(f"mutate: the scenarios' coverage run ended with exit {code}: every scenario runs", flush=True)
+        return
+    ids = json.loads((out / "scenarios.json").read_text())["ids"]
+    scenarios = coverage.record_scenarios(
+        ids, out / "coverage" / "scenario-counters", out / "coverage" / "build", out / "src", record.digest
+    )
+    report.write_json(record_path, coverage.merge([record, scenarios]).to_json())
+
+
+def counted(out: Path, mutant: Mutant, equivalents: dict[str, str]) -> bool:
+    """Whether a mutant tried counts: it compiled and is not listed as equivalent."""
+    path = out / "mutants" / mutant.id / "result.json"
+    return (
+        mutant.id not in equivalents and path.exists() and json.loads(path.read_text()).get("compiled", False)
+    )
+
+
 def build_and_unit(
-    workspace: Workspace, mutants: Sequence[Mutant], jobs: int, copy_binary: str | None
-) -> None:
-    """Build each mutant and run the unit tests on it (results kept per mutant)."""
+    workspace: Workspace,
+    candidates: Iterable[Mutant],
+    jobs: int,
+    copy_binaries: Sequence[str] = FIRMWARE_BINARIES,
+    use_coverage: bool = True,
+) -> list[Mutant]:
+    """Build each candidate and run the unit tests that execute its line on it (results kept
+    per mutant); returns the mutants tried (the listed equivalents are skipped, not built)."""
     workspace.sync()
     workspace.configure()
     print("mutate: building the unmutated firmware (baseline)", flush=True)
@@ -505,53 +367,76 @@ def build_and_unit(
     if baseline.returncode != 0:
         raise SystemExit(f"mutate: the unmutated sources do not build:\n{baseline.stdout[-3000:]}")
     unit_timeout = baseline_unit_timeout(workspace.build, jobs, workspace.out)
-    if copy_binary is not None and not (workspace.build / copy_binary).exists():
-        copy_binary = None  # a tree without the firmware (the tool's own test): unit tests only
-    for number, mutant in enumerate(mutants, 1):
+    record = ensure_unit_coverage(workspace, jobs) if use_coverage else None
+    unit_groups = coverage.unit_tests_by_executable(workspace.build) if record else {}
+    binaries = [b for b in copy_binaries if (workspace.build / b).exists()]
+    equivalents = load_equivalents()
+    tried: list[Mutant] = []
+    for mutant in candidates:
+        if mutant.id in equivalents:
+            continue
+        tried.append(mutant)
+        number = len(tried)
         folder = workspace.mutant_dir(mutant)
         result_path = folder / "result.json"
         digest = source_digest(workspace.source_root, mutant.path)
         known = json.loads(result_path.read_text()) if result_path.exists() else {}
         if known.get("source_sha1") == digest:
-            binary = folder / Path(copy_binary).name if copy_binary else None
-            if binary is None or not known.get("compiled") or binary.exists():
+            kept = [folder / Path(b).name for b in binaries]
+            if not known.get("compiled") or all(k.exists() for k in kept):
                 continue  # done in an earlier run, on the same source
             with mutated(workspace, mutant):  # its unit results stand; its firmware is needed again
                 if workspace.compile(jobs).returncode == 0:
-                    shutil.copy2(workspace.build / copy_binary, binary)
+                    for binary in binaries:
+                        shutil.copy2(workspace.build / binary, folder / Path(binary).name)
             continue
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir(parents=True)
         result: dict[str, object] = {**asdict(mutant), "source_sha1": digest}
         started = time.monotonic()
         with mutated(workspace, mutant) as state:
-            built = workspace.compile(jobs)
+            checked = syntax_check(workspace, mutant)
+            built = workspace.compile(jobs) if checked else None
             build_s = time.monotonic() - started
-            if built.returncode != 0:
+            if built is None or built.returncode != 0:
                 state["untouched_outputs"] = True
+                state["nothing_built"] = built is None
                 result.update(compiled=False, seconds={"build": round(build_s, 1)})
-                print(f"mutate: {number}/{len(mutants)} {mutant.id}: does not compile, dropped", flush=True)
+                why = "its line does not compile" if built is None else "does not build"
+                print(f"mutate: {number} {mutant.id}: {why}, dropped ({build_s:.0f} s)", flush=True)
             else:
-                if copy_binary is not None and (workspace.build / copy_binary).exists():
-                    shutil.copy2(workspace.build / copy_binary, folder / Path(copy_binary).name)
-                failed, timeout, unit_s = ctest(workspace.build, jobs, unit_timeout, folder / "ctest.xml")
+                for binary in binaries:
+                    shutil.copy2(workspace.build / binary, folder / Path(binary).name)
+                executables = record.covering(mutant.path, mutant.line, coverage.UNIT) if record else None
+                names = (
+                    None if executables is None else [n for e in executables for n in unit_groups.get(e, [])]
+                )
+                if names == []:
+                    failed, timeout, unit_s = [], None, 0.0
+                else:
+                    failed, timeout, unit_s = ctest(
+                        workspace.build, jobs, unit_timeout, folder / "ctest.xml", names
+                    )
                 result.update(
                     compiled=True,
-                    unit={"killed_by": failed, "timeout": timeout},
+                    unit={"killed_by": failed, "timeout": timeout, "selected": names},
                     seconds={"build": round(build_s, 1), "unit": round(unit_s, 1)},
                 )
                 verdict = f"killed by {len(failed)} unit tests" if failed else (timeout or "unit tests pass")
+                which = "all" if names is None else f"{len(names)} executing its line"
                 print(
-                    f"mutate: {number}/{len(mutants)} {mutant.id}: {verdict} "
-                    f"({build_s:.0f} s build, {unit_s:.0f} s tests)",
+                    f"mutate: {number} {mutant.id}: {verdict} ({which}; "
+                    f"{build_s:.0f} s build, {unit_s:.0f} s tests)",
                     flush=True,
                 )
         report.write_json(result_path, result)
+    return tried
 
 
 def outcome_of(result: dict, equivalents: dict[str, str]) -> report.Outcome:
     unit = result.get("unit")
     scenarios = result.get("scenarios")
+    approved = result.get("approved", scenarios)
     return report.Outcome(
         id=result["id"],
         path=result["path"],
@@ -564,18 +449,19 @@ def outcome_of(result: dict, equivalents: dict[str, str]) -> report.Outcome:
         unit_timeout=unit["timeout"] if unit else None,
         scenario_killed_by=scenarios["killed_by"] if scenarios else None,
         scenario_timeout=scenarios["timeout"] if scenarios else None,
+        approved_killed_by=approved["killed_by"] if approved else None,
         equivalent=equivalents.get(result["id"]),
         seconds=result.get("seconds", {}),
     )
 
 
 def write_report(
-    out: Path, name: str, mutants: Sequence[Mutant], source_root: Path, config: dict
+    out: Path, name: str, ids: Sequence[str], source_root: Path, config: dict
 ) -> list[report.Outcome]:
     equivalents = load_equivalents()
     outcomes = []
-    for mutant in mutants:
-        path = out / "mutants" / mutant.id / "result.json"
+    for mutant_id in ids:
+        path = out / "mutants" / mutant_id / "result.json"
         if path.exists():
             outcomes.append(outcome_of(json.loads(path.read_text()), equivalents))
     sources = {o.path: (source_root / o.path).read_text() for o in outcomes}
@@ -592,22 +478,33 @@ def write_report(
 
 @dataclass(frozen=True)
 class Selection:
-    """The mutants a `run`, `report` or `list` call is about, and how its report names them."""
+    """The mutants a `run`, `report` or `list` call is about, and how its report names them:
+    the stratified plan, or the mutants named by id."""
 
-    mutants: list[Mutant]
+    plan: sampling.Plan | None
+    chosen: list[Mutant]
     source_root: Path
     description: str
     report_name: str
     config: dict[str, object]
 
+    def candidates(self, out: Path) -> Iterable[Mutant]:
+        if self.plan is None:
+            return self.chosen
+        equivalents = load_equivalents()
+        return sampling.take(self.plan, lambda m: counted(out, m, equivalents))
+
 
 def select(args: argparse.Namespace) -> Selection:
-    """The seeded sample (or its shard) of every mutant of the product files; `--mutant ID`s
+    """The stratified sample (or its shard) of every mutant of the product files; `--mutant ID`s
     instead, where the command has them."""
     shard = scenario_shards.parse_shard(args.shard) if args.shard else None
+    if args.mutants < 1:
+        raise ValueError(f"MUTANTS must be at least 1, not {args.mutants}")
     source_root = Path(args.source).resolve()
     files = product_files(source_root, args.product or PRODUCT)
     everything = all_mutants(source_root, files)
+    plan = None
     if getattr(args, "mutant", None):
         by_id = {m.id: m for m in everything}
         unknown = [i for i in args.mutant if i not in by_id]
@@ -618,9 +515,15 @@ def select(args: argparse.Namespace) -> Selection:
         chosen = [by_id[i] for i in args.mutant]
         description = f"{len(chosen)} mutants chosen by id"
     else:
-        chosen = shard_of(sample(everything, args.mutants, args.seed), shard)
+        plan = sampling.plan(
+            everything, args.mutants, args.seed, (shard.index, shard.count) if shard else None
+        )
+        chosen = sampling.first_choices(plan)
         where = f", shard {shard}" if shard else ""
-        description = f"{len(chosen)} of {len(everything)} mutants (seed {args.seed}{where})"
+        description = (
+            f"{plan.count} counted mutants stratified over {len(plan.targets)} files, "
+            f"of {len(everything)} (seed {args.seed}{where})"
+        )
     config = {
         "description": description,
         "seed": args.seed,
@@ -629,7 +532,14 @@ def select(args: argparse.Namespace) -> Selection:
         "project_root": str(source_root),
     }
     name = f"report-shard-{shard.index}-of-{shard.count}" if shard else "report"
-    return Selection(chosen, source_root, f"{description} of {len(files)} product files", name, config)
+    return Selection(plan, chosen, source_root, f"{description} of {len(files)} product files", name, config)
+
+
+def run_in_vm(out: Path, command: str, uml: bool) -> int:
+    """`tools/mutate.py COMMAND --out OUT` inside tools/with-vcan (user-mode Linux allowed or not)."""
+    argv = [str(REPO / "tools" / "with-vcan"), *([] if uml else ["--no-uml"]), "--"]
+    argv += [sys.executable, str(Path(__file__).resolve()), command, "--out", str(out)]
+    return subprocess.run(argv, cwd=REPO, check=False).returncode
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -637,34 +547,24 @@ def run_command(args: argparse.Namespace) -> int:
     out = Path(args.out).resolve()
     print(f"mutate: {chosen.description}", flush=True)
     out.mkdir(parents=True, exist_ok=True)
-    report.write_json(out / "plan.json", {"mutants": [m.id for m in chosen.mutants]})
     workspace = Workspace(out, chosen.source_root, tuple(args.sources), tuple(args.cmake_arg or CMAKE_ARGS))
-    build_and_unit(workspace, chosen.mutants, args.jobs, FIRMWARE_BINARY)
+    tried = build_and_unit(workspace, chosen.candidates(out), args.jobs, use_coverage=not args.no_coverage)
+    report.write_json(out / "plan.json", {"mutants": [m.id for m in tried]})
     if not args.no_scenarios:
         collect_scenarios(out)
+        if not args.no_coverage:
+            ensure_scenario_coverage(out)
         print(
             "mutate: bus-level scenarios of every built mutant, in one micro-VM (tools/with-vcan)", flush=True
         )
-        vm = subprocess.run(
-            [
-                str(REPO / "tools" / "with-vcan"),
-                "--no-uml",  # the mutants are ASan builds, which user-mode Linux cannot start
-                "--",
-                sys.executable,
-                str(Path(__file__).resolve()),
-                "scenarios",
-                "--out",
-                str(out),
-            ],
-            cwd=REPO,
-            check=False,
-        )
-        if vm.returncode != 0:
+        # The mutants are ASan builds, which user-mode Linux cannot start.
+        code = run_in_vm(out, "scenarios", uml=False)
+        if code != 0:
             print(
-                f"mutate: the scenario stage ended with exit {vm.returncode}; the report shows what ran",
+                f"mutate: the scenario stage ended with exit {code}; the report shows what ran",
                 file=sys.stderr,
             )
-    write_report(out, chosen.report_name, chosen.mutants, chosen.source_root, chosen.config)
+    write_report(out, chosen.report_name, [m.id for m in tried], chosen.source_root, chosen.config)
     return 0
 
 
@@ -673,16 +573,19 @@ def one_line(code: str) -> str:
 
 
 def report_command(args: argparse.Namespace) -> int:
-    """The report of a sample from the results kept so far, nothing built or run."""
+    """The report of a run from the results kept so far, nothing built or run."""
     chosen = select(args)
-    write_report(
-        Path(args.out).resolve(), chosen.report_name, chosen.mutants, chosen.source_root, chosen.config
+    out = Path(args.out).resolve()
+    plan_path = out / "plan.json"
+    ids = (
+        json.loads(plan_path.read_text())["mutants"] if plan_path.exists() else [m.id for m in chosen.chosen]
     )
+    write_report(out, chosen.report_name, ids, chosen.source_root, chosen.config)
     return 0
 
 
 def list_command(args: argparse.Namespace) -> int:
-    for mutant in select(args).mutants:
+    for mutant in select(args).chosen:
         print(
             f"{mutant.id}  {mutant.path}:{mutant.line}  "
             f"{one_line(mutant.original)}  ->  {one_line(mutant.replacement)}"
@@ -716,7 +619,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     }
     for name in ("run", "list", "report"):
         p = sub.add_parser(name, help=helps[name])
-        p.add_argument("--mutants", type=int, default=40, help="how many mutants to sample (default 40)")
+        p.add_argument(
+            "--mutants",
+            type=int,
+            default=40,
+            help="how many counted mutants (compiled, not equivalent; default 40)",
+        )
         p.add_argument("--seed", type=int, default=1, help="the sample's seed (default 1)")
         p.add_argument("--shard", help="K/N: the K-th of N shards of the sample")
         p.add_argument("--source", default=str(REPO), help=argparse.SUPPRESS)
@@ -729,6 +637,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     run.add_argument("--jobs", type=int, default=os.cpu_count() or 2, help="build and ctest parallelism")
     run.add_argument("--no-scenarios", action="store_true", help="unit tests only (no VM)")
     run.add_argument(
+        "--no-coverage", action="store_true", help="every test on every mutant (no coverage record)"
+    )
+    run.add_argument(
         "--mutant", action="append", metavar="ID", help="run this mutant (repeatable), not a sample"
     )
     run.add_argument("--sources", nargs="+", default=list(SOURCES), help=argparse.SUPPRESS)
@@ -738,6 +649,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     merge.add_argument("--out", required=True)
     scen = sub.add_parser("scenarios", help="(inside tools/with-vcan) the scenario layer of a run")
     scen.add_argument("--out", default=str(DEFAULT_OUT))
+    cov = sub.add_parser("coverage", help="(inside tools/with-vcan) the scenarios' coverage record")
+    cov.add_argument("--out", default=str(DEFAULT_OUT))
     args = parser.parse_args(argv)
     # SIGTERM as Ctrl-C, and Ctrl-C even where the shell started this in the background with
     # SIGINT ignored: the mutated file goes back and the build's processes are stopped first.
@@ -752,6 +665,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return report_command(args)
         if args.command == "merge":
             return merge_command(args)
+        if args.command == "coverage":
+            return coverage_command(Path(args.out))
         return scenarios_command(Path(args.out))
     except (ValueError, OSError, KeyError) as error:  # a bad SHARD, a missing or foreign report
         print(f"mutate: {type(error).__name__}: {error}", file=sys.stderr)

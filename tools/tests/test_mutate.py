@@ -13,8 +13,9 @@ import pytest
 TOOLS = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(TOOLS))
 import mutate  # noqa: E402
+import mutate_coverage as coverage  # noqa: E402
+import mutate_sampling as sampling  # noqa: E402
 import mutation_report as report  # noqa: E402
-from scenario_shards import parse_shard  # noqa: E402
 
 TINY = Path(__file__).resolve().parent / "mutate_tiny"
 STRYKER_STATUSES = {
@@ -49,16 +50,81 @@ def test_the_firmware_s_product_code_is_mutated_not_its_tests() -> None:
         ), path
 
 
-def test_the_sample_is_seeded_and_its_shards_partition_it() -> None:
-    everything = mutate.all_mutants(mutate.REPO, mutate.product_files(mutate.REPO))
+SOME_FILES = (
+    "firmware/canopen/Pdo.cpp",
+    "firmware/core/MessageBoard.hpp",
+    "firmware/joint/modules/ThermalProtection.cpp",
+    "firmware/canopen/TimeLeft.hpp",
+)
+
+
+def test_the_sample_is_stratified_seeded_and_its_shards_partition_it() -> None:
+    files = [f for f in SOME_FILES if (mutate.REPO / f).exists()]
+    everything = mutate.all_mutants(mutate.REPO, files)
     assert len({m.id for m in everything}) == len(everything), "mutant ids must be unique"
-    first = mutate.sample(everything, 40, seed=5)
-    assert [m.id for m in first] == [m.id for m in mutate.sample(everything, 40, seed=5)]
-    assert [m.id for m in first] != [m.id for m in mutate.sample(everything, 40, seed=6)]
-    for count in (2, 3, 7):
-        shards = [mutate.shard_of(first, parse_shard(f"{k}/{count}")) for k in range(1, count + 1)]
-        ids = [m.id for shard in shards for m in shard]
-        assert sorted(ids) == sorted(m.id for m in first)
+    plan = sampling.plan(everything, 12, seed=5)
+    assert plan.count == 12 and set(plan.targets) == set(files), "every file gets its share"
+    assert [m.id for m in sampling.first_choices(plan)] == [
+        m.id for m in sampling.first_choices(sampling.plan(everything, 12, seed=5))
+    ]
+    assert sampling.first_choices(plan) != sampling.first_choices(sampling.plan(everything, 12, seed=6))
+    for count in (2, 3, 5):
+        shards = [sampling.plan(everything, 12, 5, (k, count)) for k in range(1, count + 1)]
+        assert sum(s.count for s in shards) == 12
+        for path in files:
+            assert sum(s.targets.get(path, 0) for s in shards) == plan.targets[path]
+            parts = [m.id for s in shards for m in s.candidates.get(path, [])]
+            assert len(parts) == len(set(parts)), "no candidate in two shards"
+
+
+def test_shares_are_proportional_with_one_for_every_file() -> None:
+    assert sampling.shares({"a": 100, "b": 10, "c": 1}, 12) == {"a": 9, "b": 2, "c": 1}
+    assert sampling.shares({"a": 100, "b": 10, "c": 1}, 2) == {"a": 2}
+    assert sum(sampling.shares({str(n): n + 1 for n in range(40)}, 200).values()) == 200
+
+
+def test_a_mutant_that_does_not_count_is_replaced_by_its_file_s_next() -> None:
+    make = lambda path, n: mutate.Mutant(f"{path}-{n}", path, n, "x\n", "y\n", "r")  # noqa: E731
+    mutants = [make("a.cpp", n) for n in range(1, 6)] + [make("b.cpp", n) for n in range(1, 6)]
+    plan = sampling.plan(mutants, 4, seed=1)
+    broken = {m.id for m in plan.candidates["a.cpp"][:2]}  # its first two do not compile
+    taken = list(sampling.take(plan, lambda m: m.id not in broken))
+    assert sum(m.path == "a.cpp" for m in taken) == 4 and sum(m.path == "b.cpp" for m in taken) == 2
+    assert len([m for m in taken if m.id not in broken]) == 4, "MUTANTS counts mutants, not draws"
+
+
+def test_the_interval_is_wilson_s() -> None:
+    low, high = report.wilson(14, 15)
+    assert round(low, 1) == 70.2 and round(high, 1) == 98.8
+    assert report.wilson(0, 10)[0] == 0.0 and round(report.wilson(10, 10)[1], 6) == 100.0
+    assert report.wilson(0, 0) is None
+    assert str(report.Score(190, 200)) == "190/200 = 95.0 % (95 % CI 91.0-97.3 %)"
+
+
+def test_a_mutant_runs_only_the_tests_that_execute_its_line() -> None:
+    record = coverage.Coverage.build(
+        "digest",
+        {
+            "scenario:tests/a.py::one": {"firmware/X.cpp": {10: True, 11: False}},
+            "scenario:tests/b.py::two": {"firmware/X.cpp": {10: True, 11: False, 12: True}},
+            "scenario:tests/c.py::killed": {},
+            "unit:x_test": {"firmware/X.cpp": {10: False, 12: True}},
+        },
+    )
+    record = coverage.Coverage.from_json(json.loads(json.dumps(record.to_json())))
+    both = ["tests/a.py::one", "tests/b.py::two", "tests/c.py::killed"]
+    assert record.covering("firmware/X.cpp", 10, coverage.SCENARIO) == both
+    assert record.covering("firmware/X.cpp", 11, coverage.SCENARIO) == ["tests/c.py::killed"], (
+        "none executes it; one left no counters and may"
+    )
+    assert record.covering("firmware/X.cpp", 13, coverage.SCENARIO) is None, "not instrumented: all"
+    assert record.covering("firmware/X.cpp", 10, coverage.UNIT) == []
+    assert record.covering("firmware/X.cpp", 12, coverage.UNIT) == ["x_test"]
+    merged = coverage.merge([record])
+    assert merged.covering("firmware/X.cpp", 12, coverage.SCENARIO) == [
+        "tests/b.py::two",
+        "tests/c.py::killed",
+    ]
 
 
 def test_a_mutant_applies_to_its_line_only() -> None:
@@ -74,7 +140,7 @@ def test_a_mutant_applies_to_its_line_only() -> None:
 def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     killed = tiny_mutant("if (duty > limit) return limit;", "if (duty < limit) return limit;")
     survivor = tiny_mutant("return value * 3;", "return value * 1;")
-    broken = tiny_mutant("return duty;", "return duty; break;")
+    broken = tiny_mutant("factor = factor + value;", "value = factor + value;")  # a const assigned
     out = tmp_path / "out"
     argv = [
         "run",
@@ -98,10 +164,17 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     assert sorted(mutants[killed.id]["killedBy"]) == ["unit:clamp.inside", "unit:clamp.limits"]
     assert mutants[survivor.id]["status"] == "Survived"
     assert mutants[broken.id]["status"] == "CompileError"
+    assert json.loads((out / "mutants" / broken.id / "result.json").read_text())["compiled"] is False
     assert mutants[killed.id]["location"]["start"]["line"] == killed.line
     summary = (out / "report.txt").read_text()
     assert "do not compile (dropped)   1" in summary
-    assert "killed by unit tests alone         1/2 = 50.0 %" in summary
+    assert "killed by unit tests alone         1/2 = 50.0 % (95 % CI 9.5-90.5 %)" in summary
+    results = {
+        m.id: json.loads((out / "mutants" / m.id / "result.json").read_text()) for m in (killed, survivor)
+    }
+    assert sorted(results[killed.id]["unit"]["selected"]) == ["clamp.inside", "clamp.limits"]
+    assert results[survivor.id]["unit"]["selected"] == [], "no unit test executes its line: none run"
+    assert results[survivor.id]["seconds"]["unit"] == 0.0
     assert "    -  return value * 3;\n    +  return value * 1;\n" in summary  # the survivor's diff
     # A second run reuses every result (same sources): nothing is built again.
     result = json.loads((out / "mutants" / killed.id / "result.json").read_text())
@@ -110,7 +183,11 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
 
 
 def outcome(
-    mutant_id: str, unit: list[str] | None, scenarios: list[str] | None, compiled: bool = True
+    mutant_id: str,
+    unit: list[str] | None,
+    scenarios: list[str] | None,
+    compiled: bool = True,
+    approved: list[str] | None = None,
 ) -> report.Outcome:
     return report.Outcome(
         mutant_id,
@@ -124,6 +201,7 @@ def outcome(
         None,
         scenarios,
         None,
+        approved if approved is not None else scenarios,
     )
 
 
@@ -137,7 +215,7 @@ def test_scores_count_each_layer_alone_and_drop_what_does_not_count() -> None:
     ]
     outcomes.append(
         report.Outcome(
-            "f", "firmware/core/Y.cpp", 1, "x\n", "y\n", "r", True, [], None, [], None, equivalent="same"
+            "f", "firmware/core/Y.cpp", 1, "x\n", "y\n", "r", True, [], None, [], None, [], equivalent="same"
         )
     )
     s = report.scores(outcomes)
@@ -148,7 +226,7 @@ def test_scores_count_each_layer_alone_and_drop_what_does_not_count() -> None:
 
 
 def test_shards_reports_merge_into_the_whole() -> None:
-    first = [outcome("a", ["t1"], []), outcome("b", [], [])]
+    first = [outcome("a", ["t1"], []), outcome("b", [], [], approved=["s2"])]
     second = [outcome("c", [], ["s1"]), outcome("d", None, None, compiled=False)]
     sources = {"firmware/joint/modules/X.cpp": "a < b;\n"}
     merged = report.merge(
@@ -159,6 +237,7 @@ def test_shards_reports_merge_into_the_whole() -> None:
     )
     whole = report.scores(report.from_stryker(merged))
     assert whole == report.scores(first + second)
+    assert (whole.scenarios.killed, whole.approved.killed, whole.overall.killed) == (1, 2, 3)
     assert merged["config"]["merged_shards"] == ["1/2", "2/2"]
 
 

@@ -10,3 +10,8 @@ float clamp_duty(float duty, float limit) {
 int unused_in_tests(int value) {
   return value * 3;
 }
+
+int scaled(const int value, int factor) {
+  factor = factor + value;
+  return factor;
+}

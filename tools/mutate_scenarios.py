@@ -1,0 +1,266 @@
+"""The scenario layer of `make mutate` (run inside tools/with-vcan): the lockstep scenarios that
+execute a mutant's line (mutate_coverage), against the mutant's firmware, killers first, `-x`.
+
+Two passes: first with the scenarios' own assertions only (`--hil-approved=off`), then, for a
+mutant that survived them, with the approved traces checked too (the plugin's default). A
+plugin without `--hil-approved` (detected from `pytest --help`) has no approved traces: one
+pass, and the second score is the first.
+
+A hang is a kill only against the unmutated firmware's own time: in the scenarios a firmware
+that hangs fails the lockstep HangGuard (asleep with TPDOs due, or its CPU spent without an
+answer, where the unmutated firmware answers within milliseconds of CPU): a kill. The whole
+scenario run's bound (HANG_FACTOR times the recorded durations plus a margin) is only a guard:
+a loaded host made a survivor overrun it, so reaching it is no verdict and the mutant's
+scenarios count as not run. A scenario that fails because the host was starved
+(HostStarvedError) is no kill either: it is run again once, and counted as not run if it
+starves again.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+
+import mutate_coverage as coverage
+import mutation_report as report
+import scenario_shards
+from mutate_mutants import REPO, load_equivalents
+
+HANG_FACTOR = 3
+HANG_MARGIN_S = 60.0
+SCENARIO_WORKERS = 2
+FIRMWARE_BINARIES = ("bin/joint-firmware", "bin/head-firmware")
+"""What a mutant's scenarios start (the head's scenarios take the head firmware beside the joint's)."""
+APPROVED_OFF = "--hil-approved=off"
+
+
+def approved_option_known() -> bool:
+    """Whether the pytest plugin has approved traces (and the option that turns them off)."""
+    result = subprocess.run(
+        [sys.executable, "-m", "pytest", "--help", "-p", "no:cacheprovider"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    return "--hil-approved" in result.stdout
+
+
+def collect_scenarios(out: Path) -> list[str]:
+    """The lockstep scenarios' node ids (collected natively; the VM runs them)."""
+    argv = [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"]
+    argv += scenario_shards.selection_args("lockstep")
+    result = subprocess.run(argv, cwd=REPO, capture_output=True, text=True, check=False)
+    ids = [line for line in result.stdout.splitlines() if "::" in line]
+    if not ids:
+        raise SystemExit(
+            f"mutate: no lockstep scenario collected:\n{result.stdout[-2000:]}{result.stderr[-2000:]}"
+        )
+    report.write_json(out / "scenarios.json", {"ids": ids, "approved_option": approved_option_known()})
+    return ids
+
+
+def scenario_order(ids: Sequence[str], kills: Counter[str], durations: dict[str, float]) -> list[str]:
+    """Those that killed most mutants so far first, then the short ones."""
+    average = sum(durations.values()) / len(durations) if durations else 1.0
+    return sorted(ids, key=lambda t: (-kills[t], durations.get(t, average), t))
+
+
+def pytest_argv(ids: Sequence[str], junit: Path, extra: Sequence[str], stop_at_first: bool) -> list[str]:
+    argv = [sys.executable, "-m", "pytest", *ids, "-q", "-n", str(SCENARIO_WORKERS)]
+    argv += ["-p", "no:cacheprovider", f"--junitxml={junit}", *extra]
+    return argv + (["-x"] if stop_at_first else [])
+
+
+def run_scenarios(
+    firmware: Path,
+    ids: Sequence[str],
+    durations: dict[str, float],
+    out: Path,
+    extra: Sequence[str] = (),
+    env_extra: dict[str, str] | None = None,
+    stop_at_first: bool = True,
+) -> tuple[list[str], str | None, bool, float]:
+    """Scenarios `ids` against `firmware`: (the scenarios that failed, why the run timed out,
+    whether a failure was only the host starving, seconds)."""
+    expected = sum(durations.get(t, 10.0) for t in ids) / SCENARIO_WORKERS
+    timeout_s = HANG_FACTOR * expected + HANG_MARGIN_S
+    junit = out / "scenarios.xml"
+    junit.unlink(missing_ok=True)
+    env = dict(
+        os.environ,
+        HIL_FIRMWARE=str(firmware),
+        HIL_OUT_DIR=str(out / "scenario-out"),
+        HIL_SCENARIO_ORDER="given",
+        **(env_extra or {}),
+    )
+    started = time.monotonic()
+    with open(out / "scenarios.log", "a") as log:
+        process = subprocess.Popen(
+            pytest_argv(ids, junit, extra, stop_at_first),
+            cwd=REPO,
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+        try:
+            process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+            why = (
+                f"scenarios past {timeout_s:.0f} s ({HANG_FACTOR}x the unmutated firmware's "
+                f"{expected:.0f} s + {HANG_MARGIN_S:.0f} s)"
+            )
+            return [], why, False, time.monotonic() - started
+        except BaseException:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+            raise
+    seconds = time.monotonic() - started
+    failed, starved = [], []
+    if junit.exists():
+        for case in ET.parse(junit).getroot().iter("testcase"):
+            problem = case.find("failure")
+            if problem is None:
+                problem = case.find("error")
+            if problem is None:
+                continue
+            name = f"{case.get('classname', '').replace('.', '/')}.py::{case.get('name')}"
+            text = (problem.get("message") or "") + (problem.text or "")
+            (starved if "HostStarvedError" in text else failed).append(name)
+    if process.returncode not in (0, 1) and not failed and not starved:
+        failed.append(f"pytest exit {process.returncode}")
+    return failed, None, bool(starved) and not failed, seconds
+
+
+def coverage_command(out: Path) -> int:
+    """Inside the VM: every lockstep scenario once against the coverage build's firmware, each
+    scenario's counters in a folder of its own (this run's plugin: mutate_coverage)."""
+    listed = json.loads((out / "scenarios.json").read_text())
+    durations = json.loads((REPO / scenario_shards.DURATIONS).read_text())
+    counters = out / "coverage" / "scenario-counters"
+    shutil.rmtree(counters, ignore_errors=True)
+    counters.mkdir(parents=True)
+    tools = str(Path(__file__).resolve().parent)
+    env = {
+        coverage.PREFIX_VARIABLE: str(counters),
+        "PYTHONPATH": os.pathsep.join(p for p in (tools, os.environ.get("PYTHONPATH", "")) if p),
+    }
+    folder = out / "coverage"
+    failed, timeout, _, seconds = run_scenarios(
+        folder / "build" / FIRMWARE_BINARIES[0],
+        listed["ids"],
+        durations,
+        folder,
+        ["-p", "mutate_coverage"] + ([APPROVED_OFF] if listed["approved_option"] else []),
+        env,
+        stop_at_first=False,
+    )
+    print(f"mutate: coverage of {len(listed['ids'])} scenarios recorded ({seconds:.0f} s)", flush=True)
+    if failed or timeout:
+        print(
+            f"mutate: on the coverage build {timeout or 'these failed'}: {', '.join(failed[:8])}", flush=True
+        )
+    return 0
+
+
+def _one_pass(
+    folder: Path,
+    order: Sequence[str],
+    durations: dict[str, float],
+    extra: Sequence[str],
+) -> tuple[list[str], str | None, bool, float]:
+    for attempt in (1, 2):
+        failed, timeout, starved, seconds = run_scenarios(
+            folder / "joint-firmware", order, durations, folder, extra
+        )
+        if not starved:
+            break
+        print(f"mutate: {folder.name}: the host starved the scenarios (attempt {attempt})", flush=True)
+    return failed, timeout, starved, seconds
+
+
+def scenarios_command(out: Path) -> int:
+    """Inside the VM: the scenario layer for every built mutant of the run's plan that has none."""
+    plan = json.loads((out / "plan.json").read_text())
+    listed = json.loads((out / "scenarios.json").read_text())
+    ids, approved = listed["ids"], listed["approved_option"]
+    durations = json.loads((REPO / scenario_shards.DURATIONS).read_text())
+    record_path = out / "coverage" / "coverage.json"
+    record = (
+        coverage.Coverage.from_json(json.loads(record_path.read_text())) if record_path.exists() else None
+    )
+    kills_path = out / "kills.json"
+    kills: Counter[str] = Counter(json.loads(kills_path.read_text()) if kills_path.exists() else {})
+    equivalent = load_equivalents()
+    todo = [m for m in plan["mutants"] if m not in equivalent and _needs_scenarios(out / "mutants" / m)]
+    missing = [m for m in todo if not (out / "mutants" / m / "joint-firmware").exists()]
+    if missing:  # never a kill: a scenario against no firmware fails whatever the mutant does
+        print(f"mutate: no firmware kept for {', '.join(missing)}: run `run` again to build them", flush=True)
+        todo = [m for m in todo if m not in missing]
+    for number, mutant_id in enumerate(todo, 1):
+        folder = out / "mutants" / mutant_id
+        result = json.loads((folder / "result.json").read_text())
+        selected = record.covering(result["path"], result["line"], coverage.SCENARIO) if record else None
+        recorded = set(record.tests) if record else set()
+        chosen = (  # a scenario the record does not know (added since) may execute anything
+            ids
+            if selected is None
+            else [t for t in ids if t in set(selected) or coverage.SCENARIO + t not in recorded]
+        )
+        order = scenario_order(chosen, kills, durations)
+        layers: dict[str, dict | None] = {}
+        seconds_total = 0.0
+        for name, extra in (("scenarios", [APPROVED_OFF] if approved else []), ("approved", [])):
+            if name == "approved" and not approved:
+                layers[name] = layers["scenarios"]  # no approved traces: the same verdict
+                break
+            if name == "approved" and (layers["scenarios"] is None or layers["scenarios"]["killed_by"]):
+                layers[name] = layers["scenarios"]  # killed by the assertions: by the traces too
+                break
+            if not order:
+                layers[name] = {"killed_by": [], "timeout": None, "selected": 0}
+                continue
+            failed, timeout, starved, seconds = _one_pass(folder, order, durations, extra)
+            seconds_total += seconds
+            if starved or timeout:
+                # No verdict: the run's bound comes from a quiet machine's durations.
+                layers[name] = None
+                result["scenarios_not_run"] = timeout or "the host starved the scenarios twice"
+            else:
+                layers[name] = {"killed_by": failed, "timeout": None, "selected": len(order)}
+                kills.update(failed)
+        if not (layers.get("approved") or {}).get("killed_by"):
+            shutil.rmtree(folder / "scenario-out", ignore_errors=True)  # a survivor's traces: not kept
+        result["scenarios"], result["approved"] = layers["scenarios"], layers.get("approved")
+        if layers["scenarios"] is not None:
+            result.setdefault("seconds", {})["scenarios"] = round(seconds_total, 1)
+        report.write_json(kills_path, dict(kills))
+        report.write_json(folder / "result.json", result)
+        killed = (layers.get("approved") or {}).get("killed_by") or []
+        verdict = "killed by " + killed[0] if killed else result.get("scenarios_not_run", "survived")
+        print(
+            f"mutate: scenarios {number}/{len(todo)} {mutant_id}: {verdict} "
+            f"({len(order)} of {len(ids)} scenarios execute its line, {seconds_total:.0f} s)",
+            flush=True,
+        )
+    return 0
+
+
+def _needs_scenarios(folder: Path) -> bool:
+    result_path = folder / "result.json"
+    if not result_path.exists():
+        return False
+    result = json.loads(result_path.read_text())
+    return result.get("compiled", False) and result.get("scenarios") is None  # none yet, or starved
