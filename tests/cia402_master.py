@@ -13,18 +13,24 @@ the master waited: on a loaded host the master sees more cycles go by, the drive
 
 from __future__ import annotations
 
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import canopen
 
 from boardproto.cia402 import State
 from hilrig.apps.pdo_profile import apply_pdo_profile
+from hilrig.pytest_plugin.fixtures import SCENARIO_SDO_TIMEOUT_S
 
+PROFILE = "cia402"
 MASTER_RPDOS = (2, 3)  # controlword, mode, target torque; target position, target velocity
-HARD_STOP_RAD = -0.3  # gearbox-side angle of the homing scenario's hard stop
+HARD_STOP_RAD = -0.1  # gearbox-side angle of the homing scenario's hard stop
 WAIT_S = 60.0  # the most a condition of the master's may take on the slowest host
+SWITCH_INTERVAL_S = 0.0001
+PAUSE_S = 0.001  # between two lockstep cycles: the master's threads run meanwhile
 
 
 class Stepper:
@@ -47,7 +53,10 @@ class Stepper:
                 for call, done in calls:
                     call()
                     done.set()
-                self.rig.run(cycles=5)
+                self.rig.run(cycles=1)
+                # The exchange holds the interpreter while it waits for a cycle's frames: a pause
+                # lets the master's threads (canopen's notifier, its SDO client) run between two.
+                self._stop.wait(PAUSE_S)
         except BaseException as error:  # reported by stop()
             self.error = error
 
@@ -65,30 +74,54 @@ class Stepper:
             event.wait(0.005)
 
     def start(self) -> None:
+        # Three threads share the interpreter (the rig's, canopen's notifier, the master's): hand
+        # it over in well under a cycle, not after the default 5 ms.
+        self._switch_interval = sys.getswitchinterval()
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
         self._thread.start()
 
     def stop(self) -> None:
         self._stop.set()
         self._thread.join(WAIT_S)
+        sys.setswitchinterval(self._switch_interval)
         if self.error is not None:
             raise self.error
+
+
+def params_file(folder: Path) -> tuple[str, ...]:
+    """The firmware's --params: the profile is stored (0x1010:02), as `hilrig pdo apply` does."""
+    return ("--params", str(folder / "params.bin"))
 
 
 def cia402_face(rig) -> None:
     """The table's "cia402" PDO profile, its master's RPDOs left to the master."""
     rig.node.wait_until_alive(rig.boot_timeout_s)
-    apply_pdo_profile(rig.node, rig.table.board.pdo_profile("cia402"))
+    apply_pdo_profile(rig.node, rig.table.board.pdo_profile(PROFILE))
     for number in MASTER_RPDOS:
         rig.pause_rpdo(number)
+
+
+def master_filters(rig) -> list[dict[str, int]]:
+    """The master's acceptance filter, as its CAN controller's would be: its node's SDO answers,
+    heartbeat and EMCY, and the TPDOs that carry CiA 402 objects. Without it a Python master
+    reads every frame of the bus, the rig's sensor frames and SYNCs too, and falls behind."""
+    node_id = rig.node.node_id
+    profile = rig.table.board.pdo_profile(PROFILE)
+    ids = [0x580 + node_id, 0x700 + node_id, 0x080 + node_id]
+    ids += [pdo.cob_id(node_id) for pdo in profile.tpdos if any(e.index >= 0x6000 for e in pdo.entries)]
+    return [{"can_id": cob_id, "can_mask": 0x7FF, "extended": False} for cob_id in ids]
 
 
 @contextmanager
 def master(scenario, private_bus, eds) -> Iterator[tuple[canopen.BaseNode402, Stepper]]:
     stepper = Stepper(scenario.rig)
     stepper.start()
-    network = canopen.Network(private_bus.open())
+    network = canopen.Network(private_bus.open(can_filters=master_filters(scenario.rig)))
     network.connect()
     node = canopen.BaseNode402(scenario.rig.node.node_id, str(eds))
+    # BaseNode402 as it ships; its SDO client waits as long as the rig's own (the scenarios'
+    # SDO timeout), not canopen's 0.3 s: a loaded host answers late, never wrongly.
+    node.sdo.RESPONSE_TIMEOUT = SCENARIO_SDO_TIMEOUT_S
     network.add_node(node)
     try:
         node.nmt.wait_for_heartbeat(WAIT_S)

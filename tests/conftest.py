@@ -33,6 +33,7 @@ EDS = REPO / "build" / "protocol" / "board.eds"
 TABLE = RigTable.load()
 NODE_ID = TABLE.board.node.default_node_id
 
+
 @dataclass
 class NodeUnderTest:
     """The running firmware and a CANopen master talking to it on a private bus."""

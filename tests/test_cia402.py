@@ -10,16 +10,25 @@ import logging
 
 import numpy as np
 import pytest
-from cia402_master import HARD_STOP_RAD, HardStop, State, cia402_face, master, states_seen, wait_for
+from cia402_master import (
+    HARD_STOP_RAD,
+    HardStop,
+    State,
+    cia402_face,
+    master,
+    params_file,
+    states_seen,
+    wait_for,
+)
 
 pytestmark = pytest.mark.bus
 
 
 @pytest.mark.requirement("CIA402_01")
 def test_base_node_402_drives_every_state_and_mode_homes_and_recovers(
-    make_scenario, private_bus, hil_board, caplog
+    make_scenario, private_bus, hil_board, tmp_path, caplog
 ) -> None:
-    s = make_scenario(before_start=cia402_face, trace=False)
+    s = make_scenario(before_start=cia402_face, trace=False, extra_args=params_file(tmp_path))
     s.rig.add_observer(HardStop(s.rig))
     caplog.set_level(logging.WARNING, logger="canopen")
     with master(s, private_bus, hil_board.eds) as (node, stepper):
@@ -53,9 +62,13 @@ def test_base_node_402_drives_every_state_and_mode_homes_and_recovers(
         node.rpdo[3].transmit()
         node.state = "OPERATION ENABLED"
         wait_for(lambda: abs(node.tpdo_values[0x606C] - 1000) < 50, "1 rad/s")
+        # Quick stop option 6: ramp to rest on the quick stop deceleration and stay, so the
+        # master sees quick stop active (BaseNode402 waits for it) and enables operation again.
+        node.sdo["quick_stop_option_code"].raw = 6
         node.state = "QUICK STOP ACTIVE"
-        wait_for(lambda: node.state == "SWITCH ON DISABLED", "quick stop ends in switch on disabled")
+        wait_for(lambda: abs(node.tpdo_values[0x606C]) < 50, "at rest in quick stop active")
         node.state = "OPERATION ENABLED"
+        wait_for(lambda: abs(node.tpdo_values[0x606C] - 1000) < 50, "1 rad/s again")
 
         # A fault: the sensor frame stops, the encoders go stale; the master resets it.
         stepper.call(lambda: s.rig.pause_rpdo(1))

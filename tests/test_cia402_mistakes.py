@@ -8,7 +8,7 @@ from __future__ import annotations
 import canopen
 import numpy as np
 import pytest
-from cia402_master import cia402_face, master, wait_for
+from cia402_master import cia402_face, master, params_file, wait_for
 
 from boardproto.cia301 import SdoAbortCode
 
@@ -19,16 +19,18 @@ ENABLE_OPERATION = 0x0F
 
 
 def still(rig, since_t: float, until_t: float) -> float:
-    """The largest |velocity actual| (mrad/s) the TPDOs showed between two simulation times."""
-    t, velocity = rig.history("velocity_actual_value")
+    """The largest gearbox-side speed (mrad/s) of the plant between two simulation times."""
+    t, motor_rad_s = rig.truth("motor_velocity_rad_s")
     window = (t >= since_t) & (t <= until_t)
-    assert window.any(), "TPDOs in the window"
-    return float(np.max(np.abs(velocity[window])))
+    assert window.any(), "cycles in the window"
+    return float(np.max(np.abs(motor_rad_s[window]))) / rig.plant.params.gear_ratio * 1000.0
 
 
 @pytest.mark.requirement("CIA402_02")
-def test_mistakes_of_masters_get_the_standard_reaction(make_scenario, private_bus, hil_board) -> None:
-    s = make_scenario(before_start=cia402_face, trace=False)
+def test_mistakes_of_masters_get_the_standard_reaction(
+    make_scenario, private_bus, hil_board, tmp_path
+) -> None:
+    s = make_scenario(before_start=cia402_face, trace=False, extra_args=params_file(tmp_path))
     with master(s, private_bus, hil_board.eds) as (node, stepper):
         node.setup_402_state_machine()
 
@@ -70,4 +72,5 @@ def test_mistakes_of_masters_get_the_standard_reaction(make_scenario, private_bu
         node.state = "SWITCH ON DISABLED"
 
     assert still(s.rig, before, disabled_until) < 20, "no motion before operation enabled"
-    assert still(s.rig, halted_from + 0.05, halted_until) < 20, "no motion while halted"
+    # Halted at the target's 1 rad/s: the series spring rings out near rest, far from the target.
+    assert still(s.rig, halted_from + 0.1, halted_until) < 100, "no motion while halted"

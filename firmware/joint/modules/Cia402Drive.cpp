@@ -26,6 +26,9 @@ bool offered(float requested) {
 // Quick stop options 5 and 6 stay in quick stop active once stopped; 0 coasts.
 constexpr bool stays_in_quick_stop(int option) { return option == 5 || option == 6; }
 
+static_assert(static_cast<float>(supported_drive_modes()) == board::info(FieldId::supported_drive_modes).default_value,
+              "board.toml: supported_drive_modes' default is not the bits of the cia402_mode values");
+
 }  // namespace
 
 DriveCommand decode_controlword(std::uint16_t controlword) {
