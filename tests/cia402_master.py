@@ -21,7 +21,9 @@ from pathlib import Path
 
 import canopen
 
+from boardproto.cia301 import STANDARD_ID_MASK, FunctionCode, cob_id
 from boardproto.cia402 import State
+from boardproto.loader import PROFILE_RANGE
 from hilrig.apps.pdo_profile import apply_pdo_profile
 from hilrig.pytest_plugin.fixtures import SCENARIO_SDO_TIMEOUT_S
 
@@ -107,9 +109,10 @@ def master_filters(rig) -> list[dict[str, int]]:
     reads every frame of the bus, the rig's sensor frames and SYNCs too, and falls behind."""
     node_id = rig.node.node_id
     profile = rig.table.board.pdo_profile(PROFILE)
-    ids = [0x580 + node_id, 0x700 + node_id, 0x080 + node_id]
-    ids += [pdo.cob_id(node_id) for pdo in profile.tpdos if any(e.index >= 0x6000 for e in pdo.entries)]
-    return [{"can_id": cob_id, "can_mask": 0x7FF, "extended": False} for cob_id in ids]
+    services = (FunctionCode.SDO_RESPONSE, FunctionCode.HEARTBEAT, FunctionCode.SYNC_EMCY)
+    ids = [cob_id(function, node_id) for function in services]
+    ids += [p.cob_id(node_id) for p in profile.tpdos if any(e.index in PROFILE_RANGE for e in p.entries)]
+    return [{"can_id": i, "can_mask": STANDARD_ID_MASK, "extended": False} for i in ids]
 
 
 @contextmanager

@@ -11,10 +11,11 @@ import pytest
 from cia402_master import cia402_face, master, params_file, wait_for
 
 from boardproto.cia301 import SdoAbortCode
+from boardproto.cia402 import ControlBit
 
 pytestmark = pytest.mark.bus
 
-HALT = 0x100
+HALT = 1 << ControlBit.HALT
 ENABLE_OPERATION = 0x0F
 
 

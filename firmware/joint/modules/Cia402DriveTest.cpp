@@ -19,8 +19,8 @@ constexpr std::uint16_t kSwitchOn = 0x07;
 constexpr std::uint16_t kEnableOperation = 0x0F;
 constexpr std::uint16_t kQuickStop = 0x02;
 constexpr std::uint16_t kFaultReset = 0x80;
-constexpr std::uint16_t kHalt = 0x100;
-constexpr std::uint16_t kStart = 0x10;
+constexpr std::uint16_t kHalt = cia402::bit(cia402::ControlBit::Halt);
+constexpr std::uint16_t kStart = cia402::bit(cia402::ControlBit::NewSetPoint);
 
 class Cia402DriveTest : public ::testing::Test {
  protected:
@@ -71,7 +71,9 @@ class Cia402DriveTest : public ::testing::Test {
 };
 
 TEST_F(Cia402DriveTest, OffersItsModesAndStartsSwitchOnDisabled) {
-  EXPECT_EQ(board.get(FieldId::supported_drive_modes), static_cast<float>(0x3AD));
+  // Modes 1, 3, 4, 6, 8, 9, 10: bit n-1 each.
+  constexpr unsigned kOffered = (1u << 0) | (1u << 2) | (1u << 3) | (1u << 5) | (1u << 7) | (1u << 8) | (1u << 9);
+  EXPECT_EQ(board.get(FieldId::supported_drive_modes), static_cast<float>(kOffered));
   EXPECT_EQ(state(), State::SwitchOnDisabled);
   EXPECT_NE(status() & cia402::bit(cia402::StatusBit::Remote), 0);
 }
