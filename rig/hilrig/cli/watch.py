@@ -71,9 +71,7 @@ class Reading:
 class Board:
     """Latest value of each watched field, fed by the TPDO callback (receive thread)."""
 
-    def __init__(
-        self, entries: list[ObjectEntry], named: dict[str, Named] | None = None
-    ) -> None:
+    def __init__(self, entries: list[ObjectEntry], named: dict[str, Named] | None = None) -> None:
         self.entries = entries
         self.named = named or {}  # names of the values of fields that have them (board.toml)
         self.readings = {e.name: Reading() for e in entries}
