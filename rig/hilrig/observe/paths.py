@@ -91,6 +91,9 @@ delivered). Nothing on the ideal bus."""
 TIMED_LOAD_PATH = f"{TIMED_BUS_ROOT}/load"
 TIMED_BACKLOG_PATH = f"{TIMED_BUS_ROOT}/backlog"
 TIMED_LATE_PATH = f"{TIMED_BUS_ROOT}/late"
+TIMED_BUS_SERIES = (TIMED_LOAD_PATH, TIMED_BACKLOG_PATH, TIMED_LATE_PATH)
+"""Recorded only by a run on the timed bus: a dashboard's check does not count them missing in
+a trace that has none of them (a run on the ideal bus)."""
 BUS_PROBLEMS_ROOT = f"{BUS_ROOT}/problems"
 """/bus/problems/{late,missing,malformed,error_frames}: counts so far, per load window."""
 
