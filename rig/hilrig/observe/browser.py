@@ -75,7 +75,7 @@ def chromium_flags() -> list[str]:
 
 
 VIEWPORT: ViewportSize = {"width": 1600, "height": 1000}
-WAIT_S = 120.0  # per wait; generous, the viewer renders in software on a busy machine
+WAIT_S = 300.0  # per wait, a hang guard: the viewer renders in software, beside the unit stage's other jobs
 POLL_S = 0.25
 RERUN_VERSION = "0.41.0"
 """The viewer version whose viewer_control.proto `ViewerState.decode` follows."""
