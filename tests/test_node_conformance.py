@@ -86,7 +86,6 @@ def test_device_name_is_a_segmented_upload(node_under_test: NodeUnderTest) -> No
     assert identity[1].raw == 0x48494C00
 
 
-@pytest.mark.firmware_platforms("linux", "qemu-virt")
 @pytest.mark.requirement("SDO_03")
 def test_bad_requests_get_the_cia301_abort_codes(node_under_test: NodeUnderTest) -> None:
     sdo = node_under_test.node.sdo
