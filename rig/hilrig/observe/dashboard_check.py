@@ -14,7 +14,7 @@ import rerun.blueprint as rrb
 
 from hilrig.observe.blueprints import joint_dashboards, load_blueprint, robot_blueprint
 from hilrig.observe.layout import ORIGIN_SUBTREE
-from hilrig.observe.paths import DIFF_BASE_ROOT, DIFF_CAND_ROOT, GENERATED_DASHBOARD, TIMED_BUS_SERIES
+from hilrig.observe.paths import DIFF_BASE_ROOT, DIFF_CAND_ROOT, GENERATED_DASHBOARD, absent_on_the_ideal_bus
 from hilrig.observe.reader import Trace, TraceBoard
 from hilrig.table import RigTable
 
@@ -45,7 +45,6 @@ def missing_series(blueprint: rrb.Blueprint, trace: Trace, *, name: str = "") ->
     queries (its origin's subtree, "+ /events/**"...) match nothing with data. The timed bus's
     series count only in a trace of a run on it (`TIMED_BUS_SERIES`)."""
     with_data = {entity for entity, rows in trace.rows.items() if rows}
-    ideal_bus = not with_data.intersection(TIMED_BUS_SERIES)
     gaps: list[str] = []
     for view in views(blueprint):
         what = f"{name} / {view.name}" if name else str(view.name)
@@ -56,7 +55,7 @@ def missing_series(blueprint: rrb.Blueprint, trace: Trace, *, name: str = "") ->
                 subtrees.append(str(view.origin))
             elif content.startswith("+ "):  # a query: "+ /events/emcy/**"
                 subtrees.append(content[2:].removesuffix("/**"))
-            elif content not in with_data and not (ideal_bus and content in TIMED_BUS_SERIES):
+            elif content not in with_data and not absent_on_the_ideal_bus(content, with_data):
                 gaps.append(f"{what}: {content} has no data")
         if subtrees and not any(_under(subtree, with_data) for subtree in subtrees):
             gaps.append(f"{what}: nothing under {' or '.join(subtrees)}")

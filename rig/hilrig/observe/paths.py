@@ -27,7 +27,7 @@ real-time mode `wall_time` (timestamp) replaces `sim_time`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from enum import Enum
 from typing import Any, Protocol
 
@@ -92,8 +92,13 @@ TIMED_LOAD_PATH = f"{TIMED_BUS_ROOT}/load"
 TIMED_BACKLOG_PATH = f"{TIMED_BUS_ROOT}/backlog"
 TIMED_LATE_PATH = f"{TIMED_BUS_ROOT}/late"
 TIMED_BUS_SERIES = (TIMED_LOAD_PATH, TIMED_BACKLOG_PATH, TIMED_LATE_PATH)
-"""Recorded only by a run on the timed bus: a dashboard's check does not count them missing in
-a trace that has none of them (a run on the ideal bus)."""
+"""Recorded only by a run on the timed bus: a dashboard's checks do not count them missing, or
+drawing nothing, in a trace that has none of them (a run on the ideal bus)."""
+
+
+def absent_on_the_ideal_bus(series: str, with_data: Collection[str]) -> bool:
+    """True for a timed bus's series in a trace of a run on the ideal bus (`TIMED_BUS_SERIES`)."""
+    return series in TIMED_BUS_SERIES and not any(timed in with_data for timed in TIMED_BUS_SERIES)
 BUS_PROBLEMS_ROOT = f"{BUS_ROOT}/problems"
 """/bus/problems/{late,missing,malformed,error_frames}: counts so far, per load window."""
 

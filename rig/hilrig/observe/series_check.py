@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 from hilrig.observe.browser import BLUEPRINT_AREA, SETTLE_POLL_S, VIEWPORT, ViewerPage, last_cycle
 from hilrig.observe.dashboard_check import views
 from hilrig.observe.layout import ORIGIN_SUBTREE, WHOLE_RUN
-from hilrig.observe.paths import CYCLE_TIMELINE
+from hilrig.observe.paths import CYCLE_TIMELINE, absent_on_the_ideal_bus
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb
@@ -82,9 +82,12 @@ STILL_S = 30.0
 
 
 def series_of(view: rrb.View, trace: Trace) -> list[str]:
-    """The entity paths `view` plots: the ones it names, or those under its origin with scalars."""
+    """The entity paths `view` plots: the ones it names (but a timed bus's on a trace of the ideal
+    bus, which has none), or those under its origin with scalars."""
     contents = view.contents if isinstance(view.contents, list) else [str(view.contents)]
+    with_data = {entity for entity, values in trace.scalars.items() if values}
     named = [str(c) for c in contents if str(c) != ORIGIN_SUBTREE and not str(c).startswith("+ ")]
+    named = [series for series in named if not absent_on_the_ideal_bus(series, with_data)]
     if ORIGIN_SUBTREE in (str(c) for c in contents):
         root = str(view.origin).rstrip("/")
         named += sorted(e for e, values in trace.scalars.items() if values and e.startswith(root + "/"))
