@@ -51,13 +51,16 @@ def image_size(image: Path = FIRMWARE_IMAGE) -> dict[str, Any]:
     }
 
 
-def size_rows(row: Callable[..., None], size: dict[str, Any]) -> None:
-    """Two rows, flash and RAM: used, the budget, their ratio; the goal: within the budget."""
+def size_rows(
+    row: Callable[..., None], size: dict[str, Any], image: str = "Cortex-M4F firmware image"
+) -> None:
+    """Two rows, flash and RAM of `image`: used, the budget, their ratio; the goal: within the
+    budget."""
     for memory in ("flash", "ram"):
         used, budget = size[f"{memory}_bytes"], size[f"{memory}_budget"]
         ratio = ratio_of(used, budget)
         row(
-            f"Cortex-M4F firmware image {LABELS[memory]} (ratio: of the budget)",
+            f"{image} {LABELS[memory]} (ratio: of the budget)",
             f"{used / 1024:.1f} KiB",
             f"{budget / 1024:.0f} KiB budget",
             ratio,

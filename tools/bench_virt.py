@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 from bench_common import ProbeError, ratio_of
-from bench_size import image_size
+from bench_size import image_size, size_rows
 
 from hilrig import resources
 from hilrig.errors import FirmwareError
@@ -62,20 +62,7 @@ def virt_cycle_cost() -> dict[str, Any]:
 
 def virt_rows(row: Callable[..., None], native: dict[str, Any]) -> None:
     """The image's flash and RAM, and its instructions per cycle beside the Linux firmware's."""
-    size = native["virt_size"]
-    for memory, label in (("flash", "flash"), ("ram", "RAM")):
-        used, budget = size[f"{memory}_bytes"], size[f"{memory}_budget"]
-        ratio = ratio_of(used, budget)
-        row(
-            f"bare-metal image (qemu-virt) {label} (ratio: of the budget)",
-            f"{used / 1024:.1f} KiB",
-            f"{budget / 1024:.0f} KiB budget",
-            ratio,
-            "<= 1 (within budget)",
-            ratio <= 1.0,
-            used_bytes=used,
-            budget_bytes=budget,
-        )
+    size_rows(row, native["virt_size"], image="bare-metal image (qemu-virt)")
     cost = native["virt_cycle"]
     linux = (native.get("callgrind") or {}).get("instructions_per_cycle", {}).get("demo")
     row(
