@@ -223,10 +223,6 @@ def test_sixteen_modules_track_the_gait_and_one_lost_mid_gait_leaves_the_rest_tr
 
 
 @pytest.mark.requirement("PROT_08")
-@pytest.mark.no_approved_trace(
-    "once pre-operational, the cycle a module's stale-encoder EMCY comes in varied (8 cycles apart "
-    "in two runs, the heartbeat EMCY in the same cycle): not yet deterministic"
-)
 def test_master_heartbeat_lost_every_module_safe_within_the_consumer_time(make_robot) -> None:
     master = MasterHeartbeat()
     session = make_robot(4, master=master)

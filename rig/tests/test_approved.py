@@ -65,6 +65,18 @@ def test_a_run_reads_back_exactly_and_agrees_with_itself() -> None:
     assert len(json.loads(text)["runs"][0]["data"]) < 300 * 4 * 2, "a noisy float costs a few bytes a cycle"
 
 
+def test_an_emcy_after_the_node_left_lockstep_is_not_recorded() -> None:
+    # Once the node is no longer operational the rig's SYNCs go unanswered: when its EMCYs come
+    # is the host's timing, so the approved trace keeps only those of the lockstep.
+    operational = {"now": True}
+    recorder = ApprovedRecorder("main", lambda: operational["now"])
+    recorder.on_history(History(1000))
+    recorder.on_emcy(EmcyRecord(OVERRUN, 0x11, b"\x01\x00\x00\x00\x00", 200, 0.2))
+    operational["now"] = False
+    recorder.on_emcy(EmcyRecord(EmcyCode.STALE_SENSOR, 0x01, b"\x00\x20\x00\x00\x00", 240, 0.24))
+    assert recorder.run().emcy == [(200, OVERRUN, 0x11, "0100000000")]
+
+
 def test_a_change_is_named_by_its_first_cycle_field_and_values() -> None:
     base = recorded().run()
     lines = compare_traces([base], [recorded(kick_at=157).run()])

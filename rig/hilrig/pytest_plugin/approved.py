@@ -11,7 +11,10 @@ of a `make_robot`):
   the rig's requests with (cycle, code).
 
 Left out, because a wall clock decides them: heartbeats and NMT states seen in them, the TPDOs'
-arrival times, real-time scenarios (`mode="realtime"`) and real boards (`--hil-interface`).
+arrival times, the EMCYs a node sends once it has left operational (the rig's SYNCs then go
+unanswered, so how many of them the node has taken when its EMCY comes, and which cycle the EMCY
+lands in, is the host's timing: the scenario's own assertions judge those), real-time scenarios
+(`mode="realtime"`) and real boards (`--hil-interface`).
 
 The baseline is `approved/<module>.<test>.json` beside the test file: the run's layout as text
 and its rows as the bus carried them, XOR-delta coded per byte column and compressed (lzma,
@@ -34,7 +37,7 @@ import base64
 import json
 import lzma
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -96,8 +99,10 @@ class ApprovedRecorder(RigObserver):
     """What one run contributes: its history (the TPDO rows), the EMCYs and SDO aborts as they
     arrive; attached to a rig right after it starts (`watch`)."""
 
-    def __init__(self, name: str) -> None:
+    def __init__(self, name: str, in_lockstep: Callable[[], bool] = lambda: True) -> None:
         self.name = name
+        self.in_lockstep = in_lockstep
+        """Whether the rig and the node are in lockstep now (the node operational)."""
         self.history: History | None = None
         self.emcy: list[tuple[int, int, int, str]] = []
         self.aborts: list[tuple[int, int]] = []
@@ -106,7 +111,9 @@ class ApprovedRecorder(RigObserver):
         self.history = history
 
     def on_emcy(self, record: EmcyRecord) -> None:
-        self.emcy.append((record.cycle, record.code, record.register, record.data.hex()))
+        # The EMCY that ends lockstep (a heartbeat event) comes while it still holds: it counts.
+        if self.in_lockstep():
+            self.emcy.append((record.cycle, record.code, record.register, record.data.hex()))
 
     def on_sdo_abort(self, what: str, code: int, *, cycle: int, t: float) -> None:
         self.aborts.append((cycle, code))
@@ -133,7 +140,7 @@ def watch(item: pytest.Item, rig: Rig, name: str) -> None:
     lockstep run; a project's own fixture may too)."""
     if item.config.getoption("hil_approved") == "off":
         return
-    recorder = ApprovedRecorder(name)
+    recorder = ApprovedRecorder(name, lambda: bool(getattr(rig.driver, "operational", True)))
     rig.add_observer(recorder)
     item.stash.setdefault(_TRACES, []).append(recorder)
 
