@@ -161,3 +161,29 @@ def test_an_rpdo_that_does_not_fit_reaches_the_node_late(bench: tuple[Rig, can.B
     assert seen.count(stream_cob) < 20
     sent_t, _ = rig.sent("velocity_setpoint")
     assert len(sent_t) == seen.count(stream_cob), "the history has the RPDO in the cycle it went out"
+
+
+def test_the_summary_counts_each_scenario_once_per_bus_and_says_why_it_idealised() -> None:
+    from hilrig.wire.bustime import bitrate_text, bus_summary, ideal_label
+
+    assert [bitrate_text(b) for b in (1_000_000, 500_000, 83_333)] == [
+        "1 Mbit/s",
+        "500 kbit/s",
+        "83.333 kbit/s",
+    ]
+    lines = bus_summary(
+        [
+            ["1 Mbit/s", "1 Mbit/s"],
+            ["500 kbit/s"],
+            [ideal_label("the full mapping")],
+            [ideal_label("a robot"), ideal_label("a robot")],
+            [ideal_label("the full mapping"), "1 Mbit/s"],
+        ]
+    )
+    assert lines == [
+        "3 scenarios on the timed bus (1 Mbit/s 2, 500 kbit/s 1)",
+        "3 scenarios on the ideal bus, which carries any load:",
+        "    2 the full mapping",
+        "    1 a robot",
+    ]
+    assert bus_summary([[], []]) == []

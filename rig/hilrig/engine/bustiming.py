@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 from boardproto.cia301 import SYNC_COB_ID, heartbeat_cob_id
 from hilrig.engine.history import PdoRow, Value
-from hilrig.wire.bustime import BusFrame, TimedBus
+from hilrig.wire.bustime import BusFrame, TimedBus, bitrate_text
 from hilrig.wire.transport import CAN_FRAME_SIZE, CAN_HEADER, PdoLayout
 
 _SYNC_DLC = 1
@@ -79,9 +79,7 @@ class BusTimeline:
         never sent (...): 0x490 x 50; backlog up to 2 frames' (one line: summaries, failures)."""
         load = self.load
         mean = 100.0 * sum(load) / len(load) if load else 0.0
-        text = (
-            f"{bitrate / 1e6:g} Mbit/s: load {mean:.0f} % mean, {100.0 * max(load, default=0.0):.0f} % peak"
-        )
+        text = f"{bitrate_text(bitrate)}: load {mean:.0f} % mean, {100.0 * max(load, default=0.0):.0f} % peak"
         if not self.late and not self.peak_backlog:
             return text + "; no frame late"
         by_cob: dict[int, list[int]] = {}

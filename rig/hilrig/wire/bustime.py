@@ -43,6 +43,13 @@ IDEAL = "ideal"
 """The option's spelling for no bit rate: every frame in its cycle (the virtual bus as it is)."""
 
 
+def bitrate_text(bitrate: int) -> str:
+    """'1 Mbit/s', '500 kbit/s', '83.3 kbit/s'."""
+    if bitrate >= 1_000_000:
+        return f"{bitrate / 1e6:g} Mbit/s"
+    return f"{bitrate / 1e3:g} kbit/s"
+
+
 WORST_CASE_BITS = tuple(frame_bits_worst_case(dlc) for dlc in range(MAX_DATA_BYTES + 1))
 """A classic frame's worst-case bits by its data length (`framebits`), looked up per frame."""
 
@@ -170,6 +177,41 @@ class TimedBus:
             return bits
 
 
+BUS_PROPERTY = "hil_bus"
+"""The JUnit property (pytest's user property) naming the bus of each lockstep run of a scenario:
+its bit rate (`bitrate_text`) or `ideal_label(why)`; the pytest plugin's terminal summary and
+tools/test-summary.py count the scenarios of each (`bus_summary`)."""
+_IDEAL_PREFIX = f"{IDEAL}: "
+
+
+def ideal_label(why: str) -> str:
+    """BUS_PROPERTY's value for a run on the ideal bus: 'ideal: why'."""
+    return _IDEAL_PREFIX + why
+
+
+def bus_summary(scenarios: Iterable[Sequence[str]]) -> list[str]:
+    """From each scenario's BUS_PROPERTY values (a scenario of several runs counts once per
+    bus): '12 scenarios on the timed bus (1 Mbit/s 11, 250 kbit/s 1)', then '3 on the ideal
+    bus, ...:' and one line per reason, most first. Nothing when no scenario named its bus."""
+    timed: dict[str, int] = {}
+    ideal: dict[str, int] = {}
+    for labels in scenarios:
+        for label in dict.fromkeys(labels):
+            if label.startswith(_IDEAL_PREFIX):
+                why = label.removeprefix(_IDEAL_PREFIX)
+                ideal[why] = ideal.get(why, 0) + 1
+            else:
+                timed[label] = timed.get(label, 0) + 1
+    lines = []
+    if timed:
+        counts = ", ".join(f"{label} {n}" for label, n in sorted(timed.items()))
+        lines.append(f"{sum(timed.values())} scenarios on the timed bus ({counts})")
+    if ideal:
+        lines.append(f"{sum(ideal.values())} scenarios on the ideal bus, which carries any load:")
+        lines += [f"    {n} {why}" for why, n in sorted(ideal.items(), key=lambda item: (-item[1], item[0]))]
+    return lines
+
+
 def _arbitration(frame: BusFrame) -> tuple[int, int]:
     return frame.cob_id, frame.origin
 
@@ -192,11 +234,15 @@ def needed_bitrate(
 
 
 __all__ = [
+    "BUS_PROPERTY",
     "IDEAL",
     "STANDARD_BITRATES",
     "WORST_CASE_BITS",
     "BusFrame",
     "BusWindow",
     "TimedBus",
+    "bitrate_text",
+    "bus_summary",
+    "ideal_label",
     "needed_bitrate",
 ]
