@@ -34,7 +34,7 @@ from canopen.emcy import EmcyError
 
 from boardproto.cia301 import NmtCommand, NmtState, transmission_text
 from hilrig import resources
-from hilrig.engine.bustiming import SDO_ANSWER_TIMEOUT_S, BusTimeline, heartbeat_cycles
+from hilrig.engine.bustiming import SDO_ANSWER_TIMEOUT_S, BusTimeline, BusTiming, heartbeat_cycles
 from hilrig.engine.driver import (
     BUS_EVENTS_PATH,
     CycleResult,
@@ -179,6 +179,16 @@ class Rig(CycleRunner):
         timing = getattr(self.driver, "bus_timing", None)
         return None if timing is None else timing.timeline
 
+    def leave_timed_bus(self) -> BusTimeline | None:
+        """The next cycles and SDO transfers on the ideal bus (a run's closing SDO reads for its
+        summary, which the timed bus might never carry); returns the timed bus's timeline."""
+        timeline = self.bus_timeline
+        if timeline is not None:
+            assert isinstance(self.driver, LockstepDriver)
+            self.driver.time_bus(None)
+            self.node.count_sdo_frames(None)
+        return timeline
+
     def add_observer(self, observer: RigObserver) -> None:
         """Let `observer` watch every later cycle and event (`hilrig.engine.observers`)."""
         observer.on_plant(self.plant)
@@ -241,7 +251,7 @@ class Rig(CycleRunner):
             self.driver.time_bus(TimedBus(self.bitrate, self.driver.period_us), heartbeat)
             timing = self.driver.bus_timing
             assert timing is not None
-            self.node.count_sdo_frames(lambda cob_id, dlc: timing.charge(cob_id, dlc, sdo=True))
+            self.node.count_sdo_frames(lambda cob_id, dlc: self._charge_sdo(timing, cob_id, dlc))
         self._log_pdo_configuration()
         for observer in self.observers:
             observer.on_configured(truth=self.physics)
@@ -392,12 +402,17 @@ class Rig(CycleRunner):
             raise
         self._sdo_on_the_bus()
 
+    def _charge_sdo(self, timing: BusTiming, cob_id: int, dlc: int) -> None:
+        """An SDO frame of the master's on the timed bus; not one of the SDO poll inside a cycle
+        (`poll_over_sdo`, which nothing waits for: it takes no bus time)."""
+        if not self._stepping:
+            timing.charge(cob_id, dlc, sdo=True)
+
     def _sdo_on_the_bus(self) -> None:
         """On the timed bus, between cycles: run cycles until the bus carried the SDO frames
         the rig's transfers sent and read (the master has its answer only then); an
         SdoTimeoutError when none of them got on the bus for SDO_ANSWER_TIMEOUT_S of
-        simulation time, as a master's response timeout. Inside a cycle (the SDO poll) the
-        frames take their bus time but nothing waits."""
+        simulation time, as a master's response timeout."""
         timing = getattr(self.driver, "bus_timing", None)
         if timing is None or self._stepping or not timing.sdo_waiting:
             return
