@@ -118,8 +118,12 @@ def test_the_lean_mapping_carries_the_duty_command_on_1_mbit(make_scenario, scen
         < 0.7
     )
     assert duty_command_problem(s, every=10) is None
-    _, velocity = s.rig.history("output_velocity")
-    assert velocity[-1] == pytest.approx(GEAR_RATIO_TARGET, rel=0.05)
+    # The load behind the spring rings about its setpoint: its mean over the last 0.1 s.
+    t, velocity = s.rig.history("output_velocity")
+    tail = velocity[t > t[-1] - 0.1]
+    assert float(tail.mean()) == pytest.approx(GEAR_RATIO_TARGET, rel=0.05), list(
+        zip(t[-12:], velocity[-12:], strict=True)
+    )
 
 
 def _actuator_behind_bulk():

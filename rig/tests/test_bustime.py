@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from boardproto.cia301 import SYNC_COB_ID
+from boardproto.cia301 import SYNC_COB_ID, sdo_request_cob_id
 from hilrig.engine.rig import Rig
 from hilrig.plants import JointParams
 from hilrig.session.fake_node import FakeJointNode
@@ -193,7 +193,7 @@ def test_the_summary_counts_each_scenario_once_per_bus_and_says_why_it_idealised
 def test_queued_frames_all_go_in_turn_and_no_newer_one_replaces_them() -> None:
     # An SDO transfer's frames or EMCYs are a sequence, not a PDO's mailbox.
     bus = TimedBus(250_000, 1000)  # 250 bits: two 8-byte frames start
-    sdo = 0x610
+    sdo = sdo_request_cob_id(NODE_ID)
     first = [BusFrame(sdo, 8, 0, queued=True) for _ in range(3)]
     w0 = bus.window(0, first)
     assert w0.delivered == tuple(first[:2]) and w0.backlog == (first[2],)
