@@ -155,14 +155,21 @@ def test_the_fixtures_a_scenario_uses_come_from_the_plugin(pytester: pytest.Pyte
 
 
 BUS_TEST = """
+import argparse
 import pytest
-from hilrig.pytest_plugin.fixtures import RUN_BITRATE, _scenario_bus
+from hilrig.pytest_plugin.fixtures import RUN_BITRATE, _scenario_bus, _timed_bus
 
 def bus(request, hil_board, given=RUN_BITRATE):
-    return _scenario_bus(request.node, request.config, given, hil_board)
+    return _scenario_bus(request.node, request.config.getoption("hil_timed_bus"), given, hil_board)
 
-def test_the_runs_bus(request, hil_board):
-    print("RUN", bus(request, hil_board))
+def test_the_runs_bus_is_the_tables_by_default(request, hil_board):
+    assert request.config.getoption("hil_timed_bus") == "table"
+    assert bus(request, hil_board) == (1_000_000, "1 Mbit/s")
+    runs = {"500k": (500_000, "500 kbit/s"), "ideal": (None, "ideal: --hil-timed-bus ideal")}
+    for run, expected in runs.items():
+        assert _scenario_bus(request.node, _timed_bus(run), RUN_BITRATE, hil_board) == expected, run
+    with pytest.raises(argparse.ArgumentTypeError, match="a bit rate .*, table or ideal, got 'fast'"):
+        _timed_bus("fast")
 
 @pytest.mark.ideal_bus("its point needs every frame in its cycle")
 def test_marked(request, hil_board):
@@ -178,37 +185,6 @@ def test_marked_without_why(request, hil_board):
     bus(request, hil_board)
 """
 
-
-@pytest.mark.parametrize(
-    ("option", "expected"),
-    [
-        ((), "RUN (1000000, '1 Mbit/s')"),  # the default: the table's [node] bitrate
-        (("--hil-timed-bus", "500k"), "RUN (500000, '500 kbit/s')"),
-        (("--hil-timed-bus", "ideal"), "RUN (None, 'ideal: --hil-timed-bus ideal')"),
-    ],
-)
-def test_a_scenarios_bus_is_the_tables_unless_the_run_or_its_marker_says_otherwise(
-    pytester: pytest.Pytester, option: tuple[str, ...], expected: str
-) -> None:
-    _project(pytester, "hil_table = board.toml\nhil_plant = toy_plant:make_plant\n")
-    pytester.makepyfile(test_bus=BUS_TEST)
-    result = pytester.runpytest("-p", "no:cacheprovider", "-s", *option)
-    result.assert_outcomes(passed=3, failed=1)
-    result.stdout.fnmatch_lines(
-        [f"*{expected}*", "*ideal_bus(why): say why the scenario needs the ideal bus*"]
-    )
-
-
-def test_a_bad_timed_bus_is_one_usage_line(pytester: pytest.Pytester) -> None:
-    _project(pytester, "hil_table = board.toml\n")
-    result = pytester.runpytest("-p", "no:cacheprovider", "--hil-timed-bus", "fast")
-    assert result.ret == pytest.ExitCode.USAGE_ERROR
-    errors = [line.split("error: ", 1)[1] for line in result.errlines if "error: argument" in line]
-    assert errors == [
-        "argument --hil-timed-bus: expected a bit rate (1M, 500k, 125000), table or ideal, got 'fast'"
-    ], result.errlines
-
-
 SUMMARY_TEST = """
 import pytest
 from hilrig.wire.bustime import BUS_PROPERTY
@@ -219,12 +195,16 @@ def test_one(record_property, label):
 """
 
 
-def test_the_terminal_summary_counts_the_scenarios_on_each_bus(pytester: pytest.Pytester) -> None:
-    pytester.makepyfile(test_summary=SUMMARY_TEST)
+def test_a_scenarios_bus_and_the_summary_of_the_runs_buses(pytester: pytest.Pytester) -> None:
+    # One run (a pytester run costs seconds): the bus each way a scenario can be given one, and
+    # the terminal summary's count of the scenarios of each bus (their BUS_PROPERTY).
+    _project(pytester, "hil_table = board.toml\nhil_plant = toy_plant:make_plant\n")
+    pytester.makepyfile(test_bus=BUS_TEST, test_summary=SUMMARY_TEST)
     result = pytester.runpytest("-p", "no:cacheprovider")
-    result.assert_outcomes(passed=4)
+    result.assert_outcomes(passed=7, failed=1)
     result.stdout.fnmatch_lines(
         [
+            "*ideal_bus(why): say why the scenario needs the ideal bus*",
             "*the lockstep scenarios' bus*",
             "3 scenarios on the timed bus (1 Mbit/s 2, 250 kbit/s 1)",
             "1 scenarios on the ideal bus, which carries any load:",

@@ -157,11 +157,11 @@ def _timed_bus(text: str) -> int | str | None:
 
 
 def _scenario_bus(
-    node: pytest.Item, config: pytest.Config, given: int | str | None, board: HilBoard
+    node: pytest.Item, run: int | str | None, given: int | str | None, board: HilBoard
 ) -> tuple[int | None, str]:
     """A lockstep run's bus and how the summary names it: its own (`make_scenario(bitrate=...)`),
-    else the ideal bus for a scenario marked ideal_bus(why), else the run's --hil-timed-bus;
-    `table`: the board's. (bit rate or None, "1 Mbit/s" or "ideal: why")."""
+    else the ideal bus for a scenario marked ideal_bus(why), else the run's (`run`: its
+    --hil-timed-bus); `table`: the board's. (bit rate or None, "1 Mbit/s" or "ideal: why")."""
     if given != RUN_BITRATE:
         chosen, why = given, "the scenario's own make_scenario(bitrate=None)"
     elif (marker := node.get_closest_marker(IDEAL_BUS_MARKER)) is not None:
@@ -169,7 +169,7 @@ def _scenario_bus(
             pytest.fail(f"{IDEAL_BUS_MARKER}(why): say why the scenario needs the ideal bus", pytrace=False)
         return None, ideal_label(str(marker.args[0]))
     else:
-        chosen, why = config.getoption("hil_timed_bus"), f"--hil-timed-bus {IDEAL}"
+        chosen, why = run, f"--hil-timed-bus {IDEAL}"
     if chosen == TABLE_BITRATE:
         chosen = board.table.board.node.bitrate
     if chosen is None:
@@ -423,7 +423,8 @@ def make_scenario(
             node_id = config.getoption("hil_node_id") or node_id
         timed_bitrate = None
         if not realtime and board is None:
-            timed_bitrate, bus_label = _scenario_bus(request.node, config, bitrate, hil_board)
+            run_bus = config.getoption("hil_timed_bus")
+            timed_bitrate, bus_label = _scenario_bus(request.node, run_bus, bitrate, hil_board)
             _record_bus(request.node, bus_label)
         session_config = SessionConfig(
             out_dir=run_dir,
