@@ -21,8 +21,9 @@ import numpy as np
 
 from boardproto.table import FULL_PDO_PROFILE
 from hilrig.apps.demo import BOOT_TIMEOUT_S, Progress, RunAbortedError, ScenarioFileError
+from hilrig.apps.gait import TravellingWave
 from hilrig.engine.rig import DEFAULT_EDS_PATH
-from hilrig.engine.robot import Robot, TravellingWave
+from hilrig.engine.robot import Robot
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.session.builder import SessionConfig, hil_session
 from hilrig.session.firmware import DEFAULT_EXECUTABLE
