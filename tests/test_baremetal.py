@@ -14,13 +14,14 @@ import subprocess
 
 import numpy as np
 import pytest
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS
 from test_determinism import differing, record_run
 from test_robot import GAIT, SETTLE_S, TRACKING_TOLERANCE_RAD, tracking_error
 
 from hilrig import resources
 from hilrig.session import baremetal
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 FUSED = {
     "_ZN5joint14VelocityFilter6updateEfff": {"tpdo:motor_velocity", "tpdo:output_velocity"},

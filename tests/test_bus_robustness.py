@@ -14,7 +14,7 @@ from pathlib import Path
 
 import can
 import pytest
-from conftest import NODE_ID, REPO, start_node, stop_node, stop_summary
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS, NODE_ID, REPO, start_node, stop_node, stop_summary
 
 from boardproto import load_table
 from boardproto.cia301 import (
@@ -34,7 +34,7 @@ from hilrig.session.faults import FaultInjector, FaultPlan
 from hilrig.session.netns import PrivateBus
 from hilrig.table import ControlMode, EmcyCode
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 VELOCITY_MODE = ControlMode.VELOCITY
 GEAR_RATIO = JointParams().gear_ratio

@@ -18,6 +18,8 @@ import dataclasses
 import pytest
 
 from hilrig.apps.pdo_profile import apply_pdo_profile
+from hilrig.engine.bustiming import SDO_ANSWER_TIMEOUT_S
+from hilrig.errors import SdoTimeoutError
 from hilrig.table import ControlMode, EmcyCode, RigTable
 
 pytestmark = pytest.mark.bus
@@ -79,6 +81,12 @@ def test_the_full_mapping_on_1_mbit_fails_the_velocity_step(make_scenario) -> No
     # The duty command the firmware gives its actuator (TPDO4 0x490) is lost as well.
     problem = duty_command_problem(s, every=1)
     assert problem is not None and "came in" in problem, "the overloaded bus must fail the pin"
+    # And the master's SDO (0x610, after every PDO's identifier) never gets on the bus: its
+    # response timeout ends the read, in simulation time, as on the real bus.
+    before = s.rig.cycle
+    with pytest.raises(SdoTimeoutError, match="carried no frame of the SDO transfer"):
+        s.rig.read("velocity_kp")
+    assert s.rig.cycle - before == round(SDO_ANSWER_TIMEOUT_S * 1e6 / s.rig.period_us)
     print(f"\nfull mapping at 1 kHz on 1 Mbit/s: {bus}")
 
 
@@ -91,12 +99,27 @@ def test_the_lean_mapping_carries_the_duty_command_on_1_mbit(make_scenario, scen
         before_start=_profile_start(TABLE.pdo_profile("lean")),
     )
     _step(s, SECONDS)  # lean: control_mode over SDO
+    # An SDO read's request and answer fit the next cycle's time: the master has the answer
+    # after that cycle, which the bus's load shows.
+    before = s.rig.cycle
+    s.rig.read("velocity_kp")
+    assert s.rig.cycle == before + 1
     timeline = s.rig.bus_timeline
     assert timeline is not None and not timeline.late and not timeline.replaced, timeline.describe(ONE_MBIT)
-    assert max(timeline.load) < 0.7
+    # Its PDOs within 70 % of each cycle; the two cycles that carried an SDO transfer besides
+    # (control_mode's write at the start, velocity_kp's read) within 100 %.
+    sdo_cycles = {0, before}
+    assert (
+        max(load for n, load in zip(timeline.cycles(), timeline.load, strict=True) if n not in sdo_cycles)
+        < 0.7
+    )
     assert duty_command_problem(s, every=10) is None
-    _, velocity = s.rig.history("output_velocity")
-    assert velocity[-1] == pytest.approx(GEAR_RATIO_TARGET, rel=0.05)
+    # The load behind the spring rings about its setpoint: its mean over the last 0.1 s.
+    t, velocity = s.rig.history("output_velocity")
+    tail = velocity[t > t[-1] - 0.1]
+    assert float(tail.mean()) == pytest.approx(GEAR_RATIO_TARGET, rel=0.05), list(
+        zip(t[-12:], velocity[-12:], strict=True)
+    )
 
 
 def _actuator_behind_bulk():
@@ -144,13 +167,15 @@ def test_a_setpoint_stream_the_bus_cannot_carry_trips_the_node_watchdog(make_sce
     # The lean mapping at 1 kHz on 250 kbit/s (250 bits a cycle): the SYNC, the actuator TPDO
     # and the sensor RPDO (0x210) fill it, with an overhang into the next; the setpoint stream
     # (RPDO2 0x310) waits behind them: late for the node, whose watchdog trips as on the bench.
+    # control_mode goes over SDO before the node is operational: once its PDOs fill the bus, the
+    # master's SDO (0x610) would never get on it.
+    def start(rig) -> None:
+        _profile_start(TABLE.pdo_profile("lean"))(rig)
+        rig.node.write("control_mode", ControlMode.VELOCITY)
+
     s = make_scenario(
-        trace=False,
-        bitrate=250_000,
-        params_file=scenario_dir / "params.bin",
-        before_start=_profile_start(TABLE.pdo_profile("lean")),
+        trace=False, bitrate=250_000, params_file=scenario_dir / "params.bin", before_start=start
     )
-    s.rig.set("control_mode", ControlMode.VELOCITY)  # lean: over SDO
     s.rig.set("velocity_setpoint", GEAR_RATIO_TARGET)
     s.rig.run(seconds=0.2)
     codes = [EmcyCode(record.code) for record in s.rig.emcy]

@@ -272,8 +272,20 @@ def test_sim_injects_faults_from_the_command_line(scenario_dir: Path) -> None:
     scenario.write_text(SHORT_SCENARIO)
     out = scenario_dir / "sim"
     faults = ["freeze:thermistor_adc@0.02+0.05", "malformed:length@0.1", "restart@0.15"]
+    # On a timed bus (-b) with room for the demo's full mapping: the same run, and its summary
+    # says what the bus carried.
+    timed = ["-b", "2M"]
     done = subprocess.run(
-        [HILRIG, "sim", "--scenario", str(scenario), "--out", str(out), *(f"--fault={f}" for f in faults)],
+        [
+            HILRIG,
+            "sim",
+            *timed,
+            "--scenario",
+            str(scenario),
+            "--out",
+            str(out),
+            *(f"--fault={f}" for f in faults),
+        ],
         capture_output=True,
         text=True,
         timeout=CALL_TIMEOUT_S,
@@ -295,6 +307,8 @@ def test_sim_injects_faults_from_the_command_line(scenario_dir: Path) -> None:
     ]
     assert "t = 0.150 s  restart@0.15: firmware booted again and is operational" in summary
     assert "300 cycles = 0.300 s" in summary
+    timed_row = next(line for line in summary.splitlines() if line.startswith("timed bus"))
+    assert "2 Mbit/s: load" in timed_row and "no frame late" in timed_row, timed_row
     firmware_log = (out / "firmware.log").read_text()
     assert "killed with SIGKILL and started again" in firmware_log
     assert (out / "trace.rrd").stat().st_size > 0

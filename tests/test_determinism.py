@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS
 
 from hilrig.cli import main as hilrig
 from hilrig.table import ControlMode
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 VELOCITY_MODE = ControlMode.VELOCITY
 Series = tuple[np.ndarray, np.ndarray]

@@ -10,10 +10,11 @@ and compared whole: a TPDO that goes out every cycle, never, or once too few sho
 from __future__ import annotations
 
 import pytest
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS
 
 from hilrig.table import ControlMode, FaultFlags
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 STATUS_TPDO = 6  # safe_state, fault_flags
 WATCHDOG_CYCLES = 19

@@ -9,7 +9,7 @@ import re
 import can
 import pytest
 from canopen.nmt import NmtError
-from conftest import NODE_ID, REPO, stop_summary
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS, NODE_ID, REPO, stop_summary
 
 from boardproto import load_table
 from boardproto.cia301 import SYNC_COB_ID, NmtCommand, NmtState
@@ -19,7 +19,7 @@ from hilrig.plants import JointParams
 from hilrig.session.faults import FaultInjector, FaultPlan
 from hilrig.table import ControlMode, EmcyCode, FaultFlags
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 TABLE = load_table(REPO / "protocol" / "board.toml")
 VELOCITY_MODE = ControlMode.VELOCITY

@@ -10,13 +10,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import HEAD_MAPPING_ON_THE_IDEAL_BUS
 
 from hilrig import resources
 from hilrig.plants.fmu import fmu_factory
 from hilrig.pytest_plugin.board import HilBoard
 from hilrig.table import RigTable
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, HEAD_MAPPING_ON_THE_IDEAL_BUS]
 
 crane_fmu = pytest.importorskip("crane_fmu")
 FMU = Path(crane_fmu.__file__).resolve().parent.parent / "examples" / "HarmonicOscillator6D.fmu"

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import HEAD_MAPPING_ON_THE_IDEAL_BUS
 
 from hilrig import resources
 from hilrig.errors import NodeSilentError
@@ -17,7 +18,7 @@ from hilrig.pytest_plugin.fixtures import BOOT_TIMEOUT_S, SCENARIO_SDO_TIMEOUT_S
 from hilrig.session.builder import SessionConfig, hil_session
 from hilrig.table import BOARD_TABLE, RigTable
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, HEAD_MAPPING_ON_THE_IDEAL_BUS]
 
 HEAD = RigTable.load(resources.HEAD_TABLE)
 HeadFaults = HEAD.board.bitset("fault_flags").python_type()

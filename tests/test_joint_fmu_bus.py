@@ -11,6 +11,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS
 
 from hilrig import resources
 from hilrig.apps.demo import demo_params
@@ -18,7 +19,7 @@ from hilrig.plants.joint import JointModel
 from hilrig.pytest_plugin.board import HilBoard
 from hilrig.table import BOARD_TABLE, ControlMode
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 pytest.importorskip("fmpy")
 from hilrig.plants.fmu import FmuPlant  # noqa: E402

@@ -15,11 +15,12 @@ import math
 
 import numpy as np
 import pytest
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS
 
 from hilrig.plants import JointParams
 from hilrig.table import ControlMode
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 PARAMS = JointParams().with_thermal_time_constant(0.6)
 OUTPUT_COUNT_RAD = 2 * math.pi / PARAMS.output_encoder_counts_per_rev

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS
 
 from boardproto.cia301 import (
     ERROR_BEHAVIOUR_INDEX,
@@ -27,7 +28,7 @@ from boardproto.cia301 import (
 from hilrig.plants import JointParams
 from hilrig.table import ControlMode, EmcyCode, FaultFlags, LedPattern
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 ENCODER_STALE_CYCLES = 13
 THERMISTOR_STALE_CYCLES = 29

@@ -11,7 +11,7 @@ from pathlib import Path
 import can
 import cantools
 import pytest
-from conftest import BOOT_TIMEOUT_S, NODE_ID, REPO, run_hilrig
+from conftest import BOOT_TIMEOUT_S, FULL_MAPPING_ON_THE_IDEAL_BUS, NODE_ID, REPO, run_hilrig
 
 from boardproto.cia301 import emcy_cob_id, heartbeat_cob_id
 from hilrig.session.buslog import BusRecorder, node_cob_ids
@@ -20,7 +20,7 @@ from hilrig.session.firmware import Firmware
 from hilrig.session.netns import PrivateBus
 from hilrig.table import ControlMode, RigTable
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 DBC = REPO / "build" / "protocol" / "board.dbc"
 TABLE = RigTable.load()

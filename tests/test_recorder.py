@@ -10,7 +10,7 @@ import canopen
 import numpy as np
 import pytest
 from canopen.sdo import SdoClient
-from conftest import EDS, TABLE
+from conftest import EDS, FULL_MAPPING_ON_THE_IDEAL_BUS, TABLE
 
 from boardproto.cia301 import SdoAbortCode
 from boardproto.table import RecorderObject
@@ -18,7 +18,7 @@ from hilrig.apps.capture import CaptureSettings, RecorderClient
 from hilrig.session.netns import PrivateBus
 from hilrig.table import ControlMode
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 CHANNELS = (
     "motor_velocity",

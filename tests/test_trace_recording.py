@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS
 
 from hilrig.errors import SdoAbortError
 from hilrig.observe.blueprints import dashboard_fields
@@ -18,7 +19,7 @@ from hilrig.table import ControlMode
 POLL_EVERY = 100
 """Cycles between SDO reads of what a dashboard plots but no PDO carries (as `hilrig sim`)."""
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 
 @pytest.mark.requirement("RIG_02")

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import FULL_MAPPING_ON_THE_IDEAL_BUS
 
 from boardproto.cia301 import NmtState
 from hilrig.engine.rig import Rig
@@ -26,7 +27,7 @@ from hilrig.expect import Expect
 from hilrig.plants import JointParams
 from hilrig.table import ControlMode
 
-pytestmark = pytest.mark.bus
+pytestmark = [pytest.mark.bus, FULL_MAPPING_ON_THE_IDEAL_BUS]
 
 VELOCITY_MODE = ControlMode.VELOCITY
 SETPOINT_RAD_S = 2.0

@@ -1,10 +1,12 @@
 """Summarise a test run from the JUnit XML files of its stages.
 
 Prints how many C++ tests, Python unit tests and bus-level scenarios ran, which bus path the
-scenarios used, one line per failure with the pictures it left (the [[ATTACHMENT|path]] lines
-hilrig's pytest plugin writes into the failure's system-out), the coverage of the project's
-requirements (each test's `requirement` JUnit properties against the `hil_requirements` file
-pytest.ini names: hilrig.requirements), and closes with the plain "N passed, N failed" line.
+scenarios used, how many lockstep scenarios ran on the timed bus and how many on the ideal bus
+and why (each scenario's BUS_PROPERTY), one line per failure with the pictures it left (the
+[[ATTACHMENT|path]] lines hilrig's pytest plugin writes into the failure's system-out), the
+coverage of the project's requirements (each test's `requirement` JUnit properties against the
+`hil_requirements` file pytest.ini names: hilrig.requirements), and closes with the plain
+"N passed, N failed" line.
 Exits non-zero when a stage is missing, collected nothing, or had failures.
 
     python tools/test-summary.py out/test-results [--shard K/N] [--bus-only] [--requirements FILE]
@@ -27,6 +29,7 @@ from scenario_shards import Shard, parse_shard  # tools/, this script's own fold
 
 from hilrig import requirements
 from hilrig.errors import ConfigurationError
+from hilrig.wire.bustime import BUS_PROPERTY, bus_summary
 
 CHECKOUT_INI = Path(__file__).resolve().parent.parent / "pytest.ini"
 
@@ -58,6 +61,9 @@ class StageResult:
     platforms: dict[str, list[int]] = field(default_factory=dict)
     """Per firmware platform (the scenarios' PLATFORM_PROPERTY), [passed, failed] of the scenarios
     whose firmware ran on it."""
+    buses: list[list[str]] = field(default_factory=list)
+    """Each scenario's buses (BUS_PROPERTY: a bit rate, or the ideal bus and why), of those that
+    ran and named theirs."""
 
 
 PLATFORM_PROPERTY = "firmware_platform"
@@ -85,6 +91,8 @@ def read_junit(path: Path) -> StageResult:
             result.passed += 1
             outcome = requirements.PASSED
         if outcome != requirements.SKIPPED:
+            if buses := [p.get("value", "") for p in case.iter("property") if p.get("name") == BUS_PROPERTY]:
+                result.buses.append(buses)
             for platform in {
                 p.get("value", "") for p in case.iter("property") if p.get("name") == PLATFORM_PROPERTY
             }:
@@ -154,6 +162,7 @@ def main(argv: list[str]) -> int:
             stage.skipped += part.skipped
             stage.failures += part.failures
             stage.attachments |= part.attachments
+            stage.buses += part.buses
             cases += part.cases
             for platform, (passed, failed) in part.platforms.items():
                 counts = stage.platforms.setdefault(platform, [0, 0])
@@ -172,6 +181,8 @@ def main(argv: list[str]) -> int:
                     for p, (n, f) in sorted(stage.platforms.items())
                 )
             )
+        for bus_line in bus_summary(stage.buses):
+            print(f"    {bus_line}")
         for name in stage.failures:
             print(f"    FAILED {name}")
             for attached in stage.attachments.get(name, []):

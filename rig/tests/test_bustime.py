@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from boardproto.cia301 import SYNC_COB_ID
+from boardproto.cia301 import SYNC_COB_ID, sdo_request_cob_id
 from hilrig.engine.rig import Rig
 from hilrig.plants import JointParams
 from hilrig.session.fake_node import FakeJointNode
@@ -115,6 +115,7 @@ def bench(request: pytest.FixtureRequest) -> Iterator[tuple[Rig, can.BusABC]]:
     )
     fake.boot()
     rig.start()
+    request.node.fake_node = fake  # a test that makes the node send an EMCY
     yield rig, spy
     rig.close()
     fake.close()
@@ -161,3 +162,97 @@ def test_an_rpdo_that_does_not_fit_reaches_the_node_late(bench: tuple[Rig, can.B
     assert seen.count(stream_cob) < 20
     sent_t, _ = rig.sent("velocity_setpoint")
     assert len(sent_t) == seen.count(stream_cob), "the history has the RPDO in the cycle it went out"
+
+
+def test_the_summary_counts_each_scenario_once_per_bus_and_says_why_it_idealised() -> None:
+    from hilrig.wire.bustime import bitrate_text, bus_summary, ideal_label
+
+    assert [bitrate_text(b) for b in (1_000_000, 500_000, 83_333)] == [
+        "1 Mbit/s",
+        "500 kbit/s",
+        "83.333 kbit/s",
+    ]
+    lines = bus_summary(
+        [
+            ["1 Mbit/s", "1 Mbit/s"],
+            ["500 kbit/s"],
+            [ideal_label("the full mapping")],
+            [ideal_label("a robot"), ideal_label("a robot")],
+            [ideal_label("the full mapping"), "1 Mbit/s"],
+        ]
+    )
+    assert lines == [
+        "3 scenarios on the timed bus (1 Mbit/s 2, 500 kbit/s 1)",
+        "3 scenarios on the ideal bus, which carries any load:",
+        "    2 the full mapping",
+        "    1 a robot",
+    ]
+    assert bus_summary([[], []]) == []
+
+
+def test_queued_frames_all_go_in_turn_and_no_newer_one_replaces_them() -> None:
+    # An SDO transfer's frames or EMCYs are a sequence, not a PDO's mailbox.
+    bus = TimedBus(250_000, 1000)  # 250 bits: two 8-byte frames start
+    sdo = sdo_request_cob_id(NODE_ID)
+    first = [BusFrame(sdo, 8, 0, queued=True) for _ in range(3)]
+    w0 = bus.window(0, first)
+    assert w0.delivered == tuple(first[:2]) and w0.backlog == (first[2],)
+    w1 = bus.window(1, [BusFrame(sdo, 8, 1, queued=True)])
+    assert w1.replaced == () and [f.origin for f in w1.delivered] == [0, 1]
+
+
+@pytest.mark.parametrize("bench", [2_000_000], indirect=True)
+def test_an_sdo_answer_reaches_the_master_when_the_bus_carried_it(bench: tuple[Rig, can.BusABC]) -> None:
+    # 2 Mbit/s carries the full mapping with room to spare: the request and the answer go in
+    # the next cycle's time, after the cycle's PDOs, and the master has its answer after it.
+    rig, _ = bench
+    rig.run(cycles=5)
+    timing = rig.driver.bus_timing
+    assert timing is not None
+    steady = timing.timeline.load[-1]
+    rig.read("velocity_kp")
+    assert rig.cycle == 6, "one cycle ran for the bus to carry the transfer"
+    assert timing.sdo_waiting == 0 and timing.sdo_delivered == 2
+    sdo_bits = 2 * WORST_CASE_BITS[8]
+    assert timing.timeline.load[-1] * timing.bus.window_bits == pytest.approx(steady * 2000 + sdo_bits)
+    rig.run(cycles=1)
+    assert timing.timeline.load[-1] == pytest.approx(steady), "and the next cycle is steady again"
+
+
+@pytest.mark.parametrize("bench", [1_000_000], indirect=True)
+def test_an_sdo_the_overloaded_bus_never_carries_times_out_for_the_master(
+    bench: tuple[Rig, can.BusABC],
+) -> None:
+    # At 1 Mbit/s the full mapping's every-SYNC PDOs fill each cycle: the SDO channel's
+    # identifiers (0x590, 0x610: after every PDO's) never win arbitration.
+    from hilrig.engine.bustiming import SDO_ANSWER_TIMEOUT_S
+    from hilrig.errors import SdoTimeoutError
+
+    rig, _ = bench
+    rig.run(cycles=2)
+    with pytest.raises(SdoTimeoutError, match="carried no frame of the SDO transfer"):
+        rig.read("velocity_kp")
+    assert rig.cycle == 2 + round(SDO_ANSWER_TIMEOUT_S * 1000)
+    timing = rig.driver.bus_timing
+    assert timing is not None and timing.sdo_waiting == 0 and timing.sdo_delivered == 0
+    assert not any(f.payload == "sdo" for f in timing.bus.backlog), "the abandoned frames left the bus"
+
+
+@pytest.mark.parametrize("bench", [2_000_000], indirect=True)
+def test_an_emcy_takes_bus_time_in_its_turn(
+    bench: tuple[Rig, can.BusABC], request: pytest.FixtureRequest
+) -> None:
+    rig, _ = bench
+    rig.run(cycles=3)
+    timing = rig.driver.bus_timing
+    assert timing is not None
+    window = timing.bus.window_bits
+    steady = timing.timeline.load[-1] * window
+    request.node.fake_node.send_emcy(0x1000, 1)
+    rig.run(cycles=3)
+    assert rig.emcy, "the rig has the EMCY"
+    # It came in one of the next cycles' exchanges (or between them) and took the time of the
+    # one after: once, in one of these three windows, beside the steady cycle's frames.
+    loads = [load * window for load in timing.timeline.load[-3:]]
+    assert sum(loads) == pytest.approx(3 * steady + WORST_CASE_BITS[8])
+    assert sorted(loads)[:2] == pytest.approx([steady, steady])

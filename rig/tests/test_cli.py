@@ -105,6 +105,11 @@ def test_top_level_help_lists_every_registered_command(capsys: pytest.CaptureFix
         ),
         (["replay", "--trace", "x.txt", "x.log"], "x.txt does not end in .rrd"),
         (["sim", "--fault", "kill@1+1"], "kill happens once, at its start; drop the +DURATION"),
+        (
+            ["sim", "-b", "fast"],
+            "argument -b/--bitrate: expected a bit rate in bit/s like 125000, 500k or 1M",
+        ),
+        (["sim", "--bitrate", "0"], "got '0'"),
         (["frobnicate"], "invalid choice: 'frobnicate'"),
         (["lss", "set", "5"], "the following arguments are required: --serial"),
         (["lss", "set", "5", "--serial", "twelve"], "expected a number (decimal or 0x hex), got 'twelve'"),
@@ -373,7 +378,10 @@ def test_record_then_replay_into_a_trace(
 
 
 def test_record_works_out_the_nmt_target_before_it_counts_frames(
-    capsys: pytest.CaptureFixture[str], fake: FakeJointNode, channel: str, tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    fake: FakeJointNode,
+    channel: str,
+    tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     # Loading the table took seconds in the VM: the node's heartbeats meanwhile filled --count

@@ -152,3 +152,62 @@ def test_the_fixtures_a_scenario_uses_come_from_the_plugin(pytester: pytest.Pyte
     for fixture in ("make_scenario", "make_robot", "private_bus", "scenario_dir", "hil_board"):
         result.stdout.fnmatch_lines([f"{fixture}*"])
     assert Path(resources.DEFAULT_TABLE).is_file()
+
+
+BUS_TEST = """
+import argparse
+import pytest
+from hilrig.pytest_plugin.fixtures import RUN_BITRATE, _scenario_bus, _timed_bus
+
+def bus(request, hil_board, given=RUN_BITRATE):
+    return _scenario_bus(request.node, request.config.getoption("hil_timed_bus"), given, hil_board)
+
+def test_the_runs_bus_is_the_tables_by_default(request, hil_board):
+    assert request.config.getoption("hil_timed_bus") == "table"
+    assert bus(request, hil_board) == (1_000_000, "1 Mbit/s")
+    runs = {"500k": (500_000, "500 kbit/s"), "ideal": (None, "ideal: --hil-timed-bus ideal")}
+    for run, expected in runs.items():
+        assert _scenario_bus(request.node, _timed_bus(run), RUN_BITRATE, hil_board) == expected, run
+    with pytest.raises(argparse.ArgumentTypeError, match="a bit rate .*, table or ideal, got 'fast'"):
+        _timed_bus("fast")
+
+@pytest.mark.ideal_bus("its point needs every frame in its cycle")
+def test_marked(request, hil_board):
+    assert bus(request, hil_board) == (None, "ideal: its point needs every frame in its cycle")
+    assert bus(request, hil_board, 250_000) == (250_000, "250 kbit/s"), "its own bitrate= wins"
+
+def test_its_own(request, hil_board):
+    assert bus(request, hil_board, "table") == (hil_board.table.board.node.bitrate, "1 Mbit/s")
+    assert bus(request, hil_board, None) == (None, "ideal: the scenario's own make_scenario(bitrate=None)")
+
+@pytest.mark.ideal_bus()
+def test_marked_without_why(request, hil_board):
+    bus(request, hil_board)
+"""
+
+SUMMARY_TEST = """
+import pytest
+from hilrig.wire.bustime import BUS_PROPERTY
+
+@pytest.mark.parametrize("label", ["1 Mbit/s", "1 Mbit/s", "ideal: why", "250 kbit/s"])
+def test_one(record_property, label):
+    record_property(BUS_PROPERTY, label)
+"""
+
+
+def test_a_scenarios_bus_and_the_summary_of_the_runs_buses(pytester: pytest.Pytester) -> None:
+    # One run (a pytester run costs seconds): the bus each way a scenario can be given one, and
+    # the terminal summary's count of the scenarios of each bus (their BUS_PROPERTY).
+    _project(pytester, "hil_table = board.toml\nhil_plant = toy_plant:make_plant\n")
+    pytester.makepyfile(test_bus=BUS_TEST, test_summary=SUMMARY_TEST)
+    result = pytester.runpytest("-p", "no:cacheprovider")
+    result.assert_outcomes(passed=7, failed=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*ideal_bus(why): say why the scenario needs the ideal bus*",
+            "*the lockstep scenarios' bus*",
+            "3 scenarios on the timed bus (1 Mbit/s 2, 250 kbit/s 1)",
+            "1 scenarios on the ideal bus, which carries any load:",
+            "    1 why",
+        ]
+    )

@@ -117,3 +117,34 @@ def test_the_bus_stage_says_how_many_scenarios_ran_on_each_firmware_platform(
         "    firmware platforms: linux 2 ran (2 passed, 0 failed), qemu-virt 2 ran (1 passed, 1 failed)"
         in out
     )
+
+
+def test_the_bus_stage_says_which_scenarios_ran_on_the_ideal_bus_and_why(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    summary = load_summary()
+    for name in ("cpp.xml", "cortex-m.xml", "python-unit.xml", "browser.xml"):
+        (tmp_path / name).write_text(junit('<testcase classname="t" name="a"/>'))
+
+    def case(name: str, inner: str, *buses: str) -> str:
+        properties = "".join(f'<property name="hil_bus" value="{b}"/>' for b in buses)
+        head = f'<testcase classname="tests.t" name="{name}">'
+        return f"{head}<properties>{properties}</properties>{inner}</testcase>"
+
+    (tmp_path / "scenarios.xml").write_text(
+        junit(
+            case("a", "", "1 Mbit/s"),
+            case("b", '<failure message="x"/>', "1 Mbit/s", "1 Mbit/s"),
+            case("c", "", "ideal: the full mapping does not fit"),
+            case("d", "", "ideal: the full mapping does not fit", "250 kbit/s"),
+            case("skipped", "<skipped/>", "ideal: never ran"),
+        )
+    )
+    summary.main(["test-summary.py", str(tmp_path), "--requirements", str(tmp_path / "none.toml")])
+    out = capsys.readouterr().out.splitlines()
+    at = out.index("    3 scenarios on the timed bus (1 Mbit/s 2, 250 kbit/s 1)")
+    assert out[at + 1 : at + 3] == [
+        "    2 scenarios on the ideal bus, which carries any load:",
+        "        2 the full mapping does not fit",
+    ]
+    assert not any("never ran" in line for line in out)

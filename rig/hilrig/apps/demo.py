@@ -352,6 +352,10 @@ def _peak_truth(rig: Rig, name: str) -> float | None:
 def summarize(
     rig: Rig, table: RigTable, options: DemoOptions, started: float, out: Path, frames: int, cycling_s: float
 ) -> DemoSummary:
+    # The summary's SDO reads come after the run, off the timed bus (an overloaded one would
+    # never carry them); what the bus carried is said first.
+    timeline = rig.leave_timed_bus()
+    bus_timing = None if timeline is None or rig.bitrate is None else timeline.describe(rig.bitrate)
     names = {f.name for f in table.board.fields}
     flags = rig.history("fault_flags")[1] if "fault_flags" in names else np.array([])
     safe = rig.history("safe_state")[1] if "safe_state" in names else np.array([])
@@ -394,9 +398,7 @@ def summarize(
         bus_log=out / "bus.log",
         firmware_log=out / "firmware.log",
         frames_logged=frames,
-        bus_timing=None
-        if rig.bus_timeline is None or rig.bitrate is None
-        else rig.bus_timeline.describe(rig.bitrate),
+        bus_timing=bus_timing,
     )
 
 

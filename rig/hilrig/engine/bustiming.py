@@ -11,7 +11,13 @@ length), the node's heartbeat when its producer time comes round. Then:
 - the node still sends every due TPDO at once (it cannot know better), but one that does not
   fit is taken back out of the cycle: the plant and the history (what a scenario asserts on)
   get it in the cycle the bus delivers it, as if it had arrived then;
-- the SYNC is always sent: it has the bus's highest priority.
+- the SYNC is always sent: it has the bus's highest priority;
+- the frames the rig learns of only after a cycle's schedule (`charge`) take the next cycle's
+  bus time, in their turn: an EMCY the node sent (the rig has it at once: its identifier loses
+  arbitration only to the SYNC), and an SDO transfer's requests and answers, which happen
+  between two cycles. The master waits for the bus to carry them (`Rig` runs cycles until
+  `sdo_waiting` is 0): a late SDO answer is late for the master as on a real bus. The node
+  acts on the request when it comes (between the cycles): the one thing still ideal about SDO.
 
 `BusTimeline` keeps, per cycle, the bus's real load (at most 100 %), the backlog and every late
 frame, for the trace and for a scenario's assertions.
@@ -23,13 +29,20 @@ from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from canopen.sdo import SdoClient
+
 from boardproto.cia301 import SYNC_COB_ID, heartbeat_cob_id
 from hilrig.engine.history import PdoRow, Value
-from hilrig.wire.bustime import BusFrame, TimedBus
+from hilrig.wire.bustime import BusFrame, TimedBus, bitrate_text
 from hilrig.wire.transport import CAN_FRAME_SIZE, CAN_HEADER, PdoLayout
 
 _SYNC_DLC = 1
 _HEARTBEAT_DLC = 1
+_SDO = "sdo"  # the payload of an SDO transfer's frame: the master waits for it
+SDO_ANSWER_TIMEOUT_S = SdoClient.RESPONSE_TIMEOUT
+"""How long, in simulation time, the master waits on the timed bus for its SDO transfer's next
+frame to get on the bus: canopen's own default response timeout (its class attribute; the
+session's `sdo_timeout_s` is a wall-clock hang guard)."""
 _TPDO = "tpdo"  # a due TPDO's payload until its data came: a placeholder
 
 
@@ -79,9 +92,7 @@ class BusTimeline:
         never sent (...): 0x490 x 50; backlog up to 2 frames' (one line: summaries, failures)."""
         load = self.load
         mean = 100.0 * sum(load) / len(load) if load else 0.0
-        text = (
-            f"{bitrate / 1e6:g} Mbit/s: load {mean:.0f} % mean, {100.0 * max(load, default=0.0):.0f} % peak"
-        )
+        text = f"{bitrate_text(bitrate)}: load {mean:.0f} % mean, {100.0 * max(load, default=0.0):.0f} % peak"
         if not self.late and not self.peak_backlog:
             return text + "; no frame late"
         by_cob: dict[int, list[int]] = {}
@@ -120,6 +131,26 @@ class BusTiming:
         self._heartbeat_every = heartbeat_every
         self._late_tpdos: dict[int, BusFrame] = {}  # this cycle's due TPDOs that wait
         self._delivered_tpdos: list[BusFrame] = []  # earlier cycles' TPDOs delivered this cycle
+        self._charged: list[BusFrame] = []  # frames for the next cycle's time (`charge`)
+        self._next = first_cycle  # the cycle whose time a frame charged now takes
+        self.sdo_waiting = 0
+        """SDO frames charged that the bus has not carried yet (the master waits for them)."""
+        self.sdo_delivered = 0
+        """SDO frames the bus carried so far (a master's wait sees progress in it)."""
+
+    def charge(self, cob_id: int, dlc: int, *, sdo: bool = False) -> None:
+        """A frame on the bus that the cycle's schedule did not know of: an EMCY the node sent,
+        an SDO request or answer (`sdo`: counted in `sdo_waiting` until the bus carries it). It
+        takes bus time from the next cycle on, in its arbitration turn."""
+        self._charged.append(BusFrame(cob_id, dlc, self._next, _SDO if sdo else None, queued=True))
+        if sdo:
+            self.sdo_waiting += 1
+
+    def drop_sdo(self) -> None:
+        """The master gave up on its SDO transfer: its frames still waiting leave the bus."""
+        self._charged = [f for f in self._charged if f.payload is not _SDO]
+        self.bus.backlog = [f for f in self.bus.backlog if f.payload is not _SDO]
+        self.sdo_waiting = 0
 
     def plan(
         self, n: int, due: frozenset[int], sent: tuple[PdoRow, ...], frames: bytes
@@ -131,6 +162,8 @@ class BusTiming:
         timeline = self.timeline
         self._late_tpdos.clear()
         self._delivered_tpdos.clear()
+        self._next = n + 1
+        charged, self._charged = self._charged, []
         # The cycle's shape: its due TPDOs, whether a heartbeat falls in it, and its RPDOs'
         # headers (identifier bytes and data length of each 16-byte frame).
         shape = (
@@ -140,7 +173,7 @@ class BusTiming:
             frames[1::CAN_FRAME_SIZE],
             frames[4::CAN_FRAME_SIZE],
         )
-        bits = bus.fits_cached(shape, lambda: self._frames_of(due, heartbeat, frames))
+        bits = None if charged else bus.fits_cached(shape, lambda: self._frames_of(due, heartbeat, frames))
         if bits is not None:  # nothing waiting, and all of it fits: the ideal bus's cycle
             timeline.waiting = ()
             timeline.load.append(bits / bus.window_bits)
@@ -154,6 +187,7 @@ class BusTiming:
         queued.extend(BusFrame(cob_id, self._tpdos[cob_id].length, n, _TPDO) for cob_id in due)
         if heartbeat:
             queued.append(BusFrame(self._heartbeat, _HEARTBEAT_DLC, n))
+        queued += charged
         window = bus.window(n, queued)
         out_rows: list[PdoRow] = []
         out_frames: list[bytes] = []
@@ -163,6 +197,9 @@ class BusTiming:
             if frame.cob_id in self._tpdos:
                 if frame.origin < n:
                     self._delivered_tpdos.append(frame)
+            elif frame.payload is _SDO:
+                self.sdo_waiting -= 1
+                self.sdo_delivered += 1
             elif isinstance(frame.payload, tuple):  # an RPDO: (its frame, its row)
                 out_frames.append(frame.payload[0])
                 out_rows.append(frame.payload[1])
@@ -218,4 +255,4 @@ def heartbeat_cycles(heartbeat_ms: int, period_us: int) -> int:
     return 0 if heartbeat_ms <= 0 else max(1, round(heartbeat_ms * 1000 / period_us))
 
 
-__all__ = ["BusTimeline", "BusTiming", "LateFrame", "heartbeat_cycles"]
+__all__ = ["SDO_ANSWER_TIMEOUT_S", "BusTimeline", "BusTiming", "LateFrame", "heartbeat_cycles"]

@@ -191,6 +191,13 @@ class LockstepDriver(Driver):
             self.bus_timing.timeline = before.timeline
         self.history.bus_timeline = None if self.bus_timing is None else self.bus_timing.timeline
 
+    def _other_frame(self, cob_id: int, data: bytes) -> None:
+        """An EMCY takes the timed bus's time too (`BusTiming.charge`), then goes on as ever."""
+        timing = self.bus_timing
+        if timing is not None and cob_id == self._emcy_cob_id:
+            timing.charge(cob_id, len(data))
+        super()._other_frame(cob_id, data)
+
     def step(self) -> CycleResult:
         n, state, raw, due, sync_number, sent, frames = self._sample()
         t, counter = self.history.time_of(n), sync_counter(n)

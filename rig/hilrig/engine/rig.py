@@ -34,7 +34,7 @@ from canopen.emcy import EmcyError
 
 from boardproto.cia301 import NmtCommand, NmtState, transmission_text
 from hilrig import resources
-from hilrig.engine.bustiming import BusTimeline, heartbeat_cycles
+from hilrig.engine.bustiming import SDO_ANSWER_TIMEOUT_S, BusTimeline, BusTiming, heartbeat_cycles
 from hilrig.engine.driver import (
     BUS_EVENTS_PATH,
     CycleResult,
@@ -44,11 +44,18 @@ from hilrig.engine.driver import (
     Truth,
     sdo_poll_layout,
 )
-from hilrig.engine.lockstep import LockstepDriver
+from hilrig.engine.lockstep import LockstepDriver, cycles_for
 from hilrig.engine.observers import RigObserver
 from hilrig.engine.realtime import RealTimeDriver
 from hilrig.engine.timeline import CycleRunner
-from hilrig.errors import FieldAccessError, LockstepError, NoValueError, RealTimeError, SdoAbortError
+from hilrig.errors import (
+    FieldAccessError,
+    LockstepError,
+    NoValueError,
+    RealTimeError,
+    SdoAbortError,
+    SdoTimeoutError,
+)
 from hilrig.plants import default_plant
 from hilrig.plants.interface import Plant
 from hilrig.table import RigTable
@@ -160,6 +167,7 @@ class Rig(CycleRunner):
         self.observers: list[RigObserver] = []
         self._polled: tuple[PdoLayout, int] | None = None  # Rig.poll_over_sdo: (names, every)
         self._heartbeat_state: NmtState | None = None
+        self._stepping = False  # inside a cycle (`_step`): an SDO there waits for no bus
         self.node.remote.nmt.add_heartbeat_callback(self._on_heartbeat_state)
         self.tracer = tracer
         if tracer is not None:
@@ -170,6 +178,16 @@ class Rig(CycleRunner):
         """The timed bus's per-cycle load, backlog and late frames (None: the ideal bus)."""
         timing = getattr(self.driver, "bus_timing", None)
         return None if timing is None else timing.timeline
+
+    def leave_timed_bus(self) -> BusTimeline | None:
+        """The next cycles and SDO transfers on the ideal bus (a run's closing SDO reads for its
+        summary, which the timed bus might never carry); returns the timed bus's timeline."""
+        timeline = self.bus_timeline
+        if timeline is not None:
+            assert isinstance(self.driver, LockstepDriver)
+            self.driver.time_bus(None)
+            self.node.count_sdo_frames(None)
+        return timeline
 
     def add_observer(self, observer: RigObserver) -> None:
         """Let `observer` watch every later cycle and event (`hilrig.engine.observers`)."""
@@ -231,6 +249,9 @@ class Rig(CycleRunner):
             assert isinstance(self.driver, LockstepDriver)
             heartbeat = heartbeat_cycles(self.table.board.node.heartbeat_ms, self.driver.period_us)
             self.driver.time_bus(TimedBus(self.bitrate, self.driver.period_us), heartbeat)
+            timing = self.driver.bus_timing
+            assert timing is not None
+            self.node.count_sdo_frames(lambda cob_id, dlc: self._charge_sdo(timing, cob_id, dlc))
         self._log_pdo_configuration()
         for observer in self.observers:
             observer.on_configured(truth=self.physics)
@@ -305,12 +326,16 @@ class Rig(CycleRunner):
                 f"node 0x{self.node.node_id:02X} is a module of a robot: run the robot, which "
                 "steps all its modules around one SYNC"
             )
+        self._stepping = True
         try:
-            result = self.driver.step()
-        except (LockstepError, RealTimeError) as error:  # a TPDO late, missing or malformed
-            self.log_event(BUS_EVENTS_PATH, str(error))
-            raise
-        self.after_cycle(result)
+            try:
+                result = self.driver.step()
+            except (LockstepError, RealTimeError) as error:  # a TPDO late, missing or malformed
+                self.log_event(BUS_EVENTS_PATH, str(error))
+                raise
+            self.after_cycle(result)
+        finally:
+            self._stepping = False
 
     def after_cycle(self, result: CycleResult) -> None:
         """What follows every cycle: the SDO poll if due, then the observers."""
@@ -361,13 +386,50 @@ class Rig(CycleRunner):
 
     @contextmanager
     def _traced_sdo(self) -> Iterator[None]:
-        """An SDO abort goes to the observers, then on to the caller."""
+        """An SDO abort goes to the observers, then on to the caller; on the timed bus the
+        answer (or the abort) reaches the caller once the bus carried it (`_sdo_on_the_bus`)."""
         try:
             yield
         except SdoAbortError as error:
+            self._sdo_on_the_bus()
             for observer in self.observers:
                 observer.on_sdo_abort(str(error), error.abort_code, cycle=self.cycle, t=self.t)
             raise
+        except BaseException:
+            timing = getattr(self.driver, "bus_timing", None)
+            if timing is not None:
+                timing.drop_sdo()
+            raise
+        self._sdo_on_the_bus()
+
+    def _charge_sdo(self, timing: BusTiming, cob_id: int, dlc: int) -> None:
+        """An SDO frame of the master's on the timed bus; not one of the SDO poll inside a cycle
+        (`poll_over_sdo`, which nothing waits for: it takes no bus time)."""
+        if not self._stepping:
+            timing.charge(cob_id, dlc, sdo=True)
+
+    def _sdo_on_the_bus(self) -> None:
+        """On the timed bus, between cycles: run cycles until the bus carried the SDO frames
+        the rig's transfers sent and read (the master has its answer only then); an
+        SdoTimeoutError when none of them got on the bus for SDO_ANSWER_TIMEOUT_S of
+        simulation time, as a master's response timeout."""
+        timing = getattr(self.driver, "bus_timing", None)
+        if timing is None or self._stepping or not timing.sdo_waiting:
+            return
+        limit = max(1, cycles_for(SDO_ANSWER_TIMEOUT_S, self.period_us))
+        quiet = 0
+        while timing.sdo_waiting > 0:
+            carried = timing.sdo_delivered
+            self._step()
+            quiet = 0 if timing.sdo_delivered > carried else quiet + 1
+            if quiet >= limit:
+                timing.drop_sdo()
+                assert self.bitrate is not None
+                raise SdoTimeoutError(
+                    f"node 0x{self.node.node_id:02X}: the bus carried no frame of the SDO transfer "
+                    f"for {SDO_ANSWER_TIMEOUT_S:g} s of simulation time (the master's response "
+                    f"timeout) at cycle {self.cycle}: {timing.timeline.describe(self.bitrate)}"
+                )
 
     def history(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """(t, values) of `name` for every cycle it was received in a TPDO (or, for what the

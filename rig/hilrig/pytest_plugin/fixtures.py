@@ -13,6 +13,7 @@ Every wait is bounded in simulation time; the wall-clock bounds here are hang gu
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import re
@@ -46,7 +47,7 @@ from hilrig.session.builder import (
 )
 from hilrig.session.logformats import LOG_FORMATS
 from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
-from hilrig.wire.bustime import IDEAL
+from hilrig.wire.bustime import BUS_PROPERTY, IDEAL, bitrate_text, bus_summary, ideal_label
 
 BOOT_TIMEOUT_S = 60.0
 """A hang guard for start-up inside the software-emulated VM (ASan build), not a timing check."""
@@ -67,6 +68,17 @@ HANG_GUARD_FACTOR = 20
 pytest-timeout bound instead of the run's: a busy host must not read as a hang (the 16-module
 robot took 10.4 times its quiet time in a VM beside other work, load 15 to 30). The firmware's
 own hangs are the engine's hang guard's to name, in seconds; this bound is for the harness's."""
+TABLE_BITRATE = "table"
+"""`--hil-timed-bus table` (its default), `make_scenario(bitrate="table")`: the board table's bit
+rate."""
+RUN_BITRATE = "run"
+"""`make_scenario(bitrate=...)`'s default: the run's --hil-timed-bus, unless the scenario is
+marked ideal_bus(why)."""
+IDEAL_BUS_MARKER = "ideal_bus"
+ROBOT_BUS = (
+    "a robot (the timed bus times one node's cycle; hilrig.apps.robot_bus: which bit rate a robot needs)"
+)
+"""Why a `make_robot` run is on the ideal bus, as the summary says it."""
 KEEP_ORDER = "HIL_SCENARIO_ORDER"
 """Set to "given": run the scenarios in the order of the command line, not longest first."""
 
@@ -86,11 +98,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption(
         "--hil-timed-bus",
         type=_timed_bus,
-        default=IDEAL,
+        default=TABLE_BITRATE,
         metavar="BITRATE",
-        help="lockstep scenarios on a bus with this bit rate (1M, 500k...; `table`: the board "
-        "table's [node] bitrate): frames that do not fit a cycle arrive in a later one; "
-        f"default {IDEAL}: every frame in its cycle",
+        help="lockstep scenarios on a bus with this bit rate: frames that do not fit a cycle "
+        f"arrive in a later one; 1M, 500k..., {TABLE_BITRATE} (default: the board table's [node] "
+        f"bitrate) or {IDEAL} (every frame in its cycle); a scenario marked "
+        f"{IDEAL_BUS_MARKER}(why) runs on the ideal bus whatever this says",
     )
     group.addoption(
         "--hil-physics",
@@ -131,21 +144,42 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         parser.addini(name, help_text, default="")
 
 
-TABLE_BITRATE = "table"
-"""`--hil-timed-bus table`, `make_scenario(bitrate="table")`: the board table's bit rate."""
-RUN_BITRATE = "run"
-"""`make_scenario(bitrate=...)`'s default: the run's --hil-timed-bus (None: the ideal bus)."""
-
-
 def _timed_bus(text: str) -> int | str | None:
-    return TABLE_BITRATE if text.strip().lower() == TABLE_BITRATE else bus_timing(text)
+    """--hil-timed-bus: a bit rate, `table` or `ideal` (None); else pytest's one-line usage error."""
+    if text.strip().lower() == TABLE_BITRATE:
+        return TABLE_BITRATE
+    try:
+        return bus_timing(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"expected a bit rate (1M, 500k, 125000), {TABLE_BITRATE} or {IDEAL}, got {text!r}"
+        ) from None
 
 
-def _scenario_bitrate(config: pytest.Config, given: int | str | None, board: HilBoard) -> int | None:
-    """A lockstep scenario's timed bus: its own (`make_scenario(bitrate=...)`), else the run's
-    --hil-timed-bus; `table`: the board's."""
-    chosen = config.getoption("hil_timed_bus") if given == RUN_BITRATE else given
-    return board.table.board.node.bitrate if chosen == TABLE_BITRATE else chosen  # type: ignore[return-value]
+def _scenario_bus(
+    node: pytest.Item, run: int | str | None, given: int | str | None, board: HilBoard
+) -> tuple[int | None, str]:
+    """A lockstep run's bus and how the summary names it: its own (`make_scenario(bitrate=...)`),
+    else the ideal bus for a scenario marked ideal_bus(why), else the run's (`run`: its
+    --hil-timed-bus); `table`: the board's. (bit rate or None, "1 Mbit/s" or "ideal: why")."""
+    if given != RUN_BITRATE:
+        chosen, why = given, "the scenario's own make_scenario(bitrate=None)"
+    elif (marker := node.get_closest_marker(IDEAL_BUS_MARKER)) is not None:
+        if len(marker.args) != 1 or not str(marker.args[0]).strip():
+            pytest.fail(f"{IDEAL_BUS_MARKER}(why): say why the scenario needs the ideal bus", pytrace=False)
+        return None, ideal_label(str(marker.args[0]))
+    else:
+        chosen, why = run, f"--hil-timed-bus {IDEAL}"
+    if chosen == TABLE_BITRATE:
+        chosen = board.table.board.node.bitrate
+    if chosen is None:
+        return None, ideal_label(why)
+    return int(chosen), bitrate_text(int(chosen))
+
+
+def _record_bus(node: pytest.Item | Any, label: str) -> None:
+    if (BUS_PROPERTY, label) not in node.user_properties:
+        node.user_properties.append((BUS_PROPERTY, label))
 
 
 FIRMWARE_PLATFORMS_MARKER = "firmware_platforms"
@@ -157,6 +191,26 @@ def pytest_configure(config: pytest.Config) -> None:
         f"{FIRMWARE_PLATFORMS_MARKER}(*platforms): run the scenario once on each firmware platform "
         f"({', '.join(baremetal.FIRMWARE_PLATFORMS)}), its id ending in [platform]",
     )
+    config.addinivalue_line(
+        "markers",
+        f"{IDEAL_BUS_MARKER}(why): run the lockstep scenario on the ideal bus (every frame in its "
+        "cycle), not the run's --hil-timed-bus, and say why in the run's summary",
+    )
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """How many lockstep scenarios ran on which bus; the ideal bus's with why (the reports'
+    BUS_PROPERTY: the controller of an xdist run has them too)."""
+    lines = bus_summary(
+        [str(value) for name, value in report.user_properties if name == BUS_PROPERTY]
+        for reports in terminalreporter.stats.values()
+        for report in reports
+        if getattr(report, "when", None) == "call"
+    )
+    if lines:
+        terminalreporter.section("the lockstep scenarios' bus")
+        for line in lines:
+            terminalreporter.line(line)
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
@@ -326,7 +380,8 @@ def make_scenario(
     bus). `before_start(rig)` configures the node over SDO before the rig reads its PDO mapping
     and starts it (the node is pre-operational, so PDOs may be remapped). `bitrate`: a lockstep
     scenario's timed bus (a bit rate, "table" for the board's, None for the ideal bus; default:
-    the run's --hil-timed-bus); `s.rig.bus_timeline` has its load, backlog and late frames.
+    the run's --hil-timed-bus, itself the table's by default, or the ideal bus for a scenario
+    marked ideal_bus(why)); `s.rig.bus_timeline` has its load, backlog and late frames.
     `firmware_platform`: this run's platform instead of the scenario's (`hil_firmware_platform`)."""
     sessions: list[HilSession] = []
     labgrid_consoles: list[tuple[LabgridBoard, Path]] = []
@@ -366,6 +421,11 @@ def make_scenario(
                 )
             physics = physics and config.getoption("hil_physics")
             node_id = config.getoption("hil_node_id") or node_id
+        timed_bitrate = None
+        if not realtime and board is None:
+            run_bus = config.getoption("hil_timed_bus")
+            timed_bitrate, bus_label = _scenario_bus(request.node, run_bus, bitrate, hil_board)
+            _record_bus(request.node, bus_label)
         session_config = SessionConfig(
             out_dir=run_dir,
             live=_live_sinks(config) if trace else (),
@@ -377,7 +437,7 @@ def make_scenario(
             mode=mode,
             period_us=REALTIME_RIG_PERIOD_US if realtime else 1000,
             firmware_period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else 1000,
-            bitrate=None if realtime or board is not None else _scenario_bitrate(config, bitrate, hil_board),
+            bitrate=timed_bitrate,
             physics=physics,
             trace=trace,
             board=board,
@@ -469,6 +529,7 @@ def make_robot(
         )
         for platform in (module_platforms or {}).values():
             _record_platform(request.node, platform)
+        _record_bus(request.node, ideal_label(ROBOT_BUS))
         _require_built(hil_board, hil_firmware_platform, *(module_platforms or {}).values())
         logs = f", firmware logs: {scenario_dir}/firmware-*.log"
         request.node.hil_evidence = _evidence(scenario_dir, trace, bus_log_path(config)) + logs

@@ -115,7 +115,7 @@ class SessionConfig:
     bitrate: int | None = None
     """Lockstep on a bus with this bit rate (`hilrig.engine.bustiming`: what does not fit a
     cycle arrives in a later one); None: the ideal bus, every frame in its cycle. Scenarios
-    take the table's ([node] bitrate) with `--hil-timed-bus table`."""
+    take the table's ([node] bitrate) by default (`--hil-timed-bus`, `ideal_bus(why)`)."""
     physics: bool = True
     trace: bool | Sequence[TraceSink] = True
     live: Sequence[TraceSink] = ()

@@ -3,7 +3,8 @@ the cycle's time, in CAN arbitration order, and which wait for a later cycle.
 
 A virtual CAN bus carries any load; a real one carries `bitrate * period` bits per cycle. Each
 cycle the lockstep driver hands `TimedBus.window` every frame of the cycle (its RPDOs, its SYNC,
-the node's due TPDOs, heartbeats) and the ones still waiting from earlier cycles (the backlog):
+the node's due TPDOs, heartbeats, EMCYs, SDO frames) and the ones still waiting from earlier
+cycles (the backlog):
 
 - every frame counts its worst-case length (`framebits.frame_bits_worst_case`: the data length
   alone, with the most stuff bits the frame can have, and the intermission). Worst case because
@@ -17,7 +18,8 @@ the node's due TPDOs, heartbeats) and the ones still waiting from earlier cycles
   the plant, in the first later cycle that has room for it;
 - one frame of an identifier waits at a time: a newer one replaces it (a CAN controller's
   transmit mailbox per PDO, its data updated by the next cycle), and the older one is never
-  sent (`BusWindow.replaced`). So the backlog holds at most one frame per identifier, and a
+  sent (`BusWindow.replaced`); except `queued` frames (an SDO transfer's, EMCYs), which are a
+  sequence and all go out in turn, oldest first. So the backlog holds at most one frame per identifier, and a
   mapping that overloads the bus every cycle starves its lowest-priority frames for good, as
   the real bus would.
 
@@ -43,6 +45,13 @@ IDEAL = "ideal"
 """The option's spelling for no bit rate: every frame in its cycle (the virtual bus as it is)."""
 
 
+def bitrate_text(bitrate: int) -> str:
+    """'1 Mbit/s', '500 kbit/s', '83.3 kbit/s'."""
+    if bitrate >= 1_000_000:
+        return f"{bitrate / 1e6:g} Mbit/s"
+    return f"{bitrate / 1e3:g} kbit/s"
+
+
 WORST_CASE_BITS = tuple(frame_bits_worst_case(dlc) for dlc in range(MAX_DATA_BYTES + 1))
 """A classic frame's worst-case bits by its data length (`framebits`), looked up per frame."""
 
@@ -50,15 +59,18 @@ WORST_CASE_BITS = tuple(frame_bits_worst_case(dlc) for dlc in range(MAX_DATA_BYT
 class BusFrame:
     """One frame for the timed bus: its identifier, data length, the cycle it was queued in and
     what the caller needs to deliver it (`payload`, anything; filled in later for a TPDO whose
-    data comes after the schedule)."""
+    data comes after the schedule). `queued`: one of a sequence of frames of its identifier
+    that all go out in turn (an SDO transfer's requests or answers, EMCYs), not a mailbox that a
+    newer frame replaces."""
 
-    __slots__ = ("bits", "cob_id", "dlc", "origin", "payload")
+    __slots__ = ("bits", "cob_id", "dlc", "origin", "payload", "queued")
 
-    def __init__(self, cob_id: int, dlc: int, origin: int, payload: Any = None) -> None:
+    def __init__(self, cob_id: int, dlc: int, origin: int, payload: Any = None, queued: bool = False) -> None:
         self.cob_id = cob_id
         self.dlc = dlc
         self.origin = origin
         self.payload = payload
+        self.queued = queued
         self.bits = WORST_CASE_BITS[dlc]
 
     def __repr__(self) -> str:
@@ -116,9 +128,9 @@ class TimedBus:
         queue = self.backlog
         lost: list[BusFrame] = []
         if queue:
-            waiting = {f.cob_id: f for f in queue}
+            waiting = {f.cob_id: f for f in queue if not f.queued}
             for frame in frames:
-                older = waiting.pop(frame.cob_id, None)
+                older = None if frame.queued else waiting.pop(frame.cob_id, None)
                 if older is not None:
                     lost.append(older)
                 queue.append(frame)
@@ -137,7 +149,8 @@ class TimedBus:
             if t >= window_bits or frame.cob_id in seen:
                 waiting.append(frame)
                 continue
-            seen.add(frame.cob_id)
+            if not frame.queued:
+                seen.add(frame.cob_id)
             delivered.append(frame)
             t += frame.bits
         self.overhang = max(0.0, t - window_bits)
@@ -170,6 +183,41 @@ class TimedBus:
             return bits
 
 
+BUS_PROPERTY = "hil_bus"
+"""The JUnit property (pytest's user property) naming the bus of each lockstep run of a scenario:
+its bit rate (`bitrate_text`) or `ideal_label(why)`; the pytest plugin's terminal summary and
+tools/test-summary.py count the scenarios of each (`bus_summary`)."""
+_IDEAL_PREFIX = f"{IDEAL}: "
+
+
+def ideal_label(why: str) -> str:
+    """BUS_PROPERTY's value for a run on the ideal bus: 'ideal: why'."""
+    return _IDEAL_PREFIX + why
+
+
+def bus_summary(scenarios: Iterable[Sequence[str]]) -> list[str]:
+    """From each scenario's BUS_PROPERTY values (a scenario of several runs counts once per
+    bus): '12 scenarios on the timed bus (1 Mbit/s 11, 250 kbit/s 1)', then '3 on the ideal
+    bus, ...:' and one line per reason, most first. Nothing when no scenario named its bus."""
+    timed: dict[str, int] = {}
+    ideal: dict[str, int] = {}
+    for labels in scenarios:
+        for label in dict.fromkeys(labels):
+            if label.startswith(_IDEAL_PREFIX):
+                why = label.removeprefix(_IDEAL_PREFIX)
+                ideal[why] = ideal.get(why, 0) + 1
+            else:
+                timed[label] = timed.get(label, 0) + 1
+    lines = []
+    if timed:
+        counts = ", ".join(f"{label} {n}" for label, n in sorted(timed.items()))
+        lines.append(f"{sum(timed.values())} scenarios on the timed bus ({counts})")
+    if ideal:
+        lines.append(f"{sum(ideal.values())} scenarios on the ideal bus, which carries any load:")
+        lines += [f"    {n} {why}" for why, n in sorted(ideal.items(), key=lambda item: (-item[1], item[0]))]
+    return lines
+
+
 def _arbitration(frame: BusFrame) -> tuple[int, int]:
     return frame.cob_id, frame.origin
 
@@ -192,11 +240,15 @@ def needed_bitrate(
 
 
 __all__ = [
+    "BUS_PROPERTY",
     "IDEAL",
     "STANDARD_BITRATES",
     "WORST_CASE_BITS",
     "BusFrame",
     "BusWindow",
     "TimedBus",
+    "bitrate_text",
+    "bus_summary",
+    "ideal_label",
     "needed_bitrate",
 ]

@@ -42,7 +42,7 @@ from boardproto.cia301 import (
 )
 from hilrig.errors import IdentityMismatchError, NodeSilentError, SdoAbortError, SdoTimeoutError
 from hilrig.table import EmcyCode, ObjectEntry, RigTable
-from hilrig.wire.sdo import explain_abort, parse_abort
+from hilrig.wire.sdo import SDO_FRAME_BYTES, explain_abort, parse_abort
 from hilrig.wire.transport import (
     FrameLink,
     PdoDirection,
@@ -481,6 +481,34 @@ class BoardNode:
 
     def _upload(self, index: int, subindex: int, what: str, entry: ObjectEntry | None = None) -> bytes:
         return self._call_sdo(what, entry, lambda: self.remote.sdo.upload(index, subindex))
+
+    def count_sdo_frames(self, on_frame: Callable[[int, int], None] | None) -> None:
+        """Call `on_frame(cob_id, dlc)` for each SDO request sent and each answer read on the
+        default channel, aborts included (a timed bus charges their bus time: `hilrig.engine.
+        bustiming`); None: stop. Wraps the client's own two frame calls, whichever client it is
+        (canopen's, or `SocketSdoClient`)."""
+        client = self.remote.sdo
+        for name in ("send_request", "read_response"):
+            client.__dict__.pop(name, None)  # the class's own again
+        if on_frame is None:
+            return
+        send_request, read_response = client.send_request, client.read_response
+
+        def counted_send(request: bytes | bytearray) -> None:
+            send_request(request)
+            on_frame(client.rx_cobid, len(request))
+
+        def counted_read() -> bytes:
+            try:
+                response = read_response()
+            except SdoAbortedError:
+                on_frame(client.tx_cobid, SDO_FRAME_BYTES)
+                raise
+            on_frame(client.tx_cobid, len(response))
+            return response
+
+        client.send_request = counted_send  # type: ignore[method-assign]
+        client.read_response = counted_read  # type: ignore[method-assign]
 
     def call_sdo(self, what: str, transfer: Callable[[], _T]) -> _T:
         """Run canopen SDO traffic (e.g. a `PdoMap.save`); an abort is SdoAbortError in words,
