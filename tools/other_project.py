@@ -91,7 +91,10 @@ def fresh_venv(wheels: Path, venv: Path) -> Path:
     # core became seconds), else pip; either resolves hilrig's own requirements from its wheel.
     uv = Path(sys.executable).parent / "uv"
     if uv.exists():
-        installer = [uv, "pip", "install", "--quiet", "--native-tls", "--python", python]
+        # The wheel is always version 0.1.0: uv would take the one it cached from an earlier
+        # checkout's build (a scaffold of that checkout's templates), not the one just built.
+        installer = [uv, "pip", "install", "--quiet", "--native-tls", "--python", python,
+                     "--refresh-package", "hilrig", "--reinstall-package", "hilrig"]  # fmt: skip
         if os.environ.get("PIP_FIND_LINKS"):  # pip reads it by itself, uv does not (tools/deps)
             installer += ["--find-links", os.environ["PIP_FIND_LINKS"]]
     else:
