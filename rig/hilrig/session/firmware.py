@@ -57,7 +57,7 @@ def firmware_argv(
     executable: Path,
     channel: str,
     node_id: int,
-    period_us: int,
+    period_us: int | None,
     params_file: Path | None = None,
     extra_args: Sequence[str] = (),
     *,
@@ -65,18 +65,11 @@ def firmware_argv(
     image_dir: Path | None = None,
 ) -> list[str]:
     """The firmware's command line in `mode` ("lockstep" or "free"; options exactly as the firmware defines),
-    then `extra_args` as given (e.g. a fault-injection option of `joint-firmware --help`)."""
-    argv = [
-        str(executable),
-        "--can",
-        channel,
-        "--node-id",
-        str(node_id),
-        "--mode",
-        _check_mode(mode),
-        "--period-us",
-        str(period_us),
-    ]
+    then `extra_args` as given (e.g. a fault-injection option of `joint-firmware --help`).
+    `period_us` None: the firmware's own default (its table's [node] period_us)."""
+    argv = [str(executable), "--can", channel, "--node-id", str(node_id), "--mode", _check_mode(mode)]
+    if period_us is not None:
+        argv += ["--period-us", str(period_us)]
     if params_file is not None:
         argv += ["--params", str(params_file)]
     if image_dir is not None:
@@ -109,7 +102,7 @@ class Firmware:
         *,
         node_id: int,
         log_path: Path,
-        period_us: int = 1000,
+        period_us: int | None = None,
         params_file: Path | None = None,
         extra_args: Sequence[str] = (),
         executable: Path = DEFAULT_EXECUTABLE,
