@@ -211,6 +211,13 @@ def run(args: argparse.Namespace) -> int:
     from hilrig.session.faults import FaultPlan
 
     table = RigTable.load(args.table)
+    board = None
+    if args.board:
+        config = bus_config(args)  # python-can's configuration fills what the options leave out
+        board = BoardInterface(
+            config.pop("interface"), config.pop("channel", None), config.pop("bitrate", None), config
+        )
+    run = RunDescription.from_arguments(args, table, demo_run(args.out, board))
     plant = plant_factory(args, table)
     if not table.is_default_board and args.firmware is None and not args.board:
         raise UsageError(
@@ -230,13 +237,6 @@ def run(args: argparse.Namespace) -> int:
     live = _live_sinks(args)
     if args.poll_every < 0:
         raise UsageError(f"--poll-every: expected a number of cycles >= 0, got {args.poll_every}")
-    board = None
-    if args.board:
-        config = bus_config(args)  # python-can's configuration fills what the options leave out
-        board = BoardInterface(
-            config.pop("interface"), config.pop("channel", None), config.pop("bitrate", None), config
-        )
-    run = RunDescription.from_arguments(args, table, demo_run(args.out, board))
     rig = run.rig
     if plant is not None:  # another plant than the demo joint's: its own parameters
         rig = dataclasses.replace(rig, plant=plant, params=None)
@@ -339,11 +339,11 @@ def run_robot_command(args: argparse.Namespace) -> int:
     seconds = args.seconds if args.seconds is not None else GAIT_SECONDS
     if not (seconds >= 0 and seconds < float("inf")):
         raise UsageError(f"--seconds: expected a finite duration >= 0, got {args.seconds}")
+    run = RunDescription.from_arguments(args, RigTable.load(), robot_run(args.out, args.modules))
     executable = args.firmware or DEFAULT_EXECUTABLE
     if not executable.is_file():
         raise UsageError(f"firmware {executable} does not exist: {FIRMWARE_HINT}")
     live = _live_sinks(args)
-    run = RunDescription.from_arguments(args, RigTable.load(), robot_run(args.out, args.modules))
     run = run.replace(
         trace=TraceRun(args.out, trace=not args.no_trace, live=tuple(live)),
         firmware=dataclasses.replace(run.firmware, executable=executable),

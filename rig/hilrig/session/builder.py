@@ -3,15 +3,17 @@ and the rig (or, for a real board, the rig on the board's interface with no firm
 order and closed in reverse on one `contextlib.ExitStack`. Used by the pytest fixtures,
 `hilrig sim` / `make run`, the bench and the trace bench::
 
-    with hil_session(SessionConfig(out_dir=Path("out/run"), seed=1)) as session:
+    with hil_session(RunDescription(TraceRun(Path("out/run")), rig=RigRun(seed=1))) as session:
         session.rig.set("control_mode", ControlMode.VELOCITY)  # from hilrig.table
         session.rig.run(seconds=1.0)
     # firmware stopped (SIGTERM, its stop line in out/run/firmware.log), out/run/bus.log and
     # out/run/trace.rrd whole
 
-A real board: `SessionConfig(out_dir=..., board=BoardInterface("socketcan", "can0"), mode="realtime")`.
+A real board: `RunDescription(TraceRun(out_dir), bus=BusRun(board=BoardInterface("socketcan", "can0")),
+rig=RigRun(timing=TimingMode.REALTIME))` (`hilrig.session.run`; `SessionConfig` is the flat
+adapter older callers use).
 
-A robot: `SessionConfig(out_dir=..., modules=8)` starts the firmware 8 times (node ids 1..8, or a
+A robot: `RunDescription(..., robot=RobotRun(8))` starts the firmware 8 times (node ids 1..8, or a
 list), each with its own log (firmware-<id>.log) and parameter file (params-<id>.bin), and hands
 over `session.robot` (`hilrig.engine.robot.Robot`): one bus, one SYNC, the chain's mechanics from MuJoCo,
 each module's trace under /modules/<id>.
@@ -54,9 +56,6 @@ from hilrig.wire.transport import socketcan_socket
 if TYPE_CHECKING:
     from hilrig.observe.sinks import TraceSink
     from hilrig.observe.tracer import Tracer
-
-FIRMWARE_MODE = {TimingMode.LOCKSTEP: "lockstep", TimingMode.REALTIME: "free"}
-"""The firmware's --mode for each rig timing mode."""
 
 
 @dataclass(frozen=True)
@@ -538,7 +537,7 @@ def _start_firmware(
         params_file=params_file,
         extra_args=own_firmware.extra_args if own else (),
         executable=executable,
-        mode=FIRMWARE_MODE[run.rig.timing],
+        mode=run.rig.timing,
         period_us=own_firmware.own_period_us(run.rig, table),
         term_timeout_s=own_firmware.term_timeout_s,
         image_dir=log_path.parent / f"images-{node_id}",

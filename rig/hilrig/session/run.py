@@ -221,9 +221,9 @@ class RunDescription:
     def from_arguments(
         cls, args: argparse.Namespace, table: RigTable, base: RunDescription | None = None
     ) -> RunDescription:
-        """`base` (default: a run into args.out) with every run option the command line has
+        """`base` (default: a run into args.out, or out/) with every run option the command line has
         set, checked against `table`; `RunOptionError` names the option and its valid range."""
-        run = base if base is not None else cls(TraceRun(args.out))
+        run = base if base is not None else cls(TraceRun(getattr(args, "out", None) or Path("out")))
         given = {
             option.dest: getattr(args, option.dest) for option in RUN_OPTIONS if hasattr(args, option.dest)
         }
@@ -235,20 +235,27 @@ class RunDescription:
         by the same checks and error texts as the command line's."""
         given = {}
         for option in RUN_OPTIONS:
-            value = config.getoption(f"hil_{option.dest}", None)
+            value = config.getoption(f"hil_{option.dest}", None) if option.pytest else None
             if value is not None:
                 given[option.dest] = value
         return base.with_options(given, table)
 
     @staticmethod
     def pytest_options() -> tuple[tuple[str, dict[str, Any]], ...]:
-        """(flag, addoption keywords) of every run option, as pytest spells them (--hil-...)."""
+        """(flag, addoption keywords) of the run options pytest takes too, spelled --hil-..."""
         return tuple(
             (
                 "--hil-" + option.flags[-1].removeprefix("--"),
-                {"dest": f"hil_{option.dest}", "type": option.type, "default": None, "help": option.help},
+                {
+                    "dest": f"hil_{option.dest}",
+                    "type": option.type,
+                    "default": None,
+                    "metavar": option.metavar,
+                    "help": option.help + " (lockstep scenarios)",
+                },
             )
             for option in RUN_OPTIONS
+            if option.pytest
         )
 
     def with_options(self, given: Mapping[str, Any], table: RigTable) -> RunDescription:
@@ -280,6 +287,8 @@ class RunOption:
     metavar: str | None = None
     default: Any = None
     check: Callable[[Any, RigTable], str | None] | None = None
+    pytest: bool = False
+    """Also a pytest option (--hil-<flag>) that applies to every lockstep scenario."""
 
 
 @kind(ArgKind("number", out_of_range="0"))
@@ -331,6 +340,7 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
         _positive_int,
         metavar="US",
         check=_period_range,
+        pytest=True,
     ),
     RunOption(("--seed",), "seed", "rig.seed", "sensor noise seed", _integer),
 )
