@@ -108,7 +108,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=None,
         help=f"node id (default: 0x{default_node:02X}, board.toml's)",
     )
-    RunDescription.add_arguments(parser, "period_us", "seed", seed=1)
+    RunDescription.add_arguments(parser, seed=1)  # every run option
     parser.add_argument(
         "--firmware",
         type=existing_file("firmware", FIRMWARE_HINT, sniff=sniff_executable),
