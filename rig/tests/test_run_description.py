@@ -87,13 +87,20 @@ class FakeOptions:
 
 def test_pytest_options_follow_the_command_lines_rules(table: RigTable) -> None:
     flags = [flag for flag, _ in RunDescription.pytest_options()]
-    assert flags == ["--hil-period-us"]
+    assert flags == ["--hil-period-us", "--hil-boot-timeout"]
     base = RunDescription(TraceRun(Path("o")), rig=RigRun(seed=3))
     assert RunDescription.from_pytest(FakeOptions(), base, table) == base
     run = RunDescription.from_pytest(FakeOptions(hil_period_us=500, hil_seed=9), base, table)
     assert run.rig == dataclasses.replace(base.rig, period_us=500)  # --seed is no pytest option
     with pytest.raises(RunOptionError, match=r"^--period-us: expected a control period of 100\.\."):
         RunDescription.from_pytest(FakeOptions(hil_period_us=50), base, table)
+
+
+def test_the_boot_timeout_is_a_run_option(table: RigTable) -> None:
+    run = RunDescription.from_arguments(parse("--boot-timeout", "120"), table)
+    assert run.firmware.boot_timeout_s == 120.0
+    with pytest.raises(SystemExit):
+        parse("--boot-timeout", "0")
 
 
 def test_the_flat_session_config_describes_the_same_run(tmp_path: Path) -> None:

@@ -343,6 +343,16 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
         pytest=True,
     ),
     RunOption(("--seed",), "seed", "rig.seed", "sensor noise seed", _integer),
+    RunOption(
+        ("--boot-timeout",),
+        "boot_timeout",
+        "firmware.boot_timeout_s",
+        "seconds the firmware may take to boot and answer (a hang guard; default: the run's, "
+        f"{BOOT_TIMEOUT_S:g} s on a private bus)",
+        _seconds,
+        metavar="S",
+        pytest=True,
+    ),
 )
 """The run options, in --help's order."""
 
