@@ -11,7 +11,8 @@ import pytest
 from conftest import run_hilrig
 
 from hilrig import resources
-from hilrig.engine.robot import MasterHeartbeat, Robot, RobotObserver, TravellingWave
+from hilrig.apps.gait import TravellingWave
+from hilrig.engine.robot import MasterHeartbeat, Robot, RobotObserver
 from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
 from hilrig.observe.reader import Trace
 from hilrig.plants.head import HeadParams, HeadPlant

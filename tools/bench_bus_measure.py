@@ -203,7 +203,7 @@ class BusBench:
         """(cycles per second, cycles measured) of a robot of `modules` modules on this bus (the
         same engine: one SYNC, every module's PDOs, the MuJoCo chain) following the gait,
         untraced, no bus log; start-up outside the measurement."""
-        from hilrig.engine.robot import TravellingWave
+        from hilrig.apps.gait import TravellingWave
         from hilrig.session.builder import SessionConfig, open_session
 
         self._runs += 1

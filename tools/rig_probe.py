@@ -190,8 +190,9 @@ def robot_probe(cycles: int, modules: int) -> int:
     cycles after the warm-up: the robot engine's own cost per cycle, as `rig` is one Rig's."""
     import can
 
+    from hilrig.apps.gait import TravellingWave
     from hilrig.engine.rig import Rig
-    from hilrig.engine.robot import Robot, TravellingWave, module_ids
+    from hilrig.engine.robot import Robot, module_ids
     from hilrig.plants.chain import ChainPhysics
     from hilrig.session.fake_node import FakeJointNode
     from hilrig.table import RigTable

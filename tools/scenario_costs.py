@@ -71,8 +71,9 @@ def main() -> int:
         fresh_interpreter(CONFTEST_IMPORTS)
     with timed("imports in this process (first time)"):
         import hilrig.session.builder as builder
+        from hilrig.apps.gait import TravellingWave
         from hilrig.engine.rig import Rig
-        from hilrig.engine.robot import Robot, TravellingWave
+        from hilrig.engine.robot import Robot
         from hilrig.observe.reader import Trace
         from hilrig.session import netns
         from hilrig.table import RigTable

@@ -100,8 +100,9 @@ _NODE_IDENTITY_KEYS = frozenset(
 _NODE_STANDARD_KEYS = frozenset(standard_document()["node"])
 _FIELD_KEYS = frozenset({"name", "index", "unit", "kind", "min", "max", "description"})
 # Optional on a field: access follows from its kind (the only one the loader accepts), a field is
-# not stored and starts at 0 (or its min, when 0 is outside its range) unless it says otherwise.
-_FIELD_OPTIONAL_KEYS = frozenset({"access", "default", "stored"})
+# not stored and starts at 0 (or its min, when 0 is outside its range) unless it says otherwise;
+# `stream = true` puts a command field in the setpoint stream a master sends every cycle.
+_FIELD_OPTIONAL_KEYS = frozenset({"access", "default", "stored", "stream"})
 _HIL_IO_KEYS = frozenset({"name", "index", "type", "min", "max", "unit", "description"})
 _VALUES_KEY = frozenset({"values"})  # optional on fields and HIL I/O: the enum or bitset carried
 _NAMED_SET_KEYS = frozenset({"name", "description"})
@@ -282,6 +283,9 @@ def _load_field(source: Path, position: int, data: Any) -> Field:
         )
     if stored and access is not Access.READ_WRITE:
         raise entry.error("only rw fields can be stored (a ro field is recomputed by firmware)")
+    stream = entry.boolean("stream", False)
+    if stream and kind is not Kind.COMMAND:
+        raise entry.error(f"only command fields are streamed (a master sends them), not a {kind.value} field")
     return Field(
         name=name,
         index=index,
@@ -294,6 +298,7 @@ def _load_field(source: Path, position: int, data: Any) -> Field:
         stored=stored,
         description=entry.text("description"),
         values=entry.optional_text("values"),
+        stream=stream,
     )
 
 

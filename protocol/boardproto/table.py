@@ -155,6 +155,8 @@ class Field:
     stored: bool
     description: str
     values: str | None = None  # the [[enum]] or [[bitset]] its values come from
+    stream: bool = False
+    """In the setpoint stream: a master sends it every cycle (a command's watchdog may watch it)."""
 
     subindex = 0
     data_type = DataType.REAL32
@@ -605,6 +607,12 @@ class BoardTable:
     @property
     def pdos(self) -> tuple[Pdo, ...]:
         return (*self.rpdos, *self.tpdos)
+
+    @property
+    def setpoint_stream(self) -> tuple[str, ...]:
+        """The fields a master sends every cycle (`stream = true`), in table order; the rig sends
+        the RPDOs that carry them each cycle. Empty: RPDOs go out when a value changes."""
+        return tuple(f.name for f in self.fields if f.stream)
 
     def field(self, name: str) -> Field:
         return _lookup("board field", self._fields_by_name, name)

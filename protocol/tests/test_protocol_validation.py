@@ -227,6 +227,13 @@ def test_an_access_other_than_the_kinds_is_still_refused(edit_table: TableEditor
     refused(edit_table('access = "ro"\n', 'access = "rw"\n'), "a sensor field must have access 'ro'")
 
 
+def test_only_a_command_field_is_in_the_setpoint_stream(edit_table: TableEditor) -> None:
+    # motor_position, the first field, is a sensor: the board writes it, no master streams it.
+    streamed_sensor = edit_table("stored = false\n", "stored = false\nstream = true\n")
+    refused(streamed_sensor, "only command fields are streamed")
+    assert load_table(edit_table("stored = false\n", "stored = false\n")).setpoint_stream == ()
+
+
 @pytest.mark.parametrize("count", [0, 5])
 def test_refuses_heartbeat_consumer_count_outside_its_range(edit_table: TableEditor, count: int) -> None:
     refused(

@@ -99,6 +99,11 @@ class RigTable:
             isinstance(entry, HilIo) and self.is_hil_input(name)
         )
 
+    @property
+    def setpoint_stream(self) -> tuple[str, ...]:
+        """The fields a master sends every cycle (the table's `stream = true`)."""
+        return self.board.setpoint_stream
+
     def fields_of_kind(self, kind: Kind) -> tuple[Field, ...]:
         return self.board.fields_of_kind(kind)
 

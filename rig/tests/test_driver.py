@@ -334,20 +334,20 @@ def test_a_plant_whose_field_no_tpdo_carries_is_refused_naming_it() -> None:
         driver.configure()
 
 
-class TableWithout:
-    """The demo table less some of its fields (a board without a setpoint stream)."""
+class TableStreaming:
+    """The demo table with another setpoint stream (a board that streams these fields, or none)."""
 
-    def __init__(self, table: RigTable, *left_out: str) -> None:
+    def __init__(self, table: RigTable, *streamed: str) -> None:
         self._table = table
-        self.names = tuple(name for name in table.names if name not in left_out)
+        self.setpoint_stream = streamed
 
     def __getattr__(self, name: str) -> object:
         return getattr(self._table, name)
 
 
-def test_a_board_without_the_setpoint_fields_has_no_stream_and_sends_rpdos_when_changed() -> None:
+def test_a_board_that_streams_nothing_has_no_stream_and_sends_rpdos_when_changed() -> None:
     node = StubNode()
-    node.table = TableWithout(node.table, "velocity_setpoint", "torque_setpoint")  # type: ignore[assignment]
+    node.table = TableStreaming(node.table)  # type: ignore[assignment]
     driver = LockstepDriver(node, JointModel.of(JointParams(), 1), period_us=1000)  # type: ignore[arg-type]
     driver.configure()
     driver.node_entered(NmtState.OPERATIONAL)
@@ -358,6 +358,22 @@ def test_a_board_without_the_setpoint_fields_has_no_stream_and_sends_rpdos_when_
     driver.step()
     changed = BOARD_TABLE.rpdo(3).cob_id(NODE_ID)
     assert [c for c, _ in _link(driver).sent] == [SENSORS, changed, SYNC_COB_ID]
+
+
+def test_the_stream_is_what_the_table_streams_not_the_demos_field_names() -> None:
+    node = StubNode()
+    node.table = TableStreaming(node.table, "position_setpoint")  # type: ignore[assignment]
+    driver = LockstepDriver(node, JointModel.of(JointParams(), 1), period_us=1000)  # type: ignore[arg-type]
+    driver.configure()
+    driver.node_entered(NmtState.OPERATIONAL)
+    driver.step()
+    driver.step()
+    streamed = BOARD_TABLE.rpdo(3).cob_id(NODE_ID)  # control_mode and position_setpoint
+    assert [c for c, _ in _link(driver).sent][-3:] == [SENSORS, streamed, SYNC_COB_ID]
+
+
+def test_the_demo_table_streams_its_two_setpoints() -> None:
+    assert BOARD_TABLE.setpoint_stream == ("velocity_setpoint", "torque_setpoint")
 
 
 def test_a_setpoint_field_of_the_table_in_no_rpdo_is_refused_naming_it(driver) -> None:

@@ -9,6 +9,7 @@ import importlib.util
 import itertools
 import json
 import os
+import subprocess
 import sys
 import tracemalloc
 from pathlib import Path
@@ -332,9 +333,11 @@ FAILING_PROBE = "import sys; print('valgrind: out of memory', file=sys.stderr); 
 
 
 def test_a_probe_that_times_out_or_fails_says_so_with_the_end_of_its_stderr() -> None:
+    # The shell writes its line at once; the timeout is long enough for a loaded host to start it.
+    slow_shell = ["sh", "-c", "echo 'callgrind: still counting' >&2; exec sleep 60"]
     with pytest.raises(bench_common.ProbeError) as timed_out:
-        bench_common.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=1.0)
-    assert "timed out after 1 s" in str(timed_out.value)
+        bench_common.run_probe(slow_shell, timeout_s=3.0)
+    assert "timed out after 3 s" in str(timed_out.value)
     assert "callgrind: still counting" in str(timed_out.value)
     with pytest.raises(bench_common.ProbeError) as failed:
         bench_common.run_probe([sys.executable, "-c", FAILING_PROBE])
@@ -349,11 +352,17 @@ def _native_step_with_a_rig_probe_that_times_out(out: Path, monkeypatch: pytest.
     the baseline's, a stand-in tree)."""
     baseline_tree = out / "baseline" / ("ab" * 20)
 
+    def timed_out(command: list[str], **options: object) -> None:
+        # What subprocess.run raises for a probe past its timeout: no wall clock in this test.
+        raise subprocess.TimeoutExpired(command, 0.5, stderr="callgrind: still counting\n")
+
     def rig_probe_instructions(
         mode: str, cycles: int, *, all_threads: bool = False, root: Path = bench_common.ROOT
     ) -> int:
         if mode == "rig" and root != baseline_tree:
-            bench_common.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=0.5)
+            with pytest.MonkeyPatch.context() as probe_patch:
+                probe_patch.setattr(bench_common.subprocess, "run", timed_out)
+                bench_common.run_probe([sys.executable, "-c", SLOW_PROBE], timeout_s=0.5)
         return cycles * 1000
 
     monkeypatch.setattr(bench_native, "prepare_checkout", lambda: None)

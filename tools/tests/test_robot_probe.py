@@ -36,8 +36,9 @@ class QuietWhenAsked(rig_probe.AnsweringLink):  # type: ignore[misc, name-define
 def test_a_module_whose_process_died_is_lost_at_that_cycle_and_the_others_run_on() -> None:
     import can
 
+    from hilrig.apps.gait import TravellingWave
     from hilrig.engine.rig import Rig
-    from hilrig.engine.robot import Robot, RobotObserver, TravellingWave
+    from hilrig.engine.robot import Robot, RobotObserver
     from hilrig.errors import FirmwareError
     from hilrig.plants.chain import ChainPhysics
     from hilrig.session.fake_node import FakeJointNode

@@ -15,21 +15,18 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from boardproto.table import FULL_PDO_PROFILE
 from hilrig.apps.demo import Progress, RunAbortedError, ScenarioFileError
-from hilrig.engine.robot import Robot, TravellingWave
+from hilrig.apps.gait import TravellingWave
+from hilrig.engine.robot import Robot
 from hilrig.errors import FirmwareError, LockstepError
 from hilrig.session.builder import hil_session
 from hilrig.session.netns import require_private_buses
 from hilrig.session.run import BOOT_TIMEOUT_S, FirmwareRun, RigRun, RobotRun, RunDescription, TraceRun
 from hilrig.table import RigTable
-
-if TYPE_CHECKING:
-    pass
 
 RobotScenario = Callable[[Robot], object]
 GAIT_SECONDS = 4.0

@@ -54,10 +54,6 @@ from hilrig.wire.transport import (
     send_frames,
 )
 
-SETPOINT_STREAM = ("velocity_setpoint", "torque_setpoint")
-"""Fields of the RPDO sent every cycle, like a real master's setpoint stream (the demo joint's
-watchdog watches it). Those of them a board's table has must be in an enabled RPDO; a board with
-none of them has no stream: its RPDOs go out when a scenario changes a value."""
 LIVENESS_SLICE_S = 0.25
 """While waiting for TPDOs, check this often (wall clock) whether the firmware still lives."""
 
@@ -371,7 +367,10 @@ class Driver:
             sharing = [p.label for p in enabled_rpdos if p.cob_id == cob_id]
             if len(sharing) > 1:  # the node could not tell their frames apart, nor could the history
                 problems.append(f"{' and '.join(sharing)} share a COB-ID")
-        streamed = [name for name in SETPOINT_STREAM if name in table.names]
+        # The table's setpoint stream goes out every cycle, like a real master's (a board's
+        # watchdog may watch it); each of its fields must be in an enabled RPDO. A board with
+        # none has no stream: its RPDOs go out when a scenario changes a value.
+        streamed = table.setpoint_stream
         stream = [p for p in enabled_rpdos if set(streamed) & set(p.names)]
         for name in streamed:
             if not any(name in p.names for p in stream):
@@ -657,7 +656,6 @@ def _outputs_getter(at: Sequence[tuple[PdoLayout, int]]) -> Callable[[TpdoValues
 
 __all__ = [
     "BUS_EVENTS_PATH",
-    "SETPOINT_STREAM",
     "SYNC_FRAMES",
     "CycleResult",
     "Driver",

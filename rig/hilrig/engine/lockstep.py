@@ -4,8 +4,8 @@ One cycle (index n, simulation time t = n * period, exact):
 
 1. sample the plant (`hilrig.plants.interface.Plant`): its sensor frame -> the RPDO(s) mapping
    the HIL inputs, and its truth;
-2. send the setpoint stream (the RPDO carrying velocity_setpoint, every cycle like a real
-   master; the firmware's watchdog watches it) and any other RPDO a scenario changed;
+2. send the setpoint stream (the RPDOs carrying the table's `stream = true` fields, every cycle
+   like a real master; a firmware's watchdog may watch it) and any other RPDO a scenario changed;
 3. send SYNC with counter (n mod 240) + 1;
 4. wait for every synchronous TPDO due at this SYNC (type k: every k-th SYNC since the node
    entered operational); the wall-clock bound is only a hang guard (`HangGuard`), and one that
@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from hilrig.engine.bustiming import BusTiming
 from hilrig.engine.driver import (
     LIVENESS_SLICE_S,
-    SETPOINT_STREAM,
     SYNC_FRAMES,
     CycleResult,
     Driver,
@@ -487,7 +486,6 @@ def cycles_for(seconds: float, period_us: int) -> int:
 
 __all__ = [
     "HANG_CAP_FACTOR",
-    "SETPOINT_STREAM",
     "CycleProblem",
     "CycleResult",
     "CycleStart",

@@ -31,7 +31,6 @@ from boardproto.cia301 import (
 )
 from boardproto.cia305 import MASTER_COB_ID as LSS_MASTER_COB_ID
 from hilrig import resources
-from hilrig.engine.driver import SETPOINT_STREAM
 from hilrig.errors import PdoMappingError
 from hilrig.plants import (
     ENCODER_MODULUS,
@@ -144,14 +143,15 @@ def load_layout(eds: str | Path, node_id: int, table: RigTable | None = None) ->
     tpdos = [p for p in compile_pdos(PdoDirection.TPDO, node.tpdo.map).values() if p.enabled and p.names]
     inputs = {io.name for io in table.board.hil_inputs}
     sensor = [p for p in rpdos if set(p.names) == inputs]
-    setpoint = [p for p in rpdos if set(SETPOINT_STREAM) <= set(p.names)]
+    stream = table.setpoint_stream
+    setpoint = [p for p in rpdos if stream and set(stream) <= set(p.names)]
     cyclic = tuple(p for p in tpdos if p.is_cyclic)
     status = [p for p in cyclic if "fault_flags" in p.names]
     problems = []
     if not sensor:
         problems.append(f"no enabled RPDO maps exactly the HIL inputs {sorted(inputs)}")
     if not setpoint:
-        problems.append(f"no enabled RPDO maps the setpoint stream {SETPOINT_STREAM}")
+        problems.append(f"no enabled RPDO maps the setpoint stream {stream} (fields with stream = true)")
     if not status or set(status[0].names) != {"safe_state", "fault_flags"}:
         problems.append("no synchronous TPDO maps exactly safe_state and fault_flags")
     if problems:
