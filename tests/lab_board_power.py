@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+from hilrig.engine.timing import TimingMode
 from hilrig.session.firmware import firmware_argv
 
 OFF_TIMEOUT_S = 30.0
@@ -21,7 +22,7 @@ OFF_TIMEOUT_S = 30.0
 
 def power_on(state: Path, firmware: Path, node_id: int, period_us: int) -> None:
     state.mkdir(parents=True, exist_ok=True)
-    argv = firmware_argv(firmware, "vcan0", node_id, period_us, mode="free")
+    argv = firmware_argv(firmware, "vcan0", node_id, period_us, mode=TimingMode.REALTIME)
     with (state / "board.log").open("ab") as log:
         process = subprocess.Popen(
             argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, start_new_session=True

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 from conftest import NODE_ID, REALTIME_FIRMWARE_PERIOD_US, REPO, stop_summary
 
+from hilrig.engine.timing import TimingMode
 from hilrig.session.firmware import Firmware
 from hilrig.session.netns import PrivateBus
 
@@ -36,7 +37,7 @@ def test_readme_command_runs_the_realtime_scenarios_against_a_board_on_an_interf
         private_bus,
         node_id=NODE_ID,
         log_path=scenario_dir / "board.log",
-        mode="free",
+        mode=TimingMode.REALTIME,
         period_us=REALTIME_FIRMWARE_PERIOD_US,
     )
     board.start()

@@ -621,7 +621,7 @@ class BusBench:
         with (
             self.bus.open(can_filters=filters) as meter,
             self.bus.open() as config_bus,
-            self.firmware("free", mode="free") as fw,
+            self.firmware("free", mode="realtime") as fw,
         ):
             node = BoardNode(config_bus, FIRMWARE_NODE_ID, self.eds, self.table, sdo_timeout_s=2.0)
             try:

@@ -648,6 +648,9 @@ struct NodeIdentity {{
   std::string_view software_version;
   std::uint8_t default_node_id;
   std::uint16_t heartbeat_ms;
+  std::uint32_t period_us;      // the control period of a start without --period-us
+  std::uint32_t period_us_min;  // the control periods --period-us accepts
+  std::uint32_t period_us_max;
 }};
 
 inline constexpr NodeIdentity kNode = {{
@@ -660,6 +663,9 @@ inline constexpr NodeIdentity kNode = {{
     .software_version = {cpp_string(node.software_version)},
     .default_node_id = 0x{node.default_node_id:02X},
     .heartbeat_ms = {node.heartbeat_ms},
+    .period_us = {node.period_us},
+    .period_us_min = {node.period_us_min},
+    .period_us_max = {node.period_us_max},
 }};
 
 // Number of entries of 0x1003 "pre-defined error field" (sub-indices 1..n).

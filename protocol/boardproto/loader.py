@@ -232,6 +232,10 @@ def _load_node(source: Path, data: Any) -> NodeIdentity:
     entry = _Entry(source, "node", data)
     entry.check_keys(_NODE_IDENTITY_KEYS, _NODE_STANDARD_KEYS)
     u32 = 0xFFFF_FFFF
+    # The firmware's period is an UNSIGNED32 of microseconds: the range's ends bound the default.
+    period_min = entry.integer("period_us_min", 1, u32)
+    period_max = entry.integer("period_us_max", period_min, u32)
+    period_us = entry.integer("period_us", period_min, period_max)
     return NodeIdentity(
         device_type=entry.integer("device_type", 0, u32),
         vendor_id=entry.integer("vendor_id", 0, u32),
@@ -248,6 +252,9 @@ def _load_node(source: Path, data: Any) -> NodeIdentity:
         bitrate=entry.integer("bitrate", 10_000, 1_000_000),  # classic CAN: 10 kbit/s .. 1 Mbit/s
         mcu_clock_hz=entry.integer("mcu_clock_hz", 1_000_000, 0xFFFF_FFFF),
         cycle_budget_percent=entry.integer("cycle_budget_percent", 1, 100),
+        period_us=period_us,
+        period_us_min=period_min,
+        period_us_max=period_max,
     )
 
 

@@ -34,6 +34,9 @@ heartbeat_consumers = 1         # 0x1016 consumer heartbeat time entries: the bu
 bitrate = 1000000               # bit/s of the board's bus: the rig's timed bus in scenarios
 mcu_clock_hz = 168000000        # the board's microcontroller core clock (a Cortex-M4F)
 cycle_budget_percent = 50       # a control cycle's worst case may take this share of the period
+period_us = 1000                # the control period [us] a run uses unless it is given another
+period_us_min = 100             # the shortest control period the firmware accepts [us]
+period_us_max = 1000000         # the longest control period the firmware accepts [us]
 
 # The EMCY codes the CANopen engine raises (firmware/canopen/Emcy.hpp names each).
 [[emcy]]

@@ -414,6 +414,12 @@ class NodeIdentity:
     cycle_budget_percent: int
     """The share of the period (at `mcu_clock_hz`) the worst control cycle may take on the
     microcontroller: what the Cortex-M build's cycle budget check holds it to."""
+    period_us: int
+    """The control period [us] of a run that names none: the firmware's --period-us default and
+    the rig's (`hilrig.session.run`)."""
+    period_us_min: int
+    period_us_max: int
+    """The control periods [us] the firmware accepts and the rig lets a run ask for."""
 
     def cycle_budget(self, period_us: int) -> int:
         """Core cycles a control cycle of `period_us` may take at most."""

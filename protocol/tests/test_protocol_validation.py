@@ -36,6 +36,24 @@ def test_minimal_table_is_valid(minimal_table: str, write_table: TableWriter) ->
     assert table.rpdo(1).bits == 48
 
 
+def test_the_control_period_and_its_range_come_from_the_standard_node_block(
+    minimal_table: str, write_table: TableWriter
+) -> None:
+    node = load_table(write_table(minimal_table)).node
+    assert (node.period_us_min, node.period_us, node.period_us_max) == (100, 1000, 1_000_000)
+
+
+def test_refuses_a_control_period_outside_its_range(edit_table: TableEditor) -> None:
+    refused(
+        edit_table("default_node_id = 0x10", "default_node_id = 0x10\nperiod_us = 50"),
+        "node: period_us 50 outside 100..",
+    )
+    refused(
+        edit_table("default_node_id = 0x10", "default_node_id = 0x10\nperiod_us_min = 0"),
+        "period_us_min 0 outside 1..",
+    )
+
+
 def test_refuses_duplicate_name(edit_table: TableEditor) -> None:
     refused(
         edit_table('name = "velocity_kp"', 'name = "motor_position"'),

@@ -35,7 +35,7 @@ namespace {
 
 // The mps2-an386's core clock (qemu's as well); an STM32G474 would say 170 MHz here.
 constexpr std::uint32_t kCoreClockHz = 25'000'000;
-constexpr std::uint32_t kPeriodUs = 1000;  // one control cycle per SysTick
+constexpr std::uint32_t kPeriodUs = board::kNode.period_us;  // one control cycle per SysTick
 // 0x1018:4. A real board derives it from the chip's unique id (an STM32G4's 96-bit UID).
 constexpr std::uint32_t kSerialNumber = 0x4D34'0001u;
 

@@ -52,7 +52,7 @@ std::optional<int> parse_command_line(int argc, char** argv, const CommandLineTe
       ->capture_default_str();
   app.add_option("--period-us", options.period_us,
                  "control cycle period in microseconds (the cycle time the components use)")
-      ->check(CLI::Range(100u, 1'000'000u))
+      ->check(CLI::Range(text.period_us_min, text.period_us_max))
       ->capture_default_str();
   app.add_option("--params", options.params_file,
                  "file for stored parameters (0x1010 store / 0x1011 restore); loaded at start-up");

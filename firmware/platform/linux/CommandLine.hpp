@@ -18,7 +18,7 @@ struct Options {
   std::string can_interface = "vcan0";
   int node_id = 0;  // the board's default node id, set by the caller
   Mode mode = Mode::Lockstep;
-  std::uint32_t period_us = 1000;
+  std::uint32_t period_us = 0;  // the board's default period, set by the caller
   std::string params_file;
   bool print_schedule = false;
   std::uint32_t rogue_write_cycle = 0;  // test-only fault injection; 0 = off
@@ -36,6 +36,8 @@ struct CommandLineText {
   std::string_view board_description;  // first words of --help
   std::uint8_t unconfigured_node_id;   // CiA 305's "no node id yet" (LSS only), accepted by --node-id
   std::string rogue_write_help;        // --inject-rogue-write-at-cycle's help (names the board's field)
+  std::uint32_t period_us_min;         // the periods --period-us accepts (the board's table)
+  std::uint32_t period_us_max;
 };
 
 // Exit code of a bad command line.

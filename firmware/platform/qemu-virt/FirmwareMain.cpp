@@ -51,7 +51,7 @@ constexpr std::uint32_t kSerialDefault = 0x5649'0001u;  // "VI": 0x1018:4 when t
 struct BootParameters {
   std::uint8_t node_id = board::kNode.default_node_id;
   bool lockstep = true;
-  std::uint32_t period_us = 1000;
+  std::uint32_t period_us = board::kNode.period_us;
   std::uint32_t serial = kSerialDefault;
   bool flash = false;  // qemu has a drive behind pflash 1
   std::uint32_t count_cycles = 0;  // >0: measure that many cycles, print their cost, end qemu
@@ -80,7 +80,8 @@ BootParameters parse_boot_parameters(std::string_view text) {
       parameters.lockstep = word.ends_with("=lockstep");
     } else if (key == "node-id" && numeric && number <= 0xFF) {
       parameters.node_id = static_cast<std::uint8_t>(number);
-    } else if (key == "period-us" && numeric && number > 0) {
+    } else if (key == "period-us" && numeric && number >= board::kNode.period_us_min &&
+               number <= board::kNode.period_us_max) {
       parameters.period_us = number;
     } else if (key == "count-cycles" && numeric) {
       parameters.count_cycles = number;

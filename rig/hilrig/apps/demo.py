@@ -4,10 +4,10 @@ a velocity then a torque profile (or a scenario file), and a summary.
 `make run` and `hilrig sim` both call `run_demo`. Needs root and a kernel with vcan (natively,
 or inside the micro-VM of `tools/with-vcan`)::
 
-    summary = run_demo(DemoOptions(out_dir=Path("out/demo")))
+    summary = run_demo(DemoOptions(demo_run(Path("out/demo"))))
     print(format_summary(summary))
 
-With `board=BoardInterface(...)` the same profiles run in real time against a board (or a
+With `demo_run(out_dir, board=BoardInterface(...))` the same profiles run in real time against a board (or a
 free-running firmware) on that interface: no firmware is started, the rig sends SYNC every
 period. `live` sinks stream the trace to a viewer while it runs, beside out_dir/trace.rrd.
 
@@ -28,32 +28,34 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig
+from hilrig.engine.rig import Rig, TimingMode
 from hilrig.errors import FirmwareError, LockstepError, RealTimeError, RigError
-from hilrig.plants import JointParams, default_plant
+from hilrig.plants import JointParams
 from hilrig.plants.joint import SPRING_STIFFNESS
-from hilrig.session.builder import PlantFactory, SessionConfig, hil_session
+from hilrig.session.baremetal import QEMU_VIRT
+from hilrig.session.builder import hil_session
 from hilrig.session.faults import FaultEvent, FaultInjector, FaultPlan
-from hilrig.session.firmware import DEFAULT_EXECUTABLE
 from hilrig.session.netns import require_private_buses
+from hilrig.session.run import (
+    BOOT_TIMEOUT_S,
+    BoardInterface,
+    BusRun,
+    FirmwareRun,
+    RigRun,
+    RunDescription,
+    TraceRun,
+)
 from hilrig.table import BOARD_TABLE, ControlMode, RigTable
 from hilrig.wire.node import EmcyRecord
-
-if TYPE_CHECKING:
-    from hilrig.observe.sinks import TraceSink
-    from hilrig.session.builder import BoardInterface
 
 Scenario = Callable[[Rig], object]
 Progress = Callable[[str], None]
 
 SETTLE_S = 0.2
 """Tracking errors skip this long after each setpoint or mode change (the step response)."""
-BOOT_TIMEOUT_S = 60.0
-"""Hang guard for the firmware's boot-up (ASan build in the software-emulated VM)."""
 DEFAULT_POLL_EVERY = 250
 """Cycles between SDO reads of the fields a dashboard plots but no PDO carries (4 Hz at 1 kHz).
 Each read is a round trip between two cycles, dear in the micro-VM: the rarer, the closer `make
@@ -110,34 +112,36 @@ def demo_params() -> JointParams:
     )
 
 
+def demo_run(out_dir: Path, board: BoardInterface | None = None) -> RunDescription:
+    """The demo's run: the demo joint (`demo_params`) with seed 1 in lockstep on a private bus;
+    with `board`, the rig in real time against it (no firmware started, its heartbeat awaited
+    `BOARD_SILENT_S`)."""
+    run = RunDescription(
+        TraceRun(out_dir),
+        firmware=FirmwareRun(boot_timeout_s=BOOT_TIMEOUT_S),
+        rig=RigRun(params=demo_params(), seed=1, sdo_timeout_s=1.0),
+    )
+    if board is None:
+        return run
+    return run.replace(
+        bus=BusRun(board=board),
+        firmware=dataclasses.replace(run.firmware, boot_timeout_s=BOARD_SILENT_S),
+        rig=dataclasses.replace(run.rig, timing=TimingMode.REALTIME),
+    )
+
+
 @dataclass(frozen=True)
 class DemoOptions:
-    out_dir: Path
+    """What the demo adds to its run (`demo_run`, or one from the command line)."""
+
+    run: RunDescription
     scenario_file: Path | None = None
-    node_id: int = 0x10
-    period_us: int = 1000
-    seed: int = 1
-    params: JointParams = field(default_factory=demo_params)
-    trace: bool = True
-    executable: Path = DEFAULT_EXECUTABLE
-    eds: Path = DEFAULT_EDS_PATH
     faults: FaultPlan = field(default_factory=FaultPlan)
     poll_every: int = DEFAULT_POLL_EVERY
     """With a trace: every how many cycles the fields a dashboard plots but no PDO carries are
     read over SDO into it (0: never)."""
-    live: tuple[TraceSink, ...] = ()
-    """Where the trace also streams while the run goes (spawn, web, connect), beside trace.rrd."""
-    board: BoardInterface | None = None
-    """A board (or free-running firmware) on an interface: real time, no firmware started."""
-    bitrate: int | None = None
-    """Lockstep on a bus of this bit rate (`hilrig.engine.bustiming`); None: the ideal bus."""
-    plant: PlantFactory | None = None
-    """What makes the plant from (params, seed); None: the demo joint with `params`."""
     table: RigTable | None = None
     """The board's table; None: the demo joint's."""
-    firmware_platform: str = "linux"
-    """Where the firmware runs (hilrig.session.baremetal.FIRMWARE_PLATFORMS); with "qemu-virt"
-    `executable` is the bare-metal image."""
 
 
 @dataclass(frozen=True)
@@ -211,7 +215,7 @@ board is already running, so a silent bus is said within seconds, not after the 
 def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
     """Firmware + rig in lockstep on a private bus (`hilrig.session.builder`), or the rig in real time
     against `options.board`; the bus log goes to out_dir/bus.log."""
-    if options.board is None:
+    if options.run.bus.board is None:
         require_private_buses(
             "the simulation", "run `make run`, or `tools/with-vcan -- .venv/bin/hilrig sim`"
         )
@@ -226,43 +230,30 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
         if options.scenario_file is not None
         else default_scenario(progress)
     )
-    out = options.out_dir
+    run = options.run
+    board = run.bus.board
+    out = run.out_dir
+    node_id = run.node_id(table)
+    period_us = run.rig.cycle_us(table)
+    tracing = run.trace.trace is not False
     started = time.monotonic()
-    if options.trace:
+    if tracing:
         progress("sim: tracing to Rerun (importing rerun-sdk takes a while in the VM)")
-        if options.live:
-            progress("sim: streaming the trace live to " + ", ".join(map(str, options.live)))
-    if options.board is None:
+        if run.trace.live:
+            progress("sim: streaming the trace live to " + ", ".join(map(str, run.trace.live)))
+    if board is None:
+        executable = run.firmware.image if run.firmware.platform == QEMU_VIRT else run.firmware.executable
         progress(
-            f"sim: starting {options.executable.name} (node 0x{options.node_id:02X}, lockstep, "
-            f"{options.period_us} us) on a private bus"
+            f"sim: starting {executable.name} (node 0x{node_id:02X}, lockstep, "
+            f"{period_us} us) on a private bus"
         )
     else:
         progress(
-            f"sim: node 0x{options.node_id:02X} on {options.board.interface} {options.board.channel}, "
-            f"real time, SYNC every {options.period_us} us; waiting up to {BOARD_SILENT_S:g} s for "
+            f"sim: node 0x{node_id:02X} on {board.interface} {board.channel}, "
+            f"real time, SYNC every {period_us} us; waiting up to {BOARD_SILENT_S:g} s for "
             "its heartbeat"
         )
-    config = SessionConfig(
-        out_dir=out,
-        params=options.params if options.plant is None else None,
-        plant=options.plant if options.plant is not None else default_plant,
-        seed=options.seed,
-        node_id=options.node_id,
-        period_us=options.period_us,
-        trace=options.trace,
-        live=options.live if options.trace else (),
-        executable=options.executable,
-        firmware_platform=options.firmware_platform,
-        baremetal_image=options.executable,
-        eds=options.eds,
-        boot_timeout_s=BOOT_TIMEOUT_S if options.board is None else BOARD_SILENT_S,
-        sdo_timeout_s=1.0,
-        board=options.board,
-        mode="lockstep" if options.board is None else "realtime",
-        bitrate=options.bitrate if options.board is None else None,
-    )
-    with hil_session(config, table=table) as session:
+    with hil_session(run, table=table) as session:
         rig = session.rig
         assert rig is not None
         injector: FaultInjector | None = None
@@ -275,7 +266,7 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
                 on_event=lambda e: progress(f"sim: t = {e.time_s:.3f} s  fault {e.text}"),
             )
             injector.install()
-        if options.trace and options.poll_every > 0:
+        if tracing and options.poll_every > 0:
             from hilrig.observe.blueprints import dashboard_fields
 
             slow = rig.in_no_pdo(dashboard_fields(table))
@@ -291,7 +282,7 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
             first_line = str(error).splitlines()[0].rstrip(";: ")
             raise RunAbortedError(f"{first_line}; {session.evidence()}") from error
         cycling_s = time.monotonic() - cycling_started
-        summary = summarize(rig, table, options, started, out, 0, cycling_s)
+        summary = summarize(rig, table, started, out, 0, cycling_s)
         if injector is not None:
             summary = dataclasses.replace(summary, faults=tuple(injector.log))
         recorder = session.recorder
@@ -299,11 +290,11 @@ def run_demo(options: DemoOptions, progress: Progress = print) -> DemoSummary:
     summary = dataclasses.replace(
         summary,
         frames_logged=recorder.frames if recorder is not None and recorder.frames is not None else 0,
-        firmware_log=out / "firmware.log" if options.board is None else None,
+        firmware_log=out / "firmware.log" if board is None else None,
         viewer_url=viewer_url,
-        firmware_platform=options.firmware_platform,
+        firmware_platform=run.firmware.platform,
     )
-    if options.trace:
+    if session.trace_path is not None:
         summary = dataclasses.replace(summary, trace=out / "trace.rrd")
     return summary
 
@@ -350,7 +341,7 @@ def _peak_truth(rig: Rig, name: str) -> float | None:
 
 
 def summarize(
-    rig: Rig, table: RigTable, options: DemoOptions, started: float, out: Path, frames: int, cycling_s: float
+    rig: Rig, table: RigTable, started: float, out: Path, frames: int, cycling_s: float
 ) -> DemoSummary:
     # The summary's SDO reads come after the run, off the timed bus (an overloaded one would
     # never carry them); what the bus carried is said first.

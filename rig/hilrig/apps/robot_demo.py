@@ -2,7 +2,7 @@
 bus, the chain's mechanics from MuJoCo, a travelling-wave gait (or a scenario file), a summary and
 a trace with the chain in 3D. `hilrig sim --modules N` and `make run ROBOT=N` call `run_robot`::
 
-    summary = run_robot(RobotOptions(out_dir=Path("out/robot"), modules=8))
+    summary = run_robot(RobotOptions(robot_run(Path("out/robot"), modules=8)))
     print(format_robot_summary(summary))
 
 A scenario file defines `def scenario(robot): ...` and drives the `hilrig.engine.robot.Robot` itself.
@@ -15,23 +15,18 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from boardproto.table import FULL_PDO_PROFILE
-from hilrig.apps.demo import BOOT_TIMEOUT_S, Progress, RunAbortedError, ScenarioFileError
+from hilrig.apps.demo import Progress, RunAbortedError, ScenarioFileError
 from hilrig.apps.gait import TravellingWave
-from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.engine.robot import Robot
 from hilrig.errors import FirmwareError, LockstepError
-from hilrig.session.builder import SessionConfig, hil_session
-from hilrig.session.firmware import DEFAULT_EXECUTABLE
+from hilrig.session.builder import hil_session
 from hilrig.session.netns import require_private_buses
+from hilrig.session.run import BOOT_TIMEOUT_S, FirmwareRun, RigRun, RobotRun, RunDescription, TraceRun
 from hilrig.table import RigTable
-
-if TYPE_CHECKING:
-    from hilrig.observe.sinks import TraceSink
 
 RobotScenario = Callable[[Robot], object]
 GAIT_SECONDS = 4.0
@@ -42,18 +37,23 @@ SETTLE_S = TravellingWave().ramp_s + 0.5
 """Tracking errors skip the wave's ramp and the half second after it (the chain catches up)."""
 
 
+def robot_run(out_dir: Path, modules: int | Sequence[int] = 8) -> RunDescription:
+    """The robot demo's run: `modules` joint modules in lockstep on one private bus, seed 1."""
+    return RunDescription(
+        TraceRun(out_dir),
+        firmware=FirmwareRun(boot_timeout_s=BOOT_TIMEOUT_S),
+        rig=RigRun(seed=1, sdo_timeout_s=5.0),
+        robot=RobotRun(modules),
+    )
+
+
 @dataclass(frozen=True)
 class RobotOptions:
-    out_dir: Path
-    modules: int | Sequence[int] = 8
+    """What the robot demo adds to its run (`robot_run`, or one from the command line)."""
+
+    run: RunDescription
     seconds: float = GAIT_SECONDS
     scenario_file: Path | None = None
-    period_us: int = 1000
-    seed: int = 1
-    executable: Path = DEFAULT_EXECUTABLE
-    eds: Path = DEFAULT_EDS_PATH
-    trace: bool = True
-    live: tuple[TraceSink, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -120,27 +120,19 @@ def run_robot(options: RobotOptions, progress: Progress = print) -> RobotSummary
         if options.scenario_file is not None
         else gait_scenario(options.seconds, progress)
     )
+    run = options.run
+    assert run.robot is not None, "a robot's run names its modules (RunDescription.robot)"
+    table = RigTable.load()
     started = time.monotonic()
-    count = options.modules if isinstance(options.modules, int) else len(options.modules)
+    modules = run.robot.modules
+    count = modules if isinstance(modules, int) else len(modules)
     progress(
-        f"sim: starting {count} x {options.executable.name} (lockstep, {options.period_us} us) on "
-        "one private bus, the chain's mechanics from MuJoCo"
+        f"sim: starting {count} x {run.firmware.executable.name} (lockstep, {run.rig.cycle_us(table)} us) "
+        "on one private bus, the chain's mechanics from MuJoCo"
     )
-    if options.trace:
+    if run.trace.trace is not False:
         progress("sim: tracing to Rerun (importing rerun-sdk takes a while in the VM)")
-    config = SessionConfig(
-        out_dir=options.out_dir,
-        modules=options.modules,
-        seed=options.seed,
-        period_us=options.period_us,
-        trace=options.trace,
-        live=options.live if options.trace else (),
-        executable=options.executable,
-        eds=options.eds,
-        boot_timeout_s=BOOT_TIMEOUT_S,
-        sdo_timeout_s=5.0,
-    )
-    with hil_session(config, table=RigTable.load()) as session:
+    with hil_session(run, table=table) as session:
         robot = session.robot
         assert robot is not None
         progress(f"sim: modules {', '.join(f'0x{n:02X}' for n in robot.node_ids)} operational")
@@ -157,7 +149,7 @@ def run_robot(options: RobotOptions, progress: Progress = print) -> RobotSummary
         viewer_url = session.tracer.web_url if session.tracer is not None else None
         cycles = robot.cycle
         simulated_s = robot.t
-        bus_load = _bus_load(robot, config)
+        bus_load = _bus_load(robot, run.robot)
     return RobotSummary(
         cycles=cycles,
         simulated_s=simulated_s,
@@ -165,21 +157,21 @@ def run_robot(options: RobotOptions, progress: Progress = print) -> RobotSummary
         wall_s=time.monotonic() - started,
         modules=modules,
         head_travel_m=float(np.linalg.norm(head_end[0] - head_start[0])),
-        out_dir=options.out_dir,
-        trace=options.out_dir / "trace.rrd" if options.trace else None,
+        out_dir=run.out_dir,
+        trace=session.trace_path,
         viewer_url=viewer_url,
         bus_load=bus_load,
     )
 
 
-def _bus_load(robot: Robot, config: SessionConfig) -> tuple[str, ...]:
+def _bus_load(robot: Robot, described: RobotRun) -> tuple[str, ...]:
     """The bus load lines of the summary, one per PDO profile of the table: the modules run the
     firmware's default mapping (profile full: the session writes none); the others (lean: made
     to fit a real bus) show what it would take."""
     from hilrig.apps.busload import robot_load_line
 
     table = RigTable.load().board
-    master_ms = config.master.period_ms if config.master is not None else None
+    master_ms = described.master.period_ms if described.master is not None else None
     return tuple(
         robot_load_line(
             table,

@@ -63,6 +63,7 @@ from boardproto import TableError
 from hilrig import resources
 from hilrig.cli.common import Command, UsageError, add_verbose_option, choose_table, one_line
 from hilrig.errors import LogFormatError, RigError
+from hilrig.session.run import RunOptionError
 
 if _AT_START:  # imported: a program that imports hilrig.cli keeps its own handler
     signal.signal(signal.SIGINT, _PREVIOUS_SIGINT or signal.default_int_handler)
@@ -238,7 +239,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         choose_table(args)
         return int(args.run(args))
-    except (UsageError, TableError, LogFormatError) as error:  # a bad --table or FILE is a bad argument
+    except (UsageError, TableError, LogFormatError, RunOptionError) as error:  # a bad argument
         return _report(prog, error, EXIT_USAGE, verbose=args.verbose)
     except BrokenPipeError:  # `hilrig ... | head` stopped reading: not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

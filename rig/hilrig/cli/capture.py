@@ -42,9 +42,8 @@ from hilrig.cli.common import (
 )
 from hilrig.cli.files import output_file
 from hilrig.errors import FieldNameError, RigError, SdoTimeoutError
+from hilrig.session.run import RunDescription
 from hilrig.table import RigTable
-
-DEFAULT_PERIOD_US = 1000  # the firmware's default control period (joint-firmware --period-us)
 
 
 def percent(text: str) -> int:
@@ -107,13 +106,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         type=output_file("trace", suffixes=(".rrd",)),
         help="also write the recording as a Rerun .rrd",
     )
-    parser.add_argument(
-        "--period-us",
-        type=positive_int,
-        default=DEFAULT_PERIOD_US,
-        metavar="US",
-        help=f"the board's control period, for the time column (default {DEFAULT_PERIOD_US})",
-    )
+    RunDescription.add_arguments(parser, "period_us")  # the board's period: the time column's
     parser.add_argument(
         "--timeout",
         type=positive_float,
@@ -210,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
 
     table = load_table(args)
     settings = settings_from(args, table)
-    period_s = args.period_us * 1e-6
+    period_s = RunDescription.from_arguments(args, table).rig.cycle_us(table) * 1e-6
     with open_bus(args) as bus, board_node(args, bus, table, writes=True) as node:
         # The board's TPDOs (7 a cycle at 1 kHz by default) are nothing to this command: on a
         # slow host they would queue ahead of the SDO answers it polls the recorder with.

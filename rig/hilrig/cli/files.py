@@ -13,35 +13,10 @@ import argparse
 import os
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
+from hilrig.arguments import ArgKind, kind
 from hilrig.errors import one_line
-
-
-@dataclass(frozen=True)
-class ArgKind:
-    """What kind of value an argument type takes, set on the type function as `.kind`: the
-    bad-input table test (rig/tests/test_cli_bad_input.py) feeds every argument of every command
-    the bad values of its kind. `suffixes`: the extensions an input or output file takes;
-    `sniffed`: an input file's content is checked before the command runs (else a wrong
-    extension is its wrong format); `out_of_range`: a value of the right spelling refused."""
-
-    name: str  # "input file", "output file", "number", "port", "name", "viewer"
-    suffixes: tuple[str, ...] = ()
-    sniffed: bool = False
-    out_of_range: str = ""
-
-
-def kind(value: ArgKind) -> Callable[[Callable[[str], Any]], Callable[[str], Any]]:
-    """Decorator: tag an argument type with its ArgKind."""
-
-    def tag(function: Callable[[str], Any]) -> Callable[[str], Any]:
-        function.kind = value  # type: ignore[attr-defined]
-        return function
-
-    return tag
 
 
 def unreadable_reason(path: Path) -> str | None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import signal
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -18,12 +19,12 @@ from hilrig.cli.common import (
     existing_file,
     live_sink,
     node_id,
-    positive_int,
     progress,
 )
 from hilrig.cli.files import output_folder, sniff_eds, sniff_executable, sniff_toml
 from hilrig.resources import FIRMWARE_HINT
-from hilrig.session.baremetal import FIRMWARE_PLATFORMS, LINUX, default_image
+from hilrig.session.baremetal import FIRMWARE_PLATFORMS, LINUX, QEMU_VIRT, default_image
+from hilrig.session.run import RunDescription, TraceRun
 from hilrig.table import BOARD_TABLE, RigTable
 
 if TYPE_CHECKING:
@@ -107,14 +108,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=None,
         help=f"node id (default: 0x{default_node:02X}, board.toml's)",
     )
-    parser.add_argument(
-        "--period-us",
-        type=positive_int,
-        default=1000,
-        metavar="US",
-        help="control period, the firmware's --period-us (default: 1000)",
-    )
-    parser.add_argument("--seed", type=int, default=1, help="sensor noise seed (default: 1)")
+    RunDescription.add_arguments(parser, seed=1)  # every run option
     parser.add_argument(
         "--firmware",
         type=existing_file("firmware", FIRMWARE_HINT, sniff=sniff_executable),
@@ -212,11 +206,18 @@ def run(args: argparse.Namespace) -> int:
         return run_robot_command(args)
     if args.seconds is not None:
         raise UsageError("--seconds is the gait's length: it goes with --modules")
-    from hilrig.apps.demo import DemoOptions, format_summary, run_demo
+    from hilrig.apps.demo import DemoOptions, demo_run, format_summary, run_demo
     from hilrig.session.builder import BoardInterface
     from hilrig.session.faults import FaultPlan
 
     table = RigTable.load(args.table)
+    board = None
+    if args.board:
+        config = bus_config(args)  # python-can's configuration fills what the options leave out
+        board = BoardInterface(
+            config.pop("interface"), config.pop("channel", None), config.pop("bitrate", None), config
+        )
+    run = RunDescription.from_arguments(args, table, demo_run(args.out, board))
     plant = plant_factory(args, table)
     if not table.is_default_board and args.firmware is None and not args.board:
         raise UsageError(
@@ -236,29 +237,27 @@ def run(args: argparse.Namespace) -> int:
     live = _live_sinks(args)
     if args.poll_every < 0:
         raise UsageError(f"--poll-every: expected a number of cycles >= 0, got {args.poll_every}")
-    board = None
-    if args.board:
-        config = bus_config(args)  # python-can's configuration fills what the options leave out
-        board = BoardInterface(
-            config.pop("interface"), config.pop("channel", None), config.pop("bitrate", None), config
-        )
+    rig = run.rig
+    if plant is not None:  # another plant than the demo joint's: its own parameters
+        rig = dataclasses.replace(rig, plant=plant, params=None)
+    run = run.replace(
+        trace=TraceRun(args.out, trace=not args.no_trace, live=tuple(live)),
+        firmware=dataclasses.replace(
+            run.firmware,
+            executable=executable,
+            image=executable if args.firmware_platform == QEMU_VIRT else run.firmware.image,
+            platform=args.firmware_platform,
+            node_id=args.node_id,
+        ),
+        rig=dataclasses.replace(rig, eds=eds_path(args)),
+        bus=dataclasses.replace(run.bus, bitrate=None if args.board else args.bitrate),
+    )
     options = DemoOptions(
-        bitrate=None if args.board else args.bitrate,  # without --board: the lockstep bus's
-        out_dir=args.out,
+        run,
         scenario_file=args.scenario,
-        node_id=args.node_id if args.node_id is not None else table.board.node.default_node_id,
-        period_us=args.period_us,
-        seed=args.seed,
-        executable=executable,
-        eds=eds_path(args),
         faults=FaultPlan(tuple(args.fault)),
-        trace=not args.no_trace,
-        live=tuple(live),
-        board=board,
         poll_every=args.poll_every,
-        plant=plant,
         table=table,
-        firmware_platform=args.firmware_platform,
     )
     summary = run_demo(options, progress=progress)
     return _report(args, format_summary(summary), summary.viewer_url, live)
@@ -321,7 +320,7 @@ def _report(args: argparse.Namespace, text: str, viewer_url: str | None, live: S
 
 def run_robot_command(args: argparse.Namespace) -> int:
     """`hilrig sim --modules N`: the robot demo (hilrig.apps.robot_demo)."""
-    from hilrig.apps.robot_demo import GAIT_SECONDS, RobotOptions, format_robot_summary, run_robot
+    from hilrig.apps.robot_demo import GAIT_SECONDS, RobotOptions, format_robot_summary, robot_run, run_robot
     from hilrig.session.firmware import DEFAULT_EXECUTABLE
 
     given = {
@@ -340,22 +339,17 @@ def run_robot_command(args: argparse.Namespace) -> int:
     seconds = args.seconds if args.seconds is not None else GAIT_SECONDS
     if not (seconds >= 0 and seconds < float("inf")):
         raise UsageError(f"--seconds: expected a finite duration >= 0, got {args.seconds}")
+    run = RunDescription.from_arguments(args, RigTable.load(), robot_run(args.out, args.modules))
     executable = args.firmware or DEFAULT_EXECUTABLE
     if not executable.is_file():
         raise UsageError(f"firmware {executable} does not exist: {FIRMWARE_HINT}")
     live = _live_sinks(args)
-    options = RobotOptions(
-        out_dir=args.out,
-        modules=args.modules,
-        seconds=seconds,
-        scenario_file=args.scenario,
-        period_us=args.period_us,
-        seed=args.seed,
-        executable=executable,
-        eds=eds_path(args),
-        trace=not args.no_trace,
-        live=tuple(live),
+    run = run.replace(
+        trace=TraceRun(args.out, trace=not args.no_trace, live=tuple(live)),
+        firmware=dataclasses.replace(run.firmware, executable=executable),
+        rig=dataclasses.replace(run.rig, eds=eds_path(args)),
     )
+    options = RobotOptions(run, seconds=seconds, scenario_file=args.scenario)
     summary = run_robot(options, progress=progress)
     return _report(args, format_robot_summary(summary), summary.viewer_url, live)
 

@@ -21,6 +21,7 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     from hilrig.apps.soak.layout import DEFAULT_EDS_PATH
     from hilrig.apps.soak.memory import DEFAULT_RSS_BOUND_KIB, DEFAULT_SAMPLE_EVERY
     from hilrig.session.firmware import DEFAULT_EXECUTABLE
+    from hilrig.session.run import RunDescription
     from hilrig.table import BOARD_TABLE
 
     parser.add_argument(
@@ -43,7 +44,7 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--node-id", type=node_id, default=default_node, help=f"default 0x{default_node:02X} (board.toml's)"
     )
-    parser.add_argument("--period-us", type=positive_int, default=1000)
+    RunDescription.add_arguments(parser, "period_us")
     parser.add_argument(
         "--eds", type=existing_file("EDS", "run `make build`", sniff=sniff_eds), default=DEFAULT_EDS_PATH
     )

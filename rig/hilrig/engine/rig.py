@@ -20,7 +20,6 @@ sensor frames; the rig only commands and observes.
 
 from __future__ import annotations
 
-import enum
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -48,6 +47,7 @@ from hilrig.engine.lockstep import LockstepDriver, cycles_for
 from hilrig.engine.observers import RigObserver
 from hilrig.engine.realtime import RealTimeDriver
 from hilrig.engine.timeline import CycleRunner
+from hilrig.engine.timing import TimingMode
 from hilrig.errors import (
     FieldAccessError,
     LockstepError,
@@ -67,15 +67,6 @@ if TYPE_CHECKING:
 
 DEFAULT_EDS_PATH = resources.DEFAULT_EDS
 """The EDS of the default table: the checkout's build/protocol/board.eds, or the wheel's copy."""
-
-
-class TimingMode(enum.StrEnum):
-    """How the rig keeps time (DESIGN.md, "Two timing modes")."""
-
-    LOCKSTEP = "lockstep"
-    """The rig produces SYNC and each SYNC is one firmware cycle: exact simulation time."""
-    REALTIME = "realtime"
-    """The rig keeps its own wall-clock period next to a free-running node."""
 
 
 class Rig(CycleRunner):
@@ -110,7 +101,7 @@ class Rig(CycleRunner):
         eds: str | Path = DEFAULT_EDS_PATH,
         params: object | None = None,
         seed: int = 0,
-        period_us: int = 1000,
+        period_us: int | None = None,
         table: RigTable | None = None,
         liveness: Callable[[], None] | None = None,
         activity: Callable[[], ProcessActivity | None] | None = None,
@@ -130,6 +121,8 @@ class Rig(CycleRunner):
                 "physics=False needs mode='realtime': in lockstep the node waits for the physics"
             )
         self.table = table if table is not None else RigTable.load()
+        if period_us is None:
+            period_us = self.table.board.node.period_us
         self.boot_timeout_s = boot_timeout_s
         node_id = node_id if node_id is not None else self.table.board.node.default_node_id
         self.node = BoardNode(bus, node_id, eds, self.table, sdo_timeout_s=sdo_timeout_s)

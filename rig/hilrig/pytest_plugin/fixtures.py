@@ -29,6 +29,7 @@ from hilrig.cli import forked
 from hilrig.cli.common import bitrate, bus_timing
 from hilrig.engine.rig import Rig
 from hilrig.engine.robot import MasterHeartbeat
+from hilrig.engine.timing import TimingMode
 from hilrig.errors import BusUnavailableError
 from hilrig.expect import Expect
 from hilrig.observe.picture import FailurePictures
@@ -47,14 +48,12 @@ from hilrig.session.builder import (
 )
 from hilrig.session.logformats import LOG_FORMATS
 from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
+from hilrig.session.run import BOOT_TIMEOUT_S, REALTIME_FIRMWARE_PERIOD_US, RunDescription, RunOptionError
 from hilrig.wire.bustime import BUS_PROPERTY, IDEAL, bitrate_text, bus_summary, ideal_label
 
-BOOT_TIMEOUT_S = 60.0
-"""A hang guard for start-up inside the software-emulated VM (ASan build), not a timing check."""
 SCENARIO_SDO_TIMEOUT_S = 5.0
 """Also a hang guard: the firmware on a private bus always answers, but a machine shared with a
 second emulated VM has left it unscheduled for over 2 s (1 s and one retry: SdoTimeoutError)."""
-REALTIME_FIRMWARE_PERIOD_US = 10_000
 REALTIME_RIG_PERIOD_US = 50_000
 """Real-time scenarios (make_scenario(mode="realtime")): the firmware runs free at 100 Hz and the
 rig ticks at 20 Hz. Neither keeps 1 kHz inside the software-emulated VM (the ASan firmware missed
@@ -140,6 +139,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "qemu-virt (the bare-metal image under qemu-system-arm, `make baremetal`); a scenario "
         "marked firmware_platforms(...) runs once on each platform it names whatever this says",
     )
+    for flag, keywords in RunDescription.pytest_options():
+        group.addoption(flag, **keywords)
     for name, help_text in INI_OPTIONS:
         parser.addini(name, help_text, default="")
 
@@ -346,6 +347,14 @@ def _require_built(board: HilBoard, *platforms: str) -> None:
         )
 
 
+def _pytest_run(config: pytest.Config, run: RunDescription, board: HilBoard) -> RunDescription:
+    """`run` with the run options given to pytest (--hil-period-us...), checked as the CLI does."""
+    try:
+        return RunDescription.from_pytest(config, run, board.table)
+    except RunOptionError as error:
+        pytest.fail(str(error), pytrace=False)
+
+
 # --- Scenarios --------------------------------------------------------------------------------
 @dataclass
 class Scenario:
@@ -393,7 +402,7 @@ def make_scenario(
         params_file: Path | None = None,
         extra_args: Sequence[str] = (),
         subdir: str | None = None,
-        mode: str = "lockstep",
+        mode: TimingMode | str = TimingMode.LOCKSTEP,
         physics: bool = True,
         before_start: Callable[[Rig], None] | None = None,
         bitrate: int | str | None = RUN_BITRATE,
@@ -402,7 +411,7 @@ def make_scenario(
         platform = firmware_platform or hil_firmware_platform
         _record_platform(request.node, platform)
         run_dir = scenario_dir / subdir if subdir else scenario_dir
-        realtime = mode == "realtime"
+        realtime = TimingMode(mode) is TimingMode.REALTIME
         config = request.config
         board = None
         node_id = hil_board.node_id
@@ -435,8 +444,8 @@ def make_scenario(
             blueprint=hil_board.dashboard,
             node_id=node_id,
             mode=mode,
-            period_us=REALTIME_RIG_PERIOD_US if realtime else 1000,
-            firmware_period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else 1000,
+            period_us=REALTIME_RIG_PERIOD_US if realtime else None,
+            firmware_period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else None,
             bitrate=timed_bitrate,
             physics=physics,
             trace=trace,
@@ -454,9 +463,10 @@ def make_scenario(
             _require_built(hil_board, platform)
         # The test's own private bus (a test may send frames of its own on it, e.g. a flood).
         private_bus = request.getfixturevalue("private_bus") if board is None else None
-        session = open_session(
-            session_config, table=hil_board.table, before_start=before_start, private_bus=private_bus
-        )
+        run = session_config.describe()
+        if not realtime:
+            run = _pytest_run(config, run, hil_board)
+        session = open_session(run, table=hil_board.table, before_start=before_start, private_bus=private_bus)
         sessions.append(session)
         if board is None and not realtime:
             assert session.rig is not None
@@ -534,7 +544,10 @@ def make_robot(
         logs = f", firmware logs: {scenario_dir}/firmware-*.log"
         request.node.hil_evidence = _evidence(scenario_dir, trace, bus_log_path(config)) + logs
         session = open_session(
-            config, table=hil_board.table, private_bus=request.getfixturevalue("private_bus")
+            _pytest_run(request.config, config.describe(), hil_board),
+            table=hil_board.table,
+            private_bus=request.getfixturevalue("private_bus"),
+            start=start,
         )
         sessions.append(session)
         if session.robot is not None:

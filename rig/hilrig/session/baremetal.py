@@ -1,7 +1,7 @@
 """The firmware as a bare-metal image under qemu: the platforms a session can start the board's
 firmware on, and the qemu command line of the `qemu-virt` one.
 
-    qemu_argv(image, "vcan0", node_id=16, period_us=1000, mode="lockstep", flash=params.pflash)
+    qemu_argv(image, "vcan0", node_id=16, period_us=None, mode="lockstep", flash=params.pflash)
 
 `qemu-virt` (firmware/platform/qemu-virt, `make baremetal`): the demo joint built for a
 Cortex-A15 on qemu's 32-bit Arm `virt` machine, with qemu's CTU CAN FD PCI controller
@@ -79,7 +79,7 @@ def qemu_argv(
     channel: str | None,
     *,
     node_id: int,
-    period_us: int,
+    period_us: int | None,
     mode: str = "lockstep",
     flash: Path | None = None,
     extra_args: Sequence[str] = (),
@@ -99,7 +99,9 @@ def qemu_argv(
             f"Linux firmware's): run this scenario with --firmware-platform {LINUX}"
         )
     serial = serial_number(channel, node_id, flash)
-    words = [f"node-id={node_id}", f"mode={mode}", f"period-us={period_us}", f"serial={serial}"]
+    words = [f"node-id={node_id}", f"mode={mode}", f"serial={serial}"]
+    if period_us is not None:  # None: the image's own default (its table's [node] period_us)
+        words.insert(2, f"period-us={period_us}")
     boot = " ".join([*words, f"flash={int(flash is not None)}", *boot_extra])
     argv = [
         qemu,

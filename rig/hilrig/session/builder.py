@@ -3,15 +3,17 @@ and the rig (or, for a real board, the rig on the board's interface with no firm
 order and closed in reverse on one `contextlib.ExitStack`. Used by the pytest fixtures,
 `hilrig sim` / `make run`, the bench and the trace bench::
 
-    with hil_session(SessionConfig(out_dir=Path("out/run"), seed=1)) as session:
+    with hil_session(RunDescription(TraceRun(Path("out/run")), rig=RigRun(seed=1))) as session:
         session.rig.set("control_mode", ControlMode.VELOCITY)  # from hilrig.table
         session.rig.run(seconds=1.0)
     # firmware stopped (SIGTERM, its stop line in out/run/firmware.log), out/run/bus.log and
     # out/run/trace.rrd whole
 
-A real board: `SessionConfig(out_dir=..., board=BoardInterface("socketcan", "can0"), mode="realtime")`.
+A real board: `RunDescription(TraceRun(out_dir), bus=BusRun(board=BoardInterface("socketcan", "can0")),
+rig=RigRun(timing=TimingMode.REALTIME))` (`hilrig.session.run`; `SessionConfig` is the flat
+adapter older callers use).
 
-A robot: `SessionConfig(out_dir=..., modules=8)` starts the firmware 8 times (node ids 1..8, or a
+A robot: `RunDescription(..., robot=RobotRun(8))` starts the firmware 8 times (node ids 1..8, or a
 list), each with its own log (firmware-<id>.log) and parameter file (params-<id>.bin), and hands
 over `session.robot` (`hilrig.engine.robot.Robot`): one bus, one SYNC, the chain's mechanics from MuJoCo,
 each module's trace under /modules/<id>.
@@ -30,14 +32,23 @@ import can
 from boardproto.cia301 import emcy_cob_id
 from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig, TimingMode
 from hilrig.engine.robot import MasterHeartbeat, Robot, module_ids
-from hilrig.errors import BusUnavailableError
 from hilrig.plants import default_plant
-from hilrig.plants.interface import Plant
 from hilrig.session import baremetal
 from hilrig.session.buslog import RecorderProcess, whole_file_logger
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware
 from hilrig.session.logformats import LOG_FORMATS
 from hilrig.session.netns import PrivateBus, require_private_buses
+from hilrig.session.run import (
+    BOOT_TIMEOUT_S,
+    BoardInterface,
+    BusRun,
+    FirmwareRun,
+    PlantFactory,
+    RigRun,
+    RobotRun,
+    RunDescription,
+    TraceRun,
+)
 from hilrig.table import RigTable
 from hilrig.wire.node import BoardNode, answer_filters
 from hilrig.wire.transport import socketcan_socket
@@ -45,37 +56,6 @@ from hilrig.wire.transport import socketcan_socket
 if TYPE_CHECKING:
     from hilrig.observe.sinks import TraceSink
     from hilrig.observe.tracer import Tracer
-
-FIRMWARE_MODE = {TimingMode.LOCKSTEP: "lockstep", TimingMode.REALTIME: "free"}
-"""The firmware's --mode for each rig timing mode."""
-BOOT_TIMEOUT_S = 60.0
-"""Hang guard for start-up inside the software-emulated VM (ASan build), not a timing check."""
-
-
-@dataclass(frozen=True)
-class BoardInterface:
-    """A real board's bus, as python-can opens it (interface, channel, bitrate, extra kwargs)."""
-
-    interface: str
-    channel: str
-    bitrate: int | None = None
-    kwargs: dict[str, Any] = field(default_factory=dict)
-
-    def open(self) -> can.BusABC:
-        extra = dict(self.kwargs)
-        if self.bitrate is not None:
-            extra["bitrate"] = self.bitrate
-        try:
-            return can.Bus(interface=self.interface, channel=self.channel, **extra)
-        except (can.CanError, OSError, ValueError, ImportError) as error:
-            raise BusUnavailableError(
-                f"cannot open {self.interface} channel {self.channel}: {error}"
-            ) from error
-
-
-PlantFactory = Callable[[Any, int], Plant]
-"""Makes a session's plant from (SessionConfig.params, SessionConfig.seed): the board's hardware
-model (`hilrig.plants.interface.Plant`); `hilrig.plants.default_plant` makes the demo joint."""
 
 
 @dataclass(frozen=True)
@@ -93,7 +73,8 @@ class Rider:
 
 @dataclass(frozen=True)
 class SessionConfig:
-    """Everything a session is made of. out_dir: firmware.log, bus.log and trace.rrd go here.
+    """A run's settings in one flat record, the adapter of older callers: `describe()` makes the
+    `RunDescription` the builder takes. out_dir: firmware.log, bus.log and trace.rrd go here.
     trace: a trace.rrd in out_dir (True; `live` sinks beside it), these sinks (a sequence of
     `TraceSink`), or none.
     board: a real board (no firmware is started); None: the firmware on a private vcan0.
@@ -111,7 +92,8 @@ class SessionConfig:
     table: the board's own ("head" for the head module), None for the viewer's default."""
     node_id: int | None = None
     mode: TimingMode | str = TimingMode.LOCKSTEP
-    period_us: int = 1000
+    period_us: int | None = None
+    """None: the table's [node] period_us."""
     bitrate: int | None = None
     """Lockstep on a bus with this bit rate (`hilrig.engine.bustiming`: what does not fit a
     cycle arrives in a later one); None: the ideal bus, every frame in its cycle. Scenarios
@@ -155,13 +137,53 @@ class SessionConfig:
     baremetal_image: Path = field(default_factory=lambda: baremetal.default_image(baremetal.QEMU_VIRT))
     """The image the "qemu-virt" platform runs (the demo joint's: `make baremetal`)."""
 
+    def describe(self) -> RunDescription:
+        """This run as the builder takes it."""
+        return RunDescription(
+            trace=TraceRun(
+                self.out_dir,
+                trace=self.trace,
+                live=self.live,
+                record=self.record,
+                bus_log_format=self.bus_log_format,
+                blueprint=self.blueprint,
+            ),
+            bus=BusRun(board=self.board, host_channel=self.host_channel, bitrate=self.bitrate),
+            firmware=FirmwareRun(
+                executable=self.executable,
+                platform=self.firmware_platform,
+                image=self.baremetal_image,
+                node_id=self.node_id,
+                period_us=self.firmware_period_us,
+                params_file=self.params_file,
+                extra_args=self.extra_args,
+                boot_timeout_s=self.boot_timeout_s,
+                term_timeout_s=self.firmware_term_timeout_s,
+                module_platforms=self.module_platforms,
+            ),
+            rig=RigRun(
+                timing=TimingMode(self.mode),
+                period_us=self.period_us,
+                plant=self.plant,
+                params=self.params,
+                seed=self.seed,
+                physics=self.physics,
+                eds=self.eds,
+                sdo_timeout_s=self.sdo_timeout_s,
+                tpdo_timeout_s=self.tpdo_timeout_s,
+            ),
+            robot=None
+            if self.modules is None
+            else RobotRun(self.modules, master=self.master, riders=self.riders),
+        )
+
 
 @dataclass
 class HilSession:
     """What a running session holds; `close()` ends it early (the context manager does it too)."""
 
-    config: SessionConfig
-    rig: Rig | None  # None: SessionConfig(rig=False), or a robot
+    run: RunDescription
+    rig: Rig | None  # None: open_session(with_rig=False), or a robot
     node: BoardNode  # a robot's: its first module's
     firmware: Firmware | None  # a robot's: its first module's (all in `robot.firmware`)
     tracer: Tracer | None
@@ -172,22 +194,22 @@ class HilSession:
 
     @property
     def out_dir(self) -> Path:
-        return self.config.out_dir
+        return self.run.out_dir
 
     @property
     def bus_log(self) -> Path:
-        return bus_log_path(self.config)
+        return bus_log_path(self.run)
 
     @property
     def trace_path(self) -> Path | None:
-        return self.config.out_dir / "trace.rrd" if self.config.trace is True else None
+        return self.run.out_dir / "trace.rrd" if self.run.trace.trace is True else None
 
     def evidence(self) -> str:
         """'trace: ..., bus log: ..., firmware log: ...': where to look when something failed."""
         parts = []
         if self.trace_path is not None:
             parts.append(f"trace: {self.trace_path}")
-        if self.config.record:
+        if self.run.trace.record:
             parts.append(f"bus log: {self.bus_log}")
         if self.robot is not None:
             logs = [f.log_path.name for f in self.robot.firmware if f is not None]
@@ -200,92 +222,122 @@ class HilSession:
         self._stack.close()
 
 
-def _tracer(config: SessionConfig, table: RigTable, blueprint: str | None = "overview") -> Tracer | None:
-    if config.trace is False:
+def _tracer(run: RunDescription, table: RigTable, blueprint: str | None = "overview") -> Tracer | None:
+    trace = run.trace
+    if trace.trace is False:
         return None
     from hilrig.observe.tracer import Tracer  # rerun is slow to import: only when tracing
 
-    clock = "wall" if TimingMode(config.mode) is TimingMode.REALTIME else "simulation"
+    clock = "wall" if run.rig.timing is TimingMode.REALTIME else "simulation"
     sinks: list[TraceSink]
-    if config.trace is True:
-        if config.live:
+    if trace.trace is True:
+        if trace.live:
             from hilrig.observe.sinks import TraceSink
 
-            sinks = [TraceSink.rrd(config.out_dir / "trace.rrd"), *config.live]
+            sinks = [TraceSink.rrd(trace.out_dir / "trace.rrd"), *trace.live]
         else:
-            return Tracer.for_scenario(config.out_dir, table, clock=clock, blueprint=blueprint)
+            return Tracer.for_scenario(trace.out_dir, table, clock=clock, blueprint=blueprint)
     else:
-        sinks = list(config.trace)
-    return Tracer(sinks, table, clock=clock, recording_name=config.out_dir.name, blueprint=blueprint)
+        sinks = list(trace.trace)
+    return Tracer(sinks, table, clock=clock, recording_name=trace.out_dir.name, blueprint=blueprint)
+
+
+def _module_rig(
+    bus: can.BusABC,
+    run: RunDescription,
+    table: RigTable,
+    firmware: Firmware | None,
+    **module: Any,
+) -> Rig:
+    """A Rig of the run: its period (`table`'s default), timeouts and timing from the run's rig
+    layer; `module` (node_id, eds, plant, tracer, a rider's own table...) what differs per module."""
+    rig = run.rig
+    module.setdefault("table", table)
+    return Rig(
+        bus,
+        period_us=rig.cycle_us(table),
+        liveness=firmware.check if firmware is not None else None,
+        activity=firmware.activity if firmware is not None else None,
+        boot_timeout_s=run.firmware.boot_timeout_s,
+        tpdo_timeout_s=rig.tpdo_timeout_s,
+        sdo_timeout_s=rig.sdo_timeout_s,
+        **module,
+    )
 
 
 def open_session(
-    config: SessionConfig,
+    run: RunDescription | SessionConfig,
     *,
     table: RigTable | None = None,
     before_start: Callable[[Rig], None] | None = None,
     private_bus: PrivateBus | None = None,
+    start: bool = True,
+    with_rig: bool = True,
 ) -> HilSession:
-    """Open a session (see the module doc); the caller closes it (`HilSession.close`).
+    """Open a session of `run` (see the module doc); the caller closes it (`HilSession.close`).
     `before_start` sees the rig before it talks to the node. `private_bus`: run on this private
-    bus (the caller's, e.g. a test's that also sends frames of its own) instead of a new one."""
+    bus (the caller's, e.g. a test's that also sends frames of its own) instead of a new one.
+    `start`: bring the node up (Rig.start) before handing the session over. `with_rig`: False
+    is no Rig, only the node (`HilSession.node`: canopen for SDO/NMT and the frame link), for a
+    program that puts the engine's driver on it itself (the soak: no plant, no trace)."""
+    if isinstance(run, SessionConfig):
+        start, with_rig = run.start, run.rig
+        run = run.describe()
     table = table if table is not None else RigTable.load()
-    if config.modules is not None:
-        if config.bitrate is not None:
+    if run.robot is not None:
+        if run.bus.bitrate is not None:
             raise ValueError(
                 "bitrate= times one node's bus; a robot's bit rate is computed from its schedule "
                 "(`hilrig.apps.robot_bus.robot_bitrate`)"
             )
-        return _open_robot(config, table, private_bus)
-    mode = TimingMode(config.mode)
-    out = config.out_dir
+        return _open_robot(run, table, private_bus, start)
+    out = run.out_dir
     out.mkdir(parents=True, exist_ok=True)
-    node_id = config.node_id if config.node_id is not None else table.board.node.default_node_id
+    node_id = run.node_id(table)
+    board = run.bus.board
     stack = contextlib.ExitStack()
     try:
         recorder: RecorderProcess | None = None
         firmware: Firmware | None = None
-        if config.board is None:
-            private_bus, launcher = _launcher(stack, config, private_bus)
-            recorder = _recorder(stack, launcher, config)
+        if board is None:
+            private_bus, launcher = _launcher(stack, run, private_bus)
+            recorder = _recorder(stack, launcher, run)
             log_path = out / "firmware.log"
-            firmware = _start_firmware(stack, launcher, config, node_id, log_path, config.params_file)
+            firmware = _start_firmware(
+                stack, launcher, run, table, node_id, log_path, run.firmware.params_file
+            )
         # The tracer before the rig's bus: importing rerun takes seconds (minutes on a loaded
         # emulated VM), and a bus opened before it would queue every heartbeat meanwhile for
         # canopen to wade through before the first SDO answer.
-        tracer = _tracer(config, table, config.blueprint)
+        tracer = _tracer(run, table, run.trace.blueprint)
         if tracer is not None:
             stack.callback(tracer.close)
         if private_bus is not None:
             bus = private_bus.open()
-        elif config.board is not None:
-            bus = config.board.open()
+        elif board is not None:
+            bus = board.open()
         else:
-            bus = BoardInterface("socketcan", config.host_channel or "").open()
+            bus = BoardInterface("socketcan", run.bus.host_channel or "").open()
         stack.callback(bus.shutdown)
         board_logger = None
-        if config.board is not None and config.record:
-            board_logger = _record_board(stack, bus, config.board, bus_log_path(config))
-        if not config.rig:
-            node = BoardNode(bus, node_id, config.eds, table, sdo_timeout_s=config.sdo_timeout_s)
+        if board is not None and run.trace.record:
+            board_logger = _record_board(stack, bus, board, bus_log_path(run))
+        if not with_rig:
+            node = BoardNode(bus, node_id, run.rig.eds, table, sdo_timeout_s=run.rig.sdo_timeout_s)
             stack.callback(node.close)
-            return HilSession(config, None, node, firmware, tracer, private_bus, recorder, stack)
-        rig = Rig(
+            return HilSession(run, None, node, firmware, tracer, private_bus, recorder, stack)
+        rig = _module_rig(
             bus,
+            run,
+            table,
+            firmware,
             node_id=node_id,
-            eds=config.eds,
-            plant=config.plant(config.params, config.seed),
-            period_us=config.period_us,
-            table=table,
-            liveness=firmware.check if firmware is not None else None,
-            activity=firmware.activity if firmware is not None else None,
-            boot_timeout_s=config.boot_timeout_s,
-            tpdo_timeout_s=config.tpdo_timeout_s,
-            sdo_timeout_s=config.sdo_timeout_s,
+            eds=run.rig.eds,
+            plant=run.rig.plant(run.rig.params, run.rig.seed),
             tracer=tracer,
-            mode=mode,
-            physics=config.physics,
-            bitrate=config.bitrate,
+            mode=run.rig.timing,
+            physics=run.rig.physics,
+            bitrate=run.bus.timed_bitrate(table),
         )
         stack.callback(rig.close)
         if board_logger is not None:
@@ -293,38 +345,42 @@ def open_session(
             rig.node.network.notifier.add_listener(board_logger)
         if before_start is not None:
             before_start(rig)
-        if config.start:
+        if start:
             rig.start()
     except BaseException:
         stack.close()
         raise
-    return HilSession(config, rig, rig.node, firmware, tracer, private_bus, recorder, stack)
+    return HilSession(run, rig, rig.node, firmware, tracer, private_bus, recorder, stack)
 
 
-def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus | None) -> HilSession:
+def _open_robot(
+    run: RunDescription, table: RigTable, private_bus: PrivateBus | None, start: bool
+) -> HilSession:
     """The robot variant of `open_session`: N firmware processes on one private bus, one bus
     handle, node and rig per module, one chain, one tracer with a child per module."""
-    assert config.modules is not None
-    node_ids = module_ids(config.modules)
+    assert run.robot is not None
+    node_ids = module_ids(run.robot.modules)
     # A repeated id, a rider's too, is refused before anything starts.
-    module_ids([*node_ids, *(rider.node_id for rider in config.riders)])
-    if config.board is not None or TimingMode(config.mode) is not TimingMode.LOCKSTEP:
+    module_ids([*node_ids, *(rider.node_id for rider in run.robot.riders)])
+    if run.bus.board is not None or run.rig.timing is not TimingMode.LOCKSTEP:
         raise ValueError("a robot session runs its own firmware modules in lockstep (no board=, no realtime)")
     from hilrig.plants.chain import ChainPhysics  # MuJoCo: only for robots
 
-    out = config.out_dir
+    out = run.out_dir
     out.mkdir(parents=True, exist_ok=True)
     stack = contextlib.ExitStack()
     try:
-        chain = ChainPhysics(len(node_ids), params=config.params, seed=config.seed)
-        chain.mujoco_steps_per_period(config.period_us / 1e6)  # a period MuJoCo cannot step: now
-        private_bus, launcher = _launcher(stack, config, private_bus)
-        recorder = _recorder(stack, launcher, config)
+        chain = ChainPhysics(len(node_ids), params=run.rig.params, seed=run.rig.seed)
+        chain.mujoco_steps_per_period(run.rig.cycle_us(table) / 1e6)  # a period MuJoCo cannot step: now
+        private_bus, launcher = _launcher(stack, run, private_bus)
+        recorder = _recorder(stack, launcher, run)
         firmware = [
-            _start_firmware(stack, launcher, config, k, out / f"firmware-{k}.log", out / f"params-{k}.bin")
+            _start_firmware(
+                stack, launcher, run, table, k, out / f"firmware-{k}.log", out / f"params-{k}.bin"
+            )
             for k in node_ids
         ]
-        tracer = _tracer(config, table, blueprint=None)
+        tracer = _tracer(run, table, blueprint=None)
         if tracer is not None:
             stack.callback(tracer.close)
             from hilrig.observe.blueprints import robot_blueprint
@@ -344,52 +400,52 @@ def _open_robot(config: SessionConfig, table: RigTable, private_bus: PrivateBus 
             if tracer is not None:
                 module_tracer = tracer.module_tracer(node_id)
                 stack.callback(module_tracer.close)
-            rig = Rig(
+            rig = _module_rig(
                 bus,
+                run,
+                table,
+                firmware[k],
                 node_id=node_id,
-                eds=config.eds,
+                eds=run.rig.eds,
                 plant=chain.models[k],  # each with a sensor noise of its own
-                period_us=config.period_us,
-                table=table,
-                liveness=firmware[k].check,
-                activity=firmware[k].activity,
-                boot_timeout_s=config.boot_timeout_s,
-                tpdo_timeout_s=config.tpdo_timeout_s,
-                sdo_timeout_s=config.sdo_timeout_s,
                 tracer=module_tracer,
             )
             stack.callback(rig.close)
             modules.append(rig)
-        for rider in config.riders:
+        for rider in run.robot.riders:
             rider_firmware = _start_firmware(
                 stack,
                 launcher,
-                config,
+                run,
+                table,
                 rider.node_id,
                 out / f"firmware-{rider.node_id}.log",
                 out / f"params-{rider.node_id}.bin",
                 executable=rider.executable,
             )
             firmware.append(rider_firmware)
-            modules.append(_rider_rig(stack, config, rider, rider_firmware, private_bus, launcher, tracer))
-        robot = Robot(modules, chain, firmware=firmware, master=config.master)
+            modules.append(
+                _rider_rig(stack, run, table, rider, rider_firmware, private_bus, launcher, tracer)
+            )
+        robot = Robot(modules, chain, firmware=firmware, master=run.robot.master)
         if tracer is not None:
             chain_trace = tracer.robot_observer(chain)
             robot.add_observer(chain_trace)
             stack.callback(chain_trace.flush)  # before the tracer closes (the stack unwinds)
-        if config.start:
+        if start:
             robot.start()
     except BaseException:
         stack.close()
         raise
     return HilSession(
-        config, None, modules[0].node, firmware[0], tracer, private_bus, recorder, stack, robot=robot
+        run, None, modules[0].node, firmware[0], tracer, private_bus, recorder, stack, robot=robot
     )
 
 
 def _rider_rig(
     stack: contextlib.ExitStack,
-    config: SessionConfig,
+    run: RunDescription,
+    table: RigTable,
     rider: Rider,
     firmware: Firmware,
     private_bus: PrivateBus | None,
@@ -407,18 +463,15 @@ def _rider_rig(
     if tracer is not None:
         module_tracer = tracer.module_tracer(rider.node_id, rider.table)
         stack.callback(module_tracer.close)
-    rig = Rig(
+    rig = _module_rig(
         bus,
+        run,
+        table,
+        firmware,
         node_id=rider.node_id,
         eds=rider.eds,
-        plant=rider.plant(rider.params, config.seed * 1000 + rider.node_id),
-        period_us=config.period_us,
+        plant=rider.plant(rider.params, run.rig.seed * 1000 + rider.node_id),
         table=rider.table,
-        liveness=firmware.check,
-        activity=firmware.activity,
-        boot_timeout_s=config.boot_timeout_s,
-        tpdo_timeout_s=config.tpdo_timeout_s,
-        sdo_timeout_s=config.sdo_timeout_s,
         tracer=module_tracer,
     )
     stack.callback(rig.close)
@@ -426,31 +479,33 @@ def _rider_rig(
 
 
 def _launcher(
-    stack: contextlib.ExitStack, config: SessionConfig, private_bus: PrivateBus | None
+    stack: contextlib.ExitStack, run: RunDescription, private_bus: PrivateBus | None
 ) -> tuple[PrivateBus | None, PrivateBus | _HostChannel]:
     """Where the session's processes run: the caller's private bus, the host's interface
     (`host_channel`), or a new private bus (closed with the session)."""
-    if private_bus is None and config.host_channel is None:
+    host_channel = run.bus.host_channel
+    if private_bus is None and host_channel is None:
         require_private_buses("a HIL session")
         private_bus = stack.enter_context(PrivateBus())
-    launcher = private_bus if private_bus is not None else _HostChannel(config.host_channel or "")
+    launcher = private_bus if private_bus is not None else _HostChannel(host_channel or "")
     return private_bus, launcher
 
 
-def bus_log_path(config: SessionConfig) -> Path:
+def bus_log_path(run: RunDescription | SessionConfig) -> Path:
     """Where the session's bus log goes: out_dir/bus.log, or bus.blf, bus.mf4... by its format."""
-    if config.bus_log_format not in LOG_FORMATS:
-        raise ValueError(f"bus log format {config.bus_log_format!r}: choose one of {', '.join(LOG_FORMATS)}")
-    return config.out_dir / f"bus{config.bus_log_format}"
+    trace = run.trace if isinstance(run, RunDescription) else run.describe().trace
+    if trace.bus_log_format not in LOG_FORMATS:
+        raise ValueError(f"bus log format {trace.bus_log_format!r}: choose one of {', '.join(LOG_FORMATS)}")
+    return trace.out_dir / f"bus{trace.bus_log_format}"
 
 
 def _recorder(
-    stack: contextlib.ExitStack, launcher: PrivateBus | _HostChannel, config: SessionConfig
+    stack: contextlib.ExitStack, launcher: PrivateBus | _HostChannel, run: RunDescription
 ) -> RecorderProcess | None:
     """The bus log (out_dir/bus.log) from a recorder process of its own, when `record`."""
-    if not config.record:
+    if not run.trace.record:
         return None
-    recorder = RecorderProcess(launcher, bus_log_path(config))
+    recorder = RecorderProcess(launcher, bus_log_path(run))
     stack.callback(recorder.close)
     return recorder
 
@@ -458,7 +513,8 @@ def _recorder(
 def _start_firmware(
     stack: contextlib.ExitStack,
     launcher: PrivateBus | _HostChannel,
-    config: SessionConfig,
+    run: RunDescription,
+    table: RigTable,
     node_id: int,
     log_path: Path,
     params_file: Path | None,
@@ -466,24 +522,24 @@ def _start_firmware(
     executable: Path | None = None,
 ) -> Firmware:
     """One firmware process of the session, started (stopped with it): its mode and period follow
-    the rig's timing (lockstep: the rig's period; real time: its own 10 ms unless given).
+    the rig's timing (`FirmwareRun.own_period_us`).
     `executable`: another board's firmware (a robot's rider), without the session's extra_args."""
-    mode = TimingMode(config.mode)
+    own_firmware = run.firmware
     platform = baremetal.LINUX
     own = executable is None  # the session's board (its extra_args), not a rider
     if executable is None:
-        platform = config.module_platforms.get(node_id, config.firmware_platform)
-        executable = config.baremetal_image if platform == baremetal.QEMU_VIRT else config.executable
+        platform = own_firmware.module_platforms.get(node_id, own_firmware.platform)
+        executable = own_firmware.image if platform == baremetal.QEMU_VIRT else own_firmware.executable
     firmware = Firmware(
         launcher,
         node_id=node_id,
         log_path=log_path,
         params_file=params_file,
-        extra_args=config.extra_args if own else (),
+        extra_args=own_firmware.extra_args if own else (),
         executable=executable,
-        mode=FIRMWARE_MODE[mode],
-        period_us=config.firmware_period_us or (config.period_us if mode is TimingMode.LOCKSTEP else 10_000),
-        term_timeout_s=config.firmware_term_timeout_s,
+        mode=run.rig.timing,
+        period_us=own_firmware.own_period_us(run.rig, table),
+        term_timeout_s=own_firmware.term_timeout_s,
         image_dir=log_path.parent / f"images-{node_id}",
         platform=platform,
     )
@@ -524,18 +580,31 @@ class _HostChannel:
 
 @contextlib.contextmanager
 def hil_session(
-    config: SessionConfig,
+    run: RunDescription | SessionConfig,
     *,
     table: RigTable | None = None,
     before_start: Callable[[Rig], None] | None = None,
     private_bus: PrivateBus | None = None,
+    start: bool = True,
+    with_rig: bool = True,
 ) -> Iterator[HilSession]:
     """`open_session` as a context manager: closed in reverse order however the body ends."""
-    session = open_session(config, table=table, before_start=before_start, private_bus=private_bus)
+    session = open_session(
+        run, table=table, before_start=before_start, private_bus=private_bus, start=start, with_rig=with_rig
+    )
     try:
         yield session
     finally:
         session.close()
 
 
-__all__ = ["BoardInterface", "HilSession", "Rider", "SessionConfig", "hil_session", "open_session"]
+__all__ = [
+    "BoardInterface",
+    "HilSession",
+    "PlantFactory",
+    "Rider",
+    "RunDescription",
+    "SessionConfig",
+    "hil_session",
+    "open_session",
+]

@@ -72,7 +72,7 @@ class UnconfiguredChain:
         serials: Sequence[int],
         *,
         executable: Path = DEFAULT_EXECUTABLE,
-        period_us: int = 1000,
+        period_us: int | None = None,
         ready_timeout_s: float = 60.0,
     ) -> None:
         if len(set(serials)) != len(serials):

@@ -22,6 +22,7 @@ from typing import IO, Any, Protocol, Self
 
 from hilrig import resources
 from hilrig.engine.driver import ProcessActivity, process_activity
+from hilrig.engine.timing import TimingMode
 from hilrig.errors import FirmwareError
 from hilrig.session import baremetal
 
@@ -57,26 +58,20 @@ def firmware_argv(
     executable: Path,
     channel: str,
     node_id: int,
-    period_us: int,
+    period_us: int | None,
     params_file: Path | None = None,
     extra_args: Sequence[str] = (),
     *,
-    mode: str = "lockstep",
+    mode: TimingMode | str = TimingMode.LOCKSTEP,
     image_dir: Path | None = None,
 ) -> list[str]:
-    """The firmware's command line in `mode` ("lockstep" or "free"; options exactly as the firmware defines),
-    then `extra_args` as given (e.g. a fault-injection option of `joint-firmware --help`)."""
-    argv = [
-        str(executable),
-        "--can",
-        channel,
-        "--node-id",
-        str(node_id),
-        "--mode",
-        _check_mode(mode),
-        "--period-us",
-        str(period_us),
-    ]
+    """The firmware's command line in `mode` (its --mode word: `firmware_mode`; options exactly as
+    the firmware defines),
+    then `extra_args` as given (e.g. a fault-injection option of `joint-firmware --help`).
+    `period_us` None: the firmware's own default (its table's [node] period_us)."""
+    argv = [str(executable), "--can", channel, "--node-id", str(node_id), "--mode", firmware_mode(mode)]
+    if period_us is not None:
+        argv += ["--period-us", str(period_us)]
     if params_file is not None:
         argv += ["--params", str(params_file)]
     if image_dir is not None:
@@ -84,14 +79,18 @@ def firmware_argv(
     return [*argv, *extra_args]
 
 
-FIRMWARE_MODES = ("lockstep", "free")
-"""The firmware's --mode values: one cycle per SYNC, or its own absolute-deadline timer."""
+FIRMWARE_MODES = {TimingMode.LOCKSTEP: "lockstep", TimingMode.REALTIME: "free"}
+"""The firmware's --mode word for each timing mode: one cycle per SYNC, or its own
+absolute-deadline timer beside a real-time rig. The words appear on its command line only."""
 
 
-def _check_mode(mode: str) -> str:
-    if mode not in FIRMWARE_MODES:
-        raise ValueError(f"firmware mode: expected one of {', '.join(FIRMWARE_MODES)}, got {mode!r}")
-    return mode
+def firmware_mode(mode: TimingMode | str) -> str:
+    """The firmware's --mode word of a timing mode ("lockstep" or "realtime")."""
+    try:
+        return FIRMWARE_MODES[TimingMode(mode)]
+    except ValueError:
+        modes = ", ".join(TimingMode)
+        raise ValueError(f"timing mode {mode!r}: expected one of {modes} (`TimingMode`)") from None
 
 
 class Firmware:
@@ -109,17 +108,17 @@ class Firmware:
         *,
         node_id: int,
         log_path: Path,
-        period_us: int = 1000,
+        period_us: int | None = None,
         params_file: Path | None = None,
         extra_args: Sequence[str] = (),
         executable: Path = DEFAULT_EXECUTABLE,
         term_timeout_s: float = 5.0,
-        mode: str = "lockstep",
+        mode: TimingMode | str = TimingMode.LOCKSTEP,
         image_dir: Path | None = None,
         platform: str = baremetal.LINUX,
     ) -> None:
         self.launcher = launcher
-        self.mode = mode
+        self.mode = TimingMode(mode)
         self.platform = baremetal.check_platform(platform)
         self.flash: Path | None = None
         if self.platform == baremetal.QEMU_VIRT:
@@ -130,7 +129,7 @@ class Firmware:
                 launcher.channel,
                 node_id=node_id,
                 period_us=period_us,
-                mode=_check_mode(mode),
+                mode=firmware_mode(self.mode),
                 flash=self.flash,
                 extra_args=extra_args,
             )
@@ -143,7 +142,7 @@ class Firmware:
                 period_us,
                 params_file,
                 extra_args,
-                mode=mode,
+                mode=self.mode,
                 image_dir=image_dir,
             )
         self.executable = executable

@@ -432,8 +432,9 @@ int run_board(int argc, char** argv, const BoardInfo& info, BoardSlot& slot) {
                                     : std::filesystem::path{argc > 0 ? argv[0] : "firmware"}.filename().string();
   Options options;
   options.node_id = board::kNode.default_node_id;
-  const linuxhw::CommandLineText text{g_program, info.description, cia305::kNodeIdUnconfigured,
-                                      rogue_write_help(info)};
+  options.period_us = board::kNode.period_us;
+  const linuxhw::CommandLineText text{g_program,          info.description,         cia305::kNodeIdUnconfigured,
+                                      rogue_write_help(info), board::kNode.period_us_min, board::kNode.period_us_max};
   if (const std::optional<int> exit_code = linuxhw::parse_command_line(argc, argv, text, options)) {
     return *exit_code;
   }

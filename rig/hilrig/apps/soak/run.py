@@ -80,6 +80,8 @@ from hilrig.apps.soak.report import (
 from hilrig.apps.soak.soak import BOOT_TIMEOUT_S, RECEIVE_TIMEOUT_S, Soak
 from hilrig.errors import RigError
 from hilrig.session.firmware import DEFAULT_EXECUTABLE, parse_stop_line
+from hilrig.session.run import BusRun, FirmwareRun, RigRun, RunDescription, TraceRun
+from hilrig.table import RigTable
 
 
 class StopRequest:
@@ -135,6 +137,18 @@ def _pin_this_process(cpu: int) -> None:
             os.sched_setaffinity(int(task), {cpu})
 
 
+def _description(args: argparse.Namespace, out: Path) -> RunDescription:
+    """The soak's run: its firmware on a private bus (or --channel), no rig, trace or bus log."""
+    base = RunDescription(
+        TraceRun(out, trace=False, record=False),
+        bus=BusRun(host_channel=args.channel),
+        firmware=FirmwareRun(
+            executable=args.firmware, node_id=args.node_id, boot_timeout_s=BOOT_TIMEOUT_S, term_timeout_s=30.0
+        ),
+        rig=RigRun(eds=args.eds, sdo_timeout_s=RECEIVE_TIMEOUT_S),
+    )
+    return RunDescription.from_arguments(args, RigTable.load(), base)
+
 
 def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
     """Run the soak; the exit code (0 passed, 1 failed, 130 interrupted)."""
@@ -144,6 +158,8 @@ def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
         args.cpu = max(os.sched_getaffinity(0))
 
     out: Path = args.out.resolve()
+    description = _description(args, out)
+    args.period_us = description.rig.cycle_us(RigTable.load())  # the report's and the pattern's
     out.mkdir(parents=True, exist_ok=True)
     report_path = out / "report.json"
     layout = load_layout(args.eds, args.node_id)
@@ -185,26 +201,12 @@ def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
         f"bus {bus_info['path']}",
         flush=True,
     )
-    from hilrig.session.builder import SessionConfig, open_session  # the one place a session is assembled
+    from hilrig.session.builder import open_session  # the one place a session is assembled
 
-    config = SessionConfig(
-        out_dir=out,
-        node_id=args.node_id,
-        period_us=args.period_us,
-        trace=False,
-        record=False,
-        rig=False,
-        host_channel=args.channel,
-        executable=args.firmware,
-        eds=args.eds,
-        boot_timeout_s=BOOT_TIMEOUT_S,
-        sdo_timeout_s=RECEIVE_TIMEOUT_S,
-        firmware_term_timeout_s=30.0,
-    )
     session = None
     fw = None
     try:
-        session = open_session(config)
+        session = open_session(description, with_rig=False)
         fw = session.firmware
         assert fw is not None and fw.process is not None
         firmware_info["argv"] = fw.argv
@@ -265,4 +267,3 @@ def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
     if data["status"] == RunStatus.PASSED:
         return 0
     return 130 if data["status"] == RunStatus.INTERRUPTED else 1
-

@@ -28,6 +28,7 @@ from hilrig.apps.soak.memory import DEFAULT_SAMPLE_EVERY, ProcessSample
 from hilrig.engine.driver import ProcessActivity
 from hilrig.engine.lockstep import LockstepDriver
 from hilrig.errors import SdoAbortError, SdoTimeoutError
+from hilrig.table import BOARD_TABLE
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import PdoLayout, Value
 
@@ -72,7 +73,7 @@ class Soak:
         layout: SoakLayout,
         plan: FaultPlan,
         *,
-        period_us: int = 1000,
+        period_us: int = BOARD_TABLE.node.period_us,
         probe: Callable[[int, float], ProcessSample] | None = None,
         liveness: Callable[[], None] = lambda: None,
         activity: Callable[[], ProcessActivity | None] | None = None,
