@@ -25,6 +25,10 @@ pytestmark = pytest.mark.bus
 
 
 @pytest.mark.requirement("CIA402_01")
+@pytest.mark.no_approved_trace(
+    "driven by a wall-clock master (BaseNode402): how many lockstep cycles pass while it waits "
+    "depends on the host, so the cycle of each command does too; the verdicts do not"
+)
 def test_base_node_402_drives_every_state_and_mode_homes_and_recovers(
     make_scenario, private_bus, hil_board, tmp_path, caplog
 ) -> None:

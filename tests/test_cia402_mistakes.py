@@ -28,6 +28,10 @@ def still(rig, since_t: float, until_t: float) -> float:
 
 
 @pytest.mark.requirement("CIA402_02")
+@pytest.mark.no_approved_trace(
+    "driven by a wall-clock master (BaseNode402): how many lockstep cycles pass while it waits "
+    "depends on the host, so the cycle of each command does too; the verdicts do not"
+)
 def test_mistakes_of_masters_get_the_standard_reaction(
     make_scenario, private_bus, hil_board, tmp_path
 ) -> None:
