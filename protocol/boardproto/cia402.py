@@ -81,6 +81,10 @@ def state_of(statusword: int) -> State | None:
 
 STATUSWORD_INDEX = 0x6041
 
+DEVICE_PROFILE = 402
+"""CiA 402's number: a drive's device type (0x1000) has it in its lower 16 bits, the drive's
+kind in bits 16..23 (2: servo drive)."""
+
 
 class StatuswordStates:
     """Names a statusword by the state it shows, as `ValueEnum.label` names an enum's value:

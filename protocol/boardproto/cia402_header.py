@@ -27,6 +27,9 @@ def generate_cia402_header() -> str:
 
 namespace cia402 {{
 
+// The profile's number, in the lower 16 bits of a drive's device type (0x1000).
+inline constexpr std::uint16_t kDeviceProfile = {cia402.DEVICE_PROFILE};
+
 // The value is the state's statusword pattern under mask(state).
 enum class State : std::uint16_t {{
 {_enumerators(list(cia402.State), 2)}

@@ -8,7 +8,7 @@ from pathlib import Path
 import canopen
 import pytest
 
-from boardproto.cia402 import STATUSWORD_STATES, State, state_of
+from boardproto.cia402 import DEVICE_PROFILE, STATUSWORD_STATES, State, state_of
 from boardproto.eds import generate_eds
 from boardproto.loader import PROFILE_RANGE, load_table
 
@@ -36,6 +36,11 @@ def test_a_statusword_shows_one_state(statusword: int, state: State) -> None:
 def test_a_pattern_of_no_state_says_so() -> None:
     assert state_of(0x0001) is None
     assert STATUSWORD_STATES.label(0x0001) == "1 (no CiA 402 state)"
+
+
+def test_the_joints_device_type_is_a_402_servo_drive() -> None:
+    device_type = load_table(TABLE).node.device_type
+    assert device_type & 0xFFFF == DEVICE_PROFILE and device_type >> 16 == 0x02  # servo drive
 
 
 def test_canopen_types_every_402_object_of_the_eds(tmp_path: Path) -> None:

@@ -91,6 +91,7 @@ CONTRACT_FIELDS = {
         "motor_rated_torque",
         "home_offset",
         "max_profile_velocity",
+        "max_motor_speed",
         "profile_velocity",
         "profile_acceleration",
         "profile_deceleration",

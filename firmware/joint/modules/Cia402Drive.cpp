@@ -28,6 +28,8 @@ constexpr bool stays_in_quick_stop(int option) { return option == 5 || option ==
 
 static_assert(static_cast<float>(supported_drive_modes()) == board::info(FieldId::supported_drive_modes).default_value,
               "board.toml: supported_drive_modes' default is not the bits of the cia402_mode values");
+static_assert((board::kNode.device_type & 0xFFFFu) == cia402::kDeviceProfile,
+              "board.toml: [node] device_type does not name CiA 402 (0x0192) for a 402 drive");
 
 }  // namespace
 
@@ -80,13 +82,17 @@ Cia402Drive::Cia402Drive(core::MessageBoard& board, float dt_s)
               .reads = {FieldId::controlword, FieldId::modes_of_operation, FieldId::target_position,
                         FieldId::target_velocity, FieldId::target_torque, FieldId::quick_stop_option_code,
                         FieldId::following_error_window, FieldId::position_window, FieldId::velocity_window,
-                        FieldId::motor_rated_torque, FieldId::home_offset, FieldId::max_profile_velocity,
+                        FieldId::motor_rated_torque, FieldId::home_offset, FieldId::max_profile_velocity, FieldId::max_motor_speed,
                         FieldId::profile_velocity, FieldId::profile_acceleration, FieldId::profile_deceleration,
                         FieldId::quick_stop_deceleration, FieldId::homing_method, FieldId::control_mode,
                         FieldId::velocity_setpoint, FieldId::torque_setpoint, FieldId::position_setpoint,
                         FieldId::motor_position, FieldId::motor_velocity, FieldId::gear_ratio, FieldId::joint_torque},
               .reads_last_cycle = {FieldId::safe_state}}),
       dt_s_{dt_s} {}
+
+float Cia402Drive::velocity_limit() const {
+  return std::min(boardGet(FieldId::max_profile_velocity), boardGet(FieldId::max_motor_speed)) * kMilli;
+}
 
 float Cia402Drive::ramp(float from, float to, float acceleration) const {
   const float step = std::max(acceleration, 0.0F) * dt_s_;
@@ -185,7 +191,7 @@ Cia402Drive::Command Cia402Drive::run_mode(std::uint16_t controlword, bool risin
                                            float gearbox_rad_s) {
   const float acceleration = boardGet(FieldId::profile_acceleration) * kMilli;
   const float deceleration = boardGet(FieldId::profile_deceleration) * kMilli;
-  const float max_velocity = boardGet(FieldId::max_profile_velocity) * kMilli;
+  const float max_velocity = velocity_limit();
   const float target_velocity = std::clamp(boardGet(FieldId::target_velocity) * kMilli, -max_velocity, max_velocity);
   const float target_torque = boardGet(FieldId::target_torque) * kMilli * rated_torque_nm();
   halted_ = has(controlword, ControlBit::Halt);
@@ -335,6 +341,11 @@ void Cia402Drive::update() {
     status |= cia402::bit(StatusBit::VoltageEnabled);
   }
   status |= mode_bits(gearbox_rad, gearbox_rad_s);
+  const bool velocity_mode = mode_ == Cia402Mode::ProfileVelocity || mode_ == Cia402Mode::CyclicSynchronousVelocity;
+  if (state_ == State::OperationEnabled && velocity_mode &&
+      std::fabs(boardGet(FieldId::target_velocity) * kMilli) > velocity_limit()) {
+    status |= cia402::bit(StatusBit::InternalLimitActive);  // the target is beyond 0x607F or 0x6080
+  }
   boardSet(FieldId::statusword, status);
   boardSet(FieldId::modes_of_operation_display, static_cast<float>(static_cast<int>(mode_)));
   const double actual_mrad = (static_cast<double>(gearbox_rad) - zero_rad_) / kMilli + boardGet(FieldId::home_offset);

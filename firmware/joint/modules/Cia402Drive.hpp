@@ -72,6 +72,7 @@ class Cia402Drive final : public core::Module {
   Command run_mode(std::uint16_t controlword, bool rising_set_point, float gearbox_rad, float gearbox_rad_s);
   Command quick_stop(float gearbox_rad_s);
   float ramp(float from, float to, float acceleration) const;
+  float velocity_limit() const;  // 0x607F and 0x6080, the smaller [rad/s]
   float mrad_to_gearbox_rad(float mrad) const;
   float rated_torque_nm() const;
   std::uint16_t mode_bits(float gearbox_rad, float gearbox_rad_s) const;

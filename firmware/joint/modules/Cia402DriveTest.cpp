@@ -137,6 +137,19 @@ TEST_F(Cia402DriveTest, AModeMovesOnlyInOperationEnabled) {
   EXPECT_FLOAT_EQ(board.get(FieldId::drive_velocity_reference), 1.0F);
 }
 
+TEST_F(Cia402DriveTest, MaxMotorSpeedLimitsTheVelocityDemandAndSaysSo) {
+  constexpr std::uint16_t kInternalLimit = cia402::bit(cia402::StatusBit::InternalLimitActive);
+  ASSERT_EQ(bus.write(FieldId::max_motor_speed, 1500.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::target_velocity, 1000.0F), core::SetResult::Ok);
+  enable(9.0F);
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_velocity_reference), 1.0F);
+  EXPECT_EQ(status() & kInternalLimit, 0);
+  ASSERT_EQ(bus.write(FieldId::target_velocity, -4000.0F), core::SetResult::Ok);
+  step();
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_velocity_reference), -1.5F);
+  EXPECT_NE(status() & kInternalLimit, 0);
+}
+
 TEST_F(Cia402DriveTest, ProfileVelocityRampsAndAModeSwitchWithHaltStaysHalted) {
   enable(4.0F);
   ASSERT_EQ(bus.write(FieldId::target_velocity, 2000.0F), core::SetResult::Ok);
