@@ -245,17 +245,19 @@ def _tracer(run: RunDescription, table: RigTable, blueprint: str | None = "overv
 def _module_rig(
     bus: can.BusABC,
     run: RunDescription,
-    table: RigTable,
+    run_table: RigTable,
     firmware: Firmware | None,
+    /,
     **module: Any,
 ) -> Rig:
-    """A Rig of the run: its period (`table`'s default), timeouts and timing from the run's rig
-    layer; `module` (node_id, eds, plant, tracer, a rider's own table...) what differs per module."""
+    """A Rig of the run: its period (`run_table`'s default: one period for a whole robot),
+    timeouts and timing from the run's rig layer; `module` (node_id, eds, plant, tracer, a
+    rider's own table...) what differs per module."""
     rig = run.rig
-    module.setdefault("table", table)
+    module.setdefault("table", run_table)
     return Rig(
         bus,
-        period_us=rig.cycle_us(table),
+        period_us=rig.cycle_us(run_table),
         liveness=firmware.check if firmware is not None else None,
         activity=firmware.activity if firmware is not None else None,
         boot_timeout_s=run.firmware.boot_timeout_s,
