@@ -106,15 +106,13 @@ def _field_variable(field: Field) -> ODVariable:
         field.name,
         field.index,
         0,
-        field.data_type,
+        DataType.REAL32,
         field.access.value,
-        field.default if field.data_type is DataType.REAL32 else int(field.default),
+        field.default,
         pdo_mappable=True,
     )
-    if field.data_type is DataType.REAL32:
-        variable.min, variable.max = field.min, field.max
-    else:
-        variable.min, variable.max = int(field.min), int(field.max)
+    variable.min = field.min
+    variable.max = field.max
     variable.unit = field.unit
     variable.description = field.description
     variable.storage_location = STORAGE_PERSISTENT if field.stored else STORAGE_VOLATILE
