@@ -6,6 +6,7 @@ options (`hilrig.session.run`) carry them as the command line's own (`hilrig.cli
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -35,4 +36,28 @@ def kind(value: ArgKind) -> Callable[[Callable[[str], Any]], Callable[[str], Any
     return tag
 
 
-__all__ = ["ArgKind", "kind"]
+
+
+@kind(ArgKind("number", out_of_range="-1"))
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text!r}") from None
+    if not value > 0.0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
+    return value
+
+
+@kind(ArgKind("number", out_of_range="0"))
+def positive_int(text: str) -> int:
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number > 0, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number > 0, got {text}")
+    return value
+
+
+__all__ = ["ArgKind", "kind", "positive_float", "positive_int"]

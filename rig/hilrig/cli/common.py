@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING, Any, Self, TextIO
 from boardproto.cia301 import MAX_NODE_ID, MIN_NODE_ID, is_node_id
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
+from hilrig.arguments import positive_float
+from hilrig.arguments import positive_int as positive_int  # the commands import it from here
 from hilrig.cli.files import ArgKind, existing_file, kind, sniff_eds, sniff_toml
 from hilrig.errors import (
     BusUnavailableError,
@@ -111,28 +113,6 @@ def interface_name(text: str) -> str:
     raise argparse.ArgumentTypeError(
         f"unknown python-can interface {text!r}; {hint}known: {', '.join(sorted(VALID_INTERFACES))}"
     )
-
-
-@kind(ArgKind("number", out_of_range="-1"))
-def positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text!r}") from None
-    if not value > 0.0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
-    return value
-
-
-@kind(ArgKind("number", out_of_range="0"))
-def positive_int(text: str) -> int:
-    try:
-        value = int(text, 0)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number > 0, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number > 0, got {text}")
-    return value
 
 
 @kind(ArgKind("name", out_of_range="no_such_field"))

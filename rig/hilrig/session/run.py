@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from hilrig import resources
-from hilrig.arguments import ArgKind, kind
+from hilrig.arguments import ArgKind, kind, positive_float, positive_int
 from hilrig.engine.timing import TimingMode
 from hilrig.errors import BusUnavailableError, ConfigurationError
 from hilrig.session import baremetal
@@ -291,28 +291,6 @@ class RunOption:
     """Also a pytest option (--hil-<flag>) that applies to every lockstep scenario."""
 
 
-@kind(ArgKind("number", out_of_range="0"))
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text, 0)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text}")
-    return value
-
-
-@kind(ArgKind("number", out_of_range="0"))
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a duration in seconds, got {text!r}") from None
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a duration > 0 s, got {text}")
-    return value
-
-
 @kind(ArgKind("number", out_of_range="x"))
 def _integer(text: str) -> int:
     try:
@@ -337,7 +315,7 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
         "period_us",
         "rig.period_us",
         "control period in microseconds, the firmware's --period-us; default: the table's [node] period_us",
-        _positive_int,
+        positive_int,
         metavar="US",
         check=_period_range,
         pytest=True,
@@ -349,7 +327,7 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
         "firmware.boot_timeout_s",
         "seconds the firmware may take to boot and answer (a hang guard; default: the run's, "
         f"{BOOT_TIMEOUT_S:g} s on a private bus)",
-        _seconds,
+        positive_float,
         metavar="S",
         pytest=True,
     ),
