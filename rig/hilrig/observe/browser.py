@@ -544,7 +544,11 @@ class ViewerPage:
         if given, the recording up to `timeline_ends`). Only for a page of a `ServedTrace`."""
         if self.grpc_port is None:
             raise RuntimeError("show_dashboard needs the gRPC port: open the page with a ServedTrace")
-        recording = self.wait_for(lambda s: s.recording_id is not None, "an active recording").recording_id
+        # The recording with data: the stream that served the trace is a recording of its own
+        # (no rows), which a page can show active for a moment before the trace's.
+        recording = self.wait_for(
+            lambda s: s.recording_id is not None and bool(s.timeline_ends), "an active recording with data"
+        ).recording_id
         assert recording is not None
         expected = dashboard_views(dashboard)
         name = dashboard if isinstance(dashboard, str) else "the blueprint"
