@@ -313,8 +313,10 @@ class Driver:
         """(COB-ID, position) of a plant's one actuator field: what a lockstep cycle reads
         itself, without `_actuator`'s call (the usual case); None: call `_actuator`."""
         self._due_table: list[frozenset[int]] = [frozenset()]
-        self._sync_starts = SyncStarts(())
         """COB-IDs of the TPDOs due at each SYNC number modulo the table's length."""
+        self._sync_starts: SyncStarts | None = None
+        """The TPDOs with a SYNC start value; None when there are none (the usual case: a
+        cycle then asks nothing more)."""
         self._decoders: dict[int, Decoder] = {}
         """COB-ID -> (length, unpack, cycles, payloads) of every enabled TPDO: what a cycle's
         exchange decodes, and the history's rows it appends each one to (`History.row_store`);
@@ -417,7 +419,8 @@ class Driver:
         one = complete and len(actuator_at) == 1
         self._actuator_one = (actuator_at[0][0].cob_id, actuator_at[0][1]) if one else None
         self._due_table = due_table(enabled_tpdos)
-        self._sync_starts = SyncStarts(enabled_tpdos)
+        starts = SyncStarts(enabled_tpdos)
+        self._sync_starts = starts if starts else None
         keep = self.history.keep
         self._decoders = {
             p.cob_id: (p.length, p.codec.unpack, *self.history.row_store(p), self.history.arrival_store(p))
@@ -489,7 +492,8 @@ class Driver:
         """Tell the driver the node's NMT state changed (the rig sent the command)."""
         self._operational = state is NmtState.OPERATIONAL
         self._syncs_since_operational = 0
-        self._sync_starts.reset()
+        if self._sync_starts is not None:
+            self._sync_starts.reset()
 
     @property
     def operational(self) -> bool:

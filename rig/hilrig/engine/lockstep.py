@@ -294,8 +294,9 @@ class LockstepDriver(Driver):
         if self._operational:
             sync_number = self._syncs_since_operational = self._syncs_since_operational + 1
             due = self._due_table[sync_number % len(self._due_table)]
-            if self._sync_starts:  # TPDOs with a SYNC start value: by the counter
-                due = due | self._sync_starts.due(sync_counter(n))
+            starts = self._sync_starts
+            if starts is not None:  # TPDOs with a SYNC start value: by the counter
+                due = due | starts.due(sync_counter(n))
         else:
             sync_number = 0
             due = _NOTHING_DUE

@@ -32,7 +32,7 @@
  *
  * Python objects: the state lives in JointState instances (frozen slotted dataclasses); a step
  * reads the previous one and builds the next one of the same type, so the plant's state is
- * plain data. Constants come as a tuple of floats built once from JointParams (order: the
+ * plain data. Constants come as packed doubles (bytes) built once from JointParams (order: the
  * enums of _joint_core.h, mirrored in plant.py / sensors.py). The physics and the sensors'
  * arithmetic are _joint_core.h's, shared with the joint's FMU (_joint_fmu.c); this file is
  * their Python face: argument checks, Python's errors, JointState and RawSensors objects.
@@ -88,20 +88,15 @@ typedef struct {
 static module_state *get_state(PyObject *module) { return (module_state *)PyModule_GetState(module); }
 
 /* --- Argument helpers ------------------------------------------------------------------ */
-static int read_coefficients(PyObject *tuple, double *out, Py_ssize_t count, const char *what)
+/* Coefficients come packed, as the native doubles they are here (bytes of `count` doubles, made
+ * once per plant by plant.py/sensors.py): a copy, not `count` float objects unboxed per call. */
+static int read_coefficients(PyObject *packed, double *out, Py_ssize_t count, const char *what)
 {
-    if (!PyTuple_CheckExact(tuple) || PyTuple_Size(tuple) != count) {
-        PyErr_Format(PyExc_TypeError, "%s: expected a tuple of %zd floats, got %R", what, count, tuple);
+    if (!PyBytes_CheckExact(packed) || PyBytes_Size(packed) != count * (Py_ssize_t)sizeof(double)) {
+        PyErr_Format(PyExc_TypeError, "%s: expected bytes of %zd doubles, got %R", what, count, packed);
         return -1;
     }
-    for (Py_ssize_t i = 0; i < count; i++) {
-        PyObject *item = PyTuple_GetItem(tuple, i); /* borrowed */
-        if (!PyFloat_CheckExact(item)) {
-            PyErr_Format(PyExc_TypeError, "%s[%zd]: expected float, got %R", what, i, item);
-            return -1;
-        }
-        out[i] = PyFloat_AsDouble(item);
-    }
+    memcpy(out, PyBytes_AsString(packed), (size_t)count * sizeof(double));
     return 0;
 }
 

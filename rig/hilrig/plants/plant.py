@@ -11,6 +11,7 @@ validation of parameters and the sub-step limits that do not change during a run
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 
@@ -132,11 +133,11 @@ def plant_coefficients(
 
 def _plant_coefficients(
     params: JointParams, substep_without_electrical_s: float, *, external_load: bool = False
-) -> tuple[float, ...]:
-    """`plant_coefficients` as the tuple _plant.c takes."""
-    return tuple(
-        plant_coefficients(params, substep_without_electrical_s, external_load=external_load).values()
-    )
+) -> bytes:
+    """`plant_coefficients` packed as _plant.c takes them (native doubles)."""
+    return array(
+        "d", plant_coefficients(params, substep_without_electrical_s, external_load=external_load).values()
+    ).tobytes()
 
 
 class JointPlant:

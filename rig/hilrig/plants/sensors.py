@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from array import array
 from dataclasses import dataclass
 
 import numpy as np
@@ -242,10 +243,10 @@ noise of its own (a plant map adds it)."""
 
 
 @functools.lru_cache(maxsize=64)
-def _sensor_coefficients(params: JointParams) -> tuple[float, ...]:
-    """`sensor_coefficients` as the tuple _plant.c takes (kept per params: `read_sensors` asks
-    every read)."""
-    return tuple(sensor_coefficients(params).values())
+def _sensor_coefficients(params: JointParams) -> bytes:
+    """`sensor_coefficients` packed as _plant.c takes them (native doubles; kept per params:
+    `read_sensors` asks every read)."""
+    return array("d", sensor_coefficients(params).values()).tobytes()
 
 
 def read_sensors(state: JointState, params: JointParams, rng: np.random.Generator) -> RawSensors:
