@@ -226,7 +226,8 @@ void Node::apply_rpdo(const Pdo& pdo, std::span<const std::uint8_t> data) {
     offset += object.size;
     SdoAbort result = SdoAbort::None;
     if (object.target == Target::Field) {
-      result = write_field(static_cast<board::FieldId>(object.id), std::bit_cast<float>(raw));
+      const auto id = static_cast<board::FieldId>(object.id);
+      result = write_field(id, tables::field_value(board::info(id), raw));
     } else if (object.target == Target::HilInput) {
       result = write_hil_input(static_cast<board::HilInputId>(object.id), raw);
     }
@@ -242,7 +243,8 @@ std::uint8_t Node::build_tpdo(const Pdo& pdo, std::array<std::uint8_t, 8>& data)
     const MappedObject& object = pdo.mapped[i];
     std::uint32_t raw = 0;
     if (object.target == Target::Field) {
-      raw = std::bit_cast<std::uint32_t>(fields_.read(static_cast<board::FieldId>(object.id)));
+      const auto id = static_cast<board::FieldId>(object.id);
+      raw = tables::field_raw(board::info(id), fields_.read(id));
     } else if (object.target == Target::HilOutput) {
       raw = static_cast<std::uint32_t>(hil_.read_output(static_cast<board::HilOutputId>(object.id)));
     } else if (object.target == Target::Communication) {
