@@ -4,11 +4,24 @@ lockstep rig's SYNCs coming while the master waits on the wall clock.
 
 How a wall-clock master meets a lockstep rig: `BaseNode402` waits on the wall clock (0.4 s per
 state change, 0.2 s for a TPDO, 30 s for homing) for the statusword TPDO, which the firmware sends
-after each SYNC. While the master runs, `Stepper` runs the rig's lockstep cycles back to back in
-a thread, so SYNCs keep coming however long the master takes; a command of the master takes
-effect at the next SYNC, one cycle later, far inside every timeout at any host load. The verdicts
-are read from the rig's lockstep history (simulation time, cycle by cycle), never from how long
-the master waited: on a loaded host the master sees more cycles go by, the drive the same.
+after each SYNC. While the master runs, `Stepper` runs the rig's lockstep cycles in a thread, so
+SYNCs keep coming however long the master takes.
+
+Each next cycle waits until the master's own network has processed the statusword TPDO of the
+previous one (a listener on the master's `Network`, after canopen's own, counts them against the
+cycles in which the rig saw that TPDO): the master is never more than one cycle behind the bus,
+as a master on a real bus is never more than one SYNC period behind its drive. Without it the
+rig ran cycles back to back and, on a loaded host, canopen's notifier fell many TPDOs behind:
+`BaseNode402.homing()` sends the start bit, waits for ONE statusword TPDO ("one extra cycle") and
+then judges the homing bits of the next; both came out of the backlog, sampled before the start
+bit reached the drive, so they showed what CiA 402 says for a homing not yet started (bit 10
+set, bit 12 clear: "interrupted or not started") and homing() gave up. With the hold, the TPDO
+after the one it waits for is sampled at a SYNC sent after the master's controlword, as on a
+real bus, and the drive keeps reporting what CiA 402 says.
+
+The verdicts are read from the rig's lockstep history (simulation time, cycle by cycle), never
+from how long the master waited: on a loaded host the cycles go by more slowly, the drive and the
+master see the same ones.
 """
 
 from __future__ import annotations
@@ -19,12 +32,14 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import can
 import canopen
 
 from boardproto.cia301 import STANDARD_ID_MASK, FunctionCode, cob_id
-from boardproto.cia402 import State
+from boardproto.cia402 import STATUSWORD_INDEX, State
 from boardproto.loader import PROFILE_RANGE
 from hilrig.apps.pdo_profile import apply_pdo_profile
+from hilrig.engine.observers import RigObserver
 from hilrig.pytest_plugin.fixtures import SCENARIO_SDO_TIMEOUT_S
 
 PROFILE = "cia402"
@@ -35,9 +50,38 @@ SWITCH_INTERVAL_S = 0.0001
 PAUSE_S = 0.001  # between two lockstep cycles: the master's threads run meanwhile
 
 
+class MasterGate(can.Listener):
+    """Counts the statusword TPDOs the master's network has processed (added to the network's
+    notifier after canopen's own listener, so a frame counts once canopen has handled it)."""
+
+    def __init__(self, cob_id: int) -> None:
+        self.cob_id = cob_id
+        self.count = 0
+        self.condition = threading.Condition()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.arbitration_id == self.cob_id and not msg.is_remote_frame:
+            with self.condition:
+                self.count += 1
+                self.condition.notify_all()
+
+
+class RigSeen(RigObserver):
+    """Counts the cycles in which the rig received the statusword TPDO."""
+
+    def __init__(self, cob_id: int) -> None:
+        self.cob_id = cob_id
+        self.count = 0
+
+    def on_cycle(self, result) -> None:
+        if self.cob_id in result.values_by_cob_id():
+            self.count += 1
+
+
 class Stepper:
-    """Runs the rig's lockstep cycles back to back in a thread; `call` runs a function between
-    two cycles (the rig is not shared across threads otherwise)."""
+    """Runs the rig's lockstep cycles in a thread, each after the master's network processed the
+    previous one's statusword TPDO (once `hold_for` gave it the master's gate); `call` runs a
+    function between two cycles (the rig is not shared across threads otherwise)."""
 
     def __init__(self, rig) -> None:
         self.rig = rig
@@ -45,7 +89,28 @@ class Stepper:
         self._calls: list[tuple[Callable[[], object], threading.Event]] = []
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._loop, name="lockstep", daemon=True)
+        self._gate: MasterGate | None = None
+        self._seen = RigSeen(statusword_tpdo(rig).cob_id(rig.node.node_id))
         self.error: BaseException | None = None
+
+    @property
+    def statusword_cob_id(self) -> int:
+        return self._seen.cob_id
+
+    def hold_for(self, gate: MasterGate | None) -> None:
+        """From the next cycle on, wait for `gate` (None: run freely, as before a master)."""
+        with self._lock:
+            self._gate, self._seen.count = gate, 0
+
+    def _wait_for_master(self) -> None:
+        gate, seen = self._gate, self._seen
+        if gate is None:
+            return
+        with gate.condition:
+            caught_up = gate.condition.wait_for(
+                lambda: gate.count >= seen.count or self._stop.is_set() or self._gate is not gate, WAIT_S
+            )
+        assert caught_up, f"the master's network processed no statusword TPDO for {WAIT_S} s"
 
     def _loop(self) -> None:
         try:
@@ -56,6 +121,7 @@ class Stepper:
                     call()
                     done.set()
                 self.rig.run(cycles=1)
+                self._wait_for_master()
                 # The exchange holds the interpreter while it waits for a cycle's frames: a pause
                 # lets the master's threads (canopen's notifier, its SDO client) run between two.
                 self._stop.wait(PAUSE_S)
@@ -80,6 +146,7 @@ class Stepper:
         # it over in well under a cycle, not after the default 5 ms.
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
+        self.rig.add_observer(self._seen)
         self._thread.start()
 
     def stop(self) -> None:
@@ -88,6 +155,12 @@ class Stepper:
         sys.setswitchinterval(self._switch_interval)
         if self.error is not None:
             raise self.error
+
+
+def statusword_tpdo(rig):
+    """The profile's TPDO that carries the statusword (0x6041)."""
+    profile = rig.table.board.pdo_profile(PROFILE)
+    return next(p for p in profile.tpdos if any(e.index == STATUSWORD_INDEX for e in p.entries))
 
 
 def params_file(folder: Path) -> tuple[str, ...]:
@@ -118,9 +191,14 @@ def master_filters(rig) -> list[dict[str, int]]:
 @contextmanager
 def master(scenario, private_bus, eds) -> Iterator[tuple[canopen.BaseNode402, Stepper]]:
     stepper = Stepper(scenario.rig)
-    stepper.start()
     network = canopen.Network(private_bus.open(can_filters=master_filters(scenario.rig)))
+    gate = MasterGate(stepper.statusword_cob_id)
+    network.listeners.append(gate)
+    # Connected before the first cycle runs: the master's socket gets every statusword TPDO the
+    # rig counts (no cycle runs between the scenario's start and here, so none is in flight).
     network.connect()
+    stepper.hold_for(gate)
+    stepper.start()
     node = canopen.BaseNode402(scenario.rig.node.node_id, str(eds))
     # BaseNode402 as it ships; its SDO client waits as long as the rig's own (the scenarios'
     # SDO timeout), not canopen's 0.3 s: a loaded host answers late, never wrongly.
@@ -130,6 +208,9 @@ def master(scenario, private_bus, eds) -> Iterator[tuple[canopen.BaseNode402, St
         node.nmt.wait_for_heartbeat(WAIT_S)
         yield node, stepper
     finally:
+        stepper.hold_for(None)
+        with gate.condition:
+            gate.condition.notify_all()
         network.disconnect()
         stepper.stop()
 

@@ -300,6 +300,8 @@ std::uint32_t Node::us_until_pdo_timer(std::uint32_t now_us, std::uint32_t limit
   for (const Pdo& pdo : tpdos_) {
     if (!pdo.valid() || !is_event_driven(pdo.transmission_type)) continue;
     if (!pdo.sent_once) return 0;  // poll_event_tpdos sends it at once
+    // On the control clock these timers move only with a cycle, and poll() follows every cycle.
+    if (timeout_clock_ == TimeoutClock::ControlCycles) continue;
     if (pdo.event_timer_ms != 0) {
       soonest = std::min(soonest, time_left_us(now_us, pdo.last_sent_us, std::uint32_t{pdo.event_timer_ms} * 1000u));
     }
