@@ -31,6 +31,9 @@ FUSED = {
     },
     "_ZN5joint17SpringConstantRls6updateEdd": set(),  # the estimate is not in this run's TPDOs
     "_ZNK5joint17SpringConstantRls10confidenceEv": set(),
+    # The CiA 402 drive's modes and position scaling: no 402 mode is selected in this run.
+    "_ZN5joint11Cia402Drive8run_modeEtbff": set(),
+    "_ZNK5joint11Cia402Drive19mrad_to_gearbox_radEf": set(),
 }
 """The one difference between the builds: floating-point contraction. GCC contracts a*b+c into a
 fused multiply-add by default in C++ (-ffp-contract=fast; only ISO C turns it off), the

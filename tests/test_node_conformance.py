@@ -25,6 +25,7 @@ from boardproto.cia301 import (
     sdo_response_cob_id,
     split_emcy,
 )
+from boardproto.table import DataType, Field
 from hilrig.session.netns import PrivateBus
 from hilrig.table import EmcyCode
 
@@ -54,6 +55,10 @@ def raw_sdo(under_test: NodeUnderTest, request: bytes) -> bytes:
     return bytes(under_test.wait_for(SDO_TX, after_subscribing=lambda: under_test.bus.send(frame)).data)
 
 
+def typed_as_integer(field: Field) -> bool:
+    return field.data_type is not DataType.REAL32
+
+
 def abort_code(answer: bytes) -> int:
     assert answer[0] == SdoCommand.ABORT, f"expected an SDO abort (0x80), got {answer.hex()}"
     return struct.unpack_from("<I", answer, 4)[0]
@@ -66,7 +71,9 @@ def test_every_field_reads_its_default_and_every_writable_field_takes_a_value(
     sdo = node_under_test.node.sdo
     for field in TABLE.fields:
         value = sdo[field.index].raw
-        assert isinstance(value, float), f"{field.name}: expected a REAL32, got {value!r}"
+        # A board field is a REAL32; a device profile's object (CiA 402) has its profile's type.
+        typed = int if typed_as_integer(field) else float
+        assert type(value) is typed, f"{field.name}: expected a {field.data_type.name}, got {value!r}"
         if field.access == "rw":
             assert value == pytest.approx(field.default), (
                 f"{field.name}: expected default {field.default}, got {value}"
@@ -75,6 +82,8 @@ def test_every_field_reads_its_default_and_every_writable_field_takes_a_value(
         if field.access != "rw" or field.name == "fault_clear":
             continue
         target = field.min + 0.25 * (field.max - field.min)
+        if typed_as_integer(field):
+            target = round(target)
         sdo[field.index].raw = target
         assert sdo[field.index].raw == pytest.approx(target, rel=1e-6), field.name
 

@@ -65,8 +65,10 @@ def test_travelling_wave_tracked_by_all_eight_modules(make_robot) -> None:
     GAIT.drive(robot)
     robot.run(seconds=2.0)
     errors = {node_id: tracking_error(robot, node_id, SETTLE_S) for node_id in robot.node_ids}
-    print(f"\ntravelling wave, max |commanded - measured| after {SETTLE_S:g} s: "
-          + ", ".join(f"node {n}: {e:.4f} rad" for n, e in errors.items()))
+    print(
+        f"\ntravelling wave, max |commanded - measured| after {SETTLE_S:g} s: "
+        + ", ".join(f"node {n}: {e:.4f} rad" for n, e in errors.items())
+    )
     for node_id, error in errors.items():
         assert error <= TRACKING_TOLERANCE_RAD, f"node {node_id} tracks within {error:.3f} rad"
     # The encoders report what the mechanics did: each module's measured angle is its link's
@@ -193,9 +195,12 @@ def test_sixteen_modules_track_the_gait_and_one_lost_mid_gait_leaves_the_rest_tr
     kill_cycle = round(kill_s / robot.period_s)
     before = {n: tracking_error(robot, n, SETTLE_S, kill_s - robot.period_s) for n in robot.node_ids}
     after = {n: tracking_error(robot, n, kill_s) for n in robot.node_ids if n != victim}
-    print(f"\n16 modules, max |commanded - measured| in [{SETTLE_S:g}, {kill_s:g}) s: "
-          + ", ".join(f"{n}: {e:.4f}" for n, e in before.items())
-          + f"; after node {victim} was lost: " + ", ".join(f"{n}: {e:.4f}" for n, e in after.items()))
+    print(
+        f"\n16 modules, max |commanded - measured| in [{SETTLE_S:g}, {kill_s:g}) s: "
+        + ", ".join(f"{n}: {e:.4f}" for n, e in before.items())
+        + f"; after node {victim} was lost: "
+        + ", ".join(f"{n}: {e:.4f}" for n, e in after.items())
+    )
     for node_id, error in before.items():
         assert error <= TRACKING_TOLERANCE_RAD, f"node {node_id} tracks within {error:.3f} rad"
     # Designed behaviour: the lost module is named with the cycle its TPDOs were due in, its
@@ -259,7 +264,13 @@ def test_scan_lists_every_module_with_its_identity(make_robot, private_bus) -> N
     node = TABLE.board.node
     rows = [line.split() for line in scan.stdout.splitlines()[1:]]
     assert rows == [
-        [f"0x{node_id:02X}", "pre_operational", node.device_name, f"0x{node.vendor_id:08X}",
-         f"0x{node.product_code:08X}", f"0x{node.revision:08X}"]
+        [
+            f"0x{node_id:02X}",
+            "pre_operational",
+            node.device_name,
+            f"0x{node.vendor_id:08X}",
+            f"0x{node.product_code:08X}",
+            f"0x{node.revision:08X}",
+        ]
         for node_id in (1, 2, 3, 4)
     ]

@@ -99,8 +99,11 @@ struct NodeCounters {
 
 // The clock of the node's timeouts on its peers: the heartbeat consumer's (0x1016) and the SDO
 // server's (a client silent mid-transfer). The choice is the platform's: the node cannot tell
-// whether its SYNCs are real time or simulation time. The heartbeat producer and event-driven
-// PDOs always run on now_us: they are the node's own output, not a judgement of a peer.
+// whether its SYNCs are real time or simulation time. The event-driven TPDOs' inhibit time and
+// event timer run on it too: in lockstep a change goes out in the cycle that made it, and the
+// next one after as many cycles as the inhibit time spans, whatever the host's speed. The
+// heartbeat producer always runs on now_us (a master's heartbeat consumer judges it on its own
+// clock).
 enum class TimeoutClock : std::uint8_t {
   WallTime,       // the now_us of process() and poll(): a board that keeps its own period
   ControlCycles,  // only advance_control_time() moves it, by the control period per cycle: in

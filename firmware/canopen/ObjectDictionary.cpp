@@ -133,7 +133,8 @@ SdoAbort Node::find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) c
   }
   if (const auto field = tables::field_at(index)) {
     if (sub != 0) return SdoAbort::SubIndexDoesNotExist;
-    entry = {DataType::Real32, 4, true, board::info(*field).access == board::Access::ReadWrite,
+    const board::FieldInfo& info = board::info(*field);
+    entry = {info.type, tables::size_of(info.type), true, info.access == board::Access::ReadWrite,
              Target::Field, static_cast<std::uint8_t>(*field)};
     return SdoAbort::None;
   }
@@ -261,7 +262,8 @@ SdoAbort Node::read(std::uint16_t index, std::uint8_t sub, std::span<std::uint8_
   std::uint32_t raw = 0;
   switch (entry.target) {
     case Target::Field:
-      raw = std::bit_cast<std::uint32_t>(fields_.read(static_cast<board::FieldId>(entry.id)));
+      raw = tables::field_raw(board::info(static_cast<board::FieldId>(entry.id)),
+                              fields_.read(static_cast<board::FieldId>(entry.id)));
       break;
     case Target::HilInput:
       raw = static_cast<std::uint32_t>(hil_input_value(static_cast<board::HilInputId>(entry.id)));
@@ -325,7 +327,8 @@ SdoAbort Node::write(std::uint16_t index, std::uint8_t sub, std::span<const std:
   const std::uint32_t raw = tables::get_le(data);
   switch (entry.target) {
     case Target::Field:
-      return write_field(static_cast<board::FieldId>(entry.id), std::bit_cast<float>(raw));
+      return write_field(static_cast<board::FieldId>(entry.id),
+                         tables::field_value(board::info(static_cast<board::FieldId>(entry.id)), raw));
     case Target::HilInput:
       return write_hil_input(static_cast<board::HilInputId>(entry.id), raw);
     case Target::HilOutput: return SdoAbort::ReadOnly;

@@ -1,6 +1,8 @@
 // Internal: little-endian coding and lookups over the generated tables in board/fields.hpp.
 #pragma once
 
+#include <bit>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -65,6 +67,19 @@ constexpr std::int64_t integer_value(board::DataType type, std::uint32_t raw) {
     case board::DataType::Unsigned16: return raw & 0xFFFF;
     default: return raw;
   }
+}
+
+// A board field's value as its object's bytes (`size_of(field.type)` of them): a REAL32's bits,
+// or a device profile object's integer (the table keeps its range exact in a float).
+inline std::uint32_t field_raw(const board::FieldInfo& field, float value) {
+  if (field.type == board::DataType::Real32) return std::bit_cast<std::uint32_t>(value);
+  return static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround(value)));
+}
+
+// The board value of a field whose object's bytes read `raw`.
+inline float field_value(const board::FieldInfo& field, std::uint32_t raw) {
+  if (field.type == board::DataType::Real32) return std::bit_cast<float>(raw);
+  return static_cast<float>(integer_value(field.type, raw));
 }
 
 constexpr std::optional<board::FieldId> field_at(std::uint16_t index) {

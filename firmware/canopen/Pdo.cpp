@@ -226,7 +226,8 @@ void Node::apply_rpdo(const Pdo& pdo, std::span<const std::uint8_t> data) {
     offset += object.size;
     SdoAbort result = SdoAbort::None;
     if (object.target == Target::Field) {
-      result = write_field(static_cast<board::FieldId>(object.id), std::bit_cast<float>(raw));
+      const auto id = static_cast<board::FieldId>(object.id);
+      result = write_field(id, tables::field_value(board::info(id), raw));
     } else if (object.target == Target::HilInput) {
       result = write_hil_input(static_cast<board::HilInputId>(object.id), raw);
     }
@@ -242,7 +243,8 @@ std::uint8_t Node::build_tpdo(const Pdo& pdo, std::array<std::uint8_t, 8>& data)
     const MappedObject& object = pdo.mapped[i];
     std::uint32_t raw = 0;
     if (object.target == Target::Field) {
-      raw = std::bit_cast<std::uint32_t>(fields_.read(static_cast<board::FieldId>(object.id)));
+      const auto id = static_cast<board::FieldId>(object.id);
+      raw = tables::field_raw(board::info(id), fields_.read(id));
     } else if (object.target == Target::HilOutput) {
       raw = static_cast<std::uint32_t>(hil_.read_output(static_cast<board::HilOutputId>(object.id)));
     } else if (object.target == Target::Communication) {
@@ -298,6 +300,8 @@ std::uint32_t Node::us_until_pdo_timer(std::uint32_t now_us, std::uint32_t limit
   for (const Pdo& pdo : tpdos_) {
     if (!pdo.valid() || !is_event_driven(pdo.transmission_type)) continue;
     if (!pdo.sent_once) return 0;  // poll_event_tpdos sends it at once
+    // On the control clock these timers move only with a cycle, and poll() follows every cycle.
+    if (timeout_clock_ == TimeoutClock::ControlCycles) continue;
     if (pdo.event_timer_ms != 0) {
       soonest = std::min(soonest, time_left_us(now_us, pdo.last_sent_us, std::uint32_t{pdo.event_timer_ms} * 1000u));
     }

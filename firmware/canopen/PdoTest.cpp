@@ -168,6 +168,40 @@ TEST_F(PdoTest, EventTimerSendsUnchangedValues) {
   EXPECT_EQ(sent, 5u);
 }
 
+// Lockstep: the inhibit time and the event timer count control cycles; a host that stalls
+// between two cycles neither releases a held change nor fires the timer.
+TEST_F(PdoTest, OnControlCyclesEventTpdoTimersCountOnlyControlTime) {
+  constexpr std::uint32_t kPeriodUs = 1'000;
+  node.set_timeout_clock(TimeoutClock::ControlCycles);
+  disable_other_tpdos();
+  prepare_disabled_tpdo1();
+  ASSERT_EQ(download(0x1800, 3, 100, 2), SdoAbort::None);  // 100 x 100 us = 10 ms
+  ASSERT_EQ(download(0x1800, 5, 20, 2), SdoAbort::None);   // 20 ms
+  remap(0x1800, 0x1A00, kTpdo1, 254, {map(FieldId::motor_velocity)});
+  nmt(NmtCommand::Start);
+  advance_us(1);
+  EXPECT_EQ(all_sent().size(), 1u) << "first transmission right after start";
+  value(FieldId::motor_velocity) = 1.0f;
+  for (int i = 0; i < 100; ++i) advance_us(1'000'000);  // the host stalls for 100 s
+  EXPECT_TRUE(all_sent().empty()) << "a change inside the inhibit time waits for control time";
+  for (std::uint32_t cycle = 1; cycle < 10; ++cycle) {
+    node.advance_control_time(kPeriodUs);
+    advance_us(0);
+  }
+  EXPECT_TRUE(all_sent().empty()) << "9 cycles: inside the inhibit time";
+  node.advance_control_time(kPeriodUs);
+  advance_us(0);
+  const auto v = le32(float_bits(1.0f));
+  EXPECT_EQ(next_sent(), make_frame(kTpdo1, {v[0], v[1], v[2], v[3]})) << "the 10th cycle ends it";
+  std::size_t sent = 0;
+  for (std::uint32_t cycle = 1; cycle <= 100; ++cycle) {
+    node.advance_control_time(kPeriodUs);
+    advance_us(0);
+    sent += all_sent().size();
+  }
+  EXPECT_EQ(sent, 5u) << "the event timer: every 20 cycles";
+}
+
 TEST_F(PdoTest, MappingChangeWhileOperationalAbortsDeviceState) {
   nmt(NmtCommand::Start);
   ASSERT_EQ(download(0x1800, 1, kNoRtr | kTpdo1 | kInvalid, 4), SdoAbort::None);

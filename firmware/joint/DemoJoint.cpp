@@ -23,6 +23,7 @@ DemoJoint::DemoJoint(core::MessageBoard& board, const JointDrivers& drivers, flo
       winding_temperature_{board},
       thermal_protection_{board},
       command_watchdog_{board},
+      cia402_drive_{board, dt_s},
       fault_manager_{board},
       velocity_controller_{board, dt_s},
       torque_controller_{board, dt_s},
@@ -36,7 +37,7 @@ bool DemoJoint::add_to(core::Scheduler& scheduler) {
   for (core::MessageBoardUser* component : std::initializer_list<core::MessageBoardUser*>{
            &motor_encoder_, &output_encoder_, &thermistor_, &motor_current_, &heartbeat_, &motor_velocity_, &output_velocity_,
            &spring_deflection_, &joint_torque_, &winding_temperature_, &thermal_protection_, &command_watchdog_,
-           &fault_manager_, &velocity_controller_, &torque_controller_, &drive_arbiter_,
+           &cia402_drive_, &fault_manager_, &velocity_controller_, &torque_controller_, &drive_arbiter_,
            &spring_constant_estimator_, &led_pattern_, &motor_, &status_led_}) {
     if (!scheduler.add(*component)) {
       return false;

@@ -16,6 +16,7 @@
 #include "joint/actuators/Motor.hpp"
 #include "joint/actuators/StatusLed.hpp"
 #include "joint/drivers/JointDrivers.hpp"
+#include "joint/modules/Cia402Drive.hpp"
 #include "joint/modules/CommandWatchdog.hpp"
 #include "joint/modules/DriveArbiter.hpp"
 #include "joint/modules/FaultManager.hpp"
@@ -63,6 +64,7 @@ class DemoJoint {
   // Modules
   ThermalProtection thermal_protection_;
   CommandWatchdog command_watchdog_;
+  Cia402Drive cia402_drive_;
   FaultManager fault_manager_;
   VelocityController velocity_controller_;
   TorqueController torque_controller_;

@@ -88,7 +88,7 @@ std::uint16_t thermistor_adc_at(double temperature_c) {
 TEST_F(DemoJointTest, SchedulesAllComponentsWithoutError) {
   const core::StartupStatus status = start();
   ASSERT_TRUE(status) << status.message();
-  EXPECT_EQ(scheduler.order().size(), 20U);
+  EXPECT_EQ(scheduler.order().size(), 21U);
   EXPECT_FALSE(joint.add_to(scheduler));  // too late once started
 }
 
@@ -113,7 +113,7 @@ TEST_F(DemoJointTest, PrintedScheduleRunsSensorsThenVirtualSensorsThenModulesThe
     ranks.push_back(rank.at(kind));
     names.push_back(line.substr(quote + 2, line.size() - quote - 3));
   }
-  ASSERT_EQ(ranks.size(), 20U) << text;
+  ASSERT_EQ(ranks.size(), 21U) << text;
   EXPECT_TRUE(std::is_sorted(ranks.begin(), ranks.end())) << text;
   for (int kind = 0; kind < 4; ++kind) {
     EXPECT_NE(std::find(ranks.begin(), ranks.end(), kind), ranks.end()) << "kind rank " << kind << " missing";

@@ -11,6 +11,7 @@ from pathlib import Path
 from boardproto.cia301_header import generate_cia301_header
 from boardproto.cia302_header import generate_cia302_header
 from boardproto.cia305_header import generate_cia305_header
+from boardproto.cia402_header import generate_cia402_header
 from boardproto.cpp_header import generate_header
 from boardproto.dbc import generate_dbc
 from boardproto.eds import generate_eds
@@ -29,6 +30,7 @@ OUTPUTS: dict[str, Callable[[BoardTable], str]] = {
     "include/board/cia301.hpp": lambda _table: generate_cia301_header(),
     "include/board/cia302.hpp": lambda _table: generate_cia302_header(),
     "include/board/cia305.hpp": lambda _table: generate_cia305_header(),
+    "include/board/cia402.hpp": lambda _table: generate_cia402_header(),
     "board.eds": generate_eds,
     "board.dbc": generate_dbc,
     "field_vectors.csv": generate_field_vectors,

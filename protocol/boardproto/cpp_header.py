@@ -64,7 +64,8 @@ def _field_initializer(field: Field) -> str:
         f"     .kind = Kind::{field.kind.cpp_name}, .access = Access::{field.access.cpp_name},\n"
         f"     .min = {cpp_float(field.min)}, .max = {cpp_float(field.max)}, "
         f".default_value = {cpp_float(field.default)}, "
-        f".stored = {'true' if field.stored else 'false'},\n"
+        f".stored = {'true' if field.stored else 'false'}, "
+        f".type = DataType::{field.data_type.cpp_name},\n"
         f"     .description = {cpp_string(field.description)}}},"
     )
 
@@ -587,12 +588,13 @@ enum class DataType : std::uint16_t {{
 
 struct FieldInfo {{
   std::string_view name;        // snake_case, as in board.toml
-  std::uint16_t index;          // object index (sub-index is always 0), 0x2000..0x5FFF
+  std::uint16_t index;          // object index (sub-index 0): 0x2000..0x5FFF, a profile's 0x6000..
   std::string_view unit;        // "rad", "rad/s", "N*m", "degC", "ohm", "1" ...
   Kind kind;
   Access access;
   float min, max, default_value;
   bool stored;                  // saved by 0x1010 "store parameters"
+  DataType type;                // on the bus: Real32, or a device profile object's integer type
   std::string_view description;
 }};
 

@@ -106,13 +106,15 @@ def _field_variable(field: Field) -> ODVariable:
         field.name,
         field.index,
         0,
-        DataType.REAL32,
+        field.data_type,
         field.access.value,
-        field.default,
+        field.default if field.data_type is DataType.REAL32 else int(field.default),
         pdo_mappable=True,
     )
-    variable.min = field.min
-    variable.max = field.max
+    if field.data_type is DataType.REAL32:
+        variable.min, variable.max = field.min, field.max
+    else:
+        variable.min, variable.max = int(field.min), int(field.max)
     variable.unit = field.unit
     variable.description = field.description
     variable.storage_location = STORAGE_PERSISTENT if field.stored else STORAGE_VOLATILE

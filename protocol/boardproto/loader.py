@@ -22,6 +22,7 @@ from boardproto.table import (
     Access,
     BitSet,
     BoardTable,
+    DataType,
     EmcyCode,
     EnumValue,
     ErrorRegisterBit,
@@ -49,6 +50,11 @@ class TableError(ValueError):
 
 
 MANUFACTURER_RANGE = range(0x2000, 0x6000)
+# Standardised device profile area (CiA 301, 7.4.1): a board field of a device profile (CiA 402's
+# objects of the first logical device) lives here, with the integer type the profile gives it.
+PROFILE_RANGE = range(0x6000, 0xA000)
+# A typed field's values are held in a float on the board: integers up to 2**24 are exact there.
+FLOAT_EXACT_INTEGER = 1 << 24
 MAX_PDO_BITS = 64  # classic CAN: 8 data bytes
 MAX_PDO_ENTRIES = 8
 MAX_PDO_SLOTS = 512  # CiA 301: 0x1400..0x15FF, 0x1800..0x19FF
@@ -102,7 +108,7 @@ _FIELD_KEYS = frozenset({"name", "index", "unit", "kind", "min", "max", "descrip
 # Optional on a field: access follows from its kind (the only one the loader accepts), a field is
 # not stored and starts at 0 (or its min, when 0 is outside its range) unless it says otherwise;
 # `stream = true` puts a command field in the setpoint stream a master sends every cycle.
-_FIELD_OPTIONAL_KEYS = frozenset({"access", "default", "stored", "stream"})
+_FIELD_OPTIONAL_KEYS = frozenset({"access", "default", "stored", "stream", "type"})
 _HIL_IO_KEYS = frozenset({"name", "index", "type", "min", "max", "unit", "description"})
 _VALUES_KEY = frozenset({"values"})  # optional on fields and HIL I/O: the enum or bitset carried
 _NAMED_SET_KEYS = frozenset({"name", "description"})
@@ -270,10 +276,22 @@ def _load_field(source: Path, position: int, data: Any) -> Field:
     # start-up error in the firmware, so refuse the table instead.
     expected_access = Access.READ_WRITE if kind.bus_writable else Access.READ_ONLY
     access = entry.choice("access", Access) if "access" in entry.data else expected_access
-    low, high = entry.real("min"), entry.real("max")
+    data_type = _field_type(entry, index)
+    if data_type is DataType.REAL32:
+        low, high = entry.real("min"), entry.real("max")
+    else:
+        type_low, type_high = data_type.integer_range
+        type_low, type_high = max(type_low, -FLOAT_EXACT_INTEGER), min(type_high, FLOAT_EXACT_INTEGER)
+        low = float(entry.integer("min", type_low, type_high))
+        high = float(entry.integer("max", type_low, type_high))
     if low > high:
         raise entry.error(f"min {low!r} is greater than max {high!r}")
-    default = entry.real("default") if "default" in entry.data else min(max(0.0, low), high)
+    if "default" not in entry.data:
+        default = min(max(0.0, low), high)
+    elif data_type is DataType.REAL32:
+        default = entry.real("default")
+    else:
+        default = float(entry.integer("default", int(low), int(high)))
     stored = entry.boolean("stored", False)
     if not low <= default <= high:
         raise entry.error(f"default {default!r} outside [{low!r}, {high!r}]")
@@ -299,7 +317,29 @@ def _load_field(source: Path, position: int, data: Any) -> Field:
         description=entry.text("description"),
         values=entry.optional_text("values"),
         stream=stream,
+        data_type=data_type,
     )
+
+
+def _field_type(entry: _Entry, index: int) -> DataType:
+    """REAL32 in the manufacturer range; the integer type named by `type` in the profile range."""
+    if index in PROFILE_RANGE:
+        if "type" not in entry.data:
+            raise entry.error(
+                f"index 0x{index:04X} is a device profile object: give it the profile's type "
+                f"(type = one of: {', '.join(t.toml_name for t in HIL_IO_TYPES)})"
+            )
+        types = {t.toml_name: t for t in HIL_IO_TYPES}
+        type_name = entry.text("type")
+        if type_name not in types:
+            raise entry.error(f"unknown type {type_name!r} (one of: {', '.join(types)})")
+        return types[type_name]
+    if "type" in entry.data and entry.data["type"] != DataType.REAL32.toml_name:
+        raise entry.error(
+            "a field in the manufacturer range is a real32: only a device profile object "
+            "(index 0x6000..0x9FFF) takes an integer type"
+        )
+    return DataType.REAL32
 
 
 def _load_hil_io(source: Path, direction: IoDirection, position: int, data: Any) -> HilIo:
@@ -462,7 +502,8 @@ def _check_unique(source: Path, entries: list[ObjectEntry]) -> None:
                 f"{source}: {what} {entry.name!r}: index 0x{entry.index:04X} "
                 f"already used by {by_index[entry.index].name!r}"
             )
-        if entry.index not in MANUFACTURER_RANGE:
+        in_profile = isinstance(entry, Field) and entry.index in PROFILE_RANGE
+        if entry.index not in MANUFACTURER_RANGE and not in_profile:
             raise TableError(
                 f"{source}: {what} {entry.name!r}: index 0x{entry.index:04X} "
                 "outside the manufacturer range 0x2000..0x5FFF"

@@ -21,7 +21,7 @@ from boardproto.cia301 import FunctionCode
 
 _T = TypeVar("_T")
 
-FIELD_BITS = 32  # every board field is a REAL32
+FIELD_BITS = 32  # a board field is a REAL32 unless its table entry names an integer type
 
 
 class Kind(enum.StrEnum):
@@ -142,7 +142,12 @@ HIL_IO_TYPES = (
 
 @dataclass(frozen=True)
 class Field:
-    """A board field: a REAL32 object at (index, 0) in the manufacturer range."""
+    """A board field: an object at (index, 0), REAL32 in the manufacturer range.
+
+    A field of a device profile (CiA 402's controlword, targets, actuals at 0x6000..) travels as
+    the integer type the profile gives it (`data_type`); the board holds its value as a float all
+    the same, exact because its range stays within +-2**24.
+    """
 
     name: str
     index: int
@@ -157,13 +162,13 @@ class Field:
     values: str | None = None  # the [[enum]] or [[bitset]] its values come from
     stream: bool = False
     """In the setpoint stream: a master sends it every cycle (a command's watchdog may watch it)."""
+    data_type: DataType = DataType.REAL32  # on the bus; an integer type for a profile object
 
     subindex = 0
-    data_type = DataType.REAL32
 
     @property
     def bits(self) -> int:
-        return FIELD_BITS
+        return self.data_type.bits
 
 
 class IoDirection(enum.StrEnum):

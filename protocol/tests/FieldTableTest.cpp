@@ -103,8 +103,15 @@ TEST(FieldTable, InfoLooksUpByFieldId) {
 TEST(FieldTable, IndicesAreUniqueAndInTheManufacturerRange) {
   std::set<std::uint16_t> seen;
   for (const auto& field : board::kFields) {
-    EXPECT_GE(field.index, 0x2000U) << field.name;
-    EXPECT_LE(field.index, 0x5FFFU) << field.name;
+    // A board field (REAL32) in the manufacturer range; a device profile's object (CiA 402:
+    // an integer type) in the profile range.
+    if (field.type == board::DataType::Real32) {
+      EXPECT_GE(field.index, 0x2000U) << field.name;
+      EXPECT_LE(field.index, 0x5FFFU) << field.name;
+    } else {
+      EXPECT_GE(field.index, 0x6000U) << field.name;
+      EXPECT_LE(field.index, 0x9FFFU) << field.name;
+    }
     EXPECT_TRUE(seen.insert(field.index).second) << "duplicate index of " << field.name;
   }
   for (const auto& io : board::kHilInputs) EXPECT_TRUE(seen.insert(io.index).second) << io.name;

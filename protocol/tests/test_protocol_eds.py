@@ -19,6 +19,7 @@ from boardproto.cia301 import (
     emcy_cob_id,
 )
 from boardproto.eds import generate_eds
+from boardproto.table import DataType
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +54,8 @@ def test_every_field_round_trips(
         variable = od[field.name]
         assert isinstance(variable, ODVariable), field.name
         assert (variable.index, variable.subindex) == (field.index, 0), field.name
-        assert variable.data_type == datatypes.REAL32, field.name
+        # A board field is REAL32 on the bus; a CiA 402 object has its profile's integer type.
+        assert variable.data_type == field.data_type.value, field.name
         assert variable.access_type == field.access.value, field.name
         assert variable.default == field.default, field.name
         assert variable.unit == field.unit, field.name
@@ -63,6 +65,9 @@ def test_every_field_round_trips(
         # canopen 2.4.1 parses LowLimit/HighLimit as integers only, so REAL32 limits are
         # checked in the EDS text itself.
         section = eds_sections[f"{field.index:04X}"]
+        if field.data_type is not DataType.REAL32:
+            assert (variable.min, variable.max) == (field.min, field.max), field.name
+            continue
         assert float(section["LowLimit"]) == field.min, field.name
         assert float(section["HighLimit"]) == field.max, field.name
 

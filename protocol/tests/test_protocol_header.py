@@ -170,7 +170,7 @@ def test_declares_the_value_api(header: str) -> None:
         "inline constexpr std::uint16_t kSetpointStreamLost = info(EmcyId::setpoint_stream_lost).code;",
         "constexpr void for_each_enum(Visit&& visit)",
         "constexpr void for_each_bitset(Visit&& visit)",
-        "// Carried by: control_mode (0x2400).",
+        "// Carried by: drive_mode (0x220A), control_mode (0x2400).",
         "// Carried by: led_pattern_command (0x2209), led_pattern (0x3101).",
     ):
         assert declaration in header, declaration

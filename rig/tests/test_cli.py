@@ -149,7 +149,7 @@ def test_fields_filters_by_kind_and_substring(capsys: pytest.CaptureFixture[str]
     code, out, _ = run(capsys, "fields", "velocity", "--kind", "virtual_sensor", "--kind", "command")
     assert code == 0
     names = [line.split()[0] for line in out.splitlines()[1:]]
-    assert names == ["motor_velocity", "output_velocity", "velocity_setpoint"]
+    assert names == ["motor_velocity", "output_velocity", "velocity_setpoint", "target_velocity"]
 
 
 def test_console_script_exit_codes_without_traceback(tmp_path: Path) -> None:

@@ -140,10 +140,10 @@ def test_an_abort_is_one_line_in_words_exit_code_1(
         f"hilrig sdo write: error: node 0x{NODE.default_node_id:02X} refused write 0x{KP.index:04X}:00 "
         f"velocity_kp: 0x{SdoAbortCode.VALUE_TOO_HIGH:08X} value too high (max {KP.max})\n"
     )
-    code, out, err = run(capsys, "sdo", "read", "0x6041", *on_bus(channel))
+    code, out, err = run(capsys, "sdo", "read", "0x6FFF", *on_bus(channel))
     assert (code, out) == (1, "")
     no_object = f"0x{SdoAbortCode.OBJECT_DOES_NOT_EXIST:08X} no such object in the node's dictionary"
-    assert err.endswith(f"read 0x6041:00: {no_object}\n")
+    assert err.endswith(f"read 0x6FFF:00: {no_object}\n")
     assert err.count("\n") == 1
 
 
@@ -158,9 +158,9 @@ def test_a_silent_node_is_one_line_exit_code_1(capsys: pytest.CaptureFixture[str
 
 
 def test_an_unknown_type_needs_type(capsys: pytest.CaptureFixture[str], channel: str) -> None:
-    code, _, err = run(capsys, "sdo", "write", "0x6040", "15", *on_bus(channel))
+    code, _, err = run(capsys, "sdo", "write", "0x6FFF", "15", *on_bus(channel))
     assert code == 2
-    assert "0x6040:00: its type is unknown" in err and "give --type (u8, u16" in err
+    assert "0x6FFF:00: its type is unknown" in err and "give --type (u8, u16" in err
 
 
 def test_without_an_eds_a_read_guesses_by_length_and_a_write_needs_type(

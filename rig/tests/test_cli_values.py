@@ -75,3 +75,45 @@ def test_watch_shows_the_led_pattern_by_name(capsys: pytest.CaptureFixture[str],
     by_name = {row[0]: row for row in rows[2:]}
     assert by_name["led_pattern"][1:3] == ["on", f"({int(LedPattern.ON)})"]  # the fake node's LED
     assert by_name["motor_duty"][1:3] == ["0", "0.01%"]  # a field without names: its number alone
+
+
+def test_watch_and_monitor_name_a_402_drives_state_and_mode() -> None:
+    import struct
+
+    import can
+
+    from boardproto.cia301 import sdo_request_cob_id, sdo_response_cob_id
+    from hilrig.cli.common import load_dbc, value_names
+    from hilrig.cli.record import FrameDecoder
+    from hilrig.cli.watch import Board
+    from hilrig.engine.rig import DEFAULT_EDS_PATH
+    from hilrig.session.buslog import NodeDbc
+
+    table = RigTable.load()
+    operation_enabled = 0x0637  # the state's bits, voltage enabled, remote, target reached
+    board = Board([table.entry("statusword"), table.entry("modes_of_operation_display")], value_names(table))
+    board.store("statusword", operation_enabled, "TPDO2 (0x290)")
+    board.store("modes_of_operation_display", 3, "TPDO2 (0x290)")
+    assert [row[1] for row in board.rows()] == ["OPERATION ENABLED (1591)", "profile_velocity (3)"]
+    board.store("statusword", 0x0001, "TPDO2 (0x290)")
+    assert board.rows()[0][1].startswith("1 (no CiA 402 state)")
+
+    # hilrig monitor: the same names in an SDO upload of either object.
+    node = 0x10
+    dbc = NodeDbc(load_dbc(DEFAULT_EDS_PATH.with_name("board.dbc")), table, node)
+    decoder = FrameDecoder(dbc, table, node, set())
+    texts = []
+    for index, answer in ((0x6041, struct.pack("<H2x", operation_enabled)), (0x6061, struct.pack("<b3x", 3))):
+        command = 0x4B if index == 0x6041 else 0x4F  # expedited upload of 2 bytes, of 1 byte
+        request = struct.pack("<BHB4x", 0x40, index, 0)
+        decoder.describe(
+            can.Message(arbitration_id=sdo_request_cob_id(node), data=request, is_extended_id=False)
+        )
+        response = struct.pack("<BHB", command, index, 0) + answer
+        texts.append(
+            decoder.describe(
+                can.Message(arbitration_id=sdo_response_cob_id(node), data=response, is_extended_id=False)
+            )
+        )
+    assert "statusword=OPERATION ENABLED (1591)" in texts[0]
+    assert "modes_of_operation_display=profile_velocity (3)" in texts[1]

@@ -176,9 +176,9 @@ def test_history_keeps_rows_per_pdo_and_merges_a_name_carried_twice() -> None:
 def test_history_gives_back_exactly_the_numbers_the_bus_carried() -> None:
     # Rows are stored as the payloads the bus carried: every type comes back as the number it
     # was (a REAL32 as its float32 value), widened to int64, float64 or bool for arithmetic.
-    names, formats = ("i", "u", "flag", "x"), ("h", "H", "?", "f")
+    names, formats = ("i", "u", "flag", "x", "p"), ("h", "H", "?", "f", "i")
     layout = PdoLayout(PdoDirection.TPDO, 2, TPDO6, True, 1, names, formats)
-    rows = [(-32768, 65535, True, 0.1), (7, 0, False, -2.5e-3)]
+    rows = [(-32768, 65535, True, 0.1, -(2**31)), (7, 0, False, -2.5e-3, 2**31 - 1)]
     history = History(period_us=500)
     for cycle, values in enumerate(rows, start=10):
         history.record_rows(cycle, [(layout, values)], ())
@@ -191,13 +191,16 @@ def test_history_gives_back_exactly_the_numbers_the_bus_carried() -> None:
     assert x.dtype == np.float64 and x[0] == as_float32
     assert history.latest_received("x") == struct.unpack("<f", struct.pack("<f", -2.5e-3))[0]
     assert history.latest_received("flag") is False
+    assert history.received("p")[1].tolist() == [-(2**31), 2**31 - 1]
 
     start = history.mark()
-    history.record_rows(12, [(layout, (1, 2, True, 3.0))], ())
+    history.record_rows(12, [(layout, (1, 2, True, 3.0, 4))], ())
     ((block_layout, cycles, matrix),) = history.blocks_between(start, history.mark())
-    assert block_layout is layout and cycles.tolist() == [12] and matrix.tolist() == [[1.0, 2.0, 1.0, 3.0]]
+    assert (
+        block_layout is layout and cycles.tolist() == [12] and matrix.tolist() == [[1.0, 2.0, 1.0, 3.0, 4.0]]
+    )
     held = history.received("i")  # what a reader holds never stops the rows from growing
-    history.record_rows(13, [(layout, (2, 2, False, 3.0))], ())
+    history.record_rows(13, [(layout, (2, 2, False, 3.0, 5))], ())
     assert held[1].tolist() == [-32768, 7, 1] and history.received("i")[1].tolist() == [-32768, 7, 1, 2]
 
     history.take_back(layout, 12)  # not the last row's cycle: nothing to take back

@@ -21,6 +21,7 @@ import cantools
 import pytest
 
 from boardproto.cia301 import SYNC_COB_ID, FunctionCode, cob_id, due_at_sync, emcy_cob_id, sync_counter
+from hilrig.engine.history import records_dtype
 from hilrig.engine.rig import DEFAULT_EDS_PATH
 from hilrig.errors import PdoMappingError
 from hilrig.wire import _wire
@@ -127,6 +128,28 @@ def test_unpackable_types_are_refused_by_name() -> None:
 
     with pytest.raises(PdoMappingError, match="TPDO1: label has a data type no PDO codec can pack"):
         compile_pdos(PdoDirection.TPDO, {1: Map()})  # type: ignore[dict-item]
+
+
+def test_32_bit_integers_compile_to_codes_of_4_bytes_for_struct_and_numpy() -> None:
+    # canopen's struct code for (UN)SIGNED32 is "<l"/"<L": numpy reads "l" as a C long (8
+    # bytes), so a history of a TPDO with a CiA 402 INTEGER32 object would come apart.
+    node = canopen.RemoteNode(NODE_ID, str(DEFAULT_EDS_PATH))
+    objects = node.object_dictionary
+    velocity, position = objects["velocity_actual_value"], objects["position_actual_value"]
+
+    class Var:
+        def __init__(self, od: Any) -> None:
+            self.name, self.od, self.length, self.index, self.subindex = od.name, od, 32, od.index, 0
+
+    class Map:
+        cob_id, enabled, trans_type, map = TPDO1_ID, True, 1, [Var(velocity), Var(position)]
+
+    (layout,) = compile_pdos(PdoDirection.TPDO, {1: Map()}).values()  # type: ignore[dict-item]
+    assert layout.formats == ("i", "i") and layout.length == 8
+    dtype = records_dtype(layout.formats)
+    assert dtype.itemsize == 8
+    with pytest.raises(ValueError, match="numpy and struct disagree"):
+        records_dtype(("l",))
 
 
 def test_can_frame_limits() -> None:

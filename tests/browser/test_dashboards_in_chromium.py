@@ -61,8 +61,11 @@ def test_every_dashboard_shows_the_firmware_trace_whole(name: str) -> None:
     if not trace_path.exists():
         if os.environ.get("HIL_SHARD"):
             pytest.skip(f"{scenario} ran in another shard (HIL_SHARD={os.environ['HIL_SHARD']})")
-        pytest.fail(f"no {trace_path}: the bus stage writes it (make test, or: tools/with-vcan -- "
-                    f".venv/bin/python -m pytest tests -k {scenario})", pytrace=False)
+        pytest.fail(
+            f"no {trace_path}: the bus stage writes it (make test, or: tools/with-vcan -- "
+            f".venv/bin/python -m pytest tests -k {scenario})",
+            pytrace=False,
+        )
     missing = browser_missing()
     assert missing is None, missing
     trace = Trace.read(trace_path)
@@ -79,8 +82,13 @@ def test_every_dashboard_shows_the_firmware_trace_whole(name: str) -> None:
         shown = check_dashboards(trace_path, names, out, viewer=viewer)
         drawn = [
             check_series(
-                viewer, dashboards[dashboard], trace, out / dashboard,
-                name=dashboard, trace_path=trace_path, checked=checked,
+                viewer,
+                dashboards[dashboard],
+                trace,
+                out / dashboard,
+                name=dashboard,
+                trace_path=trace_path,
+                checked=checked,
             )
             for dashboard in names
         ]

@@ -29,12 +29,12 @@ float arbitrate_duty(const DriveInputs& inputs) {
 DriveArbiter::DriveArbiter(core::MessageBoard& board)
     : Module(board, "drive_arbiter",
              {.writes = {FieldId::motor_duty_command},
-              .reads = {FieldId::control_mode, FieldId::velocity_controller_output, FieldId::torque_controller_output,
+              .reads = {FieldId::drive_mode, FieldId::velocity_controller_output, FieldId::torque_controller_output,
                         FieldId::thermal_derate, FieldId::safe_state, FieldId::max_duty}}) {}
 
 void DriveArbiter::update() {
   boardSet(FieldId::motor_duty_command,
-           arbitrate_duty({.mode = control_mode_from_field(boardGet(FieldId::control_mode)),
+           arbitrate_duty({.mode = control_mode_from_field(boardGet(FieldId::drive_mode)),
                            .safe_state = boardGet(FieldId::safe_state) != 0.0F,
                            .velocity_controller_output = boardGet(FieldId::velocity_controller_output),
                            .torque_controller_output = boardGet(FieldId::torque_controller_output),

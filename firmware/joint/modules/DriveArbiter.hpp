@@ -1,4 +1,5 @@
-// The command interface: picks the duty the motor applies from control_mode
+// The command interface: picks the duty the motor applies from drive_mode (control_mode, or
+// what the CiA 402 drive asks for: Cia402Drive)
 // (Velocity and Position: the velocity loop, Torque: the torque loop, Disabled or any
 // other number: none), forces 0 in the safe state, and limits it to
 // max_duty * thermal_derate (the derate bounds the drive rather than scaling it, so a

@@ -14,7 +14,7 @@ FaultManager::FaultManager(core::MessageBoard& board)
              {.writes = {FieldId::fault_flags, FieldId::safe_state},
               .reads = {FieldId::motor_position, FieldId::output_position, FieldId::thermistor_resistance,
                         FieldId::encoder_stale_cycles, FieldId::thermistor_stale_cycles, FieldId::thermal_derate, FieldId::watchdog_tripped,
-                        FieldId::heartbeat_lost, FieldId::fault_clear}}) {}
+                        FieldId::heartbeat_lost, FieldId::fault_clear, FieldId::drive_fault_reset}}) {}
 
 std::uint32_t FaultManager::active_causes(std::uint32_t elapsed_cycles) {
   const std::uint32_t encoder_limit = count_parameter(boardGet(FieldId::encoder_stale_cycles), 1);
@@ -44,7 +44,8 @@ std::uint32_t FaultManager::active_causes(std::uint32_t elapsed_cycles) {
 
 void FaultManager::update() {
   const std::uint32_t elapsed_cycles = cycle_step_.update(board().cycle());
-  const bool clear = clear_.update(board(), FieldId::fault_clear);
+  // The CiA 402 drive's fault reset clears by the same rule as a write of fault_clear.
+  const bool clear = clear_.update(board(), FieldId::fault_clear) || boardGet(FieldId::drive_fault_reset) != 0.0F;
   const std::uint32_t latched = latch_.update(active_causes(elapsed_cycles), clear);
   boardSet(FieldId::fault_flags, static_cast<float>(latched));
   boardSet(FieldId::safe_state, latched != 0 ? 1.0F : 0.0F);

@@ -17,7 +17,7 @@
 // A sensor field never written counts as silent since the manager's first
 // cycle, which gives the sensors encoder_stale_cycles to start up.
 //
-// Clearing: a write of fault_clear = 1 (each new write counts, whether or not
+// Clearing: a CiA 402 fault reset (drive_fault_reset = 1, Cia402Drive) or a write of fault_clear = 1 (each new write counts, whether or not
 // the value changed) clears the latch; causes still present latch again in
 // the same cycle.
 #pragma once

@@ -9,12 +9,12 @@ using board::FieldId;
 TorqueController::TorqueController(core::MessageBoard& board, float dt_s)
     : Module(board, "torque_controller",
              {.writes = {FieldId::torque_controller_output},
-              .reads = {FieldId::control_mode, FieldId::torque_setpoint, FieldId::joint_torque, FieldId::torque_kp,
+              .reads = {FieldId::drive_mode, FieldId::drive_torque_reference, FieldId::joint_torque, FieldId::torque_kp,
                         FieldId::torque_ki, FieldId::max_duty, FieldId::thermal_derate, FieldId::safe_state}}),
       dt_s_{dt_s} {}
 
 void TorqueController::update() {
-  const bool in_control = control_mode_from_field(boardGet(FieldId::control_mode)) == ControlMode::Torque &&
+  const bool in_control = control_mode_from_field(boardGet(FieldId::drive_mode)) == ControlMode::Torque &&
                           boardGet(FieldId::safe_state) == 0.0F;
   if (!in_control) {
     pi_.reset();
@@ -24,7 +24,7 @@ void TorqueController::update() {
   const PidGains gains{boardGet(FieldId::torque_kp), boardGet(FieldId::torque_ki), 0.0F};
   const float limit = boardGet(FieldId::max_duty) * boardGet(FieldId::thermal_derate);
   boardSet(FieldId::torque_controller_output,
-           pi_.update(boardGet(FieldId::torque_setpoint), boardGet(FieldId::joint_torque), dt_s_, gains, limit));
+           pi_.update(boardGet(FieldId::drive_torque_reference), boardGet(FieldId::joint_torque), dt_s_, gains, limit));
 }
 
 }  // namespace joint

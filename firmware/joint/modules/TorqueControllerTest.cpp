@@ -1,5 +1,7 @@
 #include "joint/modules/TorqueController.hpp"
 
+#include "joint/modules/Cia402Drive.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,7 +19,7 @@ using joint::testing::kDtS;
 class TorqueControllerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    for (core::MessageBoardUser* component : std::initializer_list<core::MessageBoardUser*>{&controller, &spring, &bus}) {
+    for (core::MessageBoardUser* component : std::initializer_list<core::MessageBoardUser*>{&controller, &drive, &spring, &bus}) {
       ASSERT_TRUE(scheduler.add(*component));
     }
     const core::StartupStatus status = scheduler.start();
@@ -27,6 +29,7 @@ class TorqueControllerTest : public ::testing::Test {
   core::MessageBoard board;
   core::Scheduler scheduler{board};
   TorqueController controller{board, kDtS};
+  Cia402Drive drive{board, kDtS};  // passes control_mode and torque_setpoint on (no 402 mode)
   testing::FieldSource<core::VirtualSensor> spring{board, "spring_model", {FieldId::joint_torque}};
   testing::BusStandIn bus{board};
 };

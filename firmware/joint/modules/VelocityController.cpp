@@ -10,14 +10,14 @@ using board::FieldId;
 VelocityController::VelocityController(core::MessageBoard& board, float dt_s)
     : Module(board, "velocity_controller",
              {.writes = {FieldId::velocity_controller_output},
-              .reads = {FieldId::control_mode, FieldId::velocity_setpoint, FieldId::position_setpoint,
+              .reads = {FieldId::drive_mode, FieldId::drive_velocity_reference, FieldId::drive_position_reference,
                         FieldId::motor_position, FieldId::motor_velocity, FieldId::gear_ratio, FieldId::velocity_kp,
                         FieldId::velocity_ki, FieldId::velocity_kd, FieldId::position_kp, FieldId::max_duty,
                         FieldId::thermal_derate, FieldId::safe_state}}),
       dt_s_{dt_s} {}
 
 void VelocityController::update() {
-  const ControlMode mode = control_mode_from_field(boardGet(FieldId::control_mode));
+  const ControlMode mode = control_mode_from_field(boardGet(FieldId::drive_mode));
   const bool in_control = (mode == ControlMode::Velocity || mode == ControlMode::Position) &&
                           boardGet(FieldId::safe_state) == 0.0F;
   if (!in_control) {
@@ -26,9 +26,9 @@ void VelocityController::update() {
     return;
   }
   const float gear_ratio = boardGet(FieldId::gear_ratio);
-  float reference_rad_s = boardGet(FieldId::velocity_setpoint);
+  float reference_rad_s = boardGet(FieldId::drive_velocity_reference);
   if (mode == ControlMode::Position) {
-    reference_rad_s = position_velocity_reference(boardGet(FieldId::position_setpoint),
+    reference_rad_s = position_velocity_reference(boardGet(FieldId::drive_position_reference),
                                                   boardGet(FieldId::motor_position) / gear_ratio,
                                                   boardGet(FieldId::position_kp),
                                                   board::info(FieldId::velocity_setpoint).max);

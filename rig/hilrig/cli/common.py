@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self, TextIO
 
 from boardproto.cia301 import MAX_NODE_ID, MIN_NODE_ID, is_node_id
+from boardproto.cia402 import STATUSWORD_INDEX, STATUSWORD_STATES, StatuswordStates
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
 from hilrig.arguments import positive_float
@@ -431,7 +432,20 @@ def resolved_node_id(args: argparse.Namespace, table: RigTable) -> int:
     return args.node_id if args.node_id is not None else table.board.node.default_node_id
 
 
-def format_value(value: float | None, named: ValueEnum | BitSet | None = None) -> str:
+Named = ValueEnum | BitSet | StatuswordStates
+
+
+def value_names(table: RigTable) -> dict[str, Named]:
+    """What names the values of each object that has named values: the table's enums and bitsets
+    (board.toml's `values`), and a CiA 402 statusword's state (boardproto.cia402)."""
+    named: dict[str, Named] = dict(table.board.named_values)
+    for entry in table.board.entries:
+        if entry.index == STATUSWORD_INDEX and entry.subindex == 0:
+            named[entry.name] = STATUSWORD_STATES
+    return named
+
+
+def format_value(value: float | None, named: Named | None = None) -> str:
     """The number; for a field whose values have names in board.toml, the name first:
     'velocity (1)', 'motor_encoder_stale|thermistor_stale (5)', 'none (0)'."""
     if value is None:

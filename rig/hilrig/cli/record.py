@@ -44,6 +44,7 @@ from hilrig.cli.common import (
     positive_float,
     positive_int,
     progress,
+    value_names,
 )
 from hilrig.cli.files import ArgKind, kind, output_file, sniff_dbc, unreadable_reason
 from hilrig.session.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
@@ -451,7 +452,7 @@ class FrameDecoder:
         self.node = node
         self.wanted = wanted  # --field: only frames with these, only these shown
         self.units = {e.name: format_unit(e.unit) for e in table.board.entries}
-        self.named = table.board.named_values
+        self.named = value_names(table)
         self.sdo = SdoTracker()
         self.words = ObjectWords(table, self._value, od)
 

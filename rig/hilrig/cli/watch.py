@@ -18,10 +18,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, TextIO
 
-from boardproto.table import BitSet, ValueEnum
 from hilrig.cli.common import (
     LIVE_VIEWER_HELP,
     Command,
+    Named,
     SyncProducer,
     add_node_options,
     board_node,
@@ -38,6 +38,7 @@ from hilrig.cli.common import (
     print_table,
     progress,
     silent_hint,
+    value_names,
 )
 from hilrig.errors import NodeSilentError, RigError, SdoTimeoutError
 from hilrig.table import ObjectEntry
@@ -70,9 +71,7 @@ class Reading:
 class Board:
     """Latest value of each watched field, fed by the TPDO callback (receive thread)."""
 
-    def __init__(
-        self, entries: list[ObjectEntry], named: dict[str, ValueEnum | BitSet] | None = None
-    ) -> None:
+    def __init__(self, entries: list[ObjectEntry], named: dict[str, Named] | None = None) -> None:
         self.entries = entries
         self.named = named or {}  # names of the values of fields that have them (board.toml)
         self.readings = {e.name: Reading() for e in entries}
@@ -244,7 +243,7 @@ def run(args: argparse.Namespace) -> int:
             for n in p.names
         ]
         polled = [e.name for e in entries if e.name not in streamed]
-        board = Board(entries, table.board.named_values)
+        board = Board(entries, value_names(table))
         node.on_tpdo(board.on_tpdo)
         node.on_emcy(board.on_emcy)
         live = _live_trace(args, node, table) if args.viewer else None

@@ -5,6 +5,7 @@ Apart from the drivers (`hilrig.engine.driver`) so that each stays one readable 
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -44,6 +45,15 @@ def resolve_truth_name(name: str, names: tuple[str, ...]) -> str:
     raise unknown_name("ground-truth quantity", name, (*names, *aliases))
 
 
+def records_dtype(formats: tuple[str, ...] | list[str]) -> np.dtype:
+    """The numpy record type of a PDO's payload (`PdoLayout.formats`, field `v<i>` the i-th
+    mapped object); ValueError when numpy would read a code at another size than struct packs it."""
+    dtype = np.dtype({"names": [f"v{i}" for i in range(len(formats))], "formats": ["<" + f for f in formats]})
+    if dtype.itemsize != struct.calcsize("<" + "".join(formats)):
+        raise ValueError(f"PDO formats {''.join(formats)!r}: numpy and struct disagree on their size")
+    return dtype
+
+
 class _PdoRows:
     """Every cycle one PDO was exchanged in, with the payload it carried: two bytearrays, the
     cycles (`ROW_CYCLE` each) and the payloads back to back, as on the bus. An append is two
@@ -64,8 +74,7 @@ class _PdoRows:
             raise ValueError(f"{layout.label}: no codec, its rows cannot be stored")
         self.record = layout.codec
         self.width = layout.length
-        names = [f"v{i}" for i in range(len(layout.names))]
-        self.dtype = np.dtype({"names": names, "formats": ["<" + code for code in layout.formats]})
+        self.dtype = records_dtype(layout.formats)
         self.cycles = bytearray()
         self.data = bytearray()
 

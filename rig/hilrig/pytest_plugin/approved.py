@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hilrig.engine.history import History, HistoryMark
+from hilrig.engine.history import History, HistoryMark, records_dtype
 from hilrig.engine.observers import RigObserver
 from hilrig.engine.rig import Rig
 from hilrig.observe.diff import Comparison, Divergence
@@ -125,7 +125,7 @@ class ApprovedRecorder(RigObserver):
         for layout, cycles, matrix in self.history.blocks_between(HistoryMark({}, 0), end):
             if layout.direction is not PdoDirection.TPDO:
                 continue
-            rows = np.empty(len(cycles), dtype=_dtype(layout.formats))
+            rows = np.empty(len(cycles), dtype=records_dtype(layout.formats))
             for i, name in enumerate(rows.dtype.names or ()):
                 rows[name] = matrix[:, i]
             pdos.append(Rows(f"0x{layout.cob_id:03X}", layout.names, layout.formats, cycles, rows))
@@ -143,10 +143,6 @@ def watch(item: pytest.Item, rig: Rig, name: str) -> None:
     recorder = ApprovedRecorder(name, lambda: bool(getattr(rig.driver, "operational", True)))
     rig.add_observer(recorder)
     item.stash.setdefault(_TRACES, []).append(recorder)
-
-
-def _dtype(formats: Sequence[str]) -> np.dtype:
-    return np.dtype({"names": [f"v{i}" for i in range(len(formats))], "formats": ["<" + f for f in formats]})
 
 
 @dataclass
@@ -197,7 +193,7 @@ def _unpack(text: str, layouts: Sequence[tuple[str, tuple[str, ...], tuple[str, 
     for cob_id, names, formats, count in layouts:
         cycles = np.cumsum(np.frombuffer(blob, dtype="<i4", count=count, offset=offset)).astype(np.int64)
         offset += 4 * count
-        dtype = _dtype(formats)
+        dtype = records_dtype(formats)
         width = dtype.itemsize
         columns = np.frombuffer(blob, dtype=np.uint8, count=count * width, offset=offset)
         offset += count * width

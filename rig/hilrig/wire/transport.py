@@ -153,11 +153,17 @@ class PdoLayout:
         return struct.pack("<" + self.formats[self.names.index(name)], value)
 
 
+_SIZE_EXACT_CODES = {"l": "i", "L": "I"}
+"""canopen's struct codes of (UN)SIGNED32 as codes of the same size everywhere: struct reads "<l"
+as 4 bytes, numpy (the history's record arrays) as the platform's C long, 8 bytes on Linux."""
+
+
 def _formats(pdo_map: PdoMap, label: str) -> tuple[str, ...]:
     formats = []
     for var in pdo_map.map:
         try:
             code = var.od.STRUCT_TYPES[var.od.data_type].format.lstrip("<")
+            code = _SIZE_EXACT_CODES.get(code, code)
         except KeyError:
             raise PdoMappingError(f"{label}: {var.name} has a data type no PDO codec can pack") from None
         if struct.calcsize("<" + code) * 8 != var.length:

@@ -1,0 +1,214 @@
+#include "joint/modules/Cia402Drive.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+
+#include "core/Scheduler.hpp"
+#include "joint/testing/BoardStandIns.hpp"
+
+namespace joint {
+namespace {
+
+using board::FieldId;
+using cia402::State;
+using joint::testing::kDtS;
+
+constexpr std::uint16_t kShutdown = 0x06;
+constexpr std::uint16_t kSwitchOn = 0x07;
+constexpr std::uint16_t kEnableOperation = 0x0F;
+constexpr std::uint16_t kQuickStop = 0x02;
+constexpr std::uint16_t kFaultReset = 0x80;
+constexpr std::uint16_t kHalt = cia402::bit(cia402::ControlBit::Halt);
+constexpr std::uint16_t kStart = cia402::bit(cia402::ControlBit::NewSetPoint);
+
+class Cia402DriveTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    for (core::MessageBoardUser* component :
+         std::initializer_list<core::MessageBoardUser*>{&drive, &sensors, &derived, &protection, &bus}) {
+      ASSERT_TRUE(scheduler.add(*component));
+    }
+    const core::StartupStatus status = scheduler.start();
+    ASSERT_TRUE(status) << status.message();
+    sensors.hold(FieldId::motor_position, 0.0F);
+    derived.hold(FieldId::motor_velocity, 0.0F);
+    derived.hold(FieldId::joint_torque, 0.0F);
+    protection.hold(FieldId::safe_state, 0.0F);
+    step();
+  }
+
+  void step() { scheduler.run_cycle(++cycle); }
+  void command(std::uint16_t controlword) {
+    ASSERT_EQ(bus.write(FieldId::controlword, controlword), core::SetResult::Ok);
+    step();
+  }
+  State state() const {
+    const auto status = static_cast<std::uint16_t>(board.get(FieldId::statusword));
+    for (const State s : {State::NotReadyToSwitchOn, State::SwitchOnDisabled, State::ReadyToSwitchOn, State::SwitchedOn,
+                          State::OperationEnabled, State::QuickStopActive, State::FaultReactionActive, State::Fault}) {
+      if ((status & cia402::mask(s)) == static_cast<std::uint16_t>(s)) return s;
+    }
+    return State::NotReadyToSwitchOn;
+  }
+  std::uint16_t status() const { return static_cast<std::uint16_t>(board.get(FieldId::statusword)); }
+  void enable(float mode) {
+    ASSERT_EQ(bus.write(FieldId::modes_of_operation, mode), core::SetResult::Ok);
+    command(kShutdown);
+    command(kSwitchOn);
+    command(kEnableOperation);
+    ASSERT_EQ(state(), State::OperationEnabled);
+  }
+
+  core::MessageBoard board;
+  core::Scheduler scheduler{board};
+  Cia402Drive drive{board, kDtS};
+  testing::FieldSource<core::Sensor> sensors{board, "sensors", {FieldId::motor_position}};
+  testing::FieldSource<core::VirtualSensor> derived{board, "derived", {FieldId::motor_velocity, FieldId::joint_torque}};
+  testing::FieldSource<core::Module> protection{board, "protection", {FieldId::safe_state}};
+  testing::BusStandIn bus{board};
+  std::uint32_t cycle = 0;
+};
+
+TEST_F(Cia402DriveTest, OffersItsModesAndStartsSwitchOnDisabled) {
+  // Modes 1, 3, 4, 6, 8, 9, 10: bit n-1 each.
+  constexpr unsigned kOffered = (1u << 0) | (1u << 2) | (1u << 3) | (1u << 5) | (1u << 7) | (1u << 8) | (1u << 9);
+  EXPECT_EQ(board.get(FieldId::supported_drive_modes), static_cast<float>(kOffered));
+  EXPECT_EQ(state(), State::SwitchOnDisabled);
+  EXPECT_NE(status() & cia402::bit(cia402::StatusBit::Remote), 0);
+}
+
+TEST_F(Cia402DriveTest, WalksTheStatesAndQuickStopsToSwitchOnDisabled) {
+  command(kShutdown);
+  EXPECT_EQ(state(), State::ReadyToSwitchOn);
+  command(kSwitchOn);
+  EXPECT_EQ(state(), State::SwitchedOn);
+  command(kEnableOperation);
+  EXPECT_EQ(state(), State::OperationEnabled);
+  command(kSwitchOn);  // disable operation
+  EXPECT_EQ(state(), State::SwitchedOn);
+  command(kEnableOperation);
+  command(kQuickStop);
+  EXPECT_EQ(state(), State::QuickStopActive);
+  step();  // at rest: option 2 ends in switch on disabled
+  EXPECT_EQ(state(), State::SwitchOnDisabled);
+}
+
+TEST_F(Cia402DriveTest, QuickStopOptionSixStaysAndEnablesAgain) {
+  ASSERT_EQ(bus.write(FieldId::quick_stop_option_code, 6.0F), core::SetResult::Ok);
+  enable(3.0F);
+  command(kQuickStop);
+  step();
+  EXPECT_EQ(state(), State::QuickStopActive);
+  command(kEnableOperation);
+  EXPECT_EQ(state(), State::OperationEnabled);
+}
+
+TEST_F(Cia402DriveTest, ACommandThatSkipsStatesIsNotTaken) {
+  command(kEnableOperation);
+  EXPECT_EQ(state(), State::SwitchOnDisabled);
+  command(kSwitchOn);
+  EXPECT_EQ(state(), State::SwitchOnDisabled);
+}
+
+TEST_F(Cia402DriveTest, AModeItDoesNotOfferIsNotTaken) {
+  enable(9.0F);
+  ASSERT_EQ(bus.write(FieldId::modes_of_operation, 2.0F), core::SetResult::Ok);  // velocity mode
+  step();
+  EXPECT_EQ(board.get(FieldId::modes_of_operation_display), 9.0F);
+}
+
+TEST_F(Cia402DriveTest, WithoutAModeTheJointsOwnCommandsPassThrough) {
+  ASSERT_EQ(bus.write(FieldId::control_mode, 1.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::velocity_setpoint, 2.0F), core::SetResult::Ok);
+  step();
+  EXPECT_EQ(board.get(FieldId::drive_mode), 1.0F);
+  EXPECT_EQ(board.get(FieldId::drive_velocity_reference), 2.0F);
+}
+
+TEST_F(Cia402DriveTest, AModeMovesOnlyInOperationEnabled) {
+  ASSERT_EQ(bus.write(FieldId::modes_of_operation, 9.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::target_velocity, 1000.0F), core::SetResult::Ok);  // before enabled
+  command(kShutdown);
+  command(kSwitchOn);
+  EXPECT_EQ(board.get(FieldId::drive_mode), 0.0F);
+  command(kEnableOperation);
+  EXPECT_EQ(board.get(FieldId::drive_mode), 1.0F);
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_velocity_reference), 1.0F);
+}
+
+TEST_F(Cia402DriveTest, MaxMotorSpeedLimitsTheVelocityDemandAndSaysSo) {
+  constexpr std::uint16_t kInternalLimit = cia402::bit(cia402::StatusBit::InternalLimitActive);
+  ASSERT_EQ(bus.write(FieldId::max_motor_speed, 1500.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::target_velocity, 1000.0F), core::SetResult::Ok);
+  enable(9.0F);
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_velocity_reference), 1.0F);
+  EXPECT_EQ(status() & kInternalLimit, 0);
+  ASSERT_EQ(bus.write(FieldId::target_velocity, -4000.0F), core::SetResult::Ok);
+  step();
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_velocity_reference), -1.5F);
+  EXPECT_NE(status() & kInternalLimit, 0);
+}
+
+TEST_F(Cia402DriveTest, ProfileVelocityRampsAndAModeSwitchWithHaltStaysHalted) {
+  enable(4.0F);
+  ASSERT_EQ(bus.write(FieldId::target_velocity, 2000.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::modes_of_operation, 3.0F), core::SetResult::Ok);
+  command(kEnableOperation | kHalt);
+  for (int i = 0; i < 50; ++i) step();
+  EXPECT_EQ(board.get(FieldId::modes_of_operation_display), 3.0F);
+  EXPECT_EQ(board.get(FieldId::drive_velocity_reference), 0.0F);
+  command(kEnableOperation);
+  for (int i = 0; i < 49; ++i) step();
+  // 20 rad/s^2 (profile_acceleration) for 50 cycles of 1 ms.
+  EXPECT_NEAR(board.get(FieldId::drive_velocity_reference), 1.0F, 1.0e-3F);
+}
+
+TEST_F(Cia402DriveTest, AFaultIsReactedToThenResetByTheFaultManagersRules) {
+  enable(9.0F);
+  protection.hold(FieldId::safe_state, 1.0F);
+  step();
+  step();  // safe_state is read as last cycle's
+  EXPECT_EQ(state(), State::FaultReactionActive);
+  step();
+  EXPECT_EQ(state(), State::Fault);
+  command(kFaultReset);
+  EXPECT_EQ(board.get(FieldId::drive_fault_reset), 1.0F);
+  step();  // the cause is still there: still in fault
+  EXPECT_EQ(state(), State::Fault);
+  protection.hold(FieldId::safe_state, 0.0F);
+  command(0);
+  command(kFaultReset);
+  step();
+  step();
+  EXPECT_EQ(state(), State::SwitchOnDisabled);
+}
+
+TEST_F(Cia402DriveTest, HomingOnTheCurrentPositionSetsTheHomeOffset) {
+  sensors.hold(FieldId::motor_position, 50.0F);  // 1 rad at the gearbox (gear ratio 50)
+  ASSERT_EQ(bus.write(FieldId::home_offset, 250.0F), core::SetResult::Ok);
+  enable(6.0F);
+  EXPECT_EQ(status() & 0x3400, 0);  // in progress until started
+  command(kEnableOperation | kStart);
+  EXPECT_EQ(status() & 0x3400, 0x1400);  // attained, target reached
+  EXPECT_EQ(board.get(FieldId::position_actual_value), 250.0F);
+}
+
+TEST_F(Cia402DriveTest, HomingOnAHardStopEndsWhereTheJointStopsFollowing) {
+  ASSERT_EQ(bus.write(FieldId::homing_method, -3.0F), core::SetResult::Ok);
+  enable(6.0F);
+  command(kEnableOperation | kStart);
+  EXPECT_LT(board.get(FieldId::drive_velocity_reference), 0.0F);  // moving negative
+  // The joint stays put (a stop): the demand runs away until following_error_window (0.2 rad).
+  int cycles = 0;
+  while ((status() & 0x1000) == 0 && cycles < 10000) {
+    step();
+    ++cycles;
+  }
+  EXPECT_EQ(status() & 0x3400, 0x1400);
+  EXPECT_GT(cycles, 100);
+  EXPECT_EQ(board.get(FieldId::position_actual_value), 0.0F);
+}
+
+}  // namespace
+}  // namespace joint
