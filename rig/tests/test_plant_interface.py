@@ -23,6 +23,7 @@ from hilrig.plants import (
 )
 from hilrig.plants.interface import Plant
 from hilrig.plants.joint import ACTUATOR_FIELD, SPRING_STIFFNESS, JointModel
+from hilrig.plants.sensors import read_sensors
 from hilrig.table import BOARD_TABLE
 
 RIG = Path(__file__).resolve().parents[1] / "hilrig"
@@ -62,6 +63,26 @@ def test_no_outputs_turn_the_bridge_off_and_a_bad_duty_is_refused() -> None:
     assert model.truth().applied_duty == 0.0
     with pytest.raises(ValueError, match="I16"):
         model.apply((40000,))
+
+
+def test_the_models_duty_is_duty_from_motor_duty_for_every_i16_and_refuses_the_same() -> None:
+    model = JointModel.of(PARAMS)
+    for motor_duty in range(-32768, 32768):
+        model.apply((motor_duty,))
+        assert model.duty == duty_from_motor_duty(motor_duty)
+    for bad, error in ((True, TypeError), (0.5, TypeError), (-32769, ValueError), (32768, ValueError)):
+        with pytest.raises(error):
+            duty_from_motor_duty(bad)  # type: ignore[arg-type]
+        with pytest.raises(error):
+            model.apply((bad,))
+
+
+def test_sensors_on_a_shared_generator_draw_two_normals_a_read_as_read_sensors() -> None:
+    ours, theirs = np.random.default_rng(5), np.random.default_rng(5)
+    sensors, plant = SensorModel(PARAMS, ours), JointPlant(PARAMS)
+    for _ in range(3):
+        assert sensors.read(plant.state) == read_sensors(plant.state, PARAMS, theirs)
+        assert ours.standard_normal() == theirs.standard_normal()  # never drawn ahead
 
 
 def test_a_frame_is_a_frozen_dataclass_a_fault_can_replace_a_value_of() -> None:

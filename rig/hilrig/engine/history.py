@@ -233,7 +233,10 @@ class History:
         """Per TPDO, (cycle, CLOCK_MONOTONIC ns) of each arrival (`ARRIVAL`), as the exchange
         appends them (`arrival_store`)."""
         self._syncs = bytearray()
-        """(cycle, CLOCK_MONOTONIC ns) of each cycle's SYNC as it was sent (`note_sync`)."""
+        self.sync_store: bytearray | None = self._syncs if keep else None
+        """Where a lockstep driver appends (cycle, CLOCK_MONOTONIC ns) of each cycle's SYNC as it
+        was sent (`transport.ARRIVAL`): what `delays_of` measures from; None when nothing is kept.
+        The driver appends itself, as the exchange appends arrivals: a call per cycle less."""
         self.record_truth: Callable[[object], None] = self._truth.append if keep else _forget
         """Record the plant state of the next cycle (every cycle: the list's own append)."""
 
@@ -307,11 +310,6 @@ class History:
         """Where the exchange appends (cycle, CLOCK_MONOTONIC ns) of each of `pdo`'s arrivals
         (`transport.ARRIVAL`), beside its rows (`row_store`)."""
         return self._arrivals.setdefault(pdo, bytearray())
-
-    def note_sync(self, cycle: int, monotonic_ns: int) -> None:
-        """When cycle `cycle`'s SYNC went out (CLOCK_MONOTONIC ns): what `delays_of` measures from."""
-        if self.keep:
-            self._syncs += ARRIVAL.pack(cycle, monotonic_ns)
 
     def delays_of(self, pdo: PdoLayout, cycles: np.ndarray) -> np.ndarray | None:
         """`pdo`'s delay after its cycle's SYNC [s] in each of `cycles` (cycles it arrived in), by

@@ -45,6 +45,7 @@ from hilrig.engine.driver import (
 from hilrig.errors import FirmwareError, HostStarvedError, LockstepError
 from hilrig.wire.bustime import TimedBus
 from hilrig.wire.transport import (
+    ARRIVAL,
     CAN_HEADER_SIZE,
     Decoder,
     PdoLayout,
@@ -206,7 +207,9 @@ class LockstepDriver(Driver):
             sent, frames = timing.plan(n, due, sent, frames)
         # The RPDOs, then the SYNC, in the exchange's one call (`_collect`); the TPDOs' delays
         # after it are their arrivals (`History.arrival_store`) less this.
-        self.history.note_sync(n, time.monotonic_ns())
+        syncs = self.history.sync_store
+        if syncs is not None:
+            syncs += ARRIVAL.pack(n, time.monotonic_ns())
         got = self._collect(n, t, due, sync_number, frames + SYNC_FRAMES[counter - 1])
         if timing is not None and timing.waiting:
             timing.deliver(n, got, lambda cob_id: self._forget_rows(n, (cob_id,)), self._keep_late(got, n))

@@ -40,6 +40,7 @@
 #define PY_SSIZE_T_CLEAN
 #define Py_LIMITED_API 0x030B0000 /* the stable ABI of CPython 3.11+: one wheel for them all (abi3) */
 #include <Python.h>
+#include <string.h>
 
 #include "_joint_core.h"
 
@@ -302,15 +303,31 @@ static int thermistor_adc_exact(const double *s, double temperature_c, double *a
     return 0;
 }
 
+/* The next value of the iterator `normals` as a double (-1 with an error set when it ends). */
+static int next_normal(PyObject *normals, double *out)
+{
+    PyObject *value = PyIter_Next(normals);
+    if (value == NULL) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "raw_sensors: the normals ran out");
+        return -1;
+    }
+    int failed = read_double(value, out);
+    Py_DECREF(value);
+    return failed;
+}
+
 /* raw_sensors(RawSensors, coefficients, state, thermistor_noise, current_noise) -> RawSensors
+ * raw_sensors(RawSensors, coefficients, state, normals) -> RawSensors
  *
  * sensors.read_sensors after its noise draw: encoders floor and wrap, the thermistor divider
- * and the current sensor round half away from zero and saturate at their ranges. */
+ * and the current sensor round half away from zero and saturate at their ranges. The noises are
+ * two floats, or the next two of the iterator `normals` (a SensorModel's stream: no Python call
+ * in between, every cycle). */
 static PyObject *raw_sensors(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 5 || !PyType_Check(args[0])) {
-        PyErr_SetString(PyExc_TypeError,
-                        "raw_sensors: expected (type, coefficients, state, thermistor_noise, current_noise)");
+    if ((nargs != 5 && nargs != 4) || !PyType_Check(args[0]) || (nargs == 4 && !PyIter_Check(args[3]))) {
+        PyErr_SetString(PyExc_TypeError, "raw_sensors: expected (type, coefficients, state, thermistor_noise, "
+                                         "current_noise) or (type, coefficients, state, normals)");
         return NULL;
     }
     module_state *st = get_state(module);
@@ -319,7 +336,10 @@ static PyObject *raw_sensors(PyObject *module, PyObject *const *args, Py_ssize_t
     double thermistor_noise, current_noise, adc;
     if (read_coefficients(args[1], s, SENSOR_COEFFICIENT_COUNT, "sensor coefficients") < 0) return NULL;
     if (read_fields(args[2], st->joint_state_names, 1 + X_COUNT, state) < 0) return NULL;
-    if (read_double(args[3], &thermistor_noise) < 0 || read_double(args[4], &current_noise) < 0) return NULL;
+    if (nargs == 4 ? next_normal(args[3], &thermistor_noise) < 0 || next_normal(args[3], &current_noise) < 0
+                   : read_double(args[3], &thermistor_noise) < 0 || read_double(args[4], &current_noise) < 0) {
+        return NULL;
+    }
     const double *x = &state[1];
 
     if (thermistor_adc_exact(s, x[X_TEMPERATURE], &adc) < 0) return NULL;
@@ -385,7 +405,8 @@ static PyMethodDef methods[] = {
     {"state_values", (PyCFunction)(void (*)(void))state_values, METH_FASTCALL,
      "state_values(states) -> bytes: every field of each JointState, in order, as float64s"},
     {"raw_sensors", (PyCFunction)(void (*)(void))raw_sensors, METH_FASTCALL,
-     "raw_sensors(RawSensors, coefficients, state, thermistor_noise, current_noise) -> RawSensors"},
+     "raw_sensors(RawSensors, coefficients, state, thermistor_noise, current_noise) -> RawSensors\n"
+     "raw_sensors(RawSensors, coefficients, state, normals) -> RawSensors (two of the iterator's)"},
     {NULL, NULL, 0, NULL},
 };
 

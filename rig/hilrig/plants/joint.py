@@ -12,13 +12,23 @@ JointModel whose `step` its chain takes (`hilrig.plants.chain.ChainPhysics.model
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from hilrig.plants import _plant
 from hilrig.plants.interface import Value
 from hilrig.plants.params import JointParams
-from hilrig.plants.plant import STATE_FIELDS, JointPlant, JointState, duty_from_motor_duty, state_matrix
+from hilrig.plants.plant import (
+    I16_MAX,
+    I16_MIN,
+    MOTOR_DUTY_FULL_SCALE,
+    STATE_FIELDS,
+    JointPlant,
+    JointState,
+    duty_from_motor_duty,
+    state_matrix,
+)
 from hilrig.plants.sensors import RawSensors, SensorModel
 
 ACTUATOR_FIELD = "motor_duty"
@@ -44,12 +54,10 @@ class JointModel:
         self.joint = plant
         self.sensors = sensors
         self.stepped_by = stepped_by
-        self.duty = 0.0
-        """The duty fraction last applied (what the next step holds)."""
-        self._read: Callable[[JointState], RawSensors] = sensors.read
-        self._step = plant.step
-        if stepped_by is not None:
-            self.step = self._stepped_elsewhere  # type: ignore[method-assign]
+        self._sensor_coefficients = sensors.packed_coefficients
+        self._normals = sensors.normals
+        # The plant's own method: no call of this class's in between, every cycle.
+        self.step = plant.step_held if stepped_by is None else self._stepped_elsewhere  # type: ignore[method-assign]
 
     @classmethod
     def of(cls, params: JointParams | None = None, seed: int | np.random.Generator = 0) -> JointModel:
@@ -60,8 +68,8 @@ class JointModel:
     # --- The interface ------------------------------------------------------------------
     # Every cycle of every module calls these: they read the joint's state without its
     # property's call (the plants' own package), a cost of every cycle.
-    def sense(self) -> RawSensors:
-        return self._read(self.joint._state)
+    def sense(self) -> RawSensors:  # SensorModel.read without its call
+        return _plant.raw_sensors(RawSensors, self._sensor_coefficients, self.joint._state, self._normals)
 
     def truth(self) -> JointState:
         return self.joint._state
@@ -75,10 +83,23 @@ class JointModel:
     def apply(self, outputs: Sequence[Value] | None) -> None:
         # Without the actuator TPDO the bridge is off, as a motor driver whose command stream
         # stopped would be.
-        self.duty = 0.0 if outputs is None else duty_from_motor_duty(outputs[0])  # type: ignore[arg-type]
+        if outputs is None:
+            self.joint.held_duty = 0.0
+            return
+        raw = outputs[0]
+        # duty_from_motor_duty's I16 case inline (every cycle); anything else goes through it.
+        if type(raw) is int and I16_MIN <= raw <= I16_MAX:
+            self.joint.held_duty = raw / MOTOR_DUTY_FULL_SCALE
+        else:
+            self.joint.held_duty = duty_from_motor_duty(raw)  # type: ignore[arg-type]
+
+    @property
+    def duty(self) -> float:
+        """The duty fraction last applied (what the next step holds)."""
+        return self.joint.held_duty
 
     def step(self, dt_s: float) -> None:
-        self._step(dt_s, self.duty)
+        self.joint.step_held(dt_s)
 
     def _stepped_elsewhere(self, dt_s: float) -> None:
         raise RuntimeError(f"this joint is stepped by {self.stepped_by}, not on its own")

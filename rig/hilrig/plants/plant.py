@@ -26,8 +26,8 @@ SUBSTEP_FRACTION = 0.5
 MOTOR_DUTY_FULL_SCALE = 10_000
 """Raw motor_duty (I16 from the firmware's TPDO1) that means 100 % of the bus voltage."""
 
-_I16_MIN = -32768
-_I16_MAX = 32767
+I16_MIN = -32768
+I16_MAX = 32767
 
 
 def duty_from_motor_duty(motor_duty: int) -> float:
@@ -37,10 +37,12 @@ def duty_from_motor_duty(motor_duty: int) -> float:
     to [-1, 1] like a real H-bridge would, and the rig can flag them separately.
     Raises ValueError for values an I16 cannot carry (a packing bug, not a duty).
     """
+    if type(motor_duty) is int and I16_MIN <= motor_duty <= I16_MAX:  # every cycle: checks in order
+        return motor_duty / MOTOR_DUTY_FULL_SCALE
     if type(motor_duty) is not int and (isinstance(motor_duty, bool) or not isinstance(motor_duty, int)):
         raise TypeError(f"motor_duty: expected int, got {type(motor_duty).__name__}")
-    if not _I16_MIN <= motor_duty <= _I16_MAX:
-        raise ValueError(f"motor_duty: expected I16 ({_I16_MIN}..{_I16_MAX}), got {motor_duty}")
+    if not I16_MIN <= motor_duty <= I16_MAX:
+        raise ValueError(f"motor_duty: expected I16 ({I16_MIN}..{I16_MAX}), got {motor_duty}")
     return motor_duty / MOTOR_DUTY_FULL_SCALE
 
 
@@ -190,6 +192,8 @@ class JointPlant:
             p, self._mechanical_substep_limit_s(), external_load=external_load
         )
         self._state: JointState = _plant.joint_state(JointState, self._coefficients, 0.0, *initial, 0.0)
+        self.held_duty = 0.0
+        """The duty `step_held` holds (a fraction of the bus voltage, clamped as in `step`)."""
 
     @property
     def params(self) -> JointParams:
@@ -265,6 +269,13 @@ class JointPlant:
             raise ValueError("load_torque_nm: an external load takes its torques in its own simulator")
         self._state = _plant.advance(
             self._coefficients, self._state, dt_s, duty, load_torque_nm, self._motor_held, self._ambient
+        )
+        return self._state
+
+    def step_held(self, dt_s: float) -> JointState:
+        """`step(dt_s, held_duty)` with no load torque: a rig's every cycle, one call."""
+        self._state = _plant.advance(
+            self._coefficients, self._state, dt_s, self.held_duty, 0.0, self._motor_held, self._ambient
         )
         return self._state
 

@@ -20,7 +20,9 @@ import dataclasses
 import functools
 import math
 from array import array
+from collections.abc import Iterator
 from dataclasses import dataclass
+from itertools import chain, repeat
 
 import numpy as np
 
@@ -280,19 +282,17 @@ class SensorModel:
 
     def __init__(self, params: JointParams, seed: int | np.random.Generator) -> None:
         self._params = params
-        self._coefficients = _sensor_coefficients(params)
-        self._shared_rng = isinstance(seed, np.random.Generator)
-        self._rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-        self._noise: list[float] = []
-        self._next_noise = 0
+        self.packed_coefficients = _sensor_coefficients(params)
+        """The sensor models' coefficients as `_plant.raw_sensors` takes them."""
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        self._rng = rng
+        block = 2 if isinstance(seed, np.random.Generator) else 2 * NOISE_BLOCK_READS
+        self.normals: Iterator[float] = chain.from_iterable(
+            map(lambda _: rng.standard_normal(block).tolist(), repeat(None))
+        )
+        """The noise stream, two normals a read: an iterator of C parts, which `_plant.raw_sensors`
+        draws from itself (a block drawn only when the last one is used up)."""
 
     def read(self, state: JointState) -> RawSensors:
         """Raw values for `state`; each call draws fresh noise."""
-        if self._shared_rng:
-            return read_sensors(state, self._params, self._rng)
-        i = self._next_noise
-        if i == len(self._noise):
-            self._noise = self._rng.standard_normal(2 * NOISE_BLOCK_READS).tolist()
-            i = 0
-        self._next_noise = i + 2
-        return _plant.raw_sensors(RawSensors, self._coefficients, state, self._noise[i], self._noise[i + 1])
+        return _plant.raw_sensors(RawSensors, self.packed_coefficients, state, self.normals)
