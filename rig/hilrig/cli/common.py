@@ -19,10 +19,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from boardproto.cia301 import MAX_NODE_ID, MIN_NODE_ID, is_node_id
 from boardproto.cia402 import STATUSWORD_INDEX, STATUSWORD_STATES, StatuswordStates
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
+from hilrig.arguments import node_id as node_id  # the commands import it from here
 from hilrig.arguments import positive_float
 from hilrig.arguments import positive_int as positive_int  # the commands import it from here
 from hilrig.cli.files import ArgKind, existing_file, kind, sniff_eds, sniff_toml
@@ -67,22 +67,6 @@ class Command:
 
 
 # --- Argument types (argparse turns ValueError/ArgumentTypeError into exit code 2) ---------
-@kind(ArgKind("number", out_of_range=str(MAX_NODE_ID + 1)))
-def node_id(text: str) -> int:
-    """'16' or '0x10' -> 16; 1..127."""
-    try:
-        value = int(text, 0)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a node id {MIN_NODE_ID}..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text!r}"
-        ) from None
-    if not is_node_id(value):
-        raise argparse.ArgumentTypeError(
-            f"expected a node id {MIN_NODE_ID}..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text}"
-        )
-    return value
-
-
 @kind(ArgKind("name", out_of_range="socketcn"))
 def interface_name(text: str) -> str:
     """A python-can interface name; unknown ones are refused with the close matches."""
