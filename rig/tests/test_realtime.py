@@ -6,14 +6,15 @@ assertion depends on how fast the machine is."""
 from __future__ import annotations
 
 import itertools
+import threading
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import can
 import pytest
 
-from boardproto.cia301 import SYNC_COB_ID
-from hilrig.engine.realtime import RealTimeDriver, WallHistory
+from boardproto.cia301 import SYNC_COB_ID, sync_counter
+from hilrig.engine.realtime import RealTimeDriver, SyncProducer, WallHistory
 from hilrig.engine.rig import Rig
 from hilrig.errors import NoValueError, RealTimeError
 from hilrig.plants import JointParams
@@ -219,3 +220,68 @@ def test_wall_history_gives_the_recorded_tick_times_of_any_cycles() -> None:
     assert history.times_of([2, 1, 3]).tolist() == [ticks[2], ticks[1], ticks[3]]
     assert history.times_of(range(4)).tolist() == ticks
     assert history.times_of([]).tolist() == []
+
+
+# --- The SYNC producer of a board without a rig --------------------------------------------------
+SYNC_PERIOD_S = 0.25  # a binary fraction: the fake clock's sums are exact
+
+
+def _producer(
+    clock: FakeClock, stop_after: int, fail_at: int | None = None
+) -> tuple[SyncProducer, list[int]]:
+    sent: list[int] = []
+
+    def send(counter: int) -> None:
+        if len(sent) + 1 == fail_at:
+            raise OSError("No buffer space available")
+        sent.append(counter)
+        if len(sent) == stop_after:
+            producer.stop()
+
+    producer = SyncProducer(send, SYNC_PERIOD_S, clock=clock, wait=clock.wait)
+    return producer, sent
+
+
+def test_the_sync_producer_counts_1_to_240_and_wraps_on_its_period() -> None:
+    clock = FakeClock()
+    producer, sent = _producer(clock, stop_after=243)
+    producer.run()
+    assert sent == [*range(1, 241), 1, 2, 3]
+    assert clock.waits == [SYNC_PERIOD_S] * 243  # the first SYNC one period after the start
+    assert (producer.sent, producer.overruns, producer.error) == (243, 0, None)
+
+
+def test_a_late_sync_producer_skips_the_ticks_that_passed_and_counts_them() -> None:
+    # Woken 2.5 periods late before the second SYNC: ticks 2 and 3 passed, the grid stays.
+    clock = FakeClock([0.0, 2.5 * SYNC_PERIOD_S])
+    producer, sent = _producer(clock, stop_after=4)
+    producer.run()
+    assert sent == [1, 2, 3, 4]  # the counter counts the SYNCs that went out
+    assert producer.overruns == 2
+    assert clock.waits == [SYNC_PERIOD_S, SYNC_PERIOD_S, SYNC_PERIOD_S / 2, SYNC_PERIOD_S]
+
+
+def test_a_failing_send_stops_the_sync_producer_with_its_error() -> None:
+    clock = FakeClock()
+    producer, sent = _producer(clock, stop_after=10, fail_at=3)
+    producer.run()
+    assert sent == [1, 2]
+    assert isinstance(producer.error, OSError)
+    assert producer.sent == 2
+
+
+def test_the_sync_producer_sends_from_its_thread_until_the_context_ends() -> None:
+    sent: list[int] = []
+    three = threading.Event()
+
+    def send(counter: int) -> None:
+        sent.append(counter)
+        if len(sent) == 3:
+            three.set()
+
+    with SyncProducer(send, 0.001) as producer:
+        assert three.wait(10.0), "no three SYNCs from the producer's thread"
+    count = len(sent)
+    assert sent[:3] == [1, 2, 3]
+    assert sent == [sync_counter(n) for n in range(count)]
+    assert producer.sent == count and producer.error is None

@@ -126,3 +126,32 @@ def test_sim_refuses_a_period_out_of_range_before_anything_starts(
     assert code == EXIT_USAGE
     assert "--period-us: expected a control period of 100..1000000 us" in err and "\n" not in err
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("command", ["sim", "soak"])
+def test_sim_and_soak_take_node_firmware_and_eds_from_the_run_description(
+    table: RigTable, command: str, tmp_path: Path
+) -> None:
+    from hilrig.cli import build_parser
+
+    parser = build_parser()
+    default = RunDescription.from_arguments(parser.parse_args([command]), table)
+    assert default.node_id(table) == table.board.node.default_node_id
+    assert (default.firmware.executable, default.rig.eds) == (
+        RunDescription(TraceRun(Path("o"))).firmware.executable,
+        RigRun().eds,
+    )
+    eds = tmp_path / "board.eds"
+    eds.write_text("[1000]\nParameterName=Device type\n")
+    given = RunDescription.from_arguments(
+        parser.parse_args([command, "-n", "0x11", "--eds", str(eds)]), table
+    )
+    assert (given.node_id(table), given.rig.eds) == (0x11, eds)
+
+
+@pytest.mark.parametrize("command", ["sim", "soak"])
+def test_a_node_id_out_of_range_is_the_same_usage_error_for_sim_and_soak(
+    capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    assert main([command, "--node-id", "128"]) == EXIT_USAGE
+    assert "expected a node id 1..127 (decimal or 0x hex, e.g. 0x10), got 128" in capsys.readouterr().err

@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import queue
 import threading
+import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
+
+import can
 
 from boardproto.cia301 import (
     EMCY_ERROR_RESET,
@@ -34,8 +37,6 @@ from hilrig.wire.node import EmcyRecord
 from hilrig.wire.sdo import abort_text, parse_abort
 
 if TYPE_CHECKING:
-    import can
-
     from hilrig.observe.sinks import TraceSink
     from hilrig.observe.tracer import Tracer
     from hilrig.session.buslog import NodeDbc
@@ -189,6 +190,13 @@ class LiveBusTrace:
         self._frames.put(msg)
 
     __call__ = on_message_received  # how can.Notifier calls its listeners
+
+    def on_sent(self, cob_id: int, data: bytes) -> None:
+        """A frame this process sent itself (a bus does not hand a sender its own frames), stamped
+        now as python-can stamps received frames."""
+        self._frames.put(
+            can.Message(arbitration_id=cob_id, data=data, is_extended_id=False, timestamp=time.time())
+        )
 
     def on_error(self, exc: Exception) -> None:  # python-can's Listener interface
         pass

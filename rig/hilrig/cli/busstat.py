@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
-from collections.abc import Iterator
-from typing import TYPE_CHECKING
 
 from hilrig.cli.common import (
     Command,
@@ -21,9 +18,6 @@ from hilrig.cli.common import (
     progress,
 )
 from hilrig.cli.record import existing_log
-
-if TYPE_CHECKING:
-    import can
 
 DEFAULT_DURATION_S = 5.0
 
@@ -61,22 +55,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_bus_options(parser)
 
 
-def _live(bus: can.BusABC, duration_s: float) -> Iterator[can.Message]:
-    deadline = time.monotonic() + duration_s
-    try:
-        while (left := deadline - time.monotonic()) > 0:
-            message = bus.recv(timeout=min(left, 0.2))
-            if message is not None:
-                yield message
-    except KeyboardInterrupt:
-        return
-
-
 def run(args: argparse.Namespace) -> int:
     """0 with the report; a usage error without a bit rate."""
     from hilrig.apps.busload import DEFAULT_RATE_HZ, lockstep_traffic
     from hilrig.apps.busstat import measure, report
     from hilrig.session.buslog import read_log
+    from hilrig.session.canbus import received
 
     no_bitrate = UsageError("give the bus's bit rate with -b (e.g. -b 1M): the load is a share of it")
     if args.bitrate is None and args.file is None:
@@ -94,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         with open_bus(args) as bus:
             progress(f"busstat: listening on {describe_bus(args)} for {args.duration:g} s")
-            stats = measure(_live(bus, args.duration), tpdos, args.rate_hz)
+            stats = measure(received(bus, args.duration), tpdos, args.rate_hz)
         where = describe_bus(args)
     if args.rate_hz is not None and stats.cycles == 0:
         raise UsageError(f"{where}: fewer than 2 SYNCs, no cycle to count at --rate-hz {args.rate_hz:g}")

@@ -27,7 +27,6 @@ from hilrig.apps.capture import (
 )
 from hilrig.cli.common import (
     Command,
-    SyncProducer,
     UsageError,
     add_node_options,
     board_node,
@@ -213,6 +212,8 @@ def run(args: argparse.Namespace) -> int:
             recorder.configure(settings)
         except SdoTimeoutError as error:
             raise SdoTimeoutError(f"{error}; {silent_hint(node.node_id)}") from error
+        from hilrig.engine.realtime import SyncProducer
+
         sync = SyncProducer(node.send_sync, args.sync_period_ms / 1e3) if args.sync_period_ms else None
         if args.nmt_start:
             node.nmt(NmtCommand.START)

@@ -1,8 +1,9 @@
 """What every `hilrig` command shares: the command registry entry, the bus and node options,
-opening the bus with errors in words, and value formatting.
+opening the bus (`hilrig.session.canbus`) with errors as usage errors, and value formatting.
 
-Heavy imports (python-can, canopen, cantools) happen inside the functions that need them, so
-`hilrig --help` and `hilrig fields` stay quick (each import costs seconds in the micro-VM).
+Heavy imports (python-can, canopen, cantools, through the layers below) happen inside the
+functions that need them, so `hilrig --help` and `hilrig fields` stay quick (each import costs
+seconds in the micro-VM).
 """
 
 from __future__ import annotations
@@ -10,25 +11,22 @@ from __future__ import annotations
 import argparse
 import contextlib
 import difflib
-import errno
 import os
 import re
 import sys
-import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Self, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from boardproto.cia301 import MAX_NODE_ID, MIN_NODE_ID, is_node_id
 from boardproto.cia402 import STATUSWORD_INDEX, STATUSWORD_STATES, StatuswordStates
 from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
+from hilrig.arguments import node_id as node_id  # the commands import it from here
 from hilrig.arguments import positive_float
 from hilrig.arguments import positive_int as positive_int  # the commands import it from here
 from hilrig.cli.files import ArgKind, existing_file, kind, sniff_eds, sniff_toml
 from hilrig.errors import (
-    BusUnavailableError,
     ConfigurationError,
     FieldNameError,
     IdentityMismatchError,
@@ -37,35 +35,18 @@ from hilrig.errors import (
     one_line,
 )
 from hilrig.resources import DBC_HINT, EDS_HINT
+from hilrig.session import canbus
+from hilrig.session.canbus import BusOptionError
+from hilrig.session.canbus import CanFilter as CanFilter  # the commands and their tests import it from here
 from hilrig.table import ObjectEntry, RigTable
 from hilrig.wire.bustime import IDEAL
 
 if TYPE_CHECKING:
-    import can
-    import canopen
     import cantools.database
 
     from hilrig.observe.sinks import TraceSink
-    from hilrig.wire.node import BoardNode
-
-DEFAULT_INTERFACE = "socketcan"
-DEFAULT_CHANNEL = "vcan0"
-"""The bus when python-can's configuration names none: the rig's own virtual bus."""
-
-# The package an interface needs beyond python-can, and python-can's extra that pulls it in.
-# python-can raises "... not installed" for these; the line then says what to install.
-INTERFACE_PACKAGES: dict[str, tuple[str, str]] = {
-    "slcan": ("pyserial", "serial"),
-    "serial": ("pyserial", "serial"),
-    "robotell": ("pyserial", "serial"),
-    "seeedstudio": ("pyserial", "seeedstudio"),
-    "gs_usb": ("gs-usb", "gs-usb"),
-    "cantact": ("cantact", "cantact"),
-    "canalystii": ("canalystii", "canalystii"),
-    "neovi": ("python-ics", "neovi"),
-    "nixnet": ("nixnet", "nixnet"),
-    "udp_multicast": ("msgpack", "multicast"),
-}
+    from hilrig.session.canbus import Bus
+    from hilrig.wire.node import BoardNode, ObjectDictionary
 
 
 class UsageError(RigError, ValueError):
@@ -86,33 +67,16 @@ class Command:
 
 
 # --- Argument types (argparse turns ValueError/ArgumentTypeError into exit code 2) ---------
-@kind(ArgKind("number", out_of_range=str(MAX_NODE_ID + 1)))
-def node_id(text: str) -> int:
-    """'16' or '0x10' -> 16; 1..127."""
-    try:
-        value = int(text, 0)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a node id {MIN_NODE_ID}..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text!r}"
-        ) from None
-    if not is_node_id(value):
-        raise argparse.ArgumentTypeError(
-            f"expected a node id {MIN_NODE_ID}..{MAX_NODE_ID} (decimal or 0x hex, e.g. 0x10), got {text}"
-        )
-    return value
-
-
 @kind(ArgKind("name", out_of_range="socketcn"))
 def interface_name(text: str) -> str:
     """A python-can interface name; unknown ones are refused with the close matches."""
-    from can.interfaces import VALID_INTERFACES
-
-    if text in VALID_INTERFACES:
+    valid = canbus.interface_names()
+    if text in valid:
         return text
-    matches = difflib.get_close_matches(text, sorted(VALID_INTERFACES), n=3, cutoff=0.5)
+    matches = difflib.get_close_matches(text, sorted(valid), n=3, cutoff=0.5)
     hint = f"did you mean {' or '.join(matches)}? " if matches else ""
     raise argparse.ArgumentTypeError(
-        f"unknown python-can interface {text!r}; {hint}known: {', '.join(sorted(VALID_INTERFACES))}"
+        f"unknown python-can interface {text!r}; {hint}known: {', '.join(sorted(valid))}"
     )
 
 
@@ -187,28 +151,10 @@ def bus_kwarg(text: str) -> tuple[str, Any]:
         raise argparse.ArgumentTypeError(
             f"expected KEY=VALUE for the interface (e.g. serial=1234), got {text!r}"
         )
-    from can.util import cast_from_string
-
-    return match["name"].replace("-", "_"), cast_from_string(match["value"])
+    return match["name"].replace("-", "_"), canbus.option_value(match["value"])
 
 
 MAX_CAN_ID = 0x1FFF_FFFF  # 29-bit identifiers
-
-
-@dataclass(frozen=True)
-class CanFilter:
-    """python-can's `can_id:can_mask` filter; `can_id~can_mask` (inverted) keeps the frames that
-    do NOT match. A frame is kept when any filter of a list keeps it."""
-
-    can_id: int
-    can_mask: int
-    inverted: bool = False
-
-    def keeps(self, arbitration_id: int) -> bool:
-        return ((arbitration_id ^ self.can_id) & self.can_mask == 0) != self.inverted
-
-    def __str__(self) -> str:
-        return f"{self.can_id:X}{'~' if self.inverted else ':'}{self.can_mask:X}"
 
 
 def can_filter(text: str) -> CanFilter:
@@ -497,34 +443,18 @@ def describe_bus(args: argparse.Namespace) -> str:
 
 def bus_config(args: argparse.Namespace) -> dict[str, Any]:
     """The keyword arguments of `can.Bus`: the command line first, then python-can's
-    configuration (`can.util.load_config`: ~/.canrc or can.ini, CAN_INTERFACE, CAN_CHANNEL,
-    CAN_BITRATE, CAN_CONFIG), then socketcan on vcan0 when nothing names an interface."""
-    import can
-
+    configuration (`hilrig.session.canbus.bus_config`), then socketcan on vcan0 when nothing
+    names an interface; an unusable configuration is a usage error."""
     given: dict[str, Any] = dict(args.bus_kwargs or ())
     for key in ("interface", "channel", "bitrate", "fd", "data_bitrate"):
         if getattr(args, key, None) is not None:
             given[key] = getattr(args, key)
-    if given.get("data_bitrate") is not None:
-        given.setdefault("fd", True)
+    # The kernel or adapter filters; an inverted filter is applied by the command instead.
     filters: list[CanFilter] | None = getattr(args, "filters", None)
-    if filters and not any(f.inverted for f in filters):
-        # The kernel or adapter filters; an inverted filter is applied by the command instead.
-        given["can_filters"] = [{"can_id": f.can_id, "can_mask": f.can_mask} for f in filters]
     try:
-        try:
-            config = dict(can.util.load_config(config=given))
-        except can.CanInterfaceNotImplementedError:
-            if "interface" in given or _configured_interface():
-                raise
-            config = dict(can.util.load_config(config={**given, "interface": DEFAULT_INTERFACE}))
-    except (can.CanInterfaceNotImplementedError, ValueError, TypeError) as error:
-        raise UsageError(
-            f"python-can's configuration (~/.canrc, can.ini, CAN_INTERFACE, CAN_CONFIG...) is unusable: "
-            f"{one_line(error)}; give --interface and --channel, or fix it"
-        ) from None
-    if config.get("channel") is None and config["interface"] == DEFAULT_INTERFACE:
-        config["channel"] = DEFAULT_CHANNEL
+        config = canbus.bus_config(given, filters)
+    except BusOptionError as error:
+        raise UsageError(str(error)) from None
     for key in ("bitrate", "data_bitrate"):
         if isinstance(config.get(key), str):  # CAN_BITRATE=500k: one parser for every bit rate
             try:
@@ -534,112 +464,23 @@ def bus_config(args: argparse.Namespace) -> dict[str, Any]:
     return config
 
 
-def _configured_interface() -> bool:
-    """Whether any of python-can's configuration sources names an interface."""
-    import can
-
-    sources = (can.rc, can.util.load_environment_config(), can.util.load_file_config())
-    return any(source.get("interface") or source.get("bustype") for source in sources)
-
-
 @contextlib.contextmanager
-def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[can.BusABC]:
+def open_bus(args: argparse.Namespace, **kwargs: object) -> Iterator[Bus]:
     """The python-can bus of the bus options (`bus_config`) plus the command's own `kwargs`;
     afterwards args.interface and args.channel name the bus opened. An interface that cannot
     work on this machine (not installed, wrong platform, wrong options) is a usage error;
     one that could but does not open (no adapter, no such channel) fails the command."""
-    import can
-
     config = {**bus_config(args), **kwargs}
-    interface = args.interface = config["interface"]
+    args.interface = config["interface"]
     args.channel = config.get("channel")
     try:
-        bus = can.Bus(ignore_config=True, **config)
-    except (can.CanInterfaceNotImplementedError, ImportError) as error:
-        raise UsageError(
-            f"cannot use the {interface} interface: {_missing_hint(interface, error)}"
-        ) from error
-    except TypeError as error:  # the backend's constructor refused the options
-        raise UsageError(
-            f"the {interface} interface refused its options: {one_line(error)}; give them with "
-            "--bus-kwargs KEY=VALUE (see python-can's page of that interface)"
-        ) from error
-    except Exception as error:  # backends raise what they like: the adapter's problem, in words
-        library = _missing_library(interface, error)
-        if library is not None:
-            raise UsageError(f"cannot use the {interface} interface: {library}") from error
-        raise BusUnavailableError(
-            f"cannot open {describe_bus(args)}: {one_line(error)}{_bus_hint(args, error)}"
-        ) from error
-    from hilrig.session.netns import deepen_receive_queue
-
-    deepen_receive_queue(bus)  # a recorder or watcher descheduled for a moment loses nothing
+        bus = canbus.open_bus(config)
+    except BusOptionError as error:
+        raise UsageError(str(error)) from error
     try:
         yield bus
     finally:
         bus.shutdown()
-
-
-def _missing_hint(interface: str, error: BaseException) -> str:
-    """python-can's reason, and for a package that is not installed, how to install it."""
-    reason = one_line(error)
-    package = INTERFACE_PACKAGES.get(interface)
-    missing = isinstance(error, ImportError) or any(
-        words in reason.lower() for words in ("not installed", "install it", "no module named")
-    )
-    if package is None or not missing:
-        return reason
-    name, extra = package
-    return (
-        f"it needs the {name} package, which is not installed: pip install {name} "
-        f"(or pip install 'python-can[{extra}]')"
-    )
-
-
-# The vendor library an interface loads with ctypes when its bus opens (not a Python package).
-INTERFACE_LIBRARIES: dict[str, tuple[str, str]] = {
-    "pcan": ("PEAK's PCAN-Basic library (libpcanbasic.so, from peak-system.com)", "peak_usb"),
-    "kvaser": ("Kvaser's CANlib (libcanlib.so, from Kvaser's linuxcan)", "kvaser_usb"),
-}
-"""interface -> (the library, the Linux kernel driver that serves the same adapters on socketcan)."""
-
-
-def _missing_library(interface: str, error: BaseException) -> str | None:
-    """'it needs ..., which is not installed' when the interface's vendor library is missing:
-    python-can's pcan says 'library not found', its kvaser leaves canlib's functions undefined
-    (a NameError); None for any other failure."""
-    known = INTERFACE_LIBRARIES.get(interface)
-    reason = one_line(error).lower()
-    if known is None or not (isinstance(error, NameError) or "library not found" in reason):
-        return None
-    library, driver = known
-    return f"it needs {library}, which is not installed; or use -i socketcan (the kernel's {driver} driver)"
-
-
-def _bus_hint(args: argparse.Namespace, error: BaseException) -> str:
-    code = _errno_of(error)
-    if args.interface == "socketcan":
-        if code == errno.EAFNOSUPPORT:
-            return (
-                "; this kernel has no SocketCAN: run inside `tools/with-vcan -- ...` or pick "
-                "another --interface"
-            )
-        if code == errno.ENODEV or "No such device" in str(error):
-            return f"; no interface {args.channel} here: `ip link show` lists them, `make vcan` creates vcan0"
-        return ""
-    return f"; is the {args.interface} adapter plugged in and its driver installed?"
-
-
-def _errno_of(error: BaseException | None) -> int | None:
-    while error is not None:
-        if isinstance(error, OSError) and error.errno is not None:
-            return error.errno
-        for attr in ("error_code",):
-            code = getattr(error, attr, None)
-            if isinstance(code, int):
-                return code
-        error = error.__cause__ or error.__context__
-    return None
 
 
 def eds_path(args: argparse.Namespace) -> Path:
@@ -656,13 +497,13 @@ def dbc_path(args: argparse.Namespace) -> Path:
     return given if given is not None else resources.dbc_for(getattr(args, "table", None))
 
 
-def load_eds(path: Path, node_id: int) -> canopen.ObjectDictionary:
+def load_eds(path: Path, node_id: int) -> ObjectDictionary:
     """The object dictionary of an EDS for node `node_id` (its $NODEID+... COB-IDs resolved);
     one canopen cannot read is a usage error (exit 2)."""
-    import canopen
+    from hilrig.wire.node import node_dictionary
 
     try:
-        return canopen.import_od(str(path), node_id)
+        return node_dictionary(path, node_id)
     except Exception as error:  # configparser, KeyError, ValueError...: the file, not the rig
         raise UsageError(
             f"EDS {path} is not an EDS canopen can read ({one_line(error)}); {EDS_HINT}"
@@ -687,7 +528,7 @@ def load_dbc(path: Path) -> cantools.database.can.Database:
 
 @contextlib.contextmanager
 def board_node(
-    args: argparse.Namespace, bus: can.BusABC, table: RigTable, *, writes: bool = False
+    args: argparse.Namespace, bus: Bus, table: RigTable, *, writes: bool = False
 ) -> Iterator[BoardNode]:
     """The node of the node options; one the command `writes` to has passed `check_board`."""
     from hilrig.wire.node import BoardNode
@@ -736,32 +577,3 @@ def silent_hint(node_id: int) -> str:
         f"is the board powered and on this bus with node id 0x{node_id:02X} "
         "(and the bit rate right)? `hilrig scan` lists the nodes that answer"
     )
-
-
-class SyncProducer:
-    """Sends SYNC (with counter 1..240) every `period_s` from a thread, until stopped."""
-
-    def __init__(self, send: Callable[[int], None], period_s: float) -> None:
-        self._send = send
-        self._period_s = period_s
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="sync-producer", daemon=True)
-        self.error: BaseException | None = None
-
-    def __enter__(self) -> Self:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self._stop.set()
-        self._thread.join()
-
-    def _run(self) -> None:
-        counter = 0
-        while not self._stop.wait(self._period_s):
-            counter = counter % 240 + 1
-            try:
-                self._send(counter)
-            except Exception as error:  # surfaced by the main loop
-                self.error = error
-                return

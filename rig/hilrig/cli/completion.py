@@ -23,16 +23,15 @@ def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.Argument
 
 
 def _choices(action: argparse.Action) -> list[str]:
-    from can.interfaces import VALID_INTERFACES
-
     from hilrig.cli.common import interface_name
     from hilrig.cli.sdo_raw import VALUE_TYPES, value_type
+    from hilrig.session.canbus import interface_names
     from hilrig.table import RigTable
 
     if action.choices is not None and not isinstance(action, argparse._SubParsersAction):
         return [str(choice) for choice in action.choices]
     if action.type is interface_name:
-        return sorted(VALID_INTERFACES)
+        return sorted(interface_names())
     if action.type is value_type:
         return list(VALUE_TYPES)
     if not action.option_strings and action.metavar == "NAME":

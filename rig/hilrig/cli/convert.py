@@ -27,10 +27,11 @@ def convertible_log(text: str) -> Path:
     suffixes = [suffix.lower() for suffix in path.suffixes]
     extension = suffixes[-2] if suffixes[-1:] == [".gz"] and len(suffixes) >= 2 else path.suffix.lower()
     if extension not in LOG_FORMATS:
-        from can.io.player import MESSAGE_READERS
+        from hilrig.session.buslog import reader_suffixes
 
-        if extension not in MESSAGE_READERS:
-            known = ", ".join(sorted({*LOG_FORMATS, *MESSAGE_READERS}))
+        readers = reader_suffixes()
+        if extension not in readers:
+            known = ", ".join(sorted({*LOG_FORMATS, *readers}))
             raise argparse.ArgumentTypeError(
                 f"log {text}: no reader for {extension or 'no extension'} ({known})"
             )

@@ -15,54 +15,12 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from hilrig.arguments import ArgKind, kind
+from hilrig.arguments import ArgKind, kind, suffix_choice
+from hilrig.arguments import existing_file as existing_file  # the commands import them from here
+from hilrig.arguments import sniff_eds as sniff_eds
+from hilrig.arguments import sniff_executable as sniff_executable
+from hilrig.arguments import unreadable_reason as unreadable_reason
 from hilrig.errors import one_line
-
-
-def unreadable_reason(path: Path) -> str | None:
-    """Why the file at `path` cannot be read ('does not exist', 'is a directory', 'cannot be read:
-    Permission denied'), None if it can. Tried by opening it, so root and ACLs judge as they will
-    when the command reads it."""
-    try:
-        with path.open("rb"):
-            return None
-    except FileNotFoundError:
-        return "does not exist"
-    except IsADirectoryError:
-        return "is a directory, not a file"
-    except OSError as error:
-        return f"cannot be read: {error.strerror or one_line(error)}"
-
-
-def existing_file(
-    what: str,
-    hint: str,
-    *,
-    suffixes: tuple[str, ...] = (),
-    sniff: Callable[[Path], str | None] | None = None,
-) -> Callable[[str], Path]:
-    """An argument type: a file that exists and can be read (else a usage error naming it, with
-    `hint`); with `suffixes`, one of these extensions; with `sniff`, whose content `sniff`
-    accepts (it returns why not, or None)."""
-
-    @kind(ArgKind("input file", suffixes, sniffed=sniff is not None))
-    def check(text: str) -> Path:
-        path = Path(text)
-        reason = unreadable_reason(path)
-        if reason is None and suffixes and not text.lower().endswith(suffixes):
-            reason = f"does not end in {_either(suffixes)}"
-        if reason is None and sniff is not None:
-            reason = sniff(path)
-        if reason is not None:
-            raise argparse.ArgumentTypeError(f"{what} {text} {reason}; {hint}")
-        return path
-
-    return check
-
-
-def _either(suffixes: tuple[str, ...]) -> str:
-    """'.log, .blf or .asc'."""
-    return " or ".join(filter(None, (", ".join(suffixes[:-1]), suffixes[-1])))
 
 
 def output_file(what: str, *, suffixes: tuple[str, ...] = ()) -> Callable[[str], Path]:
@@ -74,7 +32,7 @@ def output_file(what: str, *, suffixes: tuple[str, ...] = ()) -> Callable[[str],
         path = Path(text)
         folder = path.parent
         if suffixes and not text.lower().endswith(suffixes):
-            reason = f"does not end in {_either(suffixes)} (the format follows the extension)"
+            reason = f"does not end in {suffix_choice(suffixes)} (the format follows the extension)"
         elif path.is_dir() or text.endswith("/"):
             reason = "is a directory: name the file to write"
         elif not folder.is_dir():
@@ -109,25 +67,9 @@ def sniff_toml(path: Path) -> str | None:
     return None
 
 
-_EDS_OBJECT = re.compile(rb"^\s*\[[0-9A-Fa-f]{4}\]", re.MULTILINE)
 _DBC_KEYWORD = re.compile(rb"^\s*(VERSION|NS_|BU_|BO_)\b", re.MULTILINE)
-
-
-def sniff_eds(path: Path) -> str | None:
-    """An EDS (CiA 306) is INI text with a section per object ([1000], [1018]...)."""
-    return None if _EDS_OBJECT.search(path.read_bytes()) else "is not an EDS (no [1000]-style object section)"
 
 
 def sniff_dbc(path: Path) -> str | None:
     """A DBC has its keywords (VERSION, BU_, BO_...) at line starts."""
     return None if _DBC_KEYWORD.search(path.read_bytes()) else "is not a DBC (no VERSION, BU_ or BO_ line)"
-
-
-def sniff_executable(path: Path) -> str | None:
-    if not os.access(path, os.X_OK):
-        return "is not executable (chmod +x)"
-    with path.open("rb") as file:
-        start = file.read(4)
-    return (
-        None if start in (b"\x7fELF",) or start.startswith(b"#!") else "is not a program (no ELF or #! start)"
-    )

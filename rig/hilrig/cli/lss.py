@@ -34,8 +34,6 @@ from hilrig.cli.common import (
 from hilrig.errors import NodeSilentError
 
 if TYPE_CHECKING:
-    import canopen
-
     from hilrig.wire.lss import LssAddress, LssCommissioner
 
 DEFAULT_LSS_TIMEOUT_S = 0.2
@@ -103,24 +101,15 @@ def _product(args: argparse.Namespace) -> LssAddress:
 
 
 def run(args: argparse.Namespace) -> int:
-    import canopen
-
-    from hilrig.wire.lss import LssCommissioner
+    from hilrig.wire.lss import commissioner_on
 
     product = _product(args)
-    with open_bus(args) as bus:
-        network = canopen.Network(bus)
-        network.connect()  # the bus is given: this only starts canopen's receive thread
-        try:
-            lss = LssCommissioner(network, timeout_s=args.timeout)
-            if args.action == "identify":
-                return _identify(args, lss)
-            if args.action == "set":
-                return _set(args, lss, network, product)
-            return _number(args, lss, network, product)
-        finally:
-            if network.notifier is not None:
-                network.notifier.stop(1.0)
+    with open_bus(args) as bus, commissioner_on(bus, timeout_s=args.timeout) as lss:
+        if args.action == "identify":
+            return _identify(args, lss)
+        if args.action == "set":
+            return _set(args, lss, product)
+        return _number(args, lss, product)
 
 
 def _identify(args: argparse.Namespace, lss: LssCommissioner) -> int:
@@ -131,18 +120,14 @@ def _identify(args: argparse.Namespace, lss: LssCommissioner) -> int:
     return 0
 
 
-def _verified(network: canopen.Network, node: int, address: LssAddress, timeout_s: float) -> str:
-    from hilrig.wire.lss import read_identity
-
-    read = read_identity(network, node, timeout_s)
+def _verified(lss: LssCommissioner, node: int, address: LssAddress, timeout_s: float) -> str:
+    read = lss.read_identity(node, timeout_s)
     if read != address:
         raise NodeSilentError(f"node 0x{node:02X}: 0x1018 over SDO reads {read}, LSS found {address}")
     return "0x1018 matches"
 
 
-def _set(
-    args: argparse.Namespace, lss: LssCommissioner, network: canopen.Network, product: LssAddress
-) -> int:
+def _set(args: argparse.Namespace, lss: LssCommissioner, product: LssAddress) -> int:
     from hilrig.wire.lss import LssAddress
 
     address = LssAddress(product.vendor_id, product.product_code, product.revision, args.serial)
@@ -163,14 +148,12 @@ def _set(
             )
             return 0
         watch.wait(args.boot_timeout)
-    check = _verified(network, args.node_id, address, args.boot_timeout)
+    check = _verified(lss, args.node_id, address, args.boot_timeout)
     print(f"serial 0x{args.serial:08X}: node id 0x{args.node_id:02X}, booted, {check}")
     return 0
 
 
-def _number(
-    args: argparse.Namespace, lss: LssCommissioner, network: canopen.Network, product: LssAddress
-) -> int:
+def _number(args: argparse.Namespace, lss: LssCommissioner, product: LssAddress) -> int:
     from hilrig.wire import lss as lss_module
 
     order = "chain order" if args.chain else "serial-number order"
@@ -181,7 +164,7 @@ def _number(
     rows: list[list[str]] = []
 
     def found(node: int, address: LssAddress) -> None:
-        check = _verified(network, node, address, args.boot_timeout)
+        check = _verified(lss, node, address, args.boot_timeout)
         stored = "no" if args.no_store else "yes"
         rows.append([f"0x{node:02X}", f"0x{address.serial_number:08X}", stored, check])
         progress(f"lss: serial 0x{address.serial_number:08X} is node 0x{node:02X} ({check})")

@@ -36,7 +36,7 @@ from hilrig.cli.common import (
 from hilrig.resources import DBC_HINT
 
 if TYPE_CHECKING:
-    import can
+    from hilrig.session.canbus import Message
 
 REDRAW_S = 0.25
 """How often a terminal's table is redrawn."""
@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _take(message: can.Message, decoder: object, seen: dict[tuple[int, bool], Seen]) -> int:
+def _take(message: Message, decoder: object, seen: dict[tuple[int, bool], Seen]) -> int:
     """Count a frame under its id; 1 for an error frame (counted, not listed)."""
     if message.is_error_frame:
         return 1

@@ -1,6 +1,6 @@
 """`hilrig nmt start|stop|preop|reset|reset-comm [NODE|all]`: network management by hand.
 
-Sends the NMT command (canopen's NMT master) to one node, or to every node (`all`, node id 0
+Sends the NMT command (`hilrig.wire.master`) to one node, or to every node (`all`, node id 0
 on the wire). With --wait, for one node, it then waits for the state change to show: the
 boot-up message after a reset, else a heartbeat in the new state, and says how long it took.
 """
@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import threading
 import time
-from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from boardproto.cia301 import HEARTBEAT_STATE_MASK, NMT_ALL_NODES, NmtCommand, NmtState, heartbeat_cob_id
+from boardproto.cia301 import NMT_ALL_NODES, NmtCommand, NmtState
 from hilrig.cli.common import (
     Command,
     UsageError,
@@ -26,6 +25,9 @@ from hilrig.cli.common import (
     positive_float,
 )
 from hilrig.errors import NodeSilentError
+
+if TYPE_CHECKING:
+    from hilrig.wire.master import HeartbeatWatch
 
 ACTIONS: dict[str, NmtCommand] = {
     "start": NmtCommand.START,
@@ -48,37 +50,6 @@ def _state_name(state: int) -> str:
     from hilrig.cli.scan import state_name
 
     return state_name(state)
-
-
-@dataclass(frozen=True)
-class Heard:
-    state: int  # the heartbeat's state byte (0 = boot-up)
-    at: float  # time.monotonic()
-
-
-class HeartbeatWatch:
-    """What one node's boot-up and heartbeat frames said, as they arrive (canopen's receive
-    thread calls `on_frame`)."""
-
-    def __init__(self) -> None:
-        self.heard: list[Heard] = []
-        self._changed = threading.Condition()
-
-    def on_frame(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        if len(data) != 1:
-            return
-        with self._changed:
-            self.heard.append(Heard(data[0] & HEARTBEAT_STATE_MASK, time.monotonic()))
-            self._changed.notify_all()
-
-    def wait_for(self, state: NmtState, since: int, timeout_s: float) -> Heard | None:
-        """The first frame from `since` on (an index into `heard`) showing `state`, or None."""
-        with self._changed:
-            self._changed.wait_for(lambda: self._find(state, since) is not None, timeout_s)
-            return self._find(state, since)
-
-    def _find(self, state: NmtState, since: int) -> Heard | None:
-        return next((h for h in self.heard[since:] if h.state == state), None)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -110,7 +81,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import canopen
+    from hilrig.wire.master import BusMaster
 
     command = ACTIONS[args.action]
     target = args.node if args.node is not None else load_table(args).board.node.default_node_id
@@ -120,26 +91,16 @@ def run(args: argparse.Namespace) -> int:
             "(`hilrig scan` lists their states)"
         )
     addressee = "all nodes" if target == NMT_ALL_NODES else f"node 0x{target:02X}"
-    with open_bus(args) as bus:
-        network = canopen.Network(bus)  # not connected: only sends unless it has to listen
-        watch = HeartbeatWatch()
-        if args.wait:
-            network.subscribe(heartbeat_cob_id(target), watch.on_frame)
-            network.connect()  # the bus is given: this starts canopen's receive thread
-        try:
-            master = canopen.nmt.NmtMaster(target)
-            master.network = network
-            since = len(watch.heard)
-            sent_at = time.monotonic()
-            master.send_command(int(command))
-            if not args.wait:
-                print(f"NMT {args.action} sent to {addressee} on {describe_bus(args)}")
-                return 0
-            expected = NmtState.INITIALISING if _is_reset(command) else command.resulting_state
-            heard = watch.wait_for(expected, since, args.timeout)
-        finally:
-            if network.notifier is not None:
-                network.notifier.stop(1.0)
+    with open_bus(args) as bus, BusMaster(bus) as master:
+        watch = master.watch_heartbeat(target) if args.wait else None
+        since = len(watch.heard) if watch is not None else 0
+        sent_at = time.monotonic()
+        master.nmt(command, target)
+        if watch is None:
+            print(f"NMT {args.action} sent to {addressee} on {describe_bus(args)}")
+            return 0
+        expected = NmtState.INITIALISING if _is_reset(command) else command.resulting_state
+        heard = watch.wait_for(expected, since, args.timeout)
     if heard is None:
         raise NodeSilentError(_silence(target, args.action, expected, watch, args.timeout))
     after = f"{heard.at - sent_at:.2f} s after NMT {args.action}"

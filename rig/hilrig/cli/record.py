@@ -26,7 +26,6 @@ from hilrig.cli.common import (
     LIVE_VIEWER_HELP,
     CanFilter,
     Command,
-    SyncProducer,
     UsageError,
     add_bus_options,
     add_table_option,
@@ -50,11 +49,10 @@ from hilrig.cli.files import ArgKind, kind, output_file, sniff_dbc, unreadable_r
 from hilrig.session.buslog import LOG_FORMATS, NodeDbc, master_side, partial_path, read_log, whole_file_logger
 
 if TYPE_CHECKING:
-    import can
-    import canopen
-
     from hilrig.apps.log_trace import LiveBusTrace
+    from hilrig.session.canbus import Bus, Listener, Message
     from hilrig.table import RigTable
+    from hilrig.wire.node import ObjectDictionary
 
 PROGRESS_EVERY_S = 1.0
 
@@ -69,7 +67,7 @@ class _CountingSink:
     only frames one of them keeps (the bus applies plain filters already; an inverted one,
     `ID~MASK`, only here)."""
 
-    def __init__(self, sink: can.Listener, limit: int | None, filters: list[CanFilter] | None = None) -> None:
+    def __init__(self, sink: Listener, limit: int | None, filters: list[CanFilter] | None = None) -> None:
         self.sink = sink
         self.count = 0
         self.limit = limit
@@ -77,7 +75,7 @@ class _CountingSink:
         self.done = threading.Event()
         self._lock = threading.Lock()
 
-    def __call__(self, message: can.Message) -> None:
+    def __call__(self, message: Message) -> None:
         if self.filters and not any(f.keeps(message.arbitration_id) for f in self.filters):
             return
         with self._lock:
@@ -99,24 +97,24 @@ def nmt_target(args: argparse.Namespace) -> int | None:
 
 
 @contextmanager
-def master_traffic(bus: can.BusABC, args: argparse.Namespace, target: int | None) -> Iterator[None]:
+def master_traffic(bus: Bus, args: argparse.Namespace, target: int | None) -> Iterator[None]:
     """Optionally act as the master of a board with no master: NMT start to `target`, SYNC
     producer."""
     if target is None and not args.sync_period_ms:
         yield
         return
-    import canopen
+    from boardproto.cia301 import NmtCommand
+    from hilrig.engine.realtime import SyncProducer
+    from hilrig.wire.master import BusMaster
 
-    network = canopen.Network(bus)  # not connected: only sends, the recorder's notifier reads
-    if target is not None:
-        master = canopen.nmt.NmtMaster(target)
-        master.network = network
-        master.send_command(0x01)
-    if args.sync_period_ms:
-        with SyncProducer(network.sync.transmit, args.sync_period_ms / 1e3):
+    with BusMaster(bus) as master:  # only sends: the recorder's notifier reads
+        if target is not None:
+            master.nmt(NmtCommand.START, target)
+        if args.sync_period_ms:
+            with SyncProducer(master.sync, args.sync_period_ms / 1e3):
+                yield
+        else:
             yield
-    else:
-        yield
 
 
 def configure_record(parser: argparse.ArgumentParser) -> None:
@@ -161,14 +159,14 @@ def configure_record(parser: argparse.ArgumentParser) -> None:
 
 
 def run_record(args: argparse.Namespace) -> int:
-    import can
+    from hilrig.session.canbus import Notified
 
     path: Path = args.file
     started = time.monotonic()
     deadline = started + args.duration if args.duration else None
     interactive = sys.stderr.isatty()
     if args.nmt_start or args.sync_period_ms:
-        import canopen  # noqa: F401  (seconds in the VM: import before frames are counted)
+        import hilrig.wire.master  # noqa: F401  (seconds in the VM: imported before frames are counted)
     live = None
     if args.viewer:
         from hilrig.apps.log_trace import LiveBusTrace
@@ -183,7 +181,7 @@ def run_record(args: argparse.Namespace) -> int:
     target = nmt_target(args)
     with open_bus(args, receive_own_messages=True) as bus, whole_file_logger(path) as logger:
         counter = _CountingSink(logger if live is None else _Both(logger, live), args.count, args.filters)
-        notifier = can.Notifier(bus, [counter])
+        notified = Notified(bus, [counter])
         try:
             limit = " (Ctrl-C to stop)" if not (args.count or args.duration) else ""
             kept = f", frames {' '.join(map(str, args.filters))}" if args.filters else ""
@@ -204,7 +202,7 @@ def run_record(args: argparse.Namespace) -> int:
                         flush=True,
                     )
         finally:
-            notifier.stop()
+            notified.stop()
             if interactive:
                 print(file=sys.stderr)
             if live is not None:
@@ -218,10 +216,10 @@ def run_record(args: argparse.Namespace) -> int:
 class _Both:
     """Two listeners as one: the log file and the live trace get the same frames."""
 
-    def __init__(self, first: can.Listener, second: LiveBusTrace) -> None:
+    def __init__(self, first: Listener, second: LiveBusTrace) -> None:
         self.first, self.second = first, second
 
-    def on_message_received(self, message: can.Message) -> None:
+    def on_message_received(self, message: Message) -> None:
         self.first.on_message_received(message)
         self.second.on_message_received(message)
 
@@ -306,14 +304,14 @@ def run_replay(args: argparse.Namespace) -> int:
         return _decode(args)
     if args.trace:
         return _trace(args)
-    import can
+    from hilrig.session.canbus import paced
 
     sent = 0
     started = time.monotonic()
     next_report = started + PROGRESS_EVERY_S
-    frames: Iterator[can.Message]
+    frames: Iterator[Message]
     with read_log(args.file) as logged, open_bus(args) as bus:
-        frames = can.MessageSync(logged, timestamps=not args.no_timing, gap=0.0)
+        frames = paced(logged, timestamps=not args.no_timing)
         if args.as_master:
             table = load_table(args)
             node = args.node_id if args.node_id is not None else table.board.node.default_node_id
@@ -424,7 +422,7 @@ def _decode(args: argparse.Namespace) -> int:
     return 0
 
 
-def sdo_dictionary(args: argparse.Namespace, node: int) -> canopen.ObjectDictionary | None:
+def sdo_dictionary(args: argparse.Namespace, node: int) -> ObjectDictionary | None:
     """The table's EDS, when it is built, for the names and types of the objects an SDO transfer
     names that the table does not (0x1000..0x1FFF); without it they show by index."""
     from hilrig import resources
@@ -444,7 +442,7 @@ class FrameDecoder:
         table: RigTable,
         node: int,
         wanted: set[str],
-        od: canopen.ObjectDictionary | None = None,
+        od: ObjectDictionary | None = None,
     ) -> None:
         from hilrig.wire.sdo import ObjectWords, SdoTracker
 
@@ -456,7 +454,7 @@ class FrameDecoder:
         self.sdo = SdoTracker()
         self.words = ObjectWords(table, self._value, od)
 
-    def describe(self, message: can.Message) -> str | None:
+    def describe(self, message: Message) -> str | None:
         """The text of the frame; None when --field leaves it out."""
         data = bytes(message.data)
         dbc_message = self.dbc.message(message.arbitration_id)

@@ -34,11 +34,9 @@ from hilrig.cli.common import (
 from hilrig.errors import RigError, SdoAbortError, SdoTimeoutError
 
 if TYPE_CHECKING:
-    import can
-    import canopen
-
+    from hilrig.session.canbus import Bus
     from hilrig.table import RigTable
-    from hilrig.wire.node import BoardNode
+    from hilrig.wire.node import BoardNode, ObjectDictionary
 
 MAX_INDEX = 0xFFFF
 MAX_SUBINDEX = 0xFF
@@ -147,26 +145,9 @@ _BY_SIZE = {1: "u8", 2: "u16", 4: "u32", 8: "u64"}
 
 def _types_of_data_types() -> dict[int, ValueType]:
     """CiA 301 data type code (as canopen and board.toml's DataType number them) -> ValueType."""
-    from canopen.objectdictionary import datatypes as dt
+    from hilrig.wire.sdo import value_type_names
 
-    names = {
-        dt.BOOLEAN: "u8",
-        dt.UNSIGNED8: "u8",
-        dt.UNSIGNED16: "u16",
-        dt.UNSIGNED32: "u32",
-        dt.UNSIGNED64: "u64",
-        dt.INTEGER8: "i8",
-        dt.INTEGER16: "i16",
-        dt.INTEGER32: "i32",
-        dt.INTEGER64: "i64",
-        dt.REAL32: "f32",
-        dt.REAL64: "f64",
-        dt.VISIBLE_STRING: "str",
-        dt.OCTET_STRING: "bytes",
-        dt.UNICODE_STRING: "bytes",
-        dt.DOMAIN: "bytes",
-    }
-    return {code: VALUE_TYPES[name] for code, name in names.items()}
+    return {code: VALUE_TYPES[name] for code, name in value_type_names().items()}
 
 
 # --- Argument types --------------------------------------------------------------------------
@@ -219,9 +200,7 @@ class ObjectInfo:
         return f"{_label(self.index, self.subindex)}{named}"
 
 
-def object_info(
-    index: int, subindex: int, table: RigTable, od: canopen.ObjectDictionary | None
-) -> ObjectInfo:
+def object_info(index: int, subindex: int, table: RigTable, od: ObjectDictionary | None) -> ObjectInfo:
     """The table's name and type first (the one definition of the board's objects), then the
     EDS's (communication objects 0x1000.., and any device's EDS given with --eds)."""
     types = _types_of_data_types()
@@ -234,7 +213,7 @@ def object_info(
     return ObjectInfo(index, subindex, None, None)
 
 
-def _od_for(args: argparse.Namespace, table: RigTable) -> tuple[canopen.ObjectDictionary | None, Path | None]:
+def _od_for(args: argparse.Namespace, table: RigTable) -> tuple[ObjectDictionary | None, Path | None]:
     """The EDS of --eds, else the table's if there is one (build/protocol/board.eds in a checkout,
     once built): raw SDO works without one."""
     path: Path = args.eds if args.eds is not None else resources.eds_for(args.table)
@@ -252,9 +231,9 @@ def _unknown_type(info: ObjectInfo, eds: Path | None) -> str:
 @contextlib.contextmanager
 def _node(
     args: argparse.Namespace,
-    bus: can.BusABC,
+    bus: Bus,
     table: RigTable,
-    od: canopen.ObjectDictionary | None,
+    od: ObjectDictionary | None,
     *,
     writes: bool = False,
 ) -> Iterator[BoardNode]:

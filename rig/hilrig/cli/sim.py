@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hilrig.cli.common import (
-    EDS_HINT,
     Command,
     UsageError,
     add_bus_options,
@@ -18,14 +17,13 @@ from hilrig.cli.common import (
     eds_path,
     existing_file,
     live_sink,
-    node_id,
     progress,
 )
-from hilrig.cli.files import output_folder, sniff_eds, sniff_executable, sniff_toml
+from hilrig.cli.files import output_folder, sniff_toml
 from hilrig.resources import FIRMWARE_HINT
 from hilrig.session.baremetal import FIRMWARE_PLATFORMS, LINUX, QEMU_VIRT, default_image
 from hilrig.session.run import RunDescription, TraceRun
-from hilrig.table import BOARD_TABLE, RigTable
+from hilrig.table import RigTable
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -100,22 +98,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="with --modules: how long the gait runs, in simulation time (default: 4)",
     )
-    default_node = BOARD_TABLE.node.default_node_id
-    parser.add_argument(
-        "-n",
-        "--node-id",
-        type=node_id,
-        default=None,
-        help=f"node id (default: 0x{default_node:02X}, board.toml's)",
-    )
-    RunDescription.add_arguments(parser, seed=1)  # every run option
-    parser.add_argument(
-        "--firmware",
-        type=existing_file("firmware", FIRMWARE_HINT, sniff=sniff_executable),
-        default=None,
-        help="the joint-firmware executable (default: build/bin/joint-firmware of the checkout, or of the "
-        "working directory when hilrig is installed)",
-    )
+    RunDescription.add_arguments(parser, seed=1)  # every run option: -n, --firmware, --eds too
     parser.add_argument(
         "--firmware-platform",
         choices=FIRMWARE_PLATFORMS,
@@ -131,12 +114,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="SPEC",
         help="inject a fault (repeatable): " + FAULT_SYNTAX_HELP + "; e.g. drop:thermistor_adc@0.5+0.2",
-    )
-    parser.add_argument(
-        "--eds",
-        type=existing_file("EDS", EDS_HINT, sniff=sniff_eds),
-        default=None,
-        help="the board's EDS (default: build/protocol/board.eds)",
     )
     plant = parser.add_argument_group("another plant (an FMU) or board (docs/fmu.md)")
     plant.add_argument(

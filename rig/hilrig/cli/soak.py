@@ -8,21 +8,16 @@ from pathlib import Path
 from hilrig.cli.common import (
     Command,
     UsageError,
-    existing_file,
-    node_id,
     positive_int,
 )
-from hilrig.cli.files import output_file, output_folder, sniff_eds, sniff_executable
+from hilrig.cli.files import output_file, output_folder
 
 
 def _configure(parser: argparse.ArgumentParser) -> None:
     """The soak's options (`hilrig soak --help`)."""
     from hilrig.apps.soak.fault_plan import DEFAULT_FAULT_INTERVAL
-    from hilrig.apps.soak.layout import DEFAULT_EDS_PATH
     from hilrig.apps.soak.memory import DEFAULT_RSS_BOUND_KIB, DEFAULT_SAMPLE_EVERY
-    from hilrig.session.firmware import DEFAULT_EXECUTABLE
     from hilrig.session.run import RunDescription
-    from hilrig.table import BOARD_TABLE
 
     parser.add_argument(
         "--cycles", type=positive_int, default=1_000_000, help="firmware cycles to run (default 1000000)"
@@ -40,19 +35,7 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--rss-bound-kib", type=int, default=DEFAULT_RSS_BOUND_KIB, help="allowed growth after warm-up"
     )
-    default_node = BOARD_TABLE.node.default_node_id
-    parser.add_argument(
-        "--node-id", type=node_id, default=default_node, help=f"default 0x{default_node:02X} (board.toml's)"
-    )
-    RunDescription.add_arguments(parser, "period_us")
-    parser.add_argument(
-        "--eds", type=existing_file("EDS", "run `make build`", sniff=sniff_eds), default=DEFAULT_EDS_PATH
-    )
-    parser.add_argument(
-        "--firmware",
-        type=existing_file("firmware", "run `make build`", sniff=sniff_executable),
-        default=DEFAULT_EXECUTABLE,
-    )
+    RunDescription.add_arguments(parser, "node_id", "period_us", "firmware", "eds")
     parser.add_argument("--channel", help="use this interface as it is (default: a private namespace vcan0)")
     parser.add_argument(
         "--stop-file", type=output_file("stop file"), help="stop cleanly once this file exists (tools/soak)"

@@ -22,7 +22,6 @@ from hilrig.cli.common import (
     LIVE_VIEWER_HELP,
     Command,
     Named,
-    SyncProducer,
     add_node_options,
     board_node,
     check_names,
@@ -45,11 +44,10 @@ from hilrig.table import ObjectEntry
 from hilrig.wire.node import EmcyRecord
 
 if TYPE_CHECKING:
-    from canopen.emcy import EmcyError
-
     from hilrig.apps.log_trace import LiveBusTrace
+    from hilrig.engine.realtime import SyncProducer
     from hilrig.table import RigTable
-    from hilrig.wire.node import BoardNode
+    from hilrig.wire.node import BoardNode, EmcyError
     from hilrig.wire.transport import PdoLayout
 
 CLEAR_LINE = "\x1b[2K"
@@ -250,6 +248,8 @@ def run(args: argparse.Namespace) -> int:
         if args.nmt_start:
             node.nmt(NmtCommand.START)
         screen = Screen(sys.stdout, in_place=sys.stdout.isatty() and not args.once and args.count != 1)
+        from hilrig.engine.realtime import SyncProducer
+
         send_sync = node.send_sync if live is None else _traced(node.send_sync, live)
         sync = SyncProducer(send_sync, args.sync_period_ms / 1e3) if args.sync_period_ms else None
         if sync is not None:
@@ -269,16 +269,11 @@ def run(args: argparse.Namespace) -> int:
 def _traced(send_sync: Callable[[int], None], live: LiveBusTrace) -> Callable[[int], None]:
     """Our own SYNCs into the live trace too (a bus does not hand a sender its own frames),
     so it can group the TPDOs into cycles."""
-    import can
-
     from boardproto.cia301 import SYNC_COB_ID
 
     def send(counter: int) -> None:
         send_sync(counter)
-        stamp = time.time()  # as python-can stamps received frames
-        live.on_message_received(
-            can.Message(arbitration_id=SYNC_COB_ID, data=[counter], is_extended_id=False, timestamp=stamp)
-        )
+        live.on_sent(SYNC_COB_ID, bytes([counter]))
 
     return send
 

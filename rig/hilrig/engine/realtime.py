@@ -19,6 +19,10 @@ the ones after it, ticks missed entirely are counted in `overruns`):
 History is on the wall-clock timeline: t = seconds since the first tick, the tick's own time
 (not n * period). Physics off (bring-up): no sensor RPDO goes out and the plant stands still;
 the rig only commands and observes.
+
+Without a rig (a board on its own, no master: `hilrig watch`, `record`, `capture`), the
+`SyncProducer` is the bus's SYNC producer on the same tick grid (`TickGrid`) with the same
+counter rule (`sync_counter`).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Iterable
+from typing import Self
 
 import numpy as np
 
@@ -43,6 +48,103 @@ from hilrig.errors import RealTimeError
 from hilrig.plants.interface import Plant
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import PdoLayout
+
+
+class TickGrid:
+    """Ticks on an absolute wall-clock grid, t0 + k * period: a late tick does not shift the
+    ones after it, and the ticks that passed entirely while late are skipped and counted in
+    `overruns`. The caller waits for `deadline` on its own clock, then says `reached(now)`."""
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s = period_s
+        self.t0: float | None = None
+        """The clock at tick 0 [s]; None before `start`."""
+        self.overruns = 0
+        """Whole ticks skipped (the caller was late by more than a period)."""
+        self._next = 0  # index of the next tick
+
+    def start(self, now: float, *, first: int = 0) -> None:
+        """Tick 0 is at `now`; the first tick to wait for is `first`."""
+        self.t0 = now
+        self._next = first
+
+    @property
+    def deadline(self) -> float:
+        """The clock of the next tick [s]."""
+        assert self.t0 is not None, "TickGrid.start first"
+        return self.t0 + self._next * self.period_s
+
+    def reached(self, now: float) -> None:
+        """The next tick was reached at `now` (at or after its deadline): the ticks that passed
+        meanwhile are skipped, the grid stays where it was."""
+        missed = int((now - self.deadline) // self.period_s)
+        if missed > 0:
+            self.overruns += missed
+            self._next += missed
+        self._next += 1
+
+
+class SyncProducer:
+    """Sends SYNC every `period_s` from a thread of its own until stopped (a context manager):
+    on a `TickGrid`, the counter `sync_counter` of the SYNCs sent so far (1..240, wrapping), the
+    first one period after the start. A SYNC whose tick passed while the thread was late is
+    skipped and counted in `overruns` (the counter counts what went out). The first error of
+    `send` stops it; it waits in `error` for the caller to raise. `clock` returns seconds
+    (monotonic), `wait(seconds)` blocks about that long: both default to the wall clock (a stop
+    wakes the wait), tests pass a clock they own and call `run()` on their own thread."""
+
+    def __init__(
+        self,
+        send: Callable[[int], None],
+        period_s: float,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        wait: Callable[[float], object] | None = None,
+    ) -> None:
+        self._send = send
+        self._stop = threading.Event()
+        self.clock = clock
+        self.wait = wait if wait is not None else self._stop.wait
+        self.grid = TickGrid(period_s)
+        self.sent = 0
+        """SYNCs sent."""
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=self.run, name="sync-producer", daemon=True)
+
+    @property
+    def overruns(self) -> int:
+        """SYNCs skipped: their tick passed while the producer was late."""
+        return self.grid.overruns
+
+    def __enter__(self) -> Self:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+        self._thread.join()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def run(self) -> None:
+        """Send until stopped or `send` fails (the thread's body)."""
+        grid = self.grid
+        grid.start(self.clock(), first=1)
+        while not self._stop.is_set():
+            now = self.clock()
+            while now < grid.deadline:
+                self.wait(grid.deadline - now)
+                if self._stop.is_set():
+                    return
+                now = self.clock()
+            grid.reached(now)
+            try:
+                self._send(sync_counter(self.sent))
+            except Exception as error:  # surfaced by the caller's loop
+                self.error = error
+                return
+            self.sent += 1
 
 
 class WallHistory(History):
@@ -103,15 +205,17 @@ class RealTimeDriver(Driver):
         self.clock = clock
         self.wait = wait if wait is not None else threading.Event().wait  # never set: a bounded sleep
         self.max_step_periods = max_step_periods
-        self.overruns = 0
-        """Whole ticks missed (the rig was late by more than a period, or outside run())."""
         self.physics_lost_s = 0.0
         """Wall time the plant did not simulate: steps cut to max_step_periods periods [s]."""
-        self._t0: float | None = None
-        self._grid = 0  # index of the next tick on the grid t0 + k * period
+        self._ticks = TickGrid(self.period_s)
         self._elapsed = 0.0
         self._last_rx = 0.0
         self._outputs: tuple[Value, ...] | None = None
+
+    @property
+    def overruns(self) -> int:
+        """Whole ticks missed (the rig was late by more than a period, or outside run())."""
+        return self._ticks.overruns
 
     @property
     def needs_plant_io(self) -> bool:
@@ -124,7 +228,8 @@ class RealTimeDriver(Driver):
 
     def now(self) -> float:
         """The clock now [s since the first tick]; 0 before it."""
-        return 0.0 if self._t0 is None else self.clock() - self._t0
+        t0 = self._ticks.t0
+        return 0.0 if t0 is None else self.clock() - t0
 
     def node_entered(self, state: NmtState) -> None:
         super().node_entered(state)
@@ -159,8 +264,8 @@ class RealTimeDriver(Driver):
         now = self._wait_for_tick()
         if self.liveness is not None:
             self.liveness()  # raises (e.g. FirmwareError) when the node's process died
-        assert self._t0 is not None
-        elapsed = now - self._t0
+        assert self._ticks.t0 is not None
+        elapsed = now - self._ticks.t0
         dt = elapsed - self._elapsed
 
         received = self._take_latest()
@@ -214,20 +319,16 @@ class RealTimeDriver(Driver):
 
     def _wait_for_tick(self) -> float:
         """Block until this tick's absolute deadline (t0 + k * period); return the clock then."""
-        period = self.period_s
-        if self._t0 is None:
-            self._t0 = self.clock()
-        deadline = self._t0 + self._grid * period
+        ticks = self._ticks
+        if ticks.t0 is None:
+            ticks.start(self.clock())
+        deadline = ticks.deadline
         now = self.clock()
         while now < deadline:
             self.wait(deadline - now)
             now = self.clock()
-        missed = int((now - deadline) // period)
-        if missed > 0:  # skip the ticks that passed: the grid stays where it was
-            self.overruns += missed
-            self._grid += missed
-        self._grid += 1
+        ticks.reached(now)  # the ticks that passed are skipped: the grid stays where it was
         return now
 
 
-__all__ = ["RealTimeDriver", "WallHistory"]
+__all__ = ["RealTimeDriver", "SyncProducer", "TickGrid", "WallHistory"]

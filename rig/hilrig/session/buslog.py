@@ -64,6 +64,13 @@ def whole_file_logger(path: Path, *, blf_clock: str = DEFAULT_BLF_CLOCK) -> Iter
         os.replace(partial, path)
 
 
+def reader_suffixes() -> frozenset[str]:
+    """The extensions python-can has a reader for ('.log', '.asc', '.db'...)."""
+    from can.io.player import MESSAGE_READERS
+
+    return frozenset(MESSAGE_READERS)
+
+
 def readable_formats() -> str:
     """The extensions python-can's LogReader reads, from python-can itself."""
     from can.io.player import MESSAGE_READERS

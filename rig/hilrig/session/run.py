@@ -25,7 +25,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from hilrig import resources
-from hilrig.arguments import ArgKind, kind, positive_float, positive_int
+from hilrig.arguments import (
+    ArgKind,
+    existing_file,
+    kind,
+    node_id,
+    positive_float,
+    positive_int,
+    sniff_eds,
+    sniff_executable,
+)
 from hilrig.engine.timing import TimingMode
 from hilrig.errors import BusUnavailableError, ConfigurationError
 from hilrig.session import baremetal
@@ -330,6 +339,29 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
         positive_float,
         metavar="S",
         pytest=True,
+    ),
+    RunOption(
+        ("-n", "--node-id"),
+        "node_id",
+        "firmware.node_id",
+        "CANopen node id of the firmware, 1..127, decimal or 0x hex; default: the table's [node] "
+        "default_node_id",
+        node_id,
+    ),
+    RunOption(
+        ("--firmware",),
+        "firmware",
+        "firmware.executable",
+        "the firmware executable; default: build/bin/joint-firmware of the checkout, or of the working "
+        "directory when hilrig is installed",
+        existing_file("firmware", resources.FIRMWARE_HINT, sniff=sniff_executable),
+    ),
+    RunOption(
+        ("--eds",),
+        "eds",
+        "rig.eds",
+        "the board's EDS; default: the table's (build/protocol/board.eds in a checkout)",
+        existing_file("EDS", resources.EDS_HINT, sniff=sniff_eds),
     ),
 )
 """The run options, in --help's order."""

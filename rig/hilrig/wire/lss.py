@@ -29,12 +29,14 @@ the protocol's own), and an answer that comes later is dropped before the next q
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Self
 
+import can
 import canopen
 from canopen.lss import LssError as CanopenLssError
 
@@ -118,6 +120,10 @@ class LssCommissioner:
             return bytes(responses.get(timeout=self.timeout_s))
         except queue.Empty:
             return None
+
+    def read_identity(self, node_id: int, timeout_s: float) -> LssAddress:
+        """Node `node_id`'s 0x1018 over SDO (`read_identity`): the verification after LSS."""
+        return read_identity(self.network, node_id, timeout_s)
 
     def _identified(self, data: bytes) -> bool:
         answer = self._ask(data)
@@ -242,6 +248,19 @@ class LssCommissioner:
                 on_module(node_id, address)
             node_id += 1
         return numbered
+
+
+@contextlib.contextmanager
+def commissioner_on(bus: can.BusABC, *, timeout_s: float = DEFAULT_TIMEOUT_S) -> Iterator[LssCommissioner]:
+    """An `LssCommissioner` on a canopen Network of its own on `bus` (the caller's), its receive
+    thread running inside the context."""
+    network = canopen.Network(bus)
+    network.connect()  # the bus is given: this only starts canopen's receive thread
+    try:
+        yield LssCommissioner(network, timeout_s=timeout_s)
+    finally:
+        if network.notifier is not None:
+            network.notifier.stop(1.0)
 
 
 class BootUpWatch:

@@ -57,6 +57,9 @@ from hilrig.wire.transport import (
 
 _T = TypeVar("_T")
 
+ObjectDictionary = canopen.ObjectDictionary
+"""canopen's object dictionary of a node, as the layers above name it (they import no canopen)."""
+
 RECEIVE_POLL_S = 0.05
 """How often canopen's receive thread wakes up without traffic (bounds the time close() takes)."""
 LIVENESS_POLL_S = 0.25

@@ -48,6 +48,31 @@ _BLOCK_LAST_SEGMENT = (
 _BLOCK_SEQNO_MASK = 0x7F
 
 
+def value_type_names() -> dict[int, str]:
+    """CiA 301 data type code (as canopen and board.toml's DataType number them) -> the name of
+    the raw SDO value type that carries it (`hilrig sdo --type`: u8..u64, i8..i64, f32, f64,
+    str, bytes)."""
+    from canopen.objectdictionary import datatypes as dt
+
+    return {
+        dt.BOOLEAN: "u8",
+        dt.UNSIGNED8: "u8",
+        dt.UNSIGNED16: "u16",
+        dt.UNSIGNED32: "u32",
+        dt.UNSIGNED64: "u64",
+        dt.INTEGER8: "i8",
+        dt.INTEGER16: "i16",
+        dt.INTEGER32: "i32",
+        dt.INTEGER64: "i64",
+        dt.REAL32: "f32",
+        dt.REAL64: "f64",
+        dt.VISIBLE_STRING: "str",
+        dt.OCTET_STRING: "bytes",
+        dt.UNICODE_STRING: "bytes",
+        dt.DOMAIN: "bytes",
+    }
+
+
 class Direction(enum.StrEnum):
     UPLOAD = "upload"  # server -> client: a read
     DOWNLOAD = "download"  # client -> server: a write

@@ -137,17 +137,16 @@ def _pin_this_process(cpu: int) -> None:
             os.sched_setaffinity(int(task), {cpu})
 
 
-def _description(args: argparse.Namespace, out: Path) -> RunDescription:
-    """The soak's run: its firmware on a private bus (or --channel), no rig, trace or bus log."""
+def _description(args: argparse.Namespace, out: Path, table: RigTable) -> RunDescription:
+    """The soak's run: its firmware on a private bus (or --channel), no rig, trace or bus log;
+    the run options of the command line (node id, period, firmware, EDS) over the run's defaults."""
     base = RunDescription(
         TraceRun(out, trace=False, record=False),
         bus=BusRun(host_channel=args.channel),
-        firmware=FirmwareRun(
-            executable=args.firmware, node_id=args.node_id, boot_timeout_s=BOOT_TIMEOUT_S, term_timeout_s=30.0
-        ),
-        rig=RigRun(eds=args.eds, sdo_timeout_s=RECEIVE_TIMEOUT_S),
+        firmware=FirmwareRun(boot_timeout_s=BOOT_TIMEOUT_S, term_timeout_s=30.0),
+        rig=RigRun(sdo_timeout_s=RECEIVE_TIMEOUT_S),
     )
-    return RunDescription.from_arguments(args, RigTable.load(), base)
+    return RunDescription.from_arguments(args, table, base)
 
 
 def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
@@ -158,8 +157,12 @@ def run(args: argparse.Namespace, usage_error: Callable[[str], Any]) -> int:
         args.cpu = max(os.sched_getaffinity(0))
 
     out: Path = args.out.resolve()
-    description = _description(args, out)
-    args.period_us = description.rig.cycle_us(RigTable.load())  # the report's and the pattern's
+    table = RigTable.load()
+    description = _description(args, out, table)
+    # What the run resolved, for the report, the layout and the messages:
+    args.period_us = description.rig.cycle_us(table)
+    args.node_id = description.node_id(table)
+    args.eds, args.firmware = description.rig.eds, description.firmware.executable
     out.mkdir(parents=True, exist_ok=True)
     report_path = out / "report.json"
     layout = load_layout(args.eds, args.node_id)
