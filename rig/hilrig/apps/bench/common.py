@@ -1,7 +1,8 @@
-"""What every step of `make bench` (tools/bench.py) shares: where the project is, the bench's
-lockstep period, the progress line, JSON written atomically, the machine's description, and the
-running of a probe, so that one that fails (a timeout under callgrind on a busy host, a non-zero
-exit) costs its own figure and never the run (`run_probe`, `ProbeError`, `NotMeasured`).
+"""What every step of `make bench` (tools/bench.py) shares: where the project is, the progress
+line, JSON written atomically, the machine's description, a measurement's time budget
+(`run_within`), and the running of a probe, so that one that fails (a timeout under callgrind on a
+busy host, a non-zero exit) costs its own figure and never the run (`run_probe`, `ProbeError`,
+`NotMeasured`).
 """
 
 from __future__ import annotations
@@ -17,9 +18,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
+from hilrig import resources
+
 _T = TypeVar("_T")
-ROOT = Path(__file__).resolve().parents[1]
-PERIOD_US = 1000
+ROOT = resources.CHECKOUT if resources.CHECKOUT is not None else Path.cwd()
+"""The checkout the bench measures (its build/, firmware/, protocol/): the bench runs from one."""
 LONG_TRACE_CYCLES = 60_000
 """The long traced run: 60 s at 1 kHz, a trace that must stay viewable."""
 
@@ -54,7 +57,6 @@ def machine() -> dict[str, Any]:
                 model = line.split(":", 1)[1].strip()
                 break
     return {"cpu": model, "cores": os.cpu_count(), "kernel": platform.release()}
-
 
 
 PROBE_TIMEOUT_S = 1800.0
@@ -128,6 +130,34 @@ class NotMeasured(dict[str, str]):
             say(f"  {name}: {NOT_MEASURED}: {self[name].splitlines()[0]}")
             return None
 
+
+def run_within(
+    budget_s: float,
+    cycles: int,
+    step: Callable[[int], object],
+    *,
+    chunk: int = 50,
+    finish: Callable[[], object] | None = None,
+) -> tuple[int, float]:
+    """(cycles done, seconds) of `step(n)` (n cycles a call) repeated until `cycles` are done or
+    `budget_s` is spent, then `finish()` (inside the time) if given. No call starts past the
+    budget, and none is longer than the rate so far fits in the time left (the first is one
+    cycle): a measurement that slows down (a loaded host, a stalling run) ends within one call,
+    mostly one cycle, of its budget."""
+    start = time.perf_counter()
+    done = 0
+    while done < cycles:
+        elapsed = time.perf_counter() - start
+        left = budget_s - elapsed
+        if left <= 0:
+            break
+        fits = int(left * done / elapsed) if elapsed > 0 else chunk
+        n = 1 if done == 0 else max(1, min(chunk, cycles - done, fits))
+        step(n)
+        done += n
+    if finish is not None:
+        finish()
+    return done, time.perf_counter() - start
 
 
 def ratio_of(a: float, b: float) -> float:

@@ -14,12 +14,12 @@ import subprocess
 from collections.abc import Callable
 from typing import Any
 
-from bench_common import ProbeError, ratio_of
-from bench_size import image_size, size_rows
-
 from hilrig import resources
+from hilrig.apps.bench.common import ProbeError, ratio_of
+from hilrig.apps.bench.size import image_size, size_rows
 from hilrig.errors import FirmwareError
 from hilrig.session import baremetal
+from hilrig.table import RigTable
 
 CYCLES = 2000
 TIMEOUT_S = 300.0
@@ -38,7 +38,7 @@ def virt_cycle_cost() -> dict[str, Any]:
         image,
         None,
         node_id=1,
-        period_us=1000,
+        period_us=RigTable.load().board.node.period_us,
         mode="free",
         boot_extra=[f"count-cycles={CYCLES}"],
         icount=True,

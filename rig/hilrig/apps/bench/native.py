@@ -19,11 +19,19 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from bench_baseline import measure_baseline, prepare_checkout
-from bench_common import ROOT, NotMeasured, ProbeError, machine, run_probe, say, write_json_atomically
-from bench_cycles import cycle_budget
-from bench_size import image_size
-from bench_virt import virt_cycle_cost, virt_size
+from hilrig.apps.bench.baseline import measure_baseline, prepare_checkout
+from hilrig.apps.bench.common import (
+    ROOT,
+    NotMeasured,
+    ProbeError,
+    machine,
+    run_probe,
+    say,
+    write_json_atomically,
+)
+from hilrig.apps.bench.cycles import cycle_budget
+from hilrig.apps.bench.size import image_size
+from hilrig.apps.bench.virt import virt_cycle_cost, virt_size
 
 CALLGRIND_CYCLES = 2000
 # fw_cycle_count's loops: the demo joint, the stand-ins on the core and on the naive board, and

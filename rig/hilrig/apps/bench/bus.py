@@ -13,8 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench_bus_measure import BusBench
-from bench_common import NotMeasured, machine, ratio_of, say, write_json_atomically
+from hilrig.apps.bench.bus_measure import BusBench
+from hilrig.apps.bench.common import NotMeasured, machine, ratio_of, say, write_json_atomically
 
 BUS_MEASUREMENTS = ("lockstep", "timed_bus", "robot", "long_trace", "sdo", "recorder_upload", "free_running")
 """What `tools/bench.py bus` measures, in order (`--only NAME` picks some)."""

@@ -17,12 +17,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench_baseline import MODES as BASELINE_MODES
-from bench_baseline import baseline_rows, measure_baseline, remove_baseline
-from bench_common import (
+from hilrig.apps.bench.baseline import MODES as BASELINE_MODES
+from hilrig.apps.bench.baseline import baseline_rows, measure_baseline, remove_baseline
+from hilrig.apps.bench.common import (
     LONG_TRACE_CYCLES,
     NOT_MEASURED,
-    PERIOD_US,
     NotMeasured,
     failure_text,
     machine,
@@ -30,10 +29,10 @@ from bench_common import (
     say,
     write_json_atomically,
 )
-from bench_cycles import cycle_budget_rows
-from bench_native import TRACE_PROBE_CYCLES, cycle_costs, rig_probe_per_cycle
-from bench_size import size_rows
-from bench_virt import virt_rows
+from hilrig.apps.bench.cycles import cycle_budget_rows
+from hilrig.apps.bench.native import TRACE_PROBE_CYCLES, cycle_costs, rig_probe_per_cycle
+from hilrig.apps.bench.size import size_rows
+from hilrig.apps.bench.virt import virt_rows
 
 LONG_TRACE_DASHBOARD = "overview"
 
@@ -171,14 +170,20 @@ def _long_trace_rows(
 ) -> None:
     """The long run's .rrd size and the web viewer's time to draw it; each row says why when
     it was not measured (no long run in bus.json, no Chromium, a viewer that never drew)."""
+    from hilrig.table import RigTable
+
+    period_us = RigTable.load().board.node.period_us  # the bench's runs are at the table's period
+    if long_trace is not None:
+        period_us = long_trace.get("period_us", period_us)
+    rate = f"{1e3 / period_us:g} kHz"
     if long_trace is None:
-        size_what = f"{LONG_TRACE_CYCLES * PERIOD_US / 1e6:g} s run at 1 kHz"
+        size_what = f"{LONG_TRACE_CYCLES * period_us / 1e6:g} s run at {rate}"
         row(f".rrd size of a {size_what} (ratio: bytes per cycle)", "not measured", NO_LONG_TRACE, None)
     else:
         cycles, size = long_trace["cycles"], long_trace["bytes"]
-        seconds_run = cycles * PERIOD_US / 1e6
+        seconds_run = cycles * period_us / 1e6
         row(
-            f".rrd size of a {seconds_run:g} s run at 1 kHz (ratio: bytes per cycle)",
+            f".rrd size of a {seconds_run:g} s run at {rate} (ratio: bytes per cycle)",
             f"{size / 1e6:.1f} MB",
             f"{cycles} cycles",
             ratio_of(size, cycles),
