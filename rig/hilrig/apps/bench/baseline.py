@@ -64,7 +64,7 @@ CHECK_CYCLES = 5
 NO_BASELINE = "no baseline in native.json (a native step from before the comparison)"
 
 PerCycle = Callable[[str, Path], float]
-"""Instructions per cycle of `tools/rig_probe.py MODE` of the tree at the path (bench_native)."""
+"""Instructions per cycle of `tools/rig_probe.py MODE` of the tree at the path (`native`)."""
 
 
 def resolve_commit(commit: str, repo: Path = ROOT) -> str:

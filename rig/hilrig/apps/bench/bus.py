@@ -1,4 +1,4 @@
-"""`tools/bench.py bus`: every bus measurement (`bench_bus_measure.BusBench`) on one private
+"""`tools/bench.py bus`: every bus measurement (`bus_measure.BusBench`) on one private
 bus (a network namespace with its own vcan0; root, so through tools/with-vcan), in alternating
 rounds, and the bus load of the default PDO mapping. Writes <out>/bus.json; a measurement that
 fails leaves its error under "not_measured".

@@ -2,7 +2,7 @@
 full `Rig` untraced and traced, its floors (a raw socket, the engine's exchange alone,
 python-can), robots of several modules, the long traced run, the recorder's upload by block and
 segmented SDO, SDO latency against a `canopen.LocalNode` (`serve_local_node_main`, in its own
-process), and the free-running firmware's timing. `bench_bus` schedules them.
+process), and the free-running firmware's timing. `bus` schedules them.
 """
 
 from __future__ import annotations

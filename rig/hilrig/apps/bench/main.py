@@ -38,7 +38,7 @@ What is measured, and against what:
   same frames, and the bytes the Rig keeps per cycle (tracemalloc) next to the data bytes the bus
   carried. The VM's rates move between runs; these do not, so a change to the
   per-cycle path shows here first.
-* The engine against a baseline commit's (`bench_baseline`; --baseline, make's BASELINE; by
+* The engine against a baseline commit's (`baseline`; --baseline, make's BASELINE; by
   default the last commit before the rig's folders became its layers): that commit's own
   `tools/rig_probe.py rig` and `engine`, from its tree exported once into <out>/baseline/, counted
   under callgrind as the checkout's are. Goal: the checkout's instructions per cycle within 10 %

@@ -2,7 +2,7 @@
 (Google Benchmark), the instructions of one control cycle under callgrind (`fw_cycle_count`: the
 demo joint, the stand-ins on the core and the naive board, the field recorder idle and armed),
 and `tools/rig_probe.py` under callgrind and tracemalloc, the checkout's beside a baseline
-commit's (`bench_baseline`). Writes <out>/native.json; a probe that fails leaves its error under
+commit's (`baseline`). Writes <out>/native.json; a probe that fails leaves its error under
 "not_measured".
 """
 

@@ -1,5 +1,5 @@
 """`make bench`'s bare-metal image (`make baremetal`, build/qemu-virt/bin/joint-firmware-virt.elf):
-its flash and RAM from its linker symbols (bench_size.image_size, as the Cortex-M image's), and
+its flash and RAM from its linker symbols (`size.image_size`, as the Cortex-M image's), and
 the emulated cost of one control cycle: the image runs free under `qemu-system-arm -icount
 shift=0` (virtual time: one nanosecond an instruction) on a qemu CAN bus of its own, measures
 CYCLES of its cycles with the generic timer and prints them (boot parameter count-cycles;
