@@ -1,8 +1,9 @@
-"""The bench's baseline (`hilrig.apps.bench.baseline`): the engine of a baseline commit beside the checkout's. A commit that
-cannot be measured is a row 'not measured' with the reason; the ratio rows are computed and
-judged against the goal; the baseline's tree is exported once, reused, replaced and removed
-cleanly; the `baseline` subcommand writes its rows whatever fails; and the default baseline's own
-probe runs from its exported tree, importing nothing of the checkout's."""
+"""The bench's baseline (`hilrig.apps.bench.baseline`): the engine of a baseline commit beside
+the checkout's. A commit that cannot be measured is a row 'not measured' with the reason; the
+ratio rows are computed and judged against the goal; the baseline's tree is exported once,
+reused, replaced and removed cleanly; the `baseline` subcommand writes its rows whatever fails;
+and the default baseline's own probe runs from its exported tree, importing nothing of the
+checkout's."""
 
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
-"""The bench's report (`hilrig.apps.bench.report`, tools/bench.py report): the field recorder's rows (armed vs idle, armed vs a demo cycle), the
-Rig's own cycle measured natively (tools/rig_probe.py), the long run's rows (.rrd size, the web
-viewer's time to a first drawn frame), and the long run itself against the in-process fake node
-(the bus step runs it against the firmware)."""
+"""The bench's report (`hilrig.apps.bench.report`, tools/bench.py report): the field recorder's
+rows (armed vs idle, armed vs a demo cycle), the Rig's own cycle measured natively
+(tools/rig_probe.py), the long run's rows (.rrd size, the web viewer's time to a first drawn
+frame), and the long run itself against the in-process fake node (the bus step runs it against
+the firmware)."""
 
 from __future__ import annotations
 

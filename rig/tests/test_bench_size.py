@@ -1,5 +1,6 @@
-"""The bench's image size (`hilrig.apps.bench.size`): the Cortex-M firmware image's flash and RAM rows, read from the image's
-linker symbols, and the goal MISSED when a figure is over its budget."""
+"""The bench's image size (`hilrig.apps.bench.size`): the Cortex-M firmware image's flash and RAM
+rows, read from the image's linker symbols, and the goal MISSED when a figure is over its
+budget."""
 
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
-"""The robot's one exchange per cycle (`hilrig.engine.robot`), natively, on the rig probe's (`hilrig.apps.bench.probe`)
-answering raw-socket peers (fake nodes for the start-up over SDO): a module whose process is gone
-and whose TPDOs stop is lost at that cycle, the others run on. The same as tests/test_robot.py's
-killed module against the firmware in the VM, in a few seconds and without a bus."""
+"""The robot's one exchange per cycle (`hilrig.engine.robot`), natively, on the rig probe's
+(`hilrig.apps.bench.probe`) answering raw-socket peers (fake nodes for the start-up over SDO): a
+module whose process is gone and whose TPDOs stop is lost at that cycle, the others run on. The
+same as tests/test_robot.py's killed module against the firmware in the VM, in a few seconds and
+without a bus."""
 
 from __future__ import annotations
 
