@@ -212,12 +212,12 @@ def bus_main(args: argparse.Namespace) -> int:
             measured = not_measured.attempt(name, measure)
             if measured is not None:
                 result[name] = measured
-        proto = bench.proto
+        proto, rate_hz = bench.proto, 1e6 / bench.period_us
     result["not_measured"] = not_measured
-    traffic = lockstep_traffic(proto, 1000.0)
+    traffic = lockstep_traffic(proto, rate_hz)
     result["bus_load"] = {
-        "rate_hz": 1000.0,
-        "frames_per_cycle": sum(t.per_second for t in traffic) / 1000.0,
+        "rate_hz": rate_hz,
+        "frames_per_cycle": sum(t.per_second for t in traffic) / rate_hz,
         "loads": [
             {
                 "bitrate": load.bitrate,
@@ -225,7 +225,7 @@ def bus_main(args: argparse.Namespace) -> int:
                 "worst_case": load.worst_case,
                 "busiest_cycle": load.peak_cycle_worst_case,
             }
-            for load in (bus_load(traffic, 1000.0, b) for b in STANDARD_BITRATES)
+            for load in (bus_load(traffic, rate_hz, b) for b in STANDARD_BITRATES)
         ],
     }
     write_json_atomically(out / "bus.json", result)

@@ -186,13 +186,9 @@ class BusBench:
             drive(rig)
             rig.run(cycles=warmup)
             tracer = session.tracer
-            done, elapsed = run_within(
-                budget_s,
-                cycles,
-                lambda n: rig.run(cycles=n),
-                # the trace is complete: its cost is part of the run
-                finish=tracer.close if tracer is not None else None,
-            )
+            # the trace complete (its close() sends what is pending): its cost is part of the run
+            finish = tracer.close if tracer is not None else None
+            done, elapsed = run_within(rig, budget_s, cycles, finish=finish)
         finally:
             session.close()
         return done / elapsed, done
@@ -223,7 +219,7 @@ class BusBench:
             robot = session.robot
             TravellingWave().drive(robot)
             robot.run(cycles=20)  # warm-up
-            done, elapsed = run_within(budget_s, cycles, lambda n: robot.run(cycles=n))
+            done, elapsed = run_within(robot, budget_s, cycles)
         finally:
             session.close()
         return done / elapsed, done

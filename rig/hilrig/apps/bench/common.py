@@ -16,6 +16,7 @@ import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from time import perf_counter
 from typing import Any, TypeVar
 
 from hilrig import resources
@@ -131,33 +132,54 @@ class NotMeasured(dict[str, str]):
             return None
 
 
+class _BudgetSpent(Exception):
+    """Raised between two cycles by `run_within`'s look at the clock: the measurement ends."""
+
+
 def run_within(
-    budget_s: float,
-    cycles: int,
-    step: Callable[[int], object],
-    *,
-    chunk: int = 50,
-    finish: Callable[[], object] | None = None,
+    runner: Any, budget_s: float, cycles: int, *, finish: Callable[[], object] | None = None
 ) -> tuple[int, float]:
-    """(cycles done, seconds) of `step(n)` (n cycles a call) repeated until `cycles` are done or
-    `budget_s` is spent, then `finish()` (inside the time) if given. No call starts past the
-    budget, and none is longer than the rate so far fits in the time left (the first is one
-    cycle): a measurement that slows down (a loaded host, a stalling run) ends within one call,
-    mostly one cycle, of its budget."""
-    start = time.perf_counter()
+    """(cycles done, seconds) of `cycles` lockstep cycles of `runner` (a `Rig` or a `Robot`), then
+    `finish()` (inside the time) if given. The clock is looked at before each cycle, as the
+    floors look at it (`Timeline.before_each_cycle`), and no cycle starts past `budget_s`: a
+    measurement whose cycles slow down (a loaded host, a stalling run) ends within one cycle of
+    its budget, and says how many it measured."""
+    start = perf_counter()
+    deadline = start + budget_s
     done = 0
-    while done < cycles:
-        elapsed = time.perf_counter() - start
-        left = budget_s - elapsed
-        if left <= 0:
-            break
-        fits = int(left * done / elapsed) if elapsed > 0 else chunk
-        n = 1 if done == 0 else max(1, min(chunk, cycles - done, fits))
-        step(n)
-        done += n
+    armed = True
+
+    def look(_: Any) -> None:
+        nonlocal done
+        if armed:
+            if perf_counter() > deadline:
+                raise _BudgetSpent
+            done += 1
+
+    runner.before_each_cycle(look)
+    try:
+        runner.run(cycles=cycles)
+    except _BudgetSpent:
+        pass
+    finally:
+        armed = False  # the hook stays the runner's: a later run() is not measured
     if finish is not None:
         finish()
-    return done, time.perf_counter() - start
+    return done, perf_counter() - start
+
+
+def bench_period_us() -> int:
+    """The control period of the bench's runs: a run description's own (`RigRun.cycle_us`), the
+    table's [node] period_us."""
+    from hilrig.session.run import RigRun
+    from hilrig.table import RigTable
+
+    return RigRun().cycle_us(RigTable.load())
+
+
+def rate_text(period_us: float) -> str:
+    """A control period as the report names its rate: "1 kHz"."""
+    return f"{1e3 / period_us:g} kHz"
 
 
 def ratio_of(a: float, b: float) -> float:

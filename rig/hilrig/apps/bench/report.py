@@ -23,8 +23,10 @@ from hilrig.apps.bench.common import (
     LONG_TRACE_CYCLES,
     NOT_MEASURED,
     NotMeasured,
+    bench_period_us,
     failure_text,
     machine,
+    rate_text,
     ratio_of,
     say,
     write_json_atomically,
@@ -170,12 +172,8 @@ def _long_trace_rows(
 ) -> None:
     """The long run's .rrd size and the web viewer's time to draw it; each row says why when
     it was not measured (no long run in bus.json, no Chromium, a viewer that never drew)."""
-    from hilrig.table import RigTable
-
-    period_us = RigTable.load().board.node.period_us  # the bench's runs are at the table's period
-    if long_trace is not None:
-        period_us = long_trace.get("period_us", period_us)
-    rate = f"{1e3 / period_us:g} kHz"
+    period_us = long_trace.get("period_us", bench_period_us()) if long_trace else bench_period_us()
+    rate = rate_text(period_us)
     if long_trace is None:
         size_what = f"{LONG_TRACE_CYCLES * period_us / 1e6:g} s run at {rate}"
         row(f".rrd size of a {size_what} (ratio: bytes per cycle)", "not measured", NO_LONG_TRACE, None)
@@ -289,12 +287,13 @@ def _lockstep_rows(row: ReportRows, bus: dict[str, Any]) -> None:
         f"{best['floor']:.0f}/s",
         ratio_of(best["python_can"], best["floor"]),
     )
+    period_s = bench_period_us() / 1e6
     for kind, label in (("rig", "Rig untraced"), ("rig_traced", "Rig traced")):
         row(
-            f"simulated time vs real time at 1 kHz ({label})",
-            f"{best[kind] / 1000:.2f}x",
+            f"simulated time vs real time at {rate_text(period_s * 1e6)} ({label})",
+            f"{best[kind] * period_s:.2f}x",
             "1.00x (real time)",
-            best[kind] / 1000,
+            best[kind] * period_s,
         )
 
 
@@ -472,13 +471,14 @@ def _instruction_rows(row: ReportRows, native: dict[str, Any], not_measured: dic
 
 
 def _bus_load_rows(row: ReportRows, bus: dict[str, Any]) -> None:
-    """The bus load of the default PDO mapping at 1 kHz."""
+    """The bus load of the default PDO mapping at the bench's rate."""
     load = bus["bus_load"]
+    rate = rate_text(1e6 / load["rate_hz"] if "rate_hz" in load else bench_period_us())
     for item in load["loads"]:
         mbit = item["bitrate"] / 1e6
         label = f"{mbit:g} Mbit/s" if mbit >= 1 else f"{item['bitrate'] // 1000} kbit/s"
         row(
-            f"bus load at 1 kHz, {label} (worst-case stuffing)",
+            f"bus load at {rate}, {label} (worst-case stuffing)",
             f"{100 * item['worst_case']:.1f} %",
             f"{100 * item['nominal']:.1f} % nominal",
             item["worst_case"],

@@ -15,11 +15,10 @@ from collections.abc import Callable
 from typing import Any
 
 from hilrig import resources
-from hilrig.apps.bench.common import ProbeError, ratio_of
+from hilrig.apps.bench.common import ProbeError, bench_period_us, ratio_of
 from hilrig.apps.bench.size import image_size, size_rows
 from hilrig.errors import FirmwareError
 from hilrig.session import baremetal
-from hilrig.table import RigTable
 
 CYCLES = 2000
 TIMEOUT_S = 300.0
@@ -38,7 +37,7 @@ def virt_cycle_cost() -> dict[str, Any]:
         image,
         None,
         node_id=1,
-        period_us=RigTable.load().board.node.period_us,
+        period_us=bench_period_us(),
         mode="free",
         boot_extra=[f"count-cycles={CYCLES}"],
         icount=True,
