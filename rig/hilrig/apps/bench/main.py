@@ -21,7 +21,7 @@ What is measured, and against what:
   history; (e) for comparison, that exchange through python-can's Bus. Goals: (a)/(c) >= 0.5
   (best of each), (b)/(a) >= 0.8 (the median of the pairs' ratios); (a)/(d) is the stricter
   figure (what physics, history and checks cost on top of the engine's own wire).
-  Simulated-time speed-up at 1 kHz = cycles per second / 1000.
+  Simulated-time speed-up = cycles per second x the control period (the table's).
 * SDO latency: expedited upload (a REAL32 board parameter) from `canopen.RemoteNode` to the
   firmware, next to the same upload served by a `canopen.LocalNode` (same EDS, another node id)
   running in its own Python process on the same private bus. Requests alternate. Goal: the
