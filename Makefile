@@ -120,7 +120,7 @@ screenshots: build ## one picture per dashboard for the README (docs/dashboards/
 	  --other $(SHOTS)/demo-seed2/trace.rrd --out docs/dashboards
 
 # BASELINE=<commit>: the commit whose engine (tools/rig_probe.py rig and engine, under callgrind)
-# the report sets beside this checkout's; empty: tools/bench_baseline.py's DEFAULT_BASELINE, the
+# the report sets beside this checkout's; empty: hilrig.apps.bench.baseline's DEFAULT_BASELINE, the
 # last commit before the rig's folders became its layers. Its tree is exported once into
 # $(BENCH_BUILD)/baseline/ and reused (tools/bench.py baseline --remove removes it).
 BASELINE ?=

@@ -4,39 +4,21 @@
         --other out/demo-seed2/trace.rrd --out docs/dashboards
 
 Each dashboard is shown in the Rerun web viewer in headless Chromium on the trace it is made for
-(`hilrig.observe.browser.check_dashboards`: the views as the dashboard lays them out, the
-recording whole, the picture taken once it holds still): the joint's five on the demo trace,
-`robot` on the robot's, `diff` on `hilrig diff` of the demo and a run with another seed. A
-dashboard with a problem (a view hidden or in error, nothing drawn, a console error) is named and
-the command exits 1; the pictures of the others are still written.
+(`hilrig.apps.screenshots`): the joint's five on the demo trace, `robot` on the robot's, `diff` on
+`hilrig diff` of the demo and a run with another seed. A dashboard with a problem (a view hidden
+or in error, nothing drawn, a console error) is named and the command exits 1; the pictures of
+the others are still written.
 """
 
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 import tempfile
 from pathlib import Path
 
+from hilrig.apps.screenshots import browser_missing, shoot
 from hilrig.cli import main as hilrig
-from hilrig.observe.browser import browser_missing, check_dashboards
-from hilrig.observe.dashboard_check import fitting_dashboards
-from hilrig.observe.reader import Trace
-
-
-def shoot(trace: Path, out: Path, shots: Path) -> list[str]:
-    """Every dashboard made for `trace`, each to out/<name>.png; the problems the viewer showed
-    (a view with no data of its own, the demo's empty SDO abort log, is no problem here: the
-    browser stage checks every series on a scenario trace made to fill them all)."""
-    dashboards = fitting_dashboards(Trace.read(trace))
-    problems: list[str] = []
-    shown = check_dashboards(trace, list(dashboards), shots)
-    for name, result in shown.items():
-        problems += [f"{name}: {problem}" for problem in result.problems()]
-        shutil.copyfile(result.screenshot, out / f"{name}.png")
-        print(f"screenshots: {out / f'{name}.png'}", flush=True)
-    return problems
 
 
 def main(argv: list[str]) -> int:

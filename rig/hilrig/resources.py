@@ -99,7 +99,7 @@ VIRT_IMAGE = (
 `--firmware-platform qemu-virt` runs (hilrig.session.baremetal)."""
 
 JOINT_FMU_DIR = (CHECKOUT if CHECKOUT is not None else Path.cwd()) / "build" / "fmu"
-"""Where `make build` writes the demo joint's own FMU and its map (tools/joint_fmu.py)."""
+"""Where `make build` writes the demo joint's own FMU and its map (`hilrig.apps.joint_fmu`)."""
 JOINT_FMU = JOINT_FMU_DIR / "joint.fmu"
 JOINT_FMU_MAP = JOINT_FMU_DIR / "joint.map.toml"
 

@@ -1,4 +1,4 @@
-"""The demo joint's own FMU (build/fmu/joint.fmu, tools/joint_fmu.py of `make build`): valid by
+"""The demo joint's own FMU (build/fmu/joint.fmu, `hilrig.apps.joint_fmu` of `make build`): valid by
 FMPy's checks, and as an FMU plant through its map the same sensor readings and truth as the
 rig's native joint, bit for bit, when the native joint's sensors have no noise (the FMU has none:
 its map would add the plant's own, a stream other than the native sensors')."""
@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 
 import numpy as np
 import pytest
@@ -22,8 +21,7 @@ from hilrig.plants.fmu import FmuPlant  # noqa: E402
 
 if resources.CHECKOUT is None:
     pytest.skip("the joint's FMU is built in a checkout (make build)", allow_module_level=True)
-sys.path.insert(0, str(resources.CHECKOUT / "tools"))
-import joint_fmu  # noqa: E402
+from hilrig.apps import joint_fmu  # noqa: E402
 
 NOISELESS = dataclasses.replace(demo_params(), thermistor_adc_noise_counts=0.0, current_sensor_noise_a=0.0)
 PERIOD_S = 1e-3

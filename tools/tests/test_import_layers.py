@@ -5,15 +5,19 @@ only. The dashboards import one leaf of hilrig, the entity paths, so the rig can
 without the dashboards pulling the rig back in.
 
 The layer order lives here, once: a module may import its own layer and the layers below it.
+The rig's public modules, all a tool may import of it, live in docs/architecture.md, once.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+ARCHITECTURE = ROOT / "docs" / "architecture.md"
+PUBLIC_BEGIN, PUBLIC_END = "<!-- public-modules: begin -->", "<!-- public-modules: end -->"
 
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # (layer, module prefixes), bottom up; a module belongs to the layer of its longest prefix.
@@ -211,3 +215,109 @@ def test_each_layer_folder_says_what_lives_there_and_imports_nothing() -> None:
 def test_the_rig_top_level_has_at_most_12_modules() -> None:
     top = sorted(p.name for p in (ROOT / "rig" / "hilrig").glob("*.py"))
     assert len(top) <= 12, top
+
+
+def public_modules() -> tuple[str, ...]:
+    """The rig's public modules as docs/architecture.md lists them between its two markers, each
+    the first cell of a table row; "pkg.*" is pkg and every module under it."""
+    text = ARCHITECTURE.read_text()
+    listed = text[text.index(PUBLIC_BEGIN) : text.index(PUBLIC_END)]
+    return tuple(re.findall(r"^\| `([\w.*]+)` \|", listed, re.MULTILINE))
+
+
+def is_public(module: str, public: tuple[str, ...]) -> bool:
+    return any(
+        module == entry.removesuffix(".*") or (entry.endswith(".*") and module.startswith(entry[:-1]))
+        for entry in public
+    )
+
+
+def tool_scripts() -> Iterator[Path]:
+    """Every file of tools/ but its tests: the Python scripts and the others (shell, which may run
+    Python with -m or -c)."""
+    for path in sorted((ROOT / "tools").rglob("*")):
+        if path.is_file() and "tests" not in path.relative_to(ROOT / "tools").parts:
+            yield path
+
+
+def _is_python(path: Path) -> bool:
+    if path.suffix == ".py":
+        return True
+    with path.open("rb") as file:
+        first = file.readline()
+    return first.startswith(b"#!") and b"python" in first
+
+
+_SHELL_HILRIG = re.compile(r"(?:-m\s+|\bimport\s+|\bfrom\s+)(hilrig(?:\.\w+)*)")
+"""A module of hilrig a shell script names to Python: `python -m hilrig.x`, `-c "import hilrig.x"`."""
+
+
+def hilrig_imports(path: Path, modules: set[str]) -> list[tuple[int, str]]:
+    """(line, module) of every module of hilrig `path` imports (a Python file: every import
+    statement, deferred ones too; another script: what it hands Python with -m or -c)."""
+    found: list[tuple[int, str]] = []
+    if not _is_python(path):
+        text = path.read_text(errors="replace")
+        for number, line in enumerate(text.splitlines(), 1):
+            code = line.split("#", 1)[0]  # a comment naming a module imports nothing
+            found += [(number, _resolve(m, modules) or m) for m in _SHELL_HILRIG.findall(code)]
+        return found
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            # `from a.b import c`: the module a.b.c when c is one, else a.b itself
+            names = [
+                f"{node.module}.{alias.name}" if f"{node.module}.{alias.name}" in modules else node.module
+                for alias in node.names
+            ]
+        else:
+            continue
+        found += [
+            (node.lineno, _resolve(name, modules) or name)
+            for name in names
+            if name == "hilrig" or name.startswith("hilrig.")
+        ]
+    return found
+
+
+def test_the_public_modules_are_listed_once_and_exist() -> None:
+    public = public_modules()
+    assert "hilrig.cli" in public and "hilrig.apps.*" in public, public
+    assert len(set(public)) == len(public), public
+    modules = set(module_graph())
+    assert [m for m in public if m.removesuffix(".*") not in modules] == []
+
+
+def test_tools_import_only_the_rigs_public_modules() -> None:
+    public, modules = public_modules(), set(module_graph())
+    wrong = [
+        f"{path.relative_to(ROOT)}:{line}: imports {module}, not a public module of hilrig "
+        f"(docs/architecture.md)"
+        for path in tool_scripts()
+        for line, module in hilrig_imports(path, modules)
+        if not is_public(module, public)
+    ]
+    assert wrong == []
+
+
+def test_the_tools_check_names_the_line_and_module_of_a_private_import(tmp_path: Path) -> None:
+    modules = set(module_graph())
+    script = tmp_path / "tool.py"
+    script.write_text(
+        "import sys\nfrom hilrig.cli import main\n\n\ndef f():\n    from hilrig.engine.driver import X\n"
+    )
+    assert hilrig_imports(script, modules) == [(2, "hilrig.cli"), (6, "hilrig.engine.driver")]
+    shell = tmp_path / "tool"
+    shell.write_text(
+        '#!/usr/bin/env bash\n# hilrig.wire is named here only\nexec python -m hilrig.wire.node "$@"\n'
+    )
+    assert hilrig_imports(shell, modules) == [(3, "hilrig.wire.node")]
+    public = public_modules()
+    assert [
+        is_public(m, public) for m in ("hilrig.cli", "hilrig.engine.driver", "hilrig.apps.bench.main")
+    ] == [
+        True,
+        False,
+        True,
+    ]

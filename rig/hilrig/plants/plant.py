@@ -315,5 +315,5 @@ class JointPlant:
 
 def joint_coefficients(params: JointParams) -> dict[str, float]:
     """`plant_coefficients` of a joint of its own with `params`, its sub-step limit included:
-    the parameters of the joint's FMU (tools/joint_fmu.py)."""
+    the parameters of the joint's FMU (`hilrig.apps.joint_fmu`)."""
     return plant_coefficients(params, JointPlant(params)._mechanical_substep_limit_s())

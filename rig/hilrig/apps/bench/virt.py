@@ -1,5 +1,5 @@
 """`make bench`'s bare-metal image (`make baremetal`, build/qemu-virt/bin/joint-firmware-virt.elf):
-its flash and RAM from its linker symbols (bench_size.image_size, as the Cortex-M image's), and
+its flash and RAM from its linker symbols (`size.image_size`, as the Cortex-M image's), and
 the emulated cost of one control cycle: the image runs free under `qemu-system-arm -icount
 shift=0` (virtual time: one nanosecond an instruction) on a qemu CAN bus of its own, measures
 CYCLES of its cycles with the generic timer and prints them (boot parameter count-cycles;
@@ -14,10 +14,9 @@ import subprocess
 from collections.abc import Callable
 from typing import Any
 
-from bench_common import ProbeError, ratio_of
-from bench_size import image_size, size_rows
-
 from hilrig import resources
+from hilrig.apps.bench.common import ProbeError, bench_period_us, ratio_of
+from hilrig.apps.bench.size import image_size, size_rows
 from hilrig.errors import FirmwareError
 from hilrig.session import baremetal
 
@@ -38,7 +37,7 @@ def virt_cycle_cost() -> dict[str, Any]:
         image,
         None,
         node_id=1,
-        period_us=1000,
+        period_us=bench_period_us(),
         mode="free",
         boot_extra=[f"count-cycles={CYCLES}"],
         icount=True,

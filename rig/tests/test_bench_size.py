@@ -1,20 +1,17 @@
-"""tools/bench_size.py: the Cortex-M firmware image's flash and RAM rows, read from the image's
-linker symbols, and the goal MISSED when a figure is over its budget."""
+"""The bench's image size (`hilrig.apps.bench.size`): the Cortex-M firmware image's flash and RAM
+rows, read from the image's linker symbols, and the goal MISSED when a figure is over its
+budget."""
 
 from __future__ import annotations
 
-import importlib
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-TOOLS = Path(__file__).resolve().parent.parent
-sys.path.append(str(TOOLS))  # the tools are scripts on their own folder's path, as when run
-bench_common = importlib.import_module("bench_common")
-bench_report = importlib.import_module("bench_report")
-bench_size = importlib.import_module("bench_size")
+from hilrig.apps.bench import common as bench_common
+from hilrig.apps.bench import report as bench_report
+from hilrig.apps.bench import size as bench_size
 
 NM_LISTING = """\
 00020000 A __flash_budget

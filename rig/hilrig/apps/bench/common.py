@@ -1,7 +1,8 @@
-"""What every step of `make bench` (tools/bench.py) shares: where the project is, the bench's
-lockstep period, the progress line, JSON written atomically, the machine's description, and the
-running of a probe, so that one that fails (a timeout under callgrind on a busy host, a non-zero
-exit) costs its own figure and never the run (`run_probe`, `ProbeError`, `NotMeasured`).
+"""What every step of `make bench` (tools/bench.py) shares: where the project is, the progress
+line, JSON written atomically, the machine's description, a measurement's time budget
+(`run_within`), and the running of a probe, so that one that fails (a timeout under callgrind on a
+busy host, a non-zero exit) costs its own figure and never the run (`run_probe`, `ProbeError`,
+`NotMeasured`).
 """
 
 from __future__ import annotations
@@ -15,11 +16,14 @@ import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from time import perf_counter
 from typing import Any, TypeVar
 
+from hilrig import resources
+
 _T = TypeVar("_T")
-ROOT = Path(__file__).resolve().parents[1]
-PERIOD_US = 1000
+ROOT = resources.CHECKOUT if resources.CHECKOUT is not None else Path.cwd()
+"""The checkout the bench measures (its build/, firmware/, protocol/): the bench runs from one."""
 LONG_TRACE_CYCLES = 60_000
 """The long traced run: 60 s at 1 kHz, a trace that must stay viewable."""
 
@@ -54,7 +58,6 @@ def machine() -> dict[str, Any]:
                 model = line.split(":", 1)[1].strip()
                 break
     return {"cpu": model, "cores": os.cpu_count(), "kernel": platform.release()}
-
 
 
 PROBE_TIMEOUT_S = 1800.0
@@ -128,6 +131,55 @@ class NotMeasured(dict[str, str]):
             say(f"  {name}: {NOT_MEASURED}: {self[name].splitlines()[0]}")
             return None
 
+
+class _BudgetSpent(Exception):
+    """Raised between two cycles by `run_within`'s look at the clock: the measurement ends."""
+
+
+def run_within(
+    runner: Any, budget_s: float, cycles: int, *, finish: Callable[[], object] | None = None
+) -> tuple[int, float]:
+    """(cycles done, seconds) of `cycles` lockstep cycles of `runner` (a `Rig` or a `Robot`), then
+    `finish()` (inside the time) if given. The clock is looked at before each cycle, as the
+    floors look at it (`Timeline.before_each_cycle`), and no cycle starts past `budget_s`: a
+    measurement whose cycles slow down (a loaded host, a stalling run) ends within one cycle of
+    its budget, and says how many it measured."""
+    start = perf_counter()
+    deadline = start + budget_s
+    done = 0
+    armed = True
+
+    def look(_: Any) -> None:
+        nonlocal done
+        if armed:
+            if perf_counter() > deadline:
+                raise _BudgetSpent
+            done += 1
+
+    runner.before_each_cycle(look)
+    try:
+        runner.run(cycles=cycles)
+    except _BudgetSpent:
+        pass
+    finally:
+        armed = False  # the hook stays the runner's: a later run() is not measured
+    if finish is not None:
+        finish()
+    return done, perf_counter() - start
+
+
+def bench_period_us() -> int:
+    """The control period of the bench's runs: a run description's own (`RigRun.cycle_us`), the
+    table's [node] period_us."""
+    from hilrig.session.run import RigRun
+    from hilrig.table import RigTable
+
+    return RigRun().cycle_us(RigTable.load())
+
+
+def rate_text(period_us: float) -> str:
+    """A control period as the report names its rate: "1 kHz"."""
+    return f"{1e3 / period_us:g} kHz"
 
 
 def ratio_of(a: float, b: float) -> float:

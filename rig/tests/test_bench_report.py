@@ -1,11 +1,11 @@
-"""tools/bench.py's report: the field recorder's rows (armed vs idle, armed vs a demo cycle), the
-Rig's own cycle measured natively (tools/rig_probe.py), the long run's rows (.rrd size, the web
-viewer's time to a first drawn frame), and the long run itself against the in-process fake node
-(the bus step runs it against the firmware)."""
+"""The bench's report (`hilrig.apps.bench.report`, tools/bench.py report): the field recorder's
+rows (armed vs idle, armed vs a demo cycle), the Rig's own cycle measured natively
+(tools/rig_probe.py), the long run's rows (.rrd size, the web viewer's time to a first drawn
+frame), and the long run itself against the in-process fake node (the bus step runs it against
+the firmware)."""
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import json
 import os
@@ -16,16 +16,15 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from tool_loader import TOOLS, load_tool
 
-sys.path.append(str(TOOLS))  # the tools are scripts on their own folder's path, as when run
-bench = importlib.import_module("bench")
-bench_common = importlib.import_module("bench_common")
-bench_native = importlib.import_module("bench_native")
-bench_bus = importlib.import_module("bench_bus")
-bench_bus_measure = importlib.import_module("bench_bus_measure")
-bench_report = importlib.import_module("bench_report")
-bench_baseline = importlib.import_module("bench_baseline")
+from hilrig.apps.bench import baseline as bench_baseline
+from hilrig.apps.bench import bus as bench_bus
+from hilrig.apps.bench import bus_measure as bench_bus_measure
+from hilrig.apps.bench import common as bench_common
+from hilrig.apps.bench import main as bench
+from hilrig.apps.bench import native as bench_native
+from hilrig.apps.bench import probe as bench_probe
+from hilrig.apps.bench import report as bench_report
 
 
 def _rows(ipc: dict[str, float]) -> list[dict[str, Any]]:
@@ -98,12 +97,12 @@ def test_rig_probe_rows_give_the_fmu_plants_cycle_beside_the_native_plants() -> 
 
 @pytest.mark.parametrize("mode", ["rig", "fmu", "engine", "traced", "tracer-idle"])
 def test_the_rig_probe_runs_its_cycles_against_its_answering_peer(mode: str) -> None:
-    probe = load_tool("rig_probe")
+    probe = bench_probe
     assert probe.main([mode, "30"]) == 0
 
 
 def test_the_rig_probe_counts_what_the_rig_keeps_and_what_the_bus_carried(capsys) -> None:
-    probe = load_tool("rig_probe")
+    probe = bench_probe
     assert probe.main(["memory", "200"]) == 0
     assert not tracemalloc.is_tracing(), "left on, it slows every later test of this worker 20x"
     kept, on_bus = (float(word) for word in capsys.readouterr().out.split() if word[0].isdigit())
@@ -210,8 +209,8 @@ def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
     the in-process fake node answering each SYNC; the trace in out/long-trace/."""
     import can
 
-    from hilrig.session.builder import BoardInterface, SessionConfig
     from hilrig.session.fake_node import FakeJointNode
+    from hilrig.session.run import BoardInterface, BusRun, RunDescription, TraceRun
     from hilrig.table import RigTable
 
     table = RigTable.load()
@@ -220,15 +219,11 @@ def _fake_node_run(out: Path, cycles: int) -> dict[str, Any]:
     fake = FakeJointNode(fake_bus, table=table)
     fake.boot()
     try:
-        config = SessionConfig(
-            out_dir=out / bench_bus_measure.LONG_TRACE_DIR,
-            trace=True,
-            record=False,
-            board=BoardInterface("virtual", channel),
-            node_id=table.board.node.default_node_id,
-            period_us=bench_common.PERIOD_US,
+        run = RunDescription(
+            TraceRun(out / bench_bus_measure.LONG_TRACE_DIR, trace=True, record=False),
+            bus=BusRun(board=BoardInterface("virtual", channel)),
         )
-        return bench_bus_measure.traced_run(config, cycles, table)
+        return bench_bus_measure.traced_run(run, cycles, table)
     finally:
         fake.close()
         fake_bus.shutdown()
@@ -490,5 +485,5 @@ def test_robot_rows_put_each_robot_against_its_n_node_floor_and_judge_the_cost_p
 
 
 def test_the_rig_probe_runs_a_robot_of_several_modules_against_answering_peers() -> None:
-    probe = load_tool("rig_probe")
+    probe = bench_probe
     assert probe.main(["robot", "30", "--modules", "3"]) == 0

@@ -2,7 +2,7 @@
 (Google Benchmark), the instructions of one control cycle under callgrind (`fw_cycle_count`: the
 demo joint, the stand-ins on the core and the naive board, the field recorder idle and armed),
 and `tools/rig_probe.py` under callgrind and tracemalloc, the checkout's beside a baseline
-commit's (`bench_baseline`). Writes <out>/native.json; a probe that fails leaves its error under
+commit's (`baseline`). Writes <out>/native.json; a probe that fails leaves its error under
 "not_measured".
 """
 
@@ -19,11 +19,19 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from bench_baseline import measure_baseline, prepare_checkout
-from bench_common import ROOT, NotMeasured, ProbeError, machine, run_probe, say, write_json_atomically
-from bench_cycles import cycle_budget
-from bench_size import image_size
-from bench_virt import virt_cycle_cost, virt_size
+from hilrig.apps.bench.baseline import measure_baseline, prepare_checkout
+from hilrig.apps.bench.common import (
+    ROOT,
+    NotMeasured,
+    ProbeError,
+    machine,
+    run_probe,
+    say,
+    write_json_atomically,
+)
+from hilrig.apps.bench.cycles import cycle_budget
+from hilrig.apps.bench.size import image_size
+from hilrig.apps.bench.virt import virt_cycle_cost, virt_size
 
 CALLGRIND_CYCLES = 2000
 # fw_cycle_count's loops: the demo joint, the stand-ins on the core and on the naive board, and

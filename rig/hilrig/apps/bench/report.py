@@ -17,23 +17,24 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench_baseline import MODES as BASELINE_MODES
-from bench_baseline import baseline_rows, measure_baseline, remove_baseline
-from bench_common import (
+from hilrig.apps.bench.baseline import MODES as BASELINE_MODES
+from hilrig.apps.bench.baseline import baseline_rows, measure_baseline, remove_baseline
+from hilrig.apps.bench.common import (
     LONG_TRACE_CYCLES,
     NOT_MEASURED,
-    PERIOD_US,
     NotMeasured,
+    bench_period_us,
     failure_text,
     machine,
+    rate_text,
     ratio_of,
     say,
     write_json_atomically,
 )
-from bench_cycles import cycle_budget_rows
-from bench_native import TRACE_PROBE_CYCLES, cycle_costs, rig_probe_per_cycle
-from bench_size import size_rows
-from bench_virt import virt_rows
+from hilrig.apps.bench.cycles import cycle_budget_rows
+from hilrig.apps.bench.native import TRACE_PROBE_CYCLES, cycle_costs, rig_probe_per_cycle
+from hilrig.apps.bench.size import size_rows
+from hilrig.apps.bench.virt import virt_rows
 
 LONG_TRACE_DASHBOARD = "overview"
 
@@ -171,14 +172,16 @@ def _long_trace_rows(
 ) -> None:
     """The long run's .rrd size and the web viewer's time to draw it; each row says why when
     it was not measured (no long run in bus.json, no Chromium, a viewer that never drew)."""
+    period_us = long_trace.get("period_us", bench_period_us()) if long_trace else bench_period_us()
+    rate = rate_text(period_us)
     if long_trace is None:
-        size_what = f"{LONG_TRACE_CYCLES * PERIOD_US / 1e6:g} s run at 1 kHz"
+        size_what = f"{LONG_TRACE_CYCLES * period_us / 1e6:g} s run at {rate}"
         row(f".rrd size of a {size_what} (ratio: bytes per cycle)", "not measured", NO_LONG_TRACE, None)
     else:
         cycles, size = long_trace["cycles"], long_trace["bytes"]
-        seconds_run = cycles * PERIOD_US / 1e6
+        seconds_run = cycles * period_us / 1e6
         row(
-            f".rrd size of a {seconds_run:g} s run at 1 kHz (ratio: bytes per cycle)",
+            f".rrd size of a {seconds_run:g} s run at {rate} (ratio: bytes per cycle)",
             f"{size / 1e6:.1f} MB",
             f"{cycles} cycles",
             ratio_of(size, cycles),
@@ -284,12 +287,13 @@ def _lockstep_rows(row: ReportRows, bus: dict[str, Any]) -> None:
         f"{best['floor']:.0f}/s",
         ratio_of(best["python_can"], best["floor"]),
     )
+    period_s = bench_period_us() / 1e6
     for kind, label in (("rig", "Rig untraced"), ("rig_traced", "Rig traced")):
         row(
-            f"simulated time vs real time at 1 kHz ({label})",
-            f"{best[kind] / 1000:.2f}x",
+            f"simulated time vs real time at {rate_text(period_s * 1e6)} ({label})",
+            f"{best[kind] * period_s:.2f}x",
             "1.00x (real time)",
-            best[kind] / 1000,
+            best[kind] * period_s,
         )
 
 
@@ -467,13 +471,14 @@ def _instruction_rows(row: ReportRows, native: dict[str, Any], not_measured: dic
 
 
 def _bus_load_rows(row: ReportRows, bus: dict[str, Any]) -> None:
-    """The bus load of the default PDO mapping at 1 kHz."""
+    """The bus load of the default PDO mapping at the bench's rate."""
     load = bus["bus_load"]
+    rate = rate_text(1e6 / load["rate_hz"] if "rate_hz" in load else bench_period_us())
     for item in load["loads"]:
         mbit = item["bitrate"] / 1e6
         label = f"{mbit:g} Mbit/s" if mbit >= 1 else f"{item['bitrate'] // 1000} kbit/s"
         row(
-            f"bus load at 1 kHz, {label} (worst-case stuffing)",
+            f"bus load at {rate}, {label} (worst-case stuffing)",
             f"{100 * item['worst_case']:.1f} %",
             f"{100 * item['nominal']:.1f} % nominal",
             item["worst_case"],

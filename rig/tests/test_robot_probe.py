@@ -1,22 +1,18 @@
-"""The robot's one exchange per cycle (`hilrig.engine.robot`), natively, on tools/rig_probe.py's
-answering raw-socket peers (fake nodes for the start-up over SDO): a module whose process is gone
-and whose TPDOs stop is lost at that cycle, the others run on. The same as tests/test_robot.py's
-killed module against the firmware in the VM, in a few seconds and without a bus."""
+"""The robot's one exchange per cycle (`hilrig.engine.robot`), natively, on the rig probe's
+(`hilrig.apps.bench.probe`) answering raw-socket peers (fake nodes for the start-up over SDO): a
+module whose process is gone and whose TPDOs stop is lost at that cycle, the others run on. The
+same as tests/test_robot.py's killed module against the firmware in the VM, in a few seconds and
+without a bus."""
 
 from __future__ import annotations
 
 import contextlib
-import importlib
 import socket
-import sys
-from pathlib import Path
 from typing import Any
 
 import pytest
 
-TOOLS = Path(__file__).resolve().parent.parent
-sys.path.append(str(TOOLS))
-rig_probe = importlib.import_module("rig_probe")
+from hilrig.apps.bench import probe as rig_probe
 
 
 class QuietWhenAsked(rig_probe.AnsweringLink):  # type: ignore[misc, name-defined]

@@ -2,7 +2,7 @@
 full `Rig` untraced and traced, its floors (a raw socket, the engine's exchange alone,
 python-can), robots of several modules, the long traced run, the recorder's upload by block and
 segmented SDO, SDO latency against a `canopen.LocalNode` (`serve_local_node_main`, in its own
-process), and the free-running firmware's timing. `bench_bus` schedules them.
+process), and the free-running firmware's timing. `bus` schedules them.
 """
 
 from __future__ import annotations
@@ -20,10 +20,11 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench_common import PERIOD_US, ROOT, say
+from hilrig.apps.bench.common import ROOT, run_within, say
 
-BENCH_SCRIPT = ROOT / "tools" / "bench.py"
-"""The command line whose `serve-local-node` runs the LocalNode the SDO latency is measured against."""
+BENCH_COMMAND = (sys.executable, "-m", "hilrig.apps.bench.main")
+"""The bench's command line, whose `serve-local-node` runs the LocalNode the SDO latency is
+measured against."""
 FIRMWARE_NODE_ID = 0x10
 LOCAL_NODE_ID = 0x11
 SDO_OBJECT = "velocity_kp"  # a REAL32 board parameter: an expedited upload
@@ -68,8 +69,8 @@ def drive(rig: Any, setpoint: float = 5.0) -> None:
     rig.set("velocity_setpoint", setpoint)
 
 
-def traced_run(config: Any, cycles: int, table: Any) -> dict[str, Any]:
-    """`cycles` lockstep cycles of the full `Rig` in a session of `config` (a `SessionConfig`
+def traced_run(run: Any, cycles: int, table: Any) -> dict[str, Any]:
+    """`cycles` lockstep cycles of the full `Rig` in a session of `run` (a `RunDescription`
     with trace=True: trace.rrd in its out_dir, as rig_rate(traced=True) writes it), the motor
     driven (`drive`) with the setpoint flipping sign every LONG_TRACE_STEP_S. Returns the
     trace's path, size and last logged cycle, and the run's wall-clock seconds (the trace's
@@ -78,12 +79,13 @@ def traced_run(config: Any, cycles: int, table: Any) -> dict[str, Any]:
     from hilrig.observe.reader import timeline_end
     from hilrig.session.builder import open_session
 
-    session = open_session(config, table=table)
+    session = open_session(run, table=table)
+    period_us = run.rig.cycle_us(table)
     try:
         rig, tracer, path = session.rig, session.tracer, session.trace_path
         if rig is None or tracer is None or path is None:
             raise ValueError("traced_run needs a session with a rig and trace=True")
-        step = max(1, round(LONG_TRACE_STEP_S * 1e6 / config.period_us))
+        step = max(1, round(LONG_TRACE_STEP_S * 1e6 / period_us))
         drive(rig)
         start = time.perf_counter()
         done, sign = 0, 1.0
@@ -102,6 +104,7 @@ def traced_run(config: Any, cycles: int, table: Any) -> dict[str, Any]:
         "cycles": done,
         "last_cycle": timeline_end(path, CYCLE_TIMELINE),
         "seconds": elapsed,
+        "period_us": period_us,
     }
 
 
@@ -110,6 +113,7 @@ class BusBench:
 
     def __init__(self, private_bus: Any, out: Path) -> None:
         from boardproto import load_table
+        from hilrig.session.run import FirmwareRun, RigRun, RunDescription, TraceRun
         from hilrig.table import RigTable
 
         self.bus = private_bus
@@ -118,6 +122,15 @@ class BusBench:
         self.eds = out / "protocol" / "board.eds"
         self.table = RigTable.load()
         self.proto = load_table(ROOT / "protocol" / "board.toml")
+        self.run = RunDescription(
+            TraceRun(out, trace=False, record=False),
+            firmware=FirmwareRun(executable=self.firmware_exe, node_id=FIRMWARE_NODE_ID),
+            rig=RigRun(eds=self.eds),
+        )
+        """Every lockstep run of the bench: the firmware of <out>, no bus log, untraced, the
+        rig's other settings the run description's own; each measurement replaces what is its."""
+        self.period_us = self.run.rig.cycle_us(self.table)
+        """The control period of every run: the table's."""
         self.logs = out / "bench-logs"
         self.logs.mkdir(parents=True, exist_ok=True)
         self._runs = 0
@@ -131,7 +144,7 @@ class BusBench:
             self.bus,
             node_id=FIRMWARE_NODE_ID,
             log_path=self.logs / f"{self._runs:02d}-{what}.log",
-            period_us=PERIOD_US,
+            period_us=self.period_us,
             executable=self.firmware_exe,
             mode=mode,
         )
@@ -145,22 +158,16 @@ class BusBench:
         from hilrig.session.builder import open_session
 
         self._runs += 1
-        config = self._config(self.logs / f"{self._runs:02d}-{what}", traced=traced, bitrate=bitrate)
-        return open_session(config, table=self.table)
+        run = self._run(self.logs / f"{self._runs:02d}-{what}", traced=traced, bitrate=bitrate)
+        return open_session(run, table=self.table)
 
-    def _config(self, out_dir: Path, *, traced: bool, bitrate: int | None = None) -> Any:
-        """The `SessionConfig` of the firmware in lockstep on the bench's bus, no bus log."""
-        from hilrig.session.builder import SessionConfig
+    def _run(self, out_dir: Path, *, traced: bool, bitrate: int | None = None) -> Any:
+        """The bench's run (`self.run`) into `out_dir`, traced or not, on the ideal bus or a timed
+        one of `bitrate`."""
+        from hilrig.session.run import BusRun, TraceRun
 
-        return SessionConfig(
-            out_dir=out_dir,
-            trace=traced,
-            record=False,
-            executable=self.firmware_exe,
-            eds=self.eds,
-            node_id=FIRMWARE_NODE_ID,
-            period_us=PERIOD_US,
-            bitrate=bitrate,
+        return self.run.replace(
+            trace=TraceRun(out_dir, trace=traced, record=False), bus=BusRun(bitrate=bitrate)
         )
 
     def rig_rate(
@@ -178,15 +185,10 @@ class BusBench:
             rig = session.rig
             drive(rig)
             rig.run(cycles=warmup)
-            start = time.perf_counter()
-            done = 0
-            while done < cycles and time.perf_counter() - start < budget_s:
-                chunk = min(50, cycles - done)
-                rig.run(cycles=chunk)
-                done += chunk
-            if session.tracer is not None:
-                session.tracer.close()  # the trace is complete: its cost is part of the run
-            elapsed = time.perf_counter() - start
+            tracer = session.tracer
+            # the trace complete (its close() sends what is pending): its cost is part of the run
+            finish = tracer.close if tracer is not None else None
+            done, elapsed = run_within(rig, budget_s, cycles, finish=finish)
         finally:
             session.close()
         return done / elapsed, done
@@ -196,7 +198,7 @@ class BusBench:
         its trace kept in <out>/long-trace/trace.rrd (the path recorded relative to <out>)."""
         folder = self.out / LONG_TRACE_DIR
         shutil.rmtree(folder, ignore_errors=True)  # never an earlier run's trace in its place
-        run = traced_run(self._config(folder, traced=True), cycles, self.table)
+        run = traced_run(self._run(folder, traced=True), cycles, self.table)
         return run | {"trace": str(Path(run["trace"]).relative_to(self.out))}
 
     def robot_rate(self, modules: int, cycles: int, budget_s: float) -> tuple[float, int]:
@@ -204,31 +206,20 @@ class BusBench:
         same engine: one SYNC, every module's PDOs, the MuJoCo chain) following the gait,
         untraced, no bus log; start-up outside the measurement."""
         from hilrig.apps.gait import TravellingWave
-        from hilrig.session.builder import SessionConfig, open_session
+        from hilrig.session.builder import open_session
+        from hilrig.session.run import FirmwareRun, RobotRun
 
         self._runs += 1
-        config = SessionConfig(
-            out_dir=self.logs / f"{self._runs:02d}-robot{modules}",
-            modules=modules,
-            trace=False,
-            record=False,
-            executable=self.firmware_exe,
-            eds=self.eds,
-            period_us=PERIOD_US,
-            sdo_timeout_s=5.0,
+        run = self._run(self.logs / f"{self._runs:02d}-robot{modules}", traced=False).replace(
+            firmware=FirmwareRun(executable=self.firmware_exe),  # node ids 1..N
+            robot=RobotRun(modules),
         )
-        session = open_session(config, table=self.table)
+        session = open_session(run, table=self.table)
         try:
             robot = session.robot
             TravellingWave().drive(robot)
             robot.run(cycles=20)  # warm-up
-            start = time.perf_counter()
-            done = 0
-            while done < cycles and time.perf_counter() - start < budget_s:
-                chunk = min(50, cycles - done)
-                robot.run(cycles=chunk)
-                done += chunk
-            elapsed = time.perf_counter() - start
+            done, elapsed = run_within(robot, budget_s, cycles)
         finally:
             session.close()
         return done / elapsed, done
@@ -277,7 +268,7 @@ class BusBench:
                 for n in range(warmup + cycles):
                     if n == warmup:
                         start = time.perf_counter()
-                    elif n > warmup and n % 50 == 0 and time.perf_counter() - start > budget_s:
+                    elif n > warmup and time.perf_counter() - start > budget_s:
                         break
                     out, got = rpdo_frames + SYNC_FRAMES[n % SYNC_COUNTER_MAX], {}
                     while (taken := exchange(link, out, due[n % period], decoders, got, 5.0)) is not None:
@@ -300,7 +291,7 @@ class BusBench:
             self.bus,
             node_id=node_id,
             log_path=self.logs / f"{what}-{node_id:02d}.log",
-            period_us=PERIOD_US,
+            period_us=self.period_us,
             executable=self.firmware_exe,
             mode="lockstep",
         )
@@ -331,6 +322,8 @@ class BusBench:
             started = time.perf_counter()
             for _ in range(rounds):
                 for kind in rates:
+                    if rates["segmented"] and time.perf_counter() - started > budget_s:
+                        break  # each kind measured once at least; no upload starts past the budget
                     t0 = time.perf_counter()
                     if kind == "block":
                         data = rig.node.block_upload(index, 0, "bench block upload")
@@ -338,8 +331,6 @@ class BusBench:
                         data = rig.node.upload(index, 0, "bench segmented upload")
                     rates[kind].append(len(data) / (time.perf_counter() - t0))
                     size = len(data)
-                if time.perf_counter() - started > budget_s:
-                    break
         finally:
             session.close()
         return {"bytes": size, **{f"{kind}_bytes_per_s": values for kind, values in rates.items()}}
@@ -350,7 +341,6 @@ class BusBench:
         (`hilrig.wire.transport`)."""
         import canopen
 
-        from hilrig.engine.driver import SETPOINT_STREAM
         from hilrig.wire.transport import PdoDirection, compile_pdos
 
         network = canopen.Network()  # never connected: the PDO maps only need a home
@@ -363,7 +353,10 @@ class BusBench:
             for p in compile_pdos(PdoDirection.RPDO, node.rpdo.map).values()
             if p.enabled
             and p.names
-            and (all(self.table.is_hil_input(n) for n in p.names) or set(SETPOINT_STREAM) & set(p.names))
+            and (
+                all(self.table.is_hil_input(n) for n in p.names)
+                or set(self.table.setpoint_stream) & set(p.names)
+            )
         ]
         tpdos = [
             p for p in compile_pdos(PdoDirection.TPDO, node.tpdo.map).values() if p.is_cyclic and p.names
@@ -431,7 +424,7 @@ class BusBench:
                 for n in range(warmup + cycles):
                     if n == warmup:
                         start = time.perf_counter()
-                    elif n > warmup and n % 50 == 0 and time.perf_counter() - start > budget_s:
+                    elif n > warmup and time.perf_counter() - start > budget_s:
                         break
                     if engine:
                         out, got = rpdo_frames + syncs[n % SYNC_COUNTER_MAX], {}
@@ -490,7 +483,7 @@ class BusBench:
             for n in range(warmup + cycles):
                 if n == warmup:
                     start = time.perf_counter()
-                elif n > warmup and n % 50 == 0 and time.perf_counter() - start > budget_s:
+                elif n > warmup and time.perf_counter() - start > budget_s:
                     break
                 for cob, data in payloads:
                     can_bus.send(can.Message(arbitration_id=cob, data=data, is_extended_id=False))
@@ -515,8 +508,7 @@ class BusBench:
         entry = self.table.entry(SDO_OBJECT)
         server = self.bus.popen(
             [
-                sys.executable,
-                str(BENCH_SCRIPT),
+                *BENCH_COMMAND,
                 "serve-local-node",
                 "--eds",
                 str(self.eds),
@@ -560,6 +552,8 @@ class BusBench:
                         if i > warmup and time.perf_counter() - start_all > budget_s:
                             break
                         for name, node in (("firmware", ours), ("local_node", local)):
+                            if i > warmup and time.perf_counter() - start_all > budget_s:
+                                break  # no upload starts past the budget
                             start = time.perf_counter()
                             node.sdo.upload(entry.index, entry.subindex)
                             elapsed = time.perf_counter() - start
@@ -617,7 +611,7 @@ class BusBench:
         )
         cob = carrier.cob_id(FIRMWARE_NODE_ID)
         filters = [{"can_id": cob, "can_mask": STANDARD_ID_MASK}]
-        period_s = PERIOD_US / 1e6
+        period_s = self.period_us / 1e6
         with (
             self.bus.open(can_filters=filters) as meter,
             self.bus.open() as config_bus,
@@ -675,13 +669,13 @@ class BusBench:
         absolute = [abs(e) for e in errors_us]
         overruns = re.search(r"overruns (\d+)", log)
         return {
-            "period_us": PERIOD_US,
+            "period_us": self.period_us,
             "cycles": len(intervals),
             "mean_period_us": statistics.fmean(intervals) * 1e6,
             "abs_error_us": {q: percentile(absolute, float(q)) for q in ("50", "90", "99", "99.9")}
             | {"max": max(absolute)},
             "signed_error_us": {"min": min(errors_us), "max": max(errors_us)},
-            "late_by_half_a_period": sum(1 for e in errors_us if e > PERIOD_US / 2),
+            "late_by_half_a_period": sum(1 for e in errors_us if e > self.period_us / 2),
             "firmware_overruns": int(overruns.group(1)) if overruns else None,
             "method": (
                 f"{carrier.name} remapped to event-driven (type 255, inhibit 0) carrying "

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench_common import ROOT, ProbeError, ratio_of
+from hilrig.apps.bench.common import ROOT, ProbeError, ratio_of
 
 FIRMWARE_IMAGE = ROOT / "build" / "cortex-m" / "bin" / "joint-firmware.elf"
 SYMBOLS = ("__flash_used", "__flash_budget", "__ram_used", "__ram_budget")

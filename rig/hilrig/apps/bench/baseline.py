@@ -39,7 +39,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from bench_common import NOT_MEASURED, ROOT, NotMeasured, ProbeError, ratio_of, run_probe, say
+from hilrig.apps.bench.common import NOT_MEASURED, ROOT, NotMeasured, ProbeError, ratio_of, run_probe, say
 
 DEFAULT_BASELINE = "dbf1cf7"
 """The commit the checkout's engine is compared with when BASELINE is not given: the last one
@@ -64,7 +64,7 @@ CHECK_CYCLES = 5
 NO_BASELINE = "no baseline in native.json (a native step from before the comparison)"
 
 PerCycle = Callable[[str, Path], float]
-"""Instructions per cycle of `tools/rig_probe.py MODE` of the tree at the path (bench_native)."""
+"""Instructions per cycle of `tools/rig_probe.py MODE` of the tree at the path (`native`)."""
 
 
 def resolve_commit(commit: str, repo: Path = ROOT) -> str:

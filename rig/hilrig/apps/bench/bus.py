@@ -1,4 +1,4 @@
-"""`tools/bench.py bus`: every bus measurement (`bench_bus_measure.BusBench`) on one private
+"""`tools/bench.py bus`: every bus measurement (`bus_measure.BusBench`) on one private
 bus (a network namespace with its own vcan0; root, so through tools/with-vcan), in alternating
 rounds, and the bus load of the default PDO mapping. Writes <out>/bus.json; a measurement that
 fails leaves its error under "not_measured".
@@ -13,8 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench_bus_measure import BusBench
-from bench_common import NotMeasured, machine, ratio_of, say, write_json_atomically
+from hilrig.apps.bench.bus_measure import BusBench
+from hilrig.apps.bench.common import NotMeasured, machine, ratio_of, say, write_json_atomically
 
 BUS_MEASUREMENTS = ("lockstep", "timed_bus", "robot", "long_trace", "sdo", "recorder_upload", "free_running")
 """What `tools/bench.py bus` measures, in order (`--only NAME` picks some)."""
@@ -212,12 +212,12 @@ def bus_main(args: argparse.Namespace) -> int:
             measured = not_measured.attempt(name, measure)
             if measured is not None:
                 result[name] = measured
-        proto = bench.proto
+        proto, rate_hz = bench.proto, 1e6 / bench.period_us
     result["not_measured"] = not_measured
-    traffic = lockstep_traffic(proto, 1000.0)
+    traffic = lockstep_traffic(proto, rate_hz)
     result["bus_load"] = {
-        "rate_hz": 1000.0,
-        "frames_per_cycle": sum(t.per_second for t in traffic) / 1000.0,
+        "rate_hz": rate_hz,
+        "frames_per_cycle": sum(t.per_second for t in traffic) / rate_hz,
         "loads": [
             {
                 "bitrate": load.bitrate,
@@ -225,7 +225,7 @@ def bus_main(args: argparse.Namespace) -> int:
                 "worst_case": load.worst_case,
                 "busiest_cycle": load.peak_cycle_worst_case,
             }
-            for load in (bus_load(traffic, 1000.0, b) for b in STANDARD_BITRATES)
+            for load in (bus_load(traffic, rate_hz, b) for b in STANDARD_BITRATES)
         ],
     }
     write_json_atomically(out / "bus.json", result)

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench_common import ROOT, ProbeError, ratio_of
+from hilrig.apps.bench.common import ROOT, ProbeError, ratio_of
 
 BUDGET_IMAGE = ROOT / "build" / "cortex-m" / "bin" / "cm_cycle_budget.elf"
 RUNNER = ROOT / "firmware" / "platform" / "cortex-m" / "run-test-image"

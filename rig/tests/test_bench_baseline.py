@@ -1,27 +1,24 @@
-"""tools/bench_baseline.py: the engine of a baseline commit beside the checkout's. A commit that
-cannot be measured is a row 'not measured' with the reason; the ratio rows are computed and
-judged against the goal; the baseline's tree is exported once, reused, replaced and removed
-cleanly; the `baseline` subcommand writes its rows whatever fails; and the default baseline's own
-probe runs from its exported tree, importing nothing of the checkout's."""
+"""The bench's baseline (`hilrig.apps.bench.baseline`): the engine of a baseline commit beside
+the checkout's. A commit that cannot be measured is a row 'not measured' with the reason; the
+ratio rows are computed and judged against the goal; the baseline's tree is exported once,
+reused, replaced and removed cleanly; the `baseline` subcommand writes its rows whatever fails;
+and the default baseline's own probe runs from its exported tree, importing nothing of the
+checkout's."""
 
 from __future__ import annotations
 
-import importlib
 import json
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-TOOLS = Path(__file__).resolve().parent.parent
-sys.path.append(str(TOOLS))  # the tools are scripts on their own folder's path, as when run
-bench = importlib.import_module("bench")
-bench_baseline = importlib.import_module("bench_baseline")
-bench_common = importlib.import_module("bench_common")
-bench_native = importlib.import_module("bench_native")
-bench_report = importlib.import_module("bench_report")
+from hilrig.apps.bench import baseline as bench_baseline
+from hilrig.apps.bench import common as bench_common
+from hilrig.apps.bench import main as bench
+from hilrig.apps.bench import native as bench_native
+from hilrig.apps.bench import report as bench_report
 
 MISSING_COMMIT = "0123456789abcdef0123456789abcdef01234567"
 
