@@ -1,8 +1,8 @@
 """The node boots like a real device after an NMT reset: its boot-up comes the table's [node]
 boot_ms later, counted in control cycles in lockstep, so a master written the usual way catches
 it. python-canopen's `node.nmt.state = "RESET"` then `node.nmt.wait_for_bootup()` hears only
-the frames that arrive after the wait began; a boot-up sent within a millisecond of the reset
-was missed on a busy host. Here the stock idioms, unmodified, on `BaseNode402` (the master of
+the frames that arrive after the wait began, and a boot-up sent right after the reset can beat
+that call on a busy host. Here the stock idioms, unmodified, on `BaseNode402` (the master of
 tests/cia402_master.py), and the rig's own reset, which runs exactly the boot's cycles.
 """
 
