@@ -35,7 +35,7 @@ from pathlib import Path
 import can
 import canopen
 
-from boardproto.cia301 import STANDARD_ID_MASK, FunctionCode, cob_id
+from boardproto.cia301 import STANDARD_ID_MASK, FunctionCode, NmtCommand, cob_id
 from boardproto.cia402 import STATUSWORD_INDEX, State
 from boardproto.loader import PROFILE_RANGE
 from hilrig.apps.pdo_profile import apply_pdo_profile
@@ -155,6 +155,30 @@ class Stepper:
         sys.setswitchinterval(self._switch_interval)
         if self.error is not None:
             raise self.error
+
+
+NMT_COMMANDS = {
+    "OPERATIONAL": NmtCommand.START,
+    "STOPPED": NmtCommand.STOP,
+    "PRE-OPERATIONAL": NmtCommand.ENTER_PRE_OPERATIONAL,
+    "RESET": NmtCommand.RESET_NODE,
+    "RESET COMMUNICATION": NmtCommand.RESET_COMMUNICATION,
+}
+"""python-canopen's `node.nmt.state` words and the NMT command each sends."""
+
+
+def set_nmt_state(stepper: Stepper, node: canopen.RemoteNode, state: str) -> None:
+    """The master's stock `node.nmt.state = state`, sent between two lockstep cycles as a
+    master's NMT command goes out between two SYNCs, with the rig told (`Rig.follow_nmt`): from
+    the next SYNC on it expects the TPDOs of the state the command leaves the node in. A reset's
+    boot-up comes the node's boot time later, counted in those cycles: the master waits for it
+    the usual way (`node.nmt.wait_for_bootup()`, which hears only what comes after the call)."""
+
+    def send() -> None:
+        node.nmt.state = state
+        stepper.rig.follow_nmt(NMT_COMMANDS[state])
+
+    stepper.call(send)
 
 
 def statusword_tpdo(rig):

@@ -15,7 +15,8 @@ import can
 import canopen
 import pytest
 
-from boardproto.cia301 import NmtState, heartbeat_cob_id
+from boardproto.cia301 import SYNC_COB_ID, NmtState, heartbeat_cob_id
+from hilrig.engine.lockstep import cycles_for
 from hilrig.pytest_plugin import (
     BOOT_TIMEOUT_S,
     REALTIME_FIRMWARE_PERIOD_US,
@@ -90,6 +91,20 @@ class NodeUnderTest:
             return got[0]
         finally:
             self.network.unsubscribe(cob_id, on_frame)
+
+    def reset(self, state: str = "RESET") -> None:
+        """python-canopen's reset (`node.nmt.state = "RESET"` or `"RESET COMMUNICATION"`), then
+        `boot_syncs()`."""
+        self.node.nmt.state = state
+        self.boot_syncs()
+
+    def boot_syncs(self, sync_cob_id: int = SYNC_COB_ID) -> None:
+        """After an NMT reset, the SYNCs the node's boot time spans, on the COB-ID its 0x1005
+        has after the reset (stored, or the default): the firmware runs lockstep, so it counts
+        its boot time (the table's [node] boot_ms) in control cycles, one a SYNC, and this
+        master is its SYNC producer. The boot-up comes with the last of them."""
+        for _ in range(cycles_for(TABLE.board.node.boot_ms / 1e3, TABLE.board.node.period_us)):
+            self.network.send_message(sync_cob_id, b"")
 
 
 def start_node(

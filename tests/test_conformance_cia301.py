@@ -105,9 +105,15 @@ def start_operational(under_test: NodeUnderTest, heartbeats: int = 5) -> None:
     assert states[-1] == "OPERATIONAL", f"expected the node operational, heartbeats said {states}"
 
 
-def reset_node(under_test: NodeUnderTest) -> None:
-    """NMT reset node, back when the boot-up message came (listening before sending)."""
-    under_test.wait_for(BOOT_UP, after_subscribing=lambda: nmt(under_test, 0x81), data=b"\x00")
+def reset_node(under_test: NodeUnderTest, sync_cob_id: int = SYNC) -> None:
+    """NMT reset node and the SYNCs of its boot (on the node's 0x1005 after the reset), back
+    when the boot-up message came (listening before sending)."""
+
+    def reset() -> None:
+        nmt(under_test, 0x81)
+        under_test.boot_syncs(sync_cob_id)
+
+    under_test.wait_for(BOOT_UP, after_subscribing=reset, data=b"\x00")
 
 
 def sync_and_collect(under_test: NodeUnderTest, counter: int | None, watched: int) -> bool:
@@ -278,7 +284,7 @@ class TestStoreRestore_7_5_2_13:
             assert download(first, 0x1020, 1, 15000, 4) == 0
             first.node.sdo["velocity_kp"].raw = 0.125
             assert download(first, 0x1010, 1, SAVE, 4) == 0
-            reset_node(first)
+            reset_node(first, sync_cob_id=0x81)  # the stored 0x1005
             assert upload(first, 0x1005) == 0x81
             assert upload(first, 0x1017) == 250
             assert upload(first, 0x1020, 1) == 15000

@@ -222,9 +222,7 @@ def test_nmt_states_walk_and_reset_gives_boot_up_and_defaults(node_under_test: N
     assert node.sdo["velocity_setpoint"].raw == pytest.approx(3.0)
     # The boot-up (state byte 0x00) must come; wait_for fails if only heartbeats do. Listen
     # first: on a loaded machine the boot-up can beat a late subscription.
-    node_under_test.wait_for(
-        HEARTBEAT, after_subscribing=lambda: setattr(node.nmt, "state", "RESET"), data=b"\x00"
-    )
+    node_under_test.wait_for(HEARTBEAT, after_subscribing=node_under_test.reset, data=b"\x00")
     assert node.sdo["velocity_setpoint"].raw == pytest.approx(TABLE.field("velocity_setpoint").default)
 
 
@@ -292,7 +290,7 @@ def test_parameters_stored_survive_a_restart(
         second.node.sdo[0x1011][1].raw = 0x64616F6C  # "load": restore defaults
         second.wait_for(
             HEARTBEAT,
-            after_subscribing=lambda: setattr(second.node.nmt, "state", "RESET"),
+            after_subscribing=second.reset,
             data=b"\x00",
         )
         assert second.node.sdo["velocity_kp"].raw == pytest.approx(TABLE.field("velocity_kp").default)

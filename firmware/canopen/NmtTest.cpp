@@ -1,5 +1,6 @@
 // NMT slave state machine (CiA 301, 7.3.2): boot-up, transitions, what each state serves.
 #include "NodeTestSupport.hpp"
+#include "TimeLeft.hpp"
 
 namespace co::test {
 namespace {
@@ -243,6 +244,118 @@ TEST_F(NmtTest, ResetNodeClearsTheErrorRegisterAndHistory) {
   EXPECT_EQ(upload(0x1001, 0), 0u);
   EXPECT_EQ(upload(0x1003, 0), 0u);
   EXPECT_EQ(node.error_register(), 0u);
+}
+
+// The boot time (board.toml's [node] boot_ms): after an NMT reset the node is silent for that
+// long, then sends its boot-up; on the wall clock, or in lockstep on the control clock.
+class NmtBootTimeTest : public NodeTest {
+ protected:
+  static constexpr std::uint32_t kBootUs = board::kNode.boot_ms * 1000u;
+  static constexpr std::uint32_t kPeriodUs = 1000;  // a lockstep control period
+
+  void SetUp() override {
+    NodeTest::SetUp();
+    node.set_boot_time_us(kBootUs);  // what the node has unless told otherwise
+  }
+
+  // A SYNC of a lockstep platform while the node boots: the control clock moves on, no cycle.
+  bool lockstep_boot_sync() {
+    const ProcessResult result = receive(cia301::kSyncCobId, {});
+    EXPECT_FALSE(result.sync) << "no control cycle while booting";
+    if (result.boot_sync) node.advance_control_time(kPeriodUs);
+    return result.boot_sync;
+  }
+};
+
+TEST(NmtBootTimeDefaultTest, IsTheTablesAndNotZero) {
+  MemoryPort port;
+  FakeBoard fields;
+  FakeHil hil;
+  MemoryStorage storage;
+  const Node node(0x22, port, fields, hil, storage);
+  EXPECT_EQ(node.boot_time_us(), board::kNode.boot_ms * 1000u);
+  EXPECT_GT(node.boot_time_us(), 0u) << "the table's default is a real device's";
+}
+
+TEST_F(NmtBootTimeTest, OnTheWallClockTheBootUpComesTheBootTimeAfterResetNode) {
+  static_assert(kBootUs > 1);
+  nmt(NmtCommand::ResetNode);
+  EXPECT_TRUE(all_sent().empty()) << "the boot-up waits for the boot time";
+  EXPECT_TRUE(node.booting());
+  EXPECT_EQ(node.state(), NmtState::Initialising);
+  EXPECT_EQ(node.us_until_next_timer(now_us, kNoTimerUs), kBootUs) << "the idle wait ends with the boot";
+  // Booting, the node answers nothing: an SDO request, NMT start and a SYNC are ignored.
+  const std::uint32_t ignored = node.counters().frames_ignored;
+  receive(kSdoRx, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
+  nmt(NmtCommand::Start);
+  const ProcessResult sync = receive(cia301::kSyncCobId, {});
+  EXPECT_FALSE(sync.sync || sync.boot_sync) << "on the wall clock a SYNC clocks nothing";
+  EXPECT_EQ(node.counters().frames_ignored, ignored + 3);
+  advance_us(kBootUs - 1);
+  EXPECT_TRUE(all_sent().empty());
+  EXPECT_EQ(node.us_until_next_timer(now_us, kNoTimerUs), 1u);
+  advance_us(1);
+  EXPECT_EQ(all_sent(), (std::vector<CanFrame>{make_frame(kHeartbeat, {0x00})}));
+  EXPECT_FALSE(node.booting());
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  EXPECT_EQ(upload(0x1000, 0), board::kNode.device_type) << "served again once booted";
+}
+
+TEST_F(NmtBootTimeTest, ResetCommunicationTakesTheBootTimeToo) {
+  nmt(NmtCommand::Start);
+  nmt(NmtCommand::ResetCommunication);
+  EXPECT_TRUE(all_sent().empty());
+  EXPECT_EQ(node.state(), NmtState::Initialising);
+  advance_us(kBootUs);
+  EXPECT_EQ(all_sent(), (std::vector<CanFrame>{make_frame(kHeartbeat, {0x00})}));
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+}
+
+TEST_F(NmtBootTimeTest, TheHeartbeatStartsAtTheBootUp) {
+  nmt(NmtCommand::ResetCommunication);  // the producer time is back at the table's
+  advance_us(kBootUs);
+  EXPECT_EQ(all_sent(), (std::vector<CanFrame>{make_frame(kHeartbeat, {0x00})}));
+  const std::uint32_t period_us = std::uint32_t{board::kNode.heartbeat_ms} * 1000u;
+  ASSERT_GT(period_us, 1u);
+  advance_us(period_us - 1);
+  EXPECT_TRUE(all_sent().empty()) << "no heartbeat while booting, the first a period after the boot-up";
+  advance_us(1);
+  EXPECT_EQ(all_sent(), (std::vector<CanFrame>{make_frame(kHeartbeat, {0x7F})}));
+}
+
+TEST_F(NmtBootTimeTest, InLockstepTheBootTimeIsCountedInControlCycles) {
+  node.set_timeout_clock(TimeoutClock::ControlCycles);
+  nmt(NmtCommand::ResetNode);
+  EXPECT_EQ(node.us_until_next_timer(now_us, kNoTimerUs), kNoTimerUs) << "no wall-clock timer";
+  advance_us(10 * kBootUs);  // a host that took long: wall time does not count
+  EXPECT_TRUE(all_sent().empty());
+  EXPECT_TRUE(node.booting());
+  const std::uint32_t cycles = kBootUs / kPeriodUs;
+  ASSERT_GT(cycles, 1u);
+  for (std::uint32_t n = 1; n < cycles; ++n) {
+    ASSERT_TRUE(lockstep_boot_sync()) << "a SYNC while booting is the boot time's clock, cycle " << n;
+    ASSERT_TRUE(all_sent().empty()) << "cycle " << n;
+    receive(kSdoRx, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});  // still answers nothing
+    ASSERT_TRUE(all_sent().empty()) << "cycle " << n;
+  }
+  EXPECT_TRUE(lockstep_boot_sync());
+  EXPECT_EQ(all_sent(), (std::vector<CanFrame>{make_frame(kHeartbeat, {0x00})})) << "in cycle " << cycles;
+  EXPECT_EQ(node.state(), NmtState::PreOperational);
+  EXPECT_EQ(upload(0x1000, 0), board::kNode.device_type);
+}
+
+TEST_F(NmtBootTimeTest, ZeroBootsAtOnceAndStartIsAlwaysAtOnce) {
+  node.set_boot_time_us(0);
+  nmt(NmtCommand::ResetNode);
+  EXPECT_EQ(all_sent(), (std::vector<CanFrame>{make_frame(kHeartbeat, {0x00})}));
+  EXPECT_FALSE(node.booting());
+  MemoryPort other_port;
+  Node other(0x22, other_port, fields, hil, storage);
+  ASSERT_GT(other.boot_time_us(), 0u);
+  other.start(now_us);  // power-on: the process start is the boot
+  CanFrame frame;
+  ASSERT_TRUE(other_port.pop_sent(frame));
+  EXPECT_EQ(frame, make_frame(cia301::cob_id(cia301::FunctionCode::Heartbeat, 0x22), {0x00}));
 }
 
 }  // namespace

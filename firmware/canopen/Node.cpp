@@ -67,6 +67,7 @@ bool Node::send(std::uint32_t id, std::span<const std::uint8_t> data) {
 ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
   ProcessResult result;
   ++counters_.frames_received;
+  last_now_us_ = now_us;
   constexpr std::uint32_t kFlags =
       CanFrame::kExtendedFlag | CanFrame::kRemoteFlag | CanFrame::kErrorFlag;
   if ((frame.id & kFlags) != 0 || frame.len > 8 || !started_) {
@@ -77,7 +78,13 @@ ProcessResult Node::process(const CanFrame& frame, std::uint32_t now_us) {
     handle_lss(frame, now_us);
     return result;
   }
-  if (state_ == NmtState::Initialising) {  // no node id yet: LSS only (CiA 305)
+  if (state_ == NmtState::Initialising) {  // no node id yet: LSS only (CiA 305); or booting
+    if (booting_ && timeout_clock_ == TimeoutClock::ControlCycles &&
+        frame.id == (sync_cob_id_ & kStandardIdMask)) {
+      ++counters_.syncs_received;
+      result.boot_sync = true;  // the boot time's clock; no control cycle
+      return result;
+    }
     ++counters_.frames_ignored;
     return result;
   }
@@ -139,7 +146,7 @@ std::size_t Node::accepted_ids(std::span<std::uint32_t, kMaxAcceptedIds> out) co
 void Node::set_acceptance_listener(AcceptanceListener* listener) {
   acceptance_listener_ = listener;
   told_accepted_count_ = 0;  // a new listener hears the set whatever the last one heard
-  if (state_ != NmtState::Initialising) tell_acceptance_listener();
+  if (state_ != NmtState::Initialising || booting_) tell_acceptance_listener();
 }
 
 void Node::tell_acceptance_listener() {
@@ -173,9 +180,9 @@ void Node::handle_nmt(const CanFrame& frame, std::uint32_t now_us, ProcessResult
     case NmtCommand::ResetNode:
       apply_power_on_values();
       result.application_reset = true;
-      reset_communication(now_us);
+      reset_communication(now_us, boot_time_us_ == 0);
       return;
-    case NmtCommand::ResetCommunication: reset_communication(now_us); return;
+    case NmtCommand::ResetCommunication: reset_communication(now_us, boot_time_us_ == 0); return;
   }
   --counters_.nmt_commands;
   ++counters_.frames_malformed;  // unknown command specifier
@@ -188,9 +195,10 @@ void Node::enter(NmtState state) {
   state_ = state;
 }
 
-void Node::reset_communication(std::uint32_t now_us) {
+void Node::reset_communication(std::uint32_t now_us, bool boot_at_once) {
   node_id_ = lss_.activate_pending_node_id();  // an id LSS configured takes effect here
   sdo_.reset();
+  booting_ = false;
   if (!cia301::is_node_id(node_id_)) {  // none yet: LSS only, no boot-up (CiA 305)
     state_ = NmtState::Initialising;
     heartbeat_consumer_.reset();
@@ -208,10 +216,27 @@ void Node::reset_communication(std::uint32_t now_us) {
   load_default_pdos();
   state_ = NmtState::PreOperational;  // stored PDO mappings replay under pre-operational rules
   load_stored_communication();
-  last_heartbeat_us_ = now_us;
   tell_heartbeat_listener(false);
   // Stored COB-IDs are back: the filter takes them before the boot-up invites the master.
   tell_acceptance_listener();
+  if (boot_at_once) {
+    send_boot_up(now_us);
+    return;
+  }
+  state_ = NmtState::Initialising;  // booting: silent until check_boot() sends the boot-up
+  booting_ = true;
+  boot_started_us_ = timeout_now(now_us);
+}
+
+void Node::check_boot(std::uint32_t clock_now_us, std::uint32_t now_us) {
+  if (!booting_ || clock_now_us - boot_started_us_ < boot_time_us_) return;
+  booting_ = false;
+  send_boot_up(now_us);
+}
+
+void Node::send_boot_up(std::uint32_t now_us) {
+  state_ = NmtState::PreOperational;
+  last_heartbeat_us_ = now_us;  // the heartbeat producer's first period starts here
   const std::array<std::uint8_t, 1> boot_up = {static_cast<std::uint8_t>(NmtState::Initialising)};
   send(cia301::cob_id(FunctionCode::Heartbeat, node_id_), boot_up);
 }
@@ -278,6 +303,7 @@ std::uint32_t Node::timeout_now(std::uint32_t now_us) const {
 
 void Node::advance_control_time(std::uint32_t elapsed_us) {
   control_time_us_ += elapsed_us;
+  if (timeout_clock_ == TimeoutClock::ControlCycles) check_boot(control_time_us_, last_now_us_);
   if (state_ == NmtState::Initialising || timeout_clock_ != TimeoutClock::ControlCycles) return;
   check_heartbeat_timeouts(control_time_us_);
   check_sdo_timeout(control_time_us_);
@@ -365,6 +391,8 @@ void Node::send_sdo_segments(std::uint32_t now_us) {
 }
 
 void Node::poll(std::uint32_t now_us) {
+  last_now_us_ = now_us;
+  if (timeout_clock_ == TimeoutClock::WallTime) check_boot(now_us, now_us);
   if (state_ == NmtState::Initialising) return;
   if (timeout_clock_ == TimeoutClock::WallTime) check_heartbeat_timeouts(now_us);
   const std::uint32_t period_us = std::uint32_t{heartbeat_ms_} * 1000u;
@@ -384,6 +412,9 @@ void Node::poll(std::uint32_t now_us) {
 }
 
 std::uint32_t Node::us_until_next_timer(std::uint32_t now_us, std::uint32_t limit_us) const {
+  if (booting_ && timeout_clock_ == TimeoutClock::WallTime) {
+    return std::min(limit_us, time_left_us(now_us, boot_started_us_, boot_time_us_));
+  }
   if (state_ == NmtState::Initialising) return limit_us;
   std::uint32_t soonest = limit_us;
   const std::uint32_t period_us = std::uint32_t{heartbeat_ms_} * 1000u;

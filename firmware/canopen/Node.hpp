@@ -39,6 +39,10 @@ using NmtCommand = cia301::NmtCommand;
 struct ProcessResult {
   bool sync = false;              // a SYNC arrived: run one control cycle, then call
                                   // transmit_synchronous_pdos()
+  bool boot_sync = false;         // a SYNC while the node boots (booting()), under
+                                  // TimeoutClock::ControlCycles: call advance_control_time()
+                                  // (the boot time's clock) and run no control cycle (the
+                                  // application does not run while the node boots)
   bool sync_has_counter = false;  // the SYNC carried a counter byte
   std::uint8_t sync_counter = 0;  // that byte (1..240), 0 without one
   bool application_reset = false; // NMT reset node: bus-owned fields are back at their
@@ -139,6 +143,19 @@ class Node final {
   // node id the node stays initialising and serves LSS only: no boot-up, no NMT, no heartbeat,
   // until LSS gives it one (then it resets communication and sends its boot-up).
   void start(std::uint32_t now_us);
+
+  // How long after NMT reset node / reset communication the boot-up goes out (board.toml's
+  // [node] boot_ms unless set; 0: from inside the process() that got the command). Meanwhile
+  // the node is initialising: it has reset what the command resets, and answers nothing, sends
+  // nothing (no heartbeat, EMCY, SDO or PDO) and ignores every frame but LSS and, under
+  // TimeoutClock::ControlCycles, the SYNC that clocks it (ProcessResult::boot_sync). The time is the timeout clock's:
+  // simulation time in lockstep (advance_control_time(), so the boot-up comes in the same cycle
+  // whatever the host's speed), the now_us of poll() otherwise. start() (power-on) and LSS
+  // giving the node its id send the boot-up at once.
+  void set_boot_time_us(std::uint32_t boot_time_us) { boot_time_us_ = boot_time_us; }
+  std::uint32_t boot_time_us() const { return boot_time_us_; }
+  // True from an NMT reset until its boot-up went out.
+  bool booting() const { return booting_; }
 
   // Where LSS store configuration keeps the node id and bit timing (a storage of its own, apart
   // from 0x1010's). Set before start(); without it LSS answers "storing not supported".
@@ -354,7 +371,9 @@ class Node final {
   void send_sdo_segments(std::uint32_t now_us);
   bool segment_send_refused_ = false;  // the last segment the port was given, it refused
   void enter(NmtState state);
-  void reset_communication(std::uint32_t now_us);
+  void reset_communication(std::uint32_t now_us, bool boot_at_once = true);
+  void check_boot(std::uint32_t clock_now_us, std::uint32_t now_us);
+  void send_boot_up(std::uint32_t now_us);
   void apply_power_on_values();
   ParameterLoad load_stored_parameters();
   void load_stored_communication();
@@ -391,6 +410,11 @@ class Node final {
   // 0x1029:01: what a heartbeat event does to the NMT state (CiA 301 default: pre-operational).
   cia301::ErrorBehaviour communication_error_ = cia301::ErrorBehaviour::PreOperational;
   TimeoutClock timeout_clock_ = TimeoutClock::WallTime;
+  std::uint32_t boot_time_us_ = board::kNode.boot_ms * 1000u;
+  bool booting_ = false;             // an NMT reset's boot-up not sent yet
+  std::uint32_t boot_started_us_ = 0;  // on the timeout clock
+  std::uint32_t last_now_us_ = 0;    // the latest now_us given: the wall time of a boot-up that
+                                     // advance_control_time() ends
   std::uint32_t control_time_us_ = 0;  // TimeoutClock::ControlCycles; wraps
   std::uint8_t told_lost_heartbeats_ = 0;  // what the listener last heard
   HeartbeatListener* heartbeat_listener_ = nullptr;

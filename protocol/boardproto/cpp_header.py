@@ -653,6 +653,7 @@ struct NodeIdentity {{
   std::uint32_t period_us;      // the control period of a start without --period-us
   std::uint32_t period_us_min;  // the control periods --period-us accepts
   std::uint32_t period_us_max;
+  std::uint32_t boot_ms;        // NMT reset -> boot-up (control time in lockstep, else wall clock)
 }};
 
 inline constexpr NodeIdentity kNode = {{
@@ -668,6 +669,7 @@ inline constexpr NodeIdentity kNode = {{
     .period_us = {node.period_us},
     .period_us_min = {node.period_us_min},
     .period_us_max = {node.period_us_max},
+    .boot_ms = {node.boot_ms},
 }};
 
 // Number of entries of 0x1003 "pre-defined error field" (sub-indices 1..n).

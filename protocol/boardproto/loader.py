@@ -261,6 +261,7 @@ def _load_node(source: Path, data: Any) -> NodeIdentity:
         period_us=period_us,
         period_us_min=period_min,
         period_us_max=period_max,
+        boot_ms=entry.integer("boot_ms", 0, 60_000),
     )
 
 

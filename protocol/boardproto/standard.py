@@ -37,6 +37,16 @@ cycle_budget_percent = 50       # a control cycle's worst case may take this sha
 period_us = 1000                # the control period [us] a run uses unless it is given another
 period_us_min = 100             # the shortest control period the firmware accepts [us]
 period_us_max = 1000000         # the longest control period the firmware accepts [us]
+boot_ms = 20                    # after NMT reset node / reset communication, the boot-up goes
+                                # out this long later (CiA 301 leaves it to the device): a real
+                                # node takes tens of ms to seconds to reset (Turck's BL20 asks a
+                                # master to wait 20 ms after an NMT state change, Baumueller's
+                                # b maXX 1000 takes seconds). 20 ms is the short end, and long
+                                # enough for a master that listens for the boot-up only after it
+                                # sent the reset (python-canopen's wait_for_bootup). Counted in
+                                # control cycles in lockstep, on the wall clock free-running; 0:
+                                # at once. At power-on and after LSS gives the node its id the
+                                # boot-up goes out at once.
 
 # The EMCY codes the CANopen engine raises (firmware/canopen/Emcy.hpp names each).
 [[emcy]]

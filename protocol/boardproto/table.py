@@ -425,6 +425,9 @@ class NodeIdentity:
     period_us_min: int
     period_us_max: int
     """The control periods [us] the firmware accepts and the rig lets a run ask for."""
+    boot_ms: int
+    """How long after NMT reset node / reset communication the node sends its boot-up [ms]:
+    control cycles' worth in lockstep, the wall clock free-running (0: at once)."""
 
     def cycle_budget(self, period_us: int) -> int:
         """Core cycles a control cycle of `period_us` may take at most."""

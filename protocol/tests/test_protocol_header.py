@@ -99,6 +99,7 @@ static_assert(kHilInputs[static_cast<std::size_t>(HilInputId::motor_current_adc)
 static_assert(kHilOutputs[static_cast<std::size_t>(HilOutputId::led_pattern)].max == 3);
 static_assert(kNode.default_node_id == 0x10 && kNode.heartbeat_ms == 100);
 static_assert(kNode.period_us == 1000 && kNode.period_us_min == 100 && kNode.period_us_max == 1000000);
+static_assert(kNode.boot_ms == 20);
 static_assert(kHeartbeatConsumers == {heartbeat_consumers});
 static_assert(emcy_code::kHeartbeatError == 0x8130);
 static_assert(info(EmcyId::heartbeat_error).register_bit == error_register::kCommunication);

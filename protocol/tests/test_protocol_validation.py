@@ -43,6 +43,18 @@ def test_the_control_period_and_its_range_come_from_the_standard_node_block(
     assert (node.period_us_min, node.period_us, node.period_us_max) == (100, 1000, 1_000_000)
 
 
+def test_the_boot_time_comes_from_the_standard_node_block_and_a_board_may_set_its_own(
+    minimal_table: str, write_table: TableWriter, edit_table: TableEditor
+) -> None:
+    assert load_table(write_table(minimal_table)).node.boot_ms == 20
+    at_once = edit_table("default_node_id = 0x10", "default_node_id = 0x10\nboot_ms = 0")
+    assert load_table(at_once).node.boot_ms == 0
+    refused(
+        edit_table("default_node_id = 0x10", "default_node_id = 0x10\nboot_ms = -1"),
+        "node: boot_ms -1 outside 0..",
+    )
+
+
 def test_refuses_a_control_period_outside_its_range(edit_table: TableEditor) -> None:
     refused(
         edit_table("default_node_id = 0x10", "default_node_id = 0x10\nperiod_us = 50"),

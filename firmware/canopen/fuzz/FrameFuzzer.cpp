@@ -483,6 +483,8 @@ class Harness {
 
     const co::ProcessResult result = node_.process(frame, now_us_);
     ++frames_;
+    check(!result.boot_sync || (control_clock_ && !result.sync), "a boot SYNC off the control clock");
+    if (result.boot_sync) advance_control_time(kCyclePeriodUs);  // the boot's clock, no cycle
     if (result.sync) {
       // The control cycle would run here (after the consumer's control time moved on, as on the
       // platform); the recorder samples what it left on the board.
@@ -522,9 +524,10 @@ class Harness {
       check_response(frame, sent.sdo.front());
     }
     check_lss(frame, sent);
-    // NMT stop (or a heartbeat event with 0x1029 = 2), both resets and losing the node id end
-    // any transfer without an answer.
-    if (node_.state() == co::NmtState::Stopped || sent.boot_ups != 0 || !node_.has_node_id()) {
+    // NMT stop (or a heartbeat event with 0x1029 = 2), both resets (whose boot-up comes the
+    // node's boot time later) and losing the node id end any transfer without an answer.
+    if (node_.state() == co::NmtState::Stopped || sent.boot_ups != 0 || node_.booting() ||
+        !node_.has_node_id()) {
       sdo_.open = SdoModel::Open::None;
     }
     check_counters();

@@ -311,7 +311,9 @@ int main() {
     const std::uint32_t woke_at = now_us();
     co::CanFrame frame;
     while (g_can->port().receive(frame) == co::ReceiveResult::Received) {
-      if (node.process(frame, woke_at).sync) {
+      const co::ProcessResult result = node.process(frame, woke_at);
+      if (result.boot_sync) node.advance_control_time(g_boot.period_us);  // booting: its clock only
+      if (result.sync) {
         if (g_boot.lockstep) {
           node.advance_control_time(g_boot.period_us);
           run_cycle(1);

@@ -478,13 +478,35 @@ class Rig(CycleRunner):
         self.driver.send_frame(cob_id, data)
 
     def nmt(self, command: NmtCommand) -> None:
-        """Send an NMT command; after a reset, wait (bounded) for the boot-up."""
-        self.node.nmt(command, boot_timeout_s=self.boot_timeout_s)
+        """Send an NMT command; after a reset, wait (bounded) for the boot-up. In lockstep the
+        node counts its boot time (the table's [node] boot_ms) in control cycles: the rig runs
+        exactly those cycles (the node not operational, the plant stepping), then waits for
+        the boot-up the last one's SYNC brought, so the cycle after a reset is the same in
+        every run."""
+        self.node.nmt(command, boot_timeout_s=self.boot_timeout_s, while_booting=self._run_boot)
+        self.follow_nmt(command)
+
+    def follow_nmt(self, command: NmtCommand) -> None:
+        """The node's NMT state changed by `command` (the rig's, or another master's sent
+        between two cycles, whose boot-up after a reset that master waits for): the driver
+        expects the TPDOs of that state from the next SYNC, the observers hear of it."""
         self.driver.node_entered(command.resulting_state)
         for observer in self.observers:
             observer.on_nmt(
                 command.resulting_state, self.t, cycle=self.cycle, source=f"command {command.name}"
             )
+
+    @property
+    def boot_cycles(self) -> int:
+        """The cycles a lockstep node's boot after an NMT reset spans (its boot-up comes with
+        the last one's SYNC); 0 in real time, where the node boots on the wall clock."""
+        if not isinstance(self.driver, LockstepDriver):
+            return 0
+        return cycles_for(self.table.board.node.boot_ms / 1e3, self.driver.period_us)
+
+    def _run_boot(self) -> None:
+        self.driver.node_entered(NmtState.INITIALISING)  # no TPDO until it is started again
+        self.run(cycles=self.boot_cycles)
 
     @property
     def nmt_state(self) -> NmtState | None:

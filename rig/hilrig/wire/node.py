@@ -393,11 +393,22 @@ class BoardNode:
                 f"SDO answer ({error}); is the firmware running on this bus with this node id?"
             ) from error
 
-    def nmt(self, command: NmtCommand, *, boot_timeout_s: float = 2.0) -> None:
-        """Send an NMT command; after a reset, return once the node's boot-up arrived."""
+    def nmt(
+        self,
+        command: NmtCommand,
+        *,
+        boot_timeout_s: float = 2.0,
+        while_booting: Callable[[], object] | None = None,
+    ) -> None:
+        """Send an NMT command; after a reset, return once the node's boot-up arrived (it comes
+        the node's boot time later, the table's [node] boot_ms). `while_booting`, after a reset:
+        called once the command is out, before the wait, e.g. to run the SYNC cycles of a
+        lockstep node, which counts its boot time in control cycles."""
         resetting = command in (NmtCommand.RESET_NODE, NmtCommand.RESET_COMMUNICATION)
         self._booted.clear()
         self.remote.nmt.send_command(int(command))
+        if resetting and while_booting is not None:
+            while_booting()
         if resetting and not self._booted.wait(boot_timeout_s):
             raise NodeSilentError(
                 f"node 0x{self.node_id:02X}: no boot-up within {boot_timeout_s} s after NMT {command.name}"

@@ -381,6 +381,7 @@ int run(const Options& options, const BoardInfo& info, BoardSlot& slot, std::str
         std::fprintf(stderr, "%s: reset node: the application did not start again\n", g_program.c_str());
         return kExitStartupFailure;
       }
+      if (result.boot_sync) node.advance_control_time(options.period_us);  // booting: its clock only
       if (result.sync) {
         if (options.mode == Mode::Lockstep) {
           node.advance_control_time(options.period_us);  // a lost heartbeat reaches this cycle
