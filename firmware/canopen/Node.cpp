@@ -479,10 +479,10 @@ ParameterLoad Node::load_stored_parameters() {
   }
   for (std::size_t i = 0; i < count; ++i) {
     const StoredValue stored = parameter_image::entry(image, i);
-    const auto field = tables::field_at(stored.index);
+    const auto field = tables::field_at(stored.index, stored.sub);
     // Entries of fields this firmware no longer stores are skipped, as are values outside
     // today's range: the default stays, which is safer than a clamped value.
-    if (!field || stored.sub != 0 || !board::info(*field).stored) continue;
+    if (!field || !board::info(*field).stored) continue;
     (void)write_field(*field, std::bit_cast<float>(stored.raw));
   }
   return ParameterLoad::Loaded;
@@ -601,7 +601,7 @@ std::size_t Node::collect_application(std::span<StoredValue> out) {
   for (std::size_t i = 0; i < board::kFieldCount && n < out.size(); ++i) {
     const board::FieldInfo& field = board::kFields[i];
     if (!field.stored) continue;
-    out[n++] = {field.index, 0,
+    out[n++] = {field.index, field.subindex,
                 std::bit_cast<std::uint32_t>(fields_.read(static_cast<board::FieldId>(i)))};
   }
   return n;

@@ -269,7 +269,8 @@ class Node final {
   std::uint8_t lost_heartbeats() const { return heartbeat_consumer_.lost_entries(); }
 
  private:
-  enum class Target : std::uint8_t { Communication, Field, HilInput, HilOutput, Recorder, Program };
+  // FieldArrayCount: sub 0 of an ARRAY of board fields, its value (the member count) in `id`.
+  enum class Target : std::uint8_t { Communication, Field, HilInput, HilOutput, Recorder, Program, FieldArrayCount };
   // One (index, sub-index) of the object dictionary as the SDO server and PDOs see it.
   struct Entry {
     board::DataType type = board::DataType::Unsigned32;

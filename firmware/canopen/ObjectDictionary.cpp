@@ -1,5 +1,6 @@
 // The object dictionary as the SDO server sees it: communication objects (0x1000..0x1FFF)
-// implemented natively, then every board field (REAL32 at index/0) and the HIL I/O objects.
+// implemented natively, then every board field (at index/0, or sub 1..n of an ARRAY of fields) and
+// the HIL I/O objects.
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -129,6 +130,18 @@ SdoAbort Node::find_entry(std::uint16_t index, std::uint8_t sub, Entry& entry) c
       return found;
     }
     entry = {type, tables::size_of(type), true, writable, Target::Recorder, 0};
+    return SdoAbort::None;
+  }
+  if (const board::FieldArrayInfo* array = tables::field_array_at(index)) {
+    if (sub == 0) {  // the number of members: constant, so served like a communication object's
+      entry = {DataType::Unsigned8, 1, true, false, Target::FieldArrayCount, array->count};
+      return SdoAbort::None;
+    }
+    const auto member = tables::field_at(index, sub);
+    if (!member) return SdoAbort::SubIndexDoesNotExist;
+    const board::FieldInfo& info = board::info(*member);
+    entry = {info.type, tables::size_of(info.type), true, info.access == board::Access::ReadWrite,
+             Target::Field, static_cast<std::uint8_t>(*member)};
     return SdoAbort::None;
   }
   if (const auto field = tables::field_at(index)) {
@@ -271,6 +284,7 @@ SdoAbort Node::read(std::uint16_t index, std::uint8_t sub, std::span<std::uint8_
     case Target::HilOutput:
       raw = static_cast<std::uint32_t>(hil_.read_output(static_cast<board::HilOutputId>(entry.id)));
       break;
+    case Target::FieldArrayCount: raw = entry.id; break;
     case Target::Program:
       raw = program_.read(index, sub);
       break;
@@ -331,7 +345,8 @@ SdoAbort Node::write(std::uint16_t index, std::uint8_t sub, std::span<const std:
                          tables::field_value(board::info(static_cast<board::FieldId>(entry.id)), raw));
     case Target::HilInput:
       return write_hil_input(static_cast<board::HilInputId>(entry.id), raw);
-    case Target::HilOutput: return SdoAbort::ReadOnly;
+    case Target::HilOutput:
+    case Target::FieldArrayCount: return SdoAbort::ReadOnly;
     case Target::Recorder: return recorder_->write(index, sub, raw);
     case Target::Program: return write_program_control(raw);  // 0x1F50 is streamed, never here
     case Target::Communication: break;

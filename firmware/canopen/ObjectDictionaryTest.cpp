@@ -198,5 +198,29 @@ TEST_F(ObjectDictionaryTest, EveryObjectReadsItsEdsDefaultAfterResetNode) {
   expect_every_object_at_its_eds_default("after reset node");
 }
 
+
+TEST_F(ObjectDictionaryTest, AnArrayOfFieldsServesItsCountAndEachMemberBySubIndex) {
+  ASSERT_FALSE(board::kFieldArrays.empty());
+  for (const board::FieldArrayInfo& array : board::kFieldArrays) {
+    EXPECT_EQ(upload(array.index, 0), array.count) << array.name;
+    EXPECT_EQ(download(array.index, 0, array.count, 1), SdoAbort::ReadOnly) << array.name;
+    for (std::uint8_t sub = 1; sub <= array.count; ++sub) {
+      const auto member = tables::field_at(array.index, sub);
+      ASSERT_TRUE(member.has_value()) << array.name << " sub " << int{sub};
+      const board::FieldInfo& field = board::info(*member);
+      EXPECT_EQ(upload(array.index, sub), tables::field_raw(field, field.default_value)) << field.name;
+      const float value = field.max;  // every member is rw here: a parameter
+      ASSERT_EQ(download(array.index, sub, tables::field_raw(field, value), tables::size_of(field.type)),
+                SdoAbort::None) << field.name;
+      EXPECT_EQ(fields.read(*member), value) << field.name;
+      EXPECT_EQ(upload(array.index, sub), tables::field_raw(field, value)) << field.name;
+    }
+    const auto past = static_cast<std::uint8_t>(array.count + 1);
+    EXPECT_EQ(upload_abort(array.index, past), SdoAbort::SubIndexDoesNotExist) << array.name;
+    EXPECT_EQ(to_code(SdoAbort::SubIndexDoesNotExist), 0x0609'0011u);
+    EXPECT_EQ(download(array.index, past, 0, 4), SdoAbort::SubIndexDoesNotExist) << array.name;
+  }
+}
+
 }  // namespace
 }  // namespace co::test

@@ -82,11 +82,20 @@ inline float field_value(const board::FieldInfo& field, std::uint32_t raw) {
   return static_cast<float>(integer_value(field.type, raw));
 }
 
-constexpr std::optional<board::FieldId> field_at(std::uint16_t index) {
+// The field at (index, sub): sub 0 for a plain object, 1..n for an ARRAY's member.
+constexpr std::optional<board::FieldId> field_at(std::uint16_t index, std::uint8_t sub = 0) {
   for (std::size_t i = 0; i < board::kFieldCount; ++i) {
-    if (board::kFields[i].index == index) return static_cast<board::FieldId>(i);
+    if (board::kFields[i].index == index && board::kFields[i].subindex == sub) return static_cast<board::FieldId>(i);
   }
   return std::nullopt;
+}
+
+// The ARRAY of board fields at `index`, if the object is one.
+constexpr const board::FieldArrayInfo* field_array_at(std::uint16_t index) {
+  for (const board::FieldArrayInfo& array : board::kFieldArrays) {
+    if (array.index == index) return &array;
+  }
+  return nullptr;
 }
 
 constexpr std::optional<board::HilInputId> hil_input_at(std::uint16_t index) {

@@ -46,7 +46,8 @@ SdoAbort Node::resolve_mapping(std::uint32_t entry, bool is_rpdo, MappedObject& 
     case Target::HilOutput: mappable = !is_rpdo; break;
     case Target::Communication: mappable = !is_rpdo && index == 0x1001; break;  // error register
     case Target::Recorder:  // settings and a recording: SDO only
-    case Target::Program: break;  // program download (CiA 302-3): SDO only
+    case Target::Program:          // program download (CiA 302-3): SDO only
+    case Target::FieldArrayCount: break;  // a constant
   }
   // Whole objects only: the bit length must be the object's.
   if (!mappable || bits != object.size * 8u) return SdoAbort::ObjectCannotBeMapped;

@@ -51,7 +51,7 @@ TEST_F(StoreRestoreTest, StoreAllWritesStoredFieldsAndCommunicationParameters) {
       continue;
     }
     ++fields_stored;
-    const auto found_field = tables::field_at(entry.index);
+    const auto found_field = tables::field_at(entry.index, entry.sub);
     ASSERT_TRUE(found_field.has_value());
     const FieldId field = *found_field;
     ASSERT_TRUE(board::info(field).stored) << "index 0x" << std::hex << entry.index;

@@ -60,7 +60,7 @@ def cpp_float(value: float) -> str:
 def _field_initializer(field: Field) -> str:
     return (
         f"    {{.name = {cpp_string(field.name)}, .index = 0x{field.index:04X}, "
-        f".unit = {cpp_string(field.unit)},\n"
+        f".subindex = {field.subindex}, .unit = {cpp_string(field.unit)},\n"
         f"     .kind = Kind::{field.kind.cpp_name}, .access = Access::{field.access.cpp_name},\n"
         f"     .min = {cpp_float(field.min)}, .max = {cpp_float(field.max)}, "
         f".default_value = {cpp_float(field.default)}, "
@@ -537,7 +537,11 @@ def generate_header(table: BoardTable) -> str:
     node = table.node
     field_ids = _enumerators(
         [f.name for f in table.fields],
-        [f"0x{f.index:04X} [{f.unit}] {f.kind.value}, {f.access.value}" for f in table.fields],
+        [
+            f"0x{f.index:04X}{f' sub {f.subindex}' if f.subindex else ''} [{f.unit}] "
+            f"{f.kind.value}, {f.access.value}"
+            for f in table.fields
+        ],
     )
     input_ids = _enumerators(
         [io.name for io in table.hil_inputs],
@@ -548,6 +552,10 @@ def generate_header(table: BoardTable) -> str:
         [f"0x{io.index:04X} {io.data_type.toml_name} [{io.unit}]" for io in table.hil_outputs],
     )
     fields = "\n".join(_field_initializer(f) for f in table.fields)
+    arrays = "\n".join(
+        f"    {{.name = {cpp_string(a.name)}, .index = 0x{a.index:04X}, .count = {a.count}}},"
+        for a in table.arrays
+    )
     inputs = "\n".join(_io_initializer(io) for io in table.hil_inputs)
     outputs = "\n".join(_io_initializer(io) for io in table.hil_outputs)
     rpdos = "\n".join(_pdo_initializer(p) for p in table.rpdos)
@@ -570,7 +578,8 @@ def generate_header(table: BoardTable) -> str:
 namespace board {{
 
 // ---------------------------------------------------------------------------
-// Board fields. Every field is a REAL32 object at (index, sub-index 0).
+// Board fields. A field is a REAL32 object at (index, sub-index 0), a profile object's integer
+// type in the profile range, or sub-index 1..n of an ARRAY (kFieldArrays).
 // ---------------------------------------------------------------------------
 enum class FieldId : std::uint16_t {{
 {field_ids}
@@ -588,7 +597,8 @@ enum class DataType : std::uint16_t {{
 
 struct FieldInfo {{
   std::string_view name;        // snake_case, as in board.toml
-  std::uint16_t index;          // object index (sub-index 0): 0x2000..0x5FFF, a profile's 0x6000..
+  std::uint16_t index;          // object index: 0x2000..0x5FFF, a profile's 0x6000..
+  std::uint8_t subindex;        // 0, or 1..n in the ARRAY at `index` (kFieldArrays)
   std::string_view unit;        // "rad", "rad/s", "N*m", "degC", "ohm", "1" ...
   Kind kind;
   Access access;
@@ -603,6 +613,18 @@ inline constexpr std::array<FieldInfo, kFieldCount> kFields = {{{{
 }}}};
 
 constexpr const FieldInfo& info(FieldId id) {{ return kFields[static_cast<std::size_t>(id)]; }}
+
+// CiA 301 ARRAYs of board fields ([[array]] in board.toml): sub 0 the number of members
+// (UNSIGNED8, read-only), sub 1..count the fields at `index` with that sub-index.
+struct FieldArrayInfo {{
+  std::string_view name;
+  std::uint16_t index;
+  std::uint8_t count;           // the highest sub-index
+}};
+inline constexpr std::size_t kFieldArrayCount = {len(table.arrays)};
+inline constexpr std::array<FieldArrayInfo, kFieldArrayCount> kFieldArrays = {{{{
+{arrays}
+}}}};
 
 // ---------------------------------------------------------------------------
 // Hardware-in-the-loop I/O objects: NOT board fields; driver registers in the

@@ -105,7 +105,7 @@ def _field_variable(field: Field) -> ODVariable:
     variable = _variable(
         field.name,
         field.index,
-        0,
+        field.subindex,
         field.data_type,
         field.access.value,
         field.default if field.data_type is DataType.REAL32 else int(field.default),
@@ -115,6 +115,8 @@ def _field_variable(field: Field) -> ODVariable:
         variable.min, variable.max = field.min, field.max
     else:
         variable.min, variable.max = int(field.min), int(field.max)
+        if field.default < 0:  # the exporter would write "0x-..." (hex of a negative number)
+            variable.default_raw = str(int(field.default))
     variable.unit = field.unit
     variable.description = field.description
     variable.storage_location = STORAGE_PERSISTENT if field.stored else STORAGE_VOLATILE
@@ -483,7 +485,20 @@ def build_object_dictionary(table: BoardTable) -> ObjectDictionary:
 
     _add_communication_objects(od, table)
     for field in table.fields:
-        od.add_object(_field_variable(field))
+        if field.subindex == 0:
+            od.add_object(_field_variable(field))
+    for field_array in table.arrays:
+        members = [_field_variable(table.field(name)) for name in field_array.members]
+        array = _array(
+            field_array.name,
+            field_array.index,
+            "Highest sub-index supported",
+            field_array.count,
+            "ro",
+            members,
+        )
+        array.description = field_array.description
+        od.add_object(array)
     for io_object in (*table.hil_inputs, *table.hil_outputs):
         od.add_object(_io_variable(io_object))
     if table.recorder is not None:

@@ -89,6 +89,7 @@ _TOP_LEVEL_KEYS = frozenset(
         "tpdo",
         "pdo_profile",
         "recorder",
+        "array",
     }
 )
 # The board's identity: no default (boardproto.standard has the other [node] keys').
@@ -108,7 +109,8 @@ _FIELD_KEYS = frozenset({"name", "index", "unit", "kind", "min", "max", "descrip
 # Optional on a field: access follows from its kind (the only one the loader accepts), a field is
 # not stored and starts at 0 (or its min, when 0 is outside its range) unless it says otherwise;
 # `stream = true` puts a command field in the setpoint stream a master sends every cycle.
-_FIELD_OPTIONAL_KEYS = frozenset({"access", "default", "stored", "stream", "type"})
+# `subindex` n (1..) makes the field the n-th member of the [[array]] at its index; 0 is plain.
+_FIELD_OPTIONAL_KEYS = frozenset({"access", "default", "stored", "stream", "type", "subindex"})
 _HIL_IO_KEYS = frozenset({"name", "index", "type", "min", "max", "unit", "description"})
 _VALUES_KEY = frozenset({"values"})  # optional on fields and HIL I/O: the enum or bitset carried
 _NAMED_SET_KEYS = frozenset({"name", "description"})
@@ -124,6 +126,7 @@ _PDO_SLOT_KEYS = frozenset({"rpdo_slots", "tpdo_slots"})
 _RECORDER_KEYS = frozenset({"index", "channels", "buffer_values"})
 # Sub-indices 1..n of the channel array (UNSIGNED8 sub-index, the DOMAIN's UNSIGNED8 count).
 MAX_RECORDER_CHANNELS = 254
+MAX_ARRAY_MEMBERS = 254  # an [[array]]'s sub-indices 1..n (UNSIGNED8 sub 0)
 # The sample memory's REAL32 values: 16 MiB at most, so sizes and offsets stay far inside 32 bits.
 MAX_RECORDER_VALUES = 1 << 22
 # Recorder objects carry enum values in UNSIGNED8 objects.
@@ -319,6 +322,7 @@ def _load_field(source: Path, position: int, data: Any) -> Field:
         values=entry.optional_text("values"),
         stream=stream,
         data_type=data_type,
+        subindex=entry.integer("subindex", 0, MAX_ARRAY_MEMBERS, default=0),
     )
 
 
@@ -493,15 +497,17 @@ def _unique_names(source: Path, what: str, items: list[Any]) -> None:
 
 def _check_unique(source: Path, entries: list[ObjectEntry]) -> None:
     by_name: dict[str, ObjectEntry] = {}
-    by_index: dict[int, ObjectEntry] = {}
+    by_index: dict[tuple[int, int], ObjectEntry] = {}
     for entry in entries:
         what = "field" if isinstance(entry, Field) else f"hil_{entry.direction.value}"
         if entry.name in by_name:
             raise TableError(f"{source}: {what} {entry.name!r}: duplicate name")
-        if entry.index in by_index:
+        at = (entry.index, entry.subindex)
+        if at in by_index:
+            sub = f" sub {entry.subindex}" if entry.subindex else ""
             raise TableError(
-                f"{source}: {what} {entry.name!r}: index 0x{entry.index:04X} "
-                f"already used by {by_index[entry.index].name!r}"
+                f"{source}: {what} {entry.name!r}: index 0x{entry.index:04X}{sub} "
+                f"already used by {by_index[at].name!r}"
             )
         in_profile = isinstance(entry, Field) and entry.index in PROFILE_RANGE
         if entry.index not in MANUFACTURER_RANGE and not in_profile:
@@ -510,7 +516,7 @@ def _check_unique(source: Path, entries: list[ObjectEntry]) -> None:
                 "outside the manufacturer range 0x2000..0x5FFF"
             )
         by_name[entry.name] = entry
-        by_index[entry.index] = entry
+        by_index[at] = entry
 
 
 def _load_recorder(
@@ -708,6 +714,9 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
     ]
     all_entries: list[ObjectEntry] = [*fields, *inputs, *outputs]
     _check_unique(source, all_entries)
+    from boardproto.arrays import load_arrays  # built on this module's helpers
+
+    arrays = load_arrays(source, _array_of_tables(source, document, "array"), all_entries)
     entries_by_name = {e.name: e for e in all_entries}
 
     emcy = [_load_emcy(source, i, d) for i, d in enumerate(_array_of_tables(source, document, "emcy"))]
@@ -768,6 +777,7 @@ def parse_table(source: Path, document: Mapping[str, Any]) -> BoardTable:
         emcy_codes=tuple(emcy),
         recorder=recorder,
         pdo_profiles=profiles,
+        arrays=arrays,
     )
 
 

@@ -142,7 +142,8 @@ HIL_IO_TYPES = (
 
 @dataclass(frozen=True)
 class Field:
-    """A board field: an object at (index, 0), REAL32 in the manufacturer range.
+    """A board field: an object at (index, 0), REAL32 in the manufacturer range; a member of an
+    [[array]] sits at (index, subindex 1..n) instead.
 
     A field of a device profile (CiA 402's controlword, targets, actuals at 0x6000..) travels as
     the integer type the profile gives it (`data_type`); the board holds its value as a float all
@@ -163,12 +164,29 @@ class Field:
     stream: bool = False
     """In the setpoint stream: a master sends it every cycle (a command's watchdog may watch it)."""
     data_type: DataType = DataType.REAL32  # on the bus; an integer type for a profile object
-
-    subindex = 0
+    subindex: int = 0
+    """0 for a plain object; 1..n for the n-th member of the [[array]] at its index."""
 
     @property
     def bits(self) -> int:
         return self.data_type.bits
+
+
+@dataclass(frozen=True)
+class FieldArray:
+    """A CiA 301 ARRAY of board fields at one index ([[array]] in board.toml, e.g. CiA 402's
+    0x607D software position limit): sub 0 the number of members (UNSIGNED8, read-only), sub
+    1..n the fields whose `subindex` is 1..n, all of one data type."""
+
+    name: str
+    index: int
+    description: str
+    members: tuple[str, ...]  # the member fields' names, sub-index 1..n in order
+
+    @property
+    def count(self) -> int:
+        """Sub 0's value: the highest sub-index."""
+        return len(self.members)
 
 
 class IoDirection(enum.StrEnum):
@@ -581,6 +599,7 @@ class BoardTable:
     emcy_codes: tuple[EmcyCode, ...] = ()
     recorder: Recorder | None = None
     pdo_profiles: tuple[PdoProfile, ...] = ()  # the first is FULL_PDO_PROFILE: rpdos/tpdos above
+    arrays: tuple[FieldArray, ...] = ()  # the [[array]] objects, by index; members are in `fields`
 
     def pdo_profile(self, name: str) -> PdoProfile:
         """The [[pdo_profile]] `name`; UnknownNameError listing the close ones."""
@@ -600,8 +619,8 @@ class BoardTable:
         return {e.name: e for e in self.entries}
 
     @cached_property
-    def _entries_by_index(self) -> dict[int, ObjectEntry]:
-        return {e.index: e for e in self.entries}
+    def _entries_by_index(self) -> dict[tuple[int, int], ObjectEntry]:
+        return {(e.index, e.subindex): e for e in self.entries}
 
     @property
     def entries(self) -> tuple[ObjectEntry, ...]:
@@ -635,11 +654,16 @@ class BoardTable:
         """A board field or HIL I/O object by name."""
         return _lookup("board field or HIL I/O object", self._entries_by_name, name)
 
-    def entry_at(self, index: int) -> ObjectEntry:
+    def entry_at(self, index: int, subindex: int = 0) -> ObjectEntry:
+        """The field or HIL I/O object at (index, subindex): an [[array]]'s member at 1..n."""
         try:
-            return self._entries_by_index[index]
+            return self._entries_by_index[index, subindex]
         except KeyError:
-            raise UnknownNameError(f"no board object at index 0x{index:04X}") from None
+            raise UnknownNameError(f"no board object at 0x{index:04X} sub {subindex}") from None
+
+    def array_at(self, index: int) -> FieldArray | None:
+        """The [[array]] at `index`, or None where the object is a plain one (or none)."""
+        return next((a for a in self.arrays if a.index == index), None)
 
     def fields_of_kind(self, kind: Kind) -> tuple[Field, ...]:
         return tuple(f for f in self.fields if f.kind is kind)

@@ -3,6 +3,7 @@
 // the parsed board.toml.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdlib>
@@ -13,6 +14,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "board/fields.hpp"
@@ -101,7 +103,7 @@ TEST(FieldTable, InfoLooksUpByFieldId) {
 }
 
 TEST(FieldTable, IndicesAreUniqueAndInTheManufacturerRange) {
-  std::set<std::uint16_t> seen;
+  std::set<std::pair<std::uint16_t, std::uint8_t>> seen;
   for (const auto& field : board::kFields) {
     // A board field (REAL32) in the manufacturer range; a device profile's object (CiA 402:
     // an integer type) in the profile range.
@@ -112,10 +114,14 @@ TEST(FieldTable, IndicesAreUniqueAndInTheManufacturerRange) {
       EXPECT_GE(field.index, 0x6000U) << field.name;
       EXPECT_LE(field.index, 0x9FFFU) << field.name;
     }
-    EXPECT_TRUE(seen.insert(field.index).second) << "duplicate index of " << field.name;
+    EXPECT_TRUE(seen.insert({field.index, field.subindex}).second) << "duplicate index of " << field.name;
+    // A member of an ARRAY (sub 1..n) shares its index with the others, never with a plain object.
+    const bool in_array = std::any_of(board::kFieldArrays.begin(), board::kFieldArrays.end(),
+                                      [&](const board::FieldArrayInfo& a) { return a.index == field.index; });
+    EXPECT_EQ(in_array, field.subindex != 0) << field.name;
   }
-  for (const auto& io : board::kHilInputs) EXPECT_TRUE(seen.insert(io.index).second) << io.name;
-  for (const auto& io : board::kHilOutputs) EXPECT_TRUE(seen.insert(io.index).second) << io.name;
+  for (const auto& io : board::kHilInputs) EXPECT_TRUE(seen.insert({io.index, 0}).second) << io.name;
+  for (const auto& io : board::kHilOutputs) EXPECT_TRUE(seen.insert({io.index, 0}).second) << io.name;
 }
 
 TEST(FieldTable, DefaultPdosFitInOneFrame) {

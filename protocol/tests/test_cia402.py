@@ -51,7 +51,7 @@ def test_canopen_types_every_402_object_of_the_eds(tmp_path: Path) -> None:
     profile = [f for f in table.fields if f.index in PROFILE_RANGE]
     assert {f.index for f in profile} >= {0x6040, 0x6041, 0x6060, 0x6061, 0x6064, 0x607A, 0x60FF, 0x6502}
     for field in profile:
-        assert od[field.index].data_type == int(field.data_type), field.name
+        assert od.get_variable(field.index, field.subindex).data_type == int(field.data_type), field.name
     assert od[0x6040].data_type == canopen.objectdictionary.UNSIGNED16
     assert od[0x6060].data_type == canopen.objectdictionary.INTEGER8
     assert od[0x607A].data_type == canopen.objectdictionary.INTEGER32

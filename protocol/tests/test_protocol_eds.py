@@ -51,9 +51,11 @@ def test_every_field_round_trips(
     od: canopen.ObjectDictionary, table: BoardTable, eds_sections: configparser.RawConfigParser
 ) -> None:
     for field in table.fields:
-        variable = od[field.name]
+        # A plain field is the object of its name; an [[array]]'s member is a sub of the array.
+        variable = od[field.name] if field.subindex == 0 else od.get_variable(field.index, field.subindex)
         assert isinstance(variable, ODVariable), field.name
-        assert (variable.index, variable.subindex) == (field.index, 0), field.name
+        assert (variable.index, variable.subindex) == (field.index, field.subindex), field.name
+        assert variable.name == field.name
         # A board field is REAL32 on the bus; a CiA 402 object has its profile's integer type.
         assert variable.data_type == field.data_type.value, field.name
         assert variable.access_type == field.access.value, field.name
@@ -64,7 +66,7 @@ def test_every_field_round_trips(
         assert variable.storage_location == ("PERSIST" if field.stored else "RAM"), field.name
         # canopen 2.4.1 parses LowLimit/HighLimit as integers only, so REAL32 limits are
         # checked in the EDS text itself.
-        section = eds_sections[f"{field.index:04X}"]
+        section = eds_sections[f"{field.index:04X}" + (f"sub{field.subindex}" if field.subindex else "")]
         if field.data_type is not DataType.REAL32:
             assert (variable.min, variable.max) == (field.min, field.max), field.name
             continue

@@ -90,6 +90,8 @@ CONTRACT_FIELDS = {
         "velocity_window",
         "motor_rated_torque",
         "home_offset",
+        "min_position_limit",
+        "max_position_limit",
         "max_profile_velocity",
         "max_motor_speed",
         "profile_velocity",
@@ -97,6 +99,8 @@ CONTRACT_FIELDS = {
         "profile_deceleration",
         "quick_stop_deceleration",
         "homing_method",
+        "speed_during_search_for_switch",
+        "speed_during_search_for_zero",
     ],
 }
 

@@ -42,7 +42,9 @@ class RigTable:
     def __init__(self, board: BoardTable) -> None:
         self.board = board
         self._entries: dict[str, ObjectEntry] = {entry.name: entry for entry in board.entries}
-        self._by_index: dict[int, ObjectEntry] = {entry.index: entry for entry in board.entries}
+        self._by_index: dict[tuple[int, int], ObjectEntry] = {
+            (entry.index, entry.subindex): entry for entry in board.entries
+        }
 
     @classmethod
     def load(cls, path: str | Path = DEFAULT_TABLE_PATH) -> RigTable:
@@ -82,8 +84,9 @@ class RigTable:
             raise FieldNameError(f"{name!r} is a HIL I/O object, not a board field")
         return entry
 
-    def entry_at(self, index: int) -> ObjectEntry | None:
-        return self._by_index.get(index)
+    def entry_at(self, index: int, subindex: int = 0) -> ObjectEntry | None:
+        """The field or HIL I/O object at (index, subindex): an [[array]]'s members at 1..n."""
+        return self._by_index.get((index, subindex))
 
     def check(self, names: Iterable[str]) -> None:
         """Raise FieldNameError for the first unknown name (scenarios call this at start)."""

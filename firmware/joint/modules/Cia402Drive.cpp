@@ -85,6 +85,8 @@ Cia402Drive::Cia402Drive(core::MessageBoard& board, float dt_s)
                         FieldId::motor_rated_torque, FieldId::home_offset, FieldId::max_profile_velocity, FieldId::max_motor_speed,
                         FieldId::profile_velocity, FieldId::profile_acceleration, FieldId::profile_deceleration,
                         FieldId::quick_stop_deceleration, FieldId::homing_method, FieldId::control_mode,
+                        FieldId::min_position_limit, FieldId::max_position_limit,
+                        FieldId::speed_during_search_for_switch,
                         FieldId::velocity_setpoint, FieldId::torque_setpoint, FieldId::position_setpoint,
                         FieldId::motor_position, FieldId::motor_velocity, FieldId::gear_ratio, FieldId::joint_torque},
               .reads_last_cycle = {FieldId::safe_state}}),
@@ -101,6 +103,18 @@ float Cia402Drive::ramp(float from, float to, float acceleration) const {
 
 float Cia402Drive::mrad_to_gearbox_rad(float mrad) const {
   return static_cast<float>(zero_rad_ + static_cast<double>(mrad - boardGet(FieldId::home_offset)) * kMilli);
+}
+
+float Cia402Drive::limit_position(float gearbox_rad) {
+  const float low = boardGet(FieldId::min_position_limit);
+  const float high = boardGet(FieldId::max_position_limit);
+  if (low > high) {
+    position_limited_ = false;
+    return gearbox_rad;
+  }
+  const float limited = std::clamp(gearbox_rad, mrad_to_gearbox_rad(low), mrad_to_gearbox_rad(high));
+  position_limited_ = limited != gearbox_rad;
+  return limited;
 }
 
 float Cia402Drive::rated_torque_nm() const { return boardGet(FieldId::motor_rated_torque) * kMilli; }
@@ -156,6 +170,7 @@ void Cia402Drive::select_mode(float requested, float gearbox_rad, float gearbox_
   position_rad_ = gearbox_rad;
   pp_target_rad_ = gearbox_rad;
   pp_moving_ = false;
+  position_limited_ = false;
   homing_ = Homing::Idle;
 }
 
@@ -209,14 +224,14 @@ Cia402Drive::Command Cia402Drive::run_mode(std::uint16_t controlword, bool risin
     case Cia402Mode::CyclicSynchronousTorque:
       return {ControlMode::Torque, 0.0F, halted_ ? 0.0F : target_torque, 0.0F};
     case Cia402Mode::CyclicSynchronousPosition:
-      if (!halted_) position_rad_ = mrad_to_gearbox_rad(boardGet(FieldId::target_position));
+      if (!halted_) position_rad_ = limit_position(mrad_to_gearbox_rad(boardGet(FieldId::target_position)));
       return {ControlMode::Position, 0.0F, 0.0F, position_rad_};
     case Cia402Mode::ProfilePosition: {
       if (!has(controlword, ControlBit::NewSetPoint)) set_point_acknowledged_ = false;
       if (rising_set_point && !halted_) {
         const float target = boardGet(FieldId::target_position);
-        pp_target_rad_ = has(controlword, ControlBit::Relative) ? pp_target_rad_ + target * kMilli
-                                                                : mrad_to_gearbox_rad(target);
+        pp_target_rad_ = limit_position(has(controlword, ControlBit::Relative) ? pp_target_rad_ + target * kMilli
+                                                                               : mrad_to_gearbox_rad(target));
         pp_moving_ = true;
         set_point_acknowledged_ = true;
       }
@@ -249,7 +264,7 @@ Cia402Drive::Command Cia402Drive::run_mode(std::uint16_t controlword, bool risin
       }
       if (homing_ == Homing::Running && halted_) homing_ = Homing::Interrupted;
       if (homing_ == Homing::Running) {
-        const float speed = std::min(boardGet(FieldId::profile_velocity) * kMilli, max_velocity);
+        const float speed = std::min(boardGet(FieldId::speed_during_search_for_switch) * kMilli, max_velocity);
         velocity_rad_s_ = ramp(velocity_rad_s_, -speed, acceleration);
         position_rad_ += velocity_rad_s_ * dt_s_;
         if (std::fabs(position_rad_ - gearbox_rad) > boardGet(FieldId::following_error_window) * kMilli) {
@@ -345,6 +360,10 @@ void Cia402Drive::update() {
   if (state_ == State::OperationEnabled && velocity_mode &&
       std::fabs(boardGet(FieldId::target_velocity) * kMilli) > velocity_limit()) {
     status |= cia402::bit(StatusBit::InternalLimitActive);  // the target is beyond 0x607F or 0x6080
+  }
+  const bool position_mode = mode_ == Cia402Mode::ProfilePosition || mode_ == Cia402Mode::CyclicSynchronousPosition;
+  if (state_ == State::OperationEnabled && position_mode && position_limited_) {
+    status |= cia402::bit(StatusBit::InternalLimitActive);  // the target was clamped to 0x607D
   }
   boardSet(FieldId::statusword, status);
   boardSet(FieldId::modes_of_operation_display, static_cast<float>(static_cast<int>(mode_)));

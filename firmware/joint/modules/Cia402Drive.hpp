@@ -74,6 +74,9 @@ class Cia402Drive final : public core::Module {
   float ramp(float from, float to, float acceleration) const;
   float velocity_limit() const;  // 0x607F and 0x6080, the smaller [rad/s]
   float mrad_to_gearbox_rad(float mrad) const;
+  // A position target clamped to the software position limit (0x607D; a min above the max
+  // leaves it unlimited); notes in position_limited_ whether it was.
+  float limit_position(float gearbox_rad);
   float rated_torque_nm() const;
   std::uint16_t mode_bits(float gearbox_rad, float gearbox_rad_s) const;
 
@@ -88,6 +91,7 @@ class Cia402Drive final : public core::Module {
   float position_rad_ = 0.0F;    // the position demand (profile position, homing, halted csp)
   float pp_target_rad_ = 0.0F;
   bool pp_moving_ = false;
+  bool position_limited_ = false;  // the position mode's target was clamped to 0x607D
   bool set_point_acknowledged_ = false;
   Homing homing_ = Homing::Idle;
 };

@@ -210,5 +210,70 @@ TEST_F(Cia402DriveTest, HomingOnAHardStopEndsWhereTheJointStopsFollowing) {
   EXPECT_EQ(board.get(FieldId::position_actual_value), 0.0F);
 }
 
+
+TEST_F(Cia402DriveTest, AProfilePositionTargetBeyondTheMaxLimitStopsAtIt) {
+  constexpr std::uint16_t kInternalLimit = cia402::bit(cia402::StatusBit::InternalLimitActive);
+  constexpr std::uint16_t kTargetReached = cia402::bit(cia402::StatusBit::TargetReached);
+  ASSERT_EQ(bus.write(FieldId::max_position_limit, 100.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::target_position, 500.0F), core::SetResult::Ok);
+  enable(1.0F);
+  command(kEnableOperation | kStart);
+  int cycles = 0;
+  while (board.get(FieldId::drive_position_reference) < 0.1F && cycles < 10000) {
+    step();
+    ++cycles;
+  }
+  for (int i = 0; i < 100; ++i) step();
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_position_reference), 0.1F);  // 100 mrad, not 500
+  EXPECT_NE(status() & kInternalLimit, 0);
+  // A relative move on from the limit stays at it; one back inside clears the bit.
+  command(kEnableOperation | cia402::bit(cia402::ControlBit::Relative));
+  command(kEnableOperation | cia402::bit(cia402::ControlBit::Relative) | kStart);
+  for (int i = 0; i < 200; ++i) step();
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_position_reference), 0.1F);
+  ASSERT_EQ(bus.write(FieldId::target_position, 50.0F), core::SetResult::Ok);
+  command(kEnableOperation);
+  command(kEnableOperation | kStart);
+  for (int i = 0; i < 500; ++i) step();
+  EXPECT_NEAR(board.get(FieldId::drive_position_reference), 0.05F, 1.0e-6F);
+  EXPECT_EQ(status() & kInternalLimit, 0);
+  sensors.hold(FieldId::motor_position, 0.05F * 50.0F);  // the joint follows (gear ratio 50)
+  step();
+  EXPECT_NE(status() & kTargetReached, 0);
+}
+
+TEST_F(Cia402DriveTest, ACyclicSynchronousPositionTargetIsClampedToTheMinLimit) {
+  constexpr std::uint16_t kInternalLimit = cia402::bit(cia402::StatusBit::InternalLimitActive);
+  ASSERT_EQ(bus.write(FieldId::min_position_limit, -50.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::target_position, -300.0F), core::SetResult::Ok);
+  enable(8.0F);
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_position_reference), -0.05F);
+  EXPECT_NE(status() & kInternalLimit, 0);
+  ASSERT_EQ(bus.write(FieldId::target_position, -20.0F), core::SetResult::Ok);
+  step();
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_position_reference), -0.02F);
+  EXPECT_EQ(status() & kInternalLimit, 0);
+}
+
+TEST_F(Cia402DriveTest, AMinLimitAboveTheMaxLeavesPositionTargetsUnlimited) {
+  ASSERT_EQ(bus.write(FieldId::min_position_limit, 100.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::max_position_limit, -100.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::target_position, -300.0F), core::SetResult::Ok);
+  enable(8.0F);
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_position_reference), -0.3F);
+  EXPECT_EQ(status() & cia402::bit(cia402::StatusBit::InternalLimitActive), 0);
+}
+
+TEST_F(Cia402DriveTest, HomingOnAHardStopSearchesAtTheSpeedForTheSwitch) {
+  ASSERT_EQ(bus.write(FieldId::homing_method, -3.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::speed_during_search_for_switch, 300.0F), core::SetResult::Ok);
+  ASSERT_EQ(bus.write(FieldId::profile_velocity, 4000.0F), core::SetResult::Ok);  // not homing's
+  enable(6.0F);
+  command(kEnableOperation | kStart);
+  for (int i = 0; i < 100; ++i) step();
+  EXPECT_FLOAT_EQ(board.get(FieldId::drive_velocity_reference), -0.3F);
+  EXPECT_EQ(status() & 0x1000, 0);  // still searching
+}
+
 }  // namespace
 }  // namespace joint

@@ -95,6 +95,11 @@ def check_settings(settings: CaptureSettings, table: RigTable) -> list[Field]:
         entry = table.entry(name)  # FieldNameError with close matches
         if not isinstance(entry, Field):
             raise CaptureError(f"{name} is a HIL I/O object: the recorder records board fields")
+        if entry.subindex:
+            raise CaptureError(
+                f"{name} is sub {entry.subindex} of the array at 0x{entry.index:04X}: the recorder names "
+                "its channels by object index and records plain fields only"
+            )
         fields.append(entry)
     if not fields:
         raise CaptureError("no channels: name at least one field")
@@ -117,8 +122,13 @@ def check_settings(settings: CaptureSettings, table: RigTable) -> list[Field]:
     if settings.trigger != "immediate":
         if settings.trigger_field is None:
             raise CaptureError(f"a {settings.trigger} trigger needs a trigger field")
-        if not isinstance(table.entry(settings.trigger_field), Field):
+        watched = table.entry(settings.trigger_field)
+        if not isinstance(watched, Field):
             raise CaptureError(f"{settings.trigger_field} is no board field: a trigger watches a field")
+        if watched.subindex:
+            raise CaptureError(
+                f"{settings.trigger_field} is an array's member: a trigger watches a plain field"
+            )
     if settings.trigger == "flag" and settings.mask == 0:
         raise CaptureError("a flag trigger needs the bits to watch")
     return fields
@@ -224,7 +234,7 @@ class RecorderClient:
         index = self.recorder.index_of(RecorderObject.DATA)
         data = self.node.block_upload(index, 0, f"upload {RecorderObject.DATA.object_name}")
         recording = decode_recording(data)
-        known = {f.index for f in self.table.board.fields}
+        known = {f.index for f in self.table.board.fields if not f.subindex}
         unknown = ", ".join(f"0x{i:04X}" for i in recording.channels if i not in known)
         if unknown:
             raise CaptureError(f"the recording names objects this table has no field at: {unknown}")
@@ -236,7 +246,7 @@ class RecorderClient:
 
 def channel_fields(recording: Recording, table: RigTable) -> list[Field]:
     """The recording's channels as the table's fields."""
-    by_index = {f.index: f for f in table.board.fields}
+    by_index = {f.index: f for f in table.board.fields if not f.subindex}
     return [by_index[index] for index in recording.channels]
 
 

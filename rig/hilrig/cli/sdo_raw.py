@@ -204,8 +204,8 @@ def object_info(index: int, subindex: int, table: RigTable, od: ObjectDictionary
     """The table's name and type first (the one definition of the board's objects), then the
     EDS's (communication objects 0x1000.., and any device's EDS given with --eds)."""
     types = _types_of_data_types()
-    entry = table.entry_at(index)
-    if entry is not None and entry.subindex == subindex:
+    entry = table.entry_at(index, subindex)
+    if entry is not None:
         return ObjectInfo(index, subindex, entry.name, types.get(int(entry.data_type)))
     variable = od.get_variable(index, subindex) if od is not None else None
     if variable is not None:

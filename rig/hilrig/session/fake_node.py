@@ -131,7 +131,7 @@ class FakeJointNode:
                 self._sync_number = 0  # the firmware counts SYNCs from entering operational
 
     def _check_range(self, index: int, subindex: int, od: Any, data: bytes, **_: Any) -> None:
-        entry = self.table.entry_at(index)
+        entry = self.table.entry_at(index, subindex)
         if entry is None:
             return
         value = od.decode_raw(data)

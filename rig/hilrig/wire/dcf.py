@@ -64,13 +64,13 @@ def _variables(od: canopen.ObjectDictionary) -> Iterator[ODVariable]:
 
 def stored_objects(od: canopen.ObjectDictionary, table: RigTable) -> list[ODVariable]:
     """The objects 0x1010 stores, in index order (see the module's docstring)."""
-    stored_fields = {field.index for field in table.board.fields if field.stored}
+    stored_fields = {(field.index, field.subindex) for field in table.board.fields if field.stored}
     chosen = []
     for var in _variables(od):
         if var.index < COMMUNICATION_END:
             if _writable(var) and var.index not in NOT_STORED:
                 chosen.append(var)
-        elif var.index in stored_fields:
+        elif (var.index, var.subindex) in stored_fields:
             chosen.append(var)
     return sorted(chosen, key=lambda var: (var.index, var.subindex))
 

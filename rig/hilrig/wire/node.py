@@ -452,13 +452,13 @@ class BoardNode:
         """Upload a board field or HIL I/O object by name."""
         entry = self.table.entry(name)
         data = self._upload(entry.index, entry.subindex, f"read {name}", entry)
-        return self.remote.object_dictionary[entry.index].decode_raw(data)
+        return self.remote.object_dictionary.get_variable(entry.index, entry.subindex).decode_raw(data)
 
     def write(self, name: str, value: float) -> None:
         """Download a value to a board field or HIL I/O object by name (no range check here:
         the node judges, and its refusal comes back as SdoAbortError in words)."""
         entry = self.table.entry(name)
-        od = self.remote.object_dictionary[entry.index]
+        od = self.remote.object_dictionary.get_variable(entry.index, entry.subindex)
         try:
             data = od.encode_raw(value)
         except struct.error as error:
@@ -481,8 +481,7 @@ class BoardNode:
         )
 
     def _entry_at(self, index: int, subindex: int) -> ObjectEntry | None:
-        entry = self.table.entry_at(index)
-        return entry if entry is not None and entry.subindex == subindex else None
+        return self.table.entry_at(index, subindex)
 
     def block_upload(self, index: int, subindex: int, what: str) -> bytes:
         """Upload by SDO block transfer (CiA 301, with CRC): for large values (a DOMAIN)."""

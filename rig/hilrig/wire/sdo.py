@@ -119,7 +119,7 @@ def explain_abort(code: int, entry: ObjectEntry | None = None) -> str:
 def abort_text(abort: SdoAbortFrame, table: RigTable) -> str:
     """'velocity_kp sub 0: 0x06090031 value too high (max 10.0)': the object by the table's name
     and the code in words with the table's limit."""
-    entry = table.entry_at(abort.index)
+    entry = table.entry_at(abort.index, abort.subindex)
     where = entry.name if entry is not None else f"0x{abort.index:04X}"
     return f"{where} sub {abort.subindex}: {explain_abort(abort.code, entry)}"
 
@@ -507,8 +507,7 @@ class ObjectWords:
         self.od = od
 
     def _entry(self, index: int, subindex: int) -> ObjectEntry | None:
-        entry = self.table.entry_at(index)
-        return entry if entry is not None and entry.subindex == subindex else None
+        return self.table.entry_at(index, subindex)
 
     def _variable(self, index: int, subindex: int) -> canopen.objectdictionary.ODVariable | None:
         if self.od is None:
