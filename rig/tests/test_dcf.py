@@ -49,10 +49,10 @@ def board(network: canopen.Network, node_id: int) -> tuple[canopen.LocalNode, ca
 def test_the_stored_set_is_the_stored_fields_and_the_writable_communication_objects() -> None:
     od = canopen.import_od(str(EDS), SOURCE)
     chosen = {(var.index, var.subindex) for var in stored_objects(od, TABLE)}
-    stored_fields = {(field.index, 0) for field in TABLE.board.fields if field.stored}
+    stored_fields = {(field.index, field.subindex) for field in TABLE.board.fields if field.stored}
     assert stored_fields <= chosen
     assert {(0x1017, 0), (0x1005, 0), (0x1400, 1), (0x1600, 0), (0x1A00, 1)} <= chosen
-    not_stored = {(field.index, 0) for field in TABLE.board.fields if not field.stored}
+    not_stored = {(field.index, field.subindex) for field in TABLE.board.fields if not field.stored}
     assert not chosen & not_stored
     assert not {key for key in chosen if key[0] in (0x1003, 0x1010, 0x1011, 0x1018)}
 

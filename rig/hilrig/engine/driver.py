@@ -28,6 +28,7 @@ from boardproto.cia301 import (
     split_emcy,
     sync_counter,
 )
+from boardproto.table import DataType
 from hilrig.engine.history import (
     History,
     HistoryBlock,
@@ -39,7 +40,7 @@ from hilrig.engine.history import (
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.observe.paths import BUS_EVENTS_PATH
 from hilrig.plants.interface import Plant
-from hilrig.table import EmcyCode
+from hilrig.table import EmcyCode, ObjectEntry
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import (
     Decoder,
@@ -407,7 +408,9 @@ class Driver:
             if pdo in sensor_rpdos:
                 continue
             self._rpdo_layouts[pdo.number] = pdo
-            self._rpdo_values[pdo.number] = [previous.get(n, table.field(n).default) for n in pdo.names]
+            self._rpdo_values[pdo.number] = [
+                previous.get(n, _bus_value(table.entry(n), table.entry(n).default)) for n in pdo.names
+            ]
             for position, name in enumerate(pdo.names):
                 self._field_rpdo[name] = (pdo.number, position)
         self._stream_order = [number for number in self._rpdo_values if number in self._stream_rpdos]
@@ -473,7 +476,7 @@ class Driver:
     def set_rpdo_value(self, name: str, value: Value) -> None:
         """Put `value` into the RPDO that carries `name`; it goes out with the next cycle."""
         number, position = self._field_rpdo[name]
-        self._rpdo_values[number][position] = value
+        self._rpdo_values[number][position] = _bus_value(self.node.table.entry(name), value)
         self._rpdo_frames.pop(number, None)
         if number in self._stream_rpdos:  # another RPDO (a gait's setpoint) leaves the stream as it is
             self._steady_stream = None
@@ -677,3 +680,13 @@ __all__ = [
     "sync_counter",
     "sync_frame",
 ]
+
+
+def _bus_value(entry: ObjectEntry, value: Value) -> Value:
+    """`value` as the RPDO packs it: an integer for an integer-typed object (a CiA 402 profile
+    field holds its integer as a float on the board); ValueError for a fraction there."""
+    if entry.data_type is DataType.REAL32:
+        return value
+    if value != int(value):
+        raise ValueError(f"{entry.name} is an {entry.data_type.toml_name}: {value!r} is no integer")
+    return int(value)

@@ -113,7 +113,7 @@ def save_dcf(remote: canopen.RemoteNode, table: RigTable, path: Path) -> canopen
             var.value = _sdo_variable(remote, var).raw
         except SdoAbortedError as error:
             raise DcfError(f"reading {_describe(var)}: {_abort_text(error)}") from None
-        var.value_raw = _relative(var, remote.id)
+        var.value_raw = _relative(var, remote.id) or _negative(var.value)
     with replacing(path) as temporary:
         canopen.export_od(od, str(temporary), doc_type="dcf")
     return od
@@ -127,6 +127,12 @@ def _relative(var: ODVariable, node_id: int) -> str | None:
     if not getattr(var, "relative", False) or not isinstance(value, int) or value & NODE_ID_MASK != node_id:
         return None
     return f"$NODEID+0x{value - node_id:X}"
+
+
+def _negative(value: object) -> str | None:
+    """A negative integer in decimal: canopen's exporter writes every integer in hex, a negative
+    one as "0x-..." that no importer reads back; None for every other value."""
+    return str(value) if isinstance(value, int) and value < 0 else None
 
 
 def _sdo_variable(remote: canopen.RemoteNode, var: ODVariable) -> canopen.sdo.base.Variable:
