@@ -2,7 +2,8 @@
 over SDO like any field (each member is a sub-index of its array), acting on the joint's physics
 in lockstep: a profile position target beyond the max limit stops at it, a cyclic synchronous
 position target below the min limit stops there, and homing on the hard stop searches at
-0x6099 sub 1's speed, not at the profile velocity. The rig is the master here: the table's
+0x6099 sub 1's speed, not at the profile velocity. A sub-index past an array's count is
+refused with "no such sub-index". The rig is the master here: the table's
 "cia402" PDO profile carries the controlword and the targets in its RPDOs.
 """
 
@@ -12,8 +13,10 @@ import numpy as np
 import pytest
 from cia402_master import HARD_STOP_RAD, PROFILE, HardStop, params_file
 
+from boardproto.cia301 import SdoAbortCode
 from boardproto.cia402 import ControlBit, State, StatusBit, state_of
 from hilrig.apps.pdo_profile import apply_pdo_profile
+from hilrig.errors import SdoAbortError
 from hilrig.table import BOARD_TABLE
 
 pytestmark = pytest.mark.bus
@@ -47,6 +50,11 @@ def test_position_targets_beyond_the_software_limits_stop_at_them(make_scenario,
     rig.set("max_position_limit", 300)  # 0x607D sub 2
     rig.set("min_position_limit", -200)  # 0x607D sub 1
     assert (rig.read("min_position_limit"), rig.read("max_position_limit")) == (-200, 300)
+    limits = BOARD_TABLE.array_at(0x607D)
+    assert limits is not None and rig.node.upload(limits.index, 0) == bytes([limits.count])
+    with pytest.raises(SdoAbortError) as past:
+        rig.node.upload(limits.index, limits.count + 1)
+    assert past.value.abort_code == SdoAbortCode.SUB_INDEX_DOES_NOT_EXIST
 
     enable(rig, "profile_position")
     rig.set("target_position", 1000)

@@ -59,6 +59,11 @@ def typed_as_integer(field: Field) -> bool:
     return field.data_type is not DataType.REAL32
 
 
+def sdo_of(sdo, field: Field):
+    """The field's SDO variable: the object at its index, or its sub of an [[array]]."""
+    return sdo[field.index] if field.subindex == 0 else sdo[field.index][field.subindex]
+
+
 def abort_code(answer: bytes) -> int:
     assert answer[0] == SdoCommand.ABORT, f"expected an SDO abort (0x80), got {answer.hex()}"
     return struct.unpack_from("<I", answer, 4)[0]
@@ -70,7 +75,7 @@ def test_every_field_reads_its_default_and_every_writable_field_takes_a_value(
 ) -> None:
     sdo = node_under_test.node.sdo
     for field in TABLE.fields:
-        value = sdo[field.index].raw
+        value = sdo_of(sdo, field).raw
         # A board field is a REAL32; a device profile's object (CiA 402) has its profile's type.
         typed = int if typed_as_integer(field) else float
         assert type(value) is typed, f"{field.name}: expected a {field.data_type.name}, got {value!r}"
@@ -84,8 +89,8 @@ def test_every_field_reads_its_default_and_every_writable_field_takes_a_value(
         target = field.min + 0.25 * (field.max - field.min)
         if typed_as_integer(field):
             target = round(target)
-        sdo[field.index].raw = target
-        assert sdo[field.index].raw == pytest.approx(target, rel=1e-6), field.name
+        sdo_of(sdo, field).raw = target
+        assert sdo_of(sdo, field).raw == pytest.approx(target, rel=1e-6), field.name
 
 
 @pytest.mark.requirement("SDO_02")
