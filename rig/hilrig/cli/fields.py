@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     rows = [
         [
             e.name,
-            f"0x{e.index:04X}",
+            f"0x{e.index:04X}" + (f":{e.subindex}" if e.subindex else ""),  # an [[array]]'s member
             e.unit,
             kind_of(e),
             e.access.value,
