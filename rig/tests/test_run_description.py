@@ -14,7 +14,6 @@ import pytest
 
 from hilrig.cli import EXIT_USAGE, main
 from hilrig.engine.timing import TimingMode
-from hilrig.session.builder import SessionConfig
 from hilrig.session.firmware import firmware_argv, firmware_mode
 from hilrig.session.run import (
     REALTIME_FIRMWARE_PERIOD_US,
@@ -101,12 +100,6 @@ def test_the_boot_timeout_is_a_run_option(table: RigTable) -> None:
     assert run.firmware.boot_timeout_s == 120.0
     with pytest.raises(SystemExit):
         parse("--boot-timeout", "0")
-
-
-def test_the_flat_session_config_describes_the_same_run(tmp_path: Path) -> None:
-    run = SessionConfig(out_dir=tmp_path, seed=4, mode="realtime", firmware_period_us=20_000).describe()
-    assert run.rig.timing is TimingMode.REALTIME and run.rig.seed == 4
-    assert run.firmware.period_us == 20_000 and run.out_dir == tmp_path
 
 
 def test_one_timing_vocabulary_the_firmwares_words_only_on_its_command_line() -> None:
