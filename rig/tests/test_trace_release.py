@@ -14,8 +14,11 @@ import can
 import pytest
 
 from hilrig.engine.rig import Rig
+from hilrig.errors import FieldNameError
 from hilrig.observe import streams
+from hilrig.observe.browser import free_port
 from hilrig.observe.reader import Trace
+from hilrig.observe.sinks import TraceSink
 from hilrig.observe.tracer import Tracer
 from hilrig.plants import JointParams
 from hilrig.session.fake_node import FakeJointNode
@@ -91,3 +94,10 @@ def test_nothing_is_swept_while_a_stream_to_a_viewer_is_live() -> None:
     assert streams.release()
     with pytest.raises(RuntimeError, match="without go_live"):
         streams.end_live()
+
+
+def test_a_live_tracer_that_fails_to_start_does_not_hold_the_sweeps_back(table: RigTable) -> None:
+    sink = TraceSink.connect(f"rerun+http://127.0.0.1:{free_port()}/proxy")  # no viewer there
+    with pytest.raises(FieldNameError):
+        Tracer(sink, table, blueprint="overveiw")
+    assert streams.release()

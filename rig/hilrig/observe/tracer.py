@@ -223,20 +223,22 @@ class Tracer(RecordBatches, RigObserver):
             self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
             if self._live:
                 streams.go_live()
-            try:
+        try:
+            if self._owns_recording:
                 self._attach_sinks()
-            except BaseException:
-                if self._live:
-                    streams.end_live()
-                raise
-        if blueprint == DEFAULT_BLUEPRINT and not resources.is_default_table(table.board.source):
-            blueprint = GENERATED_DASHBOARD  # another board's trace
-        if self._owns_recording:
-            self._send_board(blueprint)
-        # The generated dashboard names the plant's truth: sent when the rig configures (or at close).
-        self._generated_pending = blueprint == GENERATED_DASHBOARD
-        if blueprint is not None and not self._generated_pending:
-            self.send_blueprint(load_blueprint(blueprint, table))
+            if blueprint == DEFAULT_BLUEPRINT and not resources.is_default_table(table.board.source):
+                blueprint = GENERATED_DASHBOARD  # another board's trace
+            if self._owns_recording:
+                self._send_board(blueprint)
+            # The generated dashboard names the plant's truth: sent when the rig configures (or at close).
+            self._generated_pending = blueprint == GENERATED_DASHBOARD
+            if blueprint is not None and not self._generated_pending:
+                self.send_blueprint(load_blueprint(blueprint, table))
+        except BaseException:  # no tracer, so no close(): the live stream ends here
+            if self._live:
+                self.recording.disconnect()
+                streams.end_live()
+            raise
 
         self._queue: queue.SimpleQueue[_Batch | None] | None = None
         self._worker: threading.Thread | None = None
