@@ -205,14 +205,16 @@ Cia402Drive::Command Cia402Drive::quick_stop(float gearbox_rad_s) {
   return {ControlMode::Velocity, velocity_rad_s_, 0.0F, 0.0F};
 }
 
-Cia402Drive::Command Cia402Drive::fault_reaction(float gearbox_rad_s) {
+Cia402Drive::Command Cia402Drive::fault_reaction() {
   const bool slow = static_cast<int>(boardGet(FieldId::fault_reaction_option_code)) == 1;
   const float deceleration =
       (slow ? boardGet(FieldId::profile_deceleration) : boardGet(FieldId::quick_stop_deceleration)) * kMilli;
   velocity_rad_s_ = ramp(velocity_rad_s_, 0.0F, deceleration);
-  if (at_rest(gearbox_rad_s)) {
+  if (velocity_rad_s_ == 0.0F) {
+    // Transition 14 once the demand is at rest, the drive function disabled: bounded by the
+    // ramp (velocity / deceleration) whatever the joint does, unlike quick stop's wait for it.
     fault_ramp_ = false;
-    state_ = State::Fault;  // transition 14: stopped, the drive function disabled
+    state_ = State::Fault;
     return {ControlMode::Disabled, 0.0F, 0.0F, 0.0F};
   }
   return {ControlMode::Velocity, velocity_rad_s_, 0.0F, 0.0F};
@@ -363,7 +365,7 @@ void Cia402Drive::update() {
   } else if (state_ == State::QuickStopActive) {
     command = quick_stop(gearbox_rad_s);
   } else if (state_ == State::FaultReactionActive && fault_ramp_) {
-    command = fault_reaction(gearbox_rad_s);
+    command = fault_reaction();
   } else if (state_ == State::OperationEnabled && mode_ != Cia402Mode::NoMode) {
     command = run_mode(controlword, rising_set_point, gearbox_rad, gearbox_rad_s);
   }

@@ -12,7 +12,8 @@
 // drive_fault_reset) is fault reaction active, then fault. 0x605E = 0: the reaction is the
 // joint's safe state (zero duty at once), fault after one cycle. 0x605E = 1 or 2 in a 402 mode
 // that moves the joint, on faults that leave the sensors (FaultBits.hpp): the drive ramps its
-// velocity demand to rest on 0x6084 or 0x6085 from the velocity the joint has, then fault; it
+// velocity demand to rest on 0x6084 or 0x6085 from the velocity the joint has, then fault (once
+// the demand is at rest, whether or not the joint is: the reaction lasts the ramp); it
 // sets drive_fault_ramp meanwhile, which lets the controllers, the arbiter and the motor follow
 // through the safe state (from the fault's first cycle on, which still runs the mode's command).
 // A fault without sensors during the ramp cuts the duty at once and ends it. Fault reset
@@ -76,7 +77,7 @@ class Cia402Drive final : public core::Module {
   Command legacy() const;
   Command run_mode(std::uint16_t controlword, bool rising_set_point, float gearbox_rad, float gearbox_rad_s);
   Command quick_stop(float gearbox_rad_s);
-  Command fault_reaction(float gearbox_rad_s);
+  Command fault_reaction();
   bool at_rest(float gearbox_rad_s) const;  // the demand at 0 and the joint within 0x606D
   float ramp(float from, float to, float acceleration) const;
   float velocity_limit() const;  // 0x607F and 0x6080, the smaller [rad/s]

@@ -260,7 +260,8 @@ TEST_F(Cia402FaultReactionTest, OptionTwoRampsOnTheQuickStopDecelerationThenFaul
   EXPECT_EQ(state(), State::OperationEnabled);
   EXPECT_EQ(board.get(FieldId::drive_velocity_reference), 1.0F);
   step();
-  // 0.02 rad/s a cycle from 1 rad/s: 50 cycles to rest, then fault with the drive disabled.
+  // 0.02 rad/s a cycle from 1 rad/s: 50 cycles in fault reaction active (the 50th step leaves a
+  // float residue, the 51st reaches 0), then fault with the drive disabled.
   EXPECT_EQ(ramp_cycles(0.02F), 50);
   EXPECT_EQ(state(), State::Fault);
   EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 0.0F);
