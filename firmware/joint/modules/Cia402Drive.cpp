@@ -83,8 +83,9 @@ Cia402Drive::Cia402Drive(core::MessageBoard& board, float dt_s)
                          FieldId::velocity_actual_value, FieldId::torque_actual_value, FieldId::supported_drive_modes,
                          FieldId::drive_mode, FieldId::drive_velocity_reference, FieldId::drive_torque_reference,
                          FieldId::drive_position_reference, FieldId::drive_fault_reset, FieldId::drive_fault_ramp},
-              .reads = {FieldId::controlword, FieldId::modes_of_operation, FieldId::target_position, FieldId::fault_reaction_option_code,
+              .reads = {FieldId::controlword, FieldId::modes_of_operation, FieldId::target_position,
                         FieldId::target_velocity, FieldId::target_torque, FieldId::quick_stop_option_code,
+                        FieldId::fault_reaction_option_code,
                         FieldId::following_error_window, FieldId::position_window, FieldId::velocity_window,
                         FieldId::motor_rated_torque, FieldId::home_offset, FieldId::max_profile_velocity, FieldId::max_motor_speed,
                         FieldId::profile_velocity, FieldId::profile_acceleration, FieldId::profile_deceleration,
@@ -139,8 +140,8 @@ void Cia402Drive::update_state(std::uint16_t controlword, bool safe, std::uint32
   }
   if (state_ == State::FaultReactionActive) {
     // Transition 14 once the reaction has taken effect: the safe state's zero duty at once, a
-    // ramp at rest (fault_reaction); a fault that leaves no sensor (the safe state cut the
-    // duty already) or a latch cleared meanwhile ends the ramp.
+    // ramp once its demand is at rest (fault_reaction); a fault that leaves no sensor (the
+    // safe state cut the duty already) or a latch cleared meanwhile ends the ramp.
     if (!fault_ramp_ || !safe || !faults_keep_the_sensors(fault_flags)) {
       fault_ramp_ = false;
       state_ = State::Fault;
@@ -398,9 +399,9 @@ void Cia402Drive::update() {
   // Armed while a 402 mode moves the joint, so a fault's first cycle (read here a cycle late)
   // keeps the duty the mode asked for; the drive's later cycles then ramp or disable.
   const bool moving = state_ == State::OperationEnabled || state_ == State::QuickStopActive;
-  const bool ramp_armed = mode_ != Cia402Mode::NoMode &&
-                          ((moving && ramps_a_fault(static_cast<int>(boardGet(FieldId::fault_reaction_option_code)))) ||
-                           (state_ == State::FaultReactionActive && fault_ramp_));
+  const bool ramps = ramps_a_fault(static_cast<int>(boardGet(FieldId::fault_reaction_option_code)));
+  const bool ramp_armed =
+      mode_ != Cia402Mode::NoMode && ((moving && ramps) || (state_ == State::FaultReactionActive && fault_ramp_));
   boardSet(FieldId::drive_fault_ramp, ramp_armed ? 1.0F : 0.0F);
   boardSet(FieldId::drive_mode, board::to_value(command.mode));
   boardSet(FieldId::drive_velocity_reference, limit(command.velocity_rad_s, FieldId::drive_velocity_reference));

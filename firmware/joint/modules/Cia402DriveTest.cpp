@@ -100,8 +100,8 @@ class Cia402FaultReactionTest : public Cia402DriveTest {
     int cycles = 0;
     while (state() == State::FaultReactionActive && cycles < 10000) {
       ++cycles;
-      EXPECT_NEAR(board.get(FieldId::drive_velocity_reference), std::max(1.0F - step_rad_s * static_cast<float>(cycles), 0.0F), 1.0e-4F)
-          << "cycle " << cycles << " of the ramp";
+      const float demand = std::max(1.0F - step_rad_s * static_cast<float>(cycles), 0.0F);
+      EXPECT_NEAR(board.get(FieldId::drive_velocity_reference), demand, 1.0e-4F) << "cycle " << cycles << " of the ramp";
       EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 1.0F);
       follow();
     }

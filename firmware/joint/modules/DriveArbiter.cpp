@@ -38,7 +38,8 @@ DriveArbiter::DriveArbiter(core::MessageBoard& board)
 void DriveArbiter::update() {
   boardSet(FieldId::motor_duty_command,
            arbitrate_duty({.mode = control_mode_from_field(boardGet(FieldId::drive_mode)),
-                           .safe_state = safe_state_cuts_the_drive(boardGet(FieldId::safe_state), boardGet(FieldId::fault_flags),
+                           .safe_state = safe_state_cuts_the_drive(boardGet(FieldId::safe_state),
+                                                                   boardGet(FieldId::fault_flags),
                                                                    boardGet(FieldId::drive_fault_ramp)),
                            .velocity_controller_output = boardGet(FieldId::velocity_controller_output),
                            .torque_controller_output = boardGet(FieldId::torque_controller_output),
