@@ -13,6 +13,7 @@ keeps a wall-clock period and takes what has arrived.
 
 from __future__ import annotations
 
+import numbers
 import operator
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -407,7 +408,10 @@ class Driver:
             if pdo in sensor_rpdos:
                 continue
             self._rpdo_layouts[pdo.number] = pdo
-            self._rpdo_values[pdo.number] = [previous.get(n, table.field(n).default) for n in pdo.names]
+            self._rpdo_values[pdo.number] = [
+                previous[n] if n in previous else wire_value(n, table.field(n).default, code)
+                for n, code in zip(pdo.names, pdo.formats, strict=True)
+            ]
             for position, name in enumerate(pdo.names):
                 self._field_rpdo[name] = (pdo.number, position)
         self._stream_order = [number for number in self._rpdo_values if number in self._stream_rpdos]
@@ -473,6 +477,7 @@ class Driver:
     def set_rpdo_value(self, name: str, value: Value) -> None:
         """Put `value` into the RPDO that carries `name`; it goes out with the next cycle."""
         number, position = self._field_rpdo[name]
+        value = wire_value(name, value, self._rpdo_layouts[number].formats[position])
         self._rpdo_values[number][position] = value
         self._rpdo_frames.pop(number, None)
         if number in self._stream_rpdos:  # another RPDO (a gait's setpoint) leaves the stream as it is
@@ -617,6 +622,17 @@ class Driver:
             self.malformed_frames += 1
             return None
         return pdo.unpack(data)
+
+
+def wire_value(name: str, value: Value, code: str) -> Value:
+    """`value` as an RPDO carries `name` (its struct code): a whole number for an integer field
+    (the table's defaults are floats: 0.0 for target_position), else ValueError naming the field;
+    a float field takes it as it is."""
+    if code in "efd" or isinstance(value, numbers.Integral):
+        return value
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    raise ValueError(f"{name}: an integer field, got {value!r}")
 
 
 def _getter(names: tuple[str, ...]) -> Callable[[SensorFrame], tuple[Value, ...]]:
