@@ -37,8 +37,12 @@ deps: ## install missing Debian packages (root) and the pinned Python venv
 build: deps ## build the firmware, its tests and the protocol files (build/)
 	$(call configure_and_build,$(BUILD),-DCMAKE_BUILD_TYPE=RelWithDebInfo -DHIL_SANITIZE=ON -DHIL_TESTS=ON)
 	$(call configure_and_build,$(RELEASE_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_PORT_TESTS=ON)
-	@$(PY) tools/joint_fmu.py --out $(BUILD)/fmu
+	@$(MAKE) --no-print-directory fmu
 	@echo "build: firmware build/bin/joint-firmware, protocol files build/protocol/board.{eds,dbc}, program download images $(RELEASE_BUILD)/images/"
+
+.PHONY: fmu
+fmu: deps ## the demo joint as an FMU (build/fmu/joint.fmu): the FMU plant's scenarios and the bench's fmu row
+	@$(PY) tools/joint_fmu.py --out $(BUILD)/fmu
 
 # The microcontroller build (issue 45): the core, the CANopen engine and the joint cross-built for a
 # Cortex-M4F (cmake/arm-none-eabi.cmake): the firmware image within its flash and RAM budget, and
@@ -127,7 +131,7 @@ BASELINE ?=
 BASELINE_ARG = $(if $(BASELINE),--baseline '$(BASELINE)')
 
 .PHONY: bench
-bench: deps cortex-m baremetal ## benchmarks, each a ratio measured side by side in one run (BASELINE=<commit>)
+bench: deps cortex-m baremetal fmu ## benchmarks, each a ratio measured side by side in one run (BASELINE=<commit>)
 	$(call configure_and_build,$(BENCH_BUILD),-DCMAKE_BUILD_TYPE=Release -DHIL_SANITIZE=OFF -DHIL_TESTS=OFF -DHIL_BENCH=ON)
 	@$(PY) tools/bench.py native --out $(BENCH_BUILD) $(BASELINE_ARG)
 	@HIL_BUS_PATH_FILE=$(CURDIR)/$(BENCH_BUILD)/bus-path.txt \

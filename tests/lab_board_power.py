@@ -7,10 +7,10 @@ waits for it, as power off does. Off with nothing running is fine, as for a swit
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 from hilrig.engine.timing import TimingMode
@@ -37,26 +37,20 @@ def power_off(state: Path) -> None:
     pid = int(pid_file.read_text())
     pid_file.unlink()
     try:
-        os.kill(pid, signal.SIGTERM)
+        exited = os.pidfd_open(pid)  # readable once the process exits (a zombie counts): no polling
     except ProcessLookupError:
         return
-    deadline = time.monotonic() + OFF_TIMEOUT_S
-    while time.monotonic() < deadline:
-        if not _alive(pid):
-            return
-        time.sleep(0.05)
-    os.kill(pid, signal.SIGKILL)
-    sys.exit(f"the board (pid {pid}) did not stop on SIGTERM within {OFF_TIMEOUT_S:g} s: killed")
-
-
-def _alive(pid: int) -> bool:
-    """Whether the process runs (not our child: an exited one may linger as a zombie until init
-    reaps it)."""
     try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rpartition(")")[2].split()[0] != "Z"
+        signal.pidfd_send_signal(exited, signal.SIGTERM)  # the process waited on, whatever the pid
+        ready, _, _ = select.select([exited], [], [], OFF_TIMEOUT_S)
+        if ready:
+            return
+        signal.pidfd_send_signal(exited, signal.SIGKILL)
+    except ProcessLookupError:  # it exited on its own meanwhile
+        return
+    finally:
+        os.close(exited)
+    sys.exit(f"the board (pid {pid}) did not stop on SIGTERM within {OFF_TIMEOUT_S:g} s: killed")
 
 
 def main(argv: list[str]) -> None:

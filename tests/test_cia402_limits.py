@@ -42,7 +42,7 @@ def enable(rig, mode: str) -> None:
     assert rig.field("modes_of_operation_display") == MODE[mode]
 
 
-@pytest.mark.requirement("CIA402_04")
+@pytest.mark.requirement("CIA402_05")
 def test_position_targets_beyond_the_software_limits_stop_at_them(make_scenario, tmp_path) -> None:
     s = make_scenario(before_start=cia402_pdos, trace=False, extra_args=params_file(tmp_path))
     rig = s.rig
@@ -77,7 +77,7 @@ def test_position_targets_beyond_the_software_limits_stop_at_them(make_scenario,
     assert int(rig.field("statusword")) & INTERNAL_LIMIT
 
 
-@pytest.mark.requirement("CIA402_04")
+@pytest.mark.requirement("CIA402_05")
 def test_homing_on_the_hard_stop_searches_at_the_speed_for_the_switch(make_scenario, tmp_path) -> None:
     s = make_scenario(before_start=cia402_pdos, trace=False, extra_args=params_file(tmp_path))
     rig = s.rig

@@ -15,7 +15,8 @@ from hilrig.errors import NodeSilentError
 from hilrig.plants.head import HeadParams, HeadPlant
 from hilrig.pytest_plugin.board import HilBoard
 from hilrig.pytest_plugin.fixtures import BOOT_TIMEOUT_S, SCENARIO_SDO_TIMEOUT_S
-from hilrig.session.builder import SessionConfig, hil_session
+from hilrig.session.builder import hil_session
+from hilrig.session.run import FirmwareRun, RigRun, RunDescription, TraceRun
 from hilrig.table import BOARD_TABLE, RigTable
 
 pytestmark = [pytest.mark.bus, HEAD_MAPPING_ON_THE_IDEAL_BUS]
@@ -31,7 +32,7 @@ def head_params(**values: float) -> HeadParams:
 
 
 def head_plant(params: HeadParams | None, seed: int) -> HeadPlant:
-    """The plant factory (`SessionConfig.plant`): `make_scenario(params=head_params(...))`."""
+    """The plant factory (`RigRun.plant`): `make_scenario(params=head_params(...))`."""
     return HeadPlant(params if params is not None else head_params(), seed)
 
 
@@ -124,14 +125,14 @@ def test_battery_sagging_under_led_load_latches_low_battery(make_scenario) -> No
 def test_a_rig_for_the_joint_refuses_the_head(private_bus, scenario_dir) -> None:
     """The head's firmware where a rig expects the joint: the rig reads the node's identity
     (0x1018) first and names what answered, before it maps a single PDO."""
-    config = SessionConfig(
-        out_dir=scenario_dir,
-        executable=resources.HEAD_FIRMWARE,
-        eds=resources.DEFAULT_EDS,
-        node_id=HEAD.board.node.default_node_id,
-        trace=False,
-        boot_timeout_s=BOOT_TIMEOUT_S,
-        sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+    config = RunDescription(
+        trace=TraceRun(scenario_dir, trace=False),
+        firmware=FirmwareRun(
+            executable=resources.HEAD_FIRMWARE,
+            node_id=HEAD.board.node.default_node_id,
+            boot_timeout_s=BOOT_TIMEOUT_S,
+        ),
+        rig=RigRun(eds=resources.DEFAULT_EDS, sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S),
     )
     head, joint = HEAD.board.node.product_code, BOARD_TABLE.node.product_code
     refused = pytest.raises(

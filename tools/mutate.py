@@ -138,8 +138,12 @@ class Workspace:
             "configure the mutation build",
         )
 
-    def compile(self, jobs: int) -> subprocess.CompletedProcess[str]:
-        return run_group(["cmake", "--build", str(self.build), "-j", str(jobs)])
+    def compile(self, jobs: int, targets: Sequence[str] | None = None) -> subprocess.CompletedProcess[str]:
+        """Build everything, or only `targets` (outputs relative to the build, e.g. bin/x): what a
+        mutant's tests run. A sanitized build's time is mostly linking, and a source of the core
+        links into every test executable, bench and fuzzer."""
+        chosen = ["--target", *targets] if targets else []
+        return run_group(["cmake", "--build", str(self.build), "-j", str(jobs), *chosen])
 
 
 def run_group(argv: Sequence[str], timeout_s: float | None = None) -> subprocess.CompletedProcess[str]:
@@ -386,7 +390,7 @@ def build_and_unit(
             if not known.get("compiled") or all(k.exists() for k in kept):
                 continue  # done in an earlier run, on the same source
             with mutated(workspace, mutant):  # its unit results stand; its firmware is needed again
-                if workspace.compile(jobs).returncode == 0:
+                if workspace.compile(jobs, binaries).returncode == 0:
                     for binary in binaries:
                         shutil.copy2(workspace.build / binary, folder / Path(binary).name)
             continue
@@ -394,9 +398,11 @@ def build_and_unit(
         folder.mkdir(parents=True)
         result: dict[str, object] = {**asdict(mutant), "source_sha1": digest}
         started = time.monotonic()
+        executables = record.covering(mutant.path, mutant.line, coverage.UNIT) if record else None
+        targets = needed_targets(workspace.build, binaries, executables)
         with mutated(workspace, mutant) as state:
             checked = syntax_check(workspace, mutant)
-            built = workspace.compile(jobs) if checked else None
+            built = workspace.compile(jobs, targets) if checked else None
             build_s = time.monotonic() - started
             if built is None or built.returncode != 0:
                 state["untouched_outputs"] = True
@@ -407,7 +413,6 @@ def build_and_unit(
             else:
                 for binary in binaries:
                     shutil.copy2(workspace.build / binary, folder / Path(binary).name)
-                executables = record.covering(mutant.path, mutant.line, coverage.UNIT) if record else None
                 names = (
                     None if executables is None else [n for e in executables for n in unit_groups.get(e, [])]
                 )
@@ -431,6 +436,20 @@ def build_and_unit(
                 )
         report.write_json(result_path, result)
     return tried
+
+
+def needed_targets(
+    build: Path, binaries: Sequence[str], executables: Iterable[str] | None
+) -> list[str] | None:
+    """What a mutant's build makes: the firmware its scenarios start and the unit-test executables
+    that execute its line (ctest's, by name: build/bin/<name>); None (everything) without a
+    coverage record or for an executable not where ctest runs it from."""
+    if executables is None:
+        return None
+    tests = [f"bin/{name}" for name in executables]
+    if not all((build / test).exists() for test in tests):
+        return None
+    return [*binaries, *tests]
 
 
 def outcome_of(result: dict, equivalents: dict[str, str]) -> report.Outcome:

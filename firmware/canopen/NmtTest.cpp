@@ -251,7 +251,7 @@ TEST_F(NmtTest, ResetNodeClearsTheErrorRegisterAndHistory) {
 class NmtBootTimeTest : public NodeTest {
  protected:
   static constexpr std::uint32_t kBootUs = board::kNode.boot_ms * 1000u;
-  static constexpr std::uint32_t kPeriodUs = 1000;  // a lockstep control period
+  static constexpr std::uint32_t kPeriodUs = board::kNode.period_us;  // the default control period
 
   void SetUp() override {
     NodeTest::SetUp();

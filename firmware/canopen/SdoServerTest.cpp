@@ -194,6 +194,17 @@ TEST_F(SdoServerTest, FieldAtItsLimitsIsAccepted) {
   EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(id)], board::info(id).min);
 }
 
+TEST_F(SdoServerTest, FaultReactionOptionTakesZeroToTwoAndRefusesTheRest) {
+  const FieldId id = FieldId::fault_reaction_option_code;
+  ASSERT_EQ(board::info(id).type, board::DataType::Integer16);
+  for (const std::uint32_t option : {0u, 1u, 2u}) {
+    EXPECT_EQ(download(index_of(id), 0, option, 2), SdoAbort::None) << option;
+  }
+  EXPECT_EQ(download(index_of(id), 0, 3, 2), SdoAbort::ValueTooHigh);
+  EXPECT_EQ(download(index_of(id), 0, 0xFFFF, 2), SdoAbort::ValueTooLow);  // -1
+  EXPECT_FLOAT_EQ(fields.values[FakeBoard::index(id)], 2.0f);
+}
+
 TEST_F(SdoServerTest, NotANumberAbortsValueRangeExceeded) {
   EXPECT_EQ(download_float(index_of(FieldId::velocity_setpoint),
                            std::numeric_limits<float>::quiet_NaN()),

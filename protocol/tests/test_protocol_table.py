@@ -42,6 +42,7 @@ CONTRACT_FIELDS = {
         "drive_torque_reference",
         "drive_position_reference",
         "drive_fault_reset",
+        "drive_fault_ramp",
         "statusword",
         "modes_of_operation_display",
         "position_actual_value",

@@ -383,3 +383,15 @@ def test_a_setpoint_field_of_the_table_in_no_rpdo_is_refused_naming_it(driver) -
     driver.node.rpdos[2] = dataclasses.replace(driver.node.rpdos[2], enabled=False)
     with pytest.raises(PdoMappingError, match="setpoint velocity_setpoint is in no enabled RPDO"):
         driver.configure()
+
+
+def test_an_integer_field_of_an_rpdo_takes_whole_numbers_and_names_itself_otherwise() -> None:
+    from hilrig.engine.driver import wire_value
+
+    assert (
+        wire_value("target_position", 0.0, "i") == 0 and type(wire_value("target_position", 0.0, "i")) is int
+    )
+    assert wire_value("controlword", 15, "H") == 15
+    assert wire_value("velocity_setpoint", 2.5, "f") == 2.5
+    with pytest.raises(ValueError, match=r"^target_position: an integer field, got 1\.5$"):
+        wire_value("target_position", 1.5, "i")

@@ -14,7 +14,6 @@ import pytest
 
 from hilrig.cli import EXIT_USAGE, main
 from hilrig.engine.timing import TimingMode
-from hilrig.session.builder import SessionConfig
 from hilrig.session.firmware import firmware_argv, firmware_mode
 from hilrig.session.run import (
     REALTIME_FIRMWARE_PERIOD_US,
@@ -87,7 +86,7 @@ class FakeOptions:
 
 def test_pytest_options_follow_the_command_lines_rules(table: RigTable) -> None:
     flags = [flag for flag, _ in RunDescription.pytest_options()]
-    assert flags == ["--hil-period-us", "--hil-boot-timeout"]
+    assert flags == ["--hil-period-us", "--hil-boot-timeout", "--hil-tpdo-timeout"]
     base = RunDescription(TraceRun(Path("o")), rig=RigRun(seed=3))
     assert RunDescription.from_pytest(FakeOptions(), base, table) == base
     run = RunDescription.from_pytest(FakeOptions(hil_period_us=500, hil_seed=9), base, table)
@@ -103,10 +102,14 @@ def test_the_boot_timeout_is_a_run_option(table: RigTable) -> None:
         parse("--boot-timeout", "0")
 
 
-def test_the_flat_session_config_describes_the_same_run(tmp_path: Path) -> None:
-    run = SessionConfig(out_dir=tmp_path, seed=4, mode="realtime", firmware_period_us=20_000).describe()
-    assert run.rig.timing is TimingMode.REALTIME and run.rig.seed == 4
-    assert run.firmware.period_us == 20_000 and run.out_dir == tmp_path
+def test_the_tpdo_timeout_is_a_run_option_of_the_command_line_and_of_pytest(table: RigTable) -> None:
+    run = RunDescription.from_arguments(parse("--tpdo-timeout", "9"), table)
+    assert run.rig.tpdo_timeout_s == 9.0
+    base = RunDescription(TraceRun(Path("out")))
+    given = RunDescription.from_pytest(FakeOptions(hil_tpdo_timeout=7.5), base, table)
+    assert given.rig.tpdo_timeout_s == 7.5
+    with pytest.raises(SystemExit):
+        parse("--tpdo-timeout", "0")
 
 
 def test_one_timing_vocabulary_the_firmwares_words_only_on_its_command_line() -> None:

@@ -159,3 +159,23 @@ def test_the_checker_leaves_the_layers_below_and_lookalikes_alone() -> None:
     )
     # '%d' % 240 is string formatting of the number, not a counter modulo 240
     assert findings(good, "m.py") == []
+
+
+def test_the_commands_help_loads_neither_python_can_nor_canopen() -> None:
+    """`hilrig --help` and a command's --help build every parser: none of them may pull in the bus
+    libraries (the layers below load them when a command talks to a bus), so they stay quick."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys\n"
+        "from hilrig.cli import main\n"
+        "for argv in (['--help'], ['watch', '--help'], ['sdo', '--help']):\n"
+        "    try:\n"
+        "        main(argv)\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        "print(sorted(m for m in ('can', 'canopen') if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert done.stdout.strip().splitlines()[-1] == "[]", done.stdout[-500:]

@@ -255,3 +255,16 @@ def test_an_equivalent_mutant_is_ignored(tmp_path: Path, monkeypatch: pytest.Mon
     }
     result |= {"rule": "r", "compiled": True, "unit": {"killed_by": [], "timeout": None}}
     assert mutate.outcome_of(result, mutate.load_equivalents(listed)).status == "Ignored"
+
+
+def test_a_mutant_builds_only_its_firmware_and_the_tests_that_execute_its_line(tmp_path: Path) -> None:
+    (tmp_path / "bin").mkdir()
+    (tmp_path / "bin" / "fw_core_tests").touch()
+    binaries = ["bin/joint-firmware"]
+    assert mutate.needed_targets(tmp_path, binaries, ["fw_core_tests"]) == [
+        "bin/joint-firmware",
+        "bin/fw_core_tests",
+    ]
+    assert mutate.needed_targets(tmp_path, binaries, []) == binaries, "no unit test executes its line"
+    assert mutate.needed_targets(tmp_path, binaries, None) is None, "no coverage record: everything"
+    assert mutate.needed_targets(tmp_path, binaries, ["elsewhere_tests"]) is None, "not where ctest runs it"

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "joint/FaultBits.hpp"
+
 namespace joint {
 
 using board::FieldId;
@@ -17,11 +19,13 @@ std::int16_t duty_to_raw(float duty, float max_duty) {
 }
 
 Motor::Motor(core::MessageBoard& board, DutyOutput& output)
-    : Actuator(board, "motor", {.reads = {FieldId::motor_duty_command, FieldId::safe_state, FieldId::max_duty}}),
+    : Actuator(board, "motor", {.reads = {FieldId::motor_duty_command, FieldId::safe_state, FieldId::fault_flags,
+                                         FieldId::drive_fault_ramp, FieldId::max_duty}}),
       output_{output} {}
 
 void Motor::update() {
-  if (boardGet(FieldId::safe_state) != 0.0F) {
+  if (safe_state_cuts_the_drive(boardGet(FieldId::safe_state), boardGet(FieldId::fault_flags),
+                                 boardGet(FieldId::drive_fault_ramp))) {
     output_.write(0);
     return;
   }

@@ -1,7 +1,7 @@
 // The motor bridge: motor_duty_command (-1..1) -> DutyOutput raw
 // (-10000..10000), limited to max_duty, and 0 in the safe state (the drive
 // arbiter zeroes it already; the actuator does it again because it is the last
-// step before the hardware).
+// step before the hardware; the CiA 402 fault reaction's ramp passes both: FaultBits.hpp).
 #pragma once
 
 #include <cstdint>

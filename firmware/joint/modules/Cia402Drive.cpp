@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "joint/BoardReads.hpp"
+#include "joint/FaultBits.hpp"
 
 namespace joint {
 
@@ -25,6 +26,9 @@ bool offered(float requested) {
 
 // Quick stop options 5 and 6 stay in quick stop active once stopped; 0 coasts.
 constexpr bool stays_in_quick_stop(int option) { return option == 5 || option == 6; }
+
+// Fault reaction options 1 and 2 slow down (on 0x6084, 0x6085), 0 disables at once.
+constexpr bool ramps_a_fault(int option) { return option == 1 || option == 2; }
 
 static_assert(static_cast<float>(supported_drive_modes()) == board::info(FieldId::supported_drive_modes).default_value,
               "board.toml: supported_drive_modes' default is not the bits of the cia402_mode values");
@@ -78,9 +82,10 @@ Cia402Drive::Cia402Drive(core::MessageBoard& board, float dt_s)
              {.writes = {FieldId::statusword, FieldId::modes_of_operation_display, FieldId::position_actual_value,
                          FieldId::velocity_actual_value, FieldId::torque_actual_value, FieldId::supported_drive_modes,
                          FieldId::drive_mode, FieldId::drive_velocity_reference, FieldId::drive_torque_reference,
-                         FieldId::drive_position_reference, FieldId::drive_fault_reset},
+                         FieldId::drive_position_reference, FieldId::drive_fault_reset, FieldId::drive_fault_ramp},
               .reads = {FieldId::controlword, FieldId::modes_of_operation, FieldId::target_position,
                         FieldId::target_velocity, FieldId::target_torque, FieldId::quick_stop_option_code,
+                        FieldId::fault_reaction_option_code,
                         FieldId::following_error_window, FieldId::position_window, FieldId::velocity_window,
                         FieldId::motor_rated_torque, FieldId::home_offset, FieldId::max_profile_velocity, FieldId::max_motor_speed,
                         FieldId::profile_velocity, FieldId::profile_acceleration, FieldId::profile_deceleration,
@@ -89,7 +94,7 @@ Cia402Drive::Cia402Drive(core::MessageBoard& board, float dt_s)
                         FieldId::speed_during_search_for_switch,
                         FieldId::velocity_setpoint, FieldId::torque_setpoint, FieldId::position_setpoint,
                         FieldId::motor_position, FieldId::motor_velocity, FieldId::gear_ratio, FieldId::joint_torque},
-              .reads_last_cycle = {FieldId::safe_state}}),
+              .reads_last_cycle = {FieldId::safe_state, FieldId::fault_flags}}),
       dt_s_{dt_s} {}
 
 float Cia402Drive::velocity_limit() const {
@@ -119,7 +124,11 @@ float Cia402Drive::limit_position(float gearbox_rad) {
 
 float Cia402Drive::rated_torque_nm() const { return boardGet(FieldId::motor_rated_torque) * kMilli; }
 
-void Cia402Drive::update_state(std::uint16_t controlword, bool safe) {
+bool Cia402Drive::at_rest(float gearbox_rad_s) const {
+  return velocity_rad_s_ == 0.0F && std::fabs(gearbox_rad_s) <= boardGet(FieldId::velocity_window) * kMilli;
+}
+
+void Cia402Drive::update_state(std::uint16_t controlword, bool safe, std::uint32_t fault_flags, float gearbox_rad_s) {
   const bool fault_reset = has(controlword, ControlBit::FaultReset) && !has(previous_controlword_, ControlBit::FaultReset);
   boardSet(FieldId::drive_fault_reset, 0.0F);
   if (state_ == State::Fault) {
@@ -133,13 +142,24 @@ void Cia402Drive::update_state(std::uint16_t controlword, bool safe) {
     }
     return;
   }
-  if (safe) {
-    // Transition 13, then 14 once the reaction (the safe state's zero duty) has taken effect.
-    state_ = state_ == State::FaultReactionActive ? State::Fault : State::FaultReactionActive;
+  if (safe && state_ != State::FaultReactionActive) {
+    // Transition 13. With 0x605E = 1 or 2 a 402 mode that moves the joint slows down first,
+    // from the velocity the joint has, if every latched fault leaves the sensors to ramp on.
+    const bool moving = state_ == State::OperationEnabled || state_ == State::QuickStopActive;
+    fault_ramp_ = moving && mode_ != Cia402Mode::NoMode && faults_keep_the_sensors(fault_flags) &&
+                  ramps_a_fault(static_cast<int>(boardGet(FieldId::fault_reaction_option_code)));
+    if (fault_ramp_) velocity_rad_s_ = gearbox_rad_s;
+    state_ = State::FaultReactionActive;
     return;
   }
   if (state_ == State::FaultReactionActive) {
-    state_ = State::Fault;
+    // Transition 14 once the reaction has taken effect: the safe state's zero duty at once, a
+    // ramp once its demand is at rest (fault_reaction); a fault that leaves no sensor (the
+    // safe state cut the duty already) or a latch cleared meanwhile ends the ramp.
+    if (!fault_ramp_ || !safe || !faults_keep_the_sensors(fault_flags)) {
+      fault_ramp_ = false;
+      state_ = State::Fault;
+    }
     return;
   }
   const DriveCommand command = decode_controlword(controlword);
@@ -194,9 +214,23 @@ Cia402Drive::Command Cia402Drive::quick_stop(float gearbox_rad_s) {
   const float deceleration =
       (slow ? boardGet(FieldId::profile_deceleration) : boardGet(FieldId::quick_stop_deceleration)) * kMilli;
   velocity_rad_s_ = ramp(velocity_rad_s_, 0.0F, deceleration);
-  const float window = boardGet(FieldId::velocity_window) * kMilli;
-  if (velocity_rad_s_ == 0.0F && std::fabs(gearbox_rad_s) <= window && !stays_in_quick_stop(option)) {
+  if (at_rest(gearbox_rad_s) && !stays_in_quick_stop(option)) {
     state_ = State::SwitchOnDisabled;  // transition 12 once stopped
+    return {ControlMode::Disabled, 0.0F, 0.0F, 0.0F};
+  }
+  return {ControlMode::Velocity, velocity_rad_s_, 0.0F, 0.0F};
+}
+
+Cia402Drive::Command Cia402Drive::fault_reaction() {
+  const bool slow = static_cast<int>(boardGet(FieldId::fault_reaction_option_code)) == 1;
+  const float deceleration =
+      (slow ? boardGet(FieldId::profile_deceleration) : boardGet(FieldId::quick_stop_deceleration)) * kMilli;
+  velocity_rad_s_ = ramp(velocity_rad_s_, 0.0F, deceleration);
+  if (velocity_rad_s_ == 0.0F) {
+    // Transition 14 once the demand is at rest, the drive function disabled: bounded by the
+    // ramp (velocity / deceleration) whatever the joint does, unlike quick stop's wait for it.
+    fault_ramp_ = false;
+    state_ = State::Fault;
     return {ControlMode::Disabled, 0.0F, 0.0F, 0.0F};
   }
   return {ControlMode::Velocity, velocity_rad_s_, 0.0F, 0.0F};
@@ -329,6 +363,7 @@ std::uint16_t Cia402Drive::mode_bits(float gearbox_rad, float gearbox_rad_s) con
 void Cia402Drive::update() {
   const auto controlword = static_cast<std::uint16_t>(boardGet(FieldId::controlword));
   const bool safe = boardGet(FieldId::safe_state) != 0.0F;
+  const auto fault_flags = static_cast<std::uint32_t>(boardGet(FieldId::fault_flags));
   const float gear_ratio = boardGet(FieldId::gear_ratio);
   const float gearbox_rad = boardGet(FieldId::motor_position) / gear_ratio;
   const float gearbox_rad_s = boardGet(FieldId::motor_velocity) / gear_ratio;
@@ -336,7 +371,7 @@ void Cia402Drive::update() {
       has(controlword, ControlBit::NewSetPoint) && !has(previous_controlword_, ControlBit::NewSetPoint);
 
   const State before = state_;
-  update_state(controlword, safe);
+  update_state(controlword, safe, fault_flags, gearbox_rad_s);
   select_mode(boardGet(FieldId::modes_of_operation), gearbox_rad, gearbox_rad_s);
 
   Command command{ControlMode::Disabled, 0.0F, 0.0F, 0.0F};
@@ -345,6 +380,8 @@ void Cia402Drive::update() {
     command = {ControlMode::Velocity, velocity_rad_s_, 0.0F, 0.0F};
   } else if (state_ == State::QuickStopActive) {
     command = quick_stop(gearbox_rad_s);
+  } else if (state_ == State::FaultReactionActive && fault_ramp_) {
+    command = fault_reaction();
   } else if (state_ == State::OperationEnabled && mode_ != Cia402Mode::NoMode) {
     command = run_mode(controlword, rising_set_point, gearbox_rad, gearbox_rad_s);
   }
@@ -378,6 +415,13 @@ void Cia402Drive::update() {
            clamp_to(boardGet(FieldId::joint_torque) / rated_torque_nm() * 1000.0F, FieldId::torque_actual_value));
   boardSet(FieldId::supported_drive_modes, static_cast<float>(supported_drive_modes()));
   const auto limit = [](float value, FieldId id) { return std::clamp(value, board::info(id).min, board::info(id).max); };
+  // Armed while a 402 mode moves the joint, so a fault's first cycle (read here a cycle late)
+  // keeps the duty the mode asked for; the drive's later cycles then ramp or disable.
+  const bool moving = state_ == State::OperationEnabled || state_ == State::QuickStopActive;
+  const bool ramps = ramps_a_fault(static_cast<int>(boardGet(FieldId::fault_reaction_option_code)));
+  const bool ramp_armed =
+      mode_ != Cia402Mode::NoMode && ((moving && ramps) || (state_ == State::FaultReactionActive && fault_ramp_));
+  boardSet(FieldId::drive_fault_ramp, ramp_armed ? 1.0F : 0.0F);
   boardSet(FieldId::drive_mode, board::to_value(command.mode));
   boardSet(FieldId::drive_velocity_reference, limit(command.velocity_rad_s, FieldId::drive_velocity_reference));
   boardSet(FieldId::drive_torque_reference, limit(command.torque_nm, FieldId::drive_torque_reference));

@@ -9,10 +9,16 @@
 // in operation enabled (and ramps down in quick stop active).
 //
 // Protection: a latched fault (safe_state, last cycle's: the fault manager reads this module's
-// drive_fault_reset) is fault reaction active for one cycle, then fault: the reaction is the
-// joint's safe state (0x605E = 0: zero duty at once). Fault reset (controlword bit 7 rising)
-// asks the fault manager to clear the latch (drive_fault_reset = 1 for a cycle) by its rules: a
-// cause still present latches again and the drive stays in fault.
+// drive_fault_reset) is fault reaction active, then fault. 0x605E = 0: the reaction is the
+// joint's safe state (zero duty at once), fault after one cycle. 0x605E = 1 or 2 in a 402 mode
+// that moves the joint, on faults that leave the sensors (FaultBits.hpp): the drive ramps its
+// velocity demand to rest on 0x6084 or 0x6085 from the velocity the joint has, then fault (once
+// the demand is at rest, whether or not the joint is: the reaction lasts the ramp); it
+// sets drive_fault_ramp meanwhile, which lets the controllers, the arbiter and the motor follow
+// through the safe state (from the fault's first cycle on, which still runs the mode's command).
+// A fault without sensors during the ramp cuts the duty at once and ends it. Fault reset
+// (controlword bit 7 rising) asks the fault manager to clear the latch (drive_fault_reset = 1
+// for a cycle) by its rules: a cause still present latches again and the drive stays in fault.
 //
 // Mistakes a master makes get the standard answers: a command the current state has no
 // transition for (enable operation in switch on disabled) is not taken; a mode this drive does
@@ -66,11 +72,13 @@ class Cia402Drive final : public core::Module {
     float position_rad;
   };
 
-  void update_state(std::uint16_t controlword, bool safe);
+  void update_state(std::uint16_t controlword, bool safe, std::uint32_t fault_flags, float gearbox_rad_s);
   void select_mode(float requested, float gearbox_rad, float gearbox_rad_s);
   Command legacy() const;
   Command run_mode(std::uint16_t controlword, bool rising_set_point, float gearbox_rad, float gearbox_rad_s);
   Command quick_stop(float gearbox_rad_s);
+  Command fault_reaction();
+  bool at_rest(float gearbox_rad_s) const;  // the demand at 0 and the joint within 0x606D
   float ramp(float from, float to, float acceleration) const;
   float velocity_limit() const;  // 0x607F and 0x6080, the smaller [rad/s]
   float mrad_to_gearbox_rad(float mrad) const;
@@ -86,6 +94,7 @@ class Cia402Drive final : public core::Module {
   std::uint16_t previous_controlword_ = 0;
   bool reset_pending_ = false;
   bool halted_ = false;
+  bool fault_ramp_ = false;  // fault reaction active ramps (0x605E = 1, 2) rather than disables
   double zero_rad_ = 0.0;        // gearbox-side angle where position_actual_value = home_offset
   float velocity_rad_s_ = 0.0F;  // the ramped velocity demand (profile modes, halt, quick stop)
   float position_rad_ = 0.0F;    // the position demand (profile position, homing, halted csp)

@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 
 #include "core/Scheduler.hpp"
+#include "joint/FaultBits.hpp"
 #include "joint/testing/BoardStandIns.hpp"
 
 namespace joint {
@@ -35,6 +37,7 @@ class Cia402DriveTest : public ::testing::Test {
     derived.hold(FieldId::motor_velocity, 0.0F);
     derived.hold(FieldId::joint_torque, 0.0F);
     protection.hold(FieldId::safe_state, 0.0F);
+    protection.hold(FieldId::fault_flags, 0.0F);
     step();
   }
 
@@ -65,9 +68,45 @@ class Cia402DriveTest : public ::testing::Test {
   Cia402Drive drive{board, kDtS};
   testing::FieldSource<core::Sensor> sensors{board, "sensors", {FieldId::motor_position}};
   testing::FieldSource<core::VirtualSensor> derived{board, "derived", {FieldId::motor_velocity, FieldId::joint_torque}};
-  testing::FieldSource<core::Module> protection{board, "protection", {FieldId::safe_state}};
+  testing::FieldSource<core::Module> protection{board, "protection", {FieldId::safe_state, FieldId::fault_flags}};
   testing::BusStandIn bus{board};
   std::uint32_t cycle = 0;
+};
+
+// The fault reaction's ramp: a joint turning at 1 rad/s (gearbox side) in cyclic synchronous
+// velocity whose velocity follows the drive's demand a cycle late, and a latched fault.
+class Cia402FaultReactionTest : public Cia402DriveTest {
+ protected:
+  static constexpr float kGearRatio = 50.0F;
+
+  void SetUp() override {
+    Cia402DriveTest::SetUp();
+    ASSERT_EQ(bus.write(FieldId::target_velocity, 1000.0F), core::SetResult::Ok);
+    derived.hold(FieldId::motor_velocity, 1.0F * kGearRatio);
+    enable(9.0F);
+    ASSERT_EQ(board.get(FieldId::drive_velocity_reference), 1.0F);
+  }
+  void option(float value) { ASSERT_EQ(bus.write(FieldId::fault_reaction_option_code, value), core::SetResult::Ok); }
+  void latch(FaultBit bit) {
+    protection.hold(FieldId::safe_state, 1.0F);
+    protection.hold(FieldId::fault_flags, static_cast<float>(fault_mask(bit)));
+  }
+  void follow() {
+    derived.hold(FieldId::motor_velocity, board.get(FieldId::drive_velocity_reference) * kGearRatio);
+    step();
+  }
+  // Cycles in fault reaction active, the demand checked against the ramp at `step_rad_s` a cycle.
+  int ramp_cycles(float step_rad_s) {
+    int cycles = 0;
+    while (state() == State::FaultReactionActive && cycles < 10000) {
+      ++cycles;
+      const float demand = std::max(1.0F - step_rad_s * static_cast<float>(cycles), 0.0F);
+      EXPECT_NEAR(board.get(FieldId::drive_velocity_reference), demand, 1.0e-4F) << "cycle " << cycles << " of the ramp";
+      EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 1.0F);
+      follow();
+    }
+    return cycles;
+  }
 };
 
 TEST_F(Cia402DriveTest, OffersItsModesAndStartsSwitchOnDisabled) {
@@ -273,6 +312,90 @@ TEST_F(Cia402DriveTest, HomingOnAHardStopSearchesAtTheSpeedForTheSwitch) {
   for (int i = 0; i < 100; ++i) step();
   EXPECT_FLOAT_EQ(board.get(FieldId::drive_velocity_reference), -0.3F);
   EXPECT_EQ(status() & 0x1000, 0);  // still searching
+}
+
+TEST_F(Cia402FaultReactionTest, OptionTwoRampsOnTheQuickStopDecelerationThenFaults) {
+  option(2.0F);
+  ASSERT_EQ(bus.write(FieldId::quick_stop_deceleration, 20000.0F), core::SetResult::Ok);  // 20 rad/s^2
+  EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 0.0F) << "armed from the next cycle on";
+  step();
+  EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 1.0F) << "armed while the mode moves the joint";
+  latch(FaultBit::CommandWatchdog);
+  step();  // the fault's first cycle: the drive reads it a cycle late and still runs the mode
+  EXPECT_EQ(state(), State::OperationEnabled);
+  EXPECT_EQ(board.get(FieldId::drive_velocity_reference), 1.0F);
+  step();
+  // 0.02 rad/s a cycle from 1 rad/s: 50 cycles in fault reaction active (the 50th step leaves a
+  // float residue, the 51st reaches 0), then fault with the drive disabled.
+  EXPECT_EQ(ramp_cycles(0.02F), 50);
+  EXPECT_EQ(state(), State::Fault);
+  EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 0.0F);
+  EXPECT_EQ(board.get(FieldId::drive_mode), board::to_value(ControlMode::Disabled));
+}
+
+TEST_F(Cia402FaultReactionTest, OptionOneRampsOnTheProfileDeceleration) {
+  option(1.0F);
+  ASSERT_EQ(bus.write(FieldId::profile_deceleration, 10000.0F), core::SetResult::Ok);    // 10 rad/s^2
+  ASSERT_EQ(bus.write(FieldId::quick_stop_deceleration, 50000.0F), core::SetResult::Ok);  // not this one
+  latch(FaultBit::MasterHeartbeatLost);
+  step();
+  step();
+  EXPECT_EQ(ramp_cycles(0.01F), 100);
+  EXPECT_EQ(state(), State::Fault);
+}
+
+TEST_F(Cia402FaultReactionTest, OptionZeroDisablesAtOnce) {
+  option(0.0F);
+  step();
+  EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 0.0F) << "the safe state cuts the duty in the fault's cycle";
+  latch(FaultBit::CommandWatchdog);
+  step();
+  step();
+  EXPECT_EQ(state(), State::FaultReactionActive);
+  EXPECT_EQ(board.get(FieldId::drive_mode), board::to_value(ControlMode::Disabled));
+  step();
+  EXPECT_EQ(state(), State::Fault);
+}
+
+TEST_F(Cia402FaultReactionTest, AFaultThatLeavesNoSensorDisablesAtOnceWhateverTheOption) {
+  option(2.0F);
+  for (const FaultBit bit : {FaultBit::MotorEncoderStale, FaultBit::OutputEncoderStale, FaultBit::ThermistorStale,
+                             FaultBit::OverTemperature}) {
+    EXPECT_TRUE(safe_state_cuts_the_drive(1.0F, static_cast<float>(fault_mask(bit)), 1.0F));
+  }
+  latch(FaultBit::MotorEncoderStale);
+  step();
+  step();
+  EXPECT_EQ(state(), State::FaultReactionActive);
+  EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 0.0F);
+  EXPECT_EQ(board.get(FieldId::drive_mode), board::to_value(ControlMode::Disabled));
+  step();
+  EXPECT_EQ(state(), State::Fault);
+}
+
+TEST_F(Cia402FaultReactionTest, AStaleEncoderDuringTheRampEndsIt) {
+  option(2.0F);
+  latch(FaultBit::CommandWatchdog);
+  step();
+  step();
+  follow();
+  EXPECT_EQ(state(), State::FaultReactionActive);
+  EXPECT_FALSE(safe_state_cuts_the_drive(1.0F, board.get(FieldId::fault_flags), board.get(FieldId::drive_fault_ramp)));
+  protection.hold(FieldId::fault_flags, static_cast<float>(fault_mask(FaultBit::CommandWatchdog) |
+                                                           fault_mask(FaultBit::MotorEncoderStale)));
+  step();
+  EXPECT_TRUE(safe_state_cuts_the_drive(1.0F, board.get(FieldId::fault_flags), board.get(FieldId::drive_fault_ramp)))
+      << "the controllers, the arbiter and the motor cut in the cycle the encoder goes stale";
+  step();
+  EXPECT_EQ(state(), State::Fault);
+  EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 0.0F);
+}
+
+TEST_F(Cia402FaultReactionTest, WithoutA402ModeAFaultDisablesAtOnce) {
+  option(2.0F);
+  ASSERT_EQ(bus.write(FieldId::modes_of_operation, 0.0F), core::SetResult::Ok);
+  step();
+  EXPECT_EQ(board.get(FieldId::drive_fault_ramp), 0.0F);
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "joint/FaultBits.hpp"
+
 namespace joint {
 
 using board::FieldId;
@@ -30,12 +32,15 @@ DriveArbiter::DriveArbiter(core::MessageBoard& board)
     : Module(board, "drive_arbiter",
              {.writes = {FieldId::motor_duty_command},
               .reads = {FieldId::drive_mode, FieldId::velocity_controller_output, FieldId::torque_controller_output,
-                        FieldId::thermal_derate, FieldId::safe_state, FieldId::max_duty}}) {}
+                        FieldId::thermal_derate, FieldId::safe_state, FieldId::fault_flags,
+                        FieldId::drive_fault_ramp, FieldId::max_duty}}) {}
 
 void DriveArbiter::update() {
   boardSet(FieldId::motor_duty_command,
            arbitrate_duty({.mode = control_mode_from_field(boardGet(FieldId::drive_mode)),
-                           .safe_state = boardGet(FieldId::safe_state) != 0.0F,
+                           .safe_state = safe_state_cuts_the_drive(boardGet(FieldId::safe_state),
+                                                                   boardGet(FieldId::fault_flags),
+                                                                   boardGet(FieldId::drive_fault_ramp)),
                            .velocity_controller_output = boardGet(FieldId::velocity_controller_output),
                            .torque_controller_output = boardGet(FieldId::torque_controller_output),
                            .max_duty = boardGet(FieldId::max_duty),

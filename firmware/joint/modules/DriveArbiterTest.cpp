@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <initializer_list>
 #include <limits>
+
+#include "joint/FaultBits.hpp"
 
 namespace joint {
 namespace {
@@ -27,6 +31,24 @@ TEST(DriveArbiter, CommandsZeroInTheSafeState) {
   DriveInputs in = inputs(ControlMode::Velocity);
   in.safe_state = true;
   EXPECT_FLOAT_EQ(arbitrate_duty(in), 0.0F);
+}
+
+TEST(DriveArbiter, TheSafeStateCutsUnlessTheFaultReactionRampsOnFaultsThatKeepTheSensors) {
+  const auto flags = [](std::initializer_list<FaultBit> bits) {
+    std::uint32_t mask = 0;
+    for (const FaultBit bit : bits) mask |= fault_mask(bit);
+    return static_cast<float>(mask);
+  };
+  EXPECT_FALSE(safe_state_cuts_the_drive(0.0F, 0.0F, 0.0F));
+  EXPECT_TRUE(safe_state_cuts_the_drive(1.0F, flags({FaultBit::CommandWatchdog}), 0.0F)) << "no ramp asked";
+  for (const FaultBit bit : {FaultBit::CommandWatchdog, FaultBit::OwnershipViolation, FaultBit::MasterHeartbeatLost}) {
+    EXPECT_FALSE(safe_state_cuts_the_drive(1.0F, flags({bit}), 1.0F)) << static_cast<int>(bit);
+  }
+  for (const FaultBit bit : {FaultBit::MotorEncoderStale, FaultBit::OutputEncoderStale, FaultBit::ThermistorStale,
+                             FaultBit::OverTemperature}) {
+    EXPECT_TRUE(safe_state_cuts_the_drive(1.0F, flags({bit}), 1.0F)) << static_cast<int>(bit);
+    EXPECT_TRUE(safe_state_cuts_the_drive(1.0F, flags({FaultBit::CommandWatchdog, bit}), 1.0F)) << static_cast<int>(bit);
+  }
 }
 
 TEST(DriveArbiter, LimitsToMaxDutyTimesThermalDerate) {

@@ -1,6 +1,7 @@
 #include "joint/modules/TorqueController.hpp"
 
 #include "joint/ControlMode.hpp"
+#include "joint/FaultBits.hpp"
 
 namespace joint {
 
@@ -10,12 +11,14 @@ TorqueController::TorqueController(core::MessageBoard& board, float dt_s)
     : Module(board, "torque_controller",
              {.writes = {FieldId::torque_controller_output},
               .reads = {FieldId::drive_mode, FieldId::drive_torque_reference, FieldId::joint_torque, FieldId::torque_kp,
-                        FieldId::torque_ki, FieldId::max_duty, FieldId::thermal_derate, FieldId::safe_state}}),
+                        FieldId::torque_ki, FieldId::max_duty, FieldId::thermal_derate, FieldId::safe_state,
+                        FieldId::fault_flags, FieldId::drive_fault_ramp}}),
       dt_s_{dt_s} {}
 
 void TorqueController::update() {
   const bool in_control = control_mode_from_field(boardGet(FieldId::drive_mode)) == ControlMode::Torque &&
-                          boardGet(FieldId::safe_state) == 0.0F;
+                          !safe_state_cuts_the_drive(boardGet(FieldId::safe_state), boardGet(FieldId::fault_flags),
+                                                     boardGet(FieldId::drive_fault_ramp));
   if (!in_control) {
     pi_.reset();
     boardSet(FieldId::torque_controller_output, 0.0F);

@@ -4,7 +4,8 @@
 // of change of spring twist, so the plant is close to an integrator and a PI
 // loop suffices (no derivative gain in the table, none used). Output limited
 // to max_duty * thermal_derate with anti-windup; outside torque mode or in the
-// safe state it writes 0 and forgets its integrator.
+// safe state (but a CiA 402 fault reaction's ramp: FaultBits.hpp) it writes 0 and forgets its
+// integrator.
 #pragma once
 
 #include "core/MessageBoardUser.hpp"

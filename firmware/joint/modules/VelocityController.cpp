@@ -1,6 +1,7 @@
 #include "joint/modules/VelocityController.hpp"
 
 #include "joint/ControlMode.hpp"
+#include "joint/FaultBits.hpp"
 #include "joint/modules/PositionLoop.hpp"
 
 namespace joint {
@@ -13,13 +14,14 @@ VelocityController::VelocityController(core::MessageBoard& board, float dt_s)
               .reads = {FieldId::drive_mode, FieldId::drive_velocity_reference, FieldId::drive_position_reference,
                         FieldId::motor_position, FieldId::motor_velocity, FieldId::gear_ratio, FieldId::velocity_kp,
                         FieldId::velocity_ki, FieldId::velocity_kd, FieldId::position_kp, FieldId::max_duty,
-                        FieldId::thermal_derate, FieldId::safe_state}}),
+                        FieldId::thermal_derate, FieldId::safe_state, FieldId::fault_flags, FieldId::drive_fault_ramp}}),
       dt_s_{dt_s} {}
 
 void VelocityController::update() {
   const ControlMode mode = control_mode_from_field(boardGet(FieldId::drive_mode));
   const bool in_control = (mode == ControlMode::Velocity || mode == ControlMode::Position) &&
-                          boardGet(FieldId::safe_state) == 0.0F;
+                          !safe_state_cuts_the_drive(boardGet(FieldId::safe_state), boardGet(FieldId::fault_flags),
+                                                     boardGet(FieldId::drive_fault_ramp));
   if (!in_control) {
     pid_.reset();
     boardSet(FieldId::velocity_controller_output, 0.0F);

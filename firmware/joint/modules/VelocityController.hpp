@@ -14,7 +14,8 @@
 // Gains (velocity_kp/ki/kd) are duty per rad/s of gearbox-side velocity error;
 // the output is limited to max_duty * thermal_derate, the most the drive
 // arbiter passes on, so the anti-windup sees the real saturation. Outside its
-// modes, or in the safe state, it writes 0 and forgets its integrator.
+// modes, or in the safe state (but a CiA 402 fault reaction's ramp: FaultBits.hpp), it writes
+// 0 and forgets its integrator.
 #pragma once
 
 #include "core/MessageBoardUser.hpp"

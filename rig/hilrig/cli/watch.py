@@ -41,13 +41,12 @@ from hilrig.cli.common import (
 )
 from hilrig.errors import NodeSilentError, RigError, SdoTimeoutError
 from hilrig.table import ObjectEntry
-from hilrig.wire.node import EmcyRecord
 
 if TYPE_CHECKING:
     from hilrig.apps.log_trace import LiveBusTrace
     from hilrig.engine.realtime import SyncProducer
     from hilrig.table import RigTable
-    from hilrig.wire.node import BoardNode, EmcyError
+    from hilrig.wire.node import BoardNode, EmcyError, EmcyRecord
     from hilrig.wire.transport import PdoLayout
 
 CLEAR_LINE = "\x1b[2K"
@@ -89,6 +88,8 @@ class Board:
 
     def on_emcy(self, error: EmcyError) -> None:
         """An EMCY the node sent (canopen's receive thread)."""
+        from hilrig.wire.node import EmcyRecord  # canopen's: loaded by the watch, not by `hilrig --help`
+
         record = EmcyRecord(error.code, error.register, bytes(error.data), cycle=0, time_s=0.0)
         with self._lock:
             self.emcy = [*self.emcy, (error.timestamp, record)][-EMCY_LINES:]

@@ -13,6 +13,7 @@ keeps a wall-clock period and takes what has arrived.
 
 from __future__ import annotations
 
+import numbers
 import operator
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -28,7 +29,6 @@ from boardproto.cia301 import (
     split_emcy,
     sync_counter,
 )
-from boardproto.table import DataType
 from hilrig.engine.history import (
     History,
     HistoryBlock,
@@ -40,7 +40,7 @@ from hilrig.engine.history import (
 from hilrig.errors import NoValueError, PdoMappingError
 from hilrig.observe.paths import BUS_EVENTS_PATH
 from hilrig.plants.interface import Plant
-from hilrig.table import EmcyCode, ObjectEntry
+from hilrig.table import EmcyCode
 from hilrig.wire.node import BoardNode
 from hilrig.wire.transport import (
     Decoder,
@@ -409,7 +409,8 @@ class Driver:
                 continue
             self._rpdo_layouts[pdo.number] = pdo
             self._rpdo_values[pdo.number] = [
-                previous.get(n, _bus_value(table.entry(n), table.entry(n).default)) for n in pdo.names
+                previous[n] if n in previous else wire_value(n, table.field(n).default, code)
+                for n, code in zip(pdo.names, pdo.formats, strict=True)
             ]
             for position, name in enumerate(pdo.names):
                 self._field_rpdo[name] = (pdo.number, position)
@@ -476,7 +477,8 @@ class Driver:
     def set_rpdo_value(self, name: str, value: Value) -> None:
         """Put `value` into the RPDO that carries `name`; it goes out with the next cycle."""
         number, position = self._field_rpdo[name]
-        self._rpdo_values[number][position] = _bus_value(self.node.table.entry(name), value)
+        value = wire_value(name, value, self._rpdo_layouts[number].formats[position])
+        self._rpdo_values[number][position] = value
         self._rpdo_frames.pop(number, None)
         if number in self._stream_rpdos:  # another RPDO (a gait's setpoint) leaves the stream as it is
             self._steady_stream = None
@@ -622,6 +624,17 @@ class Driver:
         return pdo.unpack(data)
 
 
+def wire_value(name: str, value: Value, code: str) -> Value:
+    """`value` as an RPDO carries `name` (its struct code): a whole number for an integer field
+    (the table's defaults are floats: 0.0 for target_position), else ValueError naming the field;
+    a float field takes it as it is."""
+    if code in "efd" or isinstance(value, numbers.Integral):
+        return value
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    raise ValueError(f"{name}: an integer field, got {value!r}")
+
+
 def _getter(names: tuple[str, ...]) -> Callable[[SensorFrame], tuple[Value, ...]]:
     """Values of `names` from a plant's sensor frame, always as a tuple."""
     get = operator.attrgetter(*names)
@@ -680,13 +693,3 @@ __all__ = [
     "sync_counter",
     "sync_frame",
 ]
-
-
-def _bus_value(entry: ObjectEntry, value: Value) -> Value:
-    """`value` as the RPDO packs it: an integer for an integer-typed object (a CiA 402 profile
-    field holds its integer as a float on the board); ValueError for a fraction there."""
-    if entry.data_type is DataType.REAL32:
-        return value
-    if value != int(value):
-        raise ValueError(f"{entry.name} is an {entry.data_type.toml_name}: {value!r} is no integer")
-    return int(value)

@@ -191,7 +191,7 @@ class RealTimeDriver(Driver):
         node: BoardNode,
         plant: Plant,
         *,
-        period_us: int = 10_000,
+        period_us: int,
         physics: bool = True,
         tpdo_timeout_s: float = 5.0,
         liveness: Callable[[], None] | None = None,

@@ -2,7 +2,7 @@
 or a list), one SYNC per cycle for all, the chain's mechanics from MuJoCo
 (`hilrig.plants.chain`), on the one lockstep engine (`hilrig.engine.lockstep`)::
 
-    with hil_session(SessionConfig(out_dir=Path("out/robot"), modules=8)) as session:
+    with hil_session(RunDescription(TraceRun(Path("out/robot")), robot=RobotRun(8))) as session:
         robot = session.robot
         robot.set_all("control_mode", ControlMode.POSITION)
         robot.before_each_cycle(lambda r: r.set_each("position_setpoint", gait(r.t)))
@@ -408,9 +408,7 @@ class Robot(CycleRunner):
         self._shared_by = [drivers[k] for k in self._live]
         self._polled_tpdos = True  # what the drivers polled on their own links, for the next cycle
         self._decoders = {
-            cob_id: decoder
-            for driver in drivers
-            for cob_id, decoder in driver.decoders.items()
+            cob_id: decoder for driver in drivers for cob_id, decoder in driver.decoders.items()
         }
 
     def poll(self, timeout_s: float = 0.0) -> None:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hilrig.files import replacing
+from hilrig.observe import streams
 from hilrig.observe.paths import (
     BUS_ROOT,
     CYCLE_TIMELINE,
@@ -291,41 +292,53 @@ def write_comparison(
 ) -> Path:
     """One recording with both runs and their differences (see the module docstring), written
     whole: to a temporary file beside `out`, renamed when complete."""
+    with replacing(out) as temporary:
+        _write_recording(comparison, base, cand, temporary, f"diff-{out.stem}", blueprint)
+    streams.release()  # the recording is let go of
+    return out
+
+
+def _write_recording(
+    comparison: Comparison,
+    base: Trace,
+    cand: Trace,
+    file: Path,
+    recording_id: str,
+    blueprint: rrb.Blueprint | None,
+) -> None:
     import rerun as rr
 
-    with replacing(out) as temporary:
-        recording = rr.RecordingStream(APPLICATION_ID, recording_id=f"diff-{out.stem}")
-        recording.set_sinks(rr.FileSink(str(temporary)))
-        period = comparison.period_s
+    recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+    recording.set_sinks(rr.FileSink(str(file)))
+    period = comparison.period_s
 
-        def send(path: str, cycles: np.ndarray, values: np.ndarray, label: str) -> None:
-            indexes = [rr.TimeColumn(CYCLE_TIMELINE, sequence=cycles)]
-            if period is not None:
-                indexes.append(rr.TimeColumn(SIM_TIME_TIMELINE, duration=cycles * period))
-            recording.log(path, rr.SeriesLines(names=label), static=True)
-            recording.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values))
+    def send(path: str, cycles: np.ndarray, values: np.ndarray, label: str) -> None:
+        indexes = [rr.TimeColumn(CYCLE_TIMELINE, sequence=cycles)]
+        if period is not None:
+            indexes.append(rr.TimeColumn(SIM_TIME_TIMELINE, duration=cycles * period))
+        recording.log(path, rr.SeriesLines(names=label), static=True)
+        recording.send_columns(path, indexes=indexes, columns=rr.Scalars.columns(scalars=values))
 
-        for path in comparison.compared:
-            if not base.scalars.get(path) or not cand.scalars.get(path):
-                continue
-            name = series_name(path, comparison.names)
-            for root, trace, run in ((DIFF_BASE_ROOT, base, "base"), (DIFF_CAND_ROOT, cand, "cand")):
-                values = np.asarray(trace.scalars[path], dtype=float)
-                send(root + path, np.asarray(trace.cycles[path]), values, f"{name} ({run})")
-            grid, difference = comparison.differences[path]
-            send(DIFF_ROOT + path, grid, difference, f"{name}: cand - base")
-        for divergence in comparison.divergences:
-            recording.set_time(CYCLE_TIMELINE, sequence=divergence.cycle)
-            if divergence.time_s is not None:
-                recording.set_time(SIM_TIME_TIMELINE, duration=divergence.time_s)
-            level = rr.TextLogLevel.ERROR if divergence is comparison.first else rr.TextLogLevel.WARN
-            prefix = "first divergence: " if divergence is comparison.first else ""
-            recording.log(DIFF_EVENTS_PATH, rr.TextLog(f"{prefix}{divergence}", level=level))
-        if blueprint is not None:
-            recording.send_blueprint(blueprint, make_active=False, make_default=True)
-        recording.flush()
-        recording.disconnect()
-    return out
+    for path in comparison.compared:
+        if not base.scalars.get(path) or not cand.scalars.get(path):
+            continue
+        name = series_name(path, comparison.names)
+        for root, trace, run in ((DIFF_BASE_ROOT, base, "base"), (DIFF_CAND_ROOT, cand, "cand")):
+            values = np.asarray(trace.scalars[path], dtype=float)
+            send(root + path, np.asarray(trace.cycles[path]), values, f"{name} ({run})")
+        grid, difference = comparison.differences[path]
+        send(DIFF_ROOT + path, grid, difference, f"{name}: cand - base")
+    for divergence in comparison.divergences:
+        recording.set_time(CYCLE_TIMELINE, sequence=divergence.cycle)
+        if divergence.time_s is not None:
+            recording.set_time(SIM_TIME_TIMELINE, duration=divergence.time_s)
+        level = rr.TextLogLevel.ERROR if divergence is comparison.first else rr.TextLogLevel.WARN
+        prefix = "first divergence: " if divergence is comparison.first else ""
+        recording.log(DIFF_EVENTS_PATH, rr.TextLog(f"{prefix}{divergence}", level=level))
+    if blueprint is not None:
+        streams.send_blueprint(recording, blueprint, make_active=False, make_default=True)
+    recording.flush()
+    recording.disconnect()
 
 
 __all__ = ["Comparison", "Divergence", "Tolerance", "compare", "write_comparison"]

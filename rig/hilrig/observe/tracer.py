@@ -37,6 +37,7 @@ from boardproto.table import BitSet, ValueEnum
 from hilrig import resources
 from hilrig.engine.driver import CycleResult, History, HistoryMark
 from hilrig.engine.observers import RigObserver
+from hilrig.observe import streams
 from hilrig.observe.batches import Clock, RecordBatches, Value, _Batch, _CycleRow, _HistorySpan, module_of
 from hilrig.observe.blueprints import load_blueprint
 from hilrig.observe.busmeter import TRACE_BITRATE, BusMeter, Measured
@@ -212,21 +213,32 @@ class Tracer(RecordBatches, RigObserver):
 
         self._owns_recording = share is None
         self._live_urls: list[str] = []  # the gRPC addresses of the live sinks (send_blueprint)
+        # A live sink's recording is live (`streams.live`) from here until close() disconnects it.
+        self._live = self._owns_recording and any(s.kind is not SinkKind.RRD for s in self.sinks)
         if share is not None:  # another tracer's recording and sinks (a robot's module)
             self.recording = share.recording
             self.sinks = share.sinks
             self._live_urls = share._live_urls
         else:
             self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_name)
-            self._attach_sinks()
-        if blueprint == DEFAULT_BLUEPRINT and not resources.is_default_table(table.board.source):
-            blueprint = GENERATED_DASHBOARD  # another board's trace
-        if self._owns_recording:
-            self._send_board(blueprint)
-        # The generated dashboard names the plant's truth: sent when the rig configures (or at close).
-        self._generated_pending = blueprint == GENERATED_DASHBOARD
-        if blueprint is not None and not self._generated_pending:
-            self.send_blueprint(load_blueprint(blueprint, table))
+            if self._live:
+                streams.go_live()
+        try:
+            if self._owns_recording:
+                self._attach_sinks()
+            if blueprint == DEFAULT_BLUEPRINT and not resources.is_default_table(table.board.source):
+                blueprint = GENERATED_DASHBOARD  # another board's trace
+            if self._owns_recording:
+                self._send_board(blueprint)
+            # The generated dashboard names the plant's truth: sent when the rig configures (or at close).
+            self._generated_pending = blueprint == GENERATED_DASHBOARD
+            if blueprint is not None and not self._generated_pending:
+                self.send_blueprint(load_blueprint(blueprint, table))
+        except BaseException:  # no tracer, so no close(): the live stream ends here
+            if self._live:
+                self.recording.disconnect()
+                streams.end_live()
+            raise
 
         self._queue: queue.SimpleQueue[_Batch | None] | None = None
         self._worker: threading.Thread | None = None
@@ -459,7 +471,9 @@ class Tracer(RecordBatches, RigObserver):
         )
 
     def close(self) -> None:
-        """Send what is pending, stop the sender thread and flush every sink. Idempotent.
+        """Send what is pending, stop the sender thread, flush every sink and let go of the
+        recording: once the robot's module tracers are closed too, what Rerun kept of it (its
+        threads) is freed (`streams.release`). Idempotent.
 
         A served web viewer keeps serving the data until this process exits.
         """
@@ -474,8 +488,16 @@ class Tracer(RecordBatches, RigObserver):
             self._queue.put(None)
             self._worker.join()
         self.recording.flush()
-        if self._owns_recording and not any(s.kind is SinkKind.WEB for s in self.sinks):
-            self.recording.disconnect()
+        if self._owns_recording:
+            if any(s.kind is SinkKind.WEB for s in self.sinks):
+                streams.keep_serving(self.recording)  # its files are complete all the same
+            else:
+                self.recording.disconnect()
+            if self._live:
+                streams.end_live()
+        del self.recording  # a closed tracer sends nothing; the sweep frees what nothing holds
+        if self._owns_recording:
+            streams.release()
         if self._error is not None:
             raise RuntimeError(f"tracing failed in the sender thread: {self._error}") from self._error
 
@@ -525,18 +547,19 @@ class Tracer(RecordBatches, RigObserver):
         active one in the file wins over the dashboard `hilrig view --dashboard` loads beside it
         (measured: the viewer showed the file's). A live viewer is told to show it at once, over
         a stream of its own to the live sinks alone."""
-        self.recording.send_blueprint(blueprint, make_active=False, make_default=True)
+        streams.send_blueprint(self.recording, blueprint, make_active=False, make_default=True)
         rr = self._rr
         for url in self._live_urls:
-            stream = rr.RecordingStream(
-                APPLICATION_ID, recording_id=self.recording.get_recording_id(), send_properties=False
-            )
-            stream.connect_grpc(url)
-            try:
-                stream.send_blueprint(blueprint, make_active=True, make_default=True)
-                stream.flush()
-            finally:
-                stream.disconnect()
+            with streams.live():
+                stream = rr.RecordingStream(
+                    APPLICATION_ID, recording_id=self.recording.get_recording_id(), send_properties=False
+                )
+                stream.connect_grpc(url)
+                try:
+                    streams.send_blueprint(stream, blueprint, make_active=True, make_default=True)
+                    stream.flush()
+                finally:
+                    stream.disconnect()
 
     def settle(self, timeout_s: float = SETTLE_TIMEOUT_S) -> bool:
         """Wait until what was logged and submitted so far is in Rerun's hands and written to

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hilrig.observe import streams
 from hilrig.observe.blueprints import load_blueprint, save_blueprint
 from hilrig.observe.sinks import (
     APPLICATION_ID,
@@ -43,7 +44,6 @@ class ViewerProcess(subprocess.Popen[bytes]):
         if self.returncode is None:  # once reaped, the group id may belong to someone else
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.pid, sig)
-
 
 
 def _check_port_free(port: int, what: str) -> None:
@@ -126,6 +126,12 @@ def send_to_viewer(
     given (the file's own recording), then `blueprint` made the active and the default one.
     The stream sends no recording of its own (send_properties=False: no empty second source);
     `recording_id`: the shown recording's, where a page already shows one."""
+    with streams.live():
+        _send(grpc_port, blueprint, recording_id, trace)
+    streams.release()  # the stream is let go of
+
+
+def _send(grpc_port: int, blueprint: rrb.Blueprint, recording_id: str | None, trace: Path | None) -> None:
     import rerun as rr
 
     stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
@@ -133,7 +139,7 @@ def send_to_viewer(
     try:
         if trace is not None:
             rr.log_file_from_path(trace, recording=stream)
-        stream.send_blueprint(blueprint, make_active=True, make_default=True)
+        streams.send_blueprint(stream, blueprint, make_active=True, make_default=True)
         stream.flush()
     finally:
         stream.disconnect()

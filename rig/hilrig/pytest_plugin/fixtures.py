@@ -42,13 +42,22 @@ from hilrig.session.builder import (
     BoardInterface,
     HilSession,
     Rider,
-    SessionConfig,
     bus_log_path,
     open_session,
 )
 from hilrig.session.logformats import LOG_FORMATS
 from hilrig.session.netns import PrivateBus, private_buses_supported, require_private_buses
-from hilrig.session.run import BOOT_TIMEOUT_S, REALTIME_FIRMWARE_PERIOD_US, RunDescription, RunOptionError
+from hilrig.session.run import (
+    BOOT_TIMEOUT_S,
+    REALTIME_FIRMWARE_PERIOD_US,
+    BusRun,
+    FirmwareRun,
+    RigRun,
+    RobotRun,
+    RunDescription,
+    RunOptionError,
+    TraceRun,
+)
 from hilrig.wire.bustime import BUS_PROPERTY, IDEAL, bitrate_text, bus_summary, ideal_label
 
 SCENARIO_SDO_TIMEOUT_S = 5.0
@@ -435,35 +444,39 @@ def make_scenario(
             run_bus = config.getoption("hil_timed_bus")
             timed_bitrate, bus_label = _scenario_bus(request.node, run_bus, bitrate, hil_board)
             _record_bus(request.node, bus_label)
-        session_config = SessionConfig(
-            out_dir=run_dir,
-            live=_live_sinks(config) if trace else (),
-            params=params,
-            seed=seed,
-            plant=hil_board.plant,
-            blueprint=hil_board.dashboard,
-            node_id=node_id,
-            mode=mode,
-            period_us=REALTIME_RIG_PERIOD_US if realtime else None,
-            firmware_period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else None,
-            bitrate=timed_bitrate,
-            physics=physics,
-            trace=trace,
-            board=board,
-            executable=hil_board.firmware,
-            eds=hil_board.eds,
-            params_file=params_file,
-            extra_args=(*hil_board.firmware_args, *extra_args),
-            boot_timeout_s=BOOT_TIMEOUT_S,
-            sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
-            bus_log_format=config.getoption("hil_bus_log_format"),
-            firmware_platform=platform,
+        run = RunDescription(
+            trace=TraceRun(
+                run_dir,
+                trace=trace,
+                live=_live_sinks(config) if trace else (),
+                bus_log_format=config.getoption("hil_bus_log_format"),
+                blueprint=hil_board.dashboard,
+            ),
+            bus=BusRun(board=board, bitrate=timed_bitrate),
+            firmware=FirmwareRun(
+                executable=hil_board.firmware,
+                platform=platform,
+                node_id=node_id,
+                period_us=REALTIME_FIRMWARE_PERIOD_US if realtime else None,
+                params_file=params_file,
+                extra_args=(*hil_board.firmware_args, *extra_args),
+                boot_timeout_s=BOOT_TIMEOUT_S,
+            ),
+            rig=RigRun(
+                timing=TimingMode(mode),
+                period_us=REALTIME_RIG_PERIOD_US if realtime else None,
+                plant=hil_board.plant,
+                params=params,
+                seed=seed,
+                physics=physics,
+                eds=hil_board.eds,
+                sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
+            ),
         )
         if board is None:
             _require_built(hil_board, platform)
         # The test's own private bus (a test may send frames of its own on it, e.g. a flood).
         private_bus = request.getfixturevalue("private_bus") if board is None else None
-        run = session_config.describe()
         if not realtime:
             run = _pytest_run(config, run, hil_board)
         session = open_session(run, table=hil_board.table, before_start=before_start, private_bus=private_bus)
@@ -472,7 +485,7 @@ def make_scenario(
             assert session.rig is not None
             name = subdir or ("main" if len(sessions) == 1 else f"run {len(sessions)}")
             watch(request.node, session.rig, name)
-        request.node.hil_evidence = _evidence(run_dir, trace, bus_log_path(session_config))
+        request.node.hil_evidence = _evidence(run_dir, trace, bus_log_path(run))
         request.node.hil_trace = session.trace_path  # --hil-baseline
         assert session.rig is not None
         return Scenario(
@@ -518,33 +531,33 @@ def make_robot(
         riders: Sequence[Rider] = (),
         module_platforms: dict[int, str] | None = None,
     ) -> HilSession:
-        config = SessionConfig(
-            out_dir=scenario_dir,
-            modules=tuple(node_ids) if node_ids is not None else n,
-            live=_live_sinks(request.config) if trace else (),
-            params=params,
-            seed=seed,
-            trace=trace,
-            executable=hil_board.firmware,
-            eds=hil_board.eds,
-            extra_args=hil_board.firmware_args,
-            master=master,
-            start=start,
-            riders=tuple(riders),
-            boot_timeout_s=BOOT_TIMEOUT_S,
-            sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S,
-            bus_log_format=request.config.getoption("hil_bus_log_format"),
-            firmware_platform=hil_firmware_platform,
-            module_platforms=dict(module_platforms or {}),
+        run = RunDescription(
+            trace=TraceRun(
+                scenario_dir,
+                trace=trace,
+                live=_live_sinks(request.config) if trace else (),
+                bus_log_format=request.config.getoption("hil_bus_log_format"),
+            ),
+            firmware=FirmwareRun(
+                executable=hil_board.firmware,
+                platform=hil_firmware_platform,
+                extra_args=hil_board.firmware_args,
+                boot_timeout_s=BOOT_TIMEOUT_S,
+                module_platforms=dict(module_platforms or {}),
+            ),
+            rig=RigRun(params=params, seed=seed, eds=hil_board.eds, sdo_timeout_s=SCENARIO_SDO_TIMEOUT_S),
+            robot=RobotRun(
+                tuple(node_ids) if node_ids is not None else n, master=master, riders=tuple(riders)
+            ),
         )
         for platform in (module_platforms or {}).values():
             _record_platform(request.node, platform)
         _record_bus(request.node, ideal_label(ROBOT_BUS))
         _require_built(hil_board, hil_firmware_platform, *(module_platforms or {}).values())
         logs = f", firmware logs: {scenario_dir}/firmware-*.log"
-        request.node.hil_evidence = _evidence(scenario_dir, trace, bus_log_path(config)) + logs
+        request.node.hil_evidence = _evidence(scenario_dir, trace, bus_log_path(run)) + logs
         session = open_session(
-            _pytest_run(request.config, config.describe(), hil_board),
+            _pytest_run(request.config, run, hil_board),
             table=hil_board.table,
             private_bus=request.getfixturevalue("private_bus"),
             start=start,

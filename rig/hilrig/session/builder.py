@@ -10,8 +10,7 @@ order and closed in reverse on one `contextlib.ExitStack`. Used by the pytest fi
     # out/run/trace.rrd whole
 
 A real board: `RunDescription(TraceRun(out_dir), bus=BusRun(board=BoardInterface("socketcan", "can0")),
-rig=RigRun(timing=TimingMode.REALTIME))` (`hilrig.session.run`; `SessionConfig` is the flat
-adapter older callers use).
+rig=RigRun(timing=TimingMode.REALTIME))` (`hilrig.session.run`: the one description of a run).
 
 A robot: `RunDescription(..., robot=RobotRun(8))` starts the firmware 8 times (node ids 1..8, or a
 list), each with its own log (firmware-<id>.log) and parameter file (params-<id>.bin), and hands
@@ -22,7 +21,7 @@ each module's trace under /modules/<id>.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,24 +29,17 @@ from typing import TYPE_CHECKING, Any
 import can
 
 from boardproto.cia301 import emcy_cob_id
-from hilrig.engine.rig import DEFAULT_EDS_PATH, Rig, TimingMode
-from hilrig.engine.robot import MasterHeartbeat, Robot, module_ids
-from hilrig.plants import default_plant
+from hilrig.engine.rig import Rig, TimingMode
+from hilrig.engine.robot import Robot, module_ids
 from hilrig.session import baremetal
 from hilrig.session.buslog import RecorderProcess, whole_file_logger
-from hilrig.session.firmware import DEFAULT_EXECUTABLE, Firmware
+from hilrig.session.firmware import Firmware
 from hilrig.session.logformats import LOG_FORMATS
 from hilrig.session.netns import PrivateBus, require_private_buses
 from hilrig.session.run import (
-    BOOT_TIMEOUT_S,
     BoardInterface,
-    BusRun,
-    FirmwareRun,
     PlantFactory,
-    RigRun,
-    RobotRun,
     RunDescription,
-    TraceRun,
 )
 from hilrig.table import RigTable
 from hilrig.wire.node import BoardNode, answer_filters
@@ -69,113 +61,6 @@ class Rider:
     executable: Path
     plant: PlantFactory
     params: Any = None
-
-
-@dataclass(frozen=True)
-class SessionConfig:
-    """A run's settings in one flat record, the adapter of older callers: `describe()` makes the
-    `RunDescription` the builder takes. out_dir: firmware.log, bus.log and trace.rrd go here.
-    trace: a trace.rrd in out_dir (True; `live` sinks beside it), these sinks (a sequence of
-    `TraceSink`), or none.
-    board: a real board (no firmware is started); None: the firmware on a private vcan0.
-    firmware_period_us: the firmware's own period (default: the rig's, or 10 ms in real time).
-    plant: what makes the plant from `params` (its parameters, None: its defaults) and `seed`
-    (its noise); a robot's modules are its chain's (the demo joint's).
-    """
-
-    out_dir: Path
-    params: Any = None
-    seed: int = 0
-    plant: PlantFactory = default_plant
-    blueprint: str | None = "overview"
-    """The dashboard (`dashboards.BLUEPRINTS`) the trace opens with, built for the session's
-    table: the board's own ("head" for the head module), None for the viewer's default."""
-    node_id: int | None = None
-    mode: TimingMode | str = TimingMode.LOCKSTEP
-    period_us: int | None = None
-    """None: the table's [node] period_us."""
-    bitrate: int | None = None
-    """Lockstep on a bus with this bit rate (`hilrig.engine.bustiming`: what does not fit a
-    cycle arrives in a later one); None: the ideal bus, every frame in its cycle. Scenarios
-    take the table's ([node] bitrate) by default (`--hil-timed-bus`, `ideal_bus(why)`)."""
-    physics: bool = True
-    trace: bool | Sequence[TraceSink] = True
-    live: Sequence[TraceSink] = ()
-    """With trace=True: also stream to these sinks (a viewer) while the run goes."""
-    record: bool = True
-    bus_log_format: str = ".log"
-    """The bus log's format, out_dir/bus<format>: one of `logformats.LOG_FORMATS`."""
-    board: BoardInterface | None = None
-    executable: Path = DEFAULT_EXECUTABLE
-    eds: Path = DEFAULT_EDS_PATH
-    params_file: Path | None = None
-    extra_args: Sequence[str] = ()
-    firmware_period_us: int | None = None
-    boot_timeout_s: float = BOOT_TIMEOUT_S
-    sdo_timeout_s: float = 5.0
-    tpdo_timeout_s: float = 5.0
-    start: bool = True
-    """Bring the node up (Rig.start) before handing the session over."""
-    rig: bool = True
-    """False: no Rig, only the node (`HilSession.node`: canopen for SDO/NMT and the frame link),
-    for a program that puts the engine's driver on it itself (the soak: no plant, no trace)."""
-    host_channel: str | None = None
-    """Run the firmware on this interface of the host as it is, instead of a private vcan0."""
-    firmware_term_timeout_s: float = 5.0
-    modules: int | Sequence[int] | None = None
-    """A robot: this many modules (node ids 1..N) or these node ids, on one private bus (lockstep,
-    the firmware started by the session; `node_id`, `params_file` and `board` do not apply)."""
-    master: MasterHeartbeat | None = field(default_factory=MasterHeartbeat)
-    """A robot's master heartbeat (None: the rig sends none and the modules watch nothing)."""
-    riders: Sequence[Rider] = ()
-    """A robot's other boards on its bus, after its joints (`Robot.riders`)."""
-    firmware_platform: str = baremetal.LINUX
-    """Where the board's firmware runs (`baremetal.FIRMWARE_PLATFORMS`): the Linux process, or
-    `baremetal_image` under qemu-system-arm ("qemu-virt")."""
-    module_platforms: Mapping[int, str] = field(default_factory=dict)
-    """A robot's modules by node id that run on another platform than `firmware_platform`."""
-    baremetal_image: Path = field(default_factory=lambda: baremetal.default_image(baremetal.QEMU_VIRT))
-    """The image the "qemu-virt" platform runs (the demo joint's: `make baremetal`)."""
-
-    def describe(self) -> RunDescription:
-        """This run as the builder takes it."""
-        return RunDescription(
-            trace=TraceRun(
-                self.out_dir,
-                trace=self.trace,
-                live=self.live,
-                record=self.record,
-                bus_log_format=self.bus_log_format,
-                blueprint=self.blueprint,
-            ),
-            bus=BusRun(board=self.board, host_channel=self.host_channel, bitrate=self.bitrate),
-            firmware=FirmwareRun(
-                executable=self.executable,
-                platform=self.firmware_platform,
-                image=self.baremetal_image,
-                node_id=self.node_id,
-                period_us=self.firmware_period_us,
-                params_file=self.params_file,
-                extra_args=self.extra_args,
-                boot_timeout_s=self.boot_timeout_s,
-                term_timeout_s=self.firmware_term_timeout_s,
-                module_platforms=self.module_platforms,
-            ),
-            rig=RigRun(
-                timing=TimingMode(self.mode),
-                period_us=self.period_us,
-                plant=self.plant,
-                params=self.params,
-                seed=self.seed,
-                physics=self.physics,
-                eds=self.eds,
-                sdo_timeout_s=self.sdo_timeout_s,
-                tpdo_timeout_s=self.tpdo_timeout_s,
-            ),
-            robot=None
-            if self.modules is None
-            else RobotRun(self.modules, master=self.master, riders=self.riders),
-        )
 
 
 @dataclass
@@ -268,7 +153,7 @@ def _module_rig(
 
 
 def open_session(
-    run: RunDescription | SessionConfig,
+    run: RunDescription,
     *,
     table: RigTable | None = None,
     before_start: Callable[[Rig], None] | None = None,
@@ -282,9 +167,6 @@ def open_session(
     `start`: bring the node up (Rig.start) before handing the session over. `with_rig`: False
     is no Rig, only the node (`HilSession.node`: canopen for SDO/NMT and the frame link), for a
     program that puts the engine's driver on it itself (the soak: no plant, no trace)."""
-    if isinstance(run, SessionConfig):
-        start, with_rig = run.start, run.rig
-        run = run.describe()
     table = table if table is not None else RigTable.load()
     if run.robot is not None:
         if run.bus.bitrate is not None:
@@ -493,9 +375,9 @@ def _launcher(
     return private_bus, launcher
 
 
-def bus_log_path(run: RunDescription | SessionConfig) -> Path:
+def bus_log_path(run: RunDescription) -> Path:
     """Where the session's bus log goes: out_dir/bus.log, or bus.blf, bus.mf4... by its format."""
-    trace = run.trace if isinstance(run, RunDescription) else run.describe().trace
+    trace = run.trace
     if trace.bus_log_format not in LOG_FORMATS:
         raise ValueError(f"bus log format {trace.bus_log_format!r}: choose one of {', '.join(LOG_FORMATS)}")
     return trace.out_dir / f"bus{trace.bus_log_format}"
@@ -582,7 +464,7 @@ class _HostChannel:
 
 @contextlib.contextmanager
 def hil_session(
-    run: RunDescription | SessionConfig,
+    run: RunDescription,
     *,
     table: RigTable | None = None,
     before_start: Callable[[Rig], None] | None = None,
@@ -606,7 +488,6 @@ __all__ = [
     "PlantFactory",
     "Rider",
     "RunDescription",
-    "SessionConfig",
     "hil_session",
     "open_session",
 ]

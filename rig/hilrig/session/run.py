@@ -341,6 +341,16 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
         pytest=True,
     ),
     RunOption(
+        ("--tpdo-timeout",),
+        "tpdo_timeout",
+        "rig.tpdo_timeout_s",
+        "seconds of wall time the rig waits for a TPDO due at a SYNC before it judges the node (a hang "
+        "guard: lockstep verdicts never depend on it; default: the run's)",
+        positive_float,
+        metavar="S",
+        pytest=True,
+    ),
+    RunOption(
         ("-n", "--node-id"),
         "node_id",
         "firmware.node_id",
