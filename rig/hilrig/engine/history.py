@@ -232,8 +232,7 @@ class History:
         self._arrivals: dict[PdoLayout, bytearray] = {}
         """Per TPDO, (cycle, CLOCK_MONOTONIC ns) of each arrival (`ARRIVAL`), as the exchange
         appends them (`arrival_store`)."""
-        self._syncs = bytearray()
-        self.sync_store: bytearray | None = self._syncs if keep else None
+        self.sync_store: bytearray | None = bytearray() if keep else None
         """Where a lockstep driver appends (cycle, CLOCK_MONOTONIC ns) of each cycle's SYNC as it
         was sent (`transport.ARRIVAL`): what `delays_of` measures from; None when nothing is kept.
         The driver appends itself, as the exchange appends arrivals: a call per cycle less."""
@@ -315,10 +314,10 @@ class History:
         """`pdo`'s delay after its cycle's SYNC [s] in each of `cycles` (cycles it arrived in), by
         the exchange's clock; NaN where either time is not known; None when none is kept."""
         arrivals = self._arrivals.get(pdo)
-        if not arrivals or not self._syncs or not len(cycles):
+        if not arrivals or not self.sync_store or not len(cycles):
             return None
         arrived = np.frombuffer(bytes(arrivals), dtype=np.int64).reshape(-1, 2)
-        synced = np.frombuffer(bytes(self._syncs), dtype=np.int64).reshape(-1, 2)
+        synced = np.frombuffer(bytes(self.sync_store), dtype=np.int64).reshape(-1, 2)
         return (_at_cycles(arrived, cycles) - _at_cycles(synced, cycles)) / 1e9
 
     def has_received(self, name: str) -> bool:

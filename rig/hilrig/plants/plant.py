@@ -37,8 +37,6 @@ def duty_from_motor_duty(motor_duty: int) -> float:
     to [-1, 1] like a real H-bridge would, and the rig can flag them separately.
     Raises ValueError for values an I16 cannot carry (a packing bug, not a duty).
     """
-    if type(motor_duty) is int and I16_MIN <= motor_duty <= I16_MAX:  # every cycle: checks in order
-        return motor_duty / MOTOR_DUTY_FULL_SCALE
     if type(motor_duty) is not int and (isinstance(motor_duty, bool) or not isinstance(motor_duty, int)):
         raise TypeError(f"motor_duty: expected int, got {type(motor_duty).__name__}")
     if not I16_MIN <= motor_duty <= I16_MAX:
