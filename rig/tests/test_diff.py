@@ -4,26 +4,21 @@ events, runs of different length)."""
 
 from __future__ import annotations
 
-import itertools
 from collections import defaultdict
 from pathlib import Path
 
-import can
 import pytest
+from fake_rig import traced_fake_rig
 
 from hilrig.cli import main as hilrig
-from hilrig.engine.rig import Rig
 from hilrig.observe.dashboard_check import fitting_dashboards, trace_gaps
 from hilrig.observe.diff import Tolerance, compare
 from hilrig.observe.paths import DIFF_BASE_ROOT, DIFF_CAND_ROOT, DIFF_EVENTS_PATH, DIFF_ROOT
 from hilrig.observe.reader import Trace
 from hilrig.observe.sinks import TraceSink
 from hilrig.observe.tracer import Tracer
-from hilrig.plants import JointParams
-from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
 
-_channels = itertools.count()
 KP_WRITTEN_AT = 12
 """The cycle a run writes velocity_kp over SDO."""
 WALL_CLOCK = ["--ignore", "/events/nmt"]
@@ -33,27 +28,12 @@ WALL_CLOCK = ["--ignore", "/events/nmt"]
 def traced_run(path: Path, velocity_kp: float, cycles: int = 30) -> Path:
     """A traced Rig run against the fake node: a velocity step, velocity_kp written at cycle 12."""
     table = RigTable.load()
-    channel = f"hilrig-diff-{next(_channels)}"
-    rig_bus, fake_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
-    fake = FakeJointNode(fake_bus, table=table)
     tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=10, background=False, blueprint="overview")
-    params = JointParams.fast_thermal()
-    rig = Rig(
-        rig_bus, table=table, params=params, seed=3, tpdo_timeout_s=0.5, activity=fake.activity, tracer=tracer
-    )
-    fake.boot()
-    try:
-        rig.start()
+    with traced_fake_rig(tracer, table) as rig:
         rig.set("velocity_setpoint", 2.0)
         rig.run(cycles=KP_WRITTEN_AT)
         rig.set("velocity_kp", velocity_kp)
         rig.run(cycles=cycles - KP_WRITTEN_AT)
-    finally:
-        rig.close()
-        fake.close()
-        tracer.close()
-        rig_bus.shutdown()
-        fake_bus.shutdown()
     return path
 
 

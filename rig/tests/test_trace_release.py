@@ -5,23 +5,19 @@ threads with every one."""
 
 from __future__ import annotations
 
-import itertools
 import os
 import warnings
 from pathlib import Path
 
-import can
 import pytest
+from fake_rig import traced_fake_rig
 
-from hilrig.engine.rig import Rig
 from hilrig.errors import FieldNameError
 from hilrig.observe import streams
 from hilrig.observe.browser import free_port
 from hilrig.observe.reader import Trace
 from hilrig.observe.sinks import TraceSink
 from hilrig.observe.tracer import Tracer
-from hilrig.plants import JointParams
-from hilrig.session.fake_node import FakeJointNode
 from hilrig.table import RigTable
 
 SESSIONS = 8
@@ -29,7 +25,6 @@ CYCLES = 30
 SLACK = 2
 """Threads besides Rerun's that may come and go between two counts: the fake node's heartbeat
 (python-can's cyclic send task, not joined when stopped, ends at its next period)."""
-_channels = itertools.count()
 
 
 @pytest.fixture(scope="module")
@@ -45,29 +40,8 @@ def _native_threads() -> int:
 def _traced_session(out_dir: Path, table: RigTable) -> None:
     """A scenario as the pytest plugin runs one: its tracer (with the default dashboard), a Rig
     started and run, everything closed."""
-    channel = f"hilrig-release-{next(_channels)}"
-    rig_bus, fake_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
-    fake = FakeJointNode(fake_bus, table=table)
-    tracer = Tracer.for_scenario(out_dir, table)
-    rig = Rig(
-        rig_bus,
-        table=table,
-        params=JointParams.fast_thermal(),
-        seed=3,
-        tpdo_timeout_s=0.5,
-        activity=fake.activity,
-        tracer=tracer,
-    )
-    fake.boot()
-    try:
-        rig.start()
+    with traced_fake_rig(Tracer.for_scenario(out_dir, table), table) as rig:
         rig.run(cycles=CYCLES)
-    finally:
-        rig.close()
-        fake.close()
-        tracer.close()
-        rig_bus.shutdown()
-        fake_bus.shutdown()
 
 
 def test_traced_sessions_one_after_another_leave_no_threads_behind(tmp_path: Path, table: RigTable) -> None:
