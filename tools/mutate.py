@@ -12,7 +12,9 @@ The mutants (tools/mutate_mutants.py): universalmutator's C++ rules and the real
 of tools/mutate_operators.py, applied to one line of one product file at a time (firmware/
 without its tests, benchmarks, fuzzers and test doubles: NOT_PRODUCT), without those that cannot
 compile. The sample (tools/mutate_sampling.py): N counted mutants (compiled, not listed as
-equivalent) stratified over the product files, seeded (SEED); a shard K/N takes its part of
+equivalent) stratified over the product files that the host build compiles (another target's
+platform, e.g. the bare-metal qemu-virt firmware, is built and tested by its own target and not
+sampled; the report lists them), seeded (SEED); a shard K/N takes its part of
 every file's candidates and share, so the shards of one sample add up to it and `merge` puts
 their reports together.
 
@@ -64,6 +66,7 @@ from mutate_mutants import (  # noqa: F401 (the tool's names, as its tests use t
     REPO,
     Mutant,
     all_mutants,
+    compiled_by,
     load_equivalents,
     mutants_of,
     product_files,
@@ -355,6 +358,16 @@ def counted(out: Path, mutant: Mutant, equivalents: dict[str, str]) -> bool:
     )
 
 
+def prepare(workspace: Workspace, jobs: int) -> None:
+    """The workspace's sources up to date and the unmutated firmware built (the baseline)."""
+    workspace.sync()
+    workspace.configure()
+    print("mutate: building the unmutated firmware (baseline)", flush=True)
+    baseline = workspace.compile(jobs)
+    if baseline.returncode != 0:
+        raise SystemExit(f"mutate: the unmutated sources do not build:\n{baseline.stdout[-3000:]}")
+
+
 def build_and_unit(
     workspace: Workspace,
     candidates: Iterable[Mutant],
@@ -363,13 +376,8 @@ def build_and_unit(
     use_coverage: bool = True,
 ) -> list[Mutant]:
     """Build each candidate and run the unit tests that execute its line on it (results kept
-    per mutant); returns the mutants tried (the listed equivalents are skipped, not built)."""
-    workspace.sync()
-    workspace.configure()
-    print("mutate: building the unmutated firmware (baseline)", flush=True)
-    baseline = workspace.compile(jobs)
-    if baseline.returncode != 0:
-        raise SystemExit(f"mutate: the unmutated sources do not build:\n{baseline.stdout[-3000:]}")
+    per mutant); returns the mutants tried (the listed equivalents are skipped, not built).
+    The workspace is prepared (`prepare`) first."""
     unit_timeout = baseline_unit_timeout(workspace.build, jobs, workspace.out)
     record = ensure_unit_coverage(workspace, jobs) if use_coverage else None
     unit_groups = coverage.unit_tests_by_executable(workspace.build) if record else {}
@@ -514,22 +522,38 @@ class Selection:
         return sampling.take(self.plan, lambda m: counted(out, m, equivalents))
 
 
-def select(args: argparse.Namespace) -> Selection:
-    """The stratified sample (or its shard) of every mutant of the product files; `--mutant ID`s
+def host_tree(args: argparse.Namespace) -> tuple[Path, Path]:
+    """The built tree whose compiled files the sample draws from, and its sources: the run's
+    own workspace once built (`report`, `list --out`), else the checkout's `make build` tree."""
+    out = Path(args.out).resolve()
+    if (out / "build" / ".ninja_deps").exists():
+        return out / "build", out / "src"
+    source_root = Path(args.source).resolve()
+    return source_root / "build", source_root
+
+
+def select(args: argparse.Namespace, tree: tuple[Path, Path] | None = None) -> Selection:
+    """The stratified sample (or its shard) of every mutant of the product files that the host
+    build compiles (`tree`: a built tree and its sources, default `host_tree`); `--mutant ID`s
     instead, where the command has them."""
     shard = scenario_shards.parse_shard(args.shard) if args.shard else None
     if args.mutants < 1:
         raise ValueError(f"MUTANTS must be at least 1, not {args.mutants}")
     source_root = Path(args.source).resolve()
-    files = product_files(source_root, args.product or PRODUCT)
-    everything = all_mutants(source_root, files)
+    product = product_files(source_root, args.product or PRODUCT)
+    compiled = compiled_by(*(tree or host_tree(args)))
+    files = [f for f in product if f in compiled]
+    outside = [f for f in product if f not in compiled]
+    # The index of sibling names stays that of every product file: the mutants do not change.
+    everything = [m for m in all_mutants(source_root, product) if m.path in compiled]
     plan = None
     if getattr(args, "mutant", None):
         by_id = {m.id: m for m in everything}
         unknown = [i for i in args.mutant if i not in by_id]
         if unknown:
             raise ValueError(
-                f"no such mutant: {', '.join(unknown)} (`tools/mutate.py list` shows a sample's ids)"
+                f"no such mutant of a file the host build compiles: {', '.join(unknown)} "
+                "(`tools/mutate.py list` shows a sample's ids)"
             )
         chosen = [by_id[i] for i in args.mutant]
         description = f"{len(chosen)} mutants chosen by id"
@@ -543,15 +567,26 @@ def select(args: argparse.Namespace) -> Selection:
             f"{plan.count} counted mutants stratified over {len(plan.targets)} files, "
             f"of {len(everything)} (seed {args.seed}{where})"
         )
+    not_sampled = {}
+    if outside:
+        folders = sorted({str(Path(f).parent) for f in outside})
+        description += (
+            f"; not sampled: {len(outside)} product files the host build does not compile "
+            f"({', '.join(folders)}: built and tested by their own targets)"
+        )
+        not_sampled = {"not_sampled": outside}
     config = {
         "description": description,
         "seed": args.seed,
         "mutants": args.mutants,
         "shard": str(shard) if shard else None,
         "project_root": str(source_root),
+        **not_sampled,
     }
     name = f"report-shard-{shard.index}-of-{shard.count}" if shard else "report"
-    return Selection(plan, chosen, source_root, f"{description} of {len(files)} product files", name, config)
+    return Selection(
+        plan, chosen, source_root, f"{description}; {len(files)} product files sampled", name, config
+    )
 
 
 def run_in_vm(out: Path, command: str, uml: bool) -> int:
@@ -562,11 +597,13 @@ def run_in_vm(out: Path, command: str, uml: bool) -> int:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    chosen = select(args)
     out = Path(args.out).resolve()
-    print(f"mutate: {chosen.description}", flush=True)
     out.mkdir(parents=True, exist_ok=True)
-    workspace = Workspace(out, chosen.source_root, tuple(args.sources), tuple(args.cmake_arg or CMAKE_ARGS))
+    source_root = Path(args.source).resolve()
+    workspace = Workspace(out, source_root, tuple(args.sources), tuple(args.cmake_arg or CMAKE_ARGS))
+    prepare(workspace, args.jobs)
+    chosen = select(args, (workspace.build, workspace.src))
+    print(f"mutate: {chosen.description}", flush=True)
     tried = build_and_unit(workspace, chosen.candidates(out), args.jobs, use_coverage=not args.no_coverage)
     report.write_json(out / "plan.json", {"mutants": [m.id for m in tried]})
     if not args.no_scenarios:
@@ -650,6 +687,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.add_argument("--product", action="append", help=argparse.SUPPRESS)
     sub.choices["report"].add_argument(
         "--out", default=str(DEFAULT_OUT), help="the run's folder (default build/mutate)"
+    )
+    sub.choices["list"].add_argument(
+        "--out",
+        default=str(DEFAULT_OUT),
+        help="a run's folder: its build (else the checkout's build/) tells which files are sampled",
     )
     run = sub.choices["run"]
     run.add_argument("--out", default=str(DEFAULT_OUT), help="workspace and report (default build/mutate)")

@@ -7,7 +7,9 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import io
+import json
 import re
+import subprocess
 import tomllib
 from collections import Counter
 from collections.abc import Iterable, Sequence
@@ -74,6 +76,27 @@ def product_files(
         for f in found
         if not any(fnmatch(f, pattern) or fnmatch(Path(f).name, pattern) for pattern in not_product)
     )
+
+
+def compiled_by(build: Path, source: Path) -> set[str]:
+    """The files of `source` (paths relative to it) that the built tree `build` compiles: its
+    translation units (compile_commands.json) and the headers they include (ninja's deps log).
+    A product file outside this set (another target's platform, e.g. the bare-metal qemu-virt
+    firmware) is never built by the host build a mutant is tested in, so its mutants would
+    "survive" every test unmutated: the sample leaves such files out and the report says so."""
+    commands_path = build / "compile_commands.json"
+    if not commands_path.exists() or not (build / ".ninja_deps").exists():
+        raise ValueError(
+            f"no built host tree at {build} (run `make build` first): the sample draws only "
+            "the product files the host build compiles"
+        )
+    found = {Path(e["directory"], e["file"]).resolve() for e in json.loads(commands_path.read_text())}
+    deps = subprocess.run(
+        ["ninja", "-C", str(build), "-t", "deps"], capture_output=True, text=True, check=True
+    ).stdout
+    found |= {(build / line.strip()).resolve() for line in deps.splitlines() if line.startswith(" ")}
+    source = source.resolve()
+    return {str(p.relative_to(source)) for p in found if p.is_relative_to(source)}
 
 
 def mutants_of(

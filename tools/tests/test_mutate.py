@@ -167,6 +167,8 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     assert json.loads((out / "mutants" / broken.id / "result.json").read_text())["compiled"] is False
     assert mutants[killed.id]["location"]["start"]["line"] == killed.line
     summary = (out / "report.txt").read_text()
+    assert "not sampled: 1 product files the host build does not compile (firmware:" in summary
+    assert stryker["config"]["not_sampled"] == ["firmware/OtherTarget.cpp"]
     assert "do not compile (dropped)   1" in summary
     assert "killed by unit tests alone         1/2 = 50.0 % (95 % CI 9.5-90.5 %)" in summary
     results = {
@@ -180,6 +182,29 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     result = json.loads((out / "mutants" / killed.id / "result.json").read_text())
     assert mutate.main(argv) == 0
     assert json.loads((out / "mutants" / killed.id / "result.json").read_text()) == result
+
+
+def test_a_file_the_host_build_never_compiles_is_not_sampled(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Its mutants would "survive" every test on an unmutated build: e.g. the bare-metal
+    qemu-virt firmware, which only its own target builds."""
+    other = tiny_mutant(
+        "int other_target_scale(int value) { return value * 7; }",
+        "int other_target_scale(int value) { return value * 1; }",
+    )
+    out = tmp_path / "out"
+    argv = ["run", "--source", str(TINY), "--sources", "CMakeLists.txt", "firmware"]
+    argv += ["--no-scenarios", "--jobs", "2", "--out", str(out), "--mutant", other.id]
+    assert mutate.main(argv) == 2
+    assert "no such mutant of a file the host build compiles" in capsys.readouterr().err
+    listed = mutate.main(["list", "--source", str(TINY), "--out", str(out), "--mutants", "5"])
+    assert listed == 0 and "OtherTarget" not in capsys.readouterr().out
+    files = mutate.compiled_by(mutate.REPO / "build", mutate.REPO)
+    assert "firmware/canopen/Node.cpp" in files and "firmware/canopen/Node.hpp" in files, "headers too"
+    assert "firmware/platform/qemu-virt/FirmwareMain.cpp" not in files
+    with pytest.raises(ValueError, match="run `make build` first"):
+        mutate.compiled_by(tmp_path, TINY)
 
 
 def outcome(
