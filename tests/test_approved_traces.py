@@ -18,7 +18,8 @@ import pytest
 from hilrig import resources
 from hilrig.resources import FIRMWARE_VARIABLE
 
-pytestmark = pytest.mark.bus
+# A rig check: it patches the checkout's own firmware, whatever $HIL_FIRMWARE is.
+pytestmark = [pytest.mark.bus, pytest.mark.rig_check]
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = "tests/test_protection_rules.py::test_watchdog_trips_on_its_cycle_and_cuts_the_drive_there"

@@ -593,7 +593,21 @@ def run_in_vm(out: Path, command: str, uml: bool) -> int:
     """`tools/mutate.py COMMAND --out OUT` inside tools/with-vcan (user-mode Linux allowed or not)."""
     argv = [str(REPO / "tools" / "with-vcan"), *([] if uml else ["--no-uml"]), "--"]
     argv += [sys.executable, str(Path(__file__).resolve()), command, "--out", str(out)]
-    return subprocess.run(argv, cwd=REPO, check=False).returncode
+    # A group of its own, stopped as a whole on Ctrl-C or SIGTERM: subprocess.run would kill
+    # only with-vcan and leave the VM (qemu, virtiofsd) running.
+    process = subprocess.Popen(argv, cwd=REPO, start_new_session=True)
+    try:
+        return process.wait()
+    except BaseException:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGINT)
+        try:
+            process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+        raise
 
 
 def run_command(args: argparse.Namespace) -> int:

@@ -41,6 +41,9 @@ SCENARIO_WORKERS = 2
 FIRMWARE_BINARIES = ("bin/joint-firmware", "bin/head-firmware")
 """What a mutant's scenarios start (the head's scenarios take the head firmware beside the joint's)."""
 APPROVED_OFF = "--hil-approved=off"
+BASELINE_FAILURES = "baseline-failed.json"
+"""The scenarios that failed on the unmutated (coverage) firmware, in the coverage folder: they fail
+whatever a mutant does, so they judge none."""
 
 
 def approved_option_known() -> bool:
@@ -58,7 +61,7 @@ def approved_option_known() -> bool:
 def collect_scenarios(out: Path) -> list[str]:
     """The lockstep scenarios' node ids (collected natively; the VM runs them)."""
     argv = [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"]
-    argv += scenario_shards.selection_args("lockstep")
+    argv += scenario_shards.mutation_selection_args()
     result = subprocess.run(argv, cwd=REPO, capture_output=True, text=True, check=False)
     ids = [line for line in result.stdout.splitlines() if "::" in line]
     if not ids:
@@ -172,6 +175,7 @@ def coverage_command(out: Path) -> int:
         print(
             f"mutate: on the coverage build {timeout or 'these failed'}: {', '.join(failed[:8])}", flush=True
         )
+    report.write_json(folder / BASELINE_FAILURES, {"failed": failed})
     return 0
 
 
@@ -191,6 +195,19 @@ def _one_pass(
     return failed, timeout, starved, seconds
 
 
+def scenarios_that_judge(ids: Sequence[str], out: Path) -> list[str]:
+    """`ids` without those that failed on the unmutated firmware (the coverage run's record)."""
+    failing_path = out / "coverage" / BASELINE_FAILURES
+    failing = set(json.loads(failing_path.read_text())["failed"]) if failing_path.exists() else set()
+    if failing:
+        print(
+            f"mutate: {len(failing)} scenarios fail on the unmutated firmware and judge no mutant: "
+            f"{', '.join(sorted(failing))}",
+            flush=True,
+        )
+    return [t for t in ids if t not in failing]
+
+
 def scenarios_command(out: Path) -> int:
     """Inside the VM: the scenario layer for every built mutant of the run's plan that has none."""
     plan = json.loads((out / "plan.json").read_text())
@@ -201,6 +218,7 @@ def scenarios_command(out: Path) -> int:
     record = (
         coverage.Coverage.from_json(json.loads(record_path.read_text())) if record_path.exists() else None
     )
+    ids = scenarios_that_judge(ids, out)
     kills_path = out / "kills.json"
     kills: Counter[str] = Counter(json.loads(kills_path.read_text()) if kills_path.exists() else {})
     equivalent = load_equivalents()

@@ -83,6 +83,16 @@ def selection_args(selection: str, shard: Shard | None = None, durations: Path =
     return args
 
 
+MUTATION_SELECTION = f"({SELECTIONS['lockstep']}) and not rig_check"
+"""The lockstep scenarios that judge the firmware under test ($HIL_FIRMWARE): `make mutate`'s. A
+rig check (pytest.ini) runs a firmware it builds itself, so it would fail or pass whatever the
+mutant is."""
+
+
+def mutation_selection_args() -> list[str]:
+    return [*SCENARIOS, "-m", MUTATION_SELECTION]
+
+
 def split_options(durations: Path = DURATIONS) -> list[str]:
     """How pytest-split splits, without which group to keep (a plan collection takes these too)."""
     return [f"--splitting-algorithm={ALGORITHM}", f"--durations-path={durations}"]

@@ -15,6 +15,7 @@ sys.path.insert(0, str(TOOLS))
 import mutate  # noqa: E402
 import mutate_coverage as coverage  # noqa: E402
 import mutate_sampling as sampling  # noqa: E402
+import mutate_scenarios  # noqa: E402
 import mutation_report as report  # noqa: E402
 
 TINY = Path(__file__).resolve().parent / "mutate_tiny"
@@ -205,6 +206,19 @@ def test_a_file_the_host_build_never_compiles_is_not_sampled(
     assert "firmware/platform/qemu-virt/FirmwareMain.cpp" not in files
     with pytest.raises(ValueError, match="run `make build` first"):
         mutate.compiled_by(tmp_path, TINY)
+
+
+def test_only_scenarios_that_judge_the_firmware_under_test_judge_a_mutant(tmp_path: Path) -> None:
+    """A rig check (pytest.ini's marker) runs a firmware it builds itself, and a scenario that
+    fails on the unmutated firmware fails whatever the mutant: neither may count as a kill."""
+    ids = mutate_scenarios.collect_scenarios(tmp_path)
+    assert "tests/test_protection_rules.py::test_watchdog_trips_on_its_cycle_and_cuts_the_drive_there" in ids
+    assert not [t for t in ids if t.startswith("tests/test_approved_traces.py")], "a rig check"
+    assert "tests/test_two_worlds.py::test_velocity_hold_realtime" not in ids, "lockstep only"
+    assert mutate_scenarios.scenarios_that_judge(ids, tmp_path) == ids, "no baseline record: all"
+    (tmp_path / "coverage").mkdir()
+    report.write_json(tmp_path / "coverage" / mutate_scenarios.BASELINE_FAILURES, {"failed": ids[:1]})
+    assert mutate_scenarios.scenarios_that_judge(ids, tmp_path) == ids[1:]
 
 
 def outcome(
