@@ -75,6 +75,8 @@ from mutate_scenarios import (
     FIRMWARE_BINARIES,
     HANG_FACTOR,
     HANG_MARGIN_S,
+    SCENARIO_CMAKE_ARGS,
+    SCENARIO_FIRMWARE,
     collect_scenarios,
     coverage_command,
     scenarios_command,
@@ -358,30 +360,53 @@ def counted(out: Path, mutant: Mutant, equivalents: dict[str, str]) -> bool:
     )
 
 
-def prepare(workspace: Workspace, jobs: int) -> None:
-    """The workspace's sources up to date and the unmutated firmware built (the baseline)."""
+def prepare(workspace: Workspace, jobs: int, scenario_tree: Workspace | None = None) -> None:
+    """The workspace's sources up to date and the unmutated firmware built (the baseline), in the
+    test configuration and, when scenarios run, the scenarios' firmware in `scenario_tree`."""
     workspace.sync()
     workspace.configure()
     print("mutate: building the unmutated firmware (baseline)", flush=True)
     baseline = workspace.compile(jobs)
     if baseline.returncode != 0:
         raise SystemExit(f"mutate: the unmutated sources do not build:\n{baseline.stdout[-3000:]}")
+    if scenario_tree is not None:
+        scenario_tree.configure()
+        built = scenario_tree.compile(jobs, FIRMWARE_BINARIES)
+        if built.returncode != 0:
+            raise SystemExit(f"mutate: the scenarios' firmware does not build:\n{built.stdout[-3000:]}")
+
+
+def scenario_tree_of(workspace: Workspace) -> Workspace:
+    """The build tree of the firmware the scenarios run (SCENARIO_CMAKE_ARGS), on the same sources."""
+    return Workspace(
+        workspace.out, workspace.source_root, workspace.sources, SCENARIO_CMAKE_ARGS, "scenario-build"
+    )
+
+
+def keep_scenario_firmware(scenario_tree: Workspace, folder: Path) -> None:
+    kept = folder / SCENARIO_FIRMWARE
+    kept.mkdir(exist_ok=True)
+    for binary in FIRMWARE_BINARIES:
+        shutil.copy2(scenario_tree.build / binary, kept / Path(binary).name)
 
 
 def build_and_unit(
     workspace: Workspace,
     candidates: Iterable[Mutant],
     jobs: int,
-    copy_binaries: Sequence[str] = FIRMWARE_BINARIES,
+    scenario_tree: Workspace | None = None,
     use_coverage: bool = True,
 ) -> list[Mutant]:
     """Build each candidate and run the unit tests that execute its line on it (results kept
     per mutant); returns the mutants tried (the listed equivalents are skipped, not built).
-    The workspace is prepared (`prepare`) first."""
+    With a `scenario_tree`, each mutant's firmware for the scenarios is built there and kept in
+    its folder. The workspace is prepared (`prepare`) first."""
     unit_timeout = baseline_unit_timeout(workspace.build, jobs, workspace.out)
     record = ensure_unit_coverage(workspace, jobs) if use_coverage else None
     unit_groups = coverage.unit_tests_by_executable(workspace.build) if record else {}
-    binaries = [b for b in copy_binaries if (workspace.build / b).exists()]
+    # Without scenarios the firmware is still built: it is what "compiles" means for a mutant
+    # no unit test executes.
+    binaries = [] if scenario_tree else [b for b in FIRMWARE_BINARIES if (workspace.build / b).exists()]
     equivalents = load_equivalents()
     tried: list[Mutant] = []
     for mutant in candidates:
@@ -394,13 +419,12 @@ def build_and_unit(
         digest = source_digest(workspace.source_root, mutant.path)
         known = json.loads(result_path.read_text()) if result_path.exists() else {}
         if known.get("source_sha1") == digest:
-            kept = [folder / Path(b).name for b in binaries]
-            if not known.get("compiled") or all(k.exists() for k in kept):
+            kept = [folder / SCENARIO_FIRMWARE / Path(b).name for b in FIRMWARE_BINARIES]
+            if scenario_tree is None or not known.get("compiled") or all(k.exists() for k in kept):
                 continue  # done in an earlier run, on the same source
             with mutated(workspace, mutant):  # its unit results stand; its firmware is needed again
-                if workspace.compile(jobs, binaries).returncode == 0:
-                    for binary in binaries:
-                        shutil.copy2(workspace.build / binary, folder / Path(binary).name)
+                if scenario_tree.compile(jobs, FIRMWARE_BINARIES).returncode == 0:
+                    keep_scenario_firmware(scenario_tree, folder)
             continue
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir(parents=True)
@@ -409,18 +433,27 @@ def build_and_unit(
         executables = record.covering(mutant.path, mutant.line, coverage.UNIT) if record else None
         targets = needed_targets(workspace.build, binaries, executables)
         with mutated(workspace, mutant) as state:
-            checked = syntax_check(workspace, mutant)
-            built = workspace.compile(jobs, targets) if checked else None
+            built, first_failed = None, False
+            if syntax_check(workspace, mutant):
+                # The test tree's unit tests of its line (none: nothing to build there), then the
+                # scenarios' firmware.
+                trees = [(workspace, targets)] if targets != [] or scenario_tree is None else []
+                trees += [(scenario_tree, list(FIRMWARE_BINARIES))] if scenario_tree else []
+                for number_built, (tree, chosen) in enumerate(trees):
+                    built = tree.compile(jobs, chosen)
+                    if built.returncode != 0:
+                        first_failed = number_built == 0
+                        break
             build_s = time.monotonic() - started
             if built is None or built.returncode != 0:
-                state["untouched_outputs"] = True
+                state["untouched_outputs"] = built is None or first_failed
                 state["nothing_built"] = built is None
                 result.update(compiled=False, seconds={"build": round(build_s, 1)})
                 why = "its line does not compile" if built is None else "does not build"
                 print(f"mutate: {number} {mutant.id}: {why}, dropped ({build_s:.0f} s)", flush=True)
             else:
-                for binary in binaries:
-                    shutil.copy2(workspace.build / binary, folder / Path(binary).name)
+                if scenario_tree is not None:
+                    keep_scenario_firmware(scenario_tree, folder)
                 names = (
                     None if executables is None else [n for e in executables for n in unit_groups.get(e, [])]
                 )
@@ -615,20 +648,24 @@ def run_command(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     source_root = Path(args.source).resolve()
     workspace = Workspace(out, source_root, tuple(args.sources), tuple(args.cmake_arg or CMAKE_ARGS))
-    prepare(workspace, args.jobs)
+    scenario_tree = None if args.no_scenarios else scenario_tree_of(workspace)
+    prepare(workspace, args.jobs, scenario_tree)
     chosen = select(args, (workspace.build, workspace.src))
     print(f"mutate: {chosen.description}", flush=True)
-    tried = build_and_unit(workspace, chosen.candidates(out), args.jobs, use_coverage=not args.no_coverage)
+    tried = build_and_unit(
+        workspace, chosen.candidates(out), args.jobs, scenario_tree, use_coverage=not args.no_coverage
+    )
     report.write_json(out / "plan.json", {"mutants": [m.id for m in tried]})
     if not args.no_scenarios:
         collect_scenarios(out)
         if not args.no_coverage:
             ensure_scenario_coverage(out)
         print(
-            "mutate: bus-level scenarios of every built mutant, in one micro-VM (tools/with-vcan)", flush=True
+            "mutate: bus-level scenarios of every built mutant (its release firmware), in one "
+            "user-mode Linux VM (tools/with-vcan)",
+            flush=True,
         )
-        # The mutants are ASan builds, which user-mode Linux cannot start.
-        code = run_in_vm(out, "scenarios", uml=False)
+        code = run_in_vm(out, "scenarios", uml=True)
         if code != 0:
             print(
                 f"mutate: the scenario stage ended with exit {code}; the report shows what ran",

@@ -5,6 +5,7 @@ file, two unit tests), down to the report in Stryker's schema and the merge of s
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -183,6 +184,27 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     result = json.loads((out / "mutants" / killed.id / "result.json").read_text())
     assert mutate.main(argv) == 0
     assert json.loads((out / "mutants" / killed.id / "result.json").read_text()) == result
+
+
+def test_a_mutant_s_scenarios_run_its_release_firmware(tmp_path: Path) -> None:
+    """Built in a tree of its own (the configuration user-mode Linux runs: no ASan), kept in the
+    mutant's folder, and built again if it went missing; the unit tests keep their tree."""
+    survivor = tiny_mutant("return value * 3;", "return value * 1;")
+    workspace = mutate.Workspace(
+        tmp_path / "out", TINY, ("CMakeLists.txt", "firmware"), ("-DCMAKE_BUILD_TYPE=Debug",)
+    )
+    tree = mutate.scenario_tree_of(workspace)
+    mutate.prepare(workspace, 2, tree)
+    assert mutate.build_and_unit(workspace, [survivor], 2, tree) == [survivor]
+    kept = workspace.mutant_dir(survivor) / mutate.SCENARIO_FIRMWARE / "joint-firmware"
+    run = lambda: subprocess.run([kept], capture_output=True, text=True, check=True).stdout  # noqa: E731
+    assert run() == "release 1\n", "the release build, with the mutant in it"
+    assert tree.compile(2, mutate.FIRMWARE_BINARIES).returncode == 0
+    original = subprocess.run([tree.build / "bin" / "joint-firmware"], capture_output=True, text=True)
+    assert original.stdout == "release 3\n", "the next build of the tree is the original again"
+    kept.unlink()
+    mutate.build_and_unit(workspace, [survivor], 2, tree)
+    assert run() == "release 1\n", "built again for the scenarios; its unit result stands"
 
 
 def test_a_file_the_host_build_never_compiles_is_not_sampled(
