@@ -22,9 +22,10 @@ Each candidate, in a copy of the sources (build/mutate/src: the checkout is neve
 Ctrl-C leaves nothing half-mutated), has its translation unit syntax-checked, then is built
 incrementally in the test configuration (ASan + UBSan); one that does not compile is dropped,
 counted, and replaced by its file's next. Then the C++ unit tests that execute its line (ctest;
-tools/mutate_coverage.py records which once per source state), then, in one micro-VM for the
-whole sample, the lockstep scenarios that execute its line against the mutant's firmware
-(HIL_FIRMWARE), tools/mutate_scenarios.py. Each mutant's result is written as soon as it is
+tools/mutate_coverage.py records which once per source state), then, in one user-mode Linux VM
+for the whole sample, the lockstep scenarios that execute its line against the mutant's release
+firmware (HIL_FIRMWARE; built in a tree of its own, tools/mutate_workspace.py), as make test's
+lockstep stage runs them, tools/mutate_scenarios.py. Each mutant's result is written as soon as it is
 known (build/mutate/mutants/ID), so a run stopped and started again goes on where it was.
 
 A hang is a kill only against the unmutated firmware's own time. Unit tests: each gets
@@ -42,7 +43,6 @@ import contextlib
 import hashlib
 import json
 import os
-import shlex
 import shutil
 import signal
 import subprocess
@@ -75,179 +75,23 @@ from mutate_scenarios import (
     FIRMWARE_BINARIES,
     HANG_FACTOR,
     HANG_MARGIN_S,
-    SCENARIO_CMAKE_ARGS,
     SCENARIO_FIRMWARE,
     collect_scenarios,
     coverage_command,
     scenarios_command,
 )
+from mutate_workspace import (
+    CMAKE_ARGS,
+    SOURCES,
+    Workspace,
+    keep_scenario_firmware,
+    mutated,
+    run_group,
+    scenario_tree_of,
+    syntax_check,
+)
 
 DEFAULT_OUT = REPO / "build" / "mutate"
-CMAKE_ARGS = ("-DCMAKE_BUILD_TYPE=RelWithDebInfo", "-DHIL_SANITIZE=ON", "-DHIL_TESTS=ON")
-"""The configuration of `make build`: what `make test` runs."""
-SOURCES = ("CMakeLists.txt", "cmake", "firmware", "protocol")
-"""What the build needs of the checkout (copied into the workspace)."""
-
-
-# --- The workspace: a copy of the sources and its build tree ---------------------------------
-@dataclass(frozen=True)
-class Workspace:
-    out: Path
-    source_root: Path
-    sources: tuple[str, ...] = SOURCES
-    cmake_args: tuple[str, ...] = CMAKE_ARGS
-    build_name: str = "build"
-
-    @property
-    def src(self) -> Path:
-        return self.out / "src"
-
-    @property
-    def build(self) -> Path:
-        return self.out / self.build_name
-
-    def mutant_dir(self, mutant: Mutant) -> Path:
-        return self.out / "mutants" / mutant.id
-
-    def sync(self) -> None:
-        """Copy what changed of the sources (content compared, so untouched files keep their
-        times and the build stays incremental)."""
-        for name in self.sources:
-            origin = self.source_root / name
-            for file in [origin] if origin.is_file() else sorted(p for p in origin.rglob("*") if p.is_file()):
-                if "__pycache__" in file.parts:
-                    continue
-                target = self.src / file.relative_to(self.source_root)
-                if target.exists() and target.read_bytes() == file.read_bytes():
-                    continue
-                target.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(file, target)
-
-    def configure(self) -> None:
-        if (self.build / "build.ninja").exists():
-            return
-        python = REPO / ".venv" / "bin" / "python"
-        run_checked(
-            [
-                "cmake",
-                "-S",
-                str(self.src),
-                "-B",
-                str(self.build),
-                "-G",
-                "Ninja",
-                f"-DHIL_PYTHON={python}",
-                "-DCMAKE_EXPORT_COMPILE_COMMANDS=ON",
-                *self.cmake_args,
-            ],
-            "configure the mutation build",
-        )
-
-    def compile(self, jobs: int, targets: Sequence[str] | None = None) -> subprocess.CompletedProcess[str]:
-        """Build everything, or only `targets` (outputs relative to the build, e.g. bin/x): what a
-        mutant's tests run. A sanitized build's time is mostly linking, and a source of the core
-        links into every test executable, bench and fuzzer."""
-        chosen = ["--target", *targets] if targets else []
-        return run_group(["cmake", "--build", str(self.build), "-j", str(jobs), *chosen])
-
-
-def run_group(argv: Sequence[str], timeout_s: float | None = None) -> subprocess.CompletedProcess[str]:
-    """Run `argv` in a process group of its own, output captured. On Ctrl-C, SIGTERM or the
-    timeout the whole group gets SIGINT first, so that ninja deletes what it was writing (a
-    compiler killed alone leaves a half-written object file that looks up to date), then
-    SIGKILL. subprocess.run would kill only its child and leave the build's processes running."""
-    process = subprocess.Popen(
-        argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True
-    )
-    try:
-        output, _ = process.communicate(timeout=timeout_s)
-    except BaseException:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(process.pid, signal.SIGKILL)
-            process.communicate()
-        raise
-    return subprocess.CompletedProcess(list(argv), process.returncode, output, "")
-
-
-def run_checked(argv: Sequence[str], what: str) -> None:
-    result = subprocess.run(argv, capture_output=True, text=True, check=False)
-    if result.returncode != 0:
-        tail = "\n".join((result.stdout + result.stderr).splitlines()[-30:])
-        raise SystemExit(f"mutate: cannot {what} ({' '.join(argv[:3])} ...):\n{tail}")
-
-
-@contextlib.contextmanager
-def mutated(workspace: Workspace, mutant: Mutant):
-    """The mutant's file changed in the workspace for the body; the original back afterwards,
-    whatever happens (Ctrl-C included). The body sets `untouched_outputs` when the build failed
-    before writing anything of the mutant: a .cpp file's one object file was not rewritten (the
-    compiler writes none on an error), so the original gets its old time back and is not
-    compiled again for the next mutant. Never for a header: other translation units that
-    include it may have compiled the mutant before the error; unless `nothing_built` says that
-    only the syntax check saw it."""
-    path = workspace.src / mutant.path
-    original = path.read_text()
-    before = path.stat()
-    path.write_text(mutant.apply(original))
-    state = {"untouched_outputs": False, "nothing_built": False}
-    try:
-        yield state
-    finally:
-        path.write_text(original)
-        if state["untouched_outputs"] and (path.suffix == ".cpp" or state["nothing_built"]):
-            os.utime(path, ns=(before.st_atime_ns, before.st_mtime_ns))
-
-
-def syntax_check(workspace: Workspace, mutant: Mutant) -> bool:
-    """Whether the mutated file's translation unit (for a header: the first one that includes
-    it) passes the compiler's syntax and type check (-fsyntax-only, a fraction of a build): a
-    mutant that fails it is dropped without building anything. True when no unit is known."""
-    unit = translation_unit_of(workspace, workspace.src / mutant.path)
-    if unit is None:
-        return True
-    argv, directory = unit
-    return subprocess.run(argv, cwd=directory, capture_output=True, check=False).returncode == 0
-
-
-def translation_unit_of(workspace: Workspace, path: Path) -> tuple[list[str], str] | None:
-    """The syntax-check command line of the unit that compiles `path`, and its directory."""
-    commands_path = workspace.build / "compile_commands.json"
-    if not commands_path.exists():
-        return None
-    commands = {str(Path(e["file"]).resolve()): e for e in json.loads(commands_path.read_text())}
-    entry = commands.get(str(path.resolve()))
-    if entry is None:
-        deps = subprocess.run(
-            ["ninja", "-C", str(workspace.build), "-t", "deps"], capture_output=True, text=True, check=False
-        ).stdout
-        current = None
-        for line in deps.splitlines():
-            if line and not line.startswith(" "):
-                current = line.split(":")[0]
-            elif current and Path(workspace.build, line.strip()).resolve() == path.resolve():
-                entry = next((e for e in commands.values() if e.get("output") == current), None)
-                if entry is not None:
-                    break
-    if entry is None:
-        return None
-    argv = entry["arguments"] if "arguments" in entry else shlex.split(entry["command"])
-    cleaned, skip = [], False
-    for arg in argv:
-        if skip:
-            skip = False
-            continue
-        if arg in ("-o", "-MF", "-MT", "-MQ"):
-            skip = True
-            continue
-        if arg in ("-c", "-MD", "-MMD"):
-            continue
-        cleaned.append(arg)
-    return [*cleaned, "-fsyntax-only"], entry["directory"]
 
 
 # --- The unit-test layer ----------------------------------------------------------------------
@@ -371,23 +215,9 @@ def prepare(workspace: Workspace, jobs: int, scenario_tree: Workspace | None = N
         raise SystemExit(f"mutate: the unmutated sources do not build:\n{baseline.stdout[-3000:]}")
     if scenario_tree is not None:
         scenario_tree.configure()
-        built = scenario_tree.compile(jobs, FIRMWARE_BINARIES)
+        built = scenario_tree.compile(jobs, scenario_tree.known(FIRMWARE_BINARIES))
         if built.returncode != 0:
             raise SystemExit(f"mutate: the scenarios' firmware does not build:\n{built.stdout[-3000:]}")
-
-
-def scenario_tree_of(workspace: Workspace) -> Workspace:
-    """The build tree of the firmware the scenarios run (SCENARIO_CMAKE_ARGS), on the same sources."""
-    return Workspace(
-        workspace.out, workspace.source_root, workspace.sources, SCENARIO_CMAKE_ARGS, "scenario-build"
-    )
-
-
-def keep_scenario_firmware(scenario_tree: Workspace, folder: Path) -> None:
-    kept = folder / SCENARIO_FIRMWARE
-    kept.mkdir(exist_ok=True)
-    for binary in FIRMWARE_BINARIES:
-        shutil.copy2(scenario_tree.build / binary, kept / Path(binary).name)
 
 
 def build_and_unit(
@@ -407,6 +237,7 @@ def build_and_unit(
     # Without scenarios the firmware is still built: it is what "compiles" means for a mutant
     # no unit test executes.
     binaries = [] if scenario_tree else [b for b in FIRMWARE_BINARIES if (workspace.build / b).exists()]
+    scenario_binaries = scenario_tree.known(FIRMWARE_BINARIES) if scenario_tree else []
     equivalents = load_equivalents()
     tried: list[Mutant] = []
     for mutant in candidates:
@@ -419,12 +250,12 @@ def build_and_unit(
         digest = source_digest(workspace.source_root, mutant.path)
         known = json.loads(result_path.read_text()) if result_path.exists() else {}
         if known.get("source_sha1") == digest:
-            kept = [folder / SCENARIO_FIRMWARE / Path(b).name for b in FIRMWARE_BINARIES]
+            kept = [folder / SCENARIO_FIRMWARE / Path(b).name for b in scenario_binaries]
             if scenario_tree is None or not known.get("compiled") or all(k.exists() for k in kept):
                 continue  # done in an earlier run, on the same source
             with mutated(workspace, mutant):  # its unit results stand; its firmware is needed again
-                if scenario_tree.compile(jobs, FIRMWARE_BINARIES).returncode == 0:
-                    keep_scenario_firmware(scenario_tree, folder)
+                if scenario_tree.compile(jobs, scenario_binaries).returncode == 0:
+                    keep_scenario_firmware(scenario_tree, scenario_binaries, folder)
             continue
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir(parents=True)
@@ -438,7 +269,7 @@ def build_and_unit(
                 # The test tree's unit tests of its line (none: nothing to build there), then the
                 # scenarios' firmware.
                 trees = [(workspace, targets)] if targets != [] or scenario_tree is None else []
-                trees += [(scenario_tree, list(FIRMWARE_BINARIES))] if scenario_tree else []
+                trees += [(scenario_tree, scenario_binaries)] if scenario_tree else []
                 for number_built, (tree, chosen) in enumerate(trees):
                     built = tree.compile(jobs, chosen)
                     if built.returncode != 0:
@@ -453,7 +284,7 @@ def build_and_unit(
                 print(f"mutate: {number} {mutant.id}: {why}, dropped ({build_s:.0f} s)", flush=True)
             else:
                 if scenario_tree is not None:
-                    keep_scenario_firmware(scenario_tree, folder)
+                    keep_scenario_firmware(scenario_tree, scenario_binaries, folder)
                 names = (
                     None if executables is None else [n for e in executables for n in unit_groups.get(e, [])]
                 )

@@ -1,10 +1,12 @@
 """The scenario layer of `make mutate` (run inside tools/with-vcan): the lockstep scenarios that
 execute a mutant's line (mutate_coverage), against the mutant's firmware, killers first, `-x`.
 
-Two passes: first with the scenarios' own assertions only (`--hil-approved=off`), then, for a
-mutant that survived them, with the approved traces checked too (the plugin's default). A
-plugin without `--hil-approved` (detected from `pytest --help`) has no approved traces: one
-pass, and the second score is the first.
+Two passes at most: first with the approved traces checked (the plugin's default; it compares a
+trace only after its scenario's own assertions passed, so a clean pass is a survivor of both
+layers and costs one pass), then, only when a trace difference was the first failure, with the
+traces off (`--hil-approved=off`) over the scenarios not yet passed, for the score of the
+scenarios' own assertions. A plugin without `--hil-approved` (detected from `pytest --help`)
+has no approved traces: one pass, and the second score is the first.
 
 A hang is a kill only against the unmutated firmware's own time: in the scenarios a firmware
 that hangs fails the lockstep HangGuard (asleep with TPDOs due, or its CPU spent without an
@@ -28,6 +30,7 @@ import time
 import xml.etree.ElementTree as ET
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import mutate_coverage as coverage
@@ -38,14 +41,21 @@ from mutate_mutants import REPO, load_equivalents
 HANG_FACTOR = 3
 HANG_MARGIN_S = 60.0
 SCENARIO_WORKERS = 2
-FIRMWARE_BINARIES = ("bin/joint-firmware", "bin/head-firmware")
-"""What a mutant's scenarios start (the head's scenarios take the head firmware beside the joint's)."""
-SCENARIO_CMAKE_ARGS = ("-DCMAKE_BUILD_TYPE=Release", "-DHIL_SANITIZE=OFF", "-DHIL_TESTS=OFF")
+FIRMWARE_BINARIES = ("bin/joint-firmware", "bin/head-firmware", "bin/fw_linux_tests")
+"""What a mutant's scenarios start, those of them its build has: the firmware, the head's beside
+it (the head's scenarios), the SocketCAN port's googletest beside it (tests/test_socketcan_port.py
+runs it on a real bus)."""
+SCENARIO_CMAKE_ARGS = (
+    "-DCMAKE_BUILD_TYPE=Release",
+    "-DHIL_SANITIZE=OFF",
+    "-DHIL_TESTS=OFF",
+    "-DHIL_PORT_TESTS=ON",
+)
 """The firmware a mutant's scenarios run: the configuration of `make build`'s build/release (the
 Makefile's home of it), which make test's lockstep bus stage runs under user-mode Linux. An ASan
-build cannot start there, and the micro-VM it needs emulates the CPU in software: the same
-scenarios took some 5x as long (seed 1, shard 1/4: 27 scenarios of one mutant, ~590 s a pass in
-the micro-VM against the 109 of the coverage run in 289 s under user-mode Linux)."""
+build cannot start there, and the micro-VM it needs emulates the CPU in software: one surviving
+mutant's 27 scenarios took 511 s a pass there, 143 s under user-mode Linux (seed 1, shard 1/4,
+HeartbeatConsumer-d0a859e6)."""
 SCENARIO_FIRMWARE = "scenario-firmware"
 """A mutant's folder's subfolder with the firmware its scenarios run."""
 APPROVED_OFF = "--hil-approved=off"
@@ -92,6 +102,29 @@ def pytest_argv(ids: Sequence[str], junit: Path, extra: Sequence[str], stop_at_f
     return argv + (["-x"] if stop_at_first else [])
 
 
+@dataclass
+class Pass:
+    """One run of scenarios against a mutant's firmware."""
+
+    failed: list[str]
+    """By their own assertions (or an error)."""
+    differed: list[str]
+    """Their assertions passed, their run differs from its approved trace."""
+    passed: list[str]
+    timeout: str | None
+    """Why the run was stopped at its bound: no verdict."""
+    starved: bool
+    """A failure was only the host starving the scenario: no verdict."""
+    seconds: float
+
+
+DIFFERS = "the run differs from its approved trace"
+"""How the plugin's failure of a trace difference begins (hilrig.pytest_plugin.approved); it
+compares only after the scenario's own assertions passed."""
+NO_VERDICT = ("HostStarvedError", "no approved trace", "approved trace ")
+"""Failures that say nothing of the mutant: a starved host, a missing or unreadable baseline."""
+
+
 def run_scenarios(
     firmware: Path,
     ids: Sequence[str],
@@ -100,15 +133,15 @@ def run_scenarios(
     extra: Sequence[str] = (),
     env_extra: dict[str, str] | None = None,
     stop_at_first: bool = True,
-) -> tuple[list[str], str | None, bool, float]:
-    """Scenarios `ids` against `firmware`: (the scenarios that failed, why the run timed out,
-    whether a failure was only the host starving, seconds)."""
+) -> Pass:
+    """Scenarios `ids` against `firmware`."""
     expected = sum(durations.get(t, 10.0) for t in ids) / SCENARIO_WORKERS
     timeout_s = HANG_FACTOR * expected + HANG_MARGIN_S
     junit = out / "scenarios.xml"
     junit.unlink(missing_ok=True)
     env = dict(
         os.environ,
+        CI="true",  # a missing approved trace fails instead of being written from a mutant
         HIL_FIRMWARE=str(firmware),
         HIL_OUT_DIR=str(out / "scenario-out"),
         HIL_SCENARIO_ORDER="given",
@@ -133,26 +166,44 @@ def run_scenarios(
                 f"scenarios past {timeout_s:.0f} s ({HANG_FACTOR}x the unmutated firmware's "
                 f"{expected:.0f} s + {HANG_MARGIN_S:.0f} s)"
             )
-            return [], why, False, time.monotonic() - started
+            return Pass([], [], [], why, False, time.monotonic() - started)
         except BaseException:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
             raise
     seconds = time.monotonic() - started
-    failed, starved = [], []
+    failed, differed, passed, no_verdict = outcomes(junit)
+    if process.returncode not in (0, 1) and not failed and not differed and not no_verdict:
+        failed.append(f"pytest exit {process.returncode}")
+    starved = bool(no_verdict) and not failed and not differed
+    return Pass(failed, differed, passed, None, starved, seconds)
+
+
+def outcomes(junit: Path) -> tuple[list[str], list[str], list[str], list[str]]:
+    """A run's scenarios from its JUnit XML: (failed by their assertions, their trace differs,
+    passed, failed saying nothing of the mutant)."""
+    failed: list[str] = []
+    differed: list[str] = []
+    passed: list[str] = []
+    no_verdict: list[str] = []
     if junit.exists():
         for case in ET.parse(junit).getroot().iter("testcase"):
+            name = f"{case.get('classname', '').replace('.', '/')}.py::{case.get('name')}"
             problem = case.find("failure")
             if problem is None:
                 problem = case.find("error")
             if problem is None:
+                if case.find("skipped") is None:
+                    passed.append(name)
                 continue
-            name = f"{case.get('classname', '').replace('.', '/')}.py::{case.get('name')}"
             text = (problem.get("message") or "") + (problem.text or "")
-            (starved if "HostStarvedError" in text else failed).append(name)
-    if process.returncode not in (0, 1) and not failed and not starved:
-        failed.append(f"pytest exit {process.returncode}")
-    return failed, None, bool(starved) and not failed, seconds
+            if DIFFERS in text:
+                differed.append(name)
+            elif any(marker in text for marker in NO_VERDICT):
+                no_verdict.append(name)
+            else:
+                failed.append(name)
+    return failed, differed, passed, no_verdict
 
 
 def coverage_command(out: Path) -> int:
@@ -169,7 +220,7 @@ def coverage_command(out: Path) -> int:
         "PYTHONPATH": os.pathsep.join(p for p in (tools, os.environ.get("PYTHONPATH", "")) if p),
     }
     folder = out / "coverage"
-    failed, timeout, _, seconds = run_scenarios(
+    done = run_scenarios(
         folder / "build" / FIRMWARE_BINARIES[0],
         listed["ids"],
         durations,
@@ -178,29 +229,47 @@ def coverage_command(out: Path) -> int:
         env,
         stop_at_first=False,
     )
-    print(f"mutate: coverage of {len(listed['ids'])} scenarios recorded ({seconds:.0f} s)", flush=True)
-    if failed or timeout:
+    print(f"mutate: coverage of {len(listed['ids'])} scenarios recorded ({done.seconds:.0f} s)", flush=True)
+    if done.failed or done.timeout:
         print(
-            f"mutate: on the coverage build {timeout or 'these failed'}: {', '.join(failed[:8])}", flush=True
+            f"mutate: on the coverage build {done.timeout or 'these failed'}: {', '.join(done.failed[:8])}",
+            flush=True,
         )
-    report.write_json(folder / BASELINE_FAILURES, {"failed": failed})
+    report.write_json(folder / BASELINE_FAILURES, {"failed": done.failed})
     return 0
 
 
-def _one_pass(
-    folder: Path,
-    order: Sequence[str],
-    durations: dict[str, float],
-    extra: Sequence[str],
-) -> tuple[list[str], str | None, bool, float]:
+def _one_pass(folder: Path, order: Sequence[str], durations: dict[str, float], extra: Sequence[str]) -> Pass:
     for attempt in (1, 2):
-        failed, timeout, starved, seconds = run_scenarios(
-            folder / SCENARIO_FIRMWARE / "joint-firmware", order, durations, folder, extra
-        )
-        if not starved:
+        done = run_scenarios(folder / SCENARIO_FIRMWARE / "joint-firmware", order, durations, folder, extra)
+        if not done.starved:
             break
         print(f"mutate: {folder.name}: the host starved the scenarios (attempt {attempt})", flush=True)
-    return failed, timeout, starved, seconds
+    return done
+
+
+def judge(
+    folder: Path, order: Sequence[str], durations: dict[str, float], approved: bool
+) -> tuple[dict | None, dict | None, str | None, float]:
+    """A mutant's two verdicts: (its scenarios' own assertions, with the approved traces too, why
+    there is none, seconds). First with the traces (a survivor costs one pass: a trace is compared
+    only after its scenario's assertions passed), then, when a trace difference was the first
+    failure, with the traces off over the scenarios that had not passed yet."""
+    if not order:
+        none = {"killed_by": [], "timeout": None, "selected": 0}
+        return none, none, None, 0.0
+    first = _one_pass(folder, order, durations, [] if approved else [APPROVED_OFF])
+    if first.starved or first.timeout:
+        return None, None, first.timeout or "the host starved the scenarios twice", first.seconds
+    with_traces = {"killed_by": first.failed + first.differed, "timeout": None, "selected": len(order)}
+    if first.failed or not first.differed:
+        return {**with_traces, "killed_by": first.failed}, with_traces, None, first.seconds
+    rest = [t for t in order if t not in set(first.passed)]
+    second = _one_pass(folder, rest, durations, [APPROVED_OFF])
+    seconds = first.seconds + second.seconds
+    if second.starved or second.timeout:
+        return None, with_traces, second.timeout or "the host starved the scenarios twice", seconds
+    return {"killed_by": second.failed, "timeout": None, "selected": len(order)}, with_traces, None, seconds
 
 
 def scenarios_that_judge(ids: Sequence[str], out: Path) -> list[str]:
@@ -246,27 +315,11 @@ def scenarios_command(out: Path) -> int:
             else [t for t in ids if t in set(selected) or coverage.SCENARIO + t not in recorded]
         )
         order = scenario_order(chosen, kills, durations)
-        layers: dict[str, dict | None] = {}
-        seconds_total = 0.0
-        for name, extra in (("scenarios", [APPROVED_OFF] if approved else []), ("approved", [])):
-            if name == "approved" and not approved:
-                layers[name] = layers["scenarios"]  # no approved traces: the same verdict
-                break
-            if name == "approved" and (layers["scenarios"] is None or layers["scenarios"]["killed_by"]):
-                layers[name] = layers["scenarios"]  # killed by the assertions: by the traces too
-                break
-            if not order:
-                layers[name] = {"killed_by": [], "timeout": None, "selected": 0}
-                continue
-            failed, timeout, starved, seconds = _one_pass(folder, order, durations, extra)
-            seconds_total += seconds
-            if starved or timeout:
-                # No verdict: the run's bound comes from a quiet machine's durations.
-                layers[name] = None
-                result["scenarios_not_run"] = timeout or "the host starved the scenarios twice"
-            else:
-                layers[name] = {"killed_by": failed, "timeout": None, "selected": len(order)}
-                kills.update(failed)
+        scenarios, with_traces, not_run, seconds_total = judge(folder, order, durations, approved)
+        layers = {"scenarios": scenarios, "approved": with_traces}
+        kills.update({t for layer in layers.values() for t in (layer or {}).get("killed_by", [])})
+        if not_run:
+            result["scenarios_not_run"] = not_run
         if not (layers.get("approved") or {}).get("killed_by"):
             shutil.rmtree(folder / "scenario-out", ignore_errors=True)  # a survivor's traces: not kept
         result["scenarios"], result["approved"] = layers["scenarios"], layers.get("approved")

@@ -199,7 +199,8 @@ def test_a_mutant_s_scenarios_run_its_release_firmware(tmp_path: Path) -> None:
     kept = workspace.mutant_dir(survivor) / mutate.SCENARIO_FIRMWARE / "joint-firmware"
     run = lambda: subprocess.run([kept], capture_output=True, text=True, check=True).stdout  # noqa: E731
     assert run() == "release 1\n", "the release build, with the mutant in it"
-    assert tree.compile(2, mutate.FIRMWARE_BINARIES).returncode == 0
+    assert tree.known(mutate.FIRMWARE_BINARIES) == ["bin/joint-firmware", "bin/head-firmware"]
+    assert tree.compile(2, ["bin/joint-firmware"]).returncode == 0
     original = subprocess.run([tree.build / "bin" / "joint-firmware"], capture_output=True, text=True)
     assert original.stdout == "release 3\n", "the next build of the tree is the original again"
     kept.unlink()
@@ -241,6 +242,65 @@ def test_only_scenarios_that_judge_the_firmware_under_test_judge_a_mutant(tmp_pa
     (tmp_path / "coverage").mkdir()
     report.write_json(tmp_path / "coverage" / mutate_scenarios.BASELINE_FAILURES, {"failed": ids[:1]})
     assert mutate_scenarios.scenarios_that_judge(ids, tmp_path) == ids[1:]
+
+
+JUNIT = """<testsuites><testsuite>
+<testcase classname="tests.test_a" name="assertion"><failure message="AssertionError: duty 0.4" /></testcase>
+<testcase classname="tests.test_b" name="trace">
+  <failure message="the run differs from its approved trace x" /></testcase>
+<testcase classname="tests.test_c" name="ok" />
+<testcase classname="tests.test_d" name="starved"><error message="HostStarvedError: 2 s" /></testcase>
+<testcase classname="tests.test_e" name="skipped"><skipped /></testcase>
+</testsuite></testsuites>"""
+
+
+def test_a_scenario_failure_is_its_assertions_or_its_trace(tmp_path: Path) -> None:
+    junit = tmp_path / "scenarios.xml"
+    junit.write_text(JUNIT)
+    assert mutate_scenarios.outcomes(junit) == (
+        ["tests/test_a.py::assertion"],
+        ["tests/test_b.py::trace"],
+        ["tests/test_c.py::ok"],
+        ["tests/test_d.py::starved"],
+    )
+
+
+def test_a_survivor_costs_one_pass_and_a_trace_kill_asks_the_assertions_of_the_rest(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The traces are compared only after a scenario's assertions passed: a clean pass with the
+    traces checked is a survivor of both layers."""
+    order = ["a", "b", "c"]
+    calls: list[tuple[list[str], list[str]]] = []
+
+    def fake(outcome_of: dict[str, str]) -> None:
+        def one_pass(folder: Path, ids: list[str], durations: dict, extra: list[str]) -> object:
+            calls.append((list(ids), list(extra)))
+            traces = mutate_scenarios.APPROVED_OFF not in extra
+            done = mutate_scenarios.Pass([], [], [], None, False, 1.0)
+            for t in ids:  # -x: the first failure stops the run
+                kind = outcome_of.get(t, "pass")
+                if kind == "pass" or (kind == "trace" and not traces):
+                    done.passed.append(t)
+                    continue
+                (done.differed if kind == "trace" else done.failed).append(t)
+                break
+            return done
+
+        monkeypatch.setattr(mutate_scenarios, "_one_pass", one_pass)
+
+    fake({})
+    scenarios, traces, why, _ = mutate_scenarios.judge(Path(), order, {}, approved=True)
+    assert scenarios["killed_by"] == traces["killed_by"] == [] and why is None and len(calls) == 1
+    calls.clear()
+    fake({"b": "trace", "c": "assert"})
+    scenarios, traces, _, seconds = mutate_scenarios.judge(Path(), order, {}, approved=True)
+    assert traces["killed_by"] == ["b"] and scenarios["killed_by"] == ["c"] and seconds == 2.0
+    assert calls[1] == (["b", "c"], [mutate_scenarios.APPROVED_OFF]), "a passed: not run again"
+    calls.clear()
+    fake({"a": "assert"})
+    scenarios, traces, _, _ = mutate_scenarios.judge(Path(), order, {}, approved=True)
+    assert scenarios["killed_by"] == traces["killed_by"] == ["a"] and len(calls) == 1
 
 
 def outcome(
