@@ -53,9 +53,8 @@ SCENARIO_CMAKE_ARGS = (
 )
 """The firmware a mutant's scenarios run: the configuration of `make build`'s build/release (the
 Makefile's home of it), which make test's lockstep bus stage runs under user-mode Linux. An ASan
-build cannot start there, and the micro-VM it needs emulates the CPU in software: one surviving
-mutant's 27 scenarios took 511 s a pass there, 143 s under user-mode Linux (seed 1, shard 1/4,
-HeartbeatConsumer-d0a859e6)."""
+build cannot start there, and the micro-VM it needs emulates the CPU in software, several times
+slower for the same scenarios (the commit that made this choice has the figures)."""
 SCENARIO_FIRMWARE = "scenario-firmware"
 """A mutant's folder's subfolder with the firmware its scenarios run."""
 APPROVED_OFF = "--hil-approved=off"
