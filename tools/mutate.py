@@ -379,6 +379,12 @@ class Selection:
     report_name: str
     config: dict[str, object]
 
+    @property
+    def plan_name(self) -> str:
+        """The file, in the run's folder, of the mutants a run tried: one per shard, so that shards
+        run side by side in one folder (their mutants are disjoint) keep theirs apart."""
+        return "plan.json" if self.report_name == "report" else f"{self.report_name}-plan.json"
+
     def candidates(self, out: Path) -> Iterable[Mutant]:
         if self.plan is None:
             return self.chosen
@@ -453,10 +459,10 @@ def select(args: argparse.Namespace, tree: tuple[Path, Path] | None = None) -> S
     )
 
 
-def run_in_vm(out: Path, command: str, uml: bool) -> int:
+def run_in_vm(out: Path, command: str, uml: bool, extra: Sequence[str] = ()) -> int:
     """`tools/mutate.py COMMAND --out OUT` inside tools/with-vcan (user-mode Linux allowed or not)."""
     argv = [str(REPO / "tools" / "with-vcan"), *([] if uml else ["--no-uml"]), "--"]
-    argv += [sys.executable, str(Path(__file__).resolve()), command, "--out", str(out)]
+    argv += [sys.executable, str(Path(__file__).resolve()), command, "--out", str(out), *extra]
     # A group of its own, stopped as a whole on Ctrl-C or SIGTERM: subprocess.run would kill
     # only with-vcan and leave the VM (qemu, virtiofsd) running.
     process = subprocess.Popen(argv, cwd=REPO, start_new_session=True)
@@ -486,7 +492,8 @@ def run_command(args: argparse.Namespace) -> int:
     tried = build_and_unit(
         workspace, chosen.candidates(out), args.jobs, scenario_tree, use_coverage=not args.no_coverage
     )
-    report.write_json(out / "plan.json", {"mutants": [m.id for m in tried]})
+    plan_path = out / chosen.plan_name
+    report.write_json(plan_path, {"mutants": [m.id for m in tried]})
     if not args.no_scenarios:
         collect_scenarios(out)
         if not args.no_coverage:
@@ -496,7 +503,7 @@ def run_command(args: argparse.Namespace) -> int:
             "user-mode Linux VM (tools/with-vcan)",
             flush=True,
         )
-        code = run_in_vm(out, "scenarios", uml=True)
+        code = run_in_vm(out, "scenarios", uml=True, extra=["--plan", chosen.plan_name])
         if code != 0:
             print(
                 f"mutate: the scenario stage ended with exit {code}; the report shows what ran",
@@ -514,7 +521,7 @@ def report_command(args: argparse.Namespace) -> int:
     """The report of a run from the results kept so far, nothing built or run."""
     chosen = select(args)
     out = Path(args.out).resolve()
-    plan_path = out / "plan.json"
+    plan_path = out / chosen.plan_name
     ids = (
         json.loads(plan_path.read_text())["mutants"] if plan_path.exists() else [m.id for m in chosen.chosen]
     )
@@ -592,6 +599,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     merge.add_argument("--out", required=True)
     scen = sub.add_parser("scenarios", help="(inside tools/with-vcan) the scenario layer of a run")
     scen.add_argument("--out", default=str(DEFAULT_OUT))
+    scen.add_argument("--plan", default="plan.json", help="the run's plan file in OUT")
     cov = sub.add_parser("coverage", help="(inside tools/with-vcan) the scenarios' coverage record")
     cov.add_argument("--out", default=str(DEFAULT_OUT))
     args = parser.parse_args(argv)
@@ -610,7 +618,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return merge_command(args)
         if args.command == "coverage":
             return coverage_command(Path(args.out))
-        return scenarios_command(Path(args.out))
+        return scenarios_command(Path(args.out), args.plan)
     except (ValueError, OSError, KeyError) as error:  # a bad SHARD, a missing or foreign report
         print(f"mutate: {type(error).__name__}: {error}", file=sys.stderr)
         return 2

@@ -284,9 +284,9 @@ def scenarios_that_judge(ids: Sequence[str], out: Path) -> list[str]:
     return [t for t in ids if t not in failing]
 
 
-def scenarios_command(out: Path) -> int:
+def scenarios_command(out: Path, plan_name: str = "plan.json") -> int:
     """Inside the VM: the scenario layer for every built mutant of the run's plan that has none."""
-    plan = json.loads((out / "plan.json").read_text())
+    plan = json.loads((out / plan_name).read_text())
     listed = json.loads((out / "scenarios.json").read_text())
     ids, approved = listed["ids"], listed["approved_option"]
     durations = json.loads((REPO / scenario_shards.DURATIONS).read_text())

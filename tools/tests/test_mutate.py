@@ -346,6 +346,12 @@ def test_scores_count_each_layer_alone_and_drop_what_does_not_count() -> None:
     assert s.by_component == {"joint/modules": report.Score(3, 4)}
 
 
+def test_shards_side_by_side_in_one_folder_keep_their_plans_apart() -> None:
+    shard = mutate.Selection(None, [], TINY, "", "report-shard-2-of-4", {})
+    assert shard.plan_name == "report-shard-2-of-4-plan.json"
+    assert mutate.Selection(None, [], TINY, "", "report", {}).plan_name == "plan.json"
+
+
 def test_shards_reports_merge_into_the_whole() -> None:
     first = [outcome("a", ["t1"], []), outcome("b", [], [], approved=["s2"])]
     second = [outcome("c", [], ["s1"]), outcome("d", None, None, compiled=False)]
