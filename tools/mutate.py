@@ -39,7 +39,6 @@ reason in tools/mutants-equivalent.toml and are not counted.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import hashlib
 import json
 import os
@@ -88,6 +87,7 @@ from mutate_workspace import (
     mutated,
     run_group,
     scenario_tree_of,
+    stop_group,
     syntax_check,
 )
 
@@ -469,14 +469,7 @@ def run_in_vm(out: Path, command: str, uml: bool, extra: Sequence[str] = ()) -> 
     try:
         return process.wait()
     except BaseException:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
+        stop_group(process, grace_s=30)
         raise
 
 

@@ -104,16 +104,21 @@ def run_group(argv: Sequence[str], timeout_s: float | None = None) -> subprocess
     try:
         output, _ = process.communicate(timeout=timeout_s)
     except BaseException:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(process.pid, signal.SIGKILL)
-            process.communicate()
+        stop_group(process, grace_s=10)
         raise
     return subprocess.CompletedProcess(list(argv), process.returncode, output, "")
+
+
+def stop_group(process: subprocess.Popen, grace_s: float) -> None:
+    """SIGINT to the process group `process` leads, SIGKILL if it is not gone after `grace_s`."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(process.pid, signal.SIGINT)
+    try:
+        process.communicate(timeout=grace_s)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+        process.communicate()
 
 
 def run_checked(argv: Sequence[str], what: str) -> None:
