@@ -204,6 +204,23 @@ TEST_F(ProgramDownloadTest, AWriteFailureAbortsWithAHardwareError) {
   EXPECT_EQ(flash_status(), cia302::flash_status(FlashError::FlashWriteError, false));
 }
 
+// A write that fails on the segment handed on when the transfer's last one arrives: the abort ends
+// the transfer there (no segments follow a last one), so the client's next request is served.
+// Ending on seqno 63 makes that request's first byte (0x40, an upload) look like the next seqno.
+TEST_F(ProgramDownloadTest, AWriteFailureAtTheLastSegmentLeavesTheServerReadyForTheNextRequest) {
+  stop_and_clear();
+  constexpr std::size_t kSegments = 63;
+  const std::size_t header_bytes = make_image({}).size();
+  const auto image = make_image(pattern(kSegments * 7 - header_bytes));
+  ASSERT_EQ(block_download(image, kSegments - 1), SdoAbort::None);
+  store.fail_writes = true;
+  Frame last{static_cast<std::uint8_t>(kSegments | 0x80)};
+  std::copy_n(image.end() - 7, 7, last.begin() + 1);
+  receive(make_frame(kSdoRx, {last[0], last[1], last[2], last[3], last[4], last[5], last[6], last[7]}));
+  EXPECT_EQ(abort_of(next_sent().data), SdoAbort::HardwareError);
+  EXPECT_EQ(flash_status(), cia302::flash_status(FlashError::FlashWriteError, false)) << "answered";
+}
+
 TEST(ProgramDownloadWithoutStore, RefusesEveryDownloadAsFlashSecured) {
   ProgramDownload program{board::kNode.product_code};
   EXPECT_EQ(program.control(static_cast<std::uint32_t>(ProgramControl::Stop)), SdoAbort::None);
