@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "CommandLine.hpp"
 #include "hilfw/Board.hpp"
 #include "hilfw/HilRegisters.hpp"
 
@@ -125,6 +126,21 @@ TEST(RunBoard, TheRogueWriterJoinsTheScheduleWhenTheBoardNamesATarget) {
             0);
   const std::string schedule = testing::internal::GetCapturedStdout();
   EXPECT_NE(schedule.find("rogue_writer"), std::string::npos) << schedule;
+}
+
+// CiA 301's node ids 1..127 at both ends, and CiA 305's 0xFF (none yet, LSS only); 0 is not one.
+TEST(RunBoard, TheNodeIdIsOneTo127OrTheUnconfiguredOne) {
+  for (const char* id : {"1", "127", "0x7F", "0xFF"}) {
+    testing::internal::CaptureStdout();
+    EXPECT_EQ(run<OneSensor>({"--node-id", id, "--print-schedule"}, {.description = "x"}), 0) << id;
+    testing::internal::GetCapturedStdout();
+  }
+  for (const char* id : {"0", "128", "-1", "0xFE", "1x"}) {
+    testing::internal::CaptureStderr();
+    EXPECT_EQ(run<OneSensor>({"--node-id", id, "--print-schedule"}, {.description = "x"}), linuxhw::kExitUsage)
+        << id;
+    EXPECT_NE(testing::internal::GetCapturedStderr().find("is not 1..127 or 0xFF"), std::string::npos) << id;
+  }
 }
 
 TEST(RunBoard, TheProgramNameIsBoardInfosElseArgvZeros) {
