@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 
 #include "core/Scheduler.hpp"
@@ -108,6 +109,20 @@ class Cia402FaultReactionTest : public Cia402DriveTest {
     return cycles;
   }
 };
+
+// CiA 402's command coding (controlword bits 3..0) for every one of the 16 values.
+TEST(Cia402Controlword, EveryLowNibbleDecodesAsTheProfilesTableSays) {
+  using enum DriveCommand;
+  constexpr std::array<DriveCommand, 16> kExpected{
+      DisableVoltage, DisableVoltage, QuickStop, QuickStop,  // 0000 0001 0010 0011
+      DisableVoltage, DisableVoltage, Shutdown,  SwitchOn,   // 0100 0101 0110 0111
+      DisableVoltage, DisableVoltage, QuickStop, QuickStop,  // 1000 1001 1010 1011
+      DisableVoltage, DisableVoltage, Shutdown,  EnableOperation};
+  for (std::uint16_t low = 0; low < 16; ++low) {
+    EXPECT_EQ(decode_controlword(low), kExpected[low]) << "controlword 0x" << std::hex << low;
+    EXPECT_EQ(decode_controlword(static_cast<std::uint16_t>(low | 0xFF70u)), kExpected[low]) << "bits 4.. ignored";
+  }
+}
 
 TEST_F(Cia402DriveTest, OffersItsModesAndStartsSwitchOnDisabled) {
   // Modes 1, 3, 4, 6, 8, 9, 10: bit n-1 each.
