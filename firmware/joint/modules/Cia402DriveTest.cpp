@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 
 #include "core/Scheduler.hpp"
@@ -216,6 +217,22 @@ TEST_F(Cia402DriveTest, ProfileVelocityRampsAndAModeSwitchWithHaltStaysHalted) {
   for (int i = 0; i < 49; ++i) step();
   // 20 rad/s^2 (profile_acceleration) for 50 cycles of 1 ms.
   EXPECT_NEAR(board.get(FieldId::drive_velocity_reference), 1.0F, 1.0e-3F);
+}
+
+// Profile velocity's target reached (statusword bit 10): the velocity within the window of the
+// target from either side, below it while accelerating as much as above it.
+TEST_F(Cia402DriveTest, ProfileVelocityTargetReachedOnlyWithinTheWindowOnEitherSide) {
+  constexpr std::uint16_t kTargetReached = cia402::bit(cia402::StatusBit::TargetReached);
+  enable(3.0F);
+  ASSERT_EQ(bus.write(FieldId::target_velocity, 2000.0F), core::SetResult::Ok);  // 2 rad/s
+  const float window_rad_s = board.get(FieldId::velocity_window) * 1.0e-3F;
+  ASSERT_LT(window_rad_s, 1.0F);
+  for (const float rad_s : {0.0F, 2.0F - 2.0F * window_rad_s, 2.0F, 2.0F + 0.5F * window_rad_s, 4.0F, -2.0F}) {
+    derived.hold(FieldId::motor_velocity, rad_s * kGearRatio);
+    step();
+    const bool within = std::abs(rad_s - 2.0F) <= window_rad_s;
+    EXPECT_EQ((status() & kTargetReached) != 0, within) << rad_s << " rad/s against 2 rad/s";
+  }
 }
 
 TEST_F(Cia402DriveTest, AFaultIsReactedToThenResetByTheFaultManagersRules) {
