@@ -62,6 +62,18 @@ TEST(PidController, DerivativeActsOnTheMeasurementSoASetpointStepGivesNoKick) {
   EXPECT_FLOAT_EQ(pid.update(5.0F, 0.001F, kDtS, gains, 10.0F), -1.0F);
 }
 
+// Saturated the other way the integrator is not updated (anti-windup), but a limit lowered since
+// still bounds what it holds, on either side.
+TEST(PidController, ALoweredLimitBoundsTheIntegralEvenWhileSaturated) {
+  for (const float sign : {1.0F, -1.0F}) {
+    PidController pid;
+    for (int i = 0; i < 800; ++i) pid.update(sign, 0.0F, kDtS, {.ki = 1.0F}, 1.0F);
+    ASSERT_NEAR(pid.integral(), 0.8F * sign, 1e-3F);
+    EXPECT_FLOAT_EQ(pid.update(-20.0F * sign, 0.0F, kDtS, {.kp = 0.1F, .ki = 1.0F}, 0.5F), -0.5F * sign);
+    EXPECT_FLOAT_EQ(pid.integral(), 0.5F * sign) << "sign " << sign;
+  }
+}
+
 TEST(PidController, ResetForgetsTheIntegral) {
   PidController pid;
   for (int i = 0; i < 100; ++i) {
