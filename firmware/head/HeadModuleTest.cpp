@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "core/Scheduler.hpp"
 #include "head/drivers/HeadRegisters.hpp"
@@ -152,6 +153,11 @@ TEST(HeadAttitude, PitchAndRollFromGravity) {
   const Attitude none = attitude_from_gravity(0.0F, 0.0F, 0.0F);
   EXPECT_EQ(none.pitch_rad, 0.0F);
   EXPECT_EQ(none.roll_rad, 0.0F);
+  // Upside down: gravity along +z of the head, so the upward force is -z; only all three axes at
+  // 0 are "no measurement".
+  const Attitude upside_down = attitude_from_gravity(0.0F, 0.0F, -g);
+  EXPECT_NEAR(std::fabs(upside_down.roll_rad), std::numbers::pi_v<float>, 1e-6F);
+  EXPECT_NEAR(upside_down.pitch_rad, 0.0F, 1e-6F);
 }
 
 TEST(Debounce, CountsOnlyConsecutiveCycles) {
