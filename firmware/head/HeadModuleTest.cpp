@@ -141,6 +141,19 @@ TEST_F(HeadModuleTest, SilentImuLatchesImuStale) {
   EXPECT_TRUE(latched(Bit::ImuStale));
 }
 
+// One new axis register makes the whole sample new, once, whichever axis it is.
+TEST(HeadRegisters, AnImuSampleIsFreshWhenAnyOneAxisIsNew) {
+  for (const HilInputId axis : {HilInputId::accel_x_counts, HilInputId::accel_y_counts, HilInputId::accel_z_counts,
+                                HilInputId::gyro_x_counts, HilInputId::gyro_y_counts, HilInputId::gyro_z_counts}) {
+    HeadRegisters registers;
+    ImuInput& imu = registers.drivers().imu;
+    EXPECT_FALSE(imu.read().fresh);
+    registers.write_input(axis, 1);
+    EXPECT_TRUE(imu.read().fresh) << "axis " << static_cast<int>(axis);
+    EXPECT_FALSE(imu.read().fresh) << "once";
+  }
+}
+
 TEST(HeadAttitude, PitchAndRollFromGravity) {
   const float g = 9.80665F;
   const float tilt = 0.3F;
