@@ -36,6 +36,9 @@ TEST(HilRegisters, BuffersThermistorSamplesAndCountsOverflows) {
 
 TEST(HilRegisters, PassesCurrentAndOutputsThrough) {
   HilRegisters registers;
+  // Before the first cycle the outputs read 0: the motor off, the LED off.
+  EXPECT_EQ(registers.read_output(board::HilOutputId::motor_duty), 0);
+  EXPECT_EQ(registers.read_output(board::HilOutputId::led_pattern), 0);
   registers.write_motor_current(-1234);
   const CurrentSample current = registers.drivers().motor_current.read();
   EXPECT_EQ(current.milliamps, -1234);
