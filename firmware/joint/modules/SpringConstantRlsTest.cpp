@@ -27,6 +27,28 @@ TEST(SpringConstantRls, ConvergesToAKnownStiffnessWithinFivePercent) {
   EXPECT_GT(rls.confidence(), 0.8);
 }
 
+// A reset forgets everything learnt: on the same samples a reset estimator and a new one agree
+// exactly (its covariance starts again from the configured prior on both parameters).
+TEST(SpringConstantRls, AResetEstimatorIsANewOne) {
+  const auto feed = [](SpringConstantRls& rls, double k, double offset, int samples) {
+    for (int n = 0; n < samples; ++n) {
+      const double deflection_rad = 0.05 * std::sin(2.0 * std::numbers::pi * 0.5 * n * 0.001);
+      rls.update(deflection_rad, k * deflection_rad + offset);
+    }
+  };
+  SpringConstantRls used;
+  used.reset(50.0);
+  feed(used, 80.0, 0.3, 5000);
+  used.reset(50.0);
+  SpringConstantRls fresh;
+  fresh.reset(50.0);
+  feed(used, 60.0, -0.5, 300);
+  feed(fresh, 60.0, -0.5, 300);
+  EXPECT_DOUBLE_EQ(used.spring_constant(), fresh.spring_constant());
+  EXPECT_DOUBLE_EQ(used.offset_nm(), fresh.offset_nm());
+  EXPECT_DOUBLE_EQ(used.confidence(), fresh.confidence());
+}
+
 TEST(SpringConstantRls, HasNoConfidenceWithoutExcitation) {
   // Constant deflection: k and the offset cannot be told apart.
   SpringConstantRls rls;
