@@ -226,6 +226,7 @@ def build_and_unit(
     jobs: int,
     scenario_tree: Workspace | None = None,
     use_coverage: bool = True,
+    again: bool = False,
 ) -> list[Mutant]:
     """Build each candidate and run the unit tests that execute its line on it (results kept
     per mutant); returns the mutants tried (the listed equivalents are skipped, not built).
@@ -248,7 +249,7 @@ def build_and_unit(
         folder = workspace.mutant_dir(mutant)
         result_path = folder / "result.json"
         digest = source_digest(workspace.source_root, mutant.path)
-        known = json.loads(result_path.read_text()) if result_path.exists() else {}
+        known = json.loads(result_path.read_text()) if result_path.exists() and not again else {}
         if known.get("source_sha1") == digest:
             kept = [folder / SCENARIO_FIRMWARE / Path(b).name for b in scenario_binaries]
             if scenario_tree is None or not known.get("compiled") or all(k.exists() for k in kept):
@@ -483,7 +484,12 @@ def run_command(args: argparse.Namespace) -> int:
     chosen = select(args, (workspace.build, workspace.src))
     print(f"mutate: {chosen.description}", flush=True)
     tried = build_and_unit(
-        workspace, chosen.candidates(out), args.jobs, scenario_tree, use_coverage=not args.no_coverage
+        workspace,
+        chosen.candidates(out),
+        args.jobs,
+        scenario_tree,
+        use_coverage=not args.no_coverage,
+        again=args.again,
     )
     plan_path = out / chosen.plan_name
     report.write_json(plan_path, {"mutants": [m.id for m in tried]})
@@ -584,6 +590,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     run.add_argument(
         "--mutant", action="append", metavar="ID", help="run this mutant (repeatable), not a sample"
+    )
+    run.add_argument(
+        "--again",
+        action="store_true",
+        help="judge the mutants again though a result on the same source is kept (after adding a "
+        "test that should kill a survivor: --mutant ID --again)",
     )
     run.add_argument("--sources", nargs="+", default=list(SOURCES), help=argparse.SUPPRESS)
     run.add_argument("--cmake-arg", action="append", help=argparse.SUPPRESS)

@@ -180,10 +180,16 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     assert results[survivor.id]["unit"]["selected"] == [], "no unit test executes its line: none run"
     assert results[survivor.id]["seconds"]["unit"] == 0.0
     assert "    -  return value * 3;\n    +  return value * 1;\n" in summary  # the survivor's diff
-    # A second run reuses every result (same sources): nothing is built again.
+    # A second run reuses every result (same sources): nothing is built again; --again judges anew.
     result = json.loads((out / "mutants" / killed.id / "result.json").read_text())
     assert mutate.main(argv) == 0
     assert json.loads((out / "mutants" / killed.id / "result.json").read_text()) == result
+    kept = out / "mutants" / killed.id / "result.json"
+    kept.write_text(json.dumps({**result, "kept_from_before": True}))
+    assert mutate.main([*argv, "--again"]) == 0
+    again = json.loads(kept.read_text())
+    assert "kept_from_before" not in again, "judged anew, not reused"
+    assert again["unit"]["killed_by"] == result["unit"]["killed_by"]
 
 
 def test_a_mutant_s_scenarios_run_its_release_firmware(tmp_path: Path) -> None:
