@@ -13,6 +13,7 @@ from pathlib import Path
 
 import can
 import pytest
+from fake_rig import traced_fake_rig
 
 from boardproto.cia301 import NmtCommand
 from hilrig.engine.rig import Rig
@@ -491,30 +492,10 @@ def test_a_robot_module_names_and_colours_its_own_series(tmp_path: Path) -> None
 
     table = RigTable.load()
     path = tmp_path / "robot.rrd"
-    channel = f"hilrig-trace-{next(_channels)}"
-    rig_bus, fake_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
-    fake = FakeJointNode(fake_bus, table=table)
     tracer = Tracer(TraceSink.rrd(path), table, batch_cycles=10, background=False, root="/modules/3")
-    rig = Rig(
-        rig_bus,
-        table=table,
-        params=JointParams.fast_thermal(),
-        seed=3,
-        tpdo_timeout_s=0.5,
-        activity=fake.activity,
-        tracer=tracer,
-    )
-    fake.boot()
-    try:
-        rig.start()
+    with traced_fake_rig(tracer, table) as rig:
         rig.set("velocity_setpoint", 2.0)
         rig.run(cycles=5)
-    finally:
-        rig.close()
-        fake.close()
-        tracer.close()
-        rig_bus.shutdown()
-        fake_bus.shutdown()
     colours: dict[str, int] = {}
     for chunk in rr.chunk.RrdReader(path).stream():
         batch = chunk.to_record_batch()
