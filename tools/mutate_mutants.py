@@ -78,6 +78,23 @@ def product_files(
     )
 
 
+def ninja_deps(build: Path, check: bool = False) -> dict[str, list[Path]]:
+    """ninja's deps log of `build`: each output it recorded (relative to the build, e.g. an object
+    file) and the files it was compiled from, resolved, in the log's order. `check`: a failing
+    ninja raises; else the log reads as empty."""
+    log = subprocess.run(
+        ["ninja", "-C", str(build), "-t", "deps"], capture_output=True, text=True, check=check
+    )
+    deps: dict[str, list[Path]] = {}
+    current: list[Path] | None = None
+    for line in log.stdout.splitlines():
+        if line and not line.startswith(" "):
+            current = deps.setdefault(line.split(":")[0], [])
+        elif current is not None and line.strip():
+            current.append((build / line.strip()).resolve())
+    return deps
+
+
 def compiled_by(build: Path, source: Path) -> set[str]:
     """The files of `source` (paths relative to it) that the built tree `build` compiles: its
     translation units (compile_commands.json) and the headers they include (ninja's deps log).
@@ -91,10 +108,7 @@ def compiled_by(build: Path, source: Path) -> set[str]:
             "the product files the host build compiles"
         )
     found = {Path(e["directory"], e["file"]).resolve() for e in json.loads(commands_path.read_text())}
-    deps = subprocess.run(
-        ["ninja", "-C", str(build), "-t", "deps"], capture_output=True, text=True, check=True
-    ).stdout
-    found |= {(build / line.strip()).resolve() for line in deps.splitlines() if line.startswith(" ")}
+    found |= {path for paths in ninja_deps(build, check=True).values() for path in paths}
     source = source.resolve()
     return {str(p.relative_to(source)) for p in found if p.is_relative_to(source)}
 

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from mutate_mutants import REPO, Mutant
+from mutate_mutants import REPO, Mutant, ninja_deps
 from mutate_scenarios import SCENARIO_CMAKE_ARGS, SCENARIO_FIRMWARE
 
 CMAKE_ARGS = ("-DCMAKE_BUILD_TYPE=RelWithDebInfo", "-DHIL_SANITIZE=ON", "-DHIL_TESTS=ON")
@@ -168,16 +168,10 @@ def translation_unit_of(workspace: Workspace, path: Path) -> tuple[list[str], st
         return None
     commands = {str(Path(e["file"]).resolve()): e for e in json.loads(commands_path.read_text())}
     entry = commands.get(str(path.resolve()))
-    if entry is None:
-        deps = subprocess.run(
-            ["ninja", "-C", str(workspace.build), "-t", "deps"], capture_output=True, text=True, check=False
-        ).stdout
-        current = None
-        for line in deps.splitlines():
-            if line and not line.startswith(" "):
-                current = line.split(":")[0]
-            elif current and Path(workspace.build, line.strip()).resolve() == path.resolve():
-                entry = next((e for e in commands.values() if e.get("output") == current), None)
+    if entry is None:  # a header: the first unit built from it that has a command
+        for output, sources in ninja_deps(workspace.build).items():
+            if path.resolve() in sources:
+                entry = next((e for e in commands.values() if e.get("output") == output), None)
                 if entry is not None:
                     break
     if entry is None:
