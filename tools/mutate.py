@@ -6,6 +6,7 @@ tests reject? `make mutate` runs it; the verdict is in tools/mutation_report.py.
     tools/mutate.py list [--mutants N] [--seed S] [--shard K/N]      the sample, nothing built
     tools/mutate.py report [--mutants N] [--seed S] [--shard K/N]    the report from the results so far
     tools/mutate.py merge REPORT... --out DIR                         shards' reports as one
+    tools/mutate.py keep [--out DIR]            its finished verdicts into tools/mutants-judged.json
     tools/mutate.py scenarios|coverage --out DIR                      (inside tools/with-vcan)
 
 The mutants (tools/mutate_mutants.py): universalmutator's C++ rules and the realistic operators
@@ -26,7 +27,9 @@ tools/mutate_coverage.py records which once per source state), then, in one user
 for the whole sample, the lockstep scenarios that execute its line against the mutant's release
 firmware (HIL_FIRMWARE; built in a tree of its own, tools/mutate_workspace.py), as make test's
 lockstep stage runs them, tools/mutate_scenarios.py. Each mutant's result is written as soon as it is
-known (build/mutate/mutants/ID), so a run stopped and started again goes on where it was.
+known (build/mutate/mutants/ID), so a run stopped and started again goes on where it was; `keep`
+adds the finished ones to tools/mutants-judged.json (tools/mutate_kept.py), from which a run in a
+fresh checkout starts each mutant whose file has not changed.
 
 A hang is a kill only against the unmutated firmware's own time. Unit tests: each gets
 HANG_FACTOR times the slowest test of the baseline ctest run on this machine plus a margin; the
@@ -48,12 +51,14 @@ import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import mutate_coverage as coverage
+import mutate_kept as kept_verdicts
 import mutate_sampling as sampling
 import mutation_report as report
 import scenario_shards
@@ -232,6 +237,7 @@ def build_and_unit(
     per mutant); returns the mutants tried (the listed equivalents are skipped, not built).
     With a `scenario_tree`, each mutant's firmware for the scenarios is built there and kept in
     its folder. The workspace is prepared (`prepare`) first."""
+    judged_at = kept_verdicts.head_commit(workspace.source_root)
     unit_timeout = baseline_unit_timeout(workspace.build, jobs, workspace.out)
     record = ensure_unit_coverage(workspace, jobs) if use_coverage else None
     unit_groups = coverage.unit_tests_by_executable(workspace.build) if record else {}
@@ -252,7 +258,8 @@ def build_and_unit(
         known = json.loads(result_path.read_text()) if result_path.exists() and not again else {}
         if known.get("source_sha1") == digest:
             kept = [folder / SCENARIO_FIRMWARE / Path(b).name for b in scenario_binaries]
-            if scenario_tree is None or not known.get("compiled") or all(k.exists() for k in kept):
+            judged = known.get("scenarios") is not None  # its whole verdict is known (or kept)
+            if scenario_tree is None or not known.get("compiled") or judged or all(k.exists() for k in kept):
                 continue  # done in an earlier run, on the same source
             with mutated(workspace, mutant):  # its unit results stand; its firmware is needed again
                 if scenario_tree.compile(jobs, scenario_binaries).returncode == 0:
@@ -260,7 +267,7 @@ def build_and_unit(
             continue
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir(parents=True)
-        result: dict[str, object] = {**asdict(mutant), "source_sha1": digest}
+        result: dict[str, object] = {**asdict(mutant), "source_sha1": digest, "judged_at": judged_at}
         started = time.monotonic()
         executables = record.covering(mutant.path, mutant.line, coverage.UNIT) if record else None
         targets = needed_targets(workspace.build, binaries, executables)
@@ -352,13 +359,19 @@ def write_report(
 ) -> list[report.Outcome]:
     equivalents = load_equivalents()
     outcomes = []
+    commits: Counter[str] = Counter()
     for mutant_id in ids:
         path = out / "mutants" / mutant_id / "result.json"
         if path.exists():
-            outcomes.append(outcome_of(json.loads(path.read_text()), equivalents))
+            result = json.loads(path.read_text())
+            outcomes.append(outcome_of(result, equivalents))
+            commits[result.get("judged_at", "unknown")] += 1
+    config = {**config, "judged_at": dict(commits)}
     sources = {o.path: (source_root / o.path).read_text() for o in outcomes}
     report.write_json(out / f"{name}.json", report.to_stryker(outcomes, sources, config))
     text = report.summary(outcomes, f"mutation testing: {config['description']}")
+    if len(commits) > 1:  # a run that went on from kept verdicts, or over commits
+        text += "\njudged at: " + ", ".join(f"{c[:12]} ({n})" for c, n in commits.most_common()) + "\n"
     report.write_atomically(out / f"{name}.txt", text)
     print(text)
     print(
@@ -385,6 +398,12 @@ class Selection:
         """The file, in the run's folder, of the mutants a run tried: one per shard, so that shards
         run side by side in one folder (their mutants are disjoint) keep theirs apart."""
         return "plan.json" if self.report_name == "report" else f"{self.report_name}-plan.json"
+
+    def universe(self) -> list[str]:
+        """Every mutant the run may try: the plan's candidates (or those chosen by id)."""
+        if self.plan is None:
+            return [m.id for m in self.chosen]
+        return [m.id for mutants in self.plan.candidates.values() for m in mutants]
 
     def candidates(self, out: Path) -> Iterable[Mutant]:
         if self.plan is None:
@@ -483,6 +502,14 @@ def run_command(args: argparse.Namespace) -> int:
     prepare(workspace, args.jobs, scenario_tree)
     chosen = select(args, (workspace.build, workspace.src))
     print(f"mutate: {chosen.description}", flush=True)
+    if not args.again:
+        seeded = kept_verdicts.seed(out, source_root, chosen.universe(), Path(args.kept))
+        if seeded:
+            print(
+                f"mutate: {seeded} mutants start from their verdicts kept in {args.kept} "
+                "(their files unchanged since)",
+                flush=True,
+            )
     tried = build_and_unit(
         workspace,
         chosen.candidates(out),
@@ -599,6 +626,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     run.add_argument("--sources", nargs="+", default=list(SOURCES), help=argparse.SUPPRESS)
     run.add_argument("--cmake-arg", action="append", help=argparse.SUPPRESS)
+    run.add_argument("--kept", default=str(kept_verdicts.KEPT), help=argparse.SUPPRESS)
+    keep = sub.add_parser(
+        "keep",
+        help="add a run's finished verdicts to tools/mutants-judged.json (commit it: a later run "
+        "on another machine starts from them)",
+    )
+    keep.add_argument("--out", default=str(DEFAULT_OUT), help="the run's folder (default build/mutate)")
+    keep.add_argument("--kept", default=str(kept_verdicts.KEPT), help=argparse.SUPPRESS)
     merge = sub.add_parser("merge", help="merge shards' reports")
     merge.add_argument("reports", nargs="+")
     merge.add_argument("--out", required=True)
@@ -619,6 +654,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return list_command(args)
         if args.command == "report":
             return report_command(args)
+        if args.command == "keep":
+            added, total = kept_verdicts.keep(Path(args.out).resolve(), Path(args.kept))
+            print(f"mutate: {added} verdicts added to {args.kept} ({total} kept)")
+            return 0
         if args.command == "merge":
             return merge_command(args)
         if args.command == "coverage":

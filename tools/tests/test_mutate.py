@@ -15,6 +15,7 @@ TOOLS = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(TOOLS))
 import mutate  # noqa: E402
 import mutate_coverage as coverage  # noqa: E402
+import mutate_kept  # noqa: E402
 import mutate_sampling as sampling  # noqa: E402
 import mutate_scenarios  # noqa: E402
 import mutation_report as report  # noqa: E402
@@ -153,7 +154,8 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
         "firmware",
         "--cmake-arg=-DCMAKE_BUILD_TYPE=Debug",
     ]
-    argv += ["--no-scenarios", "--jobs", "2", "--out", str(out)]
+    kept_file = tmp_path / "judged.json"
+    argv += ["--no-scenarios", "--jobs", "2", "--kept", str(kept_file), "--out", str(out)]
     for mutant in (killed, survivor, broken):
         argv += ["--mutant", mutant.id]
     assert mutate.main(argv) == 0
@@ -190,6 +192,14 @@ def test_a_run_on_a_tiny_tree_builds_tests_and_reports(tmp_path: Path) -> None:
     again = json.loads(kept.read_text())
     assert "kept_from_before" not in again, "judged anew, not reused"
     assert again["unit"]["killed_by"] == result["unit"]["killed_by"]
+    # Kept verdicts: only whole ones (without scenarios, the compile error alone); a run in a fresh
+    # folder starts from them.
+    assert mutate.main(["keep", "--out", str(out), "--kept", str(kept_file)]) == 0
+    assert list(json.loads(kept_file.read_text())["mutants"]) == [broken.id]
+    fresh = tmp_path / "fresh"
+    assert mutate.main([str(fresh) if arg == str(out) else arg for arg in argv]) == 0
+    started_from = json.loads((fresh / "mutants" / broken.id / "result.json").read_text())
+    assert started_from == json.loads(kept_file.read_text())["mutants"][broken.id]
 
 
 def test_a_mutant_s_scenarios_run_its_release_firmware(tmp_path: Path) -> None:
@@ -401,3 +411,42 @@ def test_a_mutant_builds_only_its_firmware_and_the_tests_that_execute_its_line(t
     assert mutate.needed_targets(tmp_path, binaries, []) == binaries, "no unit test executes its line"
     assert mutate.needed_targets(tmp_path, binaries, None) is None, "no coverage record: everything"
     assert mutate.needed_targets(tmp_path, binaries, ["elsewhere_tests"]) is None, "not where ctest runs it"
+
+
+def test_whole_verdicts_are_kept_and_start_a_fresh_run_while_their_file_is_unchanged(
+    tmp_path: Path,
+) -> None:
+    root = tmp_path / "src"
+    (root / "firmware").mkdir(parents=True)
+    source = root / "firmware" / "A.cpp"
+    source.write_text("int a() { return 1; }\n")
+    digest = mutate.source_digest(root, "firmware/A.cpp")
+    layer = {"killed_by": [], "timeout": None, "selected": 3}
+    results = {
+        "A-1": {
+            "compiled": True,
+            "unit": {**layer, "selected": ["x", "y"]},
+            "scenarios": layer,
+            "approved": layer,
+        },
+        "A-2": {"compiled": True, "unit": layer, "scenarios": None},  # its scenarios still to run
+        "A-3": {"compiled": False},
+    }
+    out = tmp_path / "out"
+    for mutant_id, result in results.items():
+        whole = {"id": mutant_id, "path": "firmware/A.cpp", "source_sha1": digest, **result}
+        report.write_json(out / "mutants" / mutant_id / "result.json", whole)
+    kept = tmp_path / "judged.json"
+    assert mutate_kept.keep(out, kept, commit="c0ffee") == (2, 2)
+    entries = mutate_kept.load(kept)
+    assert entries["A-1"]["unit"]["selected"] == 2 and entries["A-1"]["judged_at"] == "c0ffee"
+    assert mutate_kept.keep(out, kept, commit="later") == (0, 2), "the same verdicts: nothing new"
+    fresh = tmp_path / "fresh"
+    assert mutate_kept.seed(fresh, root, ["A-1", "A-2", "A-3", "B-1"], kept) == 2
+    assert json.loads((fresh / "mutants" / "A-1" / "result.json").read_text()) == entries["A-1"]
+    assert not (fresh / "mutants" / "A-2").exists()
+    source.write_text("int a() { return 2; }\n")
+    assert mutate_kept.seed(tmp_path / "changed", root, ["A-1", "A-3"], kept) == 0, "judged again"
+    kept.write_text(json.dumps({"format": 99, "mutants": {}}))
+    with pytest.raises(ValueError, match="format 99"):
+        mutate_kept.load(kept)
