@@ -634,6 +634,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     keep.add_argument("--out", default=str(DEFAULT_OUT), help="the run's folder (default build/mutate)")
     keep.add_argument("--kept", default=str(kept_verdicts.KEPT), help=argparse.SUPPRESS)
+    keep.add_argument(
+        "--judged-at",
+        metavar="COMMIT",
+        help="the commit that verdicts naming none were judged at (a run begun before `keep` "
+        "existed; default: the checkout's)",
+    )
     merge = sub.add_parser("merge", help="merge shards' reports")
     merge.add_argument("reports", nargs="+")
     merge.add_argument("--out", required=True)
@@ -655,7 +661,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "report":
             return report_command(args)
         if args.command == "keep":
-            added, total = kept_verdicts.keep(Path(args.out).resolve(), Path(args.kept))
+            added, total = kept_verdicts.keep(Path(args.out).resolve(), Path(args.kept), args.judged_at)
             print(f"mutate: {added} verdicts added to {args.kept} ({total} kept)")
             return 0
         if args.command == "merge":
