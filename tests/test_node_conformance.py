@@ -18,9 +18,12 @@ from conftest import NODE_ID, REPO, NodeUnderTest, start_node, stop_node
 
 from boardproto import load_table
 from boardproto.cia301 import (
+    HEARTBEAT_CONSUMER_INDEX,
+    SdoAbortCode,
     SdoCommand,
     emcy_cob_id,
     heartbeat_cob_id,
+    heartbeat_consumer_entry,
     sdo_request_cob_id,
     sdo_response_cob_id,
     split_emcy,
@@ -125,6 +128,38 @@ def test_bad_requests_get_the_cia301_abort_codes(node_under_test: NodeUnderTest)
     # A segment request with the wrong toggle bit is SdoServerTest's
     # (UploadSegmentWithToggleNotAlternatedAborts): here, on a loaded host, the server had
     # sometimes ended the upload before the segment request came (it answered 0x05040001).
+
+
+def test_heartbeat_consumer_entries_name_each_node_once(node_under_test: NodeUnderTest) -> None:
+    """CiA 301 1016h: two used entries for one node are refused; an entry rewritten with a new time
+    keeps its node, and an unused entry (time 0) may name a node another entry watches. The
+    watched nodes send nothing: an entry monitors only from its node's first heartbeat."""
+    sdo = node_under_test.node.sdo
+
+    def write(sub: int, entry: int) -> None:
+        sdo.download(HEARTBEAT_CONSUMER_INDEX, sub, entry.to_bytes(4, "little"))
+
+    def read(sub: int) -> int:
+        return int.from_bytes(sdo.upload(HEARTBEAT_CONSUMER_INDEX, sub), "little")
+
+    # An unused entry (time 0) naming node 0x20: heartbeat_consumer_entry builds used ones only.
+    unused_naming_0x20 = heartbeat_consumer_entry(0x20, 1) - 1
+    write(1, heartbeat_consumer_entry(0x20, 500))
+    write(1, heartbeat_consumer_entry(0x20, 700))  # its own entry, the same node: not a second one
+    assert read(1) == heartbeat_consumer_entry(0x20, 700)
+    incompatible = SdoAbortCode.PARAMETER_INCOMPATIBLE
+    expect_abort(incompatible, lambda: write(2, heartbeat_consumer_entry(0x20, 300)))
+    assert read(2) == 0, "a refused entry is not written"
+    write(2, unused_naming_0x20)  # it watches nothing
+    write(3, heartbeat_consumer_entry(0x21, 300))
+    expect_abort(incompatible, lambda: write(3, heartbeat_consumer_entry(0x20, 300)))
+    assert [read(sub) for sub in (1, 2, 3)] == [
+        heartbeat_consumer_entry(0x20, 700),
+        unused_naming_0x20,
+        heartbeat_consumer_entry(0x21, 300),
+    ]
+    for sub in (1, 2, 3):
+        write(sub, 0)
 
 
 def send_syncs(under_test: NodeUnderTest, count: int) -> None:
