@@ -122,3 +122,51 @@ def test_a_channel_in_use_takes_another_field_but_not_none(node_under_test) -> N
     assert refused.value.code == SdoAbortCode.PARAMETER_INCOMPATIBLE
     assert struct.unpack("<H", sdo.upload(channels, 1))[0] == second, "a refused write changes nothing"
     sdo.download(channels, 2, struct.pack("<H", 0))  # not in use: none is fine there
+
+
+EDGE_SAMPLES = 10
+
+
+def triggered_at(rig, recorder: RecorderClient) -> int:
+    """The rig cycle of a finished recording's trigger sample."""
+    for _ in range(EDGE_SAMPLES + 2):
+        rig.run(cycles=1)
+    assert recorder.progress().state == "done", recorder.progress()
+    recording = recorder.upload()
+    return recording.cycle_of(recording.trigger_sample) - 1  # the firmware counts SYNCs from 1
+
+
+@pytest.mark.requirement("REC_01")
+def test_a_trigger_fires_on_a_crossing_of_its_edge_only(make_scenario) -> None:
+    """A rising level trigger armed above its level waits for the value to go below and come back
+    to the level; a falling flag trigger fires when a watched bit clears, not while the bits stay
+    set nor when an unwatched one clears (the REAL32 setpoint carries the bits, as a bitset field
+    would). Each recording's trigger sample is the cycle of the crossing."""
+    rig = make_scenario().rig
+    rig.set("control_mode", ControlMode.VELOCITY)
+    rig.set("velocity_setpoint", 2.0)
+    recorder = RecorderClient(rig.node, TABLE)
+    watch = {"channels": ("motor_velocity",), "samples": EDGE_SAMPLES, "trigger_field": "velocity_setpoint"}
+
+    recorder.configure(CaptureSettings(**watch, trigger="level", level=1.0, edge="rising"))
+    recorder.arm()
+    rig.run(cycles=20)
+    assert recorder.progress().state == "armed", "above its level from the start: no crossing yet"
+    rig.set("velocity_setpoint", 0.5)
+    rig.run(cycles=20)
+    assert recorder.progress().state == "armed", "going below its level is not a rising edge"
+    crossing = rig.cycle
+    rig.set("velocity_setpoint", 1.0)  # at the level: a rising edge
+    assert triggered_at(rig, recorder) == crossing
+
+    rig.set("velocity_setpoint", 3.0)  # bits 0 and 1
+    recorder.configure(CaptureSettings(**watch, trigger="flag", mask=0b01, edge="falling"))
+    recorder.arm()
+    rig.run(cycles=20)
+    assert recorder.progress().state == "armed", "the watched bit stays set: no falling edge"
+    rig.set("velocity_setpoint", 1.0)  # bit 1 clears: not watched
+    rig.run(cycles=20)
+    assert recorder.progress().state == "armed", "an unwatched bit cleared"
+    crossing = rig.cycle
+    rig.set("velocity_setpoint", 0.0)  # bit 0 clears
+    assert triggered_at(rig, recorder) == crossing
