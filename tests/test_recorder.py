@@ -129,8 +129,7 @@ EDGE_SAMPLES = 10
 
 def triggered_at(rig, recorder: RecorderClient) -> int:
     """The rig cycle of a finished recording's trigger sample."""
-    for _ in range(EDGE_SAMPLES + 2):
-        rig.run(cycles=1)
+    rig.run(cycles=EDGE_SAMPLES + 2)
     assert recorder.progress().state == "done", recorder.progress()
     recording = recorder.upload()
     return recording.cycle_of(recording.trigger_sample) - 1  # the firmware counts SYNCs from 1

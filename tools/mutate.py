@@ -42,7 +42,6 @@ reason in tools/mutants-equivalent.toml and are not counted.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
 import shutil
@@ -74,6 +73,7 @@ from mutate_mutants import (  # noqa: F401 (the tool's names, as its tests use t
     load_equivalents,
     mutants_of,
     product_files,
+    source_digest,
 )
 from mutate_scenarios import (
     FIRMWARE_BINARIES,
@@ -150,10 +150,6 @@ def baseline_unit_timeout(build: Path, jobs: int, out: Path) -> float:
 
 
 # --- The run ----------------------------------------------------------------------------------
-def source_digest(root: Path, path: str) -> str:
-    return hashlib.sha1((root / path).read_bytes()).hexdigest()
-
-
 def ensure_unit_coverage(workspace: Workspace, jobs: int) -> coverage.Coverage | None:
     """The coverage record of the unit tests for the workspace's sources: built and recorded
     when the sources changed (a build tree of its own), else read back."""

@@ -11,13 +11,12 @@ with `run --mutant ID --again` and keep it again.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import subprocess
 from collections.abc import Iterable
 from pathlib import Path
 
-from mutate_mutants import REPO
+from mutate_mutants import REPO, source_digest
 from mutation_report import write_json
 
 KEPT = REPO / "tools" / "mutants-judged.json"
@@ -96,10 +95,8 @@ def seed(out: Path, source_root: Path, ids: Iterable[str], path: Path = KEPT) ->
         if entry is None or result_path.exists():
             continue
         if entry["path"] not in digests:
-            source = source_root / entry["path"]
-            digests[entry["path"]] = (
-                hashlib.sha1(source.read_bytes()).hexdigest() if source.exists() else None
-            )
+            exists = (source_root / entry["path"]).exists()
+            digests[entry["path"]] = source_digest(source_root, entry["path"]) if exists else None
         if digests[entry["path"]] != entry.get("source_sha1"):
             continue  # its file changed since: judged again
         write_json(result_path, entry)

@@ -78,6 +78,12 @@ def product_files(
     )
 
 
+def source_digest(root: Path, path: str) -> str:
+    """The SHA-1 of a product file (`path` relative to `root`): a mutant's result holds while it
+    is the same."""
+    return hashlib.sha1((root / path).read_bytes()).hexdigest()
+
+
 def ninja_deps(build: Path, check: bool = False) -> dict[str, list[Path]]:
     """ninja's deps log of `build`: each output it recorded (relative to the build, e.g. an object
     file) and the files it was compiled from, resolved, in the log's order. `check`: a failing
