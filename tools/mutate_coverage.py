@@ -41,6 +41,9 @@ COVERAGE_CMAKE_ARGS = (
 PREFIX_VARIABLE = "HIL_MUTATE_COVERAGE_DIR"
 """Set for the coverage scenarios: each scenario's counters go to a folder under it."""
 UNIT = "unit:"
+RECORD_FORMAT = 2
+"""Of coverage.json: a record of another format (format 1 lost the header lines that only unity
+test files ran) reads as one of other sources, so it is recorded again."""
 SCENARIO = "scenario:"
 
 
@@ -97,11 +100,15 @@ def executed_lines(counters: Path, objects_root: Path, source_root: Path) -> dic
 
 
 def _relative(file: str, objects_root: Path, source_root: Path) -> str | None:
-    path = (objects_root / file).resolve()
-    try:
-        return str(path.relative_to(source_root.resolve()))
-    except ValueError:
-        return None  # a system or generated header
+    """A gcov file name as a path under `source_root`. A relative name is the build tree's (what
+    ccache's base_dir makes of an include path) or the source tree's: the build maps the source
+    tree to "." (-ffile-prefix-map), which is how a unity test file's absolute includes arrive."""
+    root = source_root.resolve()
+    for base in (objects_root, source_root):
+        path = (base / file).resolve()
+        if path.is_relative_to(root) and path.exists():
+            return str(path.relative_to(root))
+    return None  # a system or generated header
 
 
 # --- The record ---------------------------------------------------------------------------------
@@ -130,6 +137,7 @@ class Coverage:
 
     def to_json(self) -> dict:
         return {
+            "format": RECORD_FORMAT,
             "digest": self.digest,
             "tests": self.tests,
             "blind": self.blind,
@@ -139,7 +147,8 @@ class Coverage:
     @classmethod
     def from_json(cls, data: dict) -> Coverage:
         lines = {p: {int(n): users for n, users in ls.items()} for p, ls in data["lines"].items()}
-        return cls(data["digest"], data["tests"], lines, data.get("blind", []))
+        digest = data["digest"] if data.get("format") == RECORD_FORMAT else "another format"
+        return cls(digest, data["tests"], lines, data.get("blind", []))
 
     def covering(self, path: str, line: int, layer: str) -> list[str] | None:
         """The tests of `layer` (UNIT or SCENARIO prefix) that execute the line; None when the

@@ -5,6 +5,7 @@ file, two unit tests), down to the report in Stryker's schema and the merge of s
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -128,6 +129,29 @@ def test_a_mutant_runs_only_the_tests_that_execute_its_line() -> None:
         "tests/b.py::two",
         "tests/c.py::killed",
     ]
+
+
+def test_a_header_line_run_only_by_a_unity_test_file_is_recorded(tmp_path: Path) -> None:
+    # The project's build maps the source tree to "." (-ffile-prefix-map) and a unity test file
+    # includes its tests by absolute path: gcov then names their headers relative to the
+    # source tree, not the build tree. A line lost so runs no unit test against its mutants.
+    src, build = tmp_path / "src", tmp_path / "build"
+    (src / "fw").mkdir(parents=True)
+    build.mkdir()
+    (src / "fw" / "Gate.hpp").write_text("inline bool open(int x) {\n  return x > 2;\n}\n")
+    test = '#include "fw/Gate.hpp"\nint main() { return open(3) ? 0 : 1; }\n'
+    (src / "fw" / "GateTest.cpp").write_text(test)
+    (build / "unity_0_cxx.cxx").write_text(f'#include "{src}/fw/GateTest.cpp"\n')
+    subprocess.run(
+        ["g++", "--coverage", f"-I{src}", f"-ffile-prefix-map={src}=.", "-c", "unity_0_cxx.cxx"],
+        cwd=build,
+        check=True,
+    )
+    subprocess.run(["g++", "--coverage", "unity_0_cxx.o", "-o", "gate_test"], cwd=build, check=True)
+    counters = tmp_path / "counters"
+    subprocess.run([build / "gate_test"], env={**os.environ, "GCOV_PREFIX": str(counters)}, check=True)
+    lines = coverage.executed_lines(counters, build, src)
+    assert lines["fw/Gate.hpp"][2] is True, lines
 
 
 def test_a_mutant_applies_to_its_line_only() -> None:
