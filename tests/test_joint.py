@@ -71,6 +71,30 @@ def test_velocity_step_settles_within_2_percent(make_scenario, capsys: pytest.Ca
     )
 
 
+@FULL_MAPPING_ON_THE_IDEAL_BUS
+@pytest.mark.requirement("CTRL_01")
+def test_the_velocity_loop_s_derivative_acts_on_the_measurement_s_rate(make_scenario) -> None:
+    # velocity_kd (0 by default) set: the derivative is of the measured velocity since the last
+    # cycle, so the setpoint step gives no kick (its cycle's duty is P + I alone) and a velocity
+    # held steady gives no derivative action (the loop settles as without it). A derivative of
+    # the error would saturate the step's cycle; one of the measurement since 0 would hold the
+    # duty at its limit once the joint turns.
+    table = RigTable.load().board
+    kp, ki = table.field("velocity_kp").default, table.field("velocity_ki").default
+    s = make_scenario()
+    s.rig.before_each_cycle(lambda rig: rig.set("position_setpoint", 0.0))
+    s.rig.set("velocity_kd", 0.0005)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
+    s.rig.set("velocity_setpoint", 4.0)
+    s.rig.run(seconds=0.8)
+    _, duty = s.rig.history("motor_duty_command")
+    first = duty[np.flatnonzero(np.abs(duty) > 1e-6)[0]]
+    dt_s = s.rig.period_us * 1e-6
+    assert first == pytest.approx(kp * 4.0 + ki * 4.0 * dt_s, rel=1e-3), "P + I of the step, no kick"
+    s.expect.settles_within("motor_velocity", target=4.0 * GEAR_RATIO, tolerance=0.02, by_s=0.5)
+    s.expect.stays_within("motor_duty_command", -0.95, 0.95)
+
+
 @pytest.mark.requirement("BUS_02")
 def test_the_demo_under_the_lean_profile(
     make_scenario, scenario_dir, capsys: pytest.CaptureFixture[str]

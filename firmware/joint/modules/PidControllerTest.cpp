@@ -62,6 +62,19 @@ TEST(PidController, DerivativeActsOnTheMeasurementSoASetpointStepGivesNoKick) {
   EXPECT_FLOAT_EQ(pid.update(5.0F, 0.001F, kDtS, gains, 10.0F), -1.0F);
 }
 
+// The derivative is of the measurement since the last update, not since zero: a measurement that
+// holds still away from 0 gives no derivative action, however long it has held.
+TEST(PidController, ASteadyMeasurementAwayFromZeroGivesNoDerivativeAction) {
+  PidController pid;
+  const PidGains gains{.kd = 0.01F};
+  pid.update(2.0F, 2.0F, kDtS, gains, 10.0F);
+  EXPECT_FLOAT_EQ(pid.update(2.0F, 2.0F, kDtS, gains, 10.0F), 0.0F);
+  EXPECT_FLOAT_EQ(pid.update(2.0F, 2.0F, kDtS, gains, 10.0F), 0.0F);
+  // And a step of the measurement acts once, in its cycle: 0.01 * 0.5 / 0.001 = 5.
+  EXPECT_FLOAT_EQ(pid.update(2.0F, 2.5F, kDtS, gains, 10.0F), -5.0F);
+  EXPECT_FLOAT_EQ(pid.update(2.0F, 2.5F, kDtS, gains, 10.0F), 0.0F);
+}
+
 // Saturated the other way the integrator is not updated (anti-windup), but a limit lowered since
 // still bounds what it holds, on either side.
 TEST(PidController, ALoweredLimitBoundsTheIntegralEvenWhileSaturated) {
