@@ -71,6 +71,9 @@ def test_four_modules_are_numbered_in_chain_order_and_keep_their_ids(
                 NODE.vendor_id, NODE.product_code, NODE.revision, module.serial_number
             )
         assert not lss.any_unconfigured()
+        for module in chain.modules:  # the chain output switched once, when its id came
+            log = module.firmware.log_path.read_text(errors="replace")
+            assert log.count("configured over LSS") == 1, f"{module.firmware.log_path}: {log[-2000:]}"
 
 
 @pytest.mark.requirement("LSS_01")
