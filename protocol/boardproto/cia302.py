@@ -85,6 +85,9 @@ IMAGE_MAGIC = b"HILFWIMG"
 IMAGE_FORMAT_VERSION = 1
 IMAGE_VERSION_BYTES = 32
 """The 0x100A string's room in the header, NUL-padded (the firmware's stamped slot is as long)."""
+SOFTWARE_VERSION_SECTION = ".hil_software_version"
+"""The ELF section of a Linux-target firmware that holds its 0x100A string (IMAGE_VERSION_BYTES,
+NUL-padded): `boardproto image --version` stamps another version into a copy there."""
 
 
 class ImageField(enum.IntEnum):

@@ -60,6 +60,8 @@ inline constexpr std::array<std::uint8_t, {len(cia302.IMAGE_MAGIC)}> kImageMagic
 inline constexpr std::uint16_t kImageFormatVersion = {cia302.IMAGE_FORMAT_VERSION};
 inline constexpr std::size_t kImageHeaderBytes = {cia302.IMAGE_HEADER_BYTES};
 inline constexpr std::size_t kImageVersionBytes = {cia302.IMAGE_VERSION_BYTES};
+// A macro, not a constant: __attribute__((section(...))) takes a string literal only.
+#define HIL_SOFTWARE_VERSION_SECTION "{cia302.SOFTWARE_VERSION_SECTION}"
 namespace image_field {{
 {_image_fields()}
 }}  // namespace image_field

@@ -22,10 +22,8 @@ import tempfile
 import zlib
 from pathlib import Path
 
-from boardproto.cia302 import IMAGE_VERSION_BYTES, ImageHeader
+from boardproto.cia302 import IMAGE_VERSION_BYTES, SOFTWARE_VERSION_SECTION, ImageHeader
 from boardproto.table import BoardTable
-
-VERSION_SECTION = ".hil_software_version"
 
 
 class ImageBuildError(RuntimeError):
@@ -42,20 +40,30 @@ def read_version(executable: Path) -> str:
     """The 0x100A string stamped into `executable`."""
     with tempfile.TemporaryDirectory() as scratch:
         dump = Path(scratch) / "version"
-        _objcopy("--dump-section", f"{VERSION_SECTION}={dump}", str(executable), str(Path(scratch) / "copy"))
+        _objcopy(
+            "--dump-section",
+            f"{SOFTWARE_VERSION_SECTION}={dump}",
+            str(executable),
+            str(Path(scratch) / "copy"),
+        )
         return dump.read_bytes()[:IMAGE_VERSION_BYTES].split(b"\0", 1)[0].decode("ascii")
 
 
 def _stamp(executable: Path, version: str) -> None:
     with tempfile.TemporaryDirectory() as scratch:
         dump = Path(scratch) / "version"
-        _objcopy("--dump-section", f"{VERSION_SECTION}={dump}", str(executable), str(Path(scratch) / "copy"))
+        _objcopy(
+            "--dump-section",
+            f"{SOFTWARE_VERSION_SECTION}={dump}",
+            str(executable),
+            str(Path(scratch) / "copy"),
+        )
         size = len(dump.read_bytes())
         encoded = version.encode("ascii")
         if len(encoded) >= min(size, IMAGE_VERSION_BYTES):
             raise ImageBuildError(f"version {version!r} does not fit the {IMAGE_VERSION_BYTES}-byte slot")
         dump.write_bytes(encoded.ljust(size, b"\0"))
-        _objcopy("--update-section", f"{VERSION_SECTION}={dump}", str(executable))
+        _objcopy("--update-section", f"{SOFTWARE_VERSION_SECTION}={dump}", str(executable))
 
 
 def build_image(table: BoardTable, firmware: Path, *, version_suffix: str = "", strip: bool = False) -> bytes:

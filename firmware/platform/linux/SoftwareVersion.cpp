@@ -21,7 +21,7 @@ static_assert(board::kNode.software_version.size() < cia302::kImageVersionBytes)
 }  // namespace
 
 // Not in the anonymous namespace and `used`: the linker keeps it under its section name.
-__attribute__((section(".hil_software_version"), used)) constinit const Slot hil_software_version =
+__attribute__((section(HIL_SOFTWARE_VERSION_SECTION), used)) constinit const Slot hil_software_version =
     slot_of(board::kNode.software_version);
 
 std::string_view software_version() {
