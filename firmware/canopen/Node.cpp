@@ -407,7 +407,7 @@ void Node::poll(std::uint32_t now_us) {
   if (state_ != NmtState::Stopped) send_sdo_segments(now_us);
   if (state_ == NmtState::Operational) {
     poll_event_tpdos(timeout_now(now_us));
-    poll_rpdo_deadlines(now_us);
+    poll_rpdo_deadlines(timeout_now(now_us));
   }
 }
 

@@ -205,7 +205,7 @@ void Node::receive_rpdo(std::size_t number, const CanFrame& frame, std::uint32_t
   ++counters_.rpdos_received;
   clear_emcy(length_error);  // a well-formed frame ends the length error, if it was active
   pdo.received_once = true;
-  pdo.last_received_us = now_us;
+  pdo.last_received_us = timeout_now(now_us);  // the deadline runs on the timeout clock
   if (pdo.deadline_missed) {
     pdo.deadline_missed = false;
     clear_emcy(emcy::rpdo_timeout(communication_index));
@@ -268,6 +268,12 @@ void Node::send_tpdo(Pdo& pdo, const std::array<std::uint8_t, 8>& data, std::uin
 
 void Node::transmit_synchronous_pdos(std::uint32_t now_us) {
   if (state_ != NmtState::Operational) return;
+  // First the event TPDOs that the cycle changed or whose timer ended with it, and the EMCY of
+  // an RPDO deadline that ended with it: a master that takes a SYNC's frames until its
+  // synchronous TPDOs are in then has them among that SYNC's (sent by the poll after, each
+  // would land in this SYNC's or the next's as the host schedules).
+  poll_event_tpdos(timeout_now(now_us));
+  poll_rpdo_deadlines(timeout_now(now_us));
   for (Pdo& pdo : tpdos_) {
     if (!pdo.due_at_sync) continue;
     pdo.due_at_sync = false;
@@ -295,6 +301,8 @@ void Node::poll_rpdo_deadlines(std::uint32_t now_us) {
 std::uint32_t Node::us_until_pdo_timer(std::uint32_t now_us, std::uint32_t limit_us) const {
   std::uint32_t soonest = limit_us;
   for (const Pdo& pdo : rpdos_) {
+    // On the control clock a deadline moves only with a cycle, and poll() follows every cycle.
+    if (timeout_clock_ == TimeoutClock::ControlCycles) break;
     if (!pdo.valid() || pdo.event_timer_ms == 0 || !pdo.received_once || pdo.deadline_missed) continue;
     soonest = std::min(soonest, time_left_us(now_us, pdo.last_received_us, std::uint32_t{pdo.event_timer_ms} * 1000u));
   }

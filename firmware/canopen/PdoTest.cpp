@@ -393,6 +393,32 @@ TEST_F(RpdoDeadlineTest, MissedDeadlineRaisesEmcy8250AndTheNextFrameClearsIt) {
   EXPECT_EQ(next_sent(), make_frame(kEmcy, {0, 0, 0, 0, 0, 0, 0, 0}));
 }
 
+// In lockstep the deadline is control time, as every other timer of the node: a host that
+// stalls between two cycles misses no deadline, and the deadline ends on its cycle.
+TEST_F(RpdoDeadlineTest, OnControlCyclesTheDeadlineCountsOnlyControlTime) {
+  constexpr std::uint32_t kPeriodUs = 1'000;
+  node.set_timeout_clock(TimeoutClock::ControlCycles);
+  const std::uint32_t cob_id = cia301::cob_id(cia301::FunctionCode::Rpdo1, kNodeId);
+  ASSERT_EQ(download(0x1400, 1, cob_id | 0x8000'0000u, 4), SdoAbort::None);
+  ASSERT_EQ(download(0x1400, 5, 15, 2), SdoAbort::None);  // 15 ms deadline
+  ASSERT_EQ(download(0x1400, 1, cob_id, 4), SdoAbort::None);
+  nmt(NmtCommand::Start);
+  CanFrame frame = make_frame(cob_id, {});
+  frame.len = 8;
+  receive(frame);
+  all_sent();
+  for (int i = 0; i < 100; ++i) advance_us(1'000'000);  // the host stalls for 100 s
+  EXPECT_TRUE(all_sent().empty()) << "wall time alone misses no deadline";
+  for (int cycle = 1; cycle < 15; ++cycle) {
+    node.advance_control_time(kPeriodUs);
+    advance_us(0);
+  }
+  EXPECT_TRUE(all_sent().empty()) << "14 cycles: inside the deadline";
+  node.advance_control_time(kPeriodUs);
+  advance_us(0);
+  EXPECT_EQ(next_sent(), make_frame(kEmcy, {0x50, 0x82, 0x11, 0x00, 0x14, 0, 0, 0})) << "the 15th ends it";
+}
+
 TEST_F(RpdoDeadlineTest, ErrorRegisterCanBeMappedIntoATpdo) {
   const std::uint32_t cob_id = cia301::cob_id(cia301::FunctionCode::Tpdo1, kNodeId);
   for (std::uint16_t n = 0; n < board::kTpdoCount; ++n) {
