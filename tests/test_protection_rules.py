@@ -105,6 +105,50 @@ def test_watchdog_trips_on_its_cycle_and_cuts_the_drive_there(make_scenario) -> 
     assert EmcyCode.SETPOINT_STREAM_LOST in [record.code for record in s.rig.emcy]
 
 
+@pytest.mark.requirement("PROT_07")
+def test_only_a_fault_clear_of_one_clears_the_latch(make_scenario) -> None:
+    # fault_clear takes 0..1: a write of 0.5 or of 0 is no clear, and the latch with its safe
+    # state and zero duty holds through it; 1 clears it in the next cycle.
+    s = make_scenario()
+    s.rig.set("watchdog_cycles", WATCHDOG_CYCLES)
+    moving(s)
+    s.rig.pause_rpdo(SETPOINT_RPDO)
+    s.rig.run(cycles=WATCHDOG_CYCLES + 5)
+    s.rig.resume_rpdo(SETPOINT_RPDO)  # the cause is gone, the latch holds
+    s.rig.run(cycles=10)
+    for value in (0.5, 0.0):
+        written_at = s.rig.cycle
+        s.rig.set("fault_clear", value)
+        s.rig.run(cycles=10)
+        flags, safe, duty = by_cycle(s, "fault_flags"), by_cycle(s, "safe_state"), by_cycle(s, "motor_duty")
+        for n in range(written_at, s.rig.cycle):
+            assert (FaultFlags(int(flags[n])), safe[n], duty[n]) == (FaultFlags.COMMAND_WATCHDOG, 1.0, 0), (
+                f"fault_clear = {value}: cycle {n}"
+            )
+    cleared_at = s.rig.cycle
+    s.rig.set("fault_clear", 1.0)
+    s.rig.run(cycles=10)
+    flags, safe = by_cycle(s, "fault_flags"), by_cycle(s, "safe_state")
+    assert (FaultFlags(int(flags[cleared_at])), safe[cleared_at]) == (FaultFlags(0), 0.0), "cleared at once"
+
+
+@pytest.mark.requirement("CTRL_01")
+def test_the_duty_is_limited_to_max_duty(make_scenario) -> None:
+    # max_duty set below any duty the loop would settle at: a step far out of reach holds the
+    # duty at exactly max_duty (thermal_derate is 1 at ambient), never past it. (The velocity
+    # loop and the drive arbiter both limit to it: one of the two limits changed alone does not
+    # show on the bus.)
+    max_duty = 0.37
+    s = make_scenario()
+    s.rig.set("max_duty", max_duty)
+    s.rig.set("control_mode", ControlMode.VELOCITY)
+    s.rig.set("velocity_setpoint", 20.0)
+    s.rig.run(seconds=0.3)
+    _, command = s.rig.history("motor_duty_command")
+    assert float(np.max(np.abs(command))) == pytest.approx(max_duty, rel=1e-6)
+    assert float(np.mean(np.isclose(command, max_duty, rtol=1e-6))) > 0.9, "pinned at the limit"
+
+
 @pytest.mark.requirement("PROT_04")
 def test_a_disabled_drive_never_trips_the_watchdog(make_scenario) -> None:
     s = make_scenario()
