@@ -19,8 +19,10 @@ from conftest import NODE_ID, REPO, NodeUnderTest, start_node, stop_node
 from boardproto import load_table
 from boardproto.cia301 import (
     HEARTBEAT_CONSUMER_INDEX,
+    FunctionCode,
     SdoAbortCode,
     SdoCommand,
+    cob_id,
     emcy_cob_id,
     heartbeat_cob_id,
     heartbeat_consumer_entry,
@@ -310,6 +312,33 @@ def test_stale_encoder_is_reported_by_emcy_naming_the_field(node_under_test: Nod
     }
     assert node.sdo[0x1001].raw != 0  # error register
     assert node.sdo[0x1003][0].raw >= 1  # pre-defined error field holds it
+
+
+def test_the_error_history_keeps_the_newest_eight_newest_first(node_under_test: NodeUnderTest) -> None:
+    # Nine EMCYs, told apart by the object each names: a frame one byte short of RPDO1, RPDO2,
+    # RPDO3 in turn (EMCY 0x8210 naming 0x1400, 0x1401, 0x1402), each round ended by full frames
+    # (the error resets, which 0x1003 does not record). 0x1003 holds the newest eight, newest
+    # first, the object in the upper half; writing 0 empties it, any other value is refused.
+    node = node_under_test.node
+    node.nmt.state = "OPERATIONAL"
+    rpdos = (FunctionCode.RPDO1, FunctionCode.RPDO2, FunctionCode.RPDO3)
+    bus = node_under_test.network
+    for _ in range(3):
+        for function in rpdos:
+            bus.send_message(cob_id(function, NODE_ID), bytes(1))
+        for function in rpdos:
+            bus.send_message(cob_id(function, NODE_ID), bytes(8))
+    history = node.sdo[0x1003]
+    assert history[0].raw == 8, "the newest eight of nine"
+    newest_first = [0x1402, 0x1401, 0x1400] * 3
+    entries = [history[k].raw for k in range(1, 9)]
+    assert entries == [EmcyCode.PDO_LENGTH_ERROR | (index << 16) for index in newest_first[:8]], [
+        f"{e:#010x}" for e in entries
+    ]
+    with pytest.raises(SdoAbortedError):
+        history[0].raw = 1
+    history[0].raw = 0
+    assert history[0].raw == 0, "emptied"
 
 
 @pytest.mark.firmware_platforms("linux", "qemu-virt")
