@@ -310,3 +310,32 @@ def test_the_master_heartbeat_lost_enters_pre_operational_by_default(make_scenar
     assert s.rig.node.read("motor_duty") == 0, "the latched fault holds the duty at 0"
     # Pre-operational, the node takes no RPDO: the encoders go stale too.
     assert FaultFlags.MASTER_HEARTBEAT_LOST in FaultFlags(int(s.rig.node.read("fault_flags")))
+
+
+@pytest.mark.requirement("PROT_08")
+def test_the_master_heartbeat_lost_with_error_behaviour_stopped_stops_the_node(make_scenario) -> None:
+    # 0x1029:01 = 2: the same loss, its EMCY in its cycle, then the node stopped (no PDO, its
+    # heartbeat says so), not pre-operational.
+    s = make_scenario(before_start=lambda rig: watch_the_master(rig, ErrorBehaviour.STOPPED))
+    assert s.rig.node.error_behaviour is ErrorBehaviour.STOPPED
+    master_heartbeat = heartbeat_cob_id(MASTER_NODE_ID)
+    beating = {"on": True, "last": -1}
+
+    def master(rig) -> None:
+        if beating["on"] and rig.cycle % MASTER_EVERY_CYCLES == 0:
+            rig.send_frame(master_heartbeat, bytes([NmtState.OPERATIONAL]))
+            beating["last"] = rig.cycle
+
+    s.rig.before_each_cycle(master)
+    moving(s, setpoint=40.0)
+    beating["on"] = False
+    last = beating["last"]
+    s.rig.run(cycles=2 * MASTER_CONSUMER_MS)
+    lost_at = last - 1 + MASTER_CONSUMER_MS * 1000 // s.rig.period_us
+    lost = [record for record in s.rig.emcy if record.code == EmcyCode.HEARTBEAT_ERROR]
+    assert [record.cycle for record in lost] == [lost_at], s.rig.emcy
+    duty = by_cycle(s, "motor_duty")
+    assert duty[lost_at - 1] != 0 and max(duty) == lost_at - 1, "TPDOs stop with the event's cycle"
+    assert not s.rig.driver.operational
+    states = [s.rig.node.remote.nmt.wait_for_heartbeat(timeout=30) for _ in range(2)]
+    assert states[-1] == "STOPPED", f"heartbeats said {states}"
