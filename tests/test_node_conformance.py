@@ -19,6 +19,7 @@ from conftest import NODE_ID, REPO, NodeUnderTest, start_node, stop_node
 from boardproto import load_table
 from boardproto.cia301 import (
     HEARTBEAT_CONSUMER_INDEX,
+    MASTER_NODE_ID,
     FunctionCode,
     SdoAbortCode,
     SdoCommand,
@@ -170,6 +171,35 @@ def send_syncs(under_test: NodeUnderTest, count: int) -> None:
     tpdo1 = TABLE.tpdos[0].cob_id(NODE_ID)
     for _ in range(count):
         under_test.wait_for(tpdo1, after_subscribing=under_test.network.sync.transmit)
+
+
+@pytest.mark.requirement("PROT_08")
+def test_the_heartbeat_consumer_works_in_pre_operational(node_under_test: NodeUnderTest) -> None:
+    # 0x1016 watches the master for 17 ms; the node stays pre-operational. In lockstep each SYNC
+    # is one 1 ms control cycle (each one paced by an SDO read, which the node answers after it):
+    # the master's one heartbeat arrives before SYNC 1, so 16 SYNCs are inside the consumer
+    # time and the 17th ends it with EMCY 0x8130 naming the master. Error behaviour acts only
+    # on an operational node: it stays pre-operational.
+    consumer_ms = 17
+    node, network = node_under_test.node, node_under_test.network
+    entry = heartbeat_consumer_entry(MASTER_NODE_ID, consumer_ms)
+    node.sdo.download(HEARTBEAT_CONSUMER_INDEX, 1, entry.to_bytes(4, "little"))
+    emcys: list[bytes] = []
+    network.subscribe(emcy_cob_id(NODE_ID), lambda can_id, data, ts: emcys.append(bytes(data)))
+    network.send_message(heartbeat_cob_id(MASTER_NODE_ID), bytes([0x7F]))  # pre-operational
+
+    def sync_and_wait() -> None:
+        network.sync.transmit()
+        assert node.sdo[0x1001].raw is not None  # answered after the SYNC: it has been processed
+
+    for _ in range(consumer_ms - 1):
+        sync_and_wait()
+    assert not [e for e in emcys if split_emcy(e).code == EmcyCode.HEARTBEAT_ERROR], "inside its time"
+    sync_and_wait()
+    lost = [split_emcy(e) for e in emcys if split_emcy(e).code == EmcyCode.HEARTBEAT_ERROR]
+    assert len(lost) == 1 and lost[0].manufacturer[2] == MASTER_NODE_ID, lost
+    assert node.nmt.wait_for_heartbeat(timeout=30) == "PRE-OPERATIONAL"
+    node.sdo.download(HEARTBEAT_CONSUMER_INDEX, 1, bytes(4))
 
 
 @pytest.mark.requirement("SDO_04")
