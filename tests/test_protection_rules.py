@@ -85,13 +85,18 @@ def test_watchdog_trips_on_its_cycle_and_cuts_the_drive_there(make_scenario) -> 
     s.rig.pause_rpdo(SETPOINT_RPDO)
     s.rig.run(cycles=WATCHDOG_CYCLES + 10)
     trips_at = stopped_from - 1 + WATCHDOG_CYCLES
-    tripped, flags, duty = (
+    tripped, flags, duty, led = (
         by_cycle(s, "watchdog_tripped"),
         by_cycle(s, "fault_flags"),
         by_cycle(s, "motor_duty"),
+        by_cycle(s, "led_pattern"),
     )
     for n in range(stopped_from - 5, s.rig.cycle):
         late = n >= trips_at
+        # The status LED: on while the mode runs, fast blink from the safe state's own cycle.
+        assert LedPattern(int(led[n])) == (LedPattern.FAST_BLINK if late else LedPattern.ON), (
+            f"LED at cycle {n}"
+        )
         assert tripped[n] == (1.0 if late else 0.0), (
             f"watchdog_tripped at cycle {n} (stream stopped {stopped_from})"
         )
