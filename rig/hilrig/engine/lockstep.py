@@ -339,7 +339,8 @@ class LockstepDriver(Driver):
         """Send `out` (the cycle's frames not sent yet), then read the link until every TPDO
         due at this SYNC (COB-IDs in `due`) is in (the wall-clock bound is only a hang guard),
         then what is already queued behind them; TPDOs that are not cyclic (event-driven) are
-        taken as they come. A cyclic TPDO twice, one not due, or a frame of the wrong length is
+        taken as they come (the firmware sends those a SYNC's cycle causes before its cyclic
+        ones, so they are this cycle's; one sent between SYNCs is the next cycle's). A cyclic TPDO twice, one not due, or a frame of the wrong length is
         a LockstepError of this cycle. Returns the values by COB-ID, each also appended to its
         PDO's rows in the history as this cycle's (none of them when the cycle fails)."""
         got: dict[int, tuple[Value, ...]] = {}
