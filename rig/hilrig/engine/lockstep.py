@@ -340,9 +340,10 @@ class LockstepDriver(Driver):
         due at this SYNC (COB-IDs in `due`) is in (the wall-clock bound is only a hang guard),
         then what is already queued behind them; TPDOs that are not cyclic (event-driven) are
         taken as they come (the firmware sends those a SYNC's cycle causes before its cyclic
-        ones, so they are this cycle's; one sent between SYNCs is the next cycle's). A cyclic TPDO twice, one not due, or a frame of the wrong length is
-        a LockstepError of this cycle. Returns the values by COB-ID, each also appended to its
-        PDO's rows in the history as this cycle's (none of them when the cycle fails)."""
+        ones, so they are this cycle's; one sent between SYNCs is the next cycle's). A cyclic
+        TPDO twice, one not due, or a frame of the wrong length is a LockstepError of this
+        cycle. Returns the values by COB-ID, each also appended to its PDO's rows in the history
+        as this cycle's (none of them when the cycle fails)."""
         got: dict[int, tuple[Value, ...]] = {}
         exchange, decoders = self._exchange, self._decoders
         assert exchange is not None, "configure() binds the exchange"
