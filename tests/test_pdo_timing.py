@@ -27,15 +27,15 @@ SETPOINT_RPDO, DEADLINE_MS = 2, 15
 WATCHDOG_CYCLES = 200  # longer than the deadline: the deadline's EMCY comes first
 
 
-def gaps(rig, name: str) -> list[int]:
-    """The cycles between the frames that carried `name`."""
-    t, _ = rig.history(name)
-    return np.diff(np.rint(t / rig.period_s).astype(int)).tolist()
-
-
 def cycles_of(rig, name: str) -> list[int]:
+    """The cycles of the frames that carried `name`."""
     t, _ = rig.history(name)
     return np.rint(t / rig.period_s).astype(int).tolist()
+
+
+def gaps(rig, name: str) -> list[int]:
+    """The cycles between the frames that carried `name`."""
+    return np.diff(cycles_of(rig, name)).tolist()
 
 
 def synchronous_setup(rig) -> None:

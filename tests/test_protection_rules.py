@@ -287,10 +287,10 @@ def test_the_master_heartbeat_beside_every_rpdo_is_heard_until_it_stops(make_sce
     assert s.rig.driver.operational, "0x1029 = 1: the node stays operational"
 
 
-@pytest.mark.requirement("PROT_08")
-def test_the_master_heartbeat_lost_enters_pre_operational_by_default(make_scenario) -> None:
-    s = make_scenario(before_start=watch_the_master)
-    assert s.rig.node.error_behaviour is ErrorBehaviour.PRE_OPERATIONAL
+def lose_the_master_while_moving(s) -> str:
+    """The master beats every MASTER_EVERY_CYCLES, the joint moves, then the beats stop: the
+    EMCY comes in the consumer time's own cycle and the TPDOs end with it. The NMT state the
+    node's heartbeat says afterwards."""
     master_heartbeat = heartbeat_cob_id(MASTER_NODE_ID)
     beating = {"on": True, "last": -1}
 
@@ -311,7 +311,14 @@ def test_the_master_heartbeat_lost_enters_pre_operational_by_default(make_scenar
     assert duty[lost_at - 1] != 0 and max(duty) == lost_at - 1, "TPDOs stop with the event's cycle"
     assert not s.rig.driver.operational
     states = [s.rig.node.remote.nmt.wait_for_heartbeat(timeout=30) for _ in range(2)]
-    assert states[-1] == "PRE-OPERATIONAL", f"heartbeats said {states}"
+    return states[-1]
+
+
+@pytest.mark.requirement("PROT_08")
+def test_the_master_heartbeat_lost_enters_pre_operational_by_default(make_scenario) -> None:
+    s = make_scenario(before_start=watch_the_master)
+    assert s.rig.node.error_behaviour is ErrorBehaviour.PRE_OPERATIONAL
+    assert lose_the_master_while_moving(s) == "PRE-OPERATIONAL"
     assert s.rig.node.read("motor_duty") == 0, "the latched fault holds the duty at 0"
     # Pre-operational, the node takes no RPDO: the encoders go stale too.
     assert FaultFlags.MASTER_HEARTBEAT_LOST in FaultFlags(int(s.rig.node.read("fault_flags")))
@@ -323,24 +330,4 @@ def test_the_master_heartbeat_lost_with_error_behaviour_stopped_stops_the_node(m
     # heartbeat says so), not pre-operational.
     s = make_scenario(before_start=lambda rig: watch_the_master(rig, ErrorBehaviour.STOPPED))
     assert s.rig.node.error_behaviour is ErrorBehaviour.STOPPED
-    master_heartbeat = heartbeat_cob_id(MASTER_NODE_ID)
-    beating = {"on": True, "last": -1}
-
-    def master(rig) -> None:
-        if beating["on"] and rig.cycle % MASTER_EVERY_CYCLES == 0:
-            rig.send_frame(master_heartbeat, bytes([NmtState.OPERATIONAL]))
-            beating["last"] = rig.cycle
-
-    s.rig.before_each_cycle(master)
-    moving(s, setpoint=40.0)
-    beating["on"] = False
-    last = beating["last"]
-    s.rig.run(cycles=2 * MASTER_CONSUMER_MS)
-    lost_at = last - 1 + MASTER_CONSUMER_MS * 1000 // s.rig.period_us
-    lost = [record for record in s.rig.emcy if record.code == EmcyCode.HEARTBEAT_ERROR]
-    assert [record.cycle for record in lost] == [lost_at], s.rig.emcy
-    duty = by_cycle(s, "motor_duty")
-    assert duty[lost_at - 1] != 0 and max(duty) == lost_at - 1, "TPDOs stop with the event's cycle"
-    assert not s.rig.driver.operational
-    states = [s.rig.node.remote.nmt.wait_for_heartbeat(timeout=30) for _ in range(2)]
-    assert states[-1] == "STOPPED", f"heartbeats said {states}"
+    assert lose_the_master_while_moving(s) == "STOPPED"
