@@ -1,7 +1,7 @@
 """The joint's CiA 402 drive face driven by a real master: python-canopen's `BaseNode402`,
-unmodified, stock timeouts (tests/cia402_master.py says how it meets the lockstep rig), the
-joint's physics behind the firmware: every state, every mode, homing on a hard stop, a quick
-stop and a fault it recovers from.
+unmodified, its waits stretched for a loaded host (tests/cia402_master.py says how it meets the
+lockstep rig), the joint's physics behind the firmware: every state, every mode, homing on a hard
+stop, a quick stop and a fault it recovers from.
 """
 
 from __future__ import annotations
