@@ -6,7 +6,6 @@
 
 #include <cstdint>
 #include <string>
-#include <string_view>
 #include <utility>
 
 namespace core {
@@ -34,8 +33,6 @@ enum class StartupError : std::uint8_t {
   // Scheduler::start() was called a second time.
   AlreadyStarted,
 };
-
-std::string_view to_string(StartupError error);
 
 class [[nodiscard]] StartupStatus {
  public:

@@ -107,6 +107,18 @@ class SocketCanPortTest : public ::testing::Test {
   BusPeer peer;
 };
 
+TEST_F(SocketCanPortTest, AnInterfaceThatIsNotCanIsRefusedWithItsCause) {
+  // The loopback device exists, so its index is found, and the kernel's CAN_RAW bind refuses a
+  // device that is not CAN: the error says which step failed, on which interface, and why.
+  SocketCanPort other;
+  std::string error;
+  EXPECT_FALSE(other.open("lo", error));
+  EXPECT_EQ(error, "cannot bind to CAN interface lo: No such device");
+  SocketCanPort absent;
+  EXPECT_FALSE(absent.open("no-such-can9", error));
+  EXPECT_EQ(error, "no such CAN interface no-such-can9: create it with `make vcan` (root), or run through tools/with-vcan");
+}
+
 TEST_F(SocketCanPortTest, AcceptOnlyPassesExactlyTheListedStandardDataFrames) {
   constexpr std::uint32_t kMarker = 0x000;
   const std::vector<std::uint32_t> accepted = {kMarker, 0x123};

@@ -319,6 +319,24 @@ TEST(CtuCanFd, BusOffAndTheErrorCountersAreReadOnTheStateChangeInterrupt) {
   EXPECT_EQ(driver.counters().bus_off_events, 1u);
 }
 
+TEST(CtuCanFd, TheErrorWarningInterruptAloneReadsTheErrorCounters) {
+  // EWLI is bit 2 of INT_STAT in the core's datasheet: the model raises that bit, not the
+  // driver's constant, so a driver that enabled and tested another bit misses the warning.
+  constexpr std::uint32_t kDatasheetErrorWarning = 1u << 2;
+  CoreModel model;
+  Driver driver{model};
+  ASSERT_TRUE(driver.start());
+  EXPECT_NE(model.int_enabled & kDatasheetErrorWarning, 0u);
+  model.rec = 3;
+  model.tec = 97;  // past the warning limit (96), still error active
+  model.raise(kDatasheetErrorWarning);
+  driver.on_interrupt();
+  EXPECT_EQ(driver.fault_state(), virt::ctucan::FaultState::ErrorActive);
+  EXPECT_EQ(driver.counters().receive_errors, 3u);
+  EXPECT_EQ(driver.counters().transmit_error_count, 97u);
+  EXPECT_EQ(driver.counters().bus_off_events, 0u);
+}
+
 TEST(CtuCanFd, OverrunsOfTheCoreAndOfThePortAreCounted) {
   CoreModel model;
   Driver driver{model};
